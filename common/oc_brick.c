@@ -1,0 +1,193 @@
+/* oc_brick.c — classification, 16-bit log encoding and decoding of 8³ bricks (oc_brick.h).
+ *
+ * Decoding is shaders/brick.h's ocg_code_decode(), the same function the shaders run, so the
+ * encoder can pick each code by comparing what the renderer will actually see. */
+#include "oc_brick.h"
+
+#include <math.h>   /* log, isnan, isinf, signbit */
+#include <stddef.h> /* NULL */
+
+#include "brick.h" /* ocg_code_decode */
+
+/*-*** Sanitising ***/
+
+void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats) {
+  oc_sanitize_stats_t st = {0, 0, 0};
+  if (!v || n <= 0) return;
+  for (int i = 0; i < n; i++) {
+    float x = v[i];
+    if (isnan(x)) {
+      v[i] = 0.0f;
+      st.nan++;
+    } else if (isinf(x)) {
+      v[i] = x > 0.0f ? OC_VALUE_MAX : 0.0f;
+      st.inf++;
+    } else if (x < 0.0f) {
+      v[i] = 0.0f;
+      st.negative++;
+    } else if (x > OC_VALUE_MAX) {
+      v[i] = OC_VALUE_MAX; /* finite but absurd: clamped, not counted (no data error) */
+    } else if (x == 0.0f) {
+      v[i] = 0.0f; /* −0 → +0, so equal content always encodes to equal bytes */
+    }
+  }
+  /* Counts accumulate, so one stats struct can cover both channels or many bricks. */
+  if (stats) {
+    stats->nan += st.nan;
+    stats->inf += st.inf;
+    stats->negative += st.negative;
+  }
+}
+
+/*-*** Codes ***/
+
+static float oc__dec(uint32_t c, float lo, float hi) { return ocg_code_decode(c, lo, hi); }
+
+/* Largest code c in 1..65535 with decode(c) ≤ v, given decode(1) = lo ≤ v. The decoded sequence
+ * is non-decreasing in c (exp2f and the products are monotonic), so this is a bracket search.
+ * The log-space guess is almost always within one code, so the neighbourhood is tried first (two
+ * or three decodes); a binary search covers the rare case where float rounding of the decoder is
+ * larger than one code step (ratios within ~1e-3 of 1, where many codes decode to one float). */
+static uint32_t oc__code_floor(float v, float lo, float hi, uint32_t guess) {
+  uint32_t a, b; /* invariant: decode(a) ≤ v; b == 65536 or decode(b) > v */
+  if (guess <= 1) guess = 1;
+  if (guess > OC_CODE_MAX) guess = OC_CODE_MAX;
+  if (oc__dec(guess, lo, hi) <= v) {
+    if (guess == OC_CODE_MAX || oc__dec(guess + 1, lo, hi) > v) return guess;
+    if (guess + 1 == OC_CODE_MAX || oc__dec(guess + 2, lo, hi) > v) return guess + 1;
+    a = guess + 2;
+    b = OC_CODE_MAX + 1;
+  } else {
+    if (guess == 1) return 1; /* only if decode(1) ≠ lo, which the decoder rules out */
+    if (oc__dec(guess - 1, lo, hi) <= v) return guess - 1;
+    a = 1;
+    b = guess - 1;
+  }
+  while (b - a > 1) {
+    uint32_t m = a + (b - a) / 2;
+    if (oc__dec(m, lo, hi) <= v)
+      a = m;
+    else
+      b = m;
+  }
+  return a;
+}
+
+/* Best code for lo ≤ v (v may exceed hi) against a range with 0 < lo < hi: nearest in log space,
+ * then fixed up so |decode(code) − v| is the smallest any code achieves (ties go to the lower). */
+static uint16_t oc__encode_log(float v, float lo, float hi, double inv_log_ratio) {
+  double x = log((double)v / (double)lo) * inv_log_ratio * (double)OC_CODE_STEPS + 1.0;
+  uint32_t guess = x >= (double)OC_CODE_MAX ? OC_CODE_MAX : x <= 1.0 ? 1u : (uint32_t)(x + 0.5);
+  uint32_t c = oc__code_floor(v, lo, hi, guess);
+  if (c < OC_CODE_MAX) {
+    double below = (double)v - (double)oc__dec(c, lo, hi);
+    double above = (double)oc__dec(c + 1, lo, hi) - (double)v;
+    if (above < below) c++;
+  }
+  return (uint16_t)c;
+}
+
+uint16_t oc_code_encode(float v, oc_range_t r) {
+  /* NaN, ≤ 0, or a zero / malformed range: exact zero is the only faithful code. */
+  if (!(v > 0.0f) || !(r.lo > 0.0f) || !(r.hi >= r.lo)) return OC_CODE_ZERO;
+  if ((double)v < (double)r.hi / OC_CODE_MAX_RATIO) return OC_CODE_ZERO; /* flushed */
+  if (v < r.lo) return 2.0 * (double)v >= (double)r.lo ? 1 : OC_CODE_ZERO; /* nearer of 0 and lo */
+  if (!(r.hi > r.lo)) return 1;                                             /* uniform range */
+  return oc__encode_log(v, r.lo, r.hi, 1.0 / log((double)r.hi / (double)r.lo));
+}
+
+/* Exact for the C float decoder: decoded values are non-decreasing in the code, so any v in
+ * [lo, hi] lies between two neighbours a ≤ v ≤ b, and the nearer one is off by at most
+ * (b − a)/(a + b) relative (worst at the midpoint). Enumerating the 65534 gaps costs ~1 ms, which
+ * is fine for tests and diagnostics and gives a bound with no slack: the analytic form
+ * exp(ln(hi/lo)/(2·65534)) − 1 plus a rigorous float-rounding term would exceed 1.6e-4 at the
+ * largest ratio, while the real decoder stays below it. */
+double oc_code_rel_error_bound(oc_range_t r) {
+  if (!(r.lo > 0.0f) || !(r.hi > r.lo)) return 0.0; /* zero channel, or uniform: exact */
+  double worst = 0.0, prev = (double)oc__dec(1, r.lo, r.hi);
+  for (uint32_t c = 2; c <= OC_CODE_MAX; c++) {
+    double d = (double)oc__dec(c, r.lo, r.hi);
+    double e = fabs(d - prev) / (d + prev);
+    if (e > worst) worst = e;
+    prev = d;
+  }
+  /* Values between the decoded top code and hi (if the decoder lands below hi) map to the top. */
+  if (prev < (double)r.hi) {
+    double e = ((double)r.hi - prev) / (double)r.hi;
+    if (e > worst) worst = e;
+  }
+  return worst;
+}
+
+/*-*** Bricks ***/
+
+typedef enum { OC__CH_ZERO, OC__CH_UNIFORM, OC__CH_VARYING } oc__ch_kind_t;
+
+/* Reads one channel defensively (non-finite or negative values act as sanitised ones, so even an
+ * unsanitised caller cannot produce NaN ranges), classifies it and sets its range. */
+static oc__ch_kind_t oc__channel(const float *in, float v[OC_BRICK_VOXELS], oc_range_t *r) {
+  float mn = OC_VALUE_MAX, mx = 0.0f;
+  double sum = 0.0;
+  for (int i = 0; i < OC_BRICK_VOXELS; i++) {
+    float x = in[i];
+    if (!(x > 0.0f)) x = 0.0f; /* NaN, −0 and negatives */
+    if (x > OC_VALUE_MAX) x = OC_VALUE_MAX;
+    v[i] = x;
+    if (x < mn) mn = x;
+    if (x > mx) mx = x;
+    sum += x;
+  }
+  if (mx == 0.0f) {
+    r->lo = r->hi = 0.0f;
+    return OC__CH_ZERO;
+  }
+  if ((double)mx <= (double)mn * (1.0 + OC_UNIFORM_TOL)) {
+    /* The mean lies in [mn, mx], so it is positive and keeps the channel's level. */
+    r->lo = r->hi = (float)(sum / OC_BRICK_VOXELS);
+    return OC__CH_UNIFORM;
+  }
+  double flush = (double)mx / OC_CODE_MAX_RATIO;
+  float lo = mx;
+  for (int i = 0; i < OC_BRICK_VOXELS; i++)
+    if ((double)v[i] >= flush && v[i] < lo) lo = v[i];
+  r->lo = lo;
+  r->hi = mx;
+  return OC__CH_VARYING;
+}
+
+static void oc__channel_codes(const float v[OC_BRICK_VOXELS], oc__ch_kind_t kind, oc_range_t r, uint16_t *code) {
+  if (kind != OC__CH_VARYING) {
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) code[i] = kind == OC__CH_ZERO ? OC_CODE_ZERO : 1;
+    return;
+  }
+  double flush = (double)r.hi / OC_CODE_MAX_RATIO;
+  if (r.hi == r.lo) { /* zeros and one repeated value: code 1 decodes to it exactly */
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) code[i] = v[i] == 0.0f ? OC_CODE_ZERO : 1;
+    return;
+  }
+  double inv = 1.0 / log((double)r.hi / (double)r.lo);
+  for (int i = 0; i < OC_BRICK_VOXELS; i++)
+    code[i] = (double)v[i] < flush ? OC_CODE_ZERO : oc__encode_log(v[i], r.lo, r.hi, inv);
+}
+
+oc_node_kind_t oc_brick_encode(const float sigma[OC_BRICK_VOXELS], const float tau[OC_BRICK_VOXELS],
+                               oc_brick_codes_t *codes, oc_range_t range[OC_CHANNELS]) {
+  float v[OC_CHANNELS][OC_BRICK_VOXELS];
+  oc__ch_kind_t k[OC_CHANNELS];
+  k[OC_CH_SIGMA] = oc__channel(sigma, v[OC_CH_SIGMA], &range[OC_CH_SIGMA]);
+  k[OC_CH_TAU] = oc__channel(tau, v[OC_CH_TAU], &range[OC_CH_TAU]);
+  /* Empty or uniform only if both channels are (design.md): a shadowed but clear node (σt = 0,
+   * τ > 0) still carries τ for the air inside it. */
+  if (k[0] == OC__CH_ZERO && k[1] == OC__CH_ZERO) return OC_NODE_EMPTY;
+  if (k[0] != OC__CH_VARYING && k[1] != OC__CH_VARYING) return OC_NODE_UNIFORM;
+  if (codes)
+    for (int c = 0; c < OC_CHANNELS; c++) oc__channel_codes(v[c], k[c], range[c], codes->code[c]);
+  return OC_NODE_BRICK;
+}
+
+void oc_brick_decode(const oc_brick_codes_t *codes, const oc_range_t range[OC_CHANNELS],
+                     float sigma[OC_BRICK_VOXELS], float tau[OC_BRICK_VOXELS]) {
+  float *out[OC_CHANNELS] = {sigma, tau};
+  for (int c = 0; c < OC_CHANNELS; c++)
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) out[c][i] = oc__dec(codes->code[c][i], range[c].lo, range[c].hi);
+}

@@ -1,0 +1,29 @@
+#include "oc_err.h"
+
+const char *oc_strerror(int err) {
+  switch (err) {
+#define OC__ERR_MSG(name, val, msg) \
+  case (val):                       \
+    return msg;
+    OC_ERRNO_MAP(OC__ERR_MSG)
+#undef OC__ERR_MSG
+    case 0:
+      return "success";
+    default:
+      return "unknown error";
+  }
+}
+
+const char *oc_err_name(int err) {
+  switch (err) {
+#define OC__ERR_NAME(name, val, msg) \
+  case (val):                        \
+    return #name;
+    OC_ERRNO_MAP(OC__ERR_NAME)
+#undef OC__ERR_NAME
+    case 0:
+      return "OK";
+    default:
+      return "UNKNOWN";
+  }
+}

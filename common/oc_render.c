@@ -1,0 +1,396 @@
+/* oc_render.c — the CPU reference renderer (see oc_render.h for the model).
+ *
+ * Each pixel is independent, so rows are handed to threads through an atomic counter and the
+ * image is the same for any thread count. Positions and distances along the ray are double;
+ * the optics come from the shared C/GLSL headers in float, as on the GPU. */
+#include "oc_render.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "atmosphere.h" /* ocg_atmo_extinction, ocg_atmo_*_scattering */
+#include "brick.h"      /* ocg_code_decode, ocg_trilerp */
+#include "oc_err.h"
+#include "oc_log.h"
+#include "oc_planet.h"
+#include "optics.h"   /* phase functions, segment weights, octaves */
+#include "sampling.h" /* ocg_jitter */
+
+/* Locating a leaf looks this far ahead along the ray so that a point on a shared face is found in
+ * the node being entered, not the one being left (leaves are ≥ 6 m; doubles resolve 1e-9 m here). */
+#define OC__LOCATE_EPS 1e-4
+
+typedef struct {
+  int64_t idx;         /**< leaf index, -1 outside the root cube */
+  const oc_node_t *n;  /**< NULL outside */
+  const oc_brick_t *b; /**< brick payload for OC_NODE_BRICK */
+  oc_dvec3 origin;
+  double size;
+} oc__leaf_t;
+
+typedef struct {
+  const oc_state_t *s;
+  oc_render_desc_t d;
+  oc_image_t *img;
+  int have_atmo;
+  ocg_atmosphere atm;
+  ocg_vec3 sun_e;      /**< solar irradiance at the top of the atmosphere */
+  double ground_r;     /**< planet radius, or 0 without a planet */
+  double air_top;      /**< atmosphere top radius */
+  atomic_int next_row;
+  oc_render_stats_t *thread_stats;
+} oc__ctx_t;
+
+/* ---- State sampling ------------------------------------------------------------------------------ */
+
+static void oc__leaf_locate(const oc_state_t *s, oc_dvec3 p, oc__leaf_t *lf) {
+  oc_key_t k = oc_key_from_point(OC_KEY_MAX_LEVEL, p);
+  lf->idx = k == OC_KEY_INVALID ? -1 : oc_state_find_leaf(s, k);
+  if (lf->idx < 0) {
+    lf->n = NULL;
+    lf->b = NULL;
+    return;
+  }
+  lf->n = &s->nodes[lf->idx];
+  lf->b = lf->n->kind == OC_NODE_BRICK ? oc_state_find_brick(s, lf->n->brick_id) : NULL;
+  oc_key_bounds(lf->n->key, &lf->origin, &lf->size);
+}
+
+/* One channel of a node at local position u ∈ [0,1]³: the shared reconstruction (brick.h). */
+static float oc__leaf_channel(const oc__leaf_t *lf, int ch, ocg_vec3 u) {
+  const oc_node_t *n = lf->n;
+  if (!n || n->kind == OC_NODE_EMPTY) return 0.0f;
+  if (n->kind == OC_NODE_UNIFORM || !lf->b) return n->range[ch].lo;
+  float lo = n->range[ch].lo, hi = n->range[ch].hi;
+  if (hi == 0.0f) return 0.0f;
+  ocg_vec3 g = ocg_v3(ocg_clamp(u.x, 0.0f, 1.0f) * 7.0f, ocg_clamp(u.y, 0.0f, 1.0f) * 7.0f,
+                      ocg_clamp(u.z, 0.0f, 1.0f) * 7.0f);
+  int i = (int)ocg_min(floorf(g.x), 6.0f), j = (int)ocg_min(floorf(g.y), 6.0f), k = (int)ocg_min(floorf(g.z), 6.0f);
+  ocg_vec3 f = ocg_v3(g.x - (float)i, g.y - (float)j, g.z - (float)k);
+  const uint16_t *c = lf->b->codes.code[ch];
+  float v[8];
+  for (int q = 0; q < 8; q++) {
+    int di = q & 1, dj = (q >> 1) & 1, dk = (q >> 2) & 1;
+    v[q] = ocg_code_decode(c[ocg_brick_voxel((ocg_uint)(i + di), (ocg_uint)(j + dj), (ocg_uint)(k + dk))], lo, hi);
+  }
+  return ocg_trilerp(ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]), f);
+}
+
+static ocg_vec3 oc__leaf_local(const oc__leaf_t *lf, oc_dvec3 p) {
+  double inv = 1.0 / lf->size;
+  return ocg_v3((float)((p.x - lf->origin.x) * inv), (float)((p.y - lf->origin.y) * inv),
+                (float)((p.z - lf->origin.z) * inv));
+}
+
+void oc_render_sample_state(const oc_state_t *s, oc_dvec3 p, float *sigma_t, float *tau) {
+  oc__leaf_t lf;
+  oc__leaf_locate(s, p, &lf);
+  ocg_vec3 u = lf.n ? oc__leaf_local(&lf, p) : ocg_v3s(0.0f);
+  *sigma_t = oc__leaf_channel(&lf, OC_CH_SIGMA, u);
+  *tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
+}
+
+/* ---- Geometry -------------------------------------------------------------------------------------- */
+
+/* Ray–sphere (centre at the origin) entry/exit distances; false when missed. Written with the
+ * stable quadratic form since |o| ≈ 6.4e6 m. */
+static int oc__ray_sphere(oc_dvec3 o, oc_dvec3 d, double r, double *t0, double *t1) {
+  double b = oc_ddot(o, d);
+  double c = oc_ddot(o, o) - r * r;
+  double disc = b * b - c;
+  if (disc < 0.0) return 0;
+  double sq = sqrt(disc);
+  double q = b > 0.0 ? -(b + sq) : -(b - sq);
+  double a0 = q, a1 = q != 0.0 ? c / q : 0.0;
+  *t0 = a0 < a1 ? a0 : a1;
+  *t1 = a0 < a1 ? a1 : a0;
+  return 1;
+}
+
+/* Ray–AABB interval; false when missed. */
+static int oc__ray_box(oc_dvec3 o, oc_dvec3 d, oc_dvec3 lo, oc_dvec3 hi, double *t0, double *t1) {
+  double a = -INFINITY, b = INFINITY;
+  const double oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+  for (int i = 0; i < 3; i++) {
+    if (dd[i] == 0.0) {
+      if (oo[i] < l[i] || oo[i] > h[i]) return 0;
+      continue;
+    }
+    double ta = (l[i] - oo[i]) / dd[i], tb = (h[i] - oo[i]) / dd[i];
+    if (ta > tb) {
+      double t = ta;
+      ta = tb;
+      tb = t;
+    }
+    if (ta > a) a = ta;
+    if (tb < b) b = tb;
+  }
+  if (a > b) return 0;
+  *t0 = a;
+  *t1 = b;
+  return 1;
+}
+
+/* Distance along the ray from p to the exit of the node's box. */
+static double oc__node_exit(const oc__leaf_t *lf, oc_dvec3 p, oc_dvec3 d) {
+  const double pp[3] = {p.x, p.y, p.z}, dd[3] = {d.x, d.y, d.z};
+  const double o[3] = {lf->origin.x, lf->origin.y, lf->origin.z};
+  double t = INFINITY;
+  for (int i = 0; i < 3; i++) {
+    if (dd[i] > 0.0) t = fmin(t, (o[i] + lf->size - pp[i]) / dd[i]);
+    else if (dd[i] < 0.0) t = fmin(t, (o[i] - pp[i]) / dd[i]);
+  }
+  return t;
+}
+
+/* Clear-sky transmittance to the sun at radius r for sun cosine mu_s. Without an atmosphere, the
+ * planet still casts its shadow (a hard edge) when there is a planet. */
+static ocg_vec3 oc__sun_transmittance(const oc__ctx_t *cx, double r, double mu_s) {
+  if (cx->have_atmo) return oc_atmo_sun_transmittance(cx->d.atmo, r, mu_s);
+  if (cx->ground_r > 0.0 && r > cx->ground_r) {
+    double horizon = -sqrt(fmax(0.0, 1.0 - (cx->ground_r / r) * (cx->ground_r / r)));
+    if (mu_s < horizon) return ocg_v3s(0.0f);
+  }
+  return ocg_v3s(1.0f);
+}
+
+/* ---- One ray ----------------------------------------------------------------------------------------- */
+
+static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitter, float out[4], oc_render_stats_t *st) {
+  const oc_render_desc_t *d = &cx->d;
+  const oc_dvec3 sun = cx->s->sun_dir;
+  const float mu = (float)oc_ddot(dir, sun);
+  const double S = OC_ROOT_HALF;
+  ocg_vec3 L = ocg_v3s(0.0f), T = ocg_v3s(1.0f);
+  float Tc = 1.0f;
+
+  /* The marched interval: the root cube (clouds) and, with air, the atmosphere sphere; cut by the ground. */
+  double t0 = 0.0, t1 = 0.0, a0, a1;
+  int in_cube = oc__ray_box(o, dir, oc_dv3(-S, -S, -S), oc_dv3(S, S, S), &a0, &a1);
+  if (in_cube) {
+    t0 = a0;
+    t1 = a1;
+  }
+  double air_len = 0.0;
+  if (cx->have_atmo && oc__ray_sphere(o, dir, cx->air_top, &a0, &a1) && a1 > 0.0) {
+    a0 = fmax(a0, 0.0);
+    air_len = a1 - a0;
+    if (!in_cube) {
+      t0 = a0;
+      t1 = a1;
+      in_cube = 1;
+    }
+  }
+  t0 = fmax(t0, 0.0);
+  int hit_ground = 0;
+  if (cx->ground_r > 0.0) {
+    if (oc_ddot(o, o) < cx->ground_r * cx->ground_r) { /* camera inside the planet: nothing visible */
+      out[0] = out[1] = out[2] = 0.0f;
+      out[3] = 0.0f;
+      return;
+    }
+    if (oc__ray_sphere(o, dir, cx->ground_r, &a0, &a1) && a0 > 0.0) {
+      hit_ground = 1;
+      t1 = fmin(t1, a0);
+    }
+  }
+  double air_step = cx->have_atmo && air_len > 0.0 ? air_len / d->air_steps : INFINITY;
+
+  oc__leaf_t lf = {.idx = -2};
+  int exited = 0;
+  double t = t0;
+  while (in_cube && t < t1) {
+    oc_dvec3 p = oc_dmad(o, dir, t);
+    oc_dvec3 ploc = oc_dmad(o, dir, t + OC__LOCATE_EPS);
+    if (lf.idx == -2 || !lf.n || ploc.x < lf.origin.x || ploc.y < lf.origin.y || ploc.z < lf.origin.z ||
+        ploc.x >= lf.origin.x + lf.size || ploc.y >= lf.origin.y + lf.size || ploc.z >= lf.origin.z + lf.size) {
+      oc__leaf_locate(cx->s, ploc, &lf);
+      st->node_lookups++;
+    }
+    int cloudy = lf.n && lf.n->range[OC_CH_SIGMA].hi > 0.0f;
+    double te = t1;
+    if (lf.n) te = fmin(te, t + fmax(oc__node_exit(&lf, p, dir), OC__LOCATE_EPS));
+    if (cloudy) te = fmin(te, t + d->step_factor * lf.size / 7.0);
+    else if (lf.n) st->skipped_nodes++;
+    te = fmin(te, t + air_step);
+    double seg = te - t;
+    oc_dvec3 pm = oc_dmad(o, dir, t + jitter * seg);
+
+    float sig = 0.0f, tau = 0.0f;
+    if (lf.n && lf.n->kind != OC_NODE_EMPTY) {
+      ocg_vec3 u = oc__leaf_local(&lf, pm);
+      if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, u);
+      tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
+    }
+    double r = oc_dlen(pm);
+    float mu_s = (float)(oc_ddot(pm, sun) / r);
+    ocg_vec3 Esun = ocg_mul3(cx->sun_e, oc__sun_transmittance(cx, r, mu_s));
+    ocg_vec3 sigma_t = ocg_v3s(sig);
+    ocg_vec3 J = ocg_v3s(0.0f); /* Σ σs·S per unit length */
+    if (sig > 0.0f) {
+      float ms = ocg_ms_octaves(tau, mu, d->ms_a, d->ms_b, d->ms_c, d->ms_octaves);
+      ocg_vec3 Sc = ocg_scale3(Esun, ms);
+      if (cx->have_atmo && !(d->flags & OC_RF_NO_AMBIENT))
+        Sc = ocg_add3(Sc, ocg_scale3(ocg_mul3(cx->sun_e, oc_atmo_sky_fluence(d->atmo, r, mu_s)), OCG_INV_4PI));
+      J = ocg_scale3(Sc, d->albedo * sig);
+    }
+    if (cx->have_atmo && r < cx->air_top) {
+      float rf = (float)r;
+      ocg_vec3 sr = ocg_atmo_rayleigh_scattering(cx->atm, rf);
+      float sm = ocg_atmo_mie_scattering(cx->atm, rf);
+      sigma_t = ocg_add3(sigma_t, ocg_atmo_extinction(cx->atm, rf));
+      ocg_vec3 lit = ocg_scale3(Esun, ocg_exp(-tau)); /* air in a cloud's shadow */
+      ocg_vec3 single = ocg_add3(ocg_scale3(sr, ocg_phase_rayleigh(mu)),
+                                 ocg_v3s(sm * ocg_phase_cornette_shanks(mu, cx->atm.mie_g)));
+      ocg_vec3 multi = ocg_mul3(ocg_add3(sr, ocg_v3s(sm)), ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s)));
+      J = ocg_add3(J, ocg_add3(ocg_mul3(single, lit), multi));
+    }
+    float segf = (float)seg;
+    ocg_vec3 w = ocg_segment_weight3(sigma_t, segf);
+    L = ocg_add3(L, ocg_mul3(T, ocg_mul3(J, w)));
+    T = ocg_mul3(T, ocg_exp3(ocg_scale3(sigma_t, -segf)));
+    Tc *= ocg_exp(-sig * segf);
+    st->samples++;
+    t = te;
+    if (d->exit_t > 0.0 && ocg_max(T.x, ocg_max(T.y, T.z)) < (float)d->exit_t) {
+      st->early_exits++;
+      exited = 1;
+      break;
+    }
+  }
+
+  if (!exited) {
+    if (hit_ground) {
+      oc_dvec3 pg = oc_dmad(o, dir, t1);
+      double r = oc_dlen(pg);
+      float mu_s = (float)(oc_ddot(pg, sun) / r);
+      float sg, tg;
+      oc_render_sample_state(cx->s, pg, &sg, &tg);
+      ocg_vec3 E = ocg_scale3(oc__sun_transmittance(cx, r, mu_s), ocg_max(mu_s, 0.0f) * ocg_exp(-tg));
+      if (cx->have_atmo) E = ocg_add3(E, oc_atmo_sky_irradiance(d->atmo, r, mu_s));
+      ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);
+      L = ocg_add3(L, ocg_mul3(T, ocg_mul3(ocg_scale3(albedo, 1.0f / OCG_PI), ocg_mul3(cx->sun_e, E))));
+    } else if (d->background == OC_BG_CONSTANT) {
+      L = ocg_add3(L, ocg_scale3(T, d->background_radiance));
+    } else if (cx->have_atmo && !(d->flags & OC_RF_NO_SUN_DISC)) {
+      float cos_r = ocg_cos(cx->atm.sun_angular_radius);
+      if (mu > cos_r) {
+        float solid = 2.0f * OCG_PI * (1.0f - cos_r);
+        L = ocg_add3(L, ocg_mul3(T, ocg_scale3(cx->sun_e, 1.0f / solid)));
+      }
+    }
+  }
+  out[0] = L.x;
+  out[1] = L.y;
+  out[2] = L.z;
+  out[3] = Tc;
+  if (!isfinite(L.x) || !isfinite(L.y) || !isfinite(L.z)) st->nonfinite++;
+}
+
+/* ---- Threads ----------------------------------------------------------------------------------------- */
+
+typedef struct {
+  oc__ctx_t *cx;
+  int id;
+} oc__worker_t;
+
+static void *oc__worker(void *arg) {
+  oc__worker_t *wk = arg;
+  oc__ctx_t *cx = wk->cx;
+  oc_render_stats_t *st = &cx->thread_stats[wk->id];
+  const oc_render_desc_t *d = &cx->d;
+  for (;;) {
+    int y = atomic_fetch_add(&cx->next_row, 1);
+    if (y >= d->height) break;
+    for (int x = 0; x < d->width; x++) {
+      oc_dvec3 dir = oc_camera_ray(&d->camera, d->width, d->height, x, y);
+      float j = (d->flags & OC_RF_JITTER) ? ocg_jitter((ocg_uint)x, (ocg_uint)y, d->frame) : 0.5f;
+      oc__trace(cx, d->camera.pos, dir, j, cx->img->px + 4 * ((size_t)y * (size_t)d->width + (size_t)x), st);
+    }
+  }
+  return NULL;
+}
+
+static int oc__bad(const char *field) {
+  oc_log_error("render: invalid %s", field);
+  return OC_EINVAL;
+}
+
+int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_t *img, oc_render_stats_t *stats) {
+  if (!s || !desc || !img) return OC_EINVAL;
+  oc__ctx_t cx;
+  memset(&cx, 0, sizeof cx);
+  cx.s = s;
+  cx.d = *desc;
+  cx.img = img;
+  oc_render_desc_t *d = &cx.d;
+  if (d->width <= 0 || d->height <= 0 || img->w != d->width || img->h != d->height) return oc__bad("size");
+  if (!(d->camera.vfov_deg > 0.0 && d->camera.vfov_deg < 180.0)) return oc__bad("camera fov");
+  if (d->step_factor == 0.0) d->step_factor = OC_RENDER_DEFAULT_STEP_FACTOR;
+  if (!(d->step_factor > 0.0 && d->step_factor <= 1e6)) return oc__bad("step_factor (0, 1e6]");
+  if (d->air_steps == 0) d->air_steps = OC_RENDER_DEFAULT_AIR_STEPS;
+  if (d->air_steps < 1 || d->air_steps > 1 << 20) return oc__bad("air_steps");
+  if (d->exit_t == 0.0) d->exit_t = OC_RENDER_DEFAULT_EXIT_T;
+  if (d->flags & OC_RF_NO_EARLY_EXIT) d->exit_t = -1.0;
+  if (d->ms_octaves == 0) d->ms_octaves = OC_RENDER_DEFAULT_MS_OCTAVES;
+  if (d->ms_octaves < 1 || d->ms_octaves > 16) return oc__bad("ms_octaves [1, 16]");
+  if (d->ms_a == 0.0f) d->ms_a = 0.5f;
+  if (d->ms_b == 0.0f) d->ms_b = 0.5f;
+  if (d->ms_c == 0.0f) d->ms_c = 0.5f;
+  if (d->albedo == 0.0f) d->albedo = 1.0f;
+  if (d->albedo_zero) d->albedo = 0.0f;
+  if (!(d->albedo >= 0.0f && d->albedo <= 1.0f)) return oc__bad("albedo [0, 1]");
+  if (d->sun_irradiance == 0.0f) d->sun_irradiance = 1.0f;
+  if (d->threads <= 0) d->threads = 1;
+  if (d->threads > 256) return oc__bad("threads");
+
+  cx.have_atmo = d->background != OC_BG_CONSTANT && !(d->flags & OC_RF_NO_ATMOSPHERE);
+  if (cx.have_atmo && !d->atmo) return oc__bad("atmo (required with an atmosphere)");
+  cx.air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;
+  cx.sun_e = ocg_v3s(d->sun_irradiance);
+  if (cx.have_atmo) {
+    cx.atm = *oc_atmo_params(d->atmo);
+    cx.air_top = cx.atm.top_radius;
+    cx.sun_e = ocg_scale3(cx.atm.solar_irradiance, d->sun_irradiance);
+  }
+  cx.ground_r = (d->background == OC_BG_CONSTANT || (d->flags & OC_RF_NO_PLANET)) ? 0.0
+                : cx.have_atmo ? cx.atm.bottom_radius : OC_PLANET_RADIUS;
+
+  atomic_init(&cx.next_row, 0);
+  cx.thread_stats = calloc((size_t)d->threads, sizeof *cx.thread_stats);
+  oc__worker_t *wk = calloc((size_t)d->threads, sizeof *wk);
+  pthread_t *th = calloc((size_t)d->threads, sizeof *th);
+  if (!cx.thread_stats || !wk || !th) {
+    free(cx.thread_stats);
+    free(wk);
+    free(th);
+    return OC_ENOMEM;
+  }
+  unsigned char *ok = calloc((size_t)d->threads, 1);
+  for (int i = 0; i < d->threads; i++) {
+    wk[i].cx = &cx;
+    wk[i].id = i;
+    if (i > 0 && ok) ok[i] = pthread_create(&th[i], NULL, oc__worker, &wk[i]) == 0;
+  }
+  oc__worker(&wk[0]); /* the calling thread works too; rows left by failed spawns are taken here */
+  for (int i = 1; i < d->threads; i++)
+    if (ok && ok[i]) pthread_join(th[i], NULL);
+  free(ok);
+
+  oc_render_stats_t sum = {0};
+  for (int i = 0; i < d->threads; i++) {
+    sum.samples += cx.thread_stats[i].samples;
+    sum.node_lookups += cx.thread_stats[i].node_lookups;
+    sum.skipped_nodes += cx.thread_stats[i].skipped_nodes;
+    sum.early_exits += cx.thread_stats[i].early_exits;
+    sum.nonfinite += cx.thread_stats[i].nonfinite;
+  }
+  if (stats) *stats = sum;
+  free(cx.thread_stats);
+  free(wk);
+  free(th);
+  return 0;
+}

@@ -1,0 +1,83 @@
+/* oc_render.h — the CPU reference renderer: the oracle for GLSL images and error reports.
+ *
+ * It renders a state (exactly what a viewer holds) with the model the GLSL client uses, from the
+ * same shared headers (shaders/optics.h, brick.h, atmosphere.h):
+ *   - octree descent through the state's leaves; the step inside a non-empty node is
+ *     step_factor × its voxel spacing (node size / 7); nodes whose σt is zero are crossed in one
+ *     step (the atmosphere is still integrated over them at its own step length);
+ *   - one integral for clouds and air: per segment, total extinction σt = σt_cloud + σt_air (RGB),
+ *     energy-conserving segment weights (ocg_segment_weight3), early exit at low transmittance;
+ *   - cloud in-scattering: sun irradiance × clear-sky transmittance to the sun × the multiple-
+ *     scattering octaves over the τ channel and the HG+Draine phase; plus sky ambient
+ *     (fluence / 4π from the atmosphere tables);
+ *   - air in-scattering: Rayleigh and Mie single scattering (shadowed by the cloud τ) plus
+ *     Hillaire's multiple-scattering term;
+ *   - the planet sphere: Lambertian ground lit by the sun (with cloud shadow from τ) and the sky.
+ * Positions are double on the CPU. Output is deterministic for any thread count. */
+#ifndef OC_COMMON_RENDER_H
+#define OC_COMMON_RENDER_H
+
+#include <stdint.h>
+
+#include "oc_atmo.h"   /* oc_atmo_t */
+#include "oc_camera.h" /* oc_camera_t */
+#include "oc_image.h"  /* oc_image_t */
+#include "oc_state.h"  /* oc_state_t */
+
+/*! Tuning knobs; each is a field of oc_render_desc_t whose 0 means the default below. */
+#define OC_RENDER_DEFAULT_STEP_FACTOR 0.5  /**< × voxel spacing (node size / 7) */
+#define OC_RENDER_DEFAULT_AIR_STEPS 32     /**< steps across the atmosphere along a view ray */
+#define OC_RENDER_DEFAULT_EXIT_T 1e-3      /**< early exit when max RGB transmittance drops below */
+#define OC_RENDER_DEFAULT_MS_OCTAVES 4
+#define OC_RENDER_DEFAULT_EXPOSURE 10.0
+
+typedef enum {
+  OC_BG_DEFAULT = 0, /**< atmosphere, planet and sun disc as the flags say; black space */
+  OC_BG_CONSTANT = 1 /**< no atmosphere, no planet: a constant background radiance (analytic tests) */
+} oc_background_t;
+
+typedef enum {
+  OC_RF_NO_ATMOSPHERE = 1 << 0, /**< no air in the integral (clouds still lit by the raw sun) */
+  OC_RF_NO_PLANET = 1 << 1,     /**< no ground sphere */
+  OC_RF_NO_AMBIENT = 1 << 2,    /**< no sky ambient on clouds */
+  OC_RF_NO_SUN_DISC = 1 << 3,
+  OC_RF_JITTER = 1 << 4,        /**< per-pixel jitter of the ray start (hash of pixel and frame) */
+  OC_RF_NO_EARLY_EXIT = 1 << 5
+} oc_render_flags_t;
+
+typedef struct {
+  int width, height;     /**< pixels (required) */
+  oc_camera_t camera;    /**< required */
+  double step_factor;    /**< default OC_RENDER_DEFAULT_STEP_FACTOR */
+  int air_steps;         /**< default OC_RENDER_DEFAULT_AIR_STEPS */
+  double exit_t;         /**< default OC_RENDER_DEFAULT_EXIT_T; negative disables early exit */
+  int ms_octaves;        /**< default OC_RENDER_DEFAULT_MS_OCTAVES; 1 = single scattering */
+  float ms_a, ms_b, ms_c;/**< octave attenuation, contribution, eccentricity; default 0.5 each */
+  float albedo;          /**< cloud single-scattering albedo; default 1 (0 is valid via flags: use albedo_zero) */
+  int albedo_zero;       /**< non-zero: albedo 0 (pure absorber; analytic transmittance tests) */
+  float sun_irradiance;  /**< scale of the atmosphere's solar irradiance; default 1 */
+  oc_background_t background;
+  float background_radiance; /**< for OC_BG_CONSTANT */
+  uint32_t flags;        /**< oc_render_flags_t */
+  uint32_t frame;        /**< jitter sequence index */
+  int threads;           /**< default: 1 */
+  const oc_atmo_t *atmo; /**< required unless OC_RF_NO_ATMOSPHERE or OC_BG_CONSTANT */
+} oc_render_desc_t;
+
+typedef struct {
+  uint64_t samples;        /**< cloud-or-air segments evaluated (the throughput unit) */
+  uint64_t node_lookups;   /**< leaf searches */
+  uint64_t skipped_nodes;  /**< nodes crossed in one step */
+  uint64_t early_exits;    /**< rays ended by low transmittance */
+  uint64_t nonfinite;      /**< pixels that came out non-finite (must stay 0) */
+} oc_render_stats_t;
+
+/*! oc_render_state() : renders a validated state into img (allocated by the caller, w×h of desc).
+ *  @return 0, or OC_EINVAL for a bad desc (with an oc_log_error line naming the field). */
+int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_t *img, oc_render_stats_t *stats);
+
+/*! oc_render_sample_state() : σt and τ of the state at a planet-frame point (0, 0 outside the
+ *  root cube): the reconstruction the renderer and the shaders use. */
+void oc_render_sample_state(const oc_state_t *s, oc_dvec3 p, float *sigma_t, float *tau);
+
+#endif /* OC_COMMON_RENDER_H */

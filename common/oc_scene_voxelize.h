@@ -1,0 +1,35 @@
+/* oc_scene_voxelize.h — a state built locally from a scene's analytic sources.
+ *
+ * Until the server exists, programs (overcast-view's local mode, overcast-bench) build the state
+ * themselves: the scene's spheres, boxes and slabs become an analytic medium (oc_analytic.h),
+ * voxelized with nodes refined where a voxel would look larger than `pixels` pixels from the
+ * camera — a projected-size criterion, the same measure the server's planner will use. */
+#ifndef OC_COMMON_SCENE_VOXELIZE_H
+#define OC_COMMON_SCENE_VOXELIZE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "oc_analytic.h" /* oc_medium_t */
+#include "oc_camera.h"   /* oc_camera_t */
+#include "oc_scene.h"    /* oc_scene_t */
+#include "oc_state.h"    /* oc_state_t */
+
+typedef struct {
+  oc_camera_t camera;   /**< refinement follows its position and field of view */
+  int viewport_height;  /**< pixels; default 0 → 360 */
+  double pixels;        /**< split while a voxel spans more than this many pixels; default 0 → 2 */
+  int max_level;        /**< deepest level; default 0 → 16 */
+  uint32_t max_nodes;   /**< default 0 → 500 000 leaves */
+  int threads;          /**< default 0 → 1 */
+} oc_scene_voxelize_desc_t;
+
+/*! oc_scene_medium() : the scene's analytic sources as a medium. @return 0, or OC_ESCENE when the
+ *  scene has a source that is not analytic (procedural, vdb: served by overcast-server), with the
+ *  reason in why. */
+int oc_scene_medium(const oc_scene_t *sc, oc_medium_t *m, char *why, size_t why_len);
+/*! oc_scene_voxelize() : builds the state (epoch 0, time 0, the scene's sun). */
+int oc_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const oc_scene_voxelize_desc_t *d, char *why,
+                      size_t why_len);
+
+#endif /* OC_COMMON_SCENE_VOXELIZE_H */

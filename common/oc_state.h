@@ -1,0 +1,95 @@
+/* oc_state.h — the state: one definition for planner, wire, client, CPU reference, state file and
+ * stress checker (design.md, Conventions: state, budget, epochs).
+ *
+ * A state is the epoch index, world time, sun direction and the node records of a complete linear
+ * octree: its leaves, in ascending key order, partition the root cube exactly. Brick payloads are
+ * held once per brick id, ascending; a brick id is referenced by exactly one record of a state, and
+ * across states the same id always means the same content (ids are assigned by the server). The
+ * serialisation is byte-exact and little-endian (docs/protocol.md, "State"); the checksum is
+ * XXH3-64 of that serialisation. */
+#ifndef OC_COMMON_STATE_H
+#define OC_COMMON_STATE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "oc_brick.h" /* oc_range_t, oc_brick_codes_t, oc_node_kind_t */
+#include "oc_key.h"   /* oc_key_t */
+#include "oc_math.h"  /* oc_dvec3 */
+
+#define OC_STATE_MAGIC "OCST"
+#define OC_STATE_VERSION 1
+#define OC_STATE_HEADER_BYTES 64
+#define OC_STATE_RECORD_BYTES 32
+#define OC_STATE_BRICK_BYTES (4 + OC_BRICK_CODE_BYTES)
+/*! Limits applied to untrusted input (files, wire). */
+#define OC_STATE_MAX_NODES (1u << 24)
+#define OC_STATE_MAX_BRICKS (1u << 22)
+
+typedef struct {
+  oc_key_t key;
+  uint8_t kind;                  /**< oc_node_kind_t */
+  uint32_t brick_id;             /**< OC_NODE_BRICK only; 0 otherwise */
+  oc_range_t range[OC_CHANNELS]; /**< per channel, see oc_brick_encode() */
+} oc_node_t;
+
+typedef struct {
+  uint32_t id;
+  oc_brick_codes_t codes;
+} oc_brick_t;
+
+typedef struct {
+  uint64_t epoch;      /**< epoch index */
+  double time;         /**< world time, s */
+  oc_dvec3 sun_dir;    /**< unit vector toward the sun, planet frame */
+  uint32_t node_count; /**< leaves, ascending key */
+  uint32_t node_cap;
+  oc_node_t *nodes;
+  uint32_t brick_count; /**< ascending id */
+  uint32_t brick_cap;
+  oc_brick_t *bricks;
+} oc_state_t;
+
+/*! oc_state_init() : an empty state (no nodes). oc_state_free() releases arrays; NULL is fine. */
+void oc_state_init(oc_state_t *s);
+void oc_state_free(oc_state_t *s);
+/*! oc_state_add_node() / oc_state_add_brick() : append (any order); @return 0 or OC_ENOMEM. */
+int oc_state_add_node(oc_state_t *s, const oc_node_t *n);
+int oc_state_add_brick(oc_state_t *s, uint32_t id, const oc_brick_codes_t *codes);
+/*! oc_state_canonicalize() : sorts records by key and bricks by id. */
+void oc_state_canonicalize(oc_state_t *s);
+/*! oc_state_copy() : deep copy into an initialised (possibly non-empty) dst. */
+int oc_state_copy(oc_state_t *dst, const oc_state_t *src);
+/*! oc_state_validate() : checks everything a decoder must: canonical order, no duplicates, leaves
+ *  forming an exact partition of the root cube, kinds and ranges valid (finite, non-negative,
+ *  consistent with the kind), every brick id referenced exactly once and present, finite time,
+ *  unit sun direction. @return 0 or OC_ECORRUPT with a one-line reason in why (may be NULL). */
+int oc_state_validate(const oc_state_t *s, char *why, size_t why_len);
+
+/*! oc_state_find_node() : index of the record with this key, or -1. O(log n). */
+int64_t oc_state_find_node(const oc_state_t *s, oc_key_t key);
+/*! oc_state_find_leaf() : index of the leaf containing the level-21 cell `key21` (any key works:
+ *  the leaf that is it or its ancestor), or -1 when none (the key is inside a finer subtree). */
+int64_t oc_state_find_leaf(const oc_state_t *s, oc_key_t key21);
+/*! oc_state_find_brick() : the brick with this id, or NULL. O(log n). */
+const oc_brick_t *oc_state_find_brick(const oc_state_t *s, uint32_t id);
+
+/*! oc_state_serialized_size() : exact bytes of the serialisation (header, records, bricks, checksum). */
+size_t oc_state_serialized_size(const oc_state_t *s);
+/*! oc_state_serialize() : @return bytes written, or OC_ENOBUFS. */
+int64_t oc_state_serialize(const oc_state_t *s, uint8_t *dst, size_t cap);
+/*! oc_state_deserialize() : parses and validates untrusted bytes into an initialised state.
+ *  @return 0, or OC_ETRUNC / OC_ECORRUPT / OC_EVERSION / OC_ECHECKSUM / OC_ETOOBIG / OC_ENOMEM,
+ *  with a one-line reason in why (may be NULL). On error, out is left empty. */
+int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *why, size_t why_len);
+/*! oc_state_checksum() : XXH3-64 (seed 0) of the serialisation up to, not including, its checksum. */
+uint64_t oc_state_checksum(const oc_state_t *s);
+/*! oc_state_save() / oc_state_load() : one serialised state per file. Errors name the file. */
+int oc_state_save(const oc_state_t *s, const char *path, char *why, size_t why_len);
+int oc_state_load(oc_state_t *out, const char *path, char *why, size_t why_len);
+
+/*! oc_resident_bytes() : the budget measure of the Conventions: distinct brick ids referenced by
+ *  the n kept states × slot_bytes + their node records × record_bytes. */
+uint64_t oc_resident_bytes(const oc_state_t *const *states, int n, uint32_t slot_bytes, uint32_t record_bytes);
+
+#endif /* OC_COMMON_STATE_H */

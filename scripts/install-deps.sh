@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs every Debian (bookworm) package Overcast needs to build, test and run.
+# Idempotent: packages already present are skipped; nothing is downloaded at build or run time.
+set -euo pipefail
+
+PKGS=(
+  build-essential cmake pkg-config git
+  clang libclang-rt-14-dev              # libFuzzer stage of .ci/run
+  libuv1-dev libzstd-dev libxxhash-dev libcjson-dev libpng-dev libstb-dev libcmocka-dev
+  libopenvdb-dev libboost-iostreams-dev # VDB shim (design.md: FindOpenVDB needs boost-iostreams)
+  libglfw3-dev libepoxy-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri mesa-utils-bin
+)
+
+missing=()
+for p in "${PKGS[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PKGS[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
