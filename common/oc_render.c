@@ -66,16 +66,11 @@ static float oc__leaf_channel(const oc__leaf_t *lf, int ch, ocg_vec3 u) {
   if (n->kind == OC_NODE_UNIFORM || !lf->b) return n->range[ch].lo;
   float lo = n->range[ch].lo, hi = n->range[ch].hi;
   if (hi == 0.0f) return 0.0f;
-  ocg_vec3 g = ocg_v3(ocg_clamp(u.x, 0.0f, 1.0f) * 7.0f, ocg_clamp(u.y, 0.0f, 1.0f) * 7.0f,
-                      ocg_clamp(u.z, 0.0f, 1.0f) * 7.0f);
-  int i = (int)ocg_min(floorf(g.x), 6.0f), j = (int)ocg_min(floorf(g.y), 6.0f), k = (int)ocg_min(floorf(g.z), 6.0f);
-  ocg_vec3 f = ocg_v3(g.x - (float)i, g.y - (float)j, g.z - (float)k);
+  ocg_vec3 base = ocg_brick_base(u), f = ocg_brick_frac(u, base);
+  ocg_uint b0 = ocg_brick_base_voxel(base);
   const uint16_t *c = lf->b->codes.code[ch];
   float v[8];
-  for (int q = 0; q < 8; q++) {
-    int di = q & 1, dj = (q >> 1) & 1, dk = (q >> 2) & 1;
-    v[q] = ocg_code_decode(c[ocg_brick_voxel((ocg_uint)(i + di), (ocg_uint)(j + dj), (ocg_uint)(k + dk))], lo, hi);
-  }
+  for (ocg_uint q = 0; q < 8u; q++) v[q] = ocg_code_decode(c[b0 + ocg_brick_voxel(q & 1u, (q >> 1) & 1u, q >> 2)], lo, hi);
   return ocg_trilerp(ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]), f);
 }
 
@@ -157,6 +152,19 @@ static ocg_vec3 oc__sun_transmittance(const oc__ctx_t *cx, double r, double mu_s
   return ocg_v3s(1.0f);
 }
 
+/* Longest air segment starting at p: at most air_len / air_steps, and short enough that the
+ * altitude changes by at most a quarter of (altitude + 500 m) — the air thins exponentially
+ * with a few-km scale height, so fixed steps leave rings where segment boundaries move from ray
+ * to ray. Never below air_len / (16·air_steps), which bounds the cost of any ray. */
+static double oc__air_step(const oc__ctx_t *cx, oc_dvec3 p, oc_dvec3 dir, double air_step) {
+  double r = oc_dlen(p);
+  double h = r - cx->ground_r;
+  if (cx->ground_r <= 0.0) h = r - OC_PLANET_RADIUS;
+  double mu = fabs(oc_ddot(p, dir) / r);
+  double lim = 0.25 * (fmax(h, 0.0) + 500.0) / fmax(mu, 1e-3);
+  return fmin(air_step, fmax(lim, air_step / 16.0));
+}
+
 /* ---- One ray ----------------------------------------------------------------------------------------- */
 
 static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitter, float out[4], oc_render_stats_t *st) {
@@ -174,10 +182,10 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     t0 = a0;
     t1 = a1;
   }
-  double air_len = 0.0;
+  double air_len = 0.0, air0 = 0.0, air1 = 0.0;
   if (cx->have_atmo && oc__ray_sphere(o, dir, cx->air_top, &a0, &a1) && a1 > 0.0) {
-    a0 = fmax(a0, 0.0);
-    air_len = a1 - a0;
+    air0 = a0 = fmax(a0, 0.0);
+    air1 = a1;
     if (!in_cube) {
       t0 = a0;
       t1 = a1;
@@ -197,6 +205,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       t1 = fmin(t1, a0);
     }
   }
+  if (cx->have_atmo) air_len = fmin(air1, t1) - air0; /* the air actually crossed, up to the ground */
   double air_step = cx->have_atmo && air_len > 0.0 ? air_len / d->air_steps : INFINITY;
 
   oc__leaf_t lf = {.idx = -2};
@@ -215,7 +224,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     if (lf.n) te = fmin(te, t + fmax(oc__node_exit(&lf, p, dir), OC__LOCATE_EPS));
     if (cloudy) te = fmin(te, t + d->step_factor * lf.size / 7.0);
     else if (lf.n) st->skipped_nodes++;
-    te = fmin(te, t + air_step);
+    if (cx->have_atmo) te = fmin(te, t + oc__air_step(cx, p, dir, air_step));
     double seg = te - t;
     oc_dvec3 pm = oc_dmad(o, dir, t + jitter * seg);
 

@@ -277,6 +277,41 @@ static void test_render__extreme_views_are_finite_and_plausible(void **st) {
   }
 }
 
+/* The air's default step schedule against 16× more steps, from space and from the ground: a step
+ * schedule blind to altitude once gave rings from space with errors of 2× between pixels. */
+static void test_render__air_integral_converges(void **st) {
+  (void)st;
+  oc_state_t s;
+  oc_state_init(&s);
+  oc_medium_t m = sphere_medium(0.05);
+  assert_int_equal(oc_voxelize_medium(&s, &m, 8, 1, sun_from(m.prims[0].sphere.c, 30, 60), 1), 0);
+  const oc_camera_pose_t poses[2] = {{{0.0, -0.5, 3e7}, 90.0, -89.0, 30.0}, {{0.0, 0.0, 10.0}, 90.0, 2.0, 60.0}};
+  for (int i = 0; i < 2; i++) {
+    oc_render_desc_t d = {0};
+    d.width = 32;
+    d.height = 18;
+    d.camera = oc_camera_from_pose(poses[i]);
+    d.atmo = atmo();
+    d.threads = 2;
+    oc_image_t a, b;
+    assert_int_equal(oc_image_alloc(&a, d.width, d.height), 0);
+    assert_int_equal(oc_image_alloc(&b, d.width, d.height), 0);
+    assert_int_equal(oc_render_state(&s, &d, &a, NULL), 0);
+    d.air_steps = 16 * OC_RENDER_DEFAULT_AIR_STEPS;
+    assert_int_equal(oc_render_state(&s, &d, &b, NULL), 0);
+    double worst = 0.0;
+    for (int k = 0; k < d.width * d.height; k++)
+      for (int c = 0; c < 3; c++)
+        if (b.px[4 * k + c] > 1e-4f) worst = fmax(worst, fabs(a.px[4 * k + c] / b.px[4 * k + c] - 1.0));
+    printf("air steps %d vs %d: worst relative difference %.2e (%s)\n", OC_RENDER_DEFAULT_AIR_STEPS, d.air_steps, worst,
+           i == 0 ? "space" : "ground");
+    assert_true(worst < 0.02);
+    oc_image_free(&a);
+    oc_image_free(&b);
+  }
+  oc_state_free(&s);
+}
+
 static void test_render__rejects_bad_descriptions(void **st) {
   (void)st;
   oc_state_t s;
@@ -315,6 +350,7 @@ int main(void) {
       cmocka_unit_test(test_render__slab_single_scattering_matches_closed_form),
       cmocka_unit_test(test_render__deterministic_across_thread_counts),
       cmocka_unit_test(test_render__extreme_views_are_finite_and_plausible),
+      cmocka_unit_test(test_render__air_integral_converges),
       cmocka_unit_test(test_render__rejects_bad_descriptions),
   };
   int r = cmocka_run_group_tests(tests, NULL, NULL);
