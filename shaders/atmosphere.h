@@ -212,7 +212,7 @@ OC_INLINE ocg_atmo_bool ocg_atmo_ray_hits_ground(OC_IN(ocg_atmosphere) atm, ocg_
 /* Distance to the ground along (r, μ) for a ray that meets it:
  * $d_b = -r\mu - \sqrt{\Delta_b} = \frac{(r - b)(r + b)}{-r\mu + \sqrt{\Delta_b}}$, the conjugate
  * form (the first cancels for grazing rays). Domain: r ≥ b and ocg_atmo_ray_hits_ground(r, μ);
- * other rays get the distance to the closest approach's projection, clamped ≥ 0. */
+ * for other rays the result is finite and ≥ 0 but meaningless. */
 OC_INLINE ocg_real ocg_atmo_dist_bottom(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_real mu) {
   OC_ASSERT(mu >= OCG_R(-1.0) && mu <= OCG_R(1.0));
   ocg_real rb = ocg_max(r - atm.bottom_radius, OCG_R(0.0));

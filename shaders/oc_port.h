@@ -16,6 +16,8 @@
 
 #if defined(OC_GLSL)
 /* ---- GLSL ------------------------------------------------------------------------------------ */
+/* Pure renames are object-like macros: Mesa's preprocessor joins a function-like macro call that
+ * spans lines onto one line, which would shift the line numbers of later compile errors. */
 #define OC_INLINE
 #define OC_IN(T) in T
 #define OC_INOUT(T) inout T
@@ -29,42 +31,42 @@
 #define ocg_vec2 vec2
 #define ocg_vec3 vec3
 #define ocg_vec4 vec4
-#define ocg_v2(x, y) vec2(x, y)
-#define ocg_v3(x, y, z) vec3(x, y, z)
-#define ocg_v3s(s) vec3(s)
-#define ocg_v4(x, y, z, w) vec4(x, y, z, w)
-#define OCG_TO_REAL(x) float(x)
-#define OCG_TO_UINT(x) uint(x)
-#define OCG_TO_INT(x) int(x)
-#define ocg_exp(x) exp(x)
-#define ocg_exp2(x) exp2(x)
-#define ocg_log(x) log(x)
-#define ocg_log2(x) log2(x)
-#define ocg_sqrt(x) sqrt(x)
-#define ocg_pow(x, y) pow(x, y)
-#define ocg_abs(x) abs(x)
-#define ocg_floor(x) floor(x)
-#define ocg_min(a, b) min(a, b)
-#define ocg_max(a, b) max(a, b)
-#define ocg_clamp(x, a, b) clamp(x, a, b)
-#define ocg_mix(a, b, t) mix(a, b, t)
-#define ocg_sin(x) sin(x)
-#define ocg_cos(x) cos(x)
-#define ocg_atan2(y, x) atan(y, x)
+#define ocg_v2 vec2
+#define ocg_v3 vec3
+#define ocg_v3s vec3
+#define ocg_v4 vec4
+#define OCG_TO_REAL float
+#define OCG_TO_UINT uint
+#define OCG_TO_INT int
+#define ocg_exp exp
+#define ocg_exp2 exp2
+#define ocg_log log
+#define ocg_log2 log2
+#define ocg_sqrt sqrt
+#define ocg_pow pow
+#define ocg_abs abs
+#define ocg_floor floor
+#define ocg_min min
+#define ocg_max max
+#define ocg_clamp clamp
+#define ocg_mix mix
+#define ocg_sin sin
+#define ocg_cos cos
+#define ocg_atan2 atan
 #define ocg_isfinite(x) (!isnan(x) && !isinf(x))
 #define ocg_add3(a, b) ((a) + (b))
 #define ocg_sub3(a, b) ((a) - (b))
 #define ocg_mul3(a, b) ((a) * (b))
 #define ocg_div3(a, b) ((a) / (b))
 #define ocg_scale3(a, s) ((a) * (s))
-#define ocg_exp3(a) exp(a)
-#define ocg_min3(a, b) min(a, b)
-#define ocg_max3(a, b) max(a, b)
-#define ocg_mix3(a, b, t) mix(a, b, t)
-#define ocg_dot3(a, b) dot(a, b)
-#define ocg_length3(a) length(a)
-#define ocg_normalize3(a) normalize(a)
-#define ocg_cross3(a, b) cross(a, b)
+#define ocg_exp3 exp
+#define ocg_min3 min
+#define ocg_max3 max
+#define ocg_mix3 mix
+#define ocg_dot3 dot
+#define ocg_length3 length
+#define ocg_normalize3 normalize
+#define ocg_cross3 cross
 
 #else
 /* ---- C17 ------------------------------------------------------------------------------------- */

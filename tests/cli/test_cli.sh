@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Command-line contract of every program in build/bin (README, Programs): --help and --version exit
+# 0; a usage error exits 2, a runtime error exits 1; errors are one line on stderr naming the cause.
+set -u
+BIN=$1
+cd "${OC_SOURCE_DIR:-$(dirname "$0")/../..}"
+pass=0
+fail=0
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+check() { # name expected_status expected_stderr_regex -- command...
+  local name=$1 want=$2 re=$3
+  shift 4
+  "$@" >"$tmp/out" 2>"$tmp/err"
+  local got=$?
+  local lines
+  lines=$(wc -l <"$tmp/err")
+  if [ "$got" -ne "$want" ]; then
+    echo "FAIL $name: exit $got, want $want; stderr: $(head -c 300 "$tmp/err")"
+    fail=$((fail + 1))
+  elif [ -n "$re" ] && ! grep -Eq -- "$re" "$tmp/err"; then
+    echo "FAIL $name: stderr does not match /$re/: $(head -c 300 "$tmp/err")"
+    fail=$((fail + 1))
+  elif [ "$want" -ne 0 ] && [ "$lines" -ne 1 ]; then
+    echo "FAIL $name: error should be one line, got $lines: $(head -c 300 "$tmp/err")"
+    fail=$((fail + 1))
+  else
+    pass=$((pass + 1))
+  fi
+}
+
+for p in "$BIN"/overcast-*; do
+  n=$(basename "$p")
+  check "$n --help" 0 "" -- "$p" --help
+  grep -q "usage: $n" "$tmp/out" || { echo "FAIL $n --help: no usage line"; fail=$((fail + 1)); }
+  check "$n --version" 0 "" -- "$p" --version
+  grep -Eq "^$n [0-9]+\.[0-9]+\.[0-9]+$" "$tmp/out" || { echo "FAIL $n --version: $(cat "$tmp/out")"; fail=$((fail + 1)); }
+done
+
+V=$BIN/overcast-view
+check "view: unknown option" 2 "unknown or incomplete option \"--frobnicate\"" -- "$V" --frobnicate
+check "view: bad size" 2 "--size: expected WxH" -- "$V" --size 12
+check "view: size out of range" 2 "--size: 0x5: each side" -- "$V" --size 0x5
+check "view: bad camera" 2 "camera fov 500 outside" -- "$V" --camera 0,0,100,0,0,500
+check "view: bad renderer" 2 "--renderer gl: only" -- "$V" --renderer gl
+check "view: stray argument" 2 "unexpected argument" -- "$V" extra
+check "view: missing state" 1 "/nonexistent.ocst" -- "$V" --state /nonexistent.ocst --out "$tmp"
+echo "garbage" >"$tmp/bad.ocst"
+check "view: corrupt state" 1 "bad.ocst" -- "$V" --state "$tmp/bad.ocst" --out "$tmp"
+echo '{"sources": [{"type": "sphere", "sigmat": 1}]}' >"$tmp/bad.json"
+check "view: bad scene key" 1 "sigmat" -- "$V" --scene "$tmp/bad.json" --out "$tmp"
+check "view: missing scene" 1 "nope.json" -- "$V" --scene "$tmp/nope.json" --out "$tmp"
+check "view: procedural scene locally" 1 "needs overcast-server" -- "$V" --scene scenes/planet.json --out "$tmp"
+check "view: camera-from a non-PNG" 1 "not a PNG" -- "$V" --camera-from "$tmp/bad.json" --out "$tmp"
+
+# A real render, a state round trip through --save-state / --state, and --camera-from.
+check "view: renders" 0 "" -- "$V" --scene scenes/analytic_sphere.json --size 32x18 --out "$tmp/a" --save-state "$tmp/s.ocst" -q
+[ -s "$tmp/a/frame_0000.png" ] && grep -q "frame_0000.png" "$tmp/out" || { echo "FAIL view: no frame path printed"; fail=$((fail + 1)); }
+check "view: renders the saved state" 0 "" -- "$V" --state "$tmp/s.ocst" --camera-from "$tmp/a/frame_0000.png" --size 32x18 --out "$tmp/b" -q
+cmp -s "$tmp/a/frame_0000.png" "$tmp/b/frame_0000.png" || { echo "FAIL view: state file + stored camera do not reproduce the frame"; fail=$((fail + 1)); }
+
+B=$BIN/overcast-bench
+check "bench: no command" 2 "usage" -- "$B"
+check "bench: unknown command" 2 "unknown command \"frob\"" -- "$B" frob
+check "bench: bad threads" 2 "--threads: expected an integer" -- "$B" render --threads 1,x
+check "bench: renders" 0 "" -- "$B" render --size 16x9 --repeat 1 --threads 1,2
+grep -q "identical" "$tmp/out" || { echo "FAIL bench: thread counts not reported identical"; fail=$((fail + 1)); }
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
