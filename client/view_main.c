@@ -105,60 +105,93 @@ int main(int argc, char **argv) {
   if (camera_text && camera_png) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera and --camera-from exclude each other");
 
   char why[512];
+  int rc = OC_EXIT_OK;
+  oc_state_t st;
+  oc_state_init(&st);
+  oc_atmo_t *atmo = NULL;
+  uint8_t *rgb = NULL;
+  oc_image_t img = {0};
   oc_scene_t *sc = calloc(1, sizeof *sc);
   if (!sc) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
   if (!state_path) {
     if (!scene_path) scene_path = "scenes/analytic_sphere.json";
-    if (oc_scene_load(sc, scene_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    if (oc_scene_load(sc, scene_path, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
   } else {
     oc_scene_default(sc);
   }
 
   oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
   if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+    {
+      rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+      goto out;
+    }
   if (camera_png) {
     int pw, ph;
     uint8_t *px;
     char text[256];
     if (oc_png_read(camera_png, &pw, &ph, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0)
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from: %s", why);
+      {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from: %s", why);
+      goto out;
+    }
     free(px);
-    if (!text[0]) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: no overcast-camera text chunk", camera_png);
+    if (!text[0]) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: no overcast-camera text chunk", camera_png);
+      goto out;
+    }
     if (oc_camera_parse(text, &pose, why, sizeof why) < 0)
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: %s", camera_png, why);
+      {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: %s", camera_png, why);
+      goto out;
+    }
   }
   oc_camera_t cam = oc_camera_from_pose(pose);
 
-  oc_state_t st;
-  oc_state_init(&st);
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
   if (state_path) {
-    if (oc_state_load(&st, state_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    if (oc_state_load(&st, state_path, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
   } else {
     oc_scene_voxelize_desc_t vd = {cam, h, 2.0, (int)max_level, 0, (int)threads};
     if (oc_scene_voxelize(&st, sc, &vd, why, sizeof why) < 0)
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+      {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+      goto out;
+    }
   }
   clock_gettime(CLOCK_MONOTONIC, &t1);
   oc_log_info("state: %u nodes, %u bricks (%.2f s)", st.node_count, st.brick_count,
               (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
   if (save_path && oc_state_save(&st, save_path, why, sizeof why) < 0)
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
 
-  oc_atmo_t *atmo = NULL;
   int use_atmo = oc_scene_has(sc, OC_FEATURE_ATMOSPHERE);
   if (use_atmo) {
     ocg_atmosphere ap;
     oc_atmo_params_default(&ap);
     if (!oc_scene_has(sc, OC_FEATURE_OZONE)) ap.ozone_absorption = ocg_v3s(0.0f);
     atmo = oc_atmo_create(&ap, (int)threads);
-    if (!atmo) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+    if (!atmo) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+      goto out;
+    }
   }
 
   if (mkdir(out_dir, 0777) != 0 && errno != EEXIST)
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: cannot create folder: %s", out_dir, strerror(errno));
+    {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: cannot create folder: %s", out_dir, strerror(errno));
+      goto out;
+    }
 
   oc_render_desc_t d = {0};
   d.width = w;
@@ -175,9 +208,11 @@ int main(int argc, char **argv) {
   d.threads = (int)threads;
   d.flags = (use_atmo ? 0 : OC_RF_NO_ATMOSPHERE) | (oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE) ? 0 : OC_RF_NO_PLANET) |
             (jitter ? OC_RF_JITTER : 0);
-  oc_image_t img;
-  uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
-  if (!rgb || oc_image_alloc(&img, w, h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d image", w, h);
+  rgb = malloc((size_t)w * (size_t)h * 3);
+  if (!rgb || oc_image_alloc(&img, w, h) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d image", w, h);
+      goto out;
+    }
 
   char cam_text[256], settings[256];
   oc_camera_format(pose, cam_text, sizeof cam_text);
@@ -185,7 +220,6 @@ int main(int argc, char **argv) {
            d.ms_octaves, jitter);
   oc_png_text_t text[3] = {{"overcast-camera", cam_text}, {"overcast-settings", settings},
                            {"Software", "overcast-view " OC_VERSION}};
-  int rc = OC_EXIT_OK;
   for (long f = 0; f < frames; f++) {
     oc_render_stats_t rs;
     d.frame = (uint32_t)f;
@@ -209,6 +243,7 @@ int main(int argc, char **argv) {
     printf("%s\n", path);
     fflush(stdout);
   }
+out:
   free(rgb);
   oc_image_free(&img);
   oc_atmo_free(atmo);

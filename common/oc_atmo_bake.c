@@ -274,6 +274,8 @@ void oc__atmo_rmus_lookup(const struct oc_atmo_s *a, int which, double r, double
 
 /* ---- Tables ---------------------------------------------------------------------------------------- */
 
+#define OC__MAX_COLS 64 /* the widest (r, μs) table */
+
 static void oc__store(float *texel, const double v[3]) {
   texel[0] = (float)v[0];
   texel[1] = (float)v[1];
@@ -281,16 +283,20 @@ static void oc__store(float *texel, const double v[3]) {
   texel[3] = 1.0f;
 }
 
-/* Transmittance to the top of the atmosphere, T(r, μ) = exp(-∫_0^{d_t} σ_t(r_s) ds), for the ray of
- * every texel centre (no texel's ray meets the ground: x_μ = 1 is the horizon itself). */
+/* Transmittance to the top of the atmosphere, T(r, μ) = exp(-∫_0^{d_t} σ_t(r_s) ds). */
+static void oc__eval_transmittance(const struct oc_atmo_s *a, double r, double mu, double out[3]) {
+  oc__ray_t ray;
+  oc__ray_build(a, &a->rule_tau, r, mu, ocg_atmo_dist_top(a->p, r, mu), &ray, 0);
+  for (int c = 0; c < 3; c++) out[c] = exp(-ray.tau[c]);
+}
+
+/* Every texel centre's ray (none meets the ground: x_μ = 1 is the horizon itself). */
 static void oc__bake_transmittance(struct oc_atmo_s *a, int j) {
   oc__atmo_tab_t *tb = &a->tab[0];
-  oc__ray_t ray;
   for (int i = 0; i < tb->w; i++) {
     ocg_vec2 rm = ocg_atmo_transmittance_rmu(a->p, ocg_v2((i + 0.5) / tb->w, (j + 0.5) / tb->h));
-    double d = ocg_atmo_dist_top(a->p, rm.x, rm.y), T[3];
-    oc__ray_build(a, &a->rule_tau, rm.x, rm.y, d, &ray, 0);
-    for (int c = 0; c < 3; c++) T[c] = exp(-ray.tau[c]);
+    double T[3];
+    oc__eval_transmittance(a, rm.x, rm.y, T);
     oc__store(tb->rgba + 4 * ((size_t)j * tb->w + i), T);
   }
 }
@@ -312,22 +318,25 @@ static double oc__side_dist(const ocg_atmosphere p, double r, double mu, int sid
   return side ? ocg_atmo_dist_bottom(p, r, mu) : ocg_atmo_dist_top(p, r, mu);
 }
 
+/* Cosine between a direction (μ, azimuth φ about the zenith) and the sun (μs, azimuth 0). */
+static double oc__nu(double mu, double mu_s, int m, int nphi) {
+  double sin_v = sqrt(fmax(0.0, 1.0 - mu * mu)), sin_s = sqrt(fmax(0.0, 1.0 - mu_s * mu_s));
+  return mu * mu_s + sin_v * sin_s * cos(OC__PI * (m + 0.5) / nphi);
+}
+
 /* Hillaire 2020's multiple-scattering transfer Ψ_ms(r, μs), per unit solar irradiance:
  *   L2 = (1/4π) ∫_4π L'(ω) dω,   f_ms = (1/4π) ∫_4π f(ω) dω,   Ψ_ms = L2 / (1 − f_ms),
  *   L'(ω) = ∫_0^d T(0,s) σ_s(s) (1/4π) T_sun(s) ds + [ground] T(0,d) (a/π) T_sun(g) max(μ_s,g, 0),
  *   f(ω)  = ∫_0^d T(0,s) σ_s(s) ds,
  * with σ_s = β_R + β^s_M, the isotropic phase 1/4π for both orders (Hillaire's choice), and T_sun the
- * softened transmittance to the sun (the transmittance table, as at run time). */
-static void oc__bake_multiscatter(struct oc_atmo_s *a, int j) {
-  oc__atmo_tab_t *tb = &a->tab[1];
+ * softened transmittance to the sun (the transmittance table, as at run time). n values of μs. */
+static void oc__eval_multiscatter(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
   const ocg_atmosphere p = a->p;
-  const int W = OCG_ATMO_MULTISCATTER_W;
-  double r = ocg_atmo_rmus_from_uv(p, ocg_v2(0.5, (j + 0.5) / tb->h), tb->w, tb->h).x;
-  double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
+  const double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
   ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
   const double albedo[3] = {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI};
   const double inv4pi = 1.0 / (4.0 * OC__PI), wphi = 2.0 * OC__PI / OC_ATMO_MS_PHI_NODES;
-  double L2[OCG_ATMO_MULTISCATTER_W][3], F[3] = {0.0, 0.0, 0.0};
+  double L2[OC__MAX_COLS][3], F[3] = {0.0, 0.0, 0.0};
   memset(L2, 0, sizeof L2);
   oc__ray_t ray;
   for (int side = 0; side < 2; side++)
@@ -336,35 +345,27 @@ static void oc__bake_multiscatter(struct oc_atmo_s *a, int j) {
       oc__mu_node(&a->rule_mu, k, side, mu_h, &mu, &wmu);
       double d = oc__side_dist(p, r, mu, side);
       oc__ray_build(a, &a->rule_ray, r, mu, d, &ray, 1);
-      double sin_v = sqrt(fmax(0.0, 1.0 - mu * mu));
       /* f: independent of the sun; the azimuth integral is 2π. */
-      for (int n = 0; n < ray.n; n++)
-        for (int c = 0; c < 3; c++) F[c] += wmu * 2.0 * OC__PI * inv4pi * ray.w[n] * ray.T[n][c] * (ray.sR[n][c] + ray.sM[n]);
-      for (int i = 0; i < W; i++) {
-        double mu_s = ocg_atmo_rmus_from_uv(p, ocg_v2((i + 0.5) / tb->w, 0.5), tb->w, tb->h).y;
-        double sin_s = sqrt(fmax(0.0, 1.0 - mu_s * mu_s));
+      for (int q = 0; q < ray.n; q++)
+        for (int c = 0; c < 3; c++) F[c] += wmu * 2.0 * OC__PI * inv4pi * ray.w[q] * ray.T[q][c] * (ray.sR[q][c] + ray.sM[q]);
+      for (int i = 0; i < n; i++)
         for (int m = 0; m < OC_ATMO_MS_PHI_NODES; m++) {
-          double nu = mu * mu_s + sin_v * sin_s * cos(OC__PI * (m + 0.5) / OC_ATMO_MS_PHI_NODES);
+          double nu = oc__nu(mu, mu_s[i], m, OC_ATMO_MS_PHI_NODES);
           double Lp[3] = {0.0, 0.0, 0.0}, Ts[3];
-          for (int n = 0; n < ray.n; n++) {
-            double mus_n = ocg_atmo_cos_at(r, mu_s, nu, ray.t[n], ray.r[n]);
-            oc__sun_T(a, ray.r[n], mus_n, Ts);
-            for (int c = 0; c < 3; c++) Lp[c] += ray.w[n] * ray.T[n][c] * (ray.sR[n][c] + ray.sM[n]) * inv4pi * Ts[c];
+          for (int q = 0; q < ray.n; q++) {
+            oc__sun_T(a, ray.r[q], ocg_atmo_cos_at(r, mu_s[i], nu, ray.t[q], ray.r[q]), Ts);
+            for (int c = 0; c < 3; c++) Lp[c] += ray.w[q] * ray.T[q][c] * (ray.sR[q][c] + ray.sM[q]) * inv4pi * Ts[c];
           }
           if (side == 1) {
-            double mus_g = ocg_atmo_cos_at(r, mu_s, nu, d, b);
+            double mus_g = ocg_atmo_cos_at(r, mu_s[i], nu, d, b);
             oc__sun_T(a, b, mus_g, Ts);
             for (int c = 0; c < 3; c++) Lp[c] += exp(-ray.tau[c]) * albedo[c] * Ts[c] * fmax(mus_g, 0.0);
           }
           for (int c = 0; c < 3; c++) L2[i][c] += wmu * wphi * inv4pi * Lp[c];
         }
-      }
     }
-  for (int i = 0; i < W; i++) {
-    double psi[3];
-    for (int c = 0; c < 3; c++) psi[c] = L2[i][c] / (1.0 - F[c]);
-    oc__store(tb->rgba + 4 * ((size_t)j * tb->w + i), psi);
-  }
+  for (int i = 0; i < n; i++)
+    for (int c = 0; c < 3; c++) out[i][c] = L2[i][c] / (1.0 - F[c]);
 }
 
 /* Sky radiance along one direction node, per unit solar irradiance, single scattering (Rayleigh and
@@ -374,90 +375,93 @@ static void oc__sky_radiance(const struct oc_atmo_s *a, const oc__ray_t *ray, do
                              double L[3]) {
   double pR = ocg_atmo_rayleigh_phase(nu), pM = ocg_atmo_mie_phase(a->p.mie_g, nu), Ts[3], Ps[3];
   L[0] = L[1] = L[2] = 0.0;
-  for (int n = 0; n < ray->n; n++) {
-    double mus_n = ocg_atmo_cos_at(r, mu_s, nu, ray->t[n], ray->r[n]);
-    oc__sun_T(a, ray->r[n], mus_n, Ts);
-    oc__rmus(a, 1, ray->r[n], mus_n, Ps);
+  for (int q = 0; q < ray->n; q++) {
+    double mus_q = ocg_atmo_cos_at(r, mu_s, nu, ray->t[q], ray->r[q]);
+    oc__sun_T(a, ray->r[q], mus_q, Ts);
+    oc__rmus(a, 1, ray->r[q], mus_q, Ps);
     for (int c = 0; c < 3; c++)
-      L[c] += ray->w[n] * ray->T[n][c] *
-              ((ray->sR[n][c] * pR + ray->sM[n] * pM) * Ts[c] + (ray->sR[n][c] + ray->sM[n]) * Ps[c]);
+      L[c] += ray->w[q] * ray->T[q][c] *
+              ((ray->sR[q][c] * pR + ray->sM[q] * pM) * Ts[c] + (ray->sR[q][c] + ray->sM[q]) * Ps[c]);
   }
 }
 
-/* Sky irradiance on a horizontal surface, per unit solar irradiance: E(r, μs) = ∫_{μ>0} L(ω) μ dω.
- * (side 0 of the horizon substitution with μ_h = 0, i.e. μ = s²). */
-static void oc__bake_irradiance(struct oc_atmo_s *a, int j) {
-  oc__atmo_tab_t *tb = &a->tab[2];
+/* Sky irradiance on a horizontal surface, per unit solar irradiance: E(r, μs) = ∫_{μ>0} L(ω) μ dω
+ * (side 0 of the horizon substitution with μ_h = 0, i.e. μ = s²). n values of μs. */
+static void oc__eval_irradiance(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
   const ocg_atmosphere p = a->p;
-  double r = ocg_atmo_rmus_from_uv(p, ocg_v2(0.5, (j + 0.5) / tb->h), tb->w, tb->h).x;
   const double wphi = 2.0 * OC__PI / OC_ATMO_PHI_NODES;
-  double E[OCG_ATMO_IRRADIANCE_W][3];
-  memset(E, 0, sizeof E);
   oc__ray_t ray;
+  memset(out, 0, sizeof(double[3]) * (size_t)n);
   for (int k = 0; k < a->rule_mu.n; k++) {
-    double mu, wmu;
+    double mu, wmu, L[3];
     oc__mu_node(&a->rule_mu, k, 0, 0.0, &mu, &wmu);
     oc__ray_build(a, &a->rule_ray, r, mu, ocg_atmo_dist_top(p, r, mu), &ray, 1);
-    double sin_v = sqrt(fmax(0.0, 1.0 - mu * mu));
-    for (int i = 0; i < tb->w; i++) {
-      double mu_s = ocg_atmo_rmus_from_uv(p, ocg_v2((i + 0.5) / tb->w, 0.5), tb->w, tb->h).y;
-      double sin_s = sqrt(fmax(0.0, 1.0 - mu_s * mu_s)), L[3];
+    for (int i = 0; i < n; i++)
       for (int m = 0; m < OC_ATMO_PHI_NODES; m++) {
-        double nu = mu * mu_s + sin_v * sin_s * cos(OC__PI * (m + 0.5) / OC_ATMO_PHI_NODES);
-        oc__sky_radiance(a, &ray, r, mu_s, nu, L);
-        for (int c = 0; c < 3; c++) E[i][c] += wmu * wphi * mu * L[c];
+        oc__sky_radiance(a, &ray, r, mu_s[i], oc__nu(mu, mu_s[i], m, OC_ATMO_PHI_NODES), L);
+        for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * mu * L[c];
       }
-    }
   }
-  for (int i = 0; i < tb->w; i++) oc__store(tb->rgba + 4 * ((size_t)j * tb->w + i), E[i]);
 }
 
 /* Sky fluence, per unit solar irradiance: Φ(r, μs) = ∫_4π L(ω) dω, with the ground seen below the
  * horizon as a Lambertian reflector lit by the sun and the sky:
- *   L_ground = T(0,d) (a/π) (T_sun(g) max(μ_s,g, 0) + E(b, μ_s,g)). */
-static void oc__bake_fluence(struct oc_atmo_s *a, int j) {
-  oc__atmo_tab_t *tb = &a->tab[3];
+ *   L_ground = T(0,d) (a/π) (T_sun(g) max(μ_s,g, 0) + E(b, μ_s,g))   (E from the irradiance table).
+ * n values of μs. */
+static void oc__eval_fluence(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
   const ocg_atmosphere p = a->p;
-  double r = ocg_atmo_rmus_from_uv(p, ocg_v2(0.5, (j + 0.5) / tb->h), tb->w, tb->h).x;
-  double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
+  const double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
   ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
   const double albedo[3] = {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI};
   const double wphi = 2.0 * OC__PI / OC_ATMO_PHI_NODES;
-  double Phi[OCG_ATMO_IRRADIANCE_W][3];
-  memset(Phi, 0, sizeof Phi);
   oc__ray_t ray;
+  memset(out, 0, sizeof(double[3]) * (size_t)n);
   for (int side = 0; side < 2; side++)
     for (int k = 0; k < a->rule_mu.n; k++) {
       double mu, wmu;
       oc__mu_node(&a->rule_mu, k, side, mu_h, &mu, &wmu);
       double d = oc__side_dist(p, r, mu, side);
       oc__ray_build(a, &a->rule_ray, r, mu, d, &ray, 1);
-      double sin_v = sqrt(fmax(0.0, 1.0 - mu * mu));
-      for (int i = 0; i < tb->w; i++) {
-        double mu_s = ocg_atmo_rmus_from_uv(p, ocg_v2((i + 0.5) / tb->w, 0.5), tb->w, tb->h).y;
-        double sin_s = sqrt(fmax(0.0, 1.0 - mu_s * mu_s)), L[3], Ts[3], Eg[3];
+      for (int i = 0; i < n; i++)
         for (int m = 0; m < OC_ATMO_PHI_NODES; m++) {
-          double nu = mu * mu_s + sin_v * sin_s * cos(OC__PI * (m + 0.5) / OC_ATMO_PHI_NODES);
-          oc__sky_radiance(a, &ray, r, mu_s, nu, L);
+          double nu = oc__nu(mu, mu_s[i], m, OC_ATMO_PHI_NODES), L[3], Ts[3], Eg[3];
+          oc__sky_radiance(a, &ray, r, mu_s[i], nu, L);
           if (side == 1) {
-            double mus_g = ocg_atmo_cos_at(r, mu_s, nu, d, b);
+            double mus_g = ocg_atmo_cos_at(r, mu_s[i], nu, d, b);
             oc__sun_T(a, b, mus_g, Ts);
             oc__rmus(a, 2, b, mus_g, Eg);
             for (int c = 0; c < 3; c++) L[c] += exp(-ray.tau[c]) * albedo[c] * (Ts[c] * fmax(mus_g, 0.0) + Eg[c]);
           }
-          for (int c = 0; c < 3; c++) Phi[i][c] += wmu * wphi * L[c];
+          for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * L[c];
         }
-      }
     }
-  for (int i = 0; i < tb->w; i++) oc__store(tb->rgba + 4 * ((size_t)j * tb->w + i), Phi[i]);
+}
+
+/* Row j of an (r, μs) table: every column's μs at once (the rays depend on r and μ only). */
+static void oc__bake_rmus(struct oc_atmo_s *a, int which, int j) {
+  oc__atmo_tab_t *tb = &a->tab[which];
+  double r = ocg_atmo_rmus_from_uv(a->p, ocg_v2(0.5, (j + 0.5) / tb->h), tb->w, tb->h).x;
+  double mu_s[OC__MAX_COLS], v[OC__MAX_COLS][3];
+  for (int i = 0; i < tb->w; i++) mu_s[i] = ocg_atmo_rmus_from_uv(a->p, ocg_v2((i + 0.5) / tb->w, 0.5), tb->w, tb->h).y;
+  if (which == 1) oc__eval_multiscatter(a, r, tb->w, mu_s, v);
+  else if (which == 2) oc__eval_irradiance(a, r, tb->w, mu_s, v);
+  else oc__eval_fluence(a, r, tb->w, mu_s, v);
+  for (int i = 0; i < tb->w; i++) oc__store(tb->rgba + 4 * ((size_t)j * tb->w + i), v[i]);
 }
 
 void oc__atmo_bake_row(struct oc_atmo_s *a, int which, int row) {
-  switch (which) {
-  case 0: oc__bake_transmittance(a, row); break;
-  case 1: oc__bake_multiscatter(a, row); break;
-  case 2: oc__bake_irradiance(a, row); break;
-  case 3: oc__bake_fluence(a, row); break;
-  default: break;
-  }
+  if (which == 0) oc__bake_transmittance(a, row);
+  else if (which > 0 && which < OC__ATMO_NTABLES) oc__bake_rmus(a, which, row);
+}
+
+void oc__atmo_eval(const struct oc_atmo_s *a, int which, double r, double mu, double out[3]) {
+  double v[1][3] = {{0.0, 0.0, 0.0}};
+  r = fmin(fmax(r, a->p.bottom_radius), a->p.top_radius);
+  mu = ocg_clamp_cos(mu);
+  if (which == 0) {
+    if (!ocg_atmo_ray_hits_ground(a->p, r, mu)) oc__eval_transmittance(a, r, mu, v[0]);
+  } else if (which == 1) oc__eval_multiscatter(a, r, 1, &mu, v);
+  else if (which == 2) oc__eval_irradiance(a, r, 1, &mu, v);
+  else if (which == 3) oc__eval_fluence(a, r, 1, &mu, v);
+  for (int c = 0; c < 3; c++) out[c] = v[0][c];
 }

@@ -42,6 +42,10 @@ void oc__atmo_prepare(struct oc_atmo_s *a);
 /* Computes row `row` of table `which` (0..3) from a->p and the tables before it. */
 void oc__atmo_bake_row(struct oc_atmo_s *a, int which, int row);
 
+/* The table's integral evaluated directly at (r, μ or μs), without the table (tests measure the
+ * tables' interpolation error with it); r is clamped to the shell. */
+void oc__atmo_eval(const struct oc_atmo_s *a, int which, double r, double mu, double out[3]);
+
 /* Look-ups in double (see oc_atmo.h for their meaning); out is RGB. */
 void oc__atmo_transmittance(const struct oc_atmo_s *a, double r, double mu, double out[3]);
 void oc__atmo_sun_transmittance(const struct oc_atmo_s *a, double r, double mu_s, double out[3]);

@@ -17,6 +17,7 @@
 #include "oc_render.h"
 #include "oc_voxelize.h"
 #include "optics.h"
+#include "report.h"
 
 /* A sphere of radius 2 km at 3 km altitude, σt 0.05 m⁻¹, voxelized to level 15 (395 m nodes). */
 static oc_medium_t sphere_medium(double sigma) {
@@ -85,6 +86,9 @@ static void test_render__sphere_transmittance_matches_closed_form(void **st) {
     printf("sphere T: step factor %.1f, %d pixels, max |ΔT| %.2e; by impact parameter 0-500-1000-1500-2000-2500 m:"
            " %.1e %.1e %.1e %.1e %.1e\n", d.step_factor, used, max_err, bin[0], bin[1], bin[2], bin[3], bin[4]);
     assert_true(used > 300);
+    oc_report("render", f == 0 ? "sphere τ 2: pixel T vs closed form e^-τ, step factor 0.5"
+                               : "sphere τ 2: pixel T vs closed form e^-τ, step factor 4",
+              max_err, f == 0 ? 3e-3 : 2.5e-2, "");
     assert_true(max_err < (f == 0 ? 3e-3 : 2.5e-2));
   }
   oc_image_free(&img);
@@ -163,6 +167,11 @@ static void test_render__slab_single_scattering_matches_closed_form(void **st) {
     double got = img.px[4 * (2 * d.width + 2)];
     printf("slab sun elevation %2.0f°: L %.6e, closed form %.6e, rel err %.2e, T %.6f (e^-τ %.6f)\n", elev[a], got,
            truth, fabs(got / truth - 1.0), img.px[4 * (2 * d.width + 2) + 3], exp(-tau));
+    {
+      char what[96];
+      snprintf(what, sizeof what, "slab τ 1, single scattering vs closed form, sun %.0f° up", elev[a]);
+      oc_report("render", what, fabs(got / truth - 1.0), 0.01, "rel");
+    }
     assert_true(fabs(got / truth - 1.0) < 0.01);
     assert_true(fabs(img.px[4 * (2 * d.width + 2) + 3] - exp(-tau)) < 1e-3);
     oc_image_free(&img);
@@ -261,6 +270,11 @@ static void test_render__extreme_views_are_finite_and_plausible(void **st) {
     img_summary_t r = summarize(&img);
     printf("%-32s mean RGB %.3e %.3e %.3e  cloud T [%.3f, %.3f]  samples %llu\n", cases[i].name, r.mean[0], r.mean[1],
            r.mean[2], r.min_t, r.max_t, (unsigned long long)rs.samples);
+    {
+      char what[96];
+      snprintf(what, sizeof what, "%s: non-finite or negative pixels", cases[i].name);
+      oc_report("render", what, r.finite ? 0.0 : 1.0, 0.5, "");
+    }
     assert_true(r.finite);
     assert_int_equal(rs.nonfinite, 0);
     assert_true(r.min_t >= 0.0 && r.max_t <= 1.0);
@@ -305,10 +319,58 @@ static void test_render__air_integral_converges(void **st) {
         if (b.px[4 * k + c] > 1e-4f) worst = fmax(worst, fabs(a.px[4 * k + c] / b.px[4 * k + c] - 1.0));
     printf("air steps %d vs %d: worst relative difference %.2e (%s)\n", OC_RENDER_DEFAULT_AIR_STEPS, d.air_steps, worst,
            i == 0 ? "space" : "ground");
+    oc_report("render", i == 0 ? "air, 32 vs 512 steps, from space" : "air, 32 vs 512 steps, from the ground", worst, 0.02, "rel");
     assert_true(worst < 0.02);
     oc_image_free(&a);
     oc_image_free(&b);
   }
+  oc_state_free(&s);
+}
+
+/* Data with NaN, ±Inf and negative extinction: sanitised (and counted) before it reaches a brick,
+ * so the integral stays finite and transmittance stays in [0, 1]. */
+static double bad_data(void *ctx, oc_dvec3 p) {
+  const oc_medium_t *m = ((const oc_medium_ctx_t *)ctx)->medium;
+  double v = oc_medium_sigma_t(m, p);
+  long q = lrint(p.x * 0.01) + 3 * lrint(p.y * 0.01) + 7 * lrint(p.z * 0.01);
+  switch (((q % 7) + 7) % 7) {
+    case 0: return NAN;
+    case 1: return v > 0 ? INFINITY : -INFINITY;
+    case 2: return -v - 1.0;
+    default: return v;
+  }
+}
+
+static void test_render__bad_data_sanitised(void **st) {
+  (void)st;
+  oc_medium_t m = sphere_medium(0.05);
+  oc_medium_ctx_t mc = {&m, oc_dv3(0, 0, 1), 0.0};
+  oc_voxelize_stats_t vs;
+  oc_voxelize_desc_t vd = {0};
+  vd.sigma = bad_data;
+  vd.tau = bad_data;
+  vd.ctx = &mc;
+  vd.min_level = 2;
+  vd.max_level = 13;
+  vd.refine = oc_medium_refine_cb;
+  vd.sun_dir = sun_from(m.prims[0].sphere.c, 40, 0);
+  vd.threads = 2;
+  vd.stats = &vs;
+  oc_state_t s;
+  oc_state_init(&s);
+  assert_int_equal(oc_voxelize(&s, &vd), 0);
+  printf("sanitised: %u NaN, %u Inf, %u negative\n", vs.sanitize.nan, vs.sanitize.inf, vs.sanitize.negative);
+  assert_true(vs.sanitize.nan > 0 && vs.sanitize.inf > 0 && vs.sanitize.negative > 0);
+  oc_image_t img;
+  oc_render_stats_t rs;
+  oc_camera_pose_t pose = {{10.0 - 20000.0 / (OC_PLANET_RADIUS * OC_DEG), 20.0, 3000.0}, 0.0, 0.0, 30.0};
+  render_pose(&s, pose, 2, 0, &img, &rs);
+  img_summary_t r = summarize(&img);
+  oc_report("data", "NaN/Inf/negative σt and τ from data: counted, then non-finite pixels",
+            r.finite && rs.nonfinite == 0 ? 0.0 : 1.0, 0.5, "");
+  assert_true(r.finite);
+  assert_true(r.min_t >= 0.0 && r.max_t <= 1.0);
+  oc_image_free(&img);
   oc_state_free(&s);
 }
 
@@ -351,6 +413,7 @@ int main(void) {
       cmocka_unit_test(test_render__deterministic_across_thread_counts),
       cmocka_unit_test(test_render__extreme_views_are_finite_and_plausible),
       cmocka_unit_test(test_render__air_integral_converges),
+      cmocka_unit_test(test_render__bad_data_sanitised),
       cmocka_unit_test(test_render__rejects_bad_descriptions),
   };
   int r = cmocka_run_group_tests(tests, NULL, NULL);

@@ -10,6 +10,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <cmocka.h>
+#include "report.h"
 
 #include <float.h>  /* FLT_EPSILON, DBL_EPSILON */
 #include <math.h>   /* expm1l, isfinite */
@@ -117,6 +118,11 @@ static void check_normalised(const char *name, phase_fn p, ld gmin, ld gmax, ld 
     }
   }
   printf("  %-28s worst |int - 1| = %.3Le at g = %+.3Lf\n", name, worst, worst_g);
+  {
+    char what[128];
+    snprintf(what, sizeof what, "%s integrates to 1, g in [%.4Lg, %.4Lg] (%s)", name, gmin, gmax, PREC);
+    oc_report("phase", what, (double)worst, (double)norm_tol(gmax > -gmin ? gmax : -gmin) * 1.0000001, "");
+  }
   if (worst_out) *worst_out = worst;
 }
 
@@ -254,6 +260,7 @@ static void test_segment_weight__matches_expm1_reference(void **state) {
   }
   printf("[" PREC "] segment weight: worst relative error %.3Lf EPS (sigma_t %g, d %g); tolerance %.1Lf EPS\n", worst,
          worst_s, worst_d, W_TOL_EPS);
+  oc_report("integrator", "segment weight (1-e^-σd)/σ, σ 0..1e9, d 1e-6..1e7 m (" PREC ")", (double)worst, (double)W_TOL_EPS, "ulp");
   /* Vector form agrees per channel. */
   ocg_vec3 w3 = ocg_segment_weight3(ocg_v3(OCG_R(0.0), OCG_R(1e-12), OCG_R(1e9)), OCG_R(2.0));
   assert_true(w3.x == ocg_segment_weight(OCG_R(0.0), OCG_R(2.0)));
@@ -273,6 +280,10 @@ static void test_segment_weight__series_guard_needed(void **state) {
     printf("[" PREC "] sigma_t %g d %g: ref %.10Lg  guarded %.10g (%.2Lf EPS)  naive %.10g (rel err %.2Lg)\n",
            (double)c[i].s, (double)c[i].d, ref, (double)w, rel_err((ld)w, ref) / EPS, (double)nv, rel_err((ld)nv, ref));
     assert_true(rel_err((ld)w, ref) <= W_TOL_EPS * EPS);
+    if (i == 0) {
+      oc_report("integrator", "σt 1e-12, d 1e-6 m with the series guard (" PREC ")", (double)(rel_err((ld)w, ref) / EPS), (double)W_TOL_EPS, "ulp");
+      oc_report_above("integrator", "same without the guard, naive (1-e^-σd)/σ: fails (" PREC ")", (double)rel_err((ld)nv, ref), 0.99, "rel");
+    }
   }
   /* The naive form is 0 here in both precisions (e^{-1e-18} rounds to 1). */
   assert_true(naive_weight(OCG_R(1e-12), OCG_R(1e-6)) == OCG_R(0.0));
