@@ -10,8 +10,8 @@
  *   table          size    axes (u, v)      value (RGB; alpha = 1)
  *   transmittance  256×64  (x_μ, ρ/H)       T(r, μ) to the top of the atmosphere
  *   multiscatter    32×32  (μs, ρ/H)        Ψ_ms(r, μs), sr⁻¹ per unit solar irradiance
- *   irradiance      64×16  (μs, ρ/H)        sky irradiance on a horizontal surface / E_sun
- *   fluence         64×16  (μs, ρ/H)        ∫_4π sky radiance dω / E_sun
+ *   irradiance      64×32  (μs, ρ/H)        sky irradiance on a horizontal surface / E_sun
+ *   fluence         64×32  (μs, ρ/H)        ∫_4π sky radiance dω / E_sun
  *
  * The mappings are ocg_atmo_transmittance_uv and ocg_atmo_rmus_uv; the integrals and how the renderer
  * uses them are written out in docs/numerics.md (atmosphere section). Radii are metres from the
@@ -48,7 +48,7 @@ void oc_atmo_params_default(ocg_atmosphere *p);
  *  @threads : worker threads (≤ 0: one per online processor); the tables are bit-identical for any
  *             count.
  *  @return : the tables, or NULL on bad parameters (an oc_log_error names the field) or no memory.
- *  Takes about 0.1–0.5 s of CPU (docs/numerics.md has the measured figure). */
+ *  Costs about 0.8 s of CPU, split over the threads (docs/numerics.md has the measured figures). */
 oc_atmo_t *oc_atmo_create(const ocg_atmosphere *p, int threads);
 
 /*! oc_atmo_free() : NULL is accepted. */

@@ -275,6 +275,9 @@ void oc__atmo_rmus_lookup(const struct oc_atmo_s *a, int which, double r, double
 /* ---- Tables ---------------------------------------------------------------------------------------- */
 
 #define OC__MAX_COLS 64 /* the widest (r, μs) table */
+#if OC_ATMO_PHI_NODES > OC__ATMO_MAX_PHI || OC_ATMO_MS_PHI_NODES > OC__ATMO_MAX_PHI
+#error "more azimuths than OC__ATMO_MAX_PHI"
+#endif
 
 static void oc__store(float *texel, const double v[3]) {
   texel[0] = (float)v[0];
@@ -324,6 +327,70 @@ static double oc__nu(double mu, double mu_s, int m, int nphi) {
   return mu * mu_s + sin_v * sin_s * cos(OC__PI * (m + 0.5) / nphi);
 }
 
+/* ---- Per-node rows --------------------------------------------------------------------------------
+ * The scattering tables look the transmittance and Ψ_ms tables up at every ray node for many sun
+ * directions. The node's radius fixes the tables' v, so each node first interpolates the two rows
+ * (the v half of GL's bilinear filter) and every direction then does the u half from L1: the same
+ * bilinear value up to rounding, without a cache miss per look-up. */
+
+typedef struct {
+  double T[OCG_ATMO_TRANSMITTANCE_W][3]; /* transmittance table, rows interpolated at r */
+  double P[OC__MAX_COLS][3];             /* multiscatter table, rows interpolated at r */
+} oc__rows_t;
+
+/* Row j0/j1 interpolation of a table at v (clamp to edge), into row[w][3]. */
+static void oc__rows_at(const oc__atmo_tab_t *tb, double v, double (*row)[3]) {
+  double y = v * tb->h - 0.5;
+  y = y < -1.0 ? -1.0 : y > tb->h ? tb->h : y;
+  int j0 = (int)(y + 1.0) - 1;
+  double fy = y - j0;
+  int j1 = j0 + 1;
+  j0 = j0 < 0 ? 0 : j0 > tb->h - 1 ? tb->h - 1 : j0;
+  j1 = j1 < 0 ? 0 : j1 > tb->h - 1 ? tb->h - 1 : j1;
+  const float *a = tb->rgba + 4 * (size_t)j0 * tb->w, *c = tb->rgba + 4 * (size_t)j1 * tb->w;
+  for (int i = 0; i < tb->w; i++)
+    for (int k = 0; k < 3; k++) row[i][k] = (1.0 - fy) * a[4 * i + k] + fy * c[4 * i + k];
+}
+
+/* The u half of the bilinear filter on an interpolated row of w texels. */
+static inline void oc__lerp_u(const double (*row)[3], int w, double u, double out[3]) {
+  double x = u * w - 0.5;
+  x = x < -1.0 ? -1.0 : x > w ? w : x;
+  int i0 = (int)(x + 1.0) - 1;
+  double fx = x - i0;
+  int i1 = i0 + 1;
+  i0 = i0 < 0 ? 0 : i0 > w - 1 ? w - 1 : i0;
+  i1 = i1 < 0 ? 0 : i1 > w - 1 ? w - 1 : i1;
+  for (int k = 0; k < 3; k++) out[k] = (1.0 - fx) * row[i0][k] + fx * row[i1][k];
+}
+
+static void oc__rows_prepare(const struct oc_atmo_s *a, double r, int want_psi, oc__rows_t *rows) {
+  oc__rows_at(&a->tab[0], ocg_atmo_transmittance_uv(a->p, r, 1.0).y, rows->T);
+  if (want_psi) oc__rows_at(&a->tab[1], ocg_atmo_multiscatter_uv(a->p, r, 0.0).y, rows->P);
+}
+
+/* oc__sun_T at the node's radius r from its rows. */
+static inline void oc__sun_T_rows(const struct oc_atmo_s *a, const oc__rows_t *rows, double r, double mu_s, double out[3]) {
+  double v = ocg_atmo_sun_visibility(a->p, r, mu_s);
+  if (!(v > 0.0)) {
+    out[0] = out[1] = out[2] = 0.0;
+    return;
+  }
+  oc__lerp_u(rows->T, OCG_ATMO_TRANSMITTANCE_W, ocg_atmo_transmittance_uv(a->p, r, mu_s).x, out);
+  for (int k = 0; k < 3; k++) out[k] *= v;
+}
+
+/* Ψ_ms at the node's radius from its rows. */
+static inline void oc__psi_rows(const struct oc_atmo_s *a, const oc__rows_t *rows, double r, double mu_s, double out[3]) {
+  oc__lerp_u(rows->P, OCG_ATMO_MULTISCATTER_W, ocg_atmo_multiscatter_uv(a->p, r, mu_s).x, out);
+}
+
+/* The directions of one zenith-cosine node: azimuth m of column i has cosine ν to the sun. */
+typedef struct {
+  double nu[OC__MAX_COLS][OC__ATMO_MAX_PHI];
+  double L[OC__MAX_COLS][OC__ATMO_MAX_PHI][3]; /* accumulated radiance */
+} oc__dirs_t;
+
 /* Hillaire 2020's multiple-scattering transfer Ψ_ms(r, μs), per unit solar irradiance:
  *   L2 = (1/4π) ∫_4π L'(ω) dω,   f_ms = (1/4π) ∫_4π f(ω) dω,   Ψ_ms = L2 / (1 − f_ms),
  *   L'(ω) = ∫_0^d T(0,s) σ_s(s) (1/4π) T_sun(s) ds + [ground] T(0,d) (a/π) T_sun(g) max(μ_s,g, 0),
@@ -332,56 +399,84 @@ static double oc__nu(double mu, double mu_s, int m, int nphi) {
  * softened transmittance to the sun (the transmittance table, as at run time). n values of μs. */
 static void oc__eval_multiscatter(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
   const ocg_atmosphere p = a->p;
+  const int nphi = OC_ATMO_MS_PHI_NODES;
   const double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
   ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
   const double albedo[3] = {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI};
-  const double inv4pi = 1.0 / (4.0 * OC__PI), wphi = 2.0 * OC__PI / OC_ATMO_MS_PHI_NODES;
+  const double inv4pi = 1.0 / (4.0 * OC__PI), wphi = 2.0 * OC__PI / nphi;
   double L2[OC__MAX_COLS][3], F[3] = {0.0, 0.0, 0.0};
   memset(L2, 0, sizeof L2);
   oc__ray_t ray;
+  oc__rows_t rows;
+  oc__dirs_t dirs;
   for (int side = 0; side < 2; side++)
     for (int k = 0; k < a->rule_mu.n; k++) {
-      double mu, wmu;
+      double mu, wmu, Ts[3];
       oc__mu_node(&a->rule_mu, k, side, mu_h, &mu, &wmu);
       double d = oc__side_dist(p, r, mu, side);
       oc__ray_build(a, &a->rule_ray, r, mu, d, &ray, 1);
-      /* f: independent of the sun; the azimuth integral is 2π. */
-      for (int q = 0; q < ray.n; q++)
-        for (int c = 0; c < 3; c++) F[c] += wmu * 2.0 * OC__PI * inv4pi * ray.w[q] * ray.T[q][c] * (ray.sR[q][c] + ray.sM[q]);
+      memset(dirs.L, 0, sizeof dirs.L);
       for (int i = 0; i < n; i++)
-        for (int m = 0; m < OC_ATMO_MS_PHI_NODES; m++) {
-          double nu = oc__nu(mu, mu_s[i], m, OC_ATMO_MS_PHI_NODES);
-          double Lp[3] = {0.0, 0.0, 0.0}, Ts[3];
-          for (int q = 0; q < ray.n; q++) {
-            oc__sun_T(a, ray.r[q], ocg_atmo_cos_at(r, mu_s[i], nu, ray.t[q], ray.r[q]), Ts);
-            for (int c = 0; c < 3; c++) Lp[c] += ray.w[q] * ray.T[q][c] * (ray.sR[q][c] + ray.sM[q]) * inv4pi * Ts[c];
+        for (int m = 0; m < nphi; m++) dirs.nu[i][m] = oc__nu(mu, mu_s[i], m, nphi);
+      for (int q = 0; q < ray.n; q++) {
+        double wts[3]; /* f's integrand; the azimuth integral of f is 2π (no sun) */
+        for (int c = 0; c < 3; c++) {
+          wts[c] = ray.w[q] * ray.T[q][c] * (ray.sR[q][c] + ray.sM[q]);
+          F[c] += wmu * 2.0 * OC__PI * inv4pi * wts[c];
+        }
+        oc__rows_prepare(a, ray.r[q], 0, &rows);
+        for (int i = 0; i < n; i++)
+          for (int m = 0; m < nphi; m++) {
+            oc__sun_T_rows(a, &rows, ray.r[q], ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], ray.t[q], ray.r[q]), Ts);
+            for (int c = 0; c < 3; c++) dirs.L[i][m][c] += wts[c] * inv4pi * Ts[c];
           }
+      }
+      if (side == 1) oc__rows_prepare(a, b, 0, &rows);
+      for (int i = 0; i < n; i++)
+        for (int m = 0; m < nphi; m++) {
           if (side == 1) {
-            double mus_g = ocg_atmo_cos_at(r, mu_s[i], nu, d, b);
-            oc__sun_T(a, b, mus_g, Ts);
-            for (int c = 0; c < 3; c++) Lp[c] += exp(-ray.tau[c]) * albedo[c] * Ts[c] * fmax(mus_g, 0.0);
+            double mus_g = ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], d, b);
+            oc__sun_T_rows(a, &rows, b, mus_g, Ts);
+            for (int c = 0; c < 3; c++) dirs.L[i][m][c] += exp(-ray.tau[c]) * albedo[c] * Ts[c] * fmax(mus_g, 0.0);
           }
-          for (int c = 0; c < 3; c++) L2[i][c] += wmu * wphi * inv4pi * Lp[c];
+          for (int c = 0; c < 3; c++) L2[i][c] += wmu * wphi * inv4pi * dirs.L[i][m][c];
         }
     }
   for (int i = 0; i < n; i++)
     for (int c = 0; c < 3; c++) out[i][c] = L2[i][c] / (1.0 - F[c]);
 }
 
-/* Sky radiance along one direction node, per unit solar irradiance, single scattering (Rayleigh and
- * Cornette–Shanks phases) plus Hillaire's multiple-scattering source σ_s Ψ_ms:
+/* Sky radiance of every direction of one zenith-cosine node, per unit solar irradiance, into dirs->L:
+ * single scattering (Rayleigh and Cornette–Shanks phases) plus Hillaire's multiple-scattering source
+ * σ_s Ψ_ms:
  *   L(ω) = ∫_0^d T(0,s) [ (β_R(s) p_R(ν) + β^s_M(s) p_M(ν)) T_sun(s) + σ_s(s) Ψ_ms(s) ] ds. */
-static void oc__sky_radiance(const struct oc_atmo_s *a, const oc__ray_t *ray, double r, double mu_s, double nu,
-                             double L[3]) {
-  double pR = ocg_atmo_rayleigh_phase(nu), pM = ocg_atmo_mie_phase(a->p.mie_g, nu), Ts[3], Ps[3];
-  L[0] = L[1] = L[2] = 0.0;
+static void oc__sky_radiance(const struct oc_atmo_s *a, const oc__ray_t *ray, double r, int n, const double *mu_s,
+                             int nphi, oc__dirs_t *dirs) {
+  double pR[OC__MAX_COLS][OC__ATMO_MAX_PHI], pM[OC__MAX_COLS][OC__ATMO_MAX_PHI];
+  oc__rows_t rows;
+  memset(dirs->L, 0, sizeof dirs->L);
+  for (int i = 0; i < n; i++)
+    for (int m = 0; m < nphi; m++) {
+      pR[i][m] = ocg_atmo_rayleigh_phase(dirs->nu[i][m]);
+      pM[i][m] = ocg_atmo_mie_phase(a->p.mie_g, dirs->nu[i][m]);
+    }
   for (int q = 0; q < ray->n; q++) {
-    double mus_q = ocg_atmo_cos_at(r, mu_s, nu, ray->t[q], ray->r[q]);
-    oc__sun_T(a, ray->r[q], mus_q, Ts);
-    oc__rmus(a, 1, ray->r[q], mus_q, Ps);
-    for (int c = 0; c < 3; c++)
-      L[c] += ray->w[q] * ray->T[q][c] *
-              ((ray->sR[q][c] * pR + ray->sM[q] * pM) * Ts[c] + (ray->sR[q][c] + ray->sM[q]) * Ps[c]);
+    double wR[3], wM[3], wS[3], Ts[3], Ps[3];
+    for (int c = 0; c < 3; c++) {
+      double wt = ray->w[q] * ray->T[q][c];
+      wR[c] = wt * ray->sR[q][c];
+      wM[c] = wt * ray->sM[q];
+      wS[c] = wR[c] + wM[c];
+    }
+    oc__rows_prepare(a, ray->r[q], 1, &rows);
+    for (int i = 0; i < n; i++)
+      for (int m = 0; m < nphi; m++) {
+        double mus_q = ocg_atmo_cos_at(r, mu_s[i], dirs->nu[i][m], ray->t[q], ray->r[q]);
+        oc__sun_T_rows(a, &rows, ray->r[q], mus_q, Ts);
+        oc__psi_rows(a, &rows, ray->r[q], mus_q, Ps);
+        for (int c = 0; c < 3; c++)
+          dirs->L[i][m][c] += (wR[c] * pR[i][m] + wM[c] * pM[i][m]) * Ts[c] + wS[c] * Ps[c];
+      }
   }
 }
 
@@ -389,18 +484,21 @@ static void oc__sky_radiance(const struct oc_atmo_s *a, const oc__ray_t *ray, do
  * (side 0 of the horizon substitution with μ_h = 0, i.e. μ = s²). n values of μs. */
 static void oc__eval_irradiance(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
   const ocg_atmosphere p = a->p;
-  const double wphi = 2.0 * OC__PI / OC_ATMO_PHI_NODES;
+  const int nphi = OC_ATMO_PHI_NODES;
+  const double wphi = 2.0 * OC__PI / nphi;
   oc__ray_t ray;
+  oc__dirs_t dirs;
   memset(out, 0, sizeof(double[3]) * (size_t)n);
   for (int k = 0; k < a->rule_mu.n; k++) {
-    double mu, wmu, L[3];
+    double mu, wmu;
     oc__mu_node(&a->rule_mu, k, 0, 0.0, &mu, &wmu);
     oc__ray_build(a, &a->rule_ray, r, mu, ocg_atmo_dist_top(p, r, mu), &ray, 1);
     for (int i = 0; i < n; i++)
-      for (int m = 0; m < OC_ATMO_PHI_NODES; m++) {
-        oc__sky_radiance(a, &ray, r, mu_s[i], oc__nu(mu, mu_s[i], m, OC_ATMO_PHI_NODES), L);
-        for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * mu * L[c];
-      }
+      for (int m = 0; m < nphi; m++) dirs.nu[i][m] = oc__nu(mu, mu_s[i], m, nphi);
+    oc__sky_radiance(a, &ray, r, n, mu_s, nphi, &dirs);
+    for (int i = 0; i < n; i++)
+      for (int m = 0; m < nphi; m++)
+        for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * mu * dirs.L[i][m][c];
   }
 }
 
@@ -410,11 +508,15 @@ static void oc__eval_irradiance(const struct oc_atmo_s *a, double r, int n, cons
  * n values of μs. */
 static void oc__eval_fluence(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
   const ocg_atmosphere p = a->p;
+  const int nphi = OC_ATMO_PHI_NODES;
   const double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
   ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
   const double albedo[3] = {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI};
-  const double wphi = 2.0 * OC__PI / OC_ATMO_PHI_NODES;
+  const double wphi = 2.0 * OC__PI / nphi;
   oc__ray_t ray;
+  oc__rows_t ground;
+  oc__dirs_t dirs;
+  oc__rows_prepare(a, b, 0, &ground);
   memset(out, 0, sizeof(double[3]) * (size_t)n);
   for (int side = 0; side < 2; side++)
     for (int k = 0; k < a->rule_mu.n; k++) {
@@ -423,16 +525,18 @@ static void oc__eval_fluence(const struct oc_atmo_s *a, double r, int n, const d
       double d = oc__side_dist(p, r, mu, side);
       oc__ray_build(a, &a->rule_ray, r, mu, d, &ray, 1);
       for (int i = 0; i < n; i++)
-        for (int m = 0; m < OC_ATMO_PHI_NODES; m++) {
-          double nu = oc__nu(mu, mu_s[i], m, OC_ATMO_PHI_NODES), L[3], Ts[3], Eg[3];
-          oc__sky_radiance(a, &ray, r, mu_s[i], nu, L);
+        for (int m = 0; m < nphi; m++) dirs.nu[i][m] = oc__nu(mu, mu_s[i], m, nphi);
+      oc__sky_radiance(a, &ray, r, n, mu_s, nphi, &dirs);
+      for (int i = 0; i < n; i++)
+        for (int m = 0; m < nphi; m++) {
           if (side == 1) {
-            double mus_g = ocg_atmo_cos_at(r, mu_s[i], nu, d, b);
-            oc__sun_T(a, b, mus_g, Ts);
+            double mus_g = ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], d, b), Ts[3], Eg[3];
+            oc__sun_T_rows(a, &ground, b, mus_g, Ts);
             oc__rmus(a, 2, b, mus_g, Eg);
-            for (int c = 0; c < 3; c++) L[c] += exp(-ray.tau[c]) * albedo[c] * (Ts[c] * fmax(mus_g, 0.0) + Eg[c]);
+            for (int c = 0; c < 3; c++)
+              dirs.L[i][m][c] += exp(-ray.tau[c]) * albedo[c] * (Ts[c] * fmax(mus_g, 0.0) + Eg[c]);
           }
-          for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * L[c];
+          for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * dirs.L[i][m][c];
         }
     }
 }

@@ -11,6 +11,7 @@
 #define OC__ATMO_NTABLES 4   /* transmittance, multiscatter, irradiance, fluence: OC_ATMO_TABLE_* order */
 #define OC__ATMO_MAX_SHELLS 24
 #define OC__ATMO_MAX_RULE 24
+#define OC__ATMO_MAX_PHI 32
 
 /* A Gauss–Legendre rule on [0, 1] and its integration matrix: S[i][j] = ∫_0^{x_i} ℓ_j, so that
  * Σ_j S[i][j] f(x_j) is the integral from 0 to node i of the degree n−1 interpolant of f. */

@@ -33,7 +33,7 @@
  * glTexImage2D). */
 #define OCG_ATMO_TRANSMITTANCE_W 256 /**< μ axis (Bruneton's x_μ) */
 #define OCG_ATMO_TRANSMITTANCE_H 64  /**< r axis (ρ/H) */
-#define OCG_ATMO_MULTISCATTER_W 32   /**< μs axis */
+#define OCG_ATMO_MULTISCATTER_W 32   /**< μs axis (rational map, ocg_atmo_mus_to_unit) */
 #define OCG_ATMO_MULTISCATTER_H 32   /**< r axis (ρ/H) */
 #define OCG_ATMO_IRRADIANCE_W 64     /**< μs axis; also the sky fluence table */
 #define OCG_ATMO_IRRADIANCE_H 32     /**< r axis (ρ/H); also the sky fluence table */
@@ -316,27 +316,27 @@ OC_INLINE ocg_vec2 ocg_atmo_transmittance_rmu(OC_IN(ocg_atmosphere) atm, ocg_vec
 }
 
 /* ---- (r, μs) tables ↔ uv: multiple scattering, sky irradiance, sky fluence ----------------------------
- * $u = \mathrm{tex}(x_{\mu_s}, w)$, $v = \mathrm{tex}(\rho / H, h)$ with
- * $x_{\mu_s} = \frac{1}{2} + \frac{\arctan(\mu_s / k)}{2 \arctan(1 / k)}$, k = OCG_ATMO_MUS_K.
+ * $u = \mathrm{tex}(x_{\mu_s}, w)$, $v = \mathrm{tex}(\rho / H, h)$ with the odd rational map
+ * $x_{\mu_s} = \frac{1}{2}\left(1 + \frac{(1 + k)\,\mu_s}{|\mu_s| + k}\right)$, k = OCG_ATMO_MUS_K.
  * Hillaire 2020 maps r and μs linearly. ρ/H (as the transmittance table) gives cloud altitudes more
- * rows; the arctangent puts 3.6× the linear density of columns at the horizon (k = 0.2: 65 % of the
- * columns for |μs| ≤ 0.25), where sunset and twilight change these tables fastest, and fewer near
- * the zenith, where they are smooth. */
+ * rows; the rational map gives the horizon (1 + k)/k times the linear density of columns, where
+ * sunset and twilight change these tables fastest, and the zenith k/(1 + k) times, where they are
+ * smooth (k = OCG_ATMO_MUS_K; no transcendental function, cheap in a shader). */
 
-/*! Width of the μs band that the (r, μs) tables resolve finely (see above). */
-#ifndef OCG_ATMO_MUS_K
-#define OCG_ATMO_MUS_K OCG_R(0.2)
-#endif
+/*! Width of the μs band around the horizon that the (r, μs) tables resolve finely (see above). Part
+ * of the table format: C and GLSL must agree, so it is not overridable. */
+#define OCG_ATMO_MUS_K OCG_R(0.3)
 
-/* $x = \frac{1}{2} + \frac{\arctan(\mu_s/k)}{2\arctan(1/k)}$. Domain: μs ∈ [-1, 1] (clamped). */
+/* $x = \frac{1}{2}(1 + \frac{(1+k)\mu_s}{|\mu_s| + k})$. Domain: μs ∈ [-1, 1] (clamped). */
 OC_INLINE ocg_real ocg_atmo_mus_to_unit(ocg_real mu_s) {
-  return OCG_R(0.5) + OCG_R(0.5) * ocg_atan2(ocg_clamp_cos(mu_s), OCG_ATMO_MUS_K) / ocg_atan2(OCG_R(1.0), OCG_ATMO_MUS_K);
+  ocg_real m = ocg_clamp_cos(mu_s);
+  return OCG_R(0.5) + OCG_R(0.5) * (OCG_R(1.0) + OCG_ATMO_MUS_K) * m / (ocg_abs(m) + OCG_ATMO_MUS_K);
 }
 
-/* The inverse: $\mu_s = k \tan((2x - 1) \arctan(1/k))$. Domain: x ∈ [0, 1]. */
+/* The inverse: with $y = 2x - 1$, $\mu_s = \frac{k\,y}{1 + k - |y|}$. Domain: x ∈ [0, 1] (clamped). */
 OC_INLINE ocg_real ocg_atmo_unit_to_mus(ocg_real x) {
-  ocg_real a = (OCG_R(2.0) * x - OCG_R(1.0)) * ocg_atan2(OCG_R(1.0), OCG_ATMO_MUS_K);
-  return ocg_clamp_cos(OCG_ATMO_MUS_K * ocg_sin(a) / ocg_cos(a));
+  ocg_real y = ocg_clamp(OCG_R(2.0) * x - OCG_R(1.0), OCG_R(-1.0), OCG_R(1.0));
+  return ocg_clamp_cos(OCG_ATMO_MUS_K * y / (OCG_R(1.0) + OCG_ATMO_MUS_K - ocg_abs(y)));
 }
 
 /* (r, μs) → uv on a w×h table. Domain: b ≤ r ≤ t (clamped), μs ∈ [-1, 1]. */
@@ -364,7 +364,7 @@ OC_INLINE ocg_vec2 ocg_atmo_multiscatter_uv(OC_IN(ocg_atmosphere) atm, ocg_real 
   return ocg_atmo_rmus_uv(atm, r, mu_s, OCG_TO_REAL(OCG_ATMO_MULTISCATTER_W), OCG_TO_REAL(OCG_ATMO_MULTISCATTER_H));
 }
 
-/* The sky irradiance and sky fluence tables' uv (64×16). */
+/* The sky irradiance and sky fluence tables' uv (64×32). */
 OC_INLINE ocg_vec2 ocg_atmo_irradiance_uv(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_real mu_s) {
   return ocg_atmo_rmus_uv(atm, r, mu_s, OCG_TO_REAL(OCG_ATMO_IRRADIANCE_W), OCG_TO_REAL(OCG_ATMO_IRRADIANCE_H));
 }

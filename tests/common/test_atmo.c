@@ -33,10 +33,11 @@ static double ch(ocg_vec3 v, int c) { return c == 0 ? v.x : c == 1 ? v.y : v.z; 
 
 /* μs at the centre of column i of an (r, μs) table of width w (the inverse of ocg_atmo_mus_to_unit,
  * in double). */
-static double mus_centre(int i, int w) {
-  double k = OCG_ATMO_MUS_K, x = (double)i / (w - 1);
-  return k * tan((2.0 * x - 1.0) * atan(1.0 / k));
+static double mus_of_unit(double x) {
+  double k = OCG_ATMO_MUS_K, y = 2.0 * x - 1.0;
+  return k * y / (1.0 + k - fabs(y));
 }
+static double mus_centre(int i, int w) { return mus_of_unit((double)i / (w - 1)); }
 
 /* ---- An independent double-precision model of the medium (not the shared header) -------------------- */
 
@@ -522,7 +523,7 @@ static void test_atmo__fluence_consistent_with_irradiance(void **state) {
   print_message("upper-hemisphere fluence / irradiance at the ground (sun above 3 deg): %.3f .. %.3f\n", lo, hi);
   assert_true(lo > 1.0 && hi < 8.0);
   /* Sun near the zenith: 2 for an isotropic sky, a little more for a sky brighter at the horizon. */
-  double mus = mus_centre(OCG_ATMO_IRRADIANCE_W - 2, OCG_ATMO_IRRADIANCE_W);
+  double mus = mus_centre(OCG_ATMO_IRRADIANCE_W - 1, OCG_ATMO_IRRADIANCE_W);
   ocg_vec3 F = oc_atmo_sky_fluence(f->a, b, mus), E = oc_atmo_sky_irradiance(f->a, b, mus);
   ocg_vec3 T = oc_atmo_sun_transmittance(f->a, b, mus);
   for (int c = 0; c < 3; c++) {
@@ -548,8 +549,7 @@ static void test_atmo__lookup_is_gl_bilinear(void **state) {
   for (int j = 0; j < h; j++)
     for (int i = 0; i + 1 < w; i++) {
       double xr = (double)j / (h - 1), rho = H * xr, r = sqrt(rho * rho + b * b);
-      double mus0 = mus_centre(i, w), k = OCG_ATMO_MUS_K;
-      double musm = k * tan((2.0 * (i + 0.5) / (w - 1) - 1.0) * atan(1.0 / k)); /* half-way in u */
+      double mus0 = mus_centre(i, w), musm = mus_of_unit((i + 0.5) / (w - 1)); /* half-way in u */
       const float *a0 = px + 4 * (j * w + i), *a1 = a0 + 4;
       double v0 = oc_atmo_sky_irradiance(f->a, r, mus0).z, vm = oc_atmo_sky_irradiance(f->a, r, musm).z;
       assert_near(v0, a0[2], 1e-5 * a0[2] + 1e-12);
@@ -560,7 +560,7 @@ static void test_atmo__lookup_is_gl_bilinear(void **state) {
 }
 
 /* The (r, μs) tables against their integrals evaluated directly at random points: the interpolation
- * error of 32×32 and 64×16 texels with the ρ/H row mapping. */
+ * error of 32×32 and 64×32 texels with the ρ/H rows and the rational μs columns. */
 static void test_atmo__rmus_tables_interpolation(void **state) {
   fix_t *f = *state;
   static const char *name[] = {"", "multiscatter", "irradiance", "fluence"};
