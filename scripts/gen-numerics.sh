@@ -10,7 +10,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
 export OC_SOURCE_DIR=$PWD OC_SHARED_DIR=$PWD/../shared
-for t in common_test_planet common_test_brick shaders_test_optics shaders_test_optics_double common_test_render; do
+for t in common_test_planet common_test_brick common_test_atmo shaders_test_optics shaders_test_optics_double common_test_render; do
   [ -x "$BUILD/tests/$t" ] || { echo "gen-numerics: $BUILD/tests/$t not built" >&2; exit 1; }
   echo "gen-numerics: running $t" >&2
   OC_REPORT_OUT=$tmp/stability.md OC_TABLE_OUT=$tmp/integrators_$t.md "$BUILD/tests/$t" >/dev/null
