@@ -1,0 +1,143 @@
+/* overcast-server — the server. Today: load a scene and build its field (--check), inspect VDB
+ * files (--inspect), export a region of the field to a .vdb (--export-vdb). The network listener,
+ * planner and streaming arrive with issues [3/7] and [4/7]. */
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "oc_cli.h"
+#include "oc_err.h"
+#include "oc_log.h"
+#include "oc_scene.h"
+#include "ocs_field.h"
+#include "vdb_tools.h"
+
+static const char *prog = "overcast-server";
+
+static void usage(FILE *f) {
+  fprintf(f,
+          "usage: overcast-server [options]\n"
+          "Owns the cloud field of a scene (procedural, analytic, or imported from OpenVDB).\n"
+          "\n"
+          "  --scene FILE          scene file (default: the built-in procedural planet)\n"
+          "  --check               load the scene, build every source, print a summary and exit\n"
+          "  --inspect FILE.vdb    print the grids of a VDB file and exit (types, classes, voxel size,\n"
+          "                        active voxels, bounding box, value range)\n"
+          "  --json                with --inspect: machine-readable output\n"
+          "  --export-vdb OUT.vdb  write a region of the field as a float grid \"density\" and exit\n"
+          "  --region LAT,LON,ALT,RADIUS   the region to export: a cube of half-size RADIUS metres\n"
+          "                        around a point (default: the scene camera's position, 5000 m)\n"
+          "  --level N             octree level of the exported voxels (default 16)\n"
+          "  --time T              world time in seconds for --export-vdb (default 0)\n"
+          "  -q, --quiet           only errors\n"
+          "  --help, --version\n"
+          "\n"
+          "The network listener arrives with a later release; today the server validates and exports.\n"
+          "exit status: 0 ok, 1 runtime error (bad scene or file), 2 usage error\n");
+}
+
+static int parse_region(const char *text, double v[4]) {
+  char *end;
+  const char *s = text;
+  for (int i = 0; i < 4; i++) {
+    v[i] = strtod(s, &end);
+    if (end == s || (i < 3 && *end != ',') || (i == 3 && *end)) return -1;
+    s = end + 1;
+  }
+  return (v[0] >= -90 && v[0] <= 90 && v[1] >= -360 && v[1] <= 360 && v[3] > 0 && v[3] <= 1e6) ? 0 : -1;
+}
+
+int main(int argc, char **argv) {
+  enum { O_SCENE = 256, O_CHECK, O_INSPECT, O_JSON, O_EXPORT, O_REGION, O_LEVEL, O_TIME, O_HELP, O_VERSION };
+  static const struct option opts[] = {
+      {"scene", required_argument, 0, O_SCENE},   {"check", no_argument, 0, O_CHECK},
+      {"inspect", required_argument, 0, O_INSPECT}, {"json", no_argument, 0, O_JSON},
+      {"export-vdb", required_argument, 0, O_EXPORT}, {"region", required_argument, 0, O_REGION},
+      {"level", required_argument, 0, O_LEVEL},   {"time", required_argument, 0, O_TIME},
+      {"quiet", no_argument, 0, 'q'},             {"help", no_argument, 0, O_HELP},
+      {"version", no_argument, 0, O_VERSION},     {0, 0, 0, 0}};
+  const char *scene_path = NULL, *inspect = NULL, *export_path = NULL, *region_text = NULL;
+  int check = 0, json = 0, c;
+  long level = 16;
+  double t = 0.0;
+  opterr = 0;
+  while ((c = getopt_long(argc, argv, "q", opts, NULL)) != -1) {
+    switch (c) {
+      case O_SCENE: scene_path = optarg; break;
+      case O_CHECK: check = 1; break;
+      case O_INSPECT: inspect = optarg; break;
+      case O_JSON: json = 1; break;
+      case O_EXPORT: export_path = optarg; break;
+      case O_REGION: region_text = optarg; break;
+      case O_LEVEL: if (oc_cli_int(prog, "--level", optarg, 0, 21, &level)) return OC_EXIT_USAGE; break;
+      case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &t)) return OC_EXIT_USAGE; break;
+      case 'q': oc_log_set_level(OC_LOG_ERROR); break;
+      case O_HELP: usage(stdout); return OC_EXIT_OK;
+      case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
+      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown or incomplete option \"%s\" (see --help)", argv[optind - 1]);
+    }
+  }
+  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "unexpected argument \"%s\" (see --help)", argv[optind]);
+  if (json && !inspect) return oc_cli_fail(prog, OC_EXIT_USAGE, "--json goes with --inspect");
+  if (inspect && (check || export_path || scene_path))
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--inspect takes no scene, --check or --export-vdb");
+  if ((region_text || level != 16) && !export_path) return oc_cli_fail(prog, OC_EXIT_USAGE, "--region and --level go with --export-vdb");
+  double region[4] = {0, 0, 0, 5000};
+  if (region_text && parse_region(region_text, region))
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--region: expected LAT,LON,ALT,RADIUS (radius in (0, 1e6] m), got \"%s\"", region_text);
+
+  char why[1024];
+  if (inspect) {
+    if (ocs_vdb_inspect(inspect, json, stdout, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    return OC_EXIT_OK;
+  }
+  if (!check && !export_path)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "nothing to do: the network listener is not in this build (use --check, --inspect or --export-vdb)");
+
+  oc_scene_t *sc = calloc(1, sizeof *sc);
+  ocs_field_t *field = NULL;
+  int rc = OC_EXIT_OK;
+  if (!sc) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  if (scene_path) {
+    if (oc_scene_load(sc, scene_path, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
+  } else {
+    oc_scene_default(sc);
+  }
+  struct timespec t0, t1;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  if (ocs_field_create(&field, sc, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path ? scene_path : "built-in planet", why);
+    goto out;
+  }
+  clock_gettime(CLOCK_MONOTONIC, &t1);
+  if (check) {
+    printf("scene %s: %d source(s), %s, field built in %.3f s\n", sc->name, sc->nsources,
+           ocs_field_animated(field) ? "animated (3 kept states)" : "static (2 kept states)",
+           (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
+    for (int i = 0; i < sc->nsources; i++) printf("  sources[%d]: %s\n", i, oc_scene_source_type_name(sc->sources[i].type));
+  }
+  if (export_path) {
+    if (!region_text) {
+      region[0] = sc->camera.pos.lat;
+      region[1] = sc->camera.pos.lon;
+      region[2] = sc->camera.pos.alt;
+    }
+    oc_geo_t g = {region[0], region[1], region[2]};
+    oc_dvec3 c0 = oc_geo_to_xyz(g), r = oc_dv3(region[3], region[3], region[3]);
+    if (ocs_vdb_export(field, t, oc_dsub(c0, r), oc_dadd(c0, r), (int)level, export_path, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
+    printf("%s\n", export_path);
+  }
+out:
+  ocs_field_free(field);
+  oc_scene_free(sc);
+  free(sc);
+  return rc;
+}

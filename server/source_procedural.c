@@ -1,0 +1,871 @@
+/* source_procedural.c — the procedural planet: the built-in default scene (docs/_parts/procedural.md).
+ *
+ * Four cloud layers at their real altitudes — stratus sheets, cumulus heaps with flat bases,
+ * cumulonimbus towers with anvils, thin cirrus — each a pure function of (point, time, seed):
+ *
+ *   W = sat((C - θ(cov)) / s_w)              coverage: low-frequency fBm C on the sphere
+ *   A = W · sat(a0 + a1·K)                   column strength: cell fBm K on the sphere
+ *   G = A - Q(h)                             Q: the layer's altitude cost (flat base, top, anvil)
+ *   F = G - e·sat(1/2 - k_d·D)               erosion by 3D detail fBm D
+ *   φ = sat(F / F_w)
+ *   σt = s_σ · σ_Märkl(wc · prof(h) · φ, ρ_air(h))   ocg_sigma_t_liquid / _ice (shaders/optics.h)
+ *
+ * summed over the layers. Every layer is advected by a solid rotation about its own axis through
+ * the planet centre (continuous everywhere, keeps altitudes) and its noise patterns drift slowly
+ * in the advected frame (evolution). Weather presets and transitions live in weather.c.
+ *
+ * Bricks follow the Conventions' filter: each sample is the mean of the finest σt over its
+ * footprint, estimated at stratified midpoints (the points of oc_brick_sample()); at coarse levels
+ * the axis closest to the local vertical gets many more strata than the others, because the cloud
+ * shell is far thinner than a coarse voxel. The batch noise evaluates the sub-samples of a brick;
+ * points that cannot hold cloud are skipped by exact tests (zero stays zero), so a sample is bit
+ * for bit the box average of ocs__proc_point() wherever no detail octave is dropped.
+ *
+ * Everything that reaches the output bits is IEEE +, -, ×, /, sqrt, floor, fmod and ldexp (the
+ * noise, the exponential and the rotation's sine included), so the bytes do not depend on libm. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "oc_err.h"
+#include "oc_noise.h"
+#include "oc_planet.h"
+#include "ocs_field.h"
+#include "weather.h"
+
+#define OCG_REAL_DOUBLE /* Märkl's conversions in double, from the one shared implementation */
+#include "optics.h"     /* ocg_sigma_t_liquid, ocg_sigma_t_ice */
+
+/*-*** Tuning knobs ***/
+
+/*! Sub-samples per axis of the box filter along the two most horizontal axes (and along all three
+ *  at fine levels): 4³ = 64 points per sample, oc_voxelize's default. */
+#ifndef OCS_PROC_SUB
+#define OCS_PROC_SUB 4
+#endif
+/*! Largest spacing, in metres, of the strata along the axis closest to the local vertical: the
+ *  layers are 0.3–3 km thick with flat bases sharper than 100 m, so a coarse voxel (29 km at level
+ *  6) needs hundreds of strata in that direction to see them at the right weight. */
+#ifndef OCS_PROC_DZ
+#define OCS_PROC_DZ 50.0
+#endif
+/*! Most strata along the vertical axis (levels 0–5 reach it; their voxels are ≥ 58 km). */
+#ifndef OCS_PROC_MAX_SUB_V
+#define OCS_PROC_MAX_SUB_V 1024
+#endif
+/*! Octave truncation of the detail noise: at level L, an octave of period λ is kept while
+ *  λ ≥ OCS_PROC_OCTAVE_DROP × the level's voxel size. 0 keeps every octave at every level. Any
+ *  non-zero value must pass the parent-vs-descendants mean test (tests/server/test_procedural.c). */
+#ifndef OCS_PROC_OCTAVE_DROP
+#define OCS_PROC_OCTAVE_DROP 0.0
+#endif
+/*! Fraction of a voxel the content may move before a level's time step changes. */
+#ifndef OCS_PROC_STEP_VOXELS
+#define OCS_PROC_STEP_VOXELS 0.25
+#endif
+/*! Scale height of the air density, ρ_air(h) = 1.225·exp(-h/H): the least-squares fit to the
+ *  1976 standard atmosphere over 0–12 km (within 5% there; 19% high at 15 km). */
+#define OCS_PROC_RHO_H 9200.0
+
+#define OCS__R OC_PLANET_RADIUS
+#define OCS__CHUNK 512 /* points per batch pass: the scratch stays in L1/L2 */
+
+/*-*** Deterministic elementary functions (no libm in the output path) ***/
+
+/* e^x: Cody–Waite reduction by ln 2, degree-13 Taylor polynomial on |r| ≤ ln2/2 (truncation below
+ * 2e-17 relative), exact scaling by ldexp. */
+static double ocs__exp(double x) {
+  if (x < -700.0) return 0.0;
+  if (x > 700.0) x = 700.0;
+  double k = floor(x * 1.4426950408889634 + 0.5);
+  double r = (x - k * 6.93147180369123816490e-01) - k * 1.90821492927058770002e-10;
+  double p = 1.0 / 6227020800.0;
+  static const double c[13] = {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0, 1.0 / 40320.0,
+                               1.0 / 5040.0,      1.0 / 720.0,      1.0 / 120.0,     1.0 / 24.0,     1.0 / 6.0,
+                               0.5,               1.0,              1.0};
+  for (int i = 0; i < 13; i++) p = p * r + c[i];
+  return ldexp(p, (int)k);
+}
+
+/* sin and cos: reduction modulo 2π (fmod is exact), then a sixteenth of the angle (|x| ≤ 0.393)
+ * by Taylor series to x^17, then four double-angle steps. About 1e-15 absolute. */
+static void ocs__sincos(double a, double *s, double *c) {
+  a = fmod(a, 6.283185307179586) * 0.0625;
+  double x2 = a * a, sn = 1.0, cs = 1.0;
+  for (int k = 16; k >= 2; k -= 2) {
+    sn = 1.0 - sn * x2 / ((double)(k + 1) * (double)k);
+    cs = 1.0 - cs * x2 / ((double)k * (double)(k - 1));
+  }
+  sn *= a;
+  for (int i = 0; i < 4; i++) {
+    double s2 = 2.0 * sn * cs, c2 = cs * cs - sn * sn;
+    sn = s2;
+    cs = c2;
+  }
+  *s = sn;
+  *c = cs;
+}
+
+static inline double ocs__sat(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+static inline double ocs__smoothstep(double a, double b, double x) {
+  double u = ocs__sat((x - a) / (b - a));
+  return u * u * (3.0 - 2.0 * u);
+}
+/* Biweight bump: (1 - x²)² on |x| < 1, else 0; monotone on each side of 0. */
+static inline double ocs__bump(double x) {
+  double u = 1.0 - x * x;
+  return u > 0.0 ? u * u : 0.0;
+}
+static inline double ocs__rho_air(double h) { return 1.225 * ocs__exp(-h / OCS_PROC_RHO_H); }
+
+/*-*** Layers ***/
+
+typedef struct {
+  double lambda;       /* m: period of the first octave */
+  double lambda_short; /* m: period along the layer's wind axis (streaks across it); 0: isotropic */
+  int octaves;         /* lacunarity 2, gain 0.5 */
+  double drift[3];     /* m/s: drift of the pattern in the layer's advected frame (evolution) */
+} ocs__nspec_t;
+
+enum { OCS__LIQUID = 0, OCS__ICE = 1, OCS__MIXED = 2 };
+
+typedef struct {
+  const char *name;
+  ocs__nspec_t cov, cell, det; /* coverage C and cells K on the sphere; 3D detail D */
+  double axis[3], wind;        /* advection: rotation about axis; m/s at its equator, sea level */
+  double s_w;                  /* coverage ramp width (in units of C) */
+  double a0, a1;               /* A = W·sat(a0 + a1·K) */
+  double h_c, H_lo, H_hi;      /* Q: ((h_c - h)/H_lo)^p_lo below h_c, ((h - h_c)/H_hi)^p_hi above */
+  int p_lo, p_hi;              /* 1 or 2 */
+  double h_tp, H_tp;           /* above h_tp, add (h - h_tp)/H_tp (H_tp 0: none) */
+  double anvil, h_av, w_av;    /* subtract anvil·bump((h - h_av)/w_av) */
+  double e, k_d;               /* erosion e·sat(1/2 - k_d·D) */
+  double F_w;                  /* width of the density ramp φ = sat(F/F_w) */
+  int phase;                   /* OCS__LIQUID, OCS__ICE, OCS__MIXED */
+  double wc;                   /* kg/kg: nominal water content */
+  double prof_lo, prof_dh;     /* prof = prof_lo + (1 - prof_lo)·sat((h - h_c)/prof_dh) (prof_dh 0: 1) */
+  double thin_lo, thin_hi, thin; /* × (1 - thin·smoothstep(thin_lo, thin_hi, h)) */
+  double glac_lo, glac_hi, ice_ratio; /* mixed: ice fraction g = smoothstep(glac_lo, glac_hi, h),
+                                         liquid (1 - g)·wc, ice g·ice_ratio·wc */
+} ocs__layer_t;
+
+/* Altitudes, sizes and water contents from the usual cloud climatology (Wakapon's cloud types;
+ * LWC/IWC ranges as in Märkl 2018): stratus 0.4–1.3 km; cumulus base 1.2 km, tops 2–5.4 km;
+ * cumulonimbus base 1 km, tops to 14.6 km, anvil near 11.5 km, glaciating over 4–7 km; cirrus
+ * 8.7–11.3 km. Winds: easterly low stratus, westerlies increasing with height, a 25 m/s jet for
+ * cirrus. */
+static const ocs__layer_t ocs__layers[OCS_LAYER_COUNT] = {
+    [OCS_LAYER_STRATUS] = {.name = "stratus",
+                           .cov = {800e3, 0, 4, {1.2, -0.8, 0.5}},
+                           .cell = {15e3, 0, 3, {0.5, 0.6, -0.4}},
+                           .det = {2e3, 0, 4, {0.3, -0.4, 0.6}},
+                           .axis = {0.1, 0.05, 1.0}, .wind = -5.0,
+                           .s_w = 0.15, .a0 = 0.75, .a1 = 1.5,
+                           .h_c = 800.0, .H_lo = 450.0, .H_hi = 550.0, .p_lo = 2, .p_hi = 2,
+                           .e = 0.15, .k_d = 2.5, .F_w = 0.15,
+                           .phase = OCS__LIQUID, .wc = 0.4e-3, .prof_lo = 1.0},
+    [OCS_LAYER_CUMULUS] = {.name = "cumulus",
+                           .cov = {600e3, 0, 4, {-1.0, 1.5, 0.7}},
+                           .cell = {2e3, 0, 3, {0.8, 0.3, -0.9}},
+                           .det = {800.0, 0, 5, {-0.6, 0.9, 1.2}},
+                           .axis = {0.25, -0.1, 1.0}, .wind = 9.0,
+                           .s_w = 0.2, .a0 = -0.2, .a1 = 4.0,
+                           .h_c = 1200.0, .H_lo = 40.0, .H_hi = 4200.0, .p_lo = 1, .p_hi = 1,
+                           .e = 0.2, .k_d = 2.5, .F_w = 0.08,
+                           .phase = OCS__LIQUID, .wc = 1.1e-3, .prof_lo = 0.3, .prof_dh = 1500.0},
+    [OCS_LAYER_CUMULONIMBUS] = {.name = "cumulonimbus",
+                                .cov = {400e3, 0, 4, {0.9, 0.9, -1.3}},
+                                .cell = {20e3, 0, 3, {1.5, -1.0, 0.4}},
+                                .det = {3e3, 0, 5, {0.4, 1.1, 1.6}},
+                                .axis = {-0.15, 0.2, 1.0}, .wind = 7.0,
+                                .s_w = 0.15, .a0 = -0.5, .a1 = 4.0,
+                                .h_c = 1000.0, .H_lo = 60.0, .H_hi = 13000.0, .p_lo = 1, .p_hi = 1,
+                                .h_tp = 14500.0, .H_tp = 400.0,
+                                .anvil = 0.5, .h_av = 11500.0, .w_av = 2500.0,
+                                .e = 0.25, .k_d = 2.5, .F_w = 0.1,
+                                .phase = OCS__MIXED, .wc = 2.0e-3, .prof_lo = 0.4, .prof_dh = 3000.0,
+                                .thin_lo = 8000.0, .thin_hi = 14000.0, .thin = 0.5,
+                                .glac_lo = 4000.0, .glac_hi = 7000.0, .ice_ratio = 0.5},
+    [OCS_LAYER_CIRRUS] = {.name = "cirrus",
+                          .cov = {1000e3, 0, 4, {-1.5, -0.5, 1.0}},
+                          .cell = {30e3, 4e3, 3, {2.0, 1.0, 0.5}},
+                          .det = {6e3, 1.5e3, 3, {1.0, -1.5, 0.8}},
+                          .axis = {0.1, 0.3, 1.0}, .wind = 25.0,
+                          .s_w = 0.25, .a0 = 0.2, .a1 = 3.0,
+                          .h_c = 10000.0, .H_lo = 1300.0, .H_hi = 1300.0, .p_lo = 2, .p_hi = 2,
+                          .e = 0.3, .k_d = 2.5, .F_w = 0.35,
+                          .phase = OCS__ICE, .wc = 2.5e-5, .prof_lo = 1.0},
+};
+
+/* θ(cov): the (1 - cov) quantile of a 4-octave fBm (lacunarity 2, gain 0.5) over the sphere, at
+ * cov = k/32 (measured once over 2e6 random directions; mean 0, sd 0.160, range ±0.64), so that
+ * the coverage map has cloud (W > 0) on about a fraction cov of the planet. */
+static const double ocs__cov_quantile[33] = {
+    1.0,       0.295441,  0.247378,  0.214582,  0.188573,  0.166320,  0.146680,  0.128879,  0.112226,
+    0.096513,  0.081701,  0.067319,  0.053357,  0.039684,  0.026436,  0.013173,  0.000039,  -0.013193,
+    -0.026402, -0.039716, -0.053249, -0.067112, -0.081505, -0.096415, -0.112066, -0.128550, -0.146377,
+    -0.165978, -0.188179, -0.214242, -0.247163, -0.295529, -1.0 /* replaced by -1 - s_w */};
+
+static double ocs__theta(double cov, double s_w) {
+  if (!(cov > 0.0)) return 1.0;              /* C ≤ 1: W = 0 everywhere */
+  if (cov >= 1.0) return -1.0 - s_w;         /* C ≥ -1: W = 1 everywhere */
+  double x = cov * 32.0;
+  int k = (int)x;
+  double f = x - (double)k;
+  double a = ocs__cov_quantile[k], b = k + 1 == 32 ? -1.0 - s_w : ocs__cov_quantile[k + 1];
+  return a + (b - a) * f;
+}
+
+/* Q(h) without the anvil: decreasing below h_c, increasing above (the minimum is at h_c). */
+static inline double ocs__q_mono(const ocs__layer_t *L, double h) {
+  double q;
+  if (h < L->h_c) {
+    double x = (L->h_c - h) / L->H_lo;
+    q = L->p_lo == 2 ? x * x : x;
+  } else {
+    double x = (h - L->h_c) / L->H_hi;
+    q = L->p_hi == 2 ? x * x : x;
+  }
+  if (L->H_tp > 0.0 && h > L->h_tp) q += (h - L->h_tp) / L->H_tp;
+  return q;
+}
+static inline double ocs__q(const ocs__layer_t *L, double h) {
+  double q = ocs__q_mono(L, h);
+  if (L->anvil > 0.0) q -= L->anvil * ocs__bump((h - L->h_av) / L->w_av);
+  return q;
+}
+/* Water-content profile: a non-decreasing factor times a non-increasing one. */
+static inline double ocs__prof_up(const ocs__layer_t *L, double h) {
+  return L->prof_dh > 0.0 ? L->prof_lo + (1.0 - L->prof_lo) * ocs__sat((h - L->h_c) / L->prof_dh) : 1.0;
+}
+static inline double ocs__prof_down(const ocs__layer_t *L, double h) {
+  return L->thin > 0.0 ? 1.0 - L->thin * ocs__smoothstep(L->thin_lo, L->thin_hi, h) : 1.0;
+}
+
+/*-*** The source ***/
+
+typedef struct {
+  double axis[3];          /* unit wind axis */
+  double omega;            /* rad/s */
+  double band_lo, band_hi; /* m: outside, Q ≥ 1 + anvil and the layer is exactly empty */
+  oc_fbm_t fcov, fcell, fdet;
+  double inv[3][2];        /* [cov, cell, det][1/λ, 1/λ_short] */
+  int aniso[3];
+  double lip_cov, lip_cell; /* bound on |∇C|, |∇K| per metre of the point on the reference sphere */
+} ocs__lstate_t;
+
+typedef struct {
+  ocs_source_t base; /* first: the field holds ocs_source_t pointers */
+  ocs_weather_t weather;
+  double sigma_scale;
+  double vmax; /* m/s: fastest motion of any pattern */
+  double dt0;  /* s: motion time step at level 0 */
+  ocs__lstate_t L[OCS_LAYER_COUNT];
+} ocs__proc_t;
+
+/* What one evaluation needs at one (level, time): snapped motion time, blended weather. */
+typedef struct {
+  double M[9];                /* rotation planet frame → layer's advected frame */
+  double theta, wc;           /* coverage threshold; water content kg/kg */
+  double off[3][3];           /* [cov, cell, det]: noise-space drift offsets */
+  oc_fbm_t det;               /* detail fBm with this level's octaves */
+  double det_scale;           /* Σ kept amplitudes / Σ all */
+} ocs__lframe_t;
+
+typedef struct {
+  unsigned mask; /* layers that may hold cloud */
+  double sigma_scale;
+  ocs__lframe_t l[OCS_LAYER_COUNT];
+} ocs__frame_t;
+
+enum { OCS__COV = 0, OCS__CELL = 1, OCS__DET = 2 };
+
+static inline void ocs__rotate(const double M[9], const double *p, double *q) {
+  q[0] = M[0] * p[0] + M[1] * p[1] + M[2] * p[2];
+  q[1] = M[3] * p[0] + M[4] * p[1] + M[5] * p[2];
+  q[2] = M[6] * p[0] + M[7] * p[1] + M[8] * p[2];
+}
+
+/* Noise-space coordinates of a pattern at X (metres): X/λ, or with streaks, the component along
+ * the wind axis over λ_short and the rest over λ; plus the drift offset. */
+static inline void ocs__coords(const ocs__lstate_t *S, int f, const double X[3], const double off[3], double *out) {
+  double il = S->inv[f][0];
+  if (!S->aniso[f]) {
+    out[0] = X[0] * il + off[0];
+    out[1] = X[1] * il + off[1];
+    out[2] = X[2] * il + off[2];
+  } else {
+    double is = S->inv[f][1], d = X[0] * S->axis[0] + X[1] * S->axis[1] + X[2] * S->axis[2];
+    for (int k = 0; k < 3; k++) {
+      double par = d * S->axis[k];
+      out[k] = (X[k] - par) * il + par * is + off[k];
+    }
+  }
+}
+
+static double ocs__fbm_lipschitz(const oc_fbm_t *f) {
+  double num = 0.0, den = 0.0, a = 1.0, fr = 1.0;
+  for (int i = 0; i < f->octaves; i++) {
+    num += a * fr;
+    den += a;
+    a *= f->gain;
+    fr *= f->lacunarity;
+  }
+  return OC_NOISE_LIPSCHITZ * num / den;
+}
+
+static inline double ocs__voxel_size(int level) { return ldexp(2.0 * OC_ROOT_HALF / 7.0, -level); }
+
+/* Motion step of a level at t (0 when the source is static). */
+static int64_t ocs__motion_step(const ocs__proc_t *P, int level, double t) {
+  if (!P->base.animated || !isfinite(t)) return 0;
+  double y = ldexp(t / P->dt0, level);
+  const double lim = 35184372088832.0; /* 2^45 */
+  y = y < -lim ? -lim : (y > lim ? lim : y);
+  return (int64_t)floor(y);
+}
+
+/* The evaluation frame. level ≥ 0: a brick of that level (motion time snapped to the level's
+ * step, weather quantised, detail octaves for the level); level < 0: a point at exactly t. */
+static void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F) {
+  double tm;
+  if (level >= 0)
+    tm = (double)ocs__motion_step(P, level, t) * ldexp(P->dt0, -level);
+  else
+    tm = P->base.animated && isfinite(t) ? t : 0.0;
+  ocs_weather_params_t w;
+  ocs_weather_at(&P->weather, isfinite(t) ? t : 0.0, level >= 0, &w);
+  F->mask = 0;
+  F->sigma_scale = P->sigma_scale;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++) {
+    const ocs__layer_t *L = &ocs__layers[l];
+    const ocs__lstate_t *S = &P->L[l];
+    ocs__lframe_t *lf = &F->l[l];
+    if (!(w.cov[l] > 0.0) || !(w.wc[l] > 0.0) || !(P->sigma_scale > 0.0)) continue;
+    F->mask |= 1u << l;
+    lf->theta = ocs__theta(w.cov[l], L->s_w);
+    lf->wc = L->wc * w.wc[l];
+    /* Rodrigues: the rotation by -ω·tm about the axis takes a planet point to where its pattern
+     * was at t = 0. */
+    double s, c;
+    ocs__sincos(-S->omega * tm, &s, &c);
+    const double *a = S->axis;
+    double k = 1.0 - c;
+    lf->M[0] = c + k * a[0] * a[0];
+    lf->M[1] = k * a[0] * a[1] - s * a[2];
+    lf->M[2] = k * a[0] * a[2] + s * a[1];
+    lf->M[3] = k * a[1] * a[0] + s * a[2];
+    lf->M[4] = c + k * a[1] * a[1];
+    lf->M[5] = k * a[1] * a[2] - s * a[0];
+    lf->M[6] = k * a[2] * a[0] - s * a[1];
+    lf->M[7] = k * a[2] * a[1] + s * a[0];
+    lf->M[8] = c + k * a[2] * a[2];
+    const ocs__nspec_t *ns[3] = {&L->cov, &L->cell, &L->det};
+    static const double zero[3] = {0.0, 0.0, 0.0};
+    for (int f = 0; f < 3; f++) {
+      double d[3] = {tm * ns[f]->drift[0], tm * ns[f]->drift[1], tm * ns[f]->drift[2]};
+      ocs__coords(S, f, d, zero, lf->off[f]);
+    }
+    lf->det = S->fdet;
+    lf->det_scale = 1.0;
+    if (level >= 0 && OCS_PROC_OCTAVE_DROP > 0.0) {
+      double keep = OCS_PROC_OCTAVE_DROP * ocs__voxel_size(level), lam = L->det.lambda_short > 0.0 ? L->det.lambda_short : L->det.lambda;
+      int n = 1;
+      while (n < S->fdet.octaves && ldexp(lam, -n) >= keep) n++;
+      double used = 0.0, all = 0.0, amp = 1.0;
+      for (int i = 0; i < S->fdet.octaves; i++, amp *= S->fdet.gain) {
+        all += amp;
+        if (i < n) used += amp;
+      }
+      lf->det.octaves = n;
+      lf->det_scale = used / all;
+    }
+  }
+}
+
+/*-*** The finest σt ***/
+
+/* The coverage ramp W from the coverage value C, and the cell ramp V from the cell value K; the
+ * column strength is A = W·V, and there is no cloud where it is 0. */
+static inline double ocs__w(const ocs__layer_t *L, const ocs__lframe_t *lf, float C) {
+  return ocs__sat(((double)C - lf->theta) / L->s_w);
+}
+static inline double ocs__v(const ocs__layer_t *L, float K) { return ocs__sat(L->a0 + L->a1 * (double)K); }
+/* σt of a layer from G > 0, the detail value D and the altitude. */
+static inline double ocs__sigma(const ocs__layer_t *L, const ocs__frame_t *F, const ocs__lframe_t *lf, double G,
+                                float D, double h) {
+  double d = (double)D * lf->det_scale;
+  double phi = ocs__sat((G - L->e * ocs__sat(0.5 - L->k_d * d)) / L->F_w);
+  if (!(phi > 0.0)) return 0.0;
+  double wc = lf->wc * ocs__prof_up(L, h) * ocs__prof_down(L, h) * phi, rho = ocs__rho_air(h), s;
+  if (L->phase == OCS__LIQUID)
+    s = ocg_sigma_t_liquid(wc, rho);
+  else if (L->phase == OCS__ICE)
+    s = ocg_sigma_t_ice(wc, rho);
+  else {
+    double g = ocs__smoothstep(L->glac_lo, L->glac_hi, h);
+    s = ocg_sigma_t_liquid(wc * (1.0 - g), rho) + ocg_sigma_t_ice(wc * g * L->ice_ratio, rho);
+  }
+  return F->sigma_scale * s;
+}
+
+/* One layer at one point (r = |p|, h = r - R), the scalar twin of ocs__layer_batch(). */
+static double ocs__layer_point(const ocs__proc_t *P, const ocs__frame_t *F, int l, const double p[3], double r, double h) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  const ocs__lstate_t *S = &P->L[l];
+  const ocs__lframe_t *lf = &F->l[l];
+  if (h < S->band_lo || h > S->band_hi) return 0.0;
+  double q[3], X[3], xyz[3];
+  ocs__rotate(lf->M, p, q);
+  double s = OCS__R / r;
+  X[0] = q[0] * s, X[1] = q[1] * s, X[2] = q[2] * s;
+  ocs__coords(S, OCS__COV, X, lf->off[OCS__COV], xyz);
+  double W = ocs__w(L, lf, (float)oc_fbm3(xyz[0], xyz[1], xyz[2], &S->fcov));
+  if (!(W > 0.0)) return 0.0;
+  ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], xyz);
+  double V = ocs__v(L, (float)oc_fbm3(xyz[0], xyz[1], xyz[2], &S->fcell));
+  if (!(V > 0.0)) return 0.0;
+  double G = W * V - ocs__q(L, h);
+  if (!(G > 0.0)) return 0.0;
+  ocs__coords(S, OCS__DET, q, lf->off[OCS__DET], xyz);
+  return ocs__sigma(L, F, lf, G, (float)oc_fbm3(xyz[0], xyz[1], xyz[2], &lf->det), h);
+}
+
+static double ocs__eval_point(const ocs__proc_t *P, const ocs__frame_t *F, const double p[3]) {
+  double r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]), h = r - OCS__R, v = 0.0;
+  if (!isfinite(r) || !(r > 0.0)) return 0.0;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++)
+    if (F->mask >> l & 1u) v += ocs__layer_point(P, F, l, p, r, h);
+  return v;
+}
+
+static double ocs__proc_point(const ocs_source_t *s, oc_dvec3 p, double t) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  ocs__frame_t F;
+  ocs__frame(P, -1, t, &F);
+  double pp[3] = {p.x, p.y, p.z};
+  return ocs__eval_point(P, &F, pp);
+}
+
+/*-*** Bound ***/
+
+/* What a box bound learns per layer: the coverage range and the cell maximum over the box (a
+ * sub-box may reuse them: they bound it too), the layers that may be non-zero, and those whose
+ * coverage ramp is exactly 1 over the whole box (their coverage noise need not be evaluated). */
+typedef struct {
+  double cmin[OCS_LAYER_COUNT], cmax[OCS_LAYER_COUNT], kmax[OCS_LAYER_COUNT];
+  unsigned mask, wone;
+} ocs__bb_t;
+
+/* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`. The
+ * coverage and cell values are bounded from their value at the box centre and the noise Lipschitz
+ * bound: the centre's direction and any point's differ by at most the angle the box subtends, so
+ * their points on the reference sphere by at most R·chord. Layers in `reuse` take their noise
+ * ranges from `inherit` (an enclosing box) instead. Detail erosion is ≥ 0, so it never raises the
+ * bound. Small margins cover float rounding of the noise and ulp-level non-monotonicity. */
+static double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3],
+                           const double hi[3], const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb) {
+  bb->mask = bb->wone = 0;
+  unsigned todo = F->mask & only;
+  if (!todo) return 0.0;
+  double near2 = 0.0, far2 = 0.0, c[3], d2 = 0.0;
+  for (int k = 0; k < 3; k++) {
+    double n = lo[k] > 0.0 ? lo[k] : (hi[k] < 0.0 ? -hi[k] : 0.0);
+    double f = fabs(lo[k]) > fabs(hi[k]) ? fabs(lo[k]) : fabs(hi[k]);
+    near2 += n * n;
+    far2 += f * f;
+    c[k] = 0.5 * (lo[k] + hi[k]);
+    d2 += 0.25 * (hi[k] - lo[k]) * (hi[k] - lo[k]);
+  }
+  double hmin = sqrt(near2) - OCS__R - 1e-6, hmax = sqrt(far2) - OCS__R + 1e-6;
+  double cr = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d = sqrt(d2);
+  int far = cr > 1.000001 * d; /* the box does not reach the planet centre: a finite angle */
+  double chord = 2.0;
+  if (far) {
+    double sn = d / cr, cs = sqrt(1.0 - sn * sn);
+    chord = sn / sqrt(0.5 * (1.0 + cs)) * (1.0 + 1e-9); /* 2 sin(θ/2) without cancellation */
+  }
+  double total = 0.0;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++) {
+    if (!(todo >> l & 1u)) continue;
+    const ocs__layer_t *L = &ocs__layers[l];
+    const ocs__lstate_t *S = &P->L[l];
+    const ocs__lframe_t *lf = &F->l[l];
+    double a = hmin > S->band_lo ? hmin : S->band_lo, b = hmax < S->band_hi ? hmax : S->band_hi;
+    if (a > b) continue;
+    double cmin = -1.0, cmax = 1.0, kmax = 1.0;
+    if (inherit && (reuse >> l & 1u)) {
+      cmin = inherit->cmin[l], cmax = inherit->cmax[l], kmax = inherit->kmax[l];
+    } else if (far) {
+      double q[3], X[3], xyz[3], s = OCS__R / cr;
+      ocs__rotate(lf->M, c, q);
+      X[0] = q[0] * s, X[1] = q[1] * s, X[2] = q[2] * s;
+      ocs__coords(S, OCS__COV, X, lf->off[OCS__COV], xyz);
+      double cc = (double)(float)oc_fbm3(xyz[0], xyz[1], xyz[2], &S->fcov), dc = S->lip_cov * OCS__R * chord + 1e-6;
+      cmin = cc - dc, cmax = cc + dc;
+      if (cmax > lf->theta) { /* else W = 0: the cell value is not needed */
+        ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], xyz);
+        kmax = (double)(float)oc_fbm3(xyz[0], xyz[1], xyz[2], &S->fcell) + S->lip_cell * OCS__R * chord + 1e-6;
+      }
+    }
+    bb->cmin[l] = cmin, bb->cmax[l] = cmax, bb->kmax[l] = kmax;
+    double W = ocs__sat((cmax - lf->theta) / L->s_w);
+    if (!(W > 0.0)) continue;
+    double A = W * ocs__sat(L->a0 + L->a1 * (kmax > 1.0 ? 1.0 : kmax));
+    double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c);
+    double qmin = ocs__q_mono(L, hq);
+    if (L->anvil > 0.0) {
+      double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
+      qmin -= L->anvil * ocs__bump((ha - L->h_av) / L->w_av);
+    }
+    double G = A - qmin + 1e-9;
+    if (!(G > 0.0)) continue;
+    double phi = ocs__sat(G / L->F_w);
+    double wc = lf->wc * ocs__prof_up(L, b) * ocs__prof_down(L, a) * phi, rho = ocs__rho_air(a), s;
+    if (L->phase == OCS__LIQUID)
+      s = ocg_sigma_t_liquid(wc, rho);
+    else if (L->phase == OCS__ICE)
+      s = ocg_sigma_t_ice(wc, rho);
+    else {
+      double sl = ocg_sigma_t_liquid(wc, rho), si = ocg_sigma_t_ice(wc * L->ice_ratio, rho);
+      s = sl > si ? sl : si; /* σt is a convex combination of the two */
+    }
+    total += F->sigma_scale * s * (1.0 + 1e-6);
+    bb->mask |= 1u << l;
+    if (cmin >= lf->theta + L->s_w + 1e-9) bb->wone |= 1u << l;
+  }
+  return total;
+}
+
+/* The level whose node footprint (or node) a box is: bound() is asked about footprints, and a
+ * brick's content is snapped to its level's time step. */
+static int ocs__level_of_box(oc_dvec3 lo, oc_dvec3 hi) {
+  double e = fmax(hi.x - lo.x, fmax(hi.y - lo.y, hi.z - lo.z));
+  int best = 0;
+  double bestq = INFINITY;
+  for (int L = 0; L <= OC_KEY_MAX_LEVEL; L++) {
+    double r = e / (oc_key_size(L) * (8.0 / 7.0));
+    double q = r > 1.0 ? r : 1.0 / r;
+    if (q < bestq) bestq = q, best = L;
+  }
+  return best;
+}
+
+static float ocs__round_up(double x) {
+  float f = (float)x;
+  if ((double)f < x) f = nextafterf(f, INFINITY);
+  return f;
+}
+
+static void ocs__proc_bound(const ocs_source_t *s, oc_dvec3 lo, oc_dvec3 hi, double t, float *smin, float *smax) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  ocs__frame_t F;
+  ocs__frame(P, ocs__level_of_box(lo, hi), t, &F);
+  double l3[3] = {lo.x, lo.y, lo.z}, h3[3] = {hi.x, hi.y, hi.z};
+  ocs__bb_t bb;
+  *smin = 0.0f;
+  *smax = ocs__round_up(ocs__box_max(P, &F, ~0u, l3, h3, NULL, 0, &bb));
+}
+
+/*-*** Bricks ***/
+
+typedef struct {
+  int n;
+  double p[3 * OCS__CHUNK], r[OCS__CHUNK], h[OCS__CHUNK], sig[OCS__CHUNK];
+  uint16_t vox[OCS__CHUNK];
+  uint8_t mask[OCS__CHUNK], wone[OCS__CHUNK]; /* the voxel's ocs__bb_t mask and wone */
+  /* per-layer scratch */
+  int idx[OCS__CHUNK], sel[OCS__CHUNK];
+  double q[3 * OCS__CHUNK], xyz[3 * OCS__CHUNK], w[OCS__CHUNK], v[OCS__CHUNK];
+  float val[OCS__CHUNK];
+  double sum[OC_BRICK_VOXELS];
+} ocs__ws_t;
+
+/* One layer over the chunk's points in three batch passes; each pass keeps only the points that
+ * can still be non-zero, which skips exactly the work whose result could only be 0 (G = W·V - Q
+ * with W the coverage ramp and V = sat(a0 + a1·K) the cell ramp: when either is 0, G ≤ 0).
+ * Layers whose cells are mostly empty (a0 ≤ 0: cumulus, cumulonimbus) evaluate the cheaper cell
+ * noise first; where the voxel's bound proved W = 1, the coverage noise is not evaluated at all.
+ * The value of each point is that of ocs__layer_point() whatever the order. Adds σt to ws->sig in
+ * layer order, as ocs__eval_point() does. */
+static void ocs__layer_batch(const ocs__proc_t *P, const ocs__frame_t *F, int l, ocs__ws_t *ws) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  const ocs__lstate_t *S = &P->L[l];
+  const ocs__lframe_t *lf = &F->l[l];
+  int m = 0;
+  for (int i = 0; i < ws->n; i++)
+    if ((ws->mask[i] >> l & 1u) && ws->h[i] >= S->band_lo && ws->h[i] <= S->band_hi) {
+      double *q = &ws->q[3 * m];
+      ocs__rotate(lf->M, &ws->p[3 * i], q);
+      ws->w[m] = 1.0; /* W, until computed */
+      ws->v[m] = 1.0; /* V, until computed */
+      ws->idx[m++] = i;
+    }
+  int cell_first = L->a0 <= 0.0;
+  for (int pass = 0; pass < 2 && m > 0; pass++) {
+    int cov = (pass == 0) != cell_first;
+    int n = 0;
+    for (int j = 0; j < m; j++) {
+      int i = ws->idx[j];
+      if (cov && (ws->wone[i] >> l & 1u)) continue; /* W = 1 exactly */
+      const double *q = &ws->q[3 * j];
+      double X[3], s = OCS__R / ws->r[i];
+      X[0] = q[0] * s, X[1] = q[1] * s, X[2] = q[2] * s;
+      ocs__coords(S, cov ? OCS__COV : OCS__CELL, X, lf->off[cov ? OCS__COV : OCS__CELL], &ws->xyz[3 * n]);
+      ws->sel[n++] = j;
+    }
+    oc_fbm3_batch(ws->xyz, n, cov ? &S->fcov : &S->fcell, ws->val);
+    for (int t = 0; t < n; t++) {
+      int j = ws->sel[t];
+      if (cov)
+        ws->w[j] = ocs__w(L, lf, ws->val[t]);
+      else
+        ws->v[j] = ocs__v(L, ws->val[t]);
+    }
+    int k = 0; /* compact the survivors */
+    for (int j = 0; j < m; j++) {
+      if (!(ws->w[j] > 0.0) || !(ws->v[j] > 0.0)) continue;
+      if (k != j) {
+        ws->idx[k] = ws->idx[j], ws->w[k] = ws->w[j], ws->v[k] = ws->v[j];
+        memcpy(&ws->q[3 * k], &ws->q[3 * j], 3 * sizeof(double));
+      }
+      k++;
+    }
+    m = k;
+  }
+  int k = 0;
+  for (int j = 0; j < m; j++) {
+    double G = ws->w[j] * ws->v[j] - ocs__q(L, ws->h[ws->idx[j]]);
+    if (!(G > 0.0)) continue;
+    ws->idx[k] = ws->idx[j], ws->w[k] = G;
+    if (k != j) memcpy(&ws->q[3 * k], &ws->q[3 * j], 3 * sizeof(double));
+    k++;
+  }
+  m = k;
+  if (!m) return;
+  for (int j = 0; j < m; j++) ocs__coords(S, OCS__DET, &ws->q[3 * j], lf->off[OCS__DET], &ws->xyz[3 * j]);
+  oc_fbm3_batch(ws->xyz, m, &lf->det, ws->val);
+  for (int j = 0; j < m; j++) {
+    int i = ws->idx[j];
+    ws->sig[i] += ocs__sigma(L, F, lf, ws->w[j], ws->val[j], ws->h[i]);
+  }
+}
+
+static void ocs__flush(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *ws) {
+  for (int i = 0; i < ws->n; i++) ws->sig[i] = 0.0;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++)
+    if (F->mask >> l & 1u) ocs__layer_batch(P, F, l, ws);
+  /* In point order: each voxel's points are contiguous and in oc_brick_sample()'s order. */
+  for (int i = 0; i < ws->n; i++) ws->sum[ws->vox[i]] += ws->sig[i];
+  ws->n = 0;
+}
+
+/* Sub-samples of a level: sub_h per axis, and sub_v along the axis closest to the vertical. */
+static void ocs__subs(int level, int *sub_h, int *sub_v) {
+  double v = ceil(ocs__voxel_size(level) / OCS_PROC_DZ);
+  *sub_h = OCS_PROC_SUB;
+  *sub_v = v < OCS_PROC_SUB ? OCS_PROC_SUB : (v > OCS_PROC_MAX_SUB_V ? OCS_PROC_MAX_SUB_V : (int)v);
+}
+
+static int ocs__proc_sample(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  int level = oc_key_level(key);
+  if (level < 0 || !out) return OC_EINVAL;
+  ocs__frame_t F;
+  ocs__frame(P, level, t, &F);
+  if (!F.mask) return 0;
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(key, &o, &size);
+  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
+  ocs__bb_t nb;
+  if (!(ocs__box_max(P, &F, ~0u, lo, hi, NULL, 0, &nb) > 0.0)) return 0;
+
+  int sub_h, sub_v;
+  ocs__subs(level, &sub_h, &sub_v);
+  double off_h[OCS_PROC_SUB], off_v[OCS_PROC_MAX_SUB_V];
+  for (int m = 0; m < sub_h; m++) off_h[m] = ((double)m + 0.5) / (double)sub_h - 0.5;
+  for (int m = 0; m < sub_v; m++) off_v[m] = ((double)m + 0.5) / (double)sub_v - 0.5;
+  ocs__ws_t *ws = malloc(sizeof *ws);
+  if (!ws) return OC_ENOMEM;
+  ws->n = 0;
+  memset(ws->sum, 0, sizeof ws->sum);
+  double inv[OC_BRICK_VOXELS];
+  uint32_t ic[3];
+  oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
+  double u = ocs__voxel_size(level);
+  /* Per-voxel bounds re-evaluate a layer's noise only where that can decide something: the node's
+   * coverage is in the ramp (a voxel may be all 0 or all 1), or the cell bound is informative at
+   * the voxel's size (Lipschitz step below 1/2). Elsewhere they reuse the node's ranges. */
+  unsigned reuse = 0;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++)
+    if ((nb.wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) reuse |= 1u << l;
+
+  for (int k = 0; k < 8; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++) {
+        int v = i + 8 * j + 64 * k, ijk[3] = {i, j, k};
+        double gg[3], c[3], vlo[3], vhi[3];
+        for (int a = 0; a < 3; a++) {
+          gg[a] = (double)(7 * (int64_t)ic[a] + ijk[a]);
+          c[a] = -OC_ROOT_HALF + gg[a] * u;
+          vlo[a] = c[a] - 0.5 * u;
+          vhi[a] = c[a] + 0.5 * u;
+        }
+        /* The strata's shape depends only on the sample's own position, so a face sample shared
+         * with a neighbour gets the same points from either brick. */
+        int va = fabs(c[1]) > fabs(c[0]) ? 1 : 0;
+        va = fabs(c[2]) > fabs(c[va]) ? 2 : va;
+        int n[3] = {sub_h, sub_h, sub_h};
+        n[va] = sub_v;
+        inv[v] = 1.0 / ((double)n[0] * n[1] * n[2]);
+        ocs__bb_t vb;
+        if (!(ocs__box_max(P, &F, nb.mask, vlo, vhi, &nb, reuse, &vb) > 0.0)) continue;
+        unsigned vm = vb.mask;
+        double band_lo = INFINITY, band_hi = -INFINITY;
+        for (int l = 0; l < OCS_LAYER_COUNT; l++)
+          if (vm >> l & 1u) {
+            band_lo = fmin(band_lo, P->L[l].band_lo);
+            band_hi = fmax(band_hi, P->L[l].band_hi);
+          }
+        const double *ox = n[0] == sub_h ? off_h : off_v, *oy = n[1] == sub_h ? off_h : off_v,
+                     *oz = n[2] == sub_h ? off_h : off_v;
+        for (int mz = 0; mz < n[2]; mz++) {
+          double z = -OC_ROOT_HALF + (gg[2] + oz[mz]) * u;
+          for (int my = 0; my < n[1]; my++) {
+            double y = -OC_ROOT_HALF + (gg[1] + oy[my]) * u;
+            for (int mx = 0; mx < n[0]; mx++) {
+              double x = -OC_ROOT_HALF + (gg[0] + ox[mx]) * u;
+              double r = sqrt(x * x + y * y + z * z), h = r - OCS__R;
+              if (!(h >= band_lo && h <= band_hi)) continue; /* every layer is exactly 0 there */
+              int at = ws->n++;
+              ws->p[3 * at] = x, ws->p[3 * at + 1] = y, ws->p[3 * at + 2] = z;
+              ws->r[at] = r, ws->h[at] = h;
+              ws->vox[at] = (uint16_t)v;
+              ws->mask[at] = (uint8_t)vm;
+              ws->wone[at] = (uint8_t)vb.wone;
+              if (ws->n == OCS__CHUNK) ocs__flush(P, &F, ws);
+            }
+          }
+        }
+      }
+  ocs__flush(P, &F, ws);
+  for (int v = 0; v < OC_BRICK_VOXELS; v++)
+    if (ws->sum[v] > 0.0) out[v] += (float)(ws->sum[v] * inv[v]);
+  free(ws);
+  return 0;
+}
+
+/*-*** Time ***/
+
+/* The motion part moves one level step every OCS_PROC_STEP_VOXELS voxels of the fastest pattern
+ * (Δ_L = Δ_0·2^-L, so a coarse step boundary is always a fine one); the weather part counts
+ * transition steps; the generation (high bits) separates the time steps of successive
+ * ocs_weather_set() calls so a cached brick from before a change is never reused after it. */
+static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  if (level < 0) level = 0;
+  if (level > OC_KEY_MAX_LEVEL) level = OC_KEY_MAX_LEVEL;
+  uint64_t m = P->base.animated ? (uint64_t)(ocs__motion_step(P, level, t) + ((int64_t)1 << 46)) : 0;
+  uint64_t k = ocs_weather_step(&P->weather, isfinite(t) ? t : 0.0);
+  return (P->weather.generation << 48) + ((m + k) & (((uint64_t)1 << 48) - 1));
+}
+
+static int ocs__proc_set_weather(ocs_source_t *s, oc_preset_t preset, double t0, double seconds) {
+  ocs__proc_t *P = (ocs__proc_t *)s;
+  return ocs_weather_set(&P->weather, preset, t0, seconds);
+}
+
+static void ocs__proc_destroy(ocs_source_t *s) { free(s); }
+
+static const ocs_source_vtbl_t ocs__proc_vt = {
+    .name = "procedural",
+    .bound = ocs__proc_bound,
+    .sample = ocs__proc_sample,
+    .time_step = ocs__proc_time_step,
+    .point = ocs__proc_point,
+    .set_weather = ocs__proc_set_weather,
+    .destroy = ocs__proc_destroy,
+};
+
+/*-*** Creation ***/
+
+static uint64_t ocs__mix(uint64_t h) {
+  h += 0x9E3779B97F4A7C15ull;
+  h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
+  h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
+  return h ^ (h >> 31);
+}
+
+/* Altitude above which Q_mono ≥ 1 + anvil (Q_mono is increasing above h_c): bisection. */
+static double ocs__band_top(const ocs__layer_t *L) {
+  double lim = 1.0 + L->anvil, a = L->h_c, b = L->h_c + 1e3;
+  while (ocs__q_mono(L, b) < lim) b += 1e3;
+  for (int i = 0; i < 200; i++) {
+    double m = 0.5 * (a + b);
+    if (ocs__q_mono(L, m) < lim) a = m; else b = m;
+  }
+  return b + 1.0;
+}
+
+static void ocs__init_layer(ocs__proc_t *P, int l, uint64_t seed) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  ocs__lstate_t *S = &P->L[l];
+  double an = sqrt(L->axis[0] * L->axis[0] + L->axis[1] * L->axis[1] + L->axis[2] * L->axis[2]);
+  for (int k = 0; k < 3; k++) S->axis[k] = L->axis[k] / an;
+  S->omega = L->wind / OCS__R;
+  double lim = 1.0 + L->anvil;
+  S->band_lo = L->h_c - L->H_lo * (L->p_lo == 2 ? sqrt(lim) : lim) - 1.0;
+  S->band_hi = ocs__band_top(L);
+  const ocs__nspec_t *ns[3] = {&L->cov, &L->cell, &L->det};
+  oc_fbm_t *fb[3] = {&S->fcov, &S->fcell, &S->fdet};
+  double vmax = fabs(L->wind) * (OCS__R + S->band_hi) / OCS__R, drift = 0.0;
+  for (int f = 0; f < 3; f++) {
+    *fb[f] = (oc_fbm_t){.octaves = ns[f]->octaves, .lacunarity = 2.0, .gain = 0.5,
+                        .seed = ocs__mix(seed ^ ocs__mix(0x0C5u + 16u * (uint64_t)l + (uint64_t)f))};
+    S->inv[f][0] = 1.0 / ns[f]->lambda;
+    S->aniso[f] = ns[f]->lambda_short > 0.0;
+    S->inv[f][1] = S->aniso[f] ? 1.0 / ns[f]->lambda_short : S->inv[f][0];
+    const double *dv = ns[f]->drift;
+    drift = fmax(drift, sqrt(dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]));
+  }
+  /* Streaked coordinates stretch by at most 1/λ_short. */
+  S->lip_cov = ocs__fbm_lipschitz(&S->fcov) * fmax(S->inv[0][0], S->inv[0][1]);
+  S->lip_cell = ocs__fbm_lipschitz(&S->fcell) * fmax(S->inv[1][0], S->inv[1][1]);
+  P->vmax = fmax(P->vmax, vmax + drift);
+}
+
+int ocs_source_procedural_create(ocs_source_t **out, const oc_source_t *desc, uint64_t seed, char *why, size_t why_len) {
+#define OCS__FAIL(...)                                 \
+  do {                                                 \
+    if (why && why_len) snprintf(why, why_len, __VA_ARGS__); \
+    return OC_EINVAL;                                  \
+  } while (0)
+  if (!out) OCS__FAIL("procedural: no output pointer");
+  *out = NULL;
+  if (!desc) OCS__FAIL("procedural: no source description");
+  if (desc->type != OC_SOURCE_PROCEDURAL) OCS__FAIL("procedural: source type %d is not procedural", (int)desc->type);
+  const oc_src_procedural_t *d = &desc->procedural;
+  if ((int)d->preset < 0 || d->preset >= OC_PRESET_COUNT)
+    OCS__FAIL("procedural: preset %d is not one of clear, fair, overcast, storm, cirrus", (int)d->preset);
+  if (!isfinite(d->coverage_scale) || d->coverage_scale < 0.0 || d->coverage_scale > 4.0)
+    OCS__FAIL("procedural: coverage_scale %g outside [0, 4]", d->coverage_scale);
+  if (!isfinite(d->sigma_scale) || d->sigma_scale < 0.0 || d->sigma_scale > OC_SCENE_SIGMA_MAX)
+    OCS__FAIL("procedural: sigma_scale %g outside [0, %g]", d->sigma_scale, OC_SCENE_SIGMA_MAX);
+#undef OCS__FAIL
+  ocs__proc_t *P = calloc(1, sizeof *P);
+  if (!P) return OC_ENOMEM;
+  P->base.vt = &ocs__proc_vt;
+  P->base.animated = 1; /* the field clears it when the scene's animation is off */
+  P->sigma_scale = d->sigma_scale;
+  int rc = ocs_weather_init(&P->weather, d->preset, d->coverage_scale);
+  if (rc < 0) {
+    free(P);
+    return rc;
+  }
+  for (int l = 0; l < OCS_LAYER_COUNT; l++) ocs__init_layer(P, l, seed);
+  P->dt0 = OCS_PROC_STEP_VOXELS * ocs__voxel_size(0) / P->vmax;
+  *out = &P->base;
+  return 0;
+}

@@ -1,0 +1,187 @@
+/* test_field.c — the field interface on analytic sources: box filtering (a parent's mean against
+ * its 8 and 64 descendants'), conservative bounds, static time steps, sums of sources, errors. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "oc_err.h"
+#include "oc_scene.h"
+#include "ocs_field.h"
+#include "report.h"
+
+static ocs_field_t *field_from(const char *json) {
+  oc_scene_t sc;
+  char why[512];
+  assert_int_equal(oc_scene_parse(&sc, json, strlen(json), "test.json", why, sizeof why), 0);
+  ocs_field_t *f = NULL;
+  int r = ocs_field_create(&f, &sc, why, sizeof why);
+  if (r < 0) fail_msg("field: %s", why);
+  oc_scene_free(&sc);
+  return f;
+}
+
+/* Mean of σt over the node's own cube from its corner samples: each sample stands for the box of
+ * edge size/7 around it, so samples on faces count half, on edges a quarter, corners an eighth. */
+static double node_mean(const float s[512]) {
+  double sum = 0.0, wsum = 0.0;
+  for (int k = 0; k < 8; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++) {
+        double w = (i == 0 || i == 7 ? 0.5 : 1.0) * (j == 0 || j == 7 ? 0.5 : 1.0) * (k == 0 || k == 7 ? 0.5 : 1.0);
+        sum += w * s[i + 8 * j + 64 * k];
+        wsum += w;
+      }
+  return sum / wsum;
+}
+
+static double descendants_mean(const ocs_field_t *f, oc_key_t key, int depth) {
+  if (depth == 0) {
+    float s[512];
+    assert_int_equal(ocs_field_sample(f, key, 0.0, s), 0);
+    return node_mean(s);
+  }
+  double m = 0.0;
+  for (int c = 0; c < 8; c++) m += descendants_mean(f, oc_key_child(key, c), depth - 1) / 8.0;
+  return m;
+}
+
+static const char *sphere_json =
+    "{\"sources\": [{\"type\": \"sphere\", \"lat\": 10, \"lon\": 20, \"alt\": 3000, \"radius\": 2000, \"sigma_t\": 0.05}],"
+    " \"features\": {\"animation\": false}}";
+
+/* Nodes that straddle the sphere's surface at four levels. Two checks:
+ *  - exactness of the box filter: the 512 samples' footprints tile the node's extended cube (edge
+ *    8/7 of the node), so their plain mean is the true mean of σt over it (truth by 96³ quadrature);
+ *  - the Conventions' test: the node's mean (trapezoid weights over its own cube) against its 8 and
+ *    64 descendants', relative to the node's peak σt (what a viewer sees as brightness). */
+static void test_field__box_filter_preserves_the_mean(void **st) {
+  (void)st;
+  ocs_field_t *f = field_from(sphere_json);
+  oc_geo_t edge = {10.0, 20.0 + 2000.0 / (OC_PLANET_RADIUS * cos(10.0 * OC_DEG) * OC_DEG), 3000.0};
+  oc_dvec3 p = oc_geo_to_xyz(edge);
+  double worst = 0.0, worst_exact = 0.0;
+  for (int level = 12; level <= 15; level++) {
+    oc_key_t k = oc_key_from_point(level, p);
+    float s[512];
+    assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
+    double plain = 0.0, peak = 0.0;
+    for (int i = 0; i < 512; i++) {
+      plain += s[i] / 512.0;
+      peak = fmax(peak, s[i]);
+    }
+    oc_dvec3 o;
+    double size, truth = 0.0;
+    oc_key_bounds(k, &o, &size);
+    const int n = 96;
+    double h = size / 7.0, e = 8.0 * h;
+    for (int z = 0; z < n; z++)
+      for (int y = 0; y < n; y++)
+        for (int x = 0; x < n; x++)
+          truth += ocs_field_point(f, oc_dv3(o.x - h / 2 + (x + 0.5) * e / n, o.y - h / 2 + (y + 0.5) * e / n,
+                                             o.z - h / 2 + (z + 0.5) * e / n), 0.0);
+    truth /= (double)n * n * n;
+    double m0 = descendants_mean(f, k, 0), m1 = descendants_mean(f, k, 1), m2 = descendants_mean(f, k, 2);
+    double e1 = fabs(m1 - m0) / peak, e2 = fabs(m2 - m0) / peak, ex = fabs(plain - truth) / peak;
+    printf("level %d: samples' mean %.6e, true mean %.6e (%.1e of peak); node mean %.6e, 8 children %.6e (%.1e), "
+           "64 grandchildren %.6e (%.1e)\n", level, plain, truth, ex, m0, m1, e1, m2, e2);
+    assert_true(m0 > 0.0 && peak <= 0.05f);
+    worst = fmax(worst, fmax(e1, e2));
+    worst_exact = fmax(worst_exact, ex);
+  }
+  oc_report("filtering", "analytic sphere: box-filtered samples' mean vs true mean, levels 12-15", worst_exact, 2e-3, "of peak");
+  oc_report("filtering", "analytic sphere: parent mean vs 8 and 64 descendants, levels 12-15", worst, 1e-2, "of peak");
+  assert_true(worst_exact < 2e-3);
+  assert_true(worst < 1e-2);
+  ocs_field_free(f);
+}
+
+/* The bound contains every sample, is exactly [σ, σ] deep inside and [0, 0] far away. */
+static void test_field__bound_is_conservative(void **st) {
+  (void)st;
+  ocs_field_t *f = field_from(sphere_json);
+  oc_dvec3 c = oc_geo_to_xyz((oc_geo_t){10.0, 20.0, 3000.0});
+  unsigned seed = 7;
+  int tight = 0;
+  for (int n = 0; n < 300; n++) {
+    int level = 10 + n % 7;
+    seed = seed * 1103515245u + 12345u;
+    double dx = ((seed >> 8) % 6000) - 3000.0;
+    seed = seed * 1103515245u + 12345u;
+    double dy = ((seed >> 8) % 6000) - 3000.0;
+    seed = seed * 1103515245u + 12345u;
+    double dz = ((seed >> 8) % 6000) - 3000.0;
+    oc_key_t k = oc_key_from_point(level, oc_dadd(c, oc_dv3(dx, dy, dz)));
+    float lo, hi, s[512];
+    ocs_field_bound(f, k, 0.0, &lo, &hi);
+    assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
+    for (int i = 0; i < 512; i++) {
+      assert_true(s[i] >= lo * (1.0f - 1e-6f) - 1e-12f);
+      assert_true(s[i] <= hi * (1.0f + 1e-6f) + 1e-12f);
+    }
+    if (lo == hi) tight++;
+  }
+  printf("bound classified %d of 300 nodes (empty or uniform) without sampling\n", tight);
+  assert_true(tight > 30);
+  float lo, hi;
+  ocs_field_bound(f, oc_key_from_point(16, c), 0.0, &lo, &hi);
+  assert_true(lo == 0.05f && hi == 0.05f);
+  ocs_field_bound(f, oc_key_from_point(12, oc_geo_to_xyz((oc_geo_t){-40.0, 100.0, 3000.0})), 0.0, &lo, &hi);
+  assert_true(lo == 0.0f && hi == 0.0f);
+  ocs_field_free(f);
+}
+
+/* Sources add; static scenes have one time step; a slab's interior is uniform. */
+static void test_field__sources_add_and_static_steps(void **st) {
+  (void)st;
+  ocs_field_t *f = field_from(
+      "{\"sources\": [{\"type\": \"slab\", \"base\": 1000, \"top\": 5000, \"sigma_t\": 0.001},"
+      " {\"type\": \"box\", \"lat\": 0, \"lon\": 0, \"alt\": 2000, \"size\": [1000, 1000, 1000], \"heading\": 30,"
+      "  \"sigma_t\": 0.01}], \"features\": {\"animation\": false}}");
+  assert_false(ocs_field_animated(f));
+  assert_true(ocs_field_time_step(f, 5, 0.0) == ocs_field_time_step(f, 5, 1e6));
+  oc_dvec3 inside = oc_geo_to_xyz((oc_geo_t){0.0, 0.0, 2500.0});
+  assert_true(fabs(ocs_field_point(f, inside, 0.0) - 0.011) < 1e-12);
+  float lo, hi, s[512];
+  oc_key_t k = oc_key_from_point(18, inside); /* 49 m node inside both */
+  ocs_field_bound(f, k, 0.0, &lo, &hi);
+  assert_true(fabsf(lo - 0.011f) < 1e-7f && fabsf(hi - 0.011f) < 1e-7f);
+  assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
+  for (int i = 0; i < 512; i++) assert_true(fabsf(s[i] - 0.011f) < 1e-7f);
+  ocs_field_stats_t fs;
+  ocs_field_stats(f, &fs);
+  assert_true(fs.sampled_bricks == 1 && fs.bound_calls == 1);
+  assert_int_equal(ocs_field_set_weather(f, OC_PRESET_STORM, 0.0, 10.0), OC_EINVAL); /* no procedural source */
+  assert_int_equal(ocs_field_sample(f, 0, 0.0, s), OC_EINVAL);
+  ocs_field_free(f);
+}
+
+static void test_field__bad_source_names_it(void **st) {
+  (void)st;
+  oc_scene_t sc;
+  char why[512];
+  const char *json = "{\"sources\": [{\"type\": \"vdb\", \"file\": \"/nonexistent/cloud.vdb\", \"lat\": 0, \"lon\": 0, \"alt\": 0}]}";
+  assert_int_equal(oc_scene_parse(&sc, json, strlen(json), "t.json", why, sizeof why), 0);
+  ocs_field_t *f = (ocs_field_t *)1;
+  assert_true(ocs_field_create(&f, &sc, why, sizeof why) < 0);
+  assert_null(f);
+  printf("error: %s\n", why);
+  assert_non_null(strstr(why, "sources[0]"));
+  assert_non_null(strstr(why, "/nonexistent/cloud.vdb"));
+  oc_scene_free(&sc);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_field__box_filter_preserves_the_mean),
+      cmocka_unit_test(test_field__bound_is_conservative),
+      cmocka_unit_test(test_field__sources_add_and_static_steps),
+      cmocka_unit_test(test_field__bad_source_names_it),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

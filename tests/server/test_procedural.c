@@ -1,0 +1,713 @@
+/* test_procedural.c — the procedural planet (server/source_procedural.c, server/weather.c):
+ * determinism, the box filter (exact against point() where the strata are isotropic, and the
+ * Conventions' parent-vs-descendants mean test at coarse, mid and fine levels), conservative
+ * bounds, physical ranges and altitudes of each layer, animation and time steps, weather presets
+ * and transitions, bad descriptions. With OC_BENCH=1 it also prints bricks/s per core and the
+ * bound's classification figures (docs/_parts/procedural.md); nothing timed is asserted. */
+#include <math.h>
+#include <pthread.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include <cmocka.h>
+
+#include "oc_err.h"
+#include "oc_planet.h"
+#include "oc_scene.h"
+#include "oc_voxelize.h"
+#include "ocs_field.h"
+#include "report.h"
+
+/*-*** Helpers ***/
+
+static uint64_t rng_next(uint64_t *s) {
+  uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+static double rng_unit(uint64_t *s) { return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0); }
+
+static oc_dvec3 rand_dir(uint64_t *s) {
+  double z = 2.0 * rng_unit(s) - 1.0, ph = 2.0 * OC_PI * rng_unit(s), r = sqrt(1.0 - z * z);
+  return oc_dv3(r * cos(ph), r * sin(ph), z);
+}
+static oc_dvec3 at_alt(oc_dvec3 dir, double alt) { return oc_dscale(dir, OC_PLANET_RADIUS + alt); }
+
+static ocs_source_t *mk(oc_preset_t preset, double cov, double sig, uint64_t seed) {
+  oc_source_t d;
+  memset(&d, 0, sizeof d);
+  d.type = OC_SOURCE_PROCEDURAL;
+  d.procedural.preset = preset;
+  d.procedural.coverage_scale = cov;
+  d.procedural.sigma_scale = sig;
+  char why[256] = "";
+  ocs_source_t *s = NULL;
+  int r = ocs_source_procedural_create(&s, &d, seed, why, sizeof why);
+  if (r < 0) fail_msg("create: %s", why);
+  assert_non_null(s);
+  return s;
+}
+
+static void sample(const ocs_source_t *s, oc_key_t k, double t, float out[512]) {
+  memset(out, 0, 512 * sizeof(float));
+  assert_int_equal(s->vt->sample(s, k, t, out), 0);
+}
+
+static void footprint(oc_key_t k, oc_dvec3 *lo, oc_dvec3 *hi) {
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(k, &o, &size);
+  double g = size / 14.0;
+  *lo = oc_dv3(o.x - g, o.y - g, o.z - g);
+  *hi = oc_dv3(o.x + size + g, o.y + size + g, o.z + size + g);
+}
+
+static void bound_key(const ocs_source_t *s, oc_key_t k, double t, float *mn, float *mx) {
+  oc_dvec3 lo, hi;
+  footprint(k, &lo, &hi);
+  s->vt->bound(s, lo, hi, t, mn, mx);
+}
+
+/* A point with σt > 0 at an altitude in [lo, hi]; fails the test after many tries. */
+static oc_dvec3 cloudy_point(const ocs_source_t *s, double t, double lo, double hi, uint64_t *rng) {
+  for (int i = 0; i < 200000; i++) {
+    oc_dvec3 p = at_alt(rand_dir(rng), lo + (hi - lo) * rng_unit(rng));
+    if (s->vt->point(s, p, t) > 0.0) return p;
+  }
+  fail_msg("no cloud found between %g and %g m", lo, hi);
+  return oc_dv3(0, 0, 0);
+}
+
+/* Mean of σt over the node's own cube as the renderer reconstructs it (trilinear between corner
+ * samples): trapezoid weights, faces half, edges a quarter, corners an eighth. */
+static double node_mean(const float s[512]) {
+  double sum = 0.0;
+  for (int k = 0; k < 8; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++) {
+        double w = (i == 0 || i == 7 ? 0.5 : 1.0) * (j == 0 || j == 7 ? 0.5 : 1.0) * (k == 0 || k == 7 ? 0.5 : 1.0);
+        sum += w * s[i + 8 * j + 64 * k];
+      }
+  return sum / 343.0;
+}
+
+static double desc_mean(const ocs_source_t *s, oc_key_t k, int depth, double t) {
+  if (depth == 0) {
+    float b[512];
+    sample(s, k, t, b);
+    return node_mean(b);
+  }
+  double m = 0.0;
+  for (int c = 0; c < 8; c++) m += desc_mean(s, oc_key_child(k, c), depth - 1, t);
+  return m / 8.0;
+}
+
+static int bricks_differ(const float *a, const float *b) { return memcmp(a, b, 512 * sizeof(float)) != 0; }
+
+static double now_s(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/*-*** Creation ***/
+
+static void expect_bad(const oc_source_t *d, const char *word) {
+  char why[256] = "";
+  ocs_source_t *s = (ocs_source_t *)(uintptr_t)1;
+  assert_int_equal(ocs_source_procedural_create(&s, d, 1, why, sizeof why), OC_EINVAL);
+  assert_null(s);
+  if (!strstr(why, word)) fail_msg("message \"%s\" does not name \"%s\"", why, word);
+}
+
+static void test_procedural__rejects_bad_desc(void **st) {
+  (void)st;
+  oc_source_t d;
+  memset(&d, 0, sizeof d);
+  d.type = OC_SOURCE_PROCEDURAL;
+  d.procedural.preset = OC_PRESET_FAIR;
+  d.procedural.coverage_scale = 1.0;
+  d.procedural.sigma_scale = 1.0;
+  char why[256];
+  assert_int_equal(ocs_source_procedural_create(NULL, &d, 1, why, sizeof why), OC_EINVAL);
+  ocs_source_t *s = NULL;
+  assert_int_equal(ocs_source_procedural_create(&s, NULL, 1, why, sizeof why), OC_EINVAL);
+  assert_null(s);
+
+  oc_source_t b = d;
+  b.type = OC_SOURCE_SPHERE;
+  expect_bad(&b, "not procedural");
+  b = d, b.procedural.preset = (oc_preset_t)7;
+  expect_bad(&b, "preset");
+  b = d, b.procedural.preset = (oc_preset_t)-1;
+  expect_bad(&b, "preset");
+  b = d, b.procedural.coverage_scale = NAN;
+  expect_bad(&b, "coverage_scale");
+  b = d, b.procedural.coverage_scale = -0.5;
+  expect_bad(&b, "coverage_scale");
+  b = d, b.procedural.coverage_scale = 4.5;
+  expect_bad(&b, "coverage_scale");
+  b = d, b.procedural.sigma_scale = -1.0;
+  expect_bad(&b, "sigma_scale");
+  b = d, b.procedural.sigma_scale = INFINITY;
+  expect_bad(&b, "sigma_scale");
+
+  /* A NULL message buffer is fine; a valid description works; bad weather changes are refused. */
+  assert_int_equal(ocs_source_procedural_create(&s, &d, 1, NULL, 0), 0);
+  assert_string_equal(s->vt->name, "procedural");
+  assert_int_equal(s->vt->set_weather(s, (oc_preset_t)9, 0.0, 1.0), OC_EINVAL);
+  assert_int_equal(s->vt->set_weather(s, OC_PRESET_STORM, NAN, 1.0), OC_EINVAL);
+  assert_int_equal(s->vt->set_weather(s, OC_PRESET_STORM, 0.0, -1.0), OC_EINVAL);
+  assert_int_equal(s->vt->set_weather(s, OC_PRESET_STORM, 0.0, INFINITY), OC_EINVAL);
+  float b0[512];
+  assert_int_equal(s->vt->sample(s, OC_KEY_INVALID, 0.0, b0), OC_EINVAL);
+  s->vt->destroy(s);
+}
+
+/*-*** Determinism ***/
+
+#define NKEYS 12
+
+typedef struct {
+  const ocs_source_t *s;
+  const oc_key_t *keys;
+  int n, first, step;
+  double t;
+  float (*out)[512];
+} job_t;
+
+static void *run_job(void *arg) {
+  job_t *j = arg;
+  for (int i = j->first; i < j->n; i += j->step) {
+    memset(j->out[i], 0, sizeof j->out[i]);
+    if (j->s->vt->sample(j->s, j->keys[i], j->t, j->out[i]) != 0) return arg;
+  }
+  return NULL;
+}
+
+static void cloudy_keys(const ocs_source_t *s, double t, oc_key_t keys[NKEYS]) {
+  static const int levels[4] = {9, 11, 13, 15};
+  uint64_t rng = 99;
+  for (int i = 0; i < NKEYS; i++) keys[i] = oc_key_from_point(levels[i % 4], cloudy_point(s, t, 500.0, 12000.0, &rng));
+}
+
+static void test_procedural__deterministic(void **st) {
+  (void)st;
+  ocs_source_t *a = mk(OC_PRESET_STORM, 1.0, 1.0, 7), *b = mk(OC_PRESET_STORM, 1.0, 1.0, 7);
+  ocs_source_t *c = mk(OC_PRESET_STORM, 1.0, 1.0, 8);
+  const double t = 4321.5;
+  oc_key_t keys[NKEYS];
+  cloudy_keys(a, t, keys);
+  static float one[NKEYS][512], two[NKEYS][512], same[NKEYS][512], other[NKEYS][512];
+  job_t j1 = {a, keys, NKEYS, 0, 1, t, one};
+  assert_null(run_job(&j1));
+  job_t jb = {b, keys, NKEYS, 0, 1, t, same};
+  assert_null(run_job(&jb));
+  job_t jc = {c, keys, NKEYS, 0, 1, t, other};
+  assert_null(run_job(&jc));
+  /* Two threads share the source, each sampling every other key. */
+  job_t t0 = {a, keys, NKEYS, 0, 2, t, two}, t1 = {a, keys, NKEYS, 1, 2, t, two};
+  pthread_t th;
+  assert_int_equal(pthread_create(&th, NULL, run_job, &t1), 0);
+  assert_null(run_job(&t0));
+  void *res;
+  assert_int_equal(pthread_join(th, &res), 0);
+  assert_null(res);
+  int nonzero = 0, differ = 0;
+  for (int i = 0; i < NKEYS; i++) {
+    assert_memory_equal(one[i], same[i], sizeof one[i]);
+    assert_memory_equal(one[i], two[i], sizeof one[i]);
+    differ += bricks_differ(one[i], other[i]);
+    for (int v = 0; v < 512; v++) nonzero += one[i][v] > 0.0f;
+  }
+  assert_true(nonzero > 0);
+  assert_true(differ >= NKEYS / 2); /* another seed is another planet */
+  uint64_t rng = 5;
+  for (int i = 0; i < 1000; i++) {
+    oc_dvec3 p = at_alt(rand_dir(&rng), 12000.0 * rng_unit(&rng));
+    double va = a->vt->point(a, p, t), vb = b->vt->point(b, p, t);
+    assert_memory_equal(&va, &vb, sizeof va);
+  }
+  a->vt->destroy(a);
+  b->vt->destroy(b);
+  c->vt->destroy(c);
+}
+
+/*-*** The box filter ***/
+
+static double point_cb(void *ctx, oc_dvec3 p) {
+  const ocs_source_t *s = ctx;
+  return s->vt->point(s, p, 0.0);
+}
+
+/* Where the strata are isotropic (4³, voxels ≤ 200 m), a sample is bit for bit the mean of the
+ * finest σt, point(), at oc_brick_sample()'s points: batch noise, skipped empty points and the
+ * per-voxel bounds change nothing. Where the vertical axis gets more strata (a 450 m voxel at
+ * level 12 gets 4×4×10), the brick mean agrees with a dense isotropic reference (16³). */
+static void test_procedural__sample_is_box_average_of_point(void **st) {
+  (void)st;
+  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  uint64_t rng = 3;
+  int nonzero = 0;
+  for (int i = 0; i < 4; i++) {
+    oc_key_t k = oc_key_from_point(14 + i % 2, cloudy_point(s, 0.0, 1000.0, 9000.0, &rng));
+    float got[512], want[512];
+    sample(s, k, 0.0, got);
+    oc_brick_sample(k, point_cb, s, 4, want);
+    assert_memory_equal(got, want, sizeof got);
+    for (int v = 0; v < 512; v++) nonzero += got[v] > 0.0f;
+  }
+  assert_true(nonzero > 100);
+  double worst = 0.0;
+  for (int i = 0; i < 2; i++) {
+    oc_key_t k = oc_key_from_point(12, cloudy_point(s, 0.0, 1500.0, 4000.0, &rng));
+    float got[512], ref[512];
+    sample(s, k, 0.0, got);
+    oc_brick_sample(k, point_cb, s, 16, ref);
+    double mg = node_mean(got), mr = node_mean(ref);
+    assert_true(mr > 0.0);
+    double rel = fabs(mg / mr - 1.0);
+    printf("  level 12 brick mean %.6g vs 16^3 reference %.6g: %+.2f%%\n", mg, mr, 100.0 * (mg / mr - 1.0));
+    worst = fmax(worst, rel);
+  }
+  oc_report("procedural", "level-12 brick mean vs 16^3 box average", 100.0 * worst, 3.0, "%");
+  assert_true(worst < 0.03);
+  s->vt->destroy(s);
+}
+
+/* The Conventions' test. A single node's trapezoid mean and its descendants' differ by a kernel
+ * effect of corner sampling (their ½-weight rims around the faces have different widths), which
+ * is large where a face cuts a cloud base. So the nodes are taken as whole vertical columns
+ * through the cloud layers (inner faces cancel, top and bottom faces lie in clear air), several
+ * columns at random places, and the sums compared. */
+static void filter_level(oc_preset_t preset, int level, int columns, double hlo, double hhi, double tol) {
+  ocs_source_t *s = mk(preset, 1.0, 1.0, 1);
+  uint64_t rng = 1000 + (uint64_t)level;
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, d1 = 0.0, d2 = 0.0;
+  int nodes = 0;
+  for (int got = 0; got < columns;) {
+    oc_dvec3 u = rand_dir(&rng);
+    oc_key_t keys[64];
+    int nk = 0;
+    for (double h = hlo; h <= hhi && nk < 64; h += 20.0) {
+      oc_key_t k = oc_key_from_point(level, at_alt(u, h));
+      int dup = 0;
+      for (int i = 0; i < nk; i++) dup |= keys[i] == k;
+      if (!dup) keys[nk++] = k;
+    }
+    double c0 = 0.0;
+    for (int i = 0; i < nk; i++) c0 += desc_mean(s, keys[i], 0, 0.0);
+    if (!(c0 > 0.0)) continue;
+    double c1 = 0.0, c2 = 0.0;
+    for (int i = 0; i < nk; i++) {
+      c1 += desc_mean(s, keys[i], 1, 0.0);
+      c2 += desc_mean(s, keys[i], 2, 0.0);
+    }
+    s0 += c0, s1 += c1, s2 += c2;
+    d1 += fabs(c1 - c0), d2 += fabs(c2 - c0);
+    nodes += nk;
+    got++;
+  }
+  double r1 = s1 / s0 - 1.0, r2 = s2 / s0 - 1.0;
+  printf("  %-8s level %2d (%d columns, %d nodes): 8 descendants %+.2f%%, 64 descendants %+.2f%%; "
+         "per column |diff| %.2f%%, %.2f%%\n",
+         oc_scene_preset_name(preset), level, columns, nodes, 100.0 * r1, 100.0 * r2, 100.0 * d1 / s0, 100.0 * d2 / s0);
+  char name[96];
+  snprintf(name, sizeof name, "%s level %d mean vs 8 descendants", oc_scene_preset_name(preset), level);
+  oc_report("procedural", name, 100.0 * fabs(r1), 100.0 * tol, "%");
+  snprintf(name, sizeof name, "%s level %d mean vs 64 descendants", oc_scene_preset_name(preset), level);
+  oc_report("procedural", name, 100.0 * fabs(r2), 100.0 * tol, "%");
+  assert_true(fabs(r1) < tol);
+  assert_true(fabs(r2) < tol);
+  s->vt->destroy(s);
+}
+
+static void test_procedural__filter_mean_coarse(void **st) {
+  (void)st;
+  filter_level(OC_PRESET_STORM, 8, 6, -500.0, 16500.0, 0.04); /* 50 km nodes, 7 km voxels */
+}
+static void test_procedural__filter_mean_mid(void **st) {
+  (void)st;
+  filter_level(OC_PRESET_STORM, 11, 5, -500.0, 16500.0, 0.03); /* 6.3 km nodes, 900 m voxels */
+}
+static void test_procedural__filter_mean_fine(void **st) {
+  (void)st;
+  filter_level(OC_PRESET_FAIR, 14, 5, 1000.0, 6000.0, 0.03); /* 790 m nodes: cumulus heaps */
+}
+
+/*-*** Bounds ***/
+
+/* Random nodes near the cloud shell at levels 5..17, several presets and times (one inside a
+ * weather change): every sample within [min, max], and point() at random points of the
+ * footprint never above max (so an "empty" bound is checked without trusting sample()). */
+static void test_procedural__bound_is_conservative(void **st) {
+  (void)st;
+  static const oc_preset_t presets[4] = {OC_PRESET_FAIR, OC_PRESET_STORM, OC_PRESET_OVERCAST, OC_PRESET_CIRRUS};
+  uint64_t rng = 77;
+  int checked = 0, empty = 0;
+  for (int pi = 0; pi < 4; pi++) {
+    ocs_source_t *s = mk(presets[pi], pi == 0 ? 2.0 : 1.0, 1.0, 3);
+    if (pi == 1) {
+      /* Static, in the middle of a change: at a transition step's start the brick's (quantised)
+       * weather and point()'s (continuous) one are the same, so point() checks the bound there. */
+      assert_int_equal(s->vt->set_weather(s, OC_PRESET_CIRRUS, 3000.0, 1200.0), 0);
+      s->animated = 0;
+    }
+    for (int n = 0; n < 60; n++) {
+      int level = 5 + (int)(rng_next(&rng) % 13);
+      double t = pi == 1 ? 3000.0 + 37.5 * (double)(rng_next(&rng) % 33) : (n % 3 ? 3600.0 * rng_unit(&rng) : 0.0);
+      int exact = pi == 1 || t == 0.0; /* point() sees what the brick holds */
+      oc_dvec3 p = n % 2 ? cloudy_point(s, t, 0.0, 15000.0, &rng) : at_alt(rand_dir(&rng), -1000.0 + 18000.0 * rng_unit(&rng));
+      oc_key_t k = oc_key_from_point(level, p);
+      float mn, mx, b[512];
+      bound_key(s, k, t, &mn, &mx);
+      assert_true(mn >= 0.0f && mn <= mx);
+      sample(s, k, t, b);
+      for (int v = 0; v < 512; v++)
+        if (b[v] < mn || b[v] > mx) fail_msg("level %d t %g: sample %d = %g outside [%g, %g]", level, t, v, b[v], mn, mx);
+      if (exact) {
+        oc_dvec3 lo, hi;
+        footprint(k, &lo, &hi);
+        for (int i = 0; i < 200; i++) {
+          oc_dvec3 q = oc_dv3(lo.x + (hi.x - lo.x) * rng_unit(&rng), lo.y + (hi.y - lo.y) * rng_unit(&rng),
+                              lo.z + (hi.z - lo.z) * rng_unit(&rng));
+          double v = s->vt->point(s, q, t);
+          if (v > mx) fail_msg("level %d t %g: point %g above bound %g", level, t, v, mx);
+        }
+      }
+      checked++;
+      empty += mx == 0.0f;
+    }
+    s->vt->destroy(s);
+  }
+  printf("  %d nodes checked, %d bounded as empty\n", checked, empty);
+  assert_true(empty > 0 && empty < checked);
+}
+
+/*-*** Layers ***/
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* σt at random points of an altitude band where only one layer type lives in that preset. */
+static void layer_range(oc_preset_t preset, const char *layer, double hlo, double hhi, double p90_lo, double p90_hi,
+                        double max_hi) {
+  ocs_source_t *s = mk(preset, 1.0, 1.0, 1);
+  enum { N = 60000 };
+  double *v = malloc(N * sizeof *v);
+  assert_non_null(v);
+  uint64_t rng = 11;
+  int n = 0;
+  for (int i = 0; i < N; i++) {
+    double x = s->vt->point(s, at_alt(rand_dir(&rng), hlo + (hhi - hlo) * rng_unit(&rng)), 0.0);
+    assert_true(x >= 0.0 && isfinite(x));
+    if (x > 0.0) v[n++] = x;
+  }
+  assert_true(n > N / 200);
+  qsort(v, (size_t)n, sizeof *v, cmp_double);
+  double p10 = v[n / 10], p50 = v[n / 2], p90 = v[9 * n / 10], mx = v[n - 1];
+  printf("  %-12s %5.1f-%4.1f km: cloud at %5.1f%% of points; σt p10 %.3g p50 %.3g p90 %.3g max %.3g m^-1\n", layer,
+         hlo / 1e3, hhi / 1e3, 100.0 * n / N, p10, p50, p90, mx);
+  assert_true(p90 >= p90_lo && p90 <= p90_hi);
+  assert_true(mx <= max_hi);
+  free(v);
+  s->vt->destroy(s);
+}
+
+static void test_procedural__layer_ranges(void **st) {
+  (void)st;
+  layer_range(OC_PRESET_FAIR, "cumulus", 1400.0, 5400.0, 0.02, 0.2, 0.25);
+  layer_range(OC_PRESET_OVERCAST, "stratus", 400.0, 1150.0, 0.02, 0.15, 0.15);
+  layer_range(OC_PRESET_STORM, "cumulonimbus", 6000.0, 8600.0, 0.02, 0.3, 0.5);
+  layer_range(OC_PRESET_CIRRUS, "cirrus", 8700.0, 11300.0, 1e-4, 1.2e-3, 1.5e-3);
+}
+
+/* Nothing above 16 km or below the ground, even with every coverage at its maximum. */
+static void test_procedural__layer_altitudes(void **st) {
+  (void)st;
+  ocs_source_t *s = mk(OC_PRESET_STORM, 4.0, 1.0, 1);
+  uint64_t rng = 21;
+  int inside = 0;
+  for (int i = 0; i < 20000; i++) {
+    oc_dvec3 d = rand_dir(&rng);
+    assert_true(s->vt->point(s, at_alt(d, 16000.0 + 84000.0 * rng_unit(&rng)), 500.0) == 0.0);
+    assert_true(s->vt->point(s, at_alt(d, -50000.0 * rng_unit(&rng) - 1e-3), 500.0) == 0.0);
+    inside += s->vt->point(s, at_alt(d, 400.0 + 13600.0 * rng_unit(&rng)), 500.0) > 0.0;
+  }
+  assert_true(inside > 2000);
+  assert_true(s->vt->point(s, oc_dv3(0, 0, 0), 0.0) == 0.0);
+  /* Bounds of nodes wholly above 16 km or below ground. */
+  for (int i = 0; i < 200; i++) {
+    oc_dvec3 d = rand_dir(&rng);
+    int level = 10 + i % 6;
+    double diag = 1.7321 * oc_key_size(level) * 8.0 / 7.0 + 1.0; /* the footprint's diagonal */
+    oc_key_t up = oc_key_from_point(level, at_alt(d, 16000.0 + diag));
+    oc_key_t dn = oc_key_from_point(level, at_alt(d, -diag));
+    float mn, mx;
+    bound_key(s, up, 500.0, &mn, &mx);
+    assert_true(mx == 0.0f);
+    bound_key(s, dn, 500.0, &mn, &mx);
+    assert_true(mx == 0.0f);
+  }
+  s->vt->destroy(s);
+}
+
+/*-*** Animation and time steps ***/
+
+static void test_procedural__animation(void **st) {
+  (void)st;
+  ocs_source_t *s = mk(OC_PRESET_FAIR, 1.0, 1.0, 1);
+  assert_true(s->animated);
+  uint64_t rng = 31;
+  oc_key_t k = oc_key_from_point(13, cloudy_point(s, 0.0, 1300.0, 3000.0, &rng));
+  float a[512], b[512], c[512];
+  sample(s, k, 0.0, a);
+  sample(s, k, 600.0, b);
+  assert_true(bricks_differ(a, b)); /* ten minutes of wind */
+
+  /* Steps: monotone in t; a coarser level steps half as often (Δ_L = Δ_0·2^-L); within a step the
+   * brick does not change (its content is snapped to the step), across one it does. */
+  int changes[OC_KEY_MAX_LEVEL + 1];
+  for (int L = 0; L <= OC_KEY_MAX_LEVEL; L++) {
+    uint64_t prev = s->vt->time_step(s, L, 0.0);
+    changes[L] = 0;
+    for (double t = 0.25; t <= 3600.0; t += 0.25) {
+      uint64_t cur = s->vt->time_step(s, L, t);
+      assert_true(cur >= prev);
+      changes[L] += cur != prev;
+      prev = cur;
+    }
+    if (L > 0) assert_true(changes[L - 1] <= changes[L]);
+  }
+  printf("  time-step changes in an hour: level 6 %d, 10 %d, 13 %d, 14 %d, 16 %d\n", changes[6], changes[10], changes[13],
+         changes[14], changes[16]);
+  assert_true(changes[6] < 30 && changes[13] > 100 && changes[16] >= 3000); /* about 0.25 voxel per step at ~27 m/s */
+  double t1 = 1000.0, t2 = t1;
+  while (s->vt->time_step(s, 13, t2) == s->vt->time_step(s, 13, t1)) t2 += 0.01;
+  double t0 = t1;
+  while (s->vt->time_step(s, 13, t0 - 0.01) == s->vt->time_step(s, 13, t1)) t0 -= 0.01;
+  sample(s, k, t0, a); /* t0 and t2 - 0.01 are in t1's step, t2 in the next */
+  sample(s, k, t2 - 0.01, b);
+  sample(s, k, t2, c);
+  assert_memory_equal(a, b, sizeof a);
+  assert_true(bricks_differ(b, c));
+
+  /* Static: the field clears `animated` when the scene's animation is off. */
+  s->animated = 0;
+  for (int L = 0; L <= OC_KEY_MAX_LEVEL; L++) assert_true(s->vt->time_step(s, L, 12345.0) == 0);
+  sample(s, k, 0.0, a);
+  sample(s, k, 86400.0, b);
+  assert_memory_equal(a, b, sizeof a);
+  oc_dvec3 p = cloudy_point(s, 0.0, 1300.0, 3000.0, &rng);
+  assert_true(s->vt->point(s, p, 0.0) == s->vt->point(s, p, 1e6));
+  s->vt->destroy(s);
+}
+
+/*-*** Weather ***/
+
+static void test_procedural__weather_transition(void **st) {
+  (void)st;
+  ocs_source_t *w = mk(OC_PRESET_FAIR, 1.0, 1.0, 1), *fair = mk(OC_PRESET_FAIR, 1.0, 1.0, 1),
+               *storm = mk(OC_PRESET_STORM, 1.0, 1.0, 1), *overcast = mk(OC_PRESET_OVERCAST, 1.0, 1.0, 1);
+  const double t0 = 1000.0, secs = 600.0;
+  uint64_t before = w->vt->time_step(w, 12, 2000.0);
+  assert_int_equal(w->vt->set_weather(w, OC_PRESET_STORM, t0, secs), 0);
+  assert_true(w->vt->time_step(w, 12, 2000.0) != before); /* no cached brick survives a change */
+  uint64_t rng = 41;
+  oc_key_t keys[6];
+  for (int i = 0; i < 6; i++) keys[i] = oc_key_from_point(10 + i % 3 * 2, cloudy_point(storm, 1600.0, 1000.0, 9000.0, &rng));
+  int mid_differs = 0;
+  for (int i = 0; i < 6; i++) {
+    float a[512], b[512], m[512];
+    sample(w, keys[i], t0 - 0.5, a); /* before t0: the old preset */
+    sample(fair, keys[i], t0 - 0.5, b);
+    assert_memory_equal(a, b, sizeof a);
+    sample(w, keys[i], t0 + secs, a); /* from t0 + seconds on: the new one */
+    sample(storm, keys[i], t0 + secs, b);
+    assert_memory_equal(a, b, sizeof a);
+    sample(w, keys[i], 5000.0, a);
+    sample(storm, keys[i], 5000.0, b);
+    assert_memory_equal(a, b, sizeof a);
+    sample(w, keys[i], t0 + 0.5 * secs, m);
+    sample(storm, keys[i], t0 + 0.5 * secs, b);
+    mid_differs += bricks_differ(m, b);
+  }
+  assert_true(mid_differs > 0);
+  /* In between, point() is continuous in t: no jump at t0, at t0 + seconds or anywhere else. */
+  double worst = 0.0, range = 0.0;
+  for (int i = 0; i < 20; i++) {
+    oc_dvec3 p = cloudy_point(storm, 1300.0, 1000.0, 9000.0, &rng);
+    double prev = w->vt->point(w, p, t0 - 1.0);
+    for (double t = t0 - 1.0 + 0.05; t <= t0 + secs + 1.0; t += 0.05) {
+      double v = w->vt->point(w, p, t);
+      worst = fmax(worst, fabs(v - prev));
+      range = fmax(range, v);
+      prev = v;
+    }
+  }
+  printf("  largest change of point σt in 0.05 s during the transition: %.3g (peak %.3g)\n", worst, range);
+  assert_true(range > 0.0 && worst < 0.02 * range);
+  /* Steps: monotone through the change. */
+  uint64_t prev = w->vt->time_step(w, 12, 0.0);
+  for (double t = 0.5; t < 3000.0; t += 0.5) {
+    uint64_t cur = w->vt->time_step(w, 12, t);
+    assert_true(cur >= prev);
+    prev = cur;
+  }
+  /* A change that starts earlier replaces a later one; chained changes stay continuous. */
+  assert_int_equal(w->vt->set_weather(w, OC_PRESET_CLEAR, 500.0, 100.0), 0);
+  for (int i = 0; i < 200; i++) assert_true(w->vt->point(w, at_alt(rand_dir(&rng), 12000.0 * rng_unit(&rng)), 2000.0) == 0.0);
+  assert_int_equal(w->vt->set_weather(w, OC_PRESET_OVERCAST, 550.0, 300.0), 0); /* during the first */
+  oc_dvec3 p = cloudy_point(fair, 550.0, 500.0, 3000.0, &rng);
+  double l = w->vt->point(w, p, 550.0 - 1e-6), r = w->vt->point(w, p, 550.0 + 1e-6);
+  assert_true(fabs(l - r) < 1e-6);
+  for (int i = 0; i < 6; i++) { /* and end exactly in the last preset */
+    float a[512], b[512];
+    sample(w, keys[i], 1e5, a);
+    sample(overcast, keys[i], 1e5, b);
+    assert_memory_equal(a, b, sizeof a);
+  }
+  w->vt->destroy(w);
+  overcast->vt->destroy(overcast);
+  fair->vt->destroy(fair);
+  storm->vt->destroy(storm);
+}
+
+static double cloud_fraction(const ocs_source_t *s, double alt, int n, uint64_t seed) {
+  uint64_t rng = seed;
+  int hit = 0;
+  for (int i = 0; i < n; i++) hit += s->vt->point(s, at_alt(rand_dir(&rng), alt), 0.0) > 0.0;
+  return (double)hit / n;
+}
+
+static void test_procedural__presets_differ(void **st) {
+  (void)st;
+  ocs_source_t *p[OC_PRESET_COUNT];
+  for (int i = 0; i < OC_PRESET_COUNT; i++) p[i] = mk((oc_preset_t)i, 1.0, 1.0, 1);
+  static const double alts[5] = {800.0, 1500.0, 3000.0, 7000.0, 10000.0};
+  double f[OC_PRESET_COUNT][5];
+  for (int i = 0; i < OC_PRESET_COUNT; i++) {
+    printf("  %-8s cloud fraction at", oc_scene_preset_name(i));
+    for (int a = 0; a < 5; a++) {
+      f[i][a] = cloud_fraction(p[i], alts[a], 20000, 51);
+      printf(" %.1f km %5.1f%%", alts[a] / 1e3, 100.0 * f[i][a]);
+    }
+    printf("\n");
+  }
+  for (int a = 0; a < 5; a++) assert_true(f[OC_PRESET_CLEAR][a] == 0.0);
+  assert_true(f[OC_PRESET_OVERCAST][0] > 0.7);                  /* a stratus deck */
+  assert_true(f[OC_PRESET_FAIR][0] < 0.1 && f[OC_PRESET_FAIR][1] > 0.02 && f[OC_PRESET_FAIR][1] < 0.5);
+  assert_true(f[OC_PRESET_FAIR][3] == 0.0);                     /* no towers in fair weather */
+  assert_true(f[OC_PRESET_STORM][3] > 0.005);                   /* cumulonimbus */
+  assert_true(f[OC_PRESET_CIRRUS][4] > 0.3 && f[OC_PRESET_CIRRUS][4] > 2.0 * f[OC_PRESET_FAIR][4]);
+  assert_true(f[OC_PRESET_CIRRUS][0] == 0.0);
+
+  /* clear: every brick and bound empty where storm has cloud. */
+  uint64_t rng = 61;
+  for (int i = 0; i < 8; i++) {
+    oc_key_t k = oc_key_from_point(8 + i, cloudy_point(p[OC_PRESET_STORM], 0.0, 500.0, 12000.0, &rng));
+    float b[512], mn, mx;
+    sample(p[OC_PRESET_CLEAR], k, 0.0, b);
+    for (int v = 0; v < 512; v++) assert_true(b[v] == 0.0f);
+    bound_key(p[OC_PRESET_CLEAR], k, 0.0, &mn, &mx);
+    assert_true(mx == 0.0f);
+  }
+  for (int i = 0; i < OC_PRESET_COUNT; i++) p[i]->vt->destroy(p[i]);
+}
+
+/* coverage_scale 0 empties the sky; sigma_scale multiplies σt exactly (a power of two here). */
+static void test_procedural__scales(void **st) {
+  (void)st;
+  ocs_source_t *one = mk(OC_PRESET_STORM, 1.0, 1.0, 1), *two = mk(OC_PRESET_STORM, 1.0, 2.0, 1),
+               *none = mk(OC_PRESET_STORM, 0.0, 1.0, 1), *more = mk(OC_PRESET_FAIR, 2.0, 1.0, 1),
+               *fair = mk(OC_PRESET_FAIR, 1.0, 1.0, 1);
+  uint64_t rng = 71;
+  for (int i = 0; i < 4; i++) {
+    oc_key_t k = oc_key_from_point(11 + i, cloudy_point(one, 0.0, 500.0, 12000.0, &rng));
+    float a[512], b[512];
+    sample(one, k, 0.0, a);
+    sample(two, k, 0.0, b);
+    for (int v = 0; v < 512; v++) assert_true(b[v] == 2.0f * a[v]);
+    sample(none, k, 0.0, b);
+    for (int v = 0; v < 512; v++) assert_true(b[v] == 0.0f);
+  }
+  assert_true(cloud_fraction(more, 1500.0, 20000, 81) > 1.3 * cloud_fraction(fair, 1500.0, 20000, 81));
+  one->vt->destroy(one);
+  two->vt->destroy(two);
+  none->vt->destroy(none);
+  more->vt->destroy(more);
+  fair->vt->destroy(fair);
+}
+
+/*-*** Figures (OC_BENCH=1) ***/
+
+/* Bricks per second per core for non-empty nodes near clouds, and the share of nodes whose bound
+ * says "empty" (no sampling needed): over nodes whose footprint meets the 0–16 km shell, and over
+ * those with a point of cloud inside. */
+static void test_procedural__bench(void **st) {
+  (void)st;
+  const char *e = getenv("OC_BENCH");
+  if (!e || !*e || *e == '0') skip();
+  static const oc_preset_t presets[2] = {OC_PRESET_FAIR, OC_PRESET_STORM};
+  static const int levels[] = {6, 8, 10, 12, 13, 14, 16};
+  printf("| preset | level | node size | bricks/s (1 core) | ms/brick | bound: empty of shell nodes |\n");
+  printf("|---|---:|---:|---:|---:|---:|\n");
+  for (int pi = 0; pi < 2; pi++) {
+    ocs_source_t *s = mk(presets[pi], 1.0, 1.0, 1);
+    for (size_t li = 0; li < sizeof levels / sizeof *levels; li++) {
+      int L = levels[li];
+      uint64_t rng = 500 + (uint64_t)L;
+      enum { NK = 16 };
+      oc_key_t keys[NK];
+      for (int i = 0; i < NK; i++) keys[i] = oc_key_from_point(L, cloudy_point(s, 0.0, 300.0, 14000.0, &rng));
+      float b[512];
+      int n = 0;
+      double t0 = now_s(), t;
+      do {
+        sample(s, keys[n % NK], 0.0, b);
+        n++;
+        t = now_s() - t0;
+      } while (t < 1.0 || n < NK);
+      int shell = 0, empty = 0;
+      for (int i = 0; i < 4000; i++) {
+        oc_key_t k = oc_key_from_point(L, at_alt(rand_dir(&rng), 16000.0 * rng_unit(&rng)));
+        float mn, mx;
+        bound_key(s, k, 0.0, &mn, &mx);
+        shell++;
+        empty += mx == 0.0f;
+      }
+      printf("| %s | %d | %.0f m | %.0f | %.2f | %.1f%% |\n", oc_scene_preset_name(presets[pi]), L, oc_key_size(L), n / t,
+             1e3 * t / n, 100.0 * empty / shell);
+    }
+    s->vt->destroy(s);
+  }
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_procedural__rejects_bad_desc),
+      cmocka_unit_test(test_procedural__deterministic),
+      cmocka_unit_test(test_procedural__sample_is_box_average_of_point),
+      cmocka_unit_test(test_procedural__filter_mean_coarse),
+      cmocka_unit_test(test_procedural__filter_mean_mid),
+      cmocka_unit_test(test_procedural__filter_mean_fine),
+      cmocka_unit_test(test_procedural__bound_is_conservative),
+      cmocka_unit_test(test_procedural__layer_ranges),
+      cmocka_unit_test(test_procedural__layer_altitudes),
+      cmocka_unit_test(test_procedural__animation),
+      cmocka_unit_test(test_procedural__weather_transition),
+      cmocka_unit_test(test_procedural__presets_differ),
+      cmocka_unit_test(test_procedural__scales),
+      cmocka_unit_test(test_procedural__bench),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

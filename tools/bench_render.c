@@ -1,0 +1,147 @@
+/* bench_render.c — `overcast-bench render`: CPU reference renderer throughput (samples/s) per
+ * thread count, side by side in one run, and a check that every thread count produced the same
+ * image. */
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "bench.h"
+#include "oc_atmo.h"
+#include "oc_cli.h"
+#include "oc_err.h"
+#include "oc_image.h"
+#include "oc_render.h"
+#include "oc_scene.h"
+#include "field_state.h"
+#include "oc_scene_voxelize.h"
+
+static double now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+int oct_bench_render(const char *prog, int argc, char **argv) {
+  enum { O_SCENE = 256, O_CAMERA, O_SIZE, O_THREADS, O_REPEAT, O_STEP, O_PNG, O_TIME, O_HELP };
+  static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},   {"camera", required_argument, 0, O_CAMERA},
+                                       {"size", required_argument, 0, O_SIZE},     {"threads", required_argument, 0, O_THREADS},
+                                       {"repeat", required_argument, 0, O_REPEAT}, {"step-factor", required_argument, 0, O_STEP},
+                                       {"png", required_argument, 0, O_PNG}, {"time", required_argument, 0, O_TIME},
+                                       {"help", no_argument, 0, O_HELP},           {0, 0, 0, 0}};
+  const char *scene_path = "scenes/analytic_sphere.json", *camera_text = NULL, *threads_text = "1,2", *png = NULL;
+  double world_time = 0.0;
+  int w = 320, h = 180;
+  long repeat = 3;
+  double step = 0.5;
+  int c;
+  opterr = 0;
+  optind = 1;
+  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+    switch (c) {
+      case O_SCENE: scene_path = optarg; break;
+      case O_CAMERA: camera_text = optarg; break;
+      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
+      case O_THREADS: threads_text = optarg; break;
+      case O_REPEAT: if (oc_cli_int(prog, "--repeat", optarg, 1, 1000, &repeat)) return OC_EXIT_USAGE; break;
+      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &step)) return OC_EXIT_USAGE; break;
+      case O_PNG: png = optarg; break;
+      case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &world_time)) return OC_EXIT_USAGE; break;
+      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
+      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "render: unknown or incomplete option \"%s\"", argv[optind - 1]);
+    }
+  }
+  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "render: unexpected argument \"%s\"", argv[optind]);
+  long threads[32];
+  int nthreads = 0;
+  if (oct_parse_list(prog, "--threads", threads_text, 1, 256, threads, 32, &nthreads)) return OC_EXIT_USAGE;
+
+  char why[512];
+  static oc_scene_t sc;
+  if (oc_scene_load(&sc, scene_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
+  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  oc_state_t st;
+  oc_state_init(&st);
+  oc_medium_t medium;
+  if (oc_scene_medium(&sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
+    oc_scene_voxelize_desc_t vd = {cam, h, 2.0, 16, 0, 2};
+    if (oc_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+  } else { /* procedural or VDB: through the server's field */
+    ocs_field_t *field = NULL;
+    if (ocs_field_create(&field, &sc, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+    oct_field_state_desc_t fd = {field, world_time, sc.sun_dir, cam, h, 2.0, 16, oc_scene_has(&sc, OC_FEATURE_SHADOWS), 0, 0, 2};
+    int r = oct_field_state(&st, &fd, why, sizeof why);
+    ocs_field_free(field);
+    if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+  }
+  ocg_atmosphere ap;
+  oc_atmo_params_default(&ap);
+  double ta = now();
+  oc_atmo_t *atmo = oc_atmo_create(&ap, 2);
+  ta = now() - ta;
+  if (!atmo) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+
+  printf("# CPU reference renderer: %s, %dx%d, step factor %g, state %u nodes / %u bricks, atmosphere tables %.3f s\n\n",
+         scene_path, w, h, step, st.node_count, st.brick_count, ta);
+  printf("| threads | best of %ld (s) | samples | M samples/s | M rays/s | speed-up | image |\n", repeat);
+  printf("|---:|---:|---:|---:|---:|---:|---|\n");
+  oc_image_t ref = {0}, img = {0};
+  double base = 0.0;
+  int rc = OC_EXIT_OK;
+  for (int i = 0; i < nthreads; i++) {
+    oc_render_desc_t d = {0};
+    d.width = w;
+    d.height = h;
+    d.camera = cam;
+    d.step_factor = step;
+    d.atmo = atmo;
+    d.threads = (int)threads[i];
+    d.ms_octaves = sc.optics.ms_octaves;
+    d.albedo = (float)sc.optics.albedo;
+    d.albedo_zero = sc.optics.albedo == 0.0;
+    if (oc_image_alloc(&img, w, h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+    double best = 1e30;
+    oc_render_stats_t rs = {0};
+    for (long r = 0; r < repeat; r++) {
+      fprintf(stderr, "\r%s: render: %ld threads, run %ld/%ld ", prog, threads[i], r + 1, repeat);
+      double t0 = now();
+      if (oc_render_state(&st, &d, &img, &rs) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed");
+      double t = now() - t0;
+      if (t < best) best = t;
+    }
+    fprintf(stderr, "\r\033[K");
+    if (i == 0) base = best;
+    const char *same = "reference";
+    if (i == 0) {
+      ref = img;
+      img.px = NULL;
+      if (png) {
+        uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
+        char cam_text[256];
+        oc_camera_format(pose, cam_text, sizeof cam_text);
+        oc_png_text_t text[1] = {{"overcast-camera", cam_text}};
+        if (!rgb) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+        oc_image_tonemap(&ref, 10.0f, rgb);
+        int r = oc_png_write(png, w, h, rgb, text, 1, why, sizeof why);
+        free(rgb);
+        if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      }
+    } else {
+      same = memcmp(ref.px, img.px, sizeof(float) * 4 * (size_t)w * (size_t)h) == 0 ? "identical" : "DIFFERS";
+      if (same[0] == 'D') rc = OC_EXIT_RUNTIME;
+      oc_image_free(&img);
+    }
+    printf("| %ld | %.3f | %llu | %.2f | %.3f | %.2f | %s |\n", threads[i], best, (unsigned long long)rs.samples,
+           rs.samples / best * 1e-6, (double)w * h / best * 1e-6, base / best, same);
+  }
+  oc_image_free(&ref);
+  oc_atmo_free(atmo);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+  if (rc) fprintf(stderr, "%s: images differ between thread counts\n", prog);
+  return rc;
+}
