@@ -94,7 +94,7 @@ typedef struct {
   int has_w_anchor;
   double w_anchor[3];           /* grid world position that goes to the anchor (from frame 0) */
   double extent[3];             /* east, north, up extent of frame 0's placed box, m */
-  ocs__frame_t first;           /* frame 0's description (its grid pointer is not kept here) */
+  ocs__frame_t frame0;          /* frame 0's description (its grid pointer is not kept here) */
   int has_seq;
   oc_src_sequence_t seq;
   pthread_mutex_t mu;
@@ -693,8 +693,8 @@ int ocs_source_vdb_create(ocs_source_t **out, const oc_source_t *desc, char *why
     ocs__vdb_destroy(&s->base);
     return r;
   }
-  s->first = s->slots[0].fr;
-  s->first.grid = NULL;
+  s->frame0 = s->slots[0].fr;
+  s->frame0.grid = NULL;
   s->slots[0].index = 0;
   s->slots[0].state = OCS__READY;
   s->slots[0].used = ++s->tick;
@@ -705,7 +705,7 @@ int ocs_source_vdb_create(ocs_source_t **out, const oc_source_t *desc, char *why
 int ocs_vdb_source_info(const ocs_source_t *src, ocs_vdb_source_info_t *out) {
   if (!src || !out || src->vt != &ocs__vdb_vt) return OC_EINVAL;
   const ocs__vdb_t *s = (const ocs__vdb_t *)src;
-  const ocs__frame_t *fr = &s->first;
+  const ocs__frame_t *fr = &s->frame0;
   memset(out, 0, sizeof *out);
   out->grid = fr->info;
   out->prep = fr->prep;

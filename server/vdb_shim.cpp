@@ -274,10 +274,7 @@ int shim_open(const char *path, ocs_vdb_progress_fn progress, void *ctx, ocs_vdb
     if (grids) f->grids = *grids;
     f->bytes = total;
     f->compression = stream.compression();
-    f->version = stream.fileVersion();
-    if (buf.position() < total) {
-      // Trailing bytes are legal for OpenVDB; nothing to report.
-    }
+    f->version = stream.fileVersion(); // trailing bytes after the last grid are legal
   } catch (const std::ios_base::failure &) {
     set_why(why, why_len, "truncated: the data ends early (OpenVDB wanted more after %llu of %llu bytes)",
             (unsigned long long)buf.position(), (unsigned long long)total);

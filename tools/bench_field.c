@@ -1,7 +1,7 @@
 /* bench_field.c — `overcast-bench field`: brick production speed of a scene's field sources.
  *
- * Takes a block of n³ nodes at one level around a point (default: the scene camera's position,
- * at the altitude given), asks the bound of each and samples those it cannot classify, on one
+ * Takes a block of n³ nodes at one level around a point (--at LAT,LON, default the scene camera's
+ * position, at the altitude given), asks the bound of each and samples those it cannot classify, on one
  * thread: bricks per second per core, and the fraction the bound classified without sampling. */
 #include <getopt.h>
 #include <math.h>
@@ -22,14 +22,16 @@ static double now(void) {
 }
 
 int oct_bench_field(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_LEVELS, O_BLOCK, O_ALT, O_TIME, O_HELP };
+  enum { O_SCENE = 256, O_LEVELS, O_BLOCK, O_ALT, O_AT, O_TIME, O_HELP };
   static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE}, {"levels", required_argument, 0, O_LEVELS},
                                        {"block", required_argument, 0, O_BLOCK}, {"alt", required_argument, 0, O_ALT},
+                                       {"at", required_argument, 0, O_AT},
                                        {"time", required_argument, 0, O_TIME},   {"help", no_argument, 0, O_HELP},
                                        {0, 0, 0, 0}};
   const char *scene_path = NULL, *levels_text = "10,13,16";
   long block = 6;
-  double alt = 2000.0, t = 0.0;
+  double alt = 2000.0, t = 0.0, at[2];
+  int have_at = 0;
   int c;
   opterr = 0;
   optind = 1;
@@ -40,6 +42,11 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
       case O_BLOCK: if (oc_cli_int(prog, "--block", optarg, 1, 64, &block)) return OC_EXIT_USAGE; break;
       case O_ALT: if (oc_cli_double(prog, "--alt", optarg, -1e4, 1e5, &alt)) return OC_EXIT_USAGE; break;
       case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &t)) return OC_EXIT_USAGE; break;
+      case O_AT:
+        if (sscanf(optarg, "%lf,%lf", &at[0], &at[1]) != 2 || !(at[0] >= -90 && at[0] <= 90 && at[1] >= -360 && at[1] <= 360))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--at: expected LAT,LON in degrees, got \"%s\"", optarg);
+        have_at = 1;
+        break;
       case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
       default: return oc_cli_fail(prog, OC_EXIT_USAGE, "field: unknown or incomplete option \"%s\"", argv[optind - 1]);
     }
@@ -60,7 +67,7 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
   double tc = now();
   if (ocs_field_create(&f, &sc, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   tc = now() - tc;
-  oc_geo_t g = {sc.camera.pos.lat, sc.camera.pos.lon, alt};
+  oc_geo_t g = {have_at ? at[0] : sc.camera.pos.lat, have_at ? at[1] : sc.camera.pos.lon, alt};
   oc_dvec3 centre = oc_geo_to_xyz(g);
   printf("# field sources of %s (%d source(s), built in %.3f s), %ld³ nodes per level around %.3f°, %.3f°, %.0f m, "
          "t = %g s, one thread\n\n",

@@ -33,6 +33,7 @@ void oct_bench_usage(FILE *f) {
           "  --scene FILE        scene (default: the built-in procedural planet)\n"
           "  --levels LIST       octree levels (default 10,13,16)\n"
           "  --block N           N³ nodes per level around the scene camera (default 6)\n"
+          "  --at LAT,LON        centre of the block (default: the scene camera)\n"
           "  --alt M             altitude of the block's centre in metres (default 2000)\n"
           "  --time T            world time in seconds (default 0)\n"
           "\n"

@@ -3,7 +3,6 @@
  * sampling against analytic values, mass between levels, placement, sequences, inspect, export.
  *
  * The first test runs before anything loads the shim: an analytic field must not map OpenVDB. */
-#define _GNU_SOURCE /* open_memstream, mkdtemp */
 #include <cjson/cJSON.h>
 #include <dirent.h>
 #include <math.h>
