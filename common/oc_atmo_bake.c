@@ -3,7 +3,7 @@
  * This translation unit defines OCG_REAL_DOUBLE, so every formula of shaders/atmosphere.h (the
  * medium, the ray–sphere distances, the table mappings, the sun softening, the phase functions) runs
  * here in double: the tables come from the same code the shaders run, at higher precision. The
- * public float API is common/oc_atmo.c; docs/_parts/atmosphere.md describes the integrals.
+ * public float API is common/oc_atmo.c; docs/numerics.md ("Clear-sky atmosphere") describes the integrals.
  *
  * Quadrature.
  *   - Along a ray: the ray is split where it crosses "shells" (radii every two scale heights of the

@@ -1,7 +1,7 @@
 /* source_vdb.c — OpenVDB grids (one file or a numbered sequence) placed on the planet as a field
  * source. OpenVDB itself is behind the shim (vdb_shim.h), loaded on the first vdb source.
  *
- * Placement (docs/_parts/vdb.md, "Placement"): the grid's world frame is taken as Y-up (OpenVDB's
+ * Placement (docs/vdb.md, "Placement on the planet"): the grid's world frame is taken as Y-up (OpenVDB's
  * and Houdini's convention: +x east, +y up, +z south before the heading). World positions come
  * from the file's transform (scale_m 0: its own, rotated and non-uniform ones included, in metres)
  * or from scale_m metres per index unit. The centre of the bottom face of the first frame's active
@@ -43,7 +43,7 @@
 /*! Most sub-samples per axis of a sample's box filter (n³ trilinear reads of the mean pyramid).
  *  4 keeps every level's mass within 1 % and samples within a few % of the exact box average
  *  (measured in tests/server/test_vdb.c; 2 and 3 lose up to 5 % of a cloud's mass at levels where it
- *  spans one or two samples: docs/_parts/vdb.md). */
+ *  spans one or two samples: docs/vdb.md). */
 #ifndef OCS_VDB_SUB
 #define OCS_VDB_SUB 4
 #endif

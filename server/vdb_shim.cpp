@@ -9,7 +9,7 @@
 // complete one (OpenVDB 10 silently returns partial grids when the stream ends early: the stream
 // is set to throw on failbit, so the first short read aborts the read).
 //
-// Sampling structure (docs/_parts/vdb.md, "Filtering"): a prepared grid holds a sparse pyramid.
+// Sampling structure (docs/vdb.md, "Filtering"): a prepared grid holds a sparse pyramid.
 // Level 0 is the file's tree itself (sanitised, inactive values and background 0); level l cell
 // a is the mean of the 2^l-cubed voxels 2^l·a + [0, 2^l)^3, built level by level from 2×2×2
 // means, so every level holds the same total mass. Two more trees per level hold the min and max

@@ -1,7 +1,7 @@
 /* vdb_tools.h — VDB files from the command line: inspect a file, export a region of the field.
  *
  * Both load the OpenVDB shim on demand (vdb_loader.c): a server that never inspects, exports or
- * imports VDB never maps OpenVDB, TBB or Boost. docs/_parts/vdb.md describes the formats. */
+ * imports VDB never maps OpenVDB, TBB or Boost. docs/vdb.md describes the formats. */
 #ifndef OC_SERVER_VDB_TOOLS_H
 #define OC_SERVER_VDB_TOOLS_H
 

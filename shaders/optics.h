@@ -11,7 +11,7 @@
  * C: `#include "optics.h"` (float); define OCG_REAL_DOUBLE before including for the double build the
  * numerics tests use. GLSL: concatenate oc_port.h, then this file, with OC_GLSL defined.
  * Tests: tests/shaders/test_optics.c (float), test_optics_double.c (double), tests/gl/test_glsl_headers.c
- * (GLSL against C). Figures: docs/numerics.md (fragment docs/_parts/optics.md).
+ * (GLSL against C). Figures: docs/numerics.md ("Optics").
  *
  * GLSL line numbers: no invocation of a function-like macro (ocg_v3, ocg_max, OCG_R, ...) spans lines.
  * Mesa's glcpp joins such an invocation onto one line, so every later GLSL error would be reported
