@@ -19,7 +19,7 @@
  * the axis closest to the local vertical gets many more strata than the others, because the cloud
  * shell is far thinner than a coarse voxel. The batch noise evaluates the sub-samples of a brick;
  * points that cannot hold cloud are skipped by exact tests (zero stays zero), so a sample is bit
- * for bit the box average of ocs__proc_point() wherever no detail octave is dropped.
+ * for bit the mean of ocs__proc_point() over its strata (unless OCS_PROC_OCTAVE_DROP is set).
  *
  * Everything that reaches the output bits is IEEE +, -, ×, /, sqrt, floor, fmod and ldexp (the
  * noise, the exponential and the rotation's sine included), so the bytes do not depend on libm. */
@@ -39,18 +39,26 @@
 
 /*-*** Tuning knobs ***/
 
-/*! Sub-samples per axis of the box filter along the two most horizontal axes (and along all three
- *  at fine levels): 4³ = 64 points per sample, oc_voxelize's default. */
+/*! Fewest strata per axis of the box filter: 4³ = 64 points per sample (oc_voxelize's default),
+ *  all a fine level needs. */
 #ifndef OCS_PROC_SUB
 #define OCS_PROC_SUB 4
 #endif
-/*! Largest spacing, in metres, of the strata along the axis closest to the local vertical: the
- *  layers are 0.3–3 km thick with flat bases sharper than 100 m, so a coarse voxel (29 km at level
- *  6) needs hundreds of strata in that direction to see them at the right weight. */
-#ifndef OCS_PROC_DZ
-#define OCS_PROC_DZ 50.0
+/*! Coarser levels add strata until their spacing is at most these many metres: along the two most
+ *  horizontal axes (cumulus cells are 1–2 km across; with 4 strata a 7 km voxel's brick mean was
+ *  off by up to 10%, with 6 by 1%), up to OCS_PROC_MAX_SUB_H, and along the axis closest to the local
+ *  vertical (the layers are 0.3–3 km thick with flat bases; 100 m strata keep brick means within
+ *  0.2% of 10 m ones), up to OCS_PROC_MAX_SUB_V. */
+#ifndef OCS_PROC_DH
+#define OCS_PROC_DH 450.0
 #endif
-/*! Most strata along the vertical axis (levels 0–5 reach it; their voxels are ≥ 58 km). */
+#ifndef OCS_PROC_DZ
+#define OCS_PROC_DZ 100.0
+#endif
+#ifndef OCS_PROC_MAX_SUB_H
+#define OCS_PROC_MAX_SUB_H 6
+#endif
+/*! Most strata along the vertical axis (levels 0–4 reach it: their voxels are ≥ 115 km). */
 #ifndef OCS_PROC_MAX_SUB_V
 #define OCS_PROC_MAX_SUB_V 1024
 #endif
@@ -65,7 +73,8 @@
 #define OCS_PROC_STEP_VOXELS 0.25
 #endif
 /*! Scale height of the air density, ρ_air(h) = 1.225·exp(-h/H): the least-squares fit to the
- *  1976 standard atmosphere over 0–12 km (within 5% there; 19% high at 15 km). */
+ *  1976 standard atmosphere over 0–12 km (within 3.5% up to 11 km; above the tropopause the air
+ *  thins faster: 7% high at 12 km, 23% at 15 km, where only cumulonimbus tops live). */
 #define OCS_PROC_RHO_H 9200.0
 
 #define OCS__R OC_PLANET_RADIUS
@@ -89,7 +98,8 @@ static double ocs__exp(double x) {
 }
 
 /* sin and cos: reduction modulo 2π (fmod is exact), then a sixteenth of the angle (|x| ≤ 0.393)
- * by Taylor series to x^17, then four double-angle steps. About 1e-15 absolute. */
+ * by Taylor series to x^17, then four double-angle steps. Within 1e-13 of libm for |a| ≤ 2000 rad
+ * (the reduction by an inexact 2π dominates); the rotation only has to be deterministic. */
 static void ocs__sincos(double a, double *s, double *c) {
   a = fmod(a, 6.283185307179586) * 0.0625;
   double x2 = a * a, sn = 1.0, cs = 1.0;
@@ -151,8 +161,8 @@ typedef struct {
 } ocs__layer_t;
 
 /* Altitudes, sizes and water contents from the usual cloud climatology (Wakapon's cloud types;
- * LWC/IWC ranges as in Märkl 2018): stratus 0.4–1.3 km; cumulus base 1.2 km, tops 2–5.4 km;
- * cumulonimbus base 1 km, tops to 14.6 km, anvil near 11.5 km, glaciating over 4–7 km; cirrus
+ * LWC/IWC ranges as in Märkl 2018): stratus 0.35–1.35 km; cumulus base 1.2 km, tops 2–5.4 km;
+ * cumulonimbus base 1 km, tops to 14.7 km, anvil near 11.5 km, glaciating over 4–7 km; cirrus
  * 8.7–11.3 km. Winds: easterly low stratus, westerlies increasing with height, a 25 m/s jet for
  * cirrus. */
 static const ocs__layer_t ocs__layers[OCS_LAYER_COUNT] = {
@@ -370,7 +380,8 @@ static void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *
     lf->det = S->fdet;
     lf->det_scale = 1.0;
     if (level >= 0 && OCS_PROC_OCTAVE_DROP > 0.0) {
-      double keep = OCS_PROC_OCTAVE_DROP * ocs__voxel_size(level), lam = L->det.lambda_short > 0.0 ? L->det.lambda_short : L->det.lambda;
+      double keep = OCS_PROC_OCTAVE_DROP * ocs__voxel_size(level);
+      double lam = L->det.lambda_short > 0.0 ? L->det.lambda_short : L->det.lambda;
       int n = 1;
       while (n < S->fdet.octaves && ldexp(lam, -n) >= keep) n++;
       double used = 0.0, all = 0.0, amp = 1.0;
@@ -411,7 +422,8 @@ static inline double ocs__sigma(const ocs__layer_t *L, const ocs__frame_t *F, co
 }
 
 /* One layer at one point (r = |p|, h = r - R), the scalar twin of ocs__layer_batch(). */
-static double ocs__layer_point(const ocs__proc_t *P, const ocs__frame_t *F, int l, const double p[3], double r, double h) {
+static double ocs__layer_point(const ocs__proc_t *P, const ocs__frame_t *F, int l, const double p[3], double r,
+                               double h) {
   const ocs__layer_t *L = &ocs__layers[l];
   const ocs__lstate_t *S = &P->L[l];
   const ocs__lframe_t *lf = &F->l[l];
@@ -458,18 +470,75 @@ typedef struct {
   unsigned mask, wone;
 } ocs__bb_t;
 
+/* The directions a box covers: within angle θ of its centre's direction ĉ. */
+typedef struct {
+  double c[3];       /* box centre, planet frame */
+  double u[3];       /* ĉ */
+  double e1[3], e2[3]; /* tangent frame at ĉ */
+  double chord, tan_t; /* 2 sin(θ/2), tan θ */
+} ocs__cap_t;
+
+/*! Largest grid half-size m of ocs__dir_range(): (2m + 1)² = 289 noise points per field. */
+#ifndef OCS_PROC_BOUND_GRID
+#define OCS_PROC_BOUND_GRID 8
+#endif
+/*! Lipschitz margin below which the grid is not refined further, and above which it is not worth
+ *  evaluating (the noise values span about ±0.6). */
+#define OCS__GRID_EPS 0.02
+#define OCS__GRID_USEFUL 0.3
+
+/* Range of a pattern on the reference sphere (coverage or cells: functions of direction only)
+ * over the directions of a box. m = 0: its value at ĉ ± Lipschitz × R·chord. m > 0: a (2m + 1)²
+ * grid over the gnomonic tangent plane at ĉ, t in [-tan θ, tan θ]²; the map t → normalize(ĉ + t)
+ * is 1-Lipschitz (|ĉ + t| ≥ 1), so every covered direction's point lies within R·δ/√2 of a grid
+ * point's, δ = tan θ / m. The noise Lipschitz bound (OC_NOISE_LIPSCHITZ) turns that into a margin;
+ * 1e-6 more covers the float rounding of the noise values. */
+static void ocs__dir_range(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, int f, const ocs__cap_t *cap,
+                           int grid, double *vmin, double *vmax) {
+  const ocs__lstate_t *S = &P->L[l];
+  const oc_fbm_t *fb = f == OCS__COV ? &S->fcov : &S->fcell;
+  double lip = (f == OCS__COV ? S->lip_cov : S->lip_cell) * OCS__R;
+  int m = 0;
+  /* A grid only where its margin can come out small enough to decide something. */
+  if (grid > 0 && lip * cap->chord > OCS__GRID_EPS && lip * cap->tan_t * 0.70710678 / grid < OCS__GRID_USEFUL) {
+    double want = ceil(lip * cap->tan_t * 0.70710678 / OCS__GRID_EPS);
+    m = want > grid ? grid : (int)want;
+  }
+  enum { MAXP = (2 * OCS_PROC_BOUND_GRID + 1) * (2 * OCS_PROC_BOUND_GRID + 1) };
+  double xyz[3 * MAXP];
+  float val[MAXP];
+  int n = 0, side = 2 * m + 1;
+  double delta = m > 0 ? cap->tan_t / m : 0.0;
+  do { /* at least the centre */
+    double i = (double)(n % side - m) * delta, j = (double)(n / side - m) * delta, v[3], X[3], q[3];
+    for (int k = 0; k < 3; k++) v[k] = cap->u[k] + i * cap->e1[k] + j * cap->e2[k];
+    double s = OCS__R / sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    X[0] = v[0] * s, X[1] = v[1] * s, X[2] = v[2] * s;
+    ocs__rotate(lf->M, X, q);
+    ocs__coords(S, f, q, lf->off[f], &xyz[3 * n]);
+  } while (++n < side * side);
+  oc_fbm3_batch(xyz, n, fb, val);
+  double lo = val[0], hi = val[0];
+  for (int i = 1; i < n; i++) {
+    lo = fmin(lo, (double)val[i]);
+    hi = fmax(hi, (double)val[i]);
+  }
+  double margin = (m > 0 ? lip * delta * 0.70710679 : lip * cap->chord) * (1.0 + 1e-9) + 1e-6;
+  *vmin = lo - margin;
+  *vmax = hi + margin;
+}
+
 /* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`. The
- * coverage and cell values are bounded from their value at the box centre and the noise Lipschitz
- * bound: the centre's direction and any point's differ by at most the angle the box subtends, so
- * their points on the reference sphere by at most R·chord. Layers in `reuse` take their noise
- * ranges from `inherit` (an enclosing box) instead. Detail erosion is ≥ 0, so it never raises the
- * bound. Small margins cover float rounding of the noise and ulp-level non-monotonicity. */
+ * coverage and cell values are bounded by ocs__dir_range() (grid ≤ `grid`, 0: the centre only);
+ * layers in `reuse` take their ranges from `inherit` (an enclosing box) instead. Detail erosion
+ * is ≥ 0, so it never raises the bound. Small margins cover ulp-level non-monotonicity. */
 static double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3],
-                           const double hi[3], const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb) {
+                           const double hi[3], int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb) {
   bb->mask = bb->wone = 0;
   unsigned todo = F->mask & only;
   if (!todo) return 0.0;
-  double near2 = 0.0, far2 = 0.0, c[3], d2 = 0.0;
+  ocs__cap_t cap;
+  double near2 = 0.0, far2 = 0.0, d2 = 0.0, *c = cap.c;
   for (int k = 0; k < 3; k++) {
     double n = lo[k] > 0.0 ? lo[k] : (hi[k] < 0.0 ? -hi[k] : 0.0);
     double f = fabs(lo[k]) > fabs(hi[k]) ? fabs(lo[k]) : fabs(hi[k]);
@@ -480,11 +549,24 @@ static double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned
   }
   double hmin = sqrt(near2) - OCS__R - 1e-6, hmax = sqrt(far2) - OCS__R + 1e-6;
   double cr = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d = sqrt(d2);
-  int far = cr > 1.000001 * d; /* the box does not reach the planet centre: a finite angle */
-  double chord = 2.0;
+  /* A finite angle (the box does not reach the planet centre), below 60° for the tangent grid. */
+  int far = cr > 1.000001 * d;
   if (far) {
     double sn = d / cr, cs = sqrt(1.0 - sn * sn);
-    chord = sn / sqrt(0.5 * (1.0 + cs)) * (1.0 + 1e-9); /* 2 sin(θ/2) without cancellation */
+    cap.chord = sn / sqrt(0.5 * (1.0 + cs)) * (1.0 + 1e-9); /* 2 sin(θ/2) without cancellation */
+    cap.tan_t = sn / cs * (1.0 + 1e-9);
+    for (int k = 0; k < 3; k++) cap.u[k] = c[k] / cr;
+    /* e1 ⊥ ĉ from the axis least aligned with it, e2 = ĉ × e1. */
+    double au[3] = {fabs(cap.u[0]), fabs(cap.u[1]), fabs(cap.u[2])};
+    int a = au[0] < au[1] ? (au[0] < au[2] ? 0 : 2) : (au[1] < au[2] ? 1 : 2);
+    double ax[3] = {a == 0, a == 1, a == 2}, dt = cap.u[a];
+    double e[3] = {ax[0] - dt * cap.u[0], ax[1] - dt * cap.u[1], ax[2] - dt * cap.u[2]};
+    double en = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    for (int k = 0; k < 3; k++) cap.e1[k] = e[k] / en;
+    cap.e2[0] = cap.u[1] * cap.e1[2] - cap.u[2] * cap.e1[1];
+    cap.e2[1] = cap.u[2] * cap.e1[0] - cap.u[0] * cap.e1[2];
+    cap.e2[2] = cap.u[0] * cap.e1[1] - cap.u[1] * cap.e1[0];
+    if (!(sn < 0.866)) grid = 0;
   }
   double total = 0.0;
   for (int l = 0; l < OCS_LAYER_COUNT; l++) {
@@ -494,20 +576,12 @@ static double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned
     const ocs__lframe_t *lf = &F->l[l];
     double a = hmin > S->band_lo ? hmin : S->band_lo, b = hmax < S->band_hi ? hmax : S->band_hi;
     if (a > b) continue;
-    double cmin = -1.0, cmax = 1.0, kmax = 1.0;
+    double cmin = -1.0, cmax = 1.0, kmin, kmax = 1.0;
     if (inherit && (reuse >> l & 1u)) {
       cmin = inherit->cmin[l], cmax = inherit->cmax[l], kmax = inherit->kmax[l];
     } else if (far) {
-      double q[3], X[3], xyz[3], s = OCS__R / cr;
-      ocs__rotate(lf->M, c, q);
-      X[0] = q[0] * s, X[1] = q[1] * s, X[2] = q[2] * s;
-      ocs__coords(S, OCS__COV, X, lf->off[OCS__COV], xyz);
-      double cc = (double)(float)oc_fbm3(xyz[0], xyz[1], xyz[2], &S->fcov), dc = S->lip_cov * OCS__R * chord + 1e-6;
-      cmin = cc - dc, cmax = cc + dc;
-      if (cmax > lf->theta) { /* else W = 0: the cell value is not needed */
-        ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], xyz);
-        kmax = (double)(float)oc_fbm3(xyz[0], xyz[1], xyz[2], &S->fcell) + S->lip_cell * OCS__R * chord + 1e-6;
-      }
+      ocs__dir_range(P, lf, l, OCS__COV, &cap, grid, &cmin, &cmax);
+      if (cmax > lf->theta) ocs__dir_range(P, lf, l, OCS__CELL, &cap, grid, &kmin, &kmax); /* else W = 0 */
     }
     bb->cmin[l] = cmin, bb->cmax[l] = cmax, bb->kmax[l] = kmax;
     double W = ocs__sat((cmax - lf->theta) / L->s_w);
@@ -565,7 +639,7 @@ static void ocs__proc_bound(const ocs_source_t *s, oc_dvec3 lo, oc_dvec3 hi, dou
   double l3[3] = {lo.x, lo.y, lo.z}, h3[3] = {hi.x, hi.y, hi.z};
   ocs__bb_t bb;
   *smin = 0.0f;
-  *smax = ocs__round_up(ocs__box_max(P, &F, ~0u, l3, h3, NULL, 0, &bb));
+  *smax = ocs__round_up(ocs__box_max(P, &F, ~0u, l3, h3, OCS_PROC_BOUND_GRID, NULL, 0, &bb));
 }
 
 /*-*** Bricks ***/
@@ -661,11 +735,14 @@ static void ocs__flush(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *w
   ws->n = 0;
 }
 
-/* Sub-samples of a level: sub_h per axis, and sub_v along the axis closest to the vertical. */
+/* Strata of a level: sub_h along the two most horizontal axes, sub_v along the most vertical. */
+static int ocs__strata(int level, double spacing, int max) {
+  double n = ceil(ocs__voxel_size(level) / spacing);
+  return n < OCS_PROC_SUB ? OCS_PROC_SUB : (n > max ? max : (int)n);
+}
 static void ocs__subs(int level, int *sub_h, int *sub_v) {
-  double v = ceil(ocs__voxel_size(level) / OCS_PROC_DZ);
-  *sub_h = OCS_PROC_SUB;
-  *sub_v = v < OCS_PROC_SUB ? OCS_PROC_SUB : (v > OCS_PROC_MAX_SUB_V ? OCS_PROC_MAX_SUB_V : (int)v);
+  *sub_h = ocs__strata(level, OCS_PROC_DH, OCS_PROC_MAX_SUB_H);
+  *sub_v = ocs__strata(level, OCS_PROC_DZ, OCS_PROC_MAX_SUB_V);
 }
 
 static int ocs__proc_sample(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
@@ -680,11 +757,11 @@ static int ocs__proc_sample(const ocs_source_t *s, oc_key_t key, double t, float
   oc_key_bounds(key, &o, &size);
   double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
   ocs__bb_t nb;
-  if (!(ocs__box_max(P, &F, ~0u, lo, hi, NULL, 0, &nb) > 0.0)) return 0;
+  if (!(ocs__box_max(P, &F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, &nb) > 0.0)) return 0;
 
   int sub_h, sub_v;
   ocs__subs(level, &sub_h, &sub_v);
-  double off_h[OCS_PROC_SUB], off_v[OCS_PROC_MAX_SUB_V];
+  double off_h[OCS_PROC_MAX_SUB_H], off_v[OCS_PROC_MAX_SUB_V];
   for (int m = 0; m < sub_h; m++) off_h[m] = ((double)m + 0.5) / (double)sub_h - 0.5;
   for (int m = 0; m < sub_v; m++) off_v[m] = ((double)m + 0.5) / (double)sub_v - 0.5;
   ocs__ws_t *ws = malloc(sizeof *ws);
@@ -721,7 +798,7 @@ static int ocs__proc_sample(const ocs_source_t *s, oc_key_t key, double t, float
         n[va] = sub_v;
         inv[v] = 1.0 / ((double)n[0] * n[1] * n[2]);
         ocs__bb_t vb;
-        if (!(ocs__box_max(P, &F, nb.mask, vlo, vhi, &nb, reuse, &vb) > 0.0)) continue;
+        if (!(ocs__box_max(P, &F, nb.mask, vlo, vhi, 0, &nb, reuse, &vb) > 0.0)) continue;
         unsigned vm = vb.mask;
         double band_lo = INFINITY, band_hi = -INFINITY;
         for (int l = 0; l < OCS_LAYER_COUNT; l++)
@@ -836,23 +913,28 @@ static void ocs__init_layer(ocs__proc_t *P, int l, uint64_t seed) {
   P->vmax = fmax(P->vmax, vmax + drift);
 }
 
-int ocs_source_procedural_create(ocs_source_t **out, const oc_source_t *desc, uint64_t seed, char *why, size_t why_len) {
-#define OCS__FAIL(...)                                 \
-  do {                                                 \
+/*! ocs_source_procedural_create() : the procedural planet of `desc` (preset, coverage_scale,
+ *  sigma_scale) for the scene's seed; `animated` starts at 1.
+ *  @return 0, OC_EINVAL with a one-line reason in why, or OC_ENOMEM. */
+int ocs_source_procedural_create(ocs_source_t **out, const oc_source_t *desc, uint64_t seed, char *why,
+                                 size_t why_len) {
+/* Messages name the key; the field prefixes "sources[i] (procedural): ". */
+#define OCS__FAIL(...)                                        \
+  do {                                                        \
     if (why && why_len) snprintf(why, why_len, __VA_ARGS__); \
-    return OC_EINVAL;                                  \
+    return OC_EINVAL;                                         \
   } while (0)
-  if (!out) OCS__FAIL("procedural: no output pointer");
+  if (!out) OCS__FAIL("no output pointer");
   *out = NULL;
-  if (!desc) OCS__FAIL("procedural: no source description");
-  if (desc->type != OC_SOURCE_PROCEDURAL) OCS__FAIL("procedural: source type %d is not procedural", (int)desc->type);
+  if (!desc) OCS__FAIL("no source description");
+  if (desc->type != OC_SOURCE_PROCEDURAL) OCS__FAIL("source type %d is not procedural", (int)desc->type);
   const oc_src_procedural_t *d = &desc->procedural;
   if ((int)d->preset < 0 || d->preset >= OC_PRESET_COUNT)
-    OCS__FAIL("procedural: preset %d is not one of clear, fair, overcast, storm, cirrus", (int)d->preset);
+    OCS__FAIL("preset %d is not one of clear, fair, overcast, storm, cirrus", (int)d->preset);
   if (!isfinite(d->coverage_scale) || d->coverage_scale < 0.0 || d->coverage_scale > 4.0)
-    OCS__FAIL("procedural: coverage_scale %g outside [0, 4]", d->coverage_scale);
+    OCS__FAIL("coverage_scale %g outside [0, 4]", d->coverage_scale);
   if (!isfinite(d->sigma_scale) || d->sigma_scale < 0.0 || d->sigma_scale > OC_SCENE_SIGMA_MAX)
-    OCS__FAIL("procedural: sigma_scale %g outside [0, %g]", d->sigma_scale, OC_SCENE_SIGMA_MAX);
+    OCS__FAIL("sigma_scale %g outside [0, %g]", d->sigma_scale, OC_SCENE_SIGMA_MAX);
 #undef OCS__FAIL
   ocs__proc_t *P = calloc(1, sizeof *P);
   if (!P) return OC_ENOMEM;

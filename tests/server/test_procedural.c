@@ -24,6 +24,19 @@
 #include "ocs_field.h"
 #include "report.h"
 
+/*-*** Workload ***/
+
+/* Optimised builds run the statistics at full size. Unoptimised or sanitised builds (the CI's
+ * ASan+UBSan stage is a Debug build, where the noise is about 35 times slower) run every code path
+ * on a smaller workload and check the statistical tolerances only where the sample is big enough;
+ * the full checks are stage 1's job. */
+#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__)
+#define FULL 1
+#else
+#define FULL 0
+#endif
+#define SIZE(full, smoke) (FULL ? (full) : (smoke))
+
 /*-*** Helpers ***/
 
 static uint64_t rng_next(uint64_t *s) {
@@ -173,7 +186,7 @@ static void test_procedural__rejects_bad_desc(void **st) {
 
 /*-*** Determinism ***/
 
-#define NKEYS 12
+#define NKEYS SIZE(12, 4)
 
 typedef struct {
   const ocs_source_t *s;
@@ -205,7 +218,7 @@ static void test_procedural__deterministic(void **st) {
   const double t = 4321.5;
   oc_key_t keys[NKEYS];
   cloudy_keys(a, t, keys);
-  static float one[NKEYS][512], two[NKEYS][512], same[NKEYS][512], other[NKEYS][512];
+  static float one[12][512], two[12][512], same[12][512], other[12][512];
   job_t j1 = {a, keys, NKEYS, 0, 1, t, one};
   assert_null(run_job(&j1));
   job_t jb = {b, keys, NKEYS, 0, 1, t, same};
@@ -247,16 +260,16 @@ static double point_cb(void *ctx, oc_dvec3 p) {
   return s->vt->point(s, p, 0.0);
 }
 
-/* Where the strata are isotropic (4³, voxels ≤ 200 m), a sample is bit for bit the mean of the
- * finest σt, point(), at oc_brick_sample()'s points: batch noise, skipped empty points and the
- * per-voxel bounds change nothing. Where the vertical axis gets more strata (a 450 m voxel at
- * level 12 gets 4×4×10), the brick mean agrees with a dense isotropic reference (16³). */
+/* Where the strata are isotropic (4³, voxels ≤ 400 m: levels ≥ 13), a sample is bit for bit the
+ * mean of the finest σt, point(), at oc_brick_sample()'s points: batch noise, skipped empty points
+ * and the per-voxel bounds change nothing. Where the vertical axis gets more strata (a 450 m voxel
+ * at level 12 gets 4×4×5), the brick mean agrees with a dense isotropic reference (12³). */
 static void test_procedural__sample_is_box_average_of_point(void **st) {
   (void)st;
   ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
   uint64_t rng = 3;
   int nonzero = 0;
-  for (int i = 0; i < 4; i++) {
+  for (int i = 0; i < SIZE(4, 2); i++) {
     oc_key_t k = oc_key_from_point(14 + i % 2, cloudy_point(s, 0.0, 1000.0, 9000.0, &rng));
     float got[512], want[512];
     sample(s, k, 0.0, got);
@@ -266,19 +279,48 @@ static void test_procedural__sample_is_box_average_of_point(void **st) {
   }
   assert_true(nonzero > 100);
   double worst = 0.0;
-  for (int i = 0; i < 2; i++) {
+  for (int i = 0; i < SIZE(2, 0); i++) {
     oc_key_t k = oc_key_from_point(12, cloudy_point(s, 0.0, 1500.0, 4000.0, &rng));
     float got[512], ref[512];
     sample(s, k, 0.0, got);
-    oc_brick_sample(k, point_cb, s, 16, ref);
+    oc_brick_sample(k, point_cb, s, 12, ref);
     double mg = node_mean(got), mr = node_mean(ref);
     assert_true(mr > 0.0);
     double rel = fabs(mg / mr - 1.0);
-    printf("  level 12 brick mean %.6g vs 16^3 reference %.6g: %+.2f%%\n", mg, mr, 100.0 * (mg / mr - 1.0));
+    printf("  level 12 brick mean %.6g vs 12^3 reference %.6g: %+.2f%%\n", mg, mr, 100.0 * (mg / mr - 1.0));
     worst = fmax(worst, rel);
   }
-  oc_report("procedural", "level-12 brick mean vs 16^3 box average", 100.0 * worst, 3.0, "%");
+  oc_report("procedural", "level-12 brick mean vs 12^3 box average", 100.0 * worst, 3.0, "%");
   assert_true(worst < 0.03);
+  s->vt->destroy(s);
+}
+
+/* A sample on a face shared by two nodes of a level is the same bits in both bricks: its strata
+ * depend only on its own position, and every shortcut (empty layers, W = 1) is exact. */
+static void test_procedural__shared_faces_agree(void **st) {
+  (void)st;
+  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  uint64_t rng = 13;
+  int compared = 0;
+  for (int n = 0; n < SIZE(9, 3); n++) {
+    int level = 9 + n % 6; /* strata 6×6×37 at level 9 ... 4×4×4 from level 13 */
+    oc_key_t k = oc_key_from_point(level, cloudy_point(s, 600.0, 500.0, 12000.0, &rng));
+    float a[512], b[512];
+    sample(s, k, 600.0, a);
+    for (int axis = 0; axis < 3; axis++) {
+      oc_key_t nb = oc_key_neighbor(k, axis == 0, axis == 1, axis == 2);
+      if (nb == OC_KEY_INVALID) continue;
+      sample(s, nb, 600.0, b);
+      for (int u = 0; u < 8; u++)
+        for (int v = 0; v < 8; v++) {
+          int ia = axis == 0 ? 7 + 8 * u + 64 * v : axis == 1 ? u + 56 + 64 * v : u + 8 * v + 448;
+          int ib = axis == 0 ? 8 * u + 64 * v : axis == 1 ? u + 64 * v : u + 8 * v;
+          assert_memory_equal(&a[ia], &b[ib], sizeof(float));
+          compared += a[ia] > 0.0f;
+        }
+    }
+  }
+  assert_true(compared > 0);
   s->vt->destroy(s);
 }
 
@@ -324,22 +366,25 @@ static void filter_level(oc_preset_t preset, int level, int columns, double hlo,
   oc_report("procedural", name, 100.0 * fabs(r1), 100.0 * tol, "%");
   snprintf(name, sizeof name, "%s level %d mean vs 64 descendants", oc_scene_preset_name(preset), level);
   oc_report("procedural", name, 100.0 * fabs(r2), 100.0 * tol, "%");
-  assert_true(fabs(r1) < tol);
-  assert_true(fabs(r2) < tol);
+  assert_true(isfinite(r1) && isfinite(r2));
+  if (FULL) { /* one column (the smoke workload) is too small a sample for the tolerance */
+    assert_true(fabs(r1) < tol);
+    assert_true(fabs(r2) < tol);
+  }
   s->vt->destroy(s);
 }
 
 static void test_procedural__filter_mean_coarse(void **st) {
   (void)st;
-  filter_level(OC_PRESET_STORM, 8, 6, -500.0, 16500.0, 0.04); /* 50 km nodes, 7 km voxels */
+  filter_level(OC_PRESET_STORM, 8, SIZE(6, 1), -500.0, 16500.0, 0.04); /* 50 km nodes, 7 km voxels */
 }
 static void test_procedural__filter_mean_mid(void **st) {
   (void)st;
-  filter_level(OC_PRESET_STORM, 11, 5, -500.0, 16500.0, 0.03); /* 6.3 km nodes, 900 m voxels */
+  filter_level(OC_PRESET_STORM, 11, SIZE(5, 1), -500.0, SIZE(16500.0, 5000.0), 0.03); /* 6.3 km nodes, 900 m voxels */
 }
 static void test_procedural__filter_mean_fine(void **st) {
   (void)st;
-  filter_level(OC_PRESET_FAIR, 14, 5, 1000.0, 6000.0, 0.03); /* 790 m nodes: cumulus heaps */
+  filter_level(OC_PRESET_FAIR, 14, SIZE(5, 1), 1000.0, SIZE(6000.0, 2500.0), 0.03); /* 790 m nodes: cumulus heaps */
 }
 
 /*-*** Bounds ***/
@@ -360,22 +405,24 @@ static void test_procedural__bound_is_conservative(void **st) {
       assert_int_equal(s->vt->set_weather(s, OC_PRESET_CIRRUS, 3000.0, 1200.0), 0);
       s->animated = 0;
     }
-    for (int n = 0; n < 60; n++) {
+    for (int n = 0; n < SIZE(60, 12); n++) {
       int level = 5 + (int)(rng_next(&rng) % 13);
       double t = pi == 1 ? 3000.0 + 37.5 * (double)(rng_next(&rng) % 33) : (n % 3 ? 3600.0 * rng_unit(&rng) : 0.0);
       int exact = pi == 1 || t == 0.0; /* point() sees what the brick holds */
-      oc_dvec3 p = n % 2 ? cloudy_point(s, t, 0.0, 15000.0, &rng) : at_alt(rand_dir(&rng), -1000.0 + 18000.0 * rng_unit(&rng));
+      oc_dvec3 p = n % 2 ? cloudy_point(s, t, 0.0, 15000.0, &rng)
+                         : at_alt(rand_dir(&rng), -1000.0 + 18000.0 * rng_unit(&rng));
       oc_key_t k = oc_key_from_point(level, p);
       float mn, mx, b[512];
       bound_key(s, k, t, &mn, &mx);
       assert_true(mn >= 0.0f && mn <= mx);
       sample(s, k, t, b);
       for (int v = 0; v < 512; v++)
-        if (b[v] < mn || b[v] > mx) fail_msg("level %d t %g: sample %d = %g outside [%g, %g]", level, t, v, b[v], mn, mx);
+        if (b[v] < mn || b[v] > mx)
+          fail_msg("level %d t %g: sample %d = %g outside [%g, %g]", level, t, v, b[v], mn, mx);
       if (exact) {
         oc_dvec3 lo, hi;
         footprint(k, &lo, &hi);
-        for (int i = 0; i < 200; i++) {
+        for (int i = 0; i < SIZE(200, 50); i++) {
           oc_dvec3 q = oc_dv3(lo.x + (hi.x - lo.x) * rng_unit(&rng), lo.y + (hi.y - lo.y) * rng_unit(&rng),
                               lo.z + (hi.z - lo.z) * rng_unit(&rng));
           double v = s->vt->point(s, q, t);
@@ -402,7 +449,7 @@ static int cmp_double(const void *a, const void *b) {
 static void layer_range(oc_preset_t preset, const char *layer, double hlo, double hhi, double p90_lo, double p90_hi,
                         double max_hi) {
   ocs_source_t *s = mk(preset, 1.0, 1.0, 1);
-  enum { N = 60000 };
+  const int N = SIZE(60000, 8000);
   double *v = malloc(N * sizeof *v);
   assert_non_null(v);
   uint64_t rng = 11;
@@ -437,13 +484,13 @@ static void test_procedural__layer_altitudes(void **st) {
   ocs_source_t *s = mk(OC_PRESET_STORM, 4.0, 1.0, 1);
   uint64_t rng = 21;
   int inside = 0;
-  for (int i = 0; i < 20000; i++) {
+  for (int i = 0; i < SIZE(20000, 4000); i++) {
     oc_dvec3 d = rand_dir(&rng);
     assert_true(s->vt->point(s, at_alt(d, 16000.0 + 84000.0 * rng_unit(&rng)), 500.0) == 0.0);
     assert_true(s->vt->point(s, at_alt(d, -50000.0 * rng_unit(&rng) - 1e-3), 500.0) == 0.0);
     inside += s->vt->point(s, at_alt(d, 400.0 + 13600.0 * rng_unit(&rng)), 500.0) > 0.0;
   }
-  assert_true(inside > 2000);
+  assert_true(inside > SIZE(2000, 400));
   assert_true(s->vt->point(s, oc_dv3(0, 0, 0), 0.0) == 0.0);
   /* Bounds of nodes wholly above 16 km or below ground. */
   for (int i = 0; i < 200; i++) {
@@ -488,8 +535,8 @@ static void test_procedural__animation(void **st) {
     }
     if (L > 0) assert_true(changes[L - 1] <= changes[L]);
   }
-  printf("  time-step changes in an hour: level 6 %d, 10 %d, 13 %d, 14 %d, 16 %d\n", changes[6], changes[10], changes[13],
-         changes[14], changes[16]);
+  printf("  time-step changes in an hour: level 6 %d, 10 %d, 13 %d, 14 %d, 16 %d\n", changes[6], changes[10],
+         changes[13], changes[14], changes[16]);
   assert_true(changes[6] < 30 && changes[13] > 100 && changes[16] >= 3000); /* about 0.25 voxel per step at ~27 m/s */
   double t1 = 1000.0, t2 = t1;
   while (s->vt->time_step(s, 13, t2) == s->vt->time_step(s, 13, t1)) t2 += 0.01;
@@ -523,10 +570,13 @@ static void test_procedural__weather_transition(void **st) {
   assert_int_equal(w->vt->set_weather(w, OC_PRESET_STORM, t0, secs), 0);
   assert_true(w->vt->time_step(w, 12, 2000.0) != before); /* no cached brick survives a change */
   uint64_t rng = 41;
-  oc_key_t keys[6];
-  for (int i = 0; i < 6; i++) keys[i] = oc_key_from_point(10 + i % 3 * 2, cloudy_point(storm, 1600.0, 1000.0, 9000.0, &rng));
+  enum { NW = 6 };
+  const int nw = SIZE(NW, 3);
+  oc_key_t keys[NW];
+  for (int i = 0; i < nw; i++)
+    keys[i] = oc_key_from_point(14 - i % 3 * 2, cloudy_point(storm, 1600.0, 1000.0, 9000.0, &rng));
   int mid_differs = 0;
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < nw; i++) {
     float a[512], b[512], m[512];
     sample(w, keys[i], t0 - 0.5, a); /* before t0: the old preset */
     sample(fair, keys[i], t0 - 0.5, b);
@@ -544,7 +594,7 @@ static void test_procedural__weather_transition(void **st) {
   assert_true(mid_differs > 0);
   /* In between, point() is continuous in t: no jump at t0, at t0 + seconds or anywhere else. */
   double worst = 0.0, range = 0.0;
-  for (int i = 0; i < 20; i++) {
+  for (int i = 0; i < SIZE(20, 3); i++) {
     oc_dvec3 p = cloudy_point(storm, 1300.0, 1000.0, 9000.0, &rng);
     double prev = w->vt->point(w, p, t0 - 1.0);
     for (double t = t0 - 1.0 + 0.05; t <= t0 + secs + 1.0; t += 0.05) {
@@ -565,12 +615,13 @@ static void test_procedural__weather_transition(void **st) {
   }
   /* A change that starts earlier replaces a later one; chained changes stay continuous. */
   assert_int_equal(w->vt->set_weather(w, OC_PRESET_CLEAR, 500.0, 100.0), 0);
-  for (int i = 0; i < 200; i++) assert_true(w->vt->point(w, at_alt(rand_dir(&rng), 12000.0 * rng_unit(&rng)), 2000.0) == 0.0);
+  for (int i = 0; i < 200; i++)
+    assert_true(w->vt->point(w, at_alt(rand_dir(&rng), 12000.0 * rng_unit(&rng)), 2000.0) == 0.0);
   assert_int_equal(w->vt->set_weather(w, OC_PRESET_OVERCAST, 550.0, 300.0), 0); /* during the first */
   oc_dvec3 p = cloudy_point(fair, 550.0, 500.0, 3000.0, &rng);
   double l = w->vt->point(w, p, 550.0 - 1e-6), r = w->vt->point(w, p, 550.0 + 1e-6);
   assert_true(fabs(l - r) < 1e-6);
-  for (int i = 0; i < 6; i++) { /* and end exactly in the last preset */
+  for (int i = 0; i < nw; i++) { /* and end exactly in the last preset */
     float a[512], b[512];
     sample(w, keys[i], 1e5, a);
     sample(overcast, keys[i], 1e5, b);
@@ -598,7 +649,7 @@ static void test_procedural__presets_differ(void **st) {
   for (int i = 0; i < OC_PRESET_COUNT; i++) {
     printf("  %-8s cloud fraction at", oc_scene_preset_name(i));
     for (int a = 0; a < 5; a++) {
-      f[i][a] = cloud_fraction(p[i], alts[a], 20000, 51);
+      f[i][a] = cloud_fraction(p[i], alts[a], SIZE(20000, 5000), 51);
       printf(" %.1f km %5.1f%%", alts[a] / 1e3, 100.0 * f[i][a]);
     }
     printf("\n");
@@ -640,7 +691,8 @@ static void test_procedural__scales(void **st) {
     sample(none, k, 0.0, b);
     for (int v = 0; v < 512; v++) assert_true(b[v] == 0.0f);
   }
-  assert_true(cloud_fraction(more, 1500.0, 20000, 81) > 1.3 * cloud_fraction(fair, 1500.0, 20000, 81));
+  int nf = SIZE(20000, 5000);
+  assert_true(cloud_fraction(more, 1500.0, nf, 81) > 1.3 * cloud_fraction(fair, 1500.0, nf, 81));
   one->vt->destroy(one);
   two->vt->destroy(two);
   none->vt->destroy(none);
@@ -659,8 +711,9 @@ static void test_procedural__bench(void **st) {
   if (!e || !*e || *e == '0') skip();
   static const oc_preset_t presets[2] = {OC_PRESET_FAIR, OC_PRESET_STORM};
   static const int levels[] = {6, 8, 10, 12, 13, 14, 16};
-  printf("| preset | level | node size | bricks/s (1 core) | ms/brick | bound: empty of shell nodes |\n");
-  printf("|---|---:|---:|---:|---:|---:|\n");
+  printf("| preset | level | node size | bricks/s (1 core) | ms/brick | µs/bound | shell nodes bounded empty | shell "
+         "nodes empty but not bounded so |\n");
+  printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
   for (int pi = 0; pi < 2; pi++) {
     ocs_source_t *s = mk(presets[pi], 1.0, 1.0, 1);
     for (size_t li = 0; li < sizeof levels / sizeof *levels; li++) {
@@ -677,16 +730,27 @@ static void test_procedural__bench(void **st) {
         n++;
         t = now_s() - t0;
       } while (t < 1.0 || n < NK);
-      int shell = 0, empty = 0;
+      int shell = 0, empty = 0, tried = 0, zero = 0;
+      double tb = 0.0;
       for (int i = 0; i < 4000; i++) {
         oc_key_t k = oc_key_from_point(L, at_alt(rand_dir(&rng), 16000.0 * rng_unit(&rng)));
         float mn, mx;
+        double tb0 = now_s();
         bound_key(s, k, 0.0, &mn, &mx);
+        tb += now_s() - tb0;
         shell++;
         empty += mx == 0.0f;
+        if (mx > 0.0f && tried < 100) { /* how many of those the bound keeps are empty after all */
+          sample(s, k, 0.0, b);
+          int any = 0;
+          for (int v = 0; v < 512; v++) any |= b[v] > 0.0f;
+          tried++;
+          zero += !any;
+        }
       }
-      printf("| %s | %d | %.0f m | %.0f | %.2f | %.1f%% |\n", oc_scene_preset_name(presets[pi]), L, oc_key_size(L), n / t,
-             1e3 * t / n, 100.0 * empty / shell);
+      printf("| %s | %d | %.0f m | %.0f | %.2f | %.0f | %.1f%% | %.0f%% |\n", oc_scene_preset_name(presets[pi]), L,
+             oc_key_size(L), n / t, 1e3 * t / n, 1e6 * tb / shell, 100.0 * empty / shell,
+             100.0 * (1.0 - (double)empty / shell) * zero / tried);
     }
     s->vt->destroy(s);
   }
@@ -697,6 +761,7 @@ int main(void) {
       cmocka_unit_test(test_procedural__rejects_bad_desc),
       cmocka_unit_test(test_procedural__deterministic),
       cmocka_unit_test(test_procedural__sample_is_box_average_of_point),
+      cmocka_unit_test(test_procedural__shared_faces_agree),
       cmocka_unit_test(test_procedural__filter_mean_coarse),
       cmocka_unit_test(test_procedural__filter_mean_mid),
       cmocka_unit_test(test_procedural__filter_mean_fine),
