@@ -1,4 +1,5 @@
 /* field.c — the field: the scene's sources summed, behind ocs_field.h. */
+#include <math.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -37,6 +38,8 @@ int ocs_field_create(ocs_field_t **out, const oc_scene_t *sc, char *why, size_t 
       return r;
     }
     f->count = i + 1;
+    /* The scene decides: with animation off, sources freeze at t = 0 (2 kept states). */
+    if (!oc_scene_has(sc, OC_FEATURE_ANIMATION)) f->src[i]->animated = 0;
   }
   *out = f;
   return 0;
@@ -70,6 +73,10 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
     mx += b;
   }
   atomic_fetch_add_explicit(&((ocs_field_t *)f)->bounds, 1, memory_order_relaxed);
+  if (f->count > 1 && mn != mx) { /* float sums may round inward: widen by one ulp to stay conservative */
+    mn = mn > 0.0f ? nextafterf(mn, 0.0f) : mn;
+    mx = nextafterf(mx, INFINITY);
+  }
   *smin = mn;
   *smax = mx;
 }

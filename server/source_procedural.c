@@ -1,4 +1,4 @@
-/* source_procedural.c — the procedural planet: the built-in default scene (docs/_parts/procedural.md).
+/* source_procedural.c — the procedural planet: the built-in default scene (docs/procedural.md).
  *
  * Four cloud layers at their real altitudes — stratus sheets, cumulus heaps with flat bases,
  * cumulonimbus towers with anvils, thin cirrus — each a pure function of (point, time, seed):

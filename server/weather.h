@@ -4,7 +4,7 @@
  * The weather is a pure function of world time: the initial preset, then a short history of
  * changes, each "from the parameters in force at t0, move to preset P over [t0, t0 + seconds]"
  * with a smoothstep weight. Every viewer evaluates the same function of the same clock, so all
- * see the same sky at once (docs/_parts/procedural.md, "Weather").
+ * see the same sky at once (docs/procedural.md, "Weather").
  *
  * Not thread-safe for writers: ocs_weather_set() must not race with readers (the field's caller
  * serialises it, ocs_field.h). Readers are pure. */

@@ -161,6 +161,25 @@ static void test_field__sources_add_and_static_steps(void **st) {
   ocs_field_free(f);
 }
 
+/* The scene decides animation: a procedural planet with animation off never changes with time. */
+static void test_field__static_procedural_is_frozen(void **st) {
+  (void)st;
+  ocs_field_t *f = field_from("{\"sources\": [{\"type\": \"procedural\", \"preset\": \"overcast\"}],"
+                              " \"features\": {\"animation\": false}}");
+  assert_false(ocs_field_animated(f));
+  assert_true(ocs_field_time_step(f, 14, 0.0) == ocs_field_time_step(f, 14, 3600.0));
+  oc_key_t k = oc_key_from_point(12, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 800.0}));
+  float a[512], b[512];
+  assert_int_equal(ocs_field_sample(f, k, 0.0, a), 0);
+  assert_int_equal(ocs_field_sample(f, k, 3600.0, b), 0);
+  assert_memory_equal(a, b, sizeof a);
+  ocs_field_free(f);
+  f = field_from("{\"sources\": [{\"type\": \"procedural\", \"preset\": \"overcast\"}], \"features\": {\"animation\": true}}");
+  assert_true(ocs_field_animated(f));
+  assert_true(ocs_field_time_step(f, 14, 0.0) != ocs_field_time_step(f, 14, 3600.0));
+  ocs_field_free(f);
+}
+
 static void test_field__bad_source_names_it(void **st) {
   (void)st;
   oc_scene_t sc;
@@ -181,6 +200,7 @@ int main(void) {
       cmocka_unit_test(test_field__box_filter_preserves_the_mean),
       cmocka_unit_test(test_field__bound_is_conservative),
       cmocka_unit_test(test_field__sources_add_and_static_steps),
+      cmocka_unit_test(test_field__static_procedural_is_frozen),
       cmocka_unit_test(test_field__bad_source_names_it),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

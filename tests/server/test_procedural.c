@@ -3,7 +3,7 @@
  * Conventions' parent-vs-descendants mean test at coarse, mid and fine levels), conservative
  * bounds, physical ranges and altitudes of each layer, animation and time steps, weather presets
  * and transitions, bad descriptions. With OC_BENCH=1 it also prints bricks/s per core and the
- * bound's classification figures (docs/_parts/procedural.md); nothing timed is asserted. */
+ * bound's classification figures (docs/procedural.md); nothing timed is asserted. */
 #include <math.h>
 #include <pthread.h>
 #include <setjmp.h>
