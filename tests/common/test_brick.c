@@ -9,6 +9,8 @@
 #include <string.h>
 
 #include <cmocka.h>
+
+#include "test_util.h"
 #include "report.h"
 
 #include "brick.h"
@@ -21,15 +23,6 @@ _Static_assert(OCG_CODE_MAX == OC_CODE_MAX, "code max");
 _Static_assert(OCG_CODE_STEPS == OC_CODE_STEPS, "code steps");
 _Static_assert(sizeof(oc_brick_codes_t) == OC_BRICK_CODE_BYTES, "codes");
 
-/* xorshift64*: deterministic across platforms, unlike rand(). */
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static uint64_t rng_u64(void) {
-  rng_state ^= rng_state >> 12;
-  rng_state ^= rng_state << 25;
-  rng_state ^= rng_state >> 27;
-  return rng_state * 2685821657736338717ull;
-}
-static double rng_unit(void) { return (double)(rng_u64() >> 11) * (1.0 / 9007199254740992.0); }
 /* Log-uniform in [a, b]. */
 static float rng_log(double a, double b) { return (float)(a * pow(b / a, rng_unit())); }
 

@@ -9,21 +9,14 @@
 
 #include <cmocka.h>
 
+#include "test_util.h"
+
 #include "oc_key.h"
 #include "oc_planet.h" /* OC_ROOT_HALF */
 
 #define S OC_ROOT_HALF
 
-/* xorshift64*: deterministic across platforms, unlike rand(). */
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static uint64_t rng_u64(void) {
-  rng_state ^= rng_state >> 12;
-  rng_state ^= rng_state << 25;
-  rng_state ^= rng_state >> 27;
-  return rng_state * 2685821657736338717ull;
-}
 static uint32_t rng_below(uint64_t n) { return (uint32_t)(rng_u64() % n); }
-static double rng_unit(void) { return (double)(rng_u64() >> 11) * (1.0 / 9007199254740992.0); }
 
 /* The convention written out bit by bit: the reference the magic-number version must match. */
 static oc_key_t slow_key(int level, uint32_t ix, uint32_t iy, uint32_t iz) {

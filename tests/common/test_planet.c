@@ -8,6 +8,8 @@
 #include <stdio.h>
 
 #include <cmocka.h>
+
+#include "test_util.h"
 #include "report.h"
 
 #include "oc_key.h"
@@ -15,15 +17,6 @@
 
 #define R OC_PLANET_RADIUS
 
-/* xorshift64*: deterministic across platforms, unlike rand(). */
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static uint64_t rng_u64(void) {
-  rng_state ^= rng_state >> 12;
-  rng_state ^= rng_state << 25;
-  rng_state ^= rng_state >> 27;
-  return rng_state * 2685821657736338717ull;
-}
-static double rng_unit(void) { return (double)(rng_u64() >> 11) * (1.0 / 9007199254740992.0); }
 static double rng_range(double a, double b) { return a + (b - a) * rng_unit(); }
 static oc_dvec3 rng_dir(void) {
   for (;;) {

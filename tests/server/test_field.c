@@ -14,6 +14,7 @@
 #include "oc_scene.h"
 #include "ocs_field.h"
 #include "report.h"
+#include "test_util.h"
 
 static ocs_field_t *field_from(const char *json) {
   oc_scene_t sc;
@@ -26,25 +27,11 @@ static ocs_field_t *field_from(const char *json) {
   return f;
 }
 
-/* Mean of σt over the node's own cube from its corner samples: each sample stands for the box of
- * edge size/7 around it, so samples on faces count half, on edges a quarter, corners an eighth. */
-static double node_mean(const float s[512]) {
-  double sum = 0.0, wsum = 0.0;
-  for (int k = 0; k < 8; k++)
-    for (int j = 0; j < 8; j++)
-      for (int i = 0; i < 8; i++) {
-        double w = (i == 0 || i == 7 ? 0.5 : 1.0) * (j == 0 || j == 7 ? 0.5 : 1.0) * (k == 0 || k == 7 ? 0.5 : 1.0);
-        sum += w * s[i + 8 * j + 64 * k];
-        wsum += w;
-      }
-  return sum / wsum;
-}
-
 static double descendants_mean(const ocs_field_t *f, oc_key_t key, int depth) {
   if (depth == 0) {
     float s[512];
     assert_int_equal(ocs_field_sample(f, key, 0.0, s), 0);
-    return node_mean(s);
+    return oc_test_node_mean(s);
   }
   double m = 0.0;
   for (int c = 0; c < 8; c++) m += descendants_mean(f, oc_key_child(key, c), depth - 1) / 8.0;

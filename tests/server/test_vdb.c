@@ -19,6 +19,8 @@
 
 #include <cmocka.h>
 
+#include "test_util.h"
+
 #include "oc_err.h"
 #include "oc_key.h"
 #include "oc_planet.h"
@@ -199,24 +201,11 @@ static oc_dvec3 index_to_planet(const place_t *p, const double i[3]) {
   return world_to_planet(p, w);
 }
 
-/* Mean of σt over a node's own cube from its corner samples (trapezoid weights, as test_field.c). */
-static double node_mean(const float s[512]) {
-  double sum = 0.0, wsum = 0.0;
-  for (int k = 0; k < 8; k++)
-    for (int j = 0; j < 8; j++)
-      for (int i = 0; i < 8; i++) {
-        double w = (i == 0 || i == 7 ? 0.5 : 1.0) * (j == 0 || j == 7 ? 0.5 : 1.0) * (k == 0 || k == 7 ? 0.5 : 1.0);
-        sum += w * s[i + 8 * j + 64 * k];
-        wsum += w;
-      }
-  return sum / wsum;
-}
-
 static double descendants_mean(const ocs_source_t *s, oc_key_t key, int depth) {
   if (depth == 0) {
     float v[512];
     sample(s, key, 0.0, v);
-    return node_mean(v);
+    return oc_test_node_mean(v);
   }
   double m = 0.0;
   for (int c = 0; c < 8; c++) m += descendants_mean(s, oc_key_child(key, c), depth - 1) / 8.0;
@@ -470,7 +459,7 @@ static void test_vdb__fog_sphere_coarse_levels_box_average(void **st) {
           tsum += truth / 512.0;
           peak = fmax(peak, got);
         }
-    double m0 = node_mean(v), m1 = descendants_mean(s, key, 1), m2 = descendants_mean(s, key, 2);
+    double m0 = oc_test_node_mean(v), m1 = descendants_mean(s, key, 1), m2 = descendants_mean(s, key, 2);
     double em = fabs(sum - tsum) / peak, ed = fmax(fabs(m1 - m0), fabs(m2 - m0)) / peak;
     print_message("    level %d (footprint %.0f m): worst |sample - box average| %.2e, samples' mean vs true %.2e, node mean vs "
                   "8/64 descendants %.2e %.2e (of peak %.4f)\n", level, size / 7.0, worst / peak, em, fabs(m1 - m0) / peak,
@@ -585,7 +574,7 @@ static void test_vdb__constant_tiles(void **st) {
         oc_key_t k = oc_key_make(level, ix + dx, iy + dy, iz + dz);
         float v[512];
         sample(s, k, 0.0, v);
-        total += node_mean(v) * size * size * size;
+        total += oc_test_node_mean(v) * size * size * size;
       }
   double expect = 0.1 * (0.5 * 128 * 128 * 128 + 512) * 1000.0;
   print_message("    tiles: mass over level-%d nodes %.6g vs %.6g (%.2e)\n", level, total, expect, fabs(total - expect) / expect);
@@ -690,7 +679,7 @@ static void test_vdb__rotated_nonuniform_transform(void **st) {
         for (int dx = -1; dx <= 1; dx++) {
           float v[512];
           sample(s, oc_key_make(level, ix + dx, iy + dy, iz + dz), 0.0, v);
-          mass += node_mean(v) * size * size * size;
+          mass += oc_test_node_mean(v) * size * size * size;
         }
     /* discrete truth: the voxel values' sum × voxel volume */
     double vsum = 0.0;
@@ -1121,7 +1110,7 @@ static void test_vdb__disney_cloud(void **st) {
         for (int dx = -span; dx <= span; dx++) {
           float v[512];
           sample(s, oc_key_make(level, ix + dx, iy + dy, iz + dz), 0.0, v);
-          mass += node_mean(v) * size * size * size;
+          mass += oc_test_node_mean(v) * size * size * size;
         }
     masses[level - 10] = mass;
   }
@@ -1150,7 +1139,7 @@ static void test_vdb__disney_cloud(void **st) {
         for (int x = 0; x < n; x++)
           truth += s->vt->point(s, oc_dv3(o.x - h / 2 + (x + 0.5) * e / n, o.y - h / 2 + (y + 0.5) * e / n, o.z - h / 2 + (z + 0.5) * e / n), 0.0);
     truth /= (double)n * n * n;
-    double m0 = node_mean(v), m1 = descendants_mean(s, key, 1), m2 = descendants_mean(s, key, 2);
+    double m0 = oc_test_node_mean(v), m1 = descendants_mean(s, key, 1), m2 = descendants_mean(s, key, 2);
     double e1 = fabs(m1 - m0) / peak, e2 = fabs(m2 - m0) / peak, ex = fabs(plain - truth) / peak;
     print_message("    level %d: samples' mean %.5g vs true %.5g (%.1e of peak); node mean %.5g, 8 children %.1e, 64 "
                   "grandchildren %.1e of peak\n", level, plain, truth, ex, m0, e1, e2);
@@ -1304,8 +1293,8 @@ static void test_vdb__export_round_trip(void **st) {
         worst = fmax(worst, fabs(a[i] - b[i]));
         peak = fmax(peak, a[i]);
       }
-      m0 += node_mean(a);
-      m1 += node_mean(b);
+      m0 += oc_test_node_mean(a);
+      m1 += oc_test_node_mean(b);
     }
     print_message("    round trip level %d: worst |orig - reimported| %.2e of peak %.4g, mean %.6g vs %.6g\n", lv, worst / peak, peak,
                   m0, m1);

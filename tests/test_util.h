@@ -1,0 +1,33 @@
+/* test_util.h — helpers shared by the test programs (header-only). */
+#ifndef OC_TESTS_UTIL_H
+#define OC_TESTS_UTIL_H
+
+#include <stdint.h>
+
+/* xorshift64*: deterministic across platforms, unlike rand(). One stream per test program. */
+static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+static inline uint64_t rng_u64(void) {
+  rng_state ^= rng_state >> 12;
+  rng_state ^= rng_state << 25;
+  rng_state ^= rng_state >> 27;
+  return rng_state * 2685821657736338717ull;
+}
+/* Uniform in [0, 1) with 53 random bits. */
+static inline double rng_unit(void) { return (double)(rng_u64() >> 11) * (1.0 / 9007199254740992.0); }
+
+/* Mean of σt over a node's own cube from its 8³ corner samples: each sample stands for the box of
+ * edge size/7 around it, so samples on faces count half, on edges a quarter, at corners an eighth
+ * (trapezoid weights). Used by the filtering tests (a parent's mean against its descendants'). */
+static inline double oc_test_node_mean(const float s[512]) {
+  double sum = 0.0, wsum = 0.0;
+  for (int k = 0; k < 8; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++) {
+        double w = (i == 0 || i == 7 ? 0.5 : 1.0) * (j == 0 || j == 7 ? 0.5 : 1.0) * (k == 0 || k == 7 ? 0.5 : 1.0);
+        sum += w * s[i + 8 * j + 64 * k];
+        wsum += w;
+      }
+  return sum / wsum;
+}
+
+#endif /* OC_TESTS_UTIL_H */
