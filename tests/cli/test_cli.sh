@@ -60,6 +60,20 @@ check "view: renders" 0 "" -- "$V" --scene scenes/analytic_sphere.json --size 32
 check "view: renders the saved state" 0 "" -- "$V" --state "$tmp/s.ocst" --camera-from "$tmp/a/frame_0000.png" --size 32x18 --out "$tmp/b" -q
 cmp -s "$tmp/a/frame_0000.png" "$tmp/b/frame_0000.png" || { echo "FAIL view: state file + stored camera do not reproduce the frame"; fail=$((fail + 1)); }
 
+S=$BIN/overcast-server
+check "server: nothing to do" 2 "nothing to do" -- "$S"
+check "server: --json without --inspect" 2 "--json goes with --inspect" -- "$S" --json
+check "server: bad level" 2 "--level: 30 is outside" -- "$S" --export-vdb "$tmp/x.vdb" --level 30
+check "server: bad region" 2 "--region: expected" -- "$S" --export-vdb "$tmp/x.vdb" --region 1,2
+check "server: inspect a missing file" 1 "nope.vdb" -- "$S" --inspect "$tmp/nope.vdb"
+check "server: inspect a non-VDB" 1 "bad.json" -- "$S" --inspect "$tmp/bad.json"
+check "server: bad scene" 1 "sigmat" -- "$S" --scene "$tmp/bad.json" --check
+check "server: checks the built-in planet" 0 "" -- "$S" --check
+grep -q "procedural" "$tmp/out" || { echo "FAIL server --check: no source listed"; fail=$((fail + 1)); }
+check "server: checks the Disney scene" 0 "" -- "$S" --scene scenes/disney_cloud.json --check -q
+check "server: inspects the Disney cloud (json)" 0 "" -- "$S" --inspect ../shared/data/wdas_cloud_sixteenth.vdb --json
+grep -q "415642" "$tmp/out" || { echo "FAIL server --inspect: active voxel count missing"; fail=$((fail + 1)); }
+
 B=$BIN/overcast-bench
 check "bench: no command" 2 "usage" -- "$B"
 check "bench: unknown command" 2 "unknown command \"frob\"" -- "$B" frob
