@@ -45,17 +45,19 @@ typedef struct {
   double pixels;
 } oc__lod_t;
 
-/* Split while the node's voxel (size/7) at its nearest distance spans more than `pixels` pixels,
- * and only where the medium is. */
-static int oc__lod_refine(void *ctx, oc_key_t key) {
-  const oc__lod_t *l = ctx;
+double oc_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian) {
   oc_dvec3 o;
   double size;
   oc_key_bounds(key, &o, &size);
-  oc_dvec3 q = oc_dv3(fmax(o.x, fmin(l->eye.x, o.x + size)), fmax(o.y, fmin(l->eye.y, o.y + size)),
-                      fmax(o.z, fmin(l->eye.z, o.z + size)));
-  double dist = fmax(oc_dlen(oc_dsub(q, l->eye)), 1.0);
-  if (size / 7.0 * l->k / dist <= l->pixels) return 0;
+  oc_dvec3 q = oc_dv3(fmax(o.x, fmin(eye.x, o.x + size)), fmax(o.y, fmin(eye.y, o.y + size)),
+                      fmax(o.z, fmin(eye.z, o.z + size)));
+  return size / 7.0 * pixels_per_radian / fmax(oc_dlen(oc_dsub(q, eye)), 1.0);
+}
+
+/* Split while the node's voxel spans more than `pixels` pixels, and only where the medium is. */
+static int oc__lod_refine(void *ctx, oc_key_t key) {
+  const oc__lod_t *l = ctx;
+  if (oc_lod_pixels(key, l->eye, l->k) <= l->pixels) return 0;
   return oc_medium_refine_cb((void *)&l->mc, key);
 }
 

@@ -24,6 +24,11 @@ typedef struct {
   int threads;          /**< default 0 → 1 */
 } oc_scene_voxelize_desc_t;
 
+/*! oc_lod_pixels() : how many pixels a voxel (node size / 7) of `key` spans at its nearest point
+ *  to `eye`, for a viewport of `pixels_per_radian` = height / (2·tan(fov/2)): the projected-size
+ *  refinement measure. */
+double oc_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian);
+
 /*! oc_scene_medium() : the scene's analytic sources as a medium. @return 0, or OC_ESCENE when the
  *  scene has a source that is not analytic (procedural, vdb: served by overcast-server), with the
  *  reason in why. */

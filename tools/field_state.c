@@ -4,6 +4,7 @@
 #include <stdio.h>
 
 #include "oc_err.h"
+#include "oc_scene_voxelize.h" /* oc_lod_pixels */
 #include "oc_voxelize.h"
 
 typedef struct {
@@ -29,12 +30,7 @@ static double oct__tau(void *ctx, oc_dvec3 p) {
 
 static int oct__refine(void *ctx, oc_key_t key) {
   const oct__ctx_t *c = ctx;
-  oc_dvec3 o, eye = c->d->camera.pos;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  oc_dvec3 q = oc_dv3(fmax(o.x, fmin(eye.x, o.x + size)), fmax(o.y, fmin(eye.y, o.y + size)), fmax(o.z, fmin(eye.z, o.z + size)));
-  double dist = fmax(oc_dlen(oc_dsub(q, eye)), 1.0);
-  if (size / 7.0 * c->k / dist <= c->pixels) return 0;
+  if (oc_lod_pixels(key, c->d->camera.pos, c->k) <= c->pixels) return 0;
   float lo, hi;
   ocs_field_bound(c->d->field, key, c->d->time, &lo, &hi);
   return hi > 0.0f && lo != hi; /* empty and uniform nodes are never split */
