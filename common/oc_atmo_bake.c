@@ -457,8 +457,8 @@ static void oc__sky_radiance(const struct oc_atmo_s *a, const oc__ray_t *ray, do
   memset(dirs->L, 0, sizeof dirs->L);
   for (int i = 0; i < n; i++)
     for (int m = 0; m < nphi; m++) {
-      pR[i][m] = ocg_atmo_rayleigh_phase(dirs->nu[i][m]);
-      pM[i][m] = ocg_atmo_mie_phase(a->p.mie_g, dirs->nu[i][m]);
+      pR[i][m] = ocg_phase_rayleigh(dirs->nu[i][m]);
+      pM[i][m] = ocg_phase_cornette_shanks(dirs->nu[i][m], a->p.mie_g);
     }
   for (int q = 0; q < ray->n; q++) {
     double wR[3], wM[3], wS[3], Ts[3], Ps[3];

@@ -7,7 +7,7 @@
  *   - ray–sphere distances in forms that stay accurate in float at planet scale;
  *   - the look-up-table parametrisations: transmittance (r, μ) (Bruneton 2017) and the (r, μs)
  *     tables (Hillaire 2020's multiple-scattering LUT, sky irradiance, sky fluence);
- *   - the sun-disc softening at the horizon and the Rayleigh and Cornette–Shanks phase functions.
+ *   - the sun-disc softening at the horizon (phase functions: shaders/optics.h).
  *
  * Notation (Bruneton 2017): r is the distance from the planet centre, μ the cosine of the view
  * zenith angle, μs that of the sun zenith angle, ν that of the angle between view and sun
@@ -19,12 +19,13 @@
  * that defines OCG_REAL_DOUBLE computes everything in double; the parameter struct keeps the same
  * (float) layout there, so it can cross between float and double translation units.
  *
- * GLSL: the includer prepends oc_port.h (GLSL has no #include). */
+ * GLSL: the includer prepends oc_port.h and optics.h (GLSL has no #include). */
 #ifndef OC_SHADERS_ATMOSPHERE_H
 #define OC_SHADERS_ATMOSPHERE_H
 
 #ifndef OC_GLSL
 #include "oc_port.h" /* ocg_real, ocg_vec2/3, OCG_R, OC_IN, OC_ASSERT, ocg_safe_sqrt */
+#include "optics.h"  /* ocg_phase_rayleigh, ocg_phase_cornette_shanks */
 #endif
 
 /* ---- Table sizes -------------------------------------------------------------------------------
@@ -161,25 +162,8 @@ OC_INLINE ocg_vec3 ocg_atmo_extinction(OC_IN(ocg_atmosphere) atm, ocg_real r) {
                   ocg_atmo_ozone_absorption(atm, r));
 }
 
-/* ---- Phase functions -------------------------------------------------------------------------------
- * Named ocg_atmo_* so they cannot clash with shaders/optics.h; the formulas are design.md's. */
-
-/* Rayleigh phase function: $p_R(\nu) = \frac{3 (1 + \nu^2)}{16 \pi}$; integrates to 1 over the
- * sphere. Domain: ν ∈ [-1, 1]. */
-OC_INLINE ocg_real ocg_atmo_rayleigh_phase(ocg_real nu) {
-  return OCG_R(3.0) * (OCG_R(1.0) + nu * nu) / (OCG_R(16.0) * OCG_PI);
-}
-
-/* Cornette–Shanks phase function (Mie):
- * $p_M(\nu) = \frac{3 (1 - g^2)(1 + \nu^2)}{8 \pi (2 + g^2)(1 + g^2 - 2 g \nu)^{3/2}}$;
- * integrates to 1 over the sphere. ν is the cosine between the propagation directions (forward
- * peak at ν = 1 for g > 0). Domain: |g| < 1, ν ∈ [-1, 1]. */
-OC_INLINE ocg_real ocg_atmo_mie_phase(ocg_real g, ocg_real nu) {
-  OC_ASSERT(g > OCG_R(-1.0) && g < OCG_R(1.0));
-  ocg_real k = OCG_R(1.0) + g * g - OCG_R(2.0) * g * nu;
-  return OCG_R(3.0) * (OCG_R(1.0) - g * g) * (OCG_R(1.0) + nu * nu) /
-         (OCG_R(8.0) * OCG_PI * (OCG_R(2.0) + g * g) * k * ocg_sqrt(k));
-}
+/* Phase functions: the air uses shaders/optics.h's ocg_phase_rayleigh(ν) and
+ * ocg_phase_cornette_shanks(ν, mie_g) (one formula, one place). */
 
 /* ---- Ray–sphere geometry ----------------------------------------------------------------------------
  * A ray from radius r with zenith cosine μ is at distance d at radius
