@@ -158,8 +158,7 @@ static ocg_vec3 oc__sun_transmittance(const oc__ctx_t *cx, double r, double mu_s
  * to ray. Never below air_len / (16·air_steps), which bounds the cost of any ray. */
 static double oc__air_step(const oc__ctx_t *cx, oc_dvec3 p, oc_dvec3 dir, double air_step) {
   double r = oc_dlen(p);
-  double h = r - cx->ground_r;
-  if (cx->ground_r <= 0.0) h = r - OC_PLANET_RADIUS;
+  double h = r - cx->atm.bottom_radius; /* only called with an atmosphere */
   double mu = fabs(oc_ddot(p, dir) / r);
   double lim = 0.25 * (fmax(h, 0.0) + 500.0) / fmax(mu, 1e-3);
   return fmin(air_step, fmax(lim, air_step / 16.0));
