@@ -482,7 +482,7 @@ static int oc__parse_vdb(oc__ctx_t *c, const cJSON *o, const char *base_dir, oc_
   OC_TRY(oc__obj(c, o, "sequence", &seq));
   if (seq) {
     size_t old = oc__push_key(c, "sequence");
-    int end;
+    int end = OC_SEQ_LOOP;
     OC_TRY(oc__check_keys(c, seq, seq_keys));
     OC_TRY(oc__num(c, seq, "frame_rate", 0, 1000, OC__LO_OPEN, OC__DEF_VDB_FRAME_RATE, &v->sequence.frame_rate));
     OC_TRY(oc__int(c, seq, "first", 0, 100000000, 0, 0, &v->sequence.first));
@@ -517,7 +517,7 @@ static int oc__parse_source(oc__ctx_t *c, const cJSON *o, const char *base_dir, 
   if (!cJSON_IsObject(o)) return oc__fail(c, "expected an object, got %s", oc__type_of(o));
   const cJSON *t = cJSON_GetObjectItemCaseSensitive(o, "type");
   if (!t) return oc__missing(c, "type");
-  int type;
+  int type = 0;
   OC_TRY(oc__enum(c, o, "type", oc__type_names, 6, "source type", 0, &type));
   s->type = (oc_source_type_t)type;
   OC_TRY(oc__check_keys(c, o, keys[type]));
@@ -547,7 +547,7 @@ static int oc__parse_source(oc__ctx_t *c, const cJSON *o, const char *base_dir, 
       OC_TRY(oc__sigma(c, o, "sigma_t", OC__REQ, 0, &s->slab.sigma_t));
       break;
     case OC_SOURCE_PROCEDURAL: {
-      int preset;
+      int preset = OC_PRESET_FAIR;
       OC_TRY(oc__enum(c, o, "preset", oc__preset_names, OC_PRESET_COUNT, "preset", OC_PRESET_FAIR, &preset));
       s->procedural.preset = (oc_preset_t)preset;
       OC_TRY(oc__num(c, o, "coverage_scale", 0, 4, 0, 1.0, &s->procedural.coverage_scale));

@@ -1,0 +1,137 @@
+/* planner.h — the LOD planner: one per viewer, re-plans that viewer's octree once per epoch under
+ * its memory budget (design.md, Conventions: state, budget, epochs; Epochs, states, interpolation).
+ *
+ * The planner holds a complete octree (the leaves of the last state it planned) and, each epoch,
+ * moves it toward the viewer's camera with Pettersson's split/merge loop: leaves in descending split
+ * priority against mergeable parents (all 8 children leaves) in ascending merge priority; the best
+ * split is taken while it fits, else the cheapest merge is taken to make room, and the loop stops
+ * when the cheapest merge is worth more than the best split. Priority is a screen-space error: the
+ * pixels a voxel (node size / 7) spans at the node's nearest point to the eye, times
+ * `outside_weight` outside the view frustum. Nodes known (or bounded) to be empty or uniform in σt,
+ * inside the planet or above the atmosphere, or at max_depth, are never split.
+ *
+ * Budget (the Conventions' measure). The viewer keeps K states (3 animated, 2 static): resident =
+ * distinct bricks of those states × slot_bytes + their records × record_bytes ≤ budget. With the
+ * K−1 states it still holds (the last ones sent), a new state N must satisfy, for j = 0..K−1,
+ *     C_j = (records and distinct bricks of the newest K−1−j held states) + (1+j)·records(N)
+ *           + the bricks of N not among them  ≤ budget,
+ * i.e. the window stays within budget now (j = 0) and would stay within it if N were repeated j
+ * more times. The last condition makes "send N again, reusing its bricks" always admissible next
+ * epoch, so a plan always exists and the invariant can never be broken, whatever the camera does.
+ * Bricks are predicted conservatively (a node the bound cannot prove empty or uniform counts as a
+ * brick); actual content is only ever cheaper.
+ *
+ * Within those hard limits the tree's steady cost T = K·records·record_bytes + Σ bricks·slot_bytes
+ * ·(1 + (K−1)·r) — r the fraction of epochs in which a brick of that level changes — is kept
+ * under (1 − reserve)·budget, so that every epoch keeps `reserve` of the budget for change (new
+ * bricks while the old ones are still held). Static fields have r = 0: a brick costs one slot.
+ *
+ * Content: every leaf carries a content stamp (the world's per-level stamp: field time step, light
+ * step, sun). A leaf whose stamp changed is refreshed (new brick id) when the limits allow, nearest
+ * first; otherwise it keeps its old brick for another epoch (counted as deferred). A brick id
+ * names one content: it is reused exactly when the same key and stamp are held. */
+#ifndef OC_SERVER_PLANNER_H
+#define OC_SERVER_PLANNER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "oc_brick.h" /* oc_node_kind_t */
+#include "oc_key.h"   /* oc_key_t */
+#include "oc_math.h"  /* oc_dvec3 */
+
+#define OCS_PLAN_MAX_KEPT 3
+
+typedef struct {
+  uint64_t budget;         /**< bytes; see ocs_plan_clamp() */
+  uint32_t slot_bytes;     /**< GPU bytes per brick slot */
+  uint32_t record_bytes;   /**< GPU bytes per node record */
+  int max_depth;           /**< deepest level, 0..21 */
+  int kept_states;         /**< K: 3 animated, 2 static */
+  double split_fraction;   /**< most new nodes per epoch, as a fraction of capacity; 0 → 0.1 */
+  double reserve;          /**< budget fraction kept free for change; 0 → split_fraction */
+  double min_pixels;       /**< a leaf is split only while its voxel spans more; 0 → 1 */
+  double outside_weight;   /**< priority factor outside the frustum, (0, 1]; 0 → 0.25 */
+} ocs_plan_desc_t;
+
+/*! ocs_plan_clamp() : applies the server's limits to a viewer's request, in place: slot and
+ *  record bytes to [1, 1 MiB], max_depth to [0, 21], kept_states to 2..3, fractions to sane
+ *  ranges, and the budget up to the minimum (the root in every kept state) and down to max_budget.
+ *  @return 0, or OC_ERANGE when the request cannot be honoured (budget below the minimum is
+ *  raised, not refused; a zero max_budget or one below the minimum is OC_ERANGE). */
+int ocs_plan_clamp(ocs_plan_desc_t *d, uint64_t max_budget);
+/*! ocs_plan_min_budget() : the root as a brick in each of the K kept states. */
+uint64_t ocs_plan_min_budget(const ocs_plan_desc_t *d);
+
+typedef struct {
+  oc_dvec3 pos;          /**< eye, planet frame, m */
+  oc_dvec3 forward, up;  /**< unit, orthogonal */
+  double vfov_deg;       /**< (0, 180) */
+  int width, height;     /**< viewport, pixels */
+} ocs_view_t;
+
+/* What the world tells the planner about content, per epoch. */
+typedef struct {
+  /*! The node's σt class from a conservative bound (OC_NODE_BRICK when unsure); only a BRICK
+   *  may be split. Called from the planning thread only. */
+  oc_node_kind_t (*classify)(void *ctx, oc_key_t key);
+  void *ctx;
+  int uniform_is_brick;    /**< shadows on: a uniform σt node still carries a τ gradient (a brick) */
+  uint64_t stamp[OC_KEY_MAX_LEVEL + 1];    /**< content stamp per level at this epoch's time */
+  double refresh_rate[OC_KEY_MAX_LEVEL + 1]; /**< fraction of epochs a level's content changes, [0,1] */
+  uint32_t max_new_bricks; /**< throughput limit for this plan (slow viewer); 0 = none */
+} ocs_plan_input_t;
+
+/* One leaf of a plan, in canonical key order. */
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;    /**< content stamp the leaf holds */
+  uint32_t brick_id; /**< reused brick (content held by the viewer); 0 when `produce` or no brick */
+  uint8_t kind;      /**< predicted (or known) oc_node_kind_t */
+  uint8_t produce;   /**< 1: content must be produced for (key, stamp) */
+  uint8_t held;      /**< produce = 0: the i-th newest held state (1..K-1) has this content */
+} ocs_plan_leaf_t;
+
+typedef struct {
+  uint32_t splits, merges;       /**< applied this epoch */
+  uint32_t refreshed, deferred;  /**< stamp changes served / left for a later epoch */
+  uint32_t new_bricks;           /**< predicted new bricks (productions the viewer lacks) */
+  uint32_t leaves, max_level;
+  uint64_t predicted_bytes;      /**< C_0: the resident bytes once this plan is applied */
+  uint64_t steady_bytes;         /**< T, the steady cost */
+  const char *stop;              /**< why the split loop stopped */
+  double seconds;                /**< wall time of ocs_plan_epoch() */
+} ocs_plan_stats_t;
+
+typedef struct ocs_planner_s ocs_planner_t;
+
+/*! ocs_planner_create() : a planner holding the root alone (nothing held by the viewer yet).
+ *  The desc must have passed ocs_plan_clamp(). @return 0, OC_EINVAL or OC_ENOMEM. */
+int ocs_planner_create(ocs_planner_t **out, const ocs_plan_desc_t *d);
+void ocs_planner_free(ocs_planner_t *p);
+const ocs_plan_desc_t *ocs_planner_desc(const ocs_planner_t *p);
+
+/*! ocs_plan_epoch() : re-plans for `view`. The result (leaves in key order) stays valid until the
+ *  next call; it must be committed (ocs_plan_commit) before planning again.
+ *  @return 0, OC_EINVAL (bad view) or OC_ENOMEM (the previous tree is kept). */
+int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_input_t *in,
+                   const ocs_plan_leaf_t **leaves, uint32_t *count, ocs_plan_stats_t *stats);
+
+/*! ocs_plan_commit() : the plan was turned into a state and sent. For each leaf (same order),
+ *  `kind` is the actual kind and `brick_id` its brick (0 unless OC_NODE_BRICK). The state becomes
+ *  the newest the viewer holds; the oldest drops out of the window. @return 0 or OC_ENOMEM. */
+int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick_id);
+/*! ocs_plan_abandon() : the plan was not sent (e.g. production failed): the tree returns to the
+ *  last committed one. */
+void ocs_plan_abandon(ocs_planner_t *p);
+
+/*! ocs_plan_resident() : resident bytes of the held states (the window ending at the newest). */
+uint64_t ocs_plan_resident(const ocs_planner_t *p);
+
+/*! ocs_view_priority() : the split priority of a node: voxel pixels at the nearest point, times
+ *  outside_weight when the node's bounding sphere is outside the frustum. */
+double ocs_view_priority(const ocs_view_t *v, oc_key_t key, double outside_weight);
+/*! ocs_view_valid() : finite position, unit-ish orthogonal axes, fov and viewport in range. */
+int ocs_view_valid(const ocs_view_t *v);
+
+#endif /* OC_SERVER_PLANNER_H */

@@ -1,0 +1,631 @@
+/* world.c — epochs: plan every ready viewer, produce what the plans lack once, emit states. */
+#include "world.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "brick_cache.h"
+#include "oc_err.h"
+#include "ocs_field.h"
+#include "pool.h"
+#include "sun_depth.h"
+
+enum { T_BRICK = 1, T_SIGMA = 2, T_TAUVOL = 3 };
+
+/* A produced brick as the cache keeps it: codes only when kind is OC_NODE_BRICK. */
+typedef struct {
+  uint8_t kind;
+  oc_range_t range[OC_CHANNELS];
+  oc_brick_codes_t codes;
+} payload_t;
+#define PAYLOAD_HEAD offsetof(payload_t, codes)
+
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;
+  ocs_cache_entry_t *entry; /* pinned until the states are built */
+} req_t;
+
+struct ocs_viewer_s {
+  ocs_world_t *w;
+  ocs_planner_t *planner;
+  ocs_plan_desc_t desc;
+  ocs_view_t view;
+  int has_view;
+  oc_state_t held[OCS_PLAN_MAX_KEPT]; /* held[0]: newest state sent */
+  int nheld;
+  uint32_t *lacking;
+  uint32_t nlacking, lacking_cap;
+  ocs_plan_stats_t plan;
+  uint64_t in_flight, acked;
+  int unacked;
+  uint64_t sent, coalesced;
+  uint32_t next_id;
+  uint32_t last_new;       /* bricks sent in the last state */
+  uint32_t ticks;          /* epochs since the last plan */
+  /* during a step */
+  const ocs_plan_leaf_t *leaves;
+  uint32_t nleaves;
+  uint32_t *req_of;        /* per leaf: request index (produce leaves) */
+  uint32_t req_cap;
+  int planned;
+};
+
+struct ocs_world_s {
+  oc_scene_t scene;
+  ocs_world_desc_t d;
+  ocs_field_t *field;
+  ocs_cache_t *cache;
+  ocs_pool_t *pool;
+  int K, shadows;
+  uint64_t field_gen;
+  uint64_t epoch;
+  double time, scale;
+  oc_dvec3 sun;
+  uint64_t sun_version;
+  ocs_tau_desc_t tau;
+  uint64_t ts[OC_KEY_MAX_LEVEL + 1], stamp[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1];
+  double rate[OC_KEY_MAX_LEVEL + 1];
+  ocs_viewer_t **viewers;
+  int nviewers, viewers_cap;
+  uint64_t granted;
+  req_t *req;
+  size_t nreq, req_cap;
+  /* counters (production runs on many threads) */
+  _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes;
+  uint64_t brick_requests;
+  double produce_seconds, plan_seconds;
+};
+
+static double now_s(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+static uint64_t mix(uint64_t h, uint64_t v) {
+  h ^= v + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
+  h *= 0xBF58476D1CE4E5B9ull;
+  return h ^ (h >> 31);
+}
+
+static ocs_cache_key_t ckey(const ocs_world_t *w, int type, uint64_t a, uint64_t b, uint64_t c) {
+  return (ocs_cache_key_t){{(w->field_gen << 8) | (uint64_t)type, a, b, c}};
+}
+
+/*-*** Content: σt, τ, codes ***/
+
+/* σt samples of a node at this epoch, through the cache (sanitised). */
+static int sigma_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+  int level = oc_key_level(key);
+  if (level < 0) return OC_EINVAL;
+  ocs_cache_key_t k = ckey(w, T_SIGMA, key, w->ts[level], 0);
+  ocs_cache_entry_t *e;
+  int r = ocs_cache_acquire(w->cache, &k, &e);
+  if (r < 0) return r;
+  if (r == OCS_CACHE_MISS) {
+    float *s = malloc(OC_BRICK_VOXELS * sizeof *s);
+    if (!s) {
+      ocs_cache_abandon(w->cache, e);
+      return OC_ENOMEM;
+    }
+    memset(s, 0, OC_BRICK_VOXELS * sizeof *s);
+    r = ocs_field_sample(w->field, key, w->time, s);
+    if (r < 0) {
+      free(s);
+      ocs_cache_abandon(w->cache, e);
+      return r;
+    }
+    oc_sanitize(s, OC_BRICK_VOXELS, NULL);
+    ocs_cache_publish(w->cache, e, s, OC_BRICK_VOXELS * sizeof *s);
+    w->sigma_produced++;
+  }
+  memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
+  ocs_cache_release(w->cache, e);
+  return 0;
+}
+
+static int tau_sigma_cb(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) { return sigma_get(ctx, key, out); }
+
+static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
+  const ocs_world_t *w = ctx;
+  ocs_field_bound(w->field, key, w->time, smin, smax);
+}
+
+/* τ of a node from its group's volume, through the cache. */
+static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+  int level = oc_key_level(key);
+  oc_key_t group = ocs_tau_group_of(&w->tau, key);
+  ocs_cache_key_t k = ckey(w, T_TAUVOL, group, w->light[level], ((uint64_t)level) | (w->sun_version << 8));
+  ocs_cache_entry_t *e;
+  int r = ocs_cache_acquire(w->cache, &k, &e);
+  if (r < 0) return r;
+  if (r == OCS_CACHE_MISS) {
+    void *vol = NULL;
+    size_t bytes = 0;
+    r = ocs_tau_volume_build(&w->tau, group, level, &vol, &bytes);
+    if (r < 0) {
+      ocs_cache_abandon(w->cache, e);
+      return r;
+    }
+    ocs_cache_publish(w->cache, e, vol, bytes);
+    w->tau_volumes++;
+  }
+  r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
+  ocs_cache_release(w->cache, e);
+  return r;
+}
+
+static int produce_one(void *ctx, size_t i, int worker) {
+  (void)worker;
+  ocs_world_t *w = ctx;
+  req_t *q = &w->req[i];
+  ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
+  int r = ocs_cache_acquire(w->cache, &k, &q->entry);
+  if (r < 0) {
+    q->entry = NULL;
+    return r;
+  }
+  if (r == OCS_CACHE_HIT) return 0;
+  float sigma[OC_BRICK_VOXELS], tau[OC_BRICK_VOXELS];
+  memset(tau, 0, sizeof tau);
+  r = sigma_get(w, q->key, sigma);
+  int any = 0;
+  for (int j = 0; r >= 0 && j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
+  /* nothing scatters where σt is all zero: such a node needs no τ and stays empty */
+  if (r >= 0 && any && w->shadows) r = tau_get(w, q->key, tau);
+  payload_t *p = r >= 0 ? malloc(sizeof *p) : NULL;
+  if (!p) {
+    ocs_cache_abandon(w->cache, q->entry);
+    q->entry = NULL;
+    return r < 0 ? r : OC_ENOMEM;
+  }
+  oc_sanitize(tau, OC_BRICK_VOXELS, NULL);
+  p->kind = (uint8_t)oc_brick_encode(sigma, tau, &p->codes, p->range);
+  ocs_cache_publish(w->cache, q->entry, p, p->kind == OC_NODE_BRICK ? sizeof *p : PAYLOAD_HEAD);
+  w->bricks_produced++;
+  return 0;
+}
+
+/*-*** Clock ***/
+
+/* Time steps, stamps and refresh rates of every level at this epoch's time. */
+static void clock_update(ocs_world_t *w) {
+  uint64_t h = mix((uint64_t)w->shadows, w->shadows ? w->sun_version : 0);
+  uint64_t lh = h;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    w->ts[l] = ocs_field_time_step(w->field, l, w->time);
+    w->light[l] = lh; /* τ of level l marches through levels < l */
+    h = mix(h, w->ts[l]);
+    lh = h;
+    w->stamp[l] = h;
+  }
+  /* refresh rate: how many of the next 8 epochs change each level's stamp */
+  double dt = w->scene.epoch_period * w->scale;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) w->rate[l] = 0.0;
+  if (!ocs_field_animated(w->field) || !(dt > 0.0)) return;
+  uint64_t prev[OC_KEY_MAX_LEVEL + 1];
+  memcpy(prev, w->stamp, sizeof prev);
+  for (int k = 1; k <= 8; k++) {
+    uint64_t g = mix((uint64_t)w->shadows, w->shadows ? w->sun_version : 0);
+    for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+      g = mix(g, ocs_field_time_step(w->field, l, w->time + k * dt));
+      if (g != prev[l]) w->rate[l] += 1.0 / 8.0;
+      prev[l] = g;
+    }
+  }
+}
+
+/*-*** World ***/
+
+int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world_desc_t *desc, char *why, size_t why_len) {
+  if (!out || !scene) return OC_EINVAL;
+  *out = NULL;
+  ocs_world_t *w = calloc(1, sizeof *w);
+  if (!w) return OC_ENOMEM;
+  if (desc) w->d = *desc;
+  if (!w->d.cache_bytes) w->d.cache_bytes = 256ull << 20;
+  if (!w->d.viewer_bytes) w->d.viewer_bytes = 4ull << 30;
+  if (!w->d.max_budget || w->d.max_budget > w->d.viewer_bytes) w->d.max_budget = w->d.viewer_bytes;
+  if (w->d.max_viewers <= 0) w->d.max_viewers = 64;
+  int r = oc_scene_copy(&w->scene, scene);
+  if (r < 0) {
+    free(w);
+    return r;
+  }
+  if ((r = ocs_field_create(&w->field, &w->scene, why, why_len)) < 0 || (r = ocs_cache_create(&w->cache, w->d.cache_bytes)) < 0 ||
+      (r = ocs_pool_create(&w->pool, w->d.threads)) < 0) {
+    if (why && r != OC_ESCENE && r != OC_ENOENT && r != OC_EIO && r != OC_ECORRUPT && r != OC_ERANGE)
+      snprintf(why, why_len, "creating the world: %s", oc_strerror(r));
+    ocs_world_free(w);
+    return r;
+  }
+  w->K = ocs_field_animated(w->field) ? 3 : 2;
+  w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
+  w->field_gen = 1;
+  w->time = isfinite(w->d.time) ? w->d.time : 0.0;
+  w->scale = 1.0;
+  w->sun = w->scene.sun_dir;
+  w->sun_version = 1;
+  w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .ctx = w, .sun_dir = w->sun};
+  clock_update(w);
+  *out = w;
+  return 0;
+}
+
+void ocs_world_free(ocs_world_t *w) {
+  if (!w) return;
+  while (w->nviewers) ocs_world_remove_viewer(w, w->viewers[w->nviewers - 1]);
+  free(w->viewers);
+  free(w->req);
+  ocs_pool_free(w->pool);
+  ocs_cache_free(w->cache);
+  ocs_field_free(w->field);
+  oc_scene_free(&w->scene);
+  free(w);
+}
+
+const oc_scene_t *ocs_world_scene(const ocs_world_t *w) { return &w->scene; }
+const struct ocs_field_s *ocs_world_field(const ocs_world_t *w) { return w->field; }
+
+int ocs_world_set_sun(ocs_world_t *w, oc_dvec3 sun) {
+  double l = oc_dlen(sun);
+  if (!w || !isfinite(l) || !(l > 0.0)) return OC_EINVAL;
+  w->sun = oc_dscale(sun, 1.0 / l);
+  w->tau.sun_dir = w->sun;
+  w->sun_version++;
+  clock_update(w);
+  return 0;
+}
+
+int ocs_world_set_time(ocs_world_t *w, double t) {
+  if (!w || !isfinite(t) || fabs(t) > 1e12) return OC_EINVAL;
+  w->time = t;
+  clock_update(w);
+  return 0;
+}
+
+int ocs_world_set_time_scale(ocs_world_t *w, double scale) {
+  if (!w || !isfinite(scale) || fabs(scale) > 1e6) return OC_EINVAL;
+  w->scale = scale;
+  clock_update(w);
+  return 0;
+}
+
+int ocs_world_set_weather(ocs_world_t *w, oc_preset_t preset, double seconds) {
+  if (!w) return OC_EINVAL;
+  OC_TRY(ocs_field_set_weather(w->field, preset, w->time, seconds));
+  clock_update(w);
+  return 0;
+}
+
+/*-*** Viewers ***/
+
+int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_t **out, ocs_plan_desc_t *granted,
+                         char *why, size_t why_len) {
+  if (!w || !req || !out) return OC_EINVAL;
+  *out = NULL;
+  if (w->nviewers >= w->d.max_viewers) {
+    if (why) snprintf(why, why_len, "server full: %d viewers", w->nviewers);
+    return OC_ETOOBIG;
+  }
+  ocs_plan_desc_t d = *req;
+  d.kept_states = w->K;
+  uint64_t left = w->d.viewer_bytes - w->granted;
+  uint64_t cap = left < w->d.max_budget ? left : w->d.max_budget;
+  int r = ocs_plan_clamp(&d, cap);
+  if (r < 0) {
+    if (why)
+      snprintf(why, why_len, "server full: %llu bytes of viewer budget left, the minimum is %llu",
+               (unsigned long long)cap, (unsigned long long)ocs_plan_min_budget(&d));
+    return OC_ERANGE;
+  }
+  if (w->nviewers == w->viewers_cap) {
+    int nc = w->viewers_cap ? 2 * w->viewers_cap : 8;
+    ocs_viewer_t **a = realloc(w->viewers, (size_t)nc * sizeof *a);
+    if (!a) return OC_ENOMEM;
+    w->viewers = a;
+    w->viewers_cap = nc;
+  }
+  ocs_viewer_t *v = calloc(1, sizeof *v);
+  if (!v) return OC_ENOMEM;
+  v->w = w;
+  v->desc = d;
+  v->acked = UINT64_MAX;
+  v->next_id = 1;
+  for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) oc_state_init(&v->held[i]);
+  if ((r = ocs_planner_create(&v->planner, &d)) < 0) {
+    free(v);
+    return r;
+  }
+  w->viewers[w->nviewers++] = v;
+  w->granted += d.budget;
+  if (granted) *granted = d;
+  *out = v;
+  return 0;
+}
+
+void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
+  if (!w || !v) return;
+  for (int i = 0; i < w->nviewers; i++)
+    if (w->viewers[i] == v) {
+      memmove(&w->viewers[i], &w->viewers[i + 1], (size_t)(w->nviewers - i - 1) * sizeof *w->viewers);
+      w->nviewers--;
+      w->granted -= v->desc.budget;
+      break;
+    }
+  ocs_planner_free(v->planner);
+  for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) oc_state_free(&v->held[i]);
+  free(v->lacking);
+  free(v->req_of);
+  free(v);
+}
+
+int ocs_viewer_set_view(ocs_viewer_t *v, const ocs_view_t *view) {
+  if (!v || !ocs_view_valid(view)) return OC_EINVAL;
+  v->view = *view;
+  v->has_view = 1;
+  return 0;
+}
+
+int ocs_viewer_ack(ocs_viewer_t *v, uint64_t epoch) {
+  if (!v || !v->unacked || epoch != v->in_flight) return OC_EINVAL;
+  v->unacked = 0;
+  v->acked = epoch;
+  return 0;
+}
+
+int ocs_viewer_output(const ocs_viewer_t *v, ocs_epoch_out_t *out) {
+  if (!v || !out) return OC_EINVAL;
+  if (!v->nheld) return OC_ENOENT;
+  out->state = &v->held[0];
+  out->lacking = v->lacking;
+  out->nlacking = v->nlacking;
+  out->plan = v->plan;
+  return 0;
+}
+
+void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out) {
+  memset(out, 0, sizeof *out);
+  if (!v) return;
+  out->epochs_sent = v->sent;
+  out->coalesced = v->coalesced;
+  out->acked = v->acked;
+  out->budget = v->desc.budget;
+  const oc_state_t *s[OCS_PLAN_MAX_KEPT];
+  for (int i = 0; i < v->nheld; i++) s[i] = &v->held[i];
+  out->resident_bytes = oc_resident_bytes(s, v->nheld, v->desc.slot_bytes, v->desc.record_bytes);
+}
+
+/*-*** Epochs ***/
+
+static oc_node_kind_t classify_cb(void *ctx, oc_key_t key) {
+  const ocs_world_t *w = ctx;
+  float lo, hi;
+  ocs_field_bound(w->field, key, w->time, &lo, &hi);
+  if (!(hi > 0.0f)) return OC_NODE_EMPTY;
+  if (lo == hi) return OC_NODE_UNIFORM;
+  return OC_NODE_BRICK;
+}
+
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;
+  uint32_t viewer, leaf;
+} want_t;
+
+static int cmp_want(const void *a, const void *b) {
+  const want_t *x = a, *y = b;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  if (x->stamp != y->stamp) return x->stamp < y->stamp ? -1 : 1;
+  return 0;
+}
+
+/* Builds viewer v's state from its plan: produced content from the requests, held content copied. */
+static int build_state(ocs_world_t *w, ocs_viewer_t *v, oc_state_t *st, uint8_t *kinds, uint32_t *ids) {
+  st->epoch = w->epoch;
+  st->time = w->time;
+  st->sun_dir = w->sun;
+  v->nlacking = 0;
+  for (uint32_t i = 0; i < v->nleaves; i++) {
+    const ocs_plan_leaf_t *L = &v->leaves[i];
+    oc_node_t n;
+    memset(&n, 0, sizeof n);
+    n.key = L->key;
+    if (L->produce) {
+      const payload_t *p = ocs_cache_data(w->req[v->req_of[i]].entry);
+      n.kind = p->kind;
+      n.range[0] = p->range[0];
+      n.range[1] = p->range[1];
+      if (p->kind == OC_NODE_BRICK) {
+        n.brick_id = v->next_id++;
+        OC_TRY(oc_state_add_brick(st, n.brick_id, &p->codes));
+        if (v->nlacking == v->lacking_cap) {
+          uint32_t nc = v->lacking_cap ? 2 * v->lacking_cap : 256;
+          uint32_t *a = realloc(v->lacking, nc * sizeof *a);
+          if (!a) return OC_ENOMEM;
+          v->lacking = a;
+          v->lacking_cap = nc;
+        }
+        v->lacking[v->nlacking++] = n.brick_id;
+      }
+    } else {
+      const oc_state_t *h = &v->held[L->held - 1];
+      int64_t j = L->held >= 1 && L->held <= v->nheld ? oc_state_find_node(h, L->key) : -1;
+      if (j < 0) return OC_ECORRUPT; /* the planner and the held states disagree: a bug */
+      n = h->nodes[j];
+      if (n.kind == OC_NODE_BRICK) {
+        const oc_brick_t *b = oc_state_find_brick(h, n.brick_id);
+        if (!b) return OC_ECORRUPT;
+        OC_TRY(oc_state_add_brick(st, n.brick_id, &b->codes));
+      }
+    }
+    OC_TRY(oc_state_add_node(st, &n));
+    kinds[i] = n.kind;
+    ids[i] = n.brick_id;
+  }
+  oc_state_canonicalize(st);
+  if (w->d.validate) {
+    char why[256];
+    if (oc_state_validate(st, why, sizeof why) < 0) {
+      fprintf(stderr, "world: invalid state for a viewer: %s\n", why);
+      return OC_ECORRUPT;
+    }
+  }
+  return 0;
+}
+
+static void release_requests(ocs_world_t *w) {
+  for (size_t i = 0; i < w->nreq; i++)
+    if (w->req[i].entry) ocs_cache_release(w->cache, w->req[i].entry);
+  w->nreq = 0;
+}
+
+int ocs_world_step(ocs_world_t *w) {
+  if (!w) return OC_EINVAL;
+  double t0 = now_s();
+  w->epoch++;
+  w->time += w->scene.epoch_period * w->scale;
+  clock_update(w);
+  ocs_plan_input_t in;
+  memset(&in, 0, sizeof in);
+  in.classify = classify_cb;
+  in.ctx = w;
+  in.uniform_is_brick = w->shadows;
+  memcpy(in.stamp, w->stamp, sizeof in.stamp);
+  memcpy(in.refresh_rate, w->rate, sizeof in.refresh_rate);
+
+  /* Plan. */
+  int rc = 0;
+  want_t *want = NULL;
+  size_t nwant = 0, want_cap = 0;
+  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
+    ocs_viewer_t *v = w->viewers[vi];
+    v->planned = 0;
+    v->ticks++;
+    if (!v->has_view) continue;
+    if (v->unacked) {
+      v->coalesced++;
+      continue;
+    }
+    /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
+    in.max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
+    rc = ocs_plan_epoch(v->planner, &v->view, &in, &v->leaves, &v->nleaves, &v->plan);
+    if (rc < 0) break;
+    v->planned = 1;
+    if (v->nleaves > v->req_cap) {
+      uint32_t *a = realloc(v->req_of, v->nleaves * sizeof *a);
+      if (!a) { rc = OC_ENOMEM; break; }
+      v->req_of = a;
+      v->req_cap = v->nleaves;
+    }
+    for (uint32_t i = 0; i < v->nleaves; i++) {
+      if (!v->leaves[i].produce) continue;
+      if (nwant == want_cap) {
+        size_t nc = want_cap ? 2 * want_cap : 1024;
+        want_t *a = realloc(want, nc * sizeof *a);
+        if (!a) { rc = OC_ENOMEM; break; }
+        want = a;
+        want_cap = nc;
+      }
+      want[nwant++] = (want_t){v->leaves[i].key, v->leaves[i].stamp, (uint32_t)vi, i};
+    }
+  }
+  double t1 = now_s();
+  w->plan_seconds = t1 - t0;
+
+  /* One request per distinct (key, stamp) over all viewers. */
+  if (rc >= 0) {
+    qsort(want, nwant, sizeof *want, cmp_want);
+    w->nreq = 0;
+    w->brick_requests += nwant;
+    for (size_t i = 0; i < nwant; i++) {
+      if (!w->nreq || cmp_want(&want[i], &(want_t){w->req[w->nreq - 1].key, w->req[w->nreq - 1].stamp, 0, 0}) != 0) {
+        if (w->nreq == w->req_cap) {
+          size_t nc = w->req_cap ? 2 * w->req_cap : 1024;
+          req_t *a = realloc(w->req, nc * sizeof *a);
+          if (!a) { rc = OC_ENOMEM; break; }
+          w->req = a;
+          w->req_cap = nc;
+        }
+        w->req[w->nreq++] = (req_t){want[i].key, want[i].stamp, NULL};
+      }
+      w->viewers[want[i].viewer]->req_of[want[i].leaf] = (uint32_t)(w->nreq - 1);
+    }
+  }
+  free(want);
+  if (rc >= 0) rc = ocs_pool_run(w->pool, w->nreq, produce_one, w);
+  w->produce_seconds = now_s() - t1;
+
+  /* Emit. */
+  uint8_t *kinds = NULL;
+  uint32_t *ids = NULL;
+  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
+    ocs_viewer_t *v = w->viewers[vi];
+    if (!v->planned) continue;
+    free(kinds);
+    free(ids);
+    kinds = malloc(v->nleaves ? v->nleaves : 1);
+    ids = malloc((v->nleaves ? v->nleaves : 1) * sizeof *ids);
+    oc_state_t st;
+    oc_state_init(&st);
+    uint32_t first_id = v->next_id;
+    rc = kinds && ids ? build_state(w, v, &st, kinds, ids) : OC_ENOMEM;
+    if (rc >= 0) rc = ocs_plan_commit(v->planner, kinds, ids);
+    if (rc < 0) {
+      v->next_id = first_id;
+      oc_state_free(&st);
+      break;
+    }
+    v->planned = 0;
+    oc_state_free(&v->held[w->K - 1]);
+    memmove(&v->held[1], &v->held[0], (size_t)(w->K - 1) * sizeof v->held[0]);
+    v->held[0] = st;
+    if (v->nheld < w->K) v->nheld++;
+    v->in_flight = w->epoch;
+    v->unacked = 1;
+    v->sent++;
+    v->last_new = v->nlacking;
+    v->ticks = 0;
+  }
+  free(kinds);
+  free(ids);
+  if (rc < 0)
+    for (int vi = 0; vi < w->nviewers; vi++)
+      if (w->viewers[vi]->planned) {
+        ocs_plan_abandon(w->viewers[vi]->planner);
+        w->viewers[vi]->planned = 0;
+      }
+  release_requests(w);
+  return rc;
+}
+
+void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
+  memset(out, 0, sizeof *out);
+  if (!w) return;
+  out->epoch = w->epoch;
+  out->time = w->time;
+  out->bricks_produced = w->bricks_produced;
+  out->sigma_produced = w->sigma_produced;
+  out->tau_volumes = w->tau_volumes;
+  out->brick_requests = w->brick_requests;
+  ocs_cache_stats_t cs;
+  ocs_cache_stats(w->cache, &cs);
+  out->cache_hits = cs.hits;
+  out->cache_misses = cs.misses;
+  out->cache_bytes = cs.bytes;
+  out->cache_evictions = cs.evictions;
+  out->cache_hit_rate = ocs_cache_hit_rate(w->cache);
+  out->viewers = (uint32_t)w->nviewers;
+  out->granted_bytes = w->granted;
+  for (int i = 0; i < w->nviewers; i++)
+    for (int j = 0; j < w->viewers[i]->nheld; j++) {
+      const oc_state_t *s = &w->viewers[i]->held[j];
+      out->held_bytes += (uint64_t)s->node_count * sizeof(oc_node_t) + (uint64_t)s->brick_count * sizeof(oc_brick_t);
+    }
+  out->produce_seconds = w->produce_seconds;
+  out->plan_seconds = w->plan_seconds;
+}

@@ -1,0 +1,109 @@
+/* world.h — the server core: one world clock, one sun, one field, one brick cache, many viewers.
+ *
+ * Each epoch (ocs_world_step(): tests step by command, the network server on its timer) every
+ * viewer that acknowledged its previous state gets a new plan from its planner (planner.h); the
+ * bricks all plans lack are produced once, in parallel, through the shared cache (brick_cache.h),
+ * and each viewer's output is a state in the one format of common/ (oc_state.h) plus the ids of the
+ * bricks it does not hold yet. A viewer that has not acknowledged is skipped (the epoch is
+ * coalesced and counted) and its next plan is sized from the bricks it absorbed per epoch.
+ *
+ * Content is a pure function of (node key, stamp): the stamp of level L hashes the field's time
+ * steps of levels 0..L (τ marches through coarser levels), the sun version and the shadows flag.
+ * Static fields have constant stamps: nothing is ever produced twice for a viewer.
+ *
+ * Production of a brick: σt from the field (cache entry "sigma", keyed by key and the field's time
+ * step at that level); τ, when the scene has shadows and the node's σt is not all zero, from the
+ * sun-aligned optical-depth volume of the node's group (sun_depth.h; cache entry "tau volume",
+ * keyed by group, level, light stamp and sun), marching through "sigma" entries of coarser levels;
+ * then the codes (cache entry "brick", keyed by key and stamp). */
+#ifndef OC_SERVER_WORLD_H
+#define OC_SERVER_WORLD_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "oc_scene.h"
+#include "oc_state.h"
+#include "planner.h"
+
+typedef struct ocs_world_s ocs_world_t;
+typedef struct ocs_viewer_s ocs_viewer_t;
+
+typedef struct {
+  int threads;               /**< producer threads incl. the caller; 0 → online CPUs (≤ 64) */
+  uint64_t cache_bytes;      /**< shared brick cache cap; 0 → 256 MiB */
+  uint64_t viewer_bytes;     /**< sum of granted viewer budgets allowed; 0 → 4 GiB */
+  uint64_t max_budget;       /**< largest budget one viewer is granted; 0 → viewer_bytes */
+  int max_viewers;           /**< 0 → 64 */
+  double time;               /**< world time at epoch 0, s; default 0 */
+  int validate;              /**< check every produced state with oc_state_validate (tests) */
+} ocs_world_desc_t;
+
+typedef struct {
+  uint64_t epoch;            /**< epochs stepped */
+  double time;               /**< world time now, s */
+  uint64_t bricks_produced;  /**< final bricks made (cache misses): the generation counter */
+  uint64_t sigma_produced;   /**< σt samplings of the field */
+  uint64_t tau_volumes;      /**< τ volumes built */
+  uint64_t brick_requests;   /**< bricks asked for by plans, before sharing */
+  uint64_t cache_hits, cache_misses, cache_bytes, cache_evictions;
+  double cache_hit_rate;
+  uint32_t viewers;
+  uint64_t granted_bytes;    /**< sum of viewers' budgets */
+  uint64_t held_bytes;       /**< server-side memory of the states kept for viewers */
+  double produce_seconds, plan_seconds; /**< wall time of the last step's phases */
+} ocs_world_stats_t;
+
+typedef struct {
+  const oc_state_t *state;   /**< the epoch's state (valid until the viewer's next output) */
+  const uint32_t *lacking;   /**< ids of bricks of `state` the viewer does not hold yet, ascending */
+  uint32_t nlacking;
+  ocs_plan_stats_t plan;
+} ocs_epoch_out_t;
+
+typedef struct {
+  uint64_t epochs_sent, coalesced; /**< states produced for it; epochs skipped while unacknowledged */
+  uint64_t acked;                  /**< newest acknowledged epoch (UINT64_MAX: none) */
+  uint64_t resident_bytes;         /**< of the states it keeps (the budget measure) */
+  uint64_t budget;
+} ocs_viewer_stats_t;
+
+/*! ocs_world_create() : builds the field of `scene` (deep-copied), the cache and the pool.
+ *  @return 0 or a negative OC_E* with a one-line reason. */
+int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world_desc_t *desc, char *why, size_t why_len);
+void ocs_world_free(ocs_world_t *w);
+
+/*! ocs_world_add_viewer() : admits a viewer with the request `req` (budget, slot and record bytes,
+ *  max depth; optional planner knobs). kept_states is set by the world (3 animated, 2 static).
+ *  The granted request (clamped) goes to *granted. @return 0; OC_ERANGE (budget cannot be met:
+ *  server full or request below what remains), OC_ETOOBIG (too many viewers), OC_ENOMEM. */
+int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_t **out, ocs_plan_desc_t *granted,
+                         char *why, size_t why_len);
+/*! ocs_world_remove_viewer() : frees everything of the viewer (NULL ok). */
+void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v);
+/*! ocs_viewer_set_view() : the latest camera; the next epoch plans with it. @return 0 / OC_EINVAL. */
+int ocs_viewer_set_view(ocs_viewer_t *v, const ocs_view_t *view);
+/*! ocs_viewer_ack() : the viewer applied state `epoch`. @return 0, OC_EINVAL (not the epoch in
+ *  flight). */
+int ocs_viewer_ack(ocs_viewer_t *v, uint64_t epoch);
+/*! ocs_viewer_output() : the newest state produced for the viewer. @return 0 or OC_ENOENT. */
+int ocs_viewer_output(const ocs_viewer_t *v, ocs_epoch_out_t *out);
+void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out);
+
+/*! ocs_world_step() : one epoch: advances the clock by the scene's epoch period (times the time
+ *  scale), plans every ready viewer, produces, emits. @return 0 or a negative OC_E* (the
+ *  viewers' previous states are kept). */
+int ocs_world_step(ocs_world_t *w);
+/*! ocs_world_set_sun() : the sun moves (unit vector toward it): every τ is recomputed. */
+int ocs_world_set_sun(ocs_world_t *w, oc_dvec3 sun_dir);
+/*! ocs_world_set_time() / ocs_world_set_time_scale() : world time now; seconds per second of
+ *  epoch period (0 pauses). */
+int ocs_world_set_time(ocs_world_t *w, double t);
+int ocs_world_set_time_scale(ocs_world_t *w, double scale);
+/*! ocs_world_set_weather() : every procedural source moves to `preset` over `seconds` from now. */
+int ocs_world_set_weather(ocs_world_t *w, oc_preset_t preset, double seconds);
+void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out);
+const oc_scene_t *ocs_world_scene(const ocs_world_t *w);
+const struct ocs_field_s *ocs_world_field(const ocs_world_t *w);
+
+#endif /* OC_SERVER_WORLD_H */

@@ -1,0 +1,279 @@
+/* test_world.c — the server core end to end, stepped by command: plans become valid states under
+ * the budget, production is shared between viewers and never repeated for a static field, slow
+ * viewers are coalesced and get smaller plans, results do not depend on the thread count, and
+ * τ in the produced bricks matches the analytic optical depth of a slab. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "oc_analytic.h"
+#include "oc_camera.h"
+#include "oc_err.h"
+#include "oc_scene.h"
+#include "oc_scene_voxelize.h"
+#include "report.h"
+#include "world.h"
+
+static const char *SPHERE =
+    "{\"version\":1,\"features\":{\"animation\":false},\"sun\":{\"lat\":20,\"lon\":10},"
+    "\"sources\":[{\"type\":\"sphere\",\"lat\":0,\"lon\":0,\"alt\":3000,\"radius\":2000,\"sigma_t\":0.05},"
+    "{\"type\":\"box\",\"lat\":0.05,\"lon\":0.02,\"alt\":1500,\"size\":[3000,2000,1500],\"sigma_t\":0.01}]}";
+
+static const char *SLAB =
+    "{\"version\":1,\"features\":{\"animation\":false},\"sun\":{\"lat\":0,\"lon\":0},"
+    "\"sources\":[{\"type\":\"slab\",\"base\":2000,\"top\":3000,\"sigma_t\":0.01}]}";
+
+static void scene_from(oc_scene_t *sc, const char *json) {
+  char why[512];
+  if (oc_scene_parse(sc, json, strlen(json), "test.json", why, sizeof why) < 0) fail_msg("scene: %s", why);
+}
+
+static ocs_world_t *world_from(const char *json, int threads) {
+  oc_scene_t sc;
+  scene_from(&sc, json);
+  ocs_world_desc_t d = {.threads = threads, .cache_bytes = 64u << 20, .validate = 1};
+  ocs_world_t *w = NULL;
+  char why[512];
+  if (ocs_world_create(&w, &sc, &d, why, sizeof why) < 0) fail_msg("world: %s", why);
+  oc_scene_free(&sc);
+  return w;
+}
+
+static ocs_view_t view_at(double lat, double lon, double alt, double heading, double pitch) {
+  oc_camera_pose_t pose = {{lat, lon, alt}, heading, pitch, 60.0};
+  oc_camera_t c = oc_camera_from_pose(pose);
+  return (ocs_view_t){c.pos, c.forward, c.up, 60.0, 160, 90};
+}
+
+static ocs_viewer_t *add_viewer(ocs_world_t *w, uint64_t budget) {
+  /* half the capacity per epoch (the default is a tenth): CI steps at most 8 epochs per test */
+  ocs_plan_desc_t d = {.budget = budget, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 18, .split_fraction = 0.5, .reserve = 0.1};
+  ocs_viewer_t *v = NULL;
+  char why[256];
+  if (ocs_world_add_viewer(w, &d, &v, NULL, why, sizeof why) < 0) fail_msg("viewer: %s", why);
+  return v;
+}
+
+/* Steps once, acknowledges, checks the budget invariant over the kept states. */
+static void step_ack(ocs_world_t *w, ocs_viewer_t *const *v, int n) {
+  assert_int_equal(ocs_world_step(w), 0);
+  for (int i = 0; i < n; i++) {
+    ocs_epoch_out_t o;
+    assert_int_equal(ocs_viewer_output(v[i], &o), 0);
+    ocs_viewer_stats_t vs;
+    ocs_viewer_stats(v[i], &vs);
+    assert_true(vs.resident_bytes <= vs.budget);
+    ocs_viewer_ack(v[i], o.state->epoch);
+  }
+}
+
+static void test_world__states_valid_under_budget_and_static_converges(void **st) {
+  (void)st;
+  ocs_world_t *w = world_from(SPHERE, 2);
+  ocs_viewer_t *v = add_viewer(w, 4u << 20);
+  ocs_view_t view = view_at(-0.02, -0.02, 2500, 45, 5);
+  assert_int_equal(ocs_viewer_set_view(v, &view), 0);
+  uint64_t produced[8];
+  uint32_t lacking[8], leaves = 0;
+  for (int e = 0; e < 8; e++) {
+    step_ack(w, &v, 1);
+    ocs_world_stats_t ws;
+    ocs_world_stats(w, &ws);
+    produced[e] = ws.bricks_produced;
+    ocs_epoch_out_t o;
+    ocs_viewer_output(v, &o);
+    lacking[e] = o.nlacking;
+    if (getenv("OC_TEST_VERBOSE"))
+      printf("epoch %d: leaves %u splits %u merges %u new %u lacking %u stop %s pred %llu steady %llu\n", e, o.plan.leaves,
+             o.plan.splits, o.plan.merges, o.plan.new_bricks, o.nlacking, o.plan.stop,
+             (unsigned long long)o.plan.predicted_bytes, (unsigned long long)o.plan.steady_bytes);
+    leaves = o.state->node_count;
+    /* every brick the viewer lacks is in the state; everything else it already holds */
+    for (uint32_t i = 0; i < o.nlacking; i++) assert_non_null(oc_state_find_brick(o.state, o.lacking[i]));
+  }
+  printf("world: %u leaves after 8 epochs\n", leaves);
+  /* the field is static: once the tree has converged nothing is produced or sent again */
+  assert_int_equal(lacking[7], 0);
+  assert_int_equal(produced[7], produced[6]);
+  assert_true(leaves > 64);
+  ocs_world_free(w);
+}
+
+static void test_world__two_viewers_cost_one_generation(void **st) {
+  (void)st;
+  ocs_view_t view = view_at(-0.02, -0.02, 2500, 45, 5);
+  ocs_world_stats_t one, two;
+  {
+    ocs_world_t *w = world_from(SPHERE, 2);
+    ocs_viewer_t *v = add_viewer(w, 2u << 20);
+    ocs_viewer_set_view(v, &view);
+    for (int e = 0; e < 3; e++) step_ack(w, &v, 1);
+    ocs_world_stats(w, &one);
+    ocs_world_free(w);
+  }
+  {
+    ocs_world_t *w = world_from(SPHERE, 2);
+    ocs_viewer_t *v[2] = {add_viewer(w, 2u << 20), add_viewer(w, 2u << 20)};
+    ocs_viewer_set_view(v[0], &view);
+    ocs_viewer_set_view(v[1], &view);
+    for (int e = 0; e < 3; e++) step_ack(w, v, 2);
+    ocs_world_stats(w, &two);
+    /* same camera, same budget: identical states */
+    ocs_epoch_out_t a, b;
+    ocs_viewer_output(v[0], &a);
+    ocs_viewer_output(v[1], &b);
+    assert_true(oc_state_checksum(a.state) == oc_state_checksum(b.state));
+    ocs_world_free(w);
+  }
+  assert_true(one.bricks_produced > 0);
+  assert_int_equal(two.bricks_produced, one.bricks_produced);
+  assert_int_equal(two.sigma_produced, one.sigma_produced);
+  assert_int_equal(two.brick_requests, 2 * one.brick_requests);
+  printf("world: bricks produced for one viewer %llu, for two %llu (requests %llu), cache hit rate %.3f\n",
+         (unsigned long long)one.bricks_produced, (unsigned long long)two.bricks_produced,
+         (unsigned long long)two.brick_requests, two.cache_hit_rate);
+}
+
+static void test_world__thread_count_does_not_change_states(void **st) {
+  (void)st;
+  uint64_t sum[2];
+  int threads[2] = {1, 3};
+  ocs_view_t view = view_at(0.01, 0.0, 1000, 0, 20);
+  for (int k = 0; k < 2; k++) {
+    ocs_world_t *w = world_from(SLAB, threads[k]);
+    ocs_viewer_t *v = add_viewer(w, 1u << 20);
+    ocs_viewer_set_view(v, &view);
+    for (int e = 0; e < 3; e++) step_ack(w, &v, 1);
+    ocs_epoch_out_t o;
+    ocs_viewer_output(v, &o);
+    sum[k] = oc_state_checksum(o.state);
+    ocs_world_free(w);
+  }
+  assert_true(sum[0] == sum[1]);
+}
+
+static void test_world__unacknowledged_viewer_is_coalesced_and_throttled(void **st) {
+  (void)st;
+  ocs_world_t *w = world_from(SPHERE, 2);
+  ocs_viewer_t *v = add_viewer(w, 4u << 20);
+  ocs_view_t view = view_at(-0.02, -0.02, 2500, 45, 5);
+  ocs_viewer_set_view(v, &view);
+  step_ack(w, &v, 1);
+  assert_int_equal(ocs_world_step(w), 0); /* epoch 2 sent, never acknowledged in time */
+  ocs_epoch_out_t o;
+  ocs_viewer_output(v, &o);
+  uint64_t in_flight = o.state->epoch;
+  uint32_t sent_new = o.nlacking;
+  for (int e = 0; e < 3; e++) assert_int_equal(ocs_world_step(w), 0);
+  ocs_viewer_stats_t vs;
+  ocs_viewer_stats(v, &vs);
+  assert_int_equal(vs.coalesced, 3);
+  ocs_viewer_output(v, &o);
+  assert_true(o.state->epoch == in_flight); /* nothing new while one is in flight */
+  assert_int_equal(ocs_viewer_ack(v, in_flight + 1), OC_EINVAL);
+  assert_int_equal(ocs_viewer_ack(v, in_flight), 0);
+  assert_int_equal(ocs_world_step(w), 0);
+  ocs_viewer_output(v, &o);
+  /* it took 4 epochs for the last state: the next one brings at most a quarter as many bricks */
+  uint32_t limit = sent_new / 4 > 8 ? sent_new / 4 : 8;
+  assert_true(o.nlacking <= limit);
+  assert_true(o.plan.new_bricks <= limit);
+  printf("world: slow viewer: %u new bricks in the unacknowledged state, %u after (limit %u)\n", sent_new, o.nlacking, limit);
+  ocs_world_free(w);
+}
+
+/* τ in produced bricks against the slab's analytic optical depth (sun straight overhead at 0,0). */
+static void test_world__tau_matches_slab(void **st) {
+  (void)st;
+  ocs_world_t *w = world_from(SLAB, 2);
+  ocs_viewer_t *v = add_viewer(w, 8u << 20);
+  ocs_view_t view = view_at(0.0, 0.0, 2500, 0, 0);
+  ocs_viewer_set_view(v, &view);
+  for (int e = 0; e < 4; e++) step_ack(w, &v, 1);
+  oc_medium_t m;
+  char why[256];
+  assert_int_equal(oc_scene_medium(ocs_world_scene(w), &m, why, sizeof why), 0);
+  ocs_epoch_out_t o;
+  ocs_viewer_output(v, &o);
+  double worst = 0.0;
+  int checked = 0;
+  for (uint32_t i = 0; i < o.state->node_count; i++) {
+    const oc_node_t *n = &o.state->nodes[i];
+    if (n->kind != OC_NODE_BRICK) continue;
+    const oc_brick_t *b = oc_state_find_brick(o.state, n->brick_id);
+    float sg[512], tau[512];
+    oc_brick_decode(&b->codes, n->range, sg, tau);
+    oc_dvec3 org;
+    double size;
+    oc_key_bounds(n->key, &org, &size);
+    for (int s = 0; s < 512; s += 37) {
+      oc_dvec3 p = oc_dv3(org.x + (s & 7) * size / 7, org.y + ((s >> 3) & 7) * size / 7, org.z + (s >> 6) * size / 7);
+      double alt = oc_dlen(p) - OC_PLANET_RADIUS;
+      /* away from the slab's faces by more than the filter footprint (two voxels of the node) */
+      double margin = 2.0 * size / 7.0 + 50.0;
+      if (fabs(alt - 2000.0) < margin || fabs(alt - 3000.0) < margin || sg[s] <= 0.0f) continue;
+      double ref = oc_medium_tau_sun(&m, p, ocs_world_scene(w)->sun_dir);
+      double err = fabs(tau[s] - ref) / fmax(ref, 1e-3);
+      if (err > worst) {
+        worst = err;
+        if (getenv("OC_TEST_VERBOSE"))
+          printf("tau: level %d alt %.1f sigma %g tau %g ref %g err %.3g\n", oc_key_level(n->key), alt, sg[s], tau[s], ref, err);
+      }
+      checked++;
+    }
+  }
+  oc_report("world", "τ of produced bricks vs slab, worst relative error", worst, 0.02, "");
+  assert_true(checked > 20);
+  assert_true(worst < 0.02);
+  ocs_world_free(w);
+}
+
+static void test_world__admission_and_bad_input(void **st) {
+  (void)st;
+  oc_scene_t sc;
+  scene_from(&sc, SPHERE);
+  ocs_world_desc_t d = {.threads = 1, .viewer_bytes = 10u << 20};
+  ocs_world_t *w = NULL;
+  char why[256];
+  assert_int_equal(ocs_world_create(&w, &sc, &d, why, sizeof why), 0);
+  oc_scene_free(&sc);
+  ocs_plan_desc_t req = {.budget = 8u << 20, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 30}, got;
+  ocs_viewer_t *a, *b;
+  assert_int_equal(ocs_world_add_viewer(w, &req, &a, &got, why, sizeof why), 0);
+  assert_int_equal(got.max_depth, 21);
+  assert_int_equal(got.kept_states, 2); /* static scene */
+  req.budget = 1;                       /* raised to the minimum */
+  assert_int_equal(ocs_world_add_viewer(w, &req, &b, &got, why, sizeof why), 0);
+  assert_true(got.budget == ocs_plan_min_budget(&got));
+  req.slot_bytes = 1u << 20;
+  ocs_viewer_t *c;
+  assert_int_equal(ocs_world_add_viewer(w, &req, &c, &got, why, sizeof why), OC_ERANGE);
+  assert_non_null(strstr(why, "server full"));
+  ocs_view_t bad = view_at(0, 0, 1000, 0, 0);
+  bad.forward.x = NAN;
+  assert_int_equal(ocs_viewer_set_view(a, &bad), OC_EINVAL);
+  /* a viewer without a camera is simply not planned */
+  assert_int_equal(ocs_world_step(w), 0);
+  ocs_epoch_out_t o;
+  assert_int_equal(ocs_viewer_output(a, &o), OC_ENOENT);
+  ocs_world_remove_viewer(w, b);
+  ocs_world_free(w);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_world__states_valid_under_budget_and_static_converges),
+      cmocka_unit_test(test_world__two_viewers_cost_one_generation),
+      cmocka_unit_test(test_world__thread_count_does_not_change_states),
+      cmocka_unit_test(test_world__unacknowledged_viewer_is_coalesced_and_throttled),
+      cmocka_unit_test(test_world__tau_matches_slab),
+      cmocka_unit_test(test_world__admission_and_bad_input),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
