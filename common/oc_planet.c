@@ -176,3 +176,23 @@ void oc_camrel_point(const oc_camrel_t *c, oc_dvec3 p, float out[3]) {
     out[a] = oc__rel(cell - c->cell[a], (float)(f - (double)c->frac[a]));
   }
 }
+
+void oc_key_radius_range(oc_key_t key, double *rmin, double *rmax) {
+  oc_dvec3 o;
+  double s, n2 = 0.0, f2 = 0.0;
+  oc_key_bounds(key, &o, &s);
+  const double lo[3] = {o.x, o.y, o.z};
+  for (int a = 0; a < 3; a++) {
+    double l = lo[a], h = lo[a] + s, n = l > 0 ? l : (h < 0 ? h : 0), f = fmax(fabs(l), fabs(h));
+    n2 += n * n;
+    f2 += f * f;
+  }
+  *rmin = sqrt(n2);
+  *rmax = sqrt(f2);
+}
+
+int oc_key_meets_ground(oc_key_t key) {
+  double rmin, rmax;
+  oc_key_radius_range(key, &rmin, &rmax);
+  return rmin <= OC_PLANET_RADIUS && rmax >= OC_PLANET_RADIUS;
+}

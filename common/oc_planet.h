@@ -65,4 +65,11 @@ void oc_camrel_node(const oc_camrel_t *c, oc_key_t key, float out[3]);
 /*! oc_camrel_point() : any planet-frame point relative to the camera, metres, as floats. */
 void oc_camrel_point(const oc_camrel_t *c, oc_dvec3 p, float out[3]);
 
+/*! oc_key_radius_range() : nearest and farthest distance from the planet centre to the box of a
+ *  valid key, metres (whether a node lies inside the planet, meets the ground, or is above the
+ *  atmosphere). */
+void oc_key_radius_range(oc_key_t key, double *rmin, double *rmax);
+/*! oc_key_meets_ground() : the box of the key contains points of the planet's surface. */
+int oc_key_meets_ground(oc_key_t key);
+
 #endif /* OC_COMMON_PLANET_H */

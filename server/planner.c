@@ -65,6 +65,7 @@ struct ocs_planner_s {
   pn_t *nodes;
   int32_t count, cap;
   int32_t free_block; /* first free block (linked through .parent), -1 none */
+  int32_t placed;     /* blocks allocated since the pool was last laid out in walk order */
   snap_t snap[OCS_PLAN_MAX_KEPT]; /* snap[0] newest held state */
   heap_t split_h, merge_h;
   /* the plan of the last ocs_plan_epoch() */
@@ -211,10 +212,14 @@ static frustum_t frustum_make(const ocs_view_t *v, double out_w) {
 
 /* Node box: origin o, edge s. Priority = voxel pixels at the nearest point (oc_lod_pixels' measure)
  * times out_w when the bounding sphere is outside the frustum. */
+static inline double clampd(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
 static double prio_box(const frustum_t *fr, oc_dvec3 o, double s) {
-  oc_dvec3 q = oc_dv3(fmax(o.x, fmin(fr->eye.x, o.x + s)), fmax(o.y, fmin(fr->eye.y, o.y + s)),
-                      fmax(o.z, fmin(fr->eye.z, o.z + s)));
-  double p = s / 7.0 * fr->ppr / fmax(oc_dlen(oc_dsub(q, fr->eye)), 1.0);
+  /* ternaries, not fmin/fmax: those are libm calls without -ffinite-math-only, and this runs for
+   * every node of every epoch (the eye is finite, checked by ocs_view_valid) */
+  oc_dvec3 q = oc_dv3(clampd(fr->eye.x, o.x, o.x + s), clampd(fr->eye.y, o.y, o.y + s), clampd(fr->eye.z, o.z, o.z + s));
+  double d = oc_dlen(oc_dsub(q, fr->eye));
+  double p = s / 7.0 * fr->ppr / (d > 1.0 ? d : 1.0);
   oc_dvec3 c = oc_dsub(oc_dmad(o, oc_dv3(1, 1, 1), 0.5 * s), fr->eye);
   double rad = 0.8660254037844386 * s;
   double x = oc_ddot(c, fr->r), y = oc_ddot(c, fr->u), z = oc_ddot(c, fr->f);
@@ -232,23 +237,16 @@ double ocs_view_priority(const ocs_view_t *v, oc_key_t key, double outside_weigh
 }
 
 /* Inside the planet (below the lowest source altitude) or wholly above the atmosphere. */
-static int geom_excluded(oc_dvec3 o, double s) {
-  double dmin2 = 0.0, dmax2 = 0.0;
-  const double *lo = &o.x;
-  for (int a = 0; a < 3; a++) {
-    double l = lo[a], h = lo[a] + s;
-    double n = l > 0 ? l : (h < 0 ? h : 0);
-    double f = fmax(fabs(l), fabs(h));
-    dmin2 += n * n;
-    dmax2 += f * f;
-  }
-  const double inner = OC_PLANET_RADIUS - 1e4, outer = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;
-  return dmax2 < inner * inner || dmin2 > outer * outer;
+static int geom_excluded(oc_key_t key) {
+  double rmin, rmax;
+  oc_key_radius_range(key, &rmin, &rmax);
+  return rmax < OC_PLANET_RADIUS - 1e4 || rmin > OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;
 }
 
 /*-*** Node pool ***/
 
 static int32_t block_alloc(ocs_planner_t *p) {
+  p->placed++;
   if (p->free_block >= 0) {
     int32_t b = p->free_block;
     p->free_block = p->nodes[b].parent;
@@ -274,6 +272,7 @@ static void block_free(ocs_planner_t *p, int32_t b) {
 }
 
 static void tree_reset(ocs_planner_t *p) {
+  p->placed = 0;
   p->count = 1;
   p->free_block = -1;
   pn_t *r = &p->nodes[0];
@@ -360,7 +359,9 @@ static void content_for(ocs_planner_t *p, pn_t *n, int level) {
   }
   oc_node_kind_t k = p->in->classify(p->in->ctx, n->key);
   n->skind = (uint8_t)k;
-  n->kind = (uint8_t)(k == OC_NODE_UNIFORM && p->in->uniform_is_brick ? OC_NODE_BRICK : k);
+  n->kind = (uint8_t)k;
+  if ((k == OC_NODE_UNIFORM && p->in->uniform_is_brick) || (k == OC_NODE_EMPTY && p->in->ground_tau && oc_key_meets_ground(n->key)))
+    n->kind = OC_NODE_BRICK;
   n->brick_id = 0;
   n->age = AGE_NEW;
 }
@@ -421,6 +422,42 @@ void ocs_planner_free(ocs_planner_t *p) {
 
 const ocs_plan_desc_t *ocs_planner_desc(const ocs_planner_t *p) { return &p->d; }
 
+/* Lays the pool out in the order the walks visit it: each node's child block follows, in memory,
+ * the blocks of its elder siblings' subtrees. Splits and merges scatter blocks over the pool; once
+ * enough have moved, a walk of a million nodes is bound by cache misses, and one copy in walk order
+ * makes the next walks nearly sequential. @return 0 or OC_ENOMEM (the pool is left as it was). */
+static int compact(ocs_planner_t *p) {
+  int32_t used = p->count;
+  for (int32_t b = p->free_block; b >= 0; b = p->nodes[b].parent) used -= 8;
+  pn_t *nn = malloc((size_t)(used > 0 ? used : 1) * sizeof *nn);
+  if (!nn) return OC_ENOMEM;
+  typedef struct { int32_t old, new_; } pair_t;
+  pair_t stack[8 * (OC_KEY_MAX_LEVEL + 1) + 8];
+  int sp = 0;
+  nn[0] = p->nodes[0];
+  int32_t next = 1;
+  stack[sp++] = (pair_t){0, 0};
+  while (sp) {
+    pair_t e = stack[--sp];
+    int32_t oc = p->nodes[e.old].child;
+    if (oc < 0) continue;
+    int32_t b = next;
+    next += 8;
+    nn[e.new_].child = b;
+    for (int c = 0; c < 8; c++) {
+      nn[b + c] = p->nodes[oc + c];
+      nn[b + c].parent = e.new_;
+    }
+    for (int c = 7; c >= 0; c--) stack[sp++] = (pair_t){oc + c, b + c};
+  }
+  free(p->nodes);
+  p->nodes = nn;
+  p->count = p->cap = next;
+  p->free_block = -1;
+  p->placed = 0;
+  return 0;
+}
+
 /*-*** Planning ***/
 
 typedef struct {
@@ -445,7 +482,7 @@ static int do_split(ocs_planner_t *p, int32_t i, const pn_t kids[8], const frust
     double s;
     oc_key_bounds(ch->key, &o, &s);
     ch->prio = (float)prio_box(fr, o, s);
-    ch->flags = geom_excluded(o, s) ? F_NOGEOM : 0;
+    ch->flags = geom_excluded(ch->key) ? F_NOGEOM : 0;
   }
   return b;
 }
@@ -528,6 +565,15 @@ static int cmp_prio_desc(const void *a, const void *b) {
   return x->key < y->key ? -1 : (x->key > y->key);
 }
 
+/* An error once passes 2-3 have changed the tree (refreshes, splits, merges) must not leave a
+ * half-applied tree: rebuild the last committed one from the newest held state, as
+ * ocs_plan_abandon() does ("OC_ENOMEM: the previous tree is kept"). */
+static int epoch_fail(ocs_planner_t *p, int rc) {
+  p->pending = 1;
+  ocs_plan_abandon(p);
+  return rc;
+}
+
 int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_input_t *in,
                    const ocs_plan_leaf_t **leaves, uint32_t *count, ocs_plan_stats_t *stats) {
   if (!p || !in || !in->classify || !leaves || !count || !ocs_view_valid(view)) return OC_EINVAL;
@@ -536,6 +582,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   ocs_plan_stats_t st;
   memset(&st, 0, sizeof st);
   if (p->pending) ocs_plan_abandon(p);
+  if ((int64_t)p->placed * 8 > p->count / 16 && p->count > 4096) compact(p); /* best effort */
   p->in = in;
   p->new_bricks = 0;
   const int K = p->K;
@@ -546,7 +593,11 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   }
   frustum_t fr = frustum_make(view, p->d.outside_weight);
 
-  /* Pass 1: priorities, costs, candidates; a stack walk carrying exact integer coordinates. */
+  double size[OC_KEY_MAX_LEVEL + 1];
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) size[l] = oc_key_size(l);
+
+  /* Pass 1: priorities, costs, candidates; a stack walk carrying exact integer coordinates. Leaves
+   * at or below min_pixels can never be split this epoch: they stay out of the heap. */
   for (int j = 0; j < K; j++) p->C[j] = held_bytes(p, K - 1 - j);
   p->T = 0.0;
   p->split_h.n = p->merge_h.n = 0;
@@ -561,7 +612,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       walk_t w = stack[--sp];
       pn_t *n = &p->nodes[w.idx];
       n->flags &= (uint8_t)~(F_SPLIT | F_MERGED);
-      double s = oc_key_size(w.level);
+      double s = size[w.level];
       oc_dvec3 o = oc_dv3(-OC_ROOT_HALF + w.x * s, -OC_ROOT_HALF + w.y * s, -OC_ROOT_HALF + w.z * s);
       n->prio = (float)prio_box(&fr, o, s);
       if (n->child < 0) {
@@ -580,7 +631,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
           }
           refresh[nrefresh++] = (hent_t){w.idx, n->prio, n->key};
         }
-        if (splittable(p, n, w.level) && (rc = h_append(&p->split_h, (hent_t){w.idx, n->prio, n->key})) < 0) break;
+        if (n->prio > p->d.min_pixels && splittable(p, n, w.level) && (rc = h_append(&p->split_h, (hent_t){w.idx, n->prio, n->key})) < 0) break;
       } else {
         if (children_are_leaves(p, n) && (rc = h_append(&p->merge_h, (hent_t){w.idx, n->prio, n->key})) < 0) break;
         for (int c = 7; c >= 0; c--)
@@ -596,7 +647,8 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   h_heapify(&p->merge_h);
 
   /* Pass 2: refresh stale content, nearest first, while the hard limits allow. */
-  qsort(refresh, nrefresh, sizeof *refresh, cmp_prio_desc);
+  /* qsort(NULL, 0, ...) is undefined: static epochs have nothing stale */
+  if (nrefresh) qsort(refresh, nrefresh, sizeof *refresh, cmp_prio_desc);
   for (size_t i = 0; i < nrefresh; i++) {
     pn_t *n = &p->nodes[refresh[i].idx];
     int level = oc_key_level(n->key);
@@ -622,7 +674,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     }
   }
   free(refresh);
-  if (rc < 0) return rc;
+  if (rc < 0) return epoch_fail(p, rc);
 
   /* Pass 3: Pettersson's split/merge loop. */
   p->target = (1.0 - p->d.reserve) * (double)p->d.budget;
@@ -631,7 +683,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   double created = 0.0;
   pn_t kids[8];
   oc_key_t kids_of = OC_KEY_INVALID; /* kids[] holds this node's children content */
-  st.stop = "no split candidate";
+  st.stop = "converged (no splittable leaf above min_pixels)";
   for (;;) {
     if (p->T > p->target) { /* over the steady target (budget lowered, content grew): merge */
       int r = try_merge(p, INFINITY, -1, &st);
@@ -639,7 +691,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       if (r == 0) { st.stop = "over target, nothing mergeable"; break; }
       continue;
     }
-    if (!p->split_h.n) { st.stop = "no split candidate"; break; }
+    if (!p->split_h.n) { st.stop = "converged (no splittable leaf above min_pixels)"; break; }
     hent_t s = p->split_h.a[0];
     pn_t *n = &p->nodes[s.idx];
     int level = oc_key_level(s.key);
@@ -689,7 +741,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     if (r == 0) { st.stop = "balanced (cheapest merge outweighs best split)"; break; }
     if (r < -1) { rc = r; break; }
   }
-  if (rc < 0) return rc;
+  if (rc < 0) return epoch_fail(p, rc);
 
   /* Output: leaves in canonical order (level, then Morton: a walk in child order per level). */
   uint32_t per_level[OC_KEY_MAX_LEVEL + 2] = {0};
@@ -700,10 +752,10 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   }
   if (nleaves > p->out_cap) {
     ocs_plan_leaf_t *o = realloc(p->out, nleaves * sizeof *o);
-    if (!o) return OC_ENOMEM;
+    if (!o) return epoch_fail(p, OC_ENOMEM);
     p->out = o;
     int32_t *on = realloc(p->out_node, nleaves * sizeof *on);
-    if (!on) return OC_ENOMEM;
+    if (!on) return epoch_fail(p, OC_ENOMEM);
     p->out_node = on;
     p->out_cap = nleaves;
   }
@@ -748,9 +800,23 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
 
 /*-*** Commit and abandon ***/
 
-static int cmp_u32(const void *a, const void *b) {
-  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-  return (x > y) - (x < y);
+/* LSD radix sort, 4 passes of 8 bits: a million ids in a few ms where qsort took tens. */
+static int sort_ids(uint32_t *a, uint32_t n) {
+  if (n < 2) return 0;
+  uint32_t *t = malloc(n * sizeof *t);
+  if (!t) return OC_ENOMEM;
+  uint32_t *src = a, *dst = t;
+  for (int shift = 0; shift < 32; shift += 8) {
+    uint32_t cnt[257] = {0};
+    for (uint32_t i = 0; i < n; i++) cnt[((src[i] >> shift) & 255) + 1]++;
+    for (int b = 0; b < 256; b++) cnt[b + 1] += cnt[b];
+    for (uint32_t i = 0; i < n; i++) dst[cnt[(src[i] >> shift) & 255]++] = src[i];
+    uint32_t *x = src;
+    src = dst;
+    dst = x;
+  }
+  free(t); /* four passes: the sorted data is back in a */
+  return 0;
 }
 
 int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick_id) {
@@ -774,7 +840,10 @@ int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick
     n->age = 1;
   }
   s.n = p->out_n;
-  qsort(s.ids, s.nids, sizeof *s.ids, cmp_u32);
+  if (sort_ids(s.ids, s.nids) < 0) {
+    snap_free(&s);
+    return OC_ENOMEM;
+  }
   snap_free(&p->snap[p->K - 1]);
   memmove(&p->snap[1], &p->snap[0], (size_t)(p->K - 1) * sizeof p->snap[0]);
   p->snap[0] = s;
@@ -814,14 +883,11 @@ void ocs_plan_abandon(ocs_planner_t *p) {
       idx = n->child + (int32_t)(a & 7);
     }
     pn_t *n = &p->nodes[idx];
-    oc_dvec3 o;
-    double sz;
-    oc_key_bounds(key, &o, &sz);
     n->stamp = s->rec[i].stamp;
     n->brick_id = s->rec[i].brick_id;
     n->kind = s->rec[i].kind;
     n->skind = s->rec[i].skind;
     n->age = 1;
-    n->flags = geom_excluded(o, sz) ? F_NOGEOM : 0;
+    n->flags = geom_excluded(key) ? F_NOGEOM : 0;
   }
 }

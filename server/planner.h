@@ -77,6 +77,8 @@ typedef struct {
   oc_node_kind_t (*classify)(void *ctx, oc_key_t key);
   void *ctx;
   int uniform_is_brick;    /**< shadows on: a uniform σt node still carries a τ gradient (a brick) */
+  int ground_tau;          /**< shadows on the ground: an empty node touching the planet surface
+                                carries τ for the ground (a brick, still never split) */
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];    /**< content stamp per level at this epoch's time */
   double refresh_rate[OC_KEY_MAX_LEVEL + 1]; /**< fraction of epochs a level's content changes, [0,1] */
   uint32_t max_new_bricks; /**< throughput limit for this plan (slow viewer); 0 = none */

@@ -1,6 +1,7 @@
 /* overcast-server — the server. Today: load a scene and build its field (--check), inspect VDB
- * files (--inspect), export a region of the field to a .vdb (--export-vdb). The network listener,
- * planner and streaming arrive with issues [3/7] and [4/7]. */
+ * files (--inspect), export a region of the field to a .vdb (--export-vdb), and run the server
+ * core for one viewer for some epochs, writing the state it would hold (--save-state). The
+ * network listener and streaming arrive with issue [4/7]. */
 #include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,8 +12,11 @@
 #include "oc_err.h"
 #include "oc_log.h"
 #include "oc_scene.h"
+#include "oc_camera.h"
+#include "oc_state.h"
 #include "ocs_field.h"
 #include "vdb_tools.h"
+#include "world.h"
 
 static const char *prog = "overcast-server";
 
@@ -30,12 +34,63 @@ static void usage(FILE *f) {
           "  --region LAT,LON,ALT,RADIUS   the region to export: a cube of half-size RADIUS metres\n"
           "                        around a point (default: the scene camera's position, 5000 m)\n"
           "  --level N             octree level of the exported voxels (default 16)\n"
-          "  --time T              world time in seconds for --export-vdb (default 0)\n"
+          "  --time T              world time in seconds for --export-vdb and --save-state (default 0)\n"
+          "  --save-state OUT      run the server core for one viewer and write the state it holds after\n"
+          "                        the last epoch (a state file: overcast-view --state OUT renders it)\n"
+          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   the viewer's camera (default: the scene's)\n"
+          "  --epochs N            epochs to step for --save-state (default 8)\n"
+          "  --budget MIB          the viewer's budget for --save-state (default 64; 2048-byte slots,\n"
+          "                        32-byte records)\n"
+          "  --viewport WxH        the viewer's viewport for --save-state (default 1280x720)\n"
+          "  --threads N           producer threads (default: all cores)\n"
           "  -q, --quiet           only errors\n"
           "  --help, --version\n"
           "\n"
-          "The network listener arrives with a later release; today the server validates and exports.\n"
+          "The network listener arrives with a later release; today the server validates, exports and\n"
+          "plans states offline.\n"
           "exit status: 0 ok, 1 runtime error (bad scene or file), 2 usage error\n");
+}
+
+/* Steps the server core for one viewer and writes the state it holds at the end. */
+static int save_state(const oc_scene_t *sc, const oc_camera_pose_t *pose, double t, int epochs, uint64_t budget, int vw,
+                      int vh, int threads, const char *path) {
+  char why[1024];
+  ocs_world_desc_t wd = {.threads = threads, .time = t};
+  ocs_world_t *w = NULL;
+  if (ocs_world_create(&w, sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  ocs_plan_desc_t d = {.budget = budget, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21};
+  ocs_viewer_t *v = NULL;
+  oc_camera_t cam = oc_camera_from_pose(*pose);
+  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose->fov, vw, vh};
+  int rc = OC_EXIT_OK;
+  if (ocs_world_add_viewer(w, &d, &v, NULL, why, sizeof why) < 0 || ocs_viewer_set_view(v, &view) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "viewer: %s", why);
+    goto out;
+  }
+  for (int e = 0; e < epochs; e++) {
+    int r = ocs_world_step(w);
+    if (r < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "epoch %d: %s", e + 1, oc_strerror(r));
+      goto out;
+    }
+    ocs_epoch_out_t o;
+    ocs_viewer_output(v, &o);
+    ocs_viewer_ack(v, o.state->epoch);
+    ocs_world_stats_t ws;
+    ocs_world_stats(w, &ws);
+    oc_log_info("epoch %d/%d: %u leaves, %u new bricks, %u splits, %u merges, plan %.1f ms, produce %.1f ms", e + 1, epochs,
+                o.plan.leaves, o.nlacking, o.plan.splits, o.plan.merges, 1e3 * ws.plan_seconds, 1e3 * ws.produce_seconds);
+  }
+  ocs_epoch_out_t o;
+  ocs_viewer_output(v, &o);
+  if (oc_state_save(o.state, path, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    goto out;
+  }
+  printf("%s\n", path);
+out:
+  ocs_world_free(w);
+  return rc;
 }
 
 static int parse_region(const char *text, double v[4]) {
@@ -50,17 +105,22 @@ static int parse_region(const char *text, double v[4]) {
 }
 
 int main(int argc, char **argv) {
-  enum { O_SCENE = 256, O_CHECK, O_INSPECT, O_JSON, O_EXPORT, O_REGION, O_LEVEL, O_TIME, O_HELP, O_VERSION };
+  enum { O_SCENE = 256, O_CHECK, O_INSPECT, O_JSON, O_EXPORT, O_REGION, O_LEVEL, O_TIME, O_SAVE, O_CAMERA, O_EPOCHS,
+         O_BUDGET, O_VIEWPORT, O_THREADS, O_HELP, O_VERSION };
   static const struct option opts[] = {
       {"scene", required_argument, 0, O_SCENE},   {"check", no_argument, 0, O_CHECK},
       {"inspect", required_argument, 0, O_INSPECT}, {"json", no_argument, 0, O_JSON},
       {"export-vdb", required_argument, 0, O_EXPORT}, {"region", required_argument, 0, O_REGION},
       {"level", required_argument, 0, O_LEVEL},   {"time", required_argument, 0, O_TIME},
+      {"save-state", required_argument, 0, O_SAVE}, {"camera", required_argument, 0, O_CAMERA},
+      {"epochs", required_argument, 0, O_EPOCHS}, {"budget", required_argument, 0, O_BUDGET},
+      {"viewport", required_argument, 0, O_VIEWPORT}, {"threads", required_argument, 0, O_THREADS},
       {"quiet", no_argument, 0, 'q'},             {"help", no_argument, 0, O_HELP},
       {"version", no_argument, 0, O_VERSION},     {0, 0, 0, 0}};
-  const char *scene_path = NULL, *inspect = NULL, *export_path = NULL, *region_text = NULL;
-  int check = 0, json = 0, c;
-  long level = 16;
+  const char *scene_path = NULL, *inspect = NULL, *export_path = NULL, *region_text = NULL, *save_path = NULL,
+             *camera_text = NULL;
+  int check = 0, json = 0, c, vw = 1280, vh = 720;
+  long level = 16, epochs = 8, budget_mib = 64, threads = 0;
   double t = 0.0;
   opterr = 0;
   while ((c = getopt_long(argc, argv, "q", opts, NULL)) != -1) {
@@ -73,6 +133,15 @@ int main(int argc, char **argv) {
       case O_REGION: region_text = optarg; break;
       case O_LEVEL: if (oc_cli_int(prog, "--level", optarg, 0, 21, &level)) return OC_EXIT_USAGE; break;
       case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &t)) return OC_EXIT_USAGE; break;
+      case O_SAVE: save_path = optarg; break;
+      case O_CAMERA: camera_text = optarg; break;
+      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &epochs)) return OC_EXIT_USAGE; break;
+      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
+      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 0, 64, &threads)) return OC_EXIT_USAGE; break;
+      case O_VIEWPORT:
+        if (sscanf(optarg, "%dx%d", &vw, &vh) != 2 || vw < 1 || vh < 1 || vw > 16384 || vh > 16384)
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--viewport: expected WxH (1..16384), got \"%s\"", optarg);
+        break;
       case 'q': oc_log_set_level(OC_LOG_ERROR); break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -93,8 +162,13 @@ int main(int argc, char **argv) {
     if (ocs_vdb_inspect(inspect, json, stdout, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
     return OC_EXIT_OK;
   }
-  if (!check && !export_path)
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "nothing to do: the network listener is not in this build (use --check, --inspect or --export-vdb)");
+  if (!check && !export_path && !save_path)
+    return oc_cli_fail(prog, OC_EXIT_USAGE,
+                       "nothing to do: the network listener is not in this build (use --check, --inspect, --export-vdb or --save-state)");
+  if (camera_text && !save_path) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera goes with --save-state");
+  oc_camera_pose_t pose;
+  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
 
   oc_scene_t *sc = calloc(1, sizeof *sc);
   ocs_field_t *field = NULL;
@@ -134,6 +208,10 @@ int main(int argc, char **argv) {
       goto out;
     }
     printf("%s\n", export_path);
+  }
+  if (save_path) {
+    if (!camera_text) pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
+    rc = save_state(sc, &pose, t, (int)epochs, (uint64_t)budget_mib << 20, vw, vh, (int)threads, save_path);
   }
 out:
   ocs_field_free(field);

@@ -9,6 +9,7 @@
 
 #include "brick_cache.h"
 #include "oc_err.h"
+#include "oc_planet.h"
 #include "ocs_field.h"
 #include "pool.h"
 #include "sun_depth.h"
@@ -60,7 +61,7 @@ struct ocs_world_s {
   ocs_field_t *field;
   ocs_cache_t *cache;
   ocs_pool_t *pool;
-  int K, shadows;
+  int K, shadows, ground_tau;
   uint64_t field_gen;
   uint64_t epoch;
   double time, scale;
@@ -156,7 +157,9 @@ static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
   }
   r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
   ocs_cache_release(w->cache, e);
-  return r;
+  /* the volume covers the nodes its march level says may hold σt; others (the ground under a
+   * cloud, a wisp the coarser level missed) are marched on their own */
+  return r == OC_ENOENT ? ocs_tau_direct(&w->tau, key, out) : r;
 }
 
 static int produce_one(void *ctx, size_t i, int worker) {
@@ -172,11 +175,17 @@ static int produce_one(void *ctx, size_t i, int worker) {
   if (r == OCS_CACHE_HIT) return 0;
   float sigma[OC_BRICK_VOXELS], tau[OC_BRICK_VOXELS];
   memset(tau, 0, sizeof tau);
-  r = sigma_get(w, q->key, sigma);
+  float lo, hi;
+  ocs_field_bound(w->field, q->key, w->time, &lo, &hi);
+  if (!(hi > 0.0f)) /* known empty: no sampling */
+    memset(sigma, 0, sizeof sigma);
+  else
+    r = sigma_get(w, q->key, sigma);
   int any = 0;
   for (int j = 0; r >= 0 && j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
-  /* nothing scatters where σt is all zero: such a node needs no τ and stays empty */
-  if (r >= 0 && any && w->shadows) r = tau_get(w, q->key, tau);
+  /* nothing scatters where σt is all zero: such a node needs no τ and stays empty, unless it holds
+   * the ground, which the renderer lights through τ (cloud shadows on the ground) */
+  if (r >= 0 && w->shadows && (any || (w->ground_tau && oc_key_meets_ground(q->key)))) r = tau_get(w, q->key, tau);
   payload_t *p = r >= 0 ? malloc(sizeof *p) : NULL;
   if (!p) {
     ocs_cache_abandon(w->cache, q->entry);
@@ -245,6 +254,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   }
   w->K = ocs_field_animated(w->field) ? 3 : 2;
   w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
+  w->ground_tau = w->shadows && oc_scene_has(&w->scene, OC_FEATURE_PLANET_SURFACE);
   w->field_gen = 1;
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;
   w->scale = 1.0;
@@ -495,6 +505,7 @@ int ocs_world_step(ocs_world_t *w) {
   in.classify = classify_cb;
   in.ctx = w;
   in.uniform_is_brick = w->shadows;
+  in.ground_tau = w->ground_tau;
   memcpy(in.stamp, w->stamp, sizeof in.stamp);
   memcpy(in.refresh_rate, w->rate, sizeof in.refresh_rate);
 

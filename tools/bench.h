@@ -9,5 +9,8 @@ void oct_bench_usage(FILE *f);
 int oct_parse_list(const char *prog, const char *opt, const char *text, long lo, long hi, long *out, int cap, int *n);
 int oct_bench_render(const char *prog, int argc, char **argv);
 int oct_bench_field(const char *prog, int argc, char **argv);
+int oct_bench_tau(const char *prog, int argc, char **argv);
+int oct_bench_plan(const char *prog, int argc, char **argv);
+int oct_bench_world(const char *prog, int argc, char **argv);
 
 #endif /* OC_TOOLS_BENCH_H */

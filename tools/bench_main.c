@@ -16,6 +16,9 @@ void oct_bench_usage(FILE *f) {
           "commands:\n"
           "  render     CPU reference renderer throughput per thread count\n"
           "  field      brick production of a scene's field sources: bricks/s per core, bound classification\n"
+          "  tau        sun optical depth τ: direct march vs group volume, µs per brick and the volume's error\n"
+          "  plan       LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core\n"
+          "  world      the server core stepped for some epochs: plans, production, cache, refresh savings\n"
           "\n"
           "render options:\n"
           "  --scene FILE        analytic scene (default scenes/analytic_sphere.json)\n"
@@ -36,6 +39,34 @@ void oct_bench_usage(FILE *f) {
           "  --at LAT,LON        centre of the block (default: the scene camera)\n"
           "  --alt M             altitude of the block's centre in metres (default 2000)\n"
           "  --time T            world time in seconds (default 0)\n"
+          "\n"
+          "tau options:\n"
+          "  --scene FILE        scene (default: the built-in procedural planet)\n"
+          "  --level LIST        octree levels of the nodes (default 13)\n"
+          "  --block N           N³ nodes per level, aligned to volume groups (default 8)\n"
+          "  --at LAT,LON        centre of the block (default: the scene camera)\n"
+          "  --alt M             altitude of the block's centre in metres (default 2000)\n"
+          "  --time T            world time in seconds (default 0)\n"
+          "  --sun-zenith DEG    the sun this far from the zenith, toward the east, at the block\n"
+          "                      (default: the scene's sun)\n"
+          "  --repeat N          timed passes; the fastest counts (default 3)\n"
+          "  --reference         also compare both methods with a converged march (8x the direct's cost)\n"
+          "\n"
+          "plan options:\n"
+          "  --budget MIB        viewer budget (default 2048; 2048-byte slots, 32-byte records, 2 kept states)\n"
+          "  --leaves N          target leaves: alone, sizes the budget for N brick leaves; with --budget,\n"
+          "                      stops the build-up at N leaves\n"
+          "  --repeat N          re-plans timed per case; the median counts (default 5)\n"
+          "\n"
+          "world options:\n"
+          "  --scene FILE        scene (default: the built-in procedural planet)\n"
+          "  --viewers N         viewers, spread around the camera's heading when orbiting (default 1)\n"
+          "  --epochs N          epochs to step (default 20)\n"
+          "  --budget MIB        each viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
+          "  --threads N         producer threads (default: all cores)\n"
+          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera)\n"
+          "  --orbit DEG         heading change per epoch (default 0: a still camera)\n"
+          "  --split-fraction X  planner split cap per epoch as a fraction of capacity (default 0.1)\n"
           "\n"
           "  --help, --version\n"
           "\n"
@@ -72,5 +103,8 @@ int main(int argc, char **argv) {
   }
   if (!strcmp(argv[1], "render")) return oct_bench_render(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "field")) return oct_bench_field(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "tau")) return oct_bench_tau(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "plan")) return oct_bench_plan(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "world")) return oct_bench_world(prog, argc - 1, argv + 1);
   return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown command \"%s\" (see --help)", argv[1]);
 }

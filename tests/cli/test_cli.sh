@@ -73,6 +73,11 @@ grep -q "procedural" "$tmp/out" || { echo "FAIL server --check: no source listed
 check "server: checks the Disney scene" 0 "" -- "$S" --scene scenes/disney_cloud.json --check -q
 check "server: inspects the Disney cloud (json)" 0 "" -- "$S" --inspect ../shared/data/wdas_cloud_sixteenth.vdb --json
 grep -q "415642" "$tmp/out" || { echo "FAIL server --inspect: active voxel count missing"; fail=$((fail + 1)); }
+check "server: --camera without --save-state" 2 "--camera goes with --save-state" -- "$S" --check --camera 0,0,1000,0,0,60
+check "server: bad camera" 2 "--camera: " -- "$S" --save-state "$tmp/p.ocst" --camera 0,0,1000,0,0
+check "server: bad viewport" 2 "--viewport: expected WxH" -- "$S" --save-state "$tmp/p.ocst" --viewport 0x10
+check "server: plans a state offline" 0 "" -- "$S" --scene scenes/analytic_sphere.json --save-state "$tmp/p.ocst" --epochs 3 --budget 4 --viewport 160x90 -q
+check "view: renders the server's state" 0 "" -- "$V" --state "$tmp/p.ocst" --size 32x18 --out "$tmp/c" -q
 
 B=$BIN/overcast-bench
 check "bench: no command" 2 "usage" -- "$B"
@@ -80,6 +85,8 @@ check "bench: unknown command" 2 "unknown command \"frob\"" -- "$B" frob
 check "bench: bad threads" 2 "--threads: expected an integer" -- "$B" render --threads 1,x
 check "bench: renders" 0 "" -- "$B" render --size 16x9 --repeat 1 --threads 1,2
 grep -q "identical" "$tmp/out" || { echo "FAIL bench: thread counts not reported identical"; fail=$((fail + 1)); }
+check "bench: world, bad viewers" 2 "--viewers" -- "$B" world --viewers 0
+check "bench: steps the world" 0 "" -- "$B" world --scene scenes/analytic_sphere.json --epochs 2 --budget 2 --threads 2
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -1,0 +1,688 @@
+/* sun_depth.c — τ (sun optical depth) for a node's samples: the direct march and the group volume
+ * (sun_depth.h has the model; docs/numerics.md the errors). */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "brick.h" /* ocg_brick_base, ocg_brick_frac, ocg_brick_base_voxel, ocg_trilerp */
+#include "oc_err.h"
+#include "oc_voxelize.h" /* oc_brick_sample_pos */
+#include "sun_depth.h"
+
+#define OCS__S OC_ROOT_HALF
+#define OCS__R_ATMO (OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT)
+#define OCS__R_STOP OCS_TAU_PLANET_STOP
+/*! Safety cap on steps plus skips of one march: far above any real march (a grazing ray through
+ *  the whole atmosphere at the finest level and step factor takes a few hundred thousand). */
+#define OCS__MAX_ITER 4000000
+
+/*-*** Desc ***/
+
+typedef struct {
+  const ocs_tau_desc_t *u;
+  oc_dvec3 sun;
+  int filter_levels, min_level, group_levels;
+  double step_factor, cone;
+} ocs__desc_t;
+
+static int ocs__desc(const ocs_tau_desc_t *d, ocs__desc_t *o) {
+  if (!d || !d->sigma || !d->bound) return OC_EINVAL;
+  double n = oc_dlen(d->sun_dir);
+  if (!isfinite(n) || !(n > 0.0)) return OC_EINVAL;
+  o->u = d;
+  o->sun = oc_dscale(d->sun_dir, 1.0 / n);
+  o->filter_levels = d->filter_levels ? d->filter_levels : OCS_TAU_DEFAULT_FILTER_LEVELS;
+  o->min_level = d->min_level ? d->min_level : OCS_TAU_DEFAULT_MIN_LEVEL;
+  o->group_levels = d->group_levels ? d->group_levels : OCS_TAU_DEFAULT_GROUP_LEVELS;
+  o->step_factor = d->step_factor != 0.0 ? d->step_factor : OCS_TAU_DEFAULT_STEP_FACTOR;
+  o->cone = d->cone != 0.0 ? d->cone : OCS_TAU_DEFAULT_CONE;
+  if (o->filter_levels < 0 || o->filter_levels > OC_KEY_MAX_LEVEL) return OC_EINVAL;
+  if (o->min_level < 0 || o->min_level > OC_KEY_MAX_LEVEL) return OC_EINVAL;
+  if (o->group_levels < 0 || o->group_levels > OCS_TAU_MAX_GROUP_LEVELS) return OC_EINVAL;
+  if (!(o->step_factor > 0.0 && o->step_factor <= 16.0)) return OC_EINVAL;
+  if (!(o->cone >= 0.0 && o->cone <= 1.0)) return OC_EINVAL;
+  return 0;
+}
+
+/* Voxel (sample spacing, size/7) of a level. */
+static double ocs__voxel(int level) { return ldexp(2.0 * OCS__S / 7.0, -level); }
+
+/*-*** Memo: bounds and bricks asked during one call ***/
+
+typedef struct {
+  oc_key_t key; /* 0: free slot */
+  float smin, smax;
+  int32_t brick; /* index into the pool, -1: not fetched */
+} ocs__ent_t;
+
+typedef struct {
+  uint32_t ix, iy, iz;
+  int32_t slot; /* -1: none */
+} ocs__cur_t;
+
+/* One call's state: the memo, the march parameters and a per-level "current node" cache. */
+typedef struct {
+  const ocs__desc_t *d;
+  ocs__ent_t *tab;
+  uint32_t cap, count; /* cap: power of two */
+  float *pool;
+  int32_t nbricks, pool_cap;
+  int err;
+  int level_m;  /* march level */
+  int level_lo; /* coarsest level sampled or bounded */
+  double h0;    /* first step, m */
+  double cell_k[OC_KEY_MAX_LEVEL + 1], cell_n[OC_KEY_MAX_LEVEL + 1]; /* 2^L / 2S, 2^L */
+  double step_up[OC_KEY_MAX_LEVEL + 2]; /* h0·2^(j+1): a step this long samples one level coarser */
+  ocs__cur_t cur[OC_KEY_MAX_LEVEL + 1];
+  /* The last node (at a step's level) whose whole ancestry down from level_lo was found non-empty. */
+  int chk_level;
+  uint32_t chk_ix, chk_iy, chk_iz;
+} ocs__ctx_t;
+
+static void ocs__cur_reset(ocs__ctx_t *c) {
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) c->cur[l].slot = -1;
+  c->chk_level = -1;
+}
+
+static int ocs__ctx_init(ocs__ctx_t *c, const ocs__desc_t *d, int node_level) {
+  memset(c, 0, sizeof *c);
+  c->d = d;
+  c->cap = 256;
+  c->tab = calloc(c->cap, sizeof *c->tab);
+  if (!c->tab) return OC_ENOMEM;
+  int m = node_level - d->filter_levels;
+  int lo = d->min_level < node_level ? d->min_level : node_level;
+  if (m < lo) m = lo;
+  c->level_m = m;
+  c->level_lo = lo;
+  c->h0 = d->step_factor * ocs__voxel(m);
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    c->cell_n[l] = ldexp(1.0, l);
+    c->cell_k[l] = c->cell_n[l] / (2.0 * OCS__S);
+    c->step_up[l] = ldexp(c->h0, l + 1);
+  }
+  c->step_up[OC_KEY_MAX_LEVEL + 1] = INFINITY;
+  ocs__cur_reset(c);
+  return 0;
+}
+
+static void ocs__ctx_free(ocs__ctx_t *c) {
+  free(c->tab);
+  free(c->pool);
+}
+
+static inline uint32_t ocs__hash(oc_key_t k) { return (uint32_t)((k * 0x9E3779B97F4A7C15ull) >> 32); }
+
+static int ocs__grow(ocs__ctx_t *c) {
+  uint32_t ncap = c->cap * 2;
+  ocs__ent_t *nt = calloc(ncap, sizeof *nt);
+  if (!nt) return OC_ENOMEM;
+  for (uint32_t i = 0; i < c->cap; i++) {
+    if (!c->tab[i].key) continue;
+    uint32_t h = ocs__hash(c->tab[i].key) & (ncap - 1);
+    while (nt[h].key) h = (h + 1) & (ncap - 1);
+    nt[h] = c->tab[i];
+  }
+  free(c->tab);
+  c->tab = nt;
+  c->cap = ncap;
+  ocs__cur_reset(c); /* slots moved */
+  return 0;
+}
+
+/* The slot of key with its bound known (asking the callback the first time); -1 on error. */
+static int32_t ocs__lookup(ocs__ctx_t *c, oc_key_t key) {
+  if ((c->count + 1) * 2 > c->cap && ocs__grow(c) < 0) {
+    c->err = OC_ENOMEM;
+    return -1;
+  }
+  uint32_t h = ocs__hash(key) & (c->cap - 1);
+  while (c->tab[h].key) {
+    if (c->tab[h].key == key) return (int32_t)h;
+    h = (h + 1) & (c->cap - 1);
+  }
+  float mn = 0.0f, mx = 0.0f;
+  c->d->u->bound(c->d->u->ctx, key, &mn, &mx);
+  /* Anything not provably [0, 0] or [v, v] (NaN included) is "varies": the brick is fetched. */
+  if (!(mx >= 0.0f) || isnan(mn)) mn = 0.0f, mx = INFINITY;
+  if (!(mn >= 0.0f)) mn = 0.0f;
+  if (!(mx <= OC_VALUE_MAX)) mx = mn == mx ? OC_VALUE_MAX : INFINITY; /* a uniform +Inf is sanitised */
+  if (mn > OC_VALUE_MAX) mn = OC_VALUE_MAX;
+  c->tab[h].key = key;
+  c->tab[h].smin = mn;
+  c->tab[h].smax = mx;
+  c->tab[h].brick = -1;
+  c->count++;
+  return (int32_t)h;
+}
+
+/* The brick of a slot (fetched the first time); NULL on error. */
+static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
+  ocs__ent_t *e = &c->tab[slot];
+  if (e->brick < 0) {
+    if (c->nbricks == c->pool_cap) {
+      int32_t ncap = c->pool_cap ? c->pool_cap * 2 : 16;
+      float *np = realloc(c->pool, (size_t)ncap * OC_BRICK_VOXELS * sizeof(float));
+      if (!np) {
+        c->err = OC_ENOMEM;
+        return NULL;
+      }
+      c->pool = np;
+      c->pool_cap = ncap;
+    }
+    float *b = c->pool + (size_t)c->nbricks * OC_BRICK_VOXELS;
+    int r = c->d->u->sigma(c->d->u->ctx, e->key, b);
+    if (r < 0) {
+      c->err = r;
+      return NULL;
+    }
+    oc_sanitize(b, OC_BRICK_VOXELS, NULL);
+    e->brick = c->nbricks++;
+    /* The samples' own range is exact where the bound was only conservative: an all-zero brick is
+     * skipped from now on, a uniform one read without interpolation. */
+    float mn = b[0], mx = b[0];
+    for (int i = 1; i < OC_BRICK_VOXELS; i++) {
+      mn = b[i] < mn ? b[i] : mn;
+      mx = b[i] > mx ? b[i] : mx;
+    }
+    e->smin = mn, e->smax = mx;
+    c->chk_level = -1;
+  }
+  return c->pool + (size_t)e->brick * OC_BRICK_VOXELS;
+}
+
+/* Cell of x at a level, as lattice-of-nodes coordinates; the fractions f ∈ [0, 1] inside it.
+ * @return 0 outside the closed root cube. */
+static inline int ocs__cell(const ocs__ctx_t *c, oc_dvec3 x, int level, uint32_t *ix, uint32_t *iy, uint32_t *iz,
+                            double f[3]) {
+  double n = c->cell_n[level], k = c->cell_k[level];
+  double g[3] = {(x.x + OCS__S) * k, (x.y + OCS__S) * k, (x.z + OCS__S) * k};
+  uint32_t i3[3];
+  for (int a = 0; a < 3; a++) {
+    if (!(g[a] >= 0.0 && g[a] <= n)) return 0;
+    uint32_t i = (uint32_t)g[a]; /* floor: g ≥ 0 */
+    if (i >= (uint32_t)n) i = (uint32_t)n - 1u; /* the root's max face belongs to the last cell */
+    i3[a] = i;
+    f[a] = g[a] - (double)i;
+  }
+  *ix = i3[0], *iy = i3[1], *iz = i3[2];
+  return 1;
+}
+
+/* σt at x reconstructed from the bricks of `level` (shaders/brick.h's trilinear reconstruction);
+ * 0 outside the root cube. */
+static double ocs__sigma_at(ocs__ctx_t *c, oc_dvec3 x, int level) {
+  uint32_t ix, iy, iz;
+  double f[3];
+  if (!ocs__cell(c, x, level, &ix, &iy, &iz, f)) return 0.0;
+  ocs__cur_t *cu = &c->cur[level];
+  int32_t slot;
+  if (cu->slot >= 0 && cu->ix == ix && cu->iy == iy && cu->iz == iz) {
+    slot = cu->slot;
+  } else {
+    slot = ocs__lookup(c, oc_key_make(level, ix, iy, iz));
+    if (slot < 0) return 0.0;
+    cu = &c->cur[level]; /* a grow may have reset it */
+    cu->ix = ix, cu->iy = iy, cu->iz = iz, cu->slot = slot;
+  }
+  const ocs__ent_t *e = &c->tab[slot];
+  if (!(e->smax > 0.0f)) return 0.0;
+  if (e->smin == e->smax) return e->smin;
+  const float *b = ocs__brick(c, slot);
+  if (!b) return 0.0;
+  ocg_vec3 u = ocg_v3((float)f[0], (float)f[1], (float)f[2]);
+  ocg_vec3 base = ocg_brick_base(u), w = ocg_brick_frac(u, base);
+  ocg_uint b0 = ocg_brick_base_voxel(base);
+  return ocg_trilerp(ocg_v4(b[b0], b[b0 + 1], b[b0 + 8], b[b0 + 9]),
+                     ocg_v4(b[b0 + 64], b[b0 + 65], b[b0 + 72], b[b0 + 73]), w);
+}
+
+/* Distance along dir from x to where the ray leaves the node (ix, iy, iz) of `level` (≥ 0). */
+static double ocs__exit(oc_dvec3 x, oc_dvec3 dir, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
+  double size = oc_key_size(level);
+  double o[3] = {-OCS__S + ix * size, -OCS__S + iy * size, -OCS__S + iz * size};
+  double p[3] = {x.x, x.y, x.z}, d[3] = {dir.x, dir.y, dir.z}, t = INFINITY;
+  for (int a = 0; a < 3; a++) {
+    if (d[a] > 0.0) t = fmin(t, (o[a] + size - p[a]) / d[a]);
+    else if (d[a] < 0.0) t = fmin(t, (o[a] - p[a]) / d[a]);
+  }
+  return t > 0.0 ? t : 0.0;
+}
+
+/* When x lies in a node of level_lo..level whose bound is [0, 0]: the distance to leave the
+ * coarsest such node, plus a little to land in the next one; else 0. */
+static double ocs__skip(ocs__ctx_t *c, oc_dvec3 x, oc_dvec3 dir, int level) {
+  uint32_t ix, iy, iz;
+  double f[3];
+  if (!ocs__cell(c, x, level, &ix, &iy, &iz, f)) return 0.0;
+  if (c->chk_level == level && c->chk_ix == ix && c->chk_iy == iy && c->chk_iz == iz) return 0.0;
+  for (int l = c->level_lo; l <= level; l++) {
+    int sh = level - l;
+    uint32_t jx = ix >> sh, jy = iy >> sh, jz = iz >> sh;
+    int32_t slot;
+    ocs__cur_t *cu = &c->cur[l];
+    if (cu->slot >= 0 && cu->ix == jx && cu->iy == jy && cu->iz == jz) {
+      slot = cu->slot;
+    } else {
+      slot = ocs__lookup(c, oc_key_make(l, jx, jy, jz));
+      if (slot < 0) return 0.0;
+      cu = &c->cur[l];
+      cu->ix = jx, cu->iy = jy, cu->iz = jz, cu->slot = slot;
+    }
+    if (!(c->tab[slot].smax > 0.0f)) {
+      double size = oc_key_size(l);
+      return ocs__exit(x, dir, l, jx, jy, jz) + 1e-6 + 1e-9 * size;
+    }
+  }
+  c->chk_level = level, c->chk_ix = ix, c->chk_iy = iy, c->chk_iz = iz;
+  return 0.0;
+}
+
+/*-*** Ray geometry ***/
+
+/* Intersections t1 ≤ t2 of p + t·d (d unit) with the sphere |x| = r about the planet centre;
+ * 0 when the ray misses it. The half chord from the perpendicular distance (no b² − c). */
+static int ocs__sphere(oc_dvec3 p, oc_dvec3 d, double r, double *t1, double *t2) {
+  double b = oc_ddot(p, d);
+  oc_dvec3 perp = oc_dmad(p, d, -b);
+  double q = oc_dlen(perp);
+  if (!(q < r)) return 0;
+  double h = sqrt((r - q) * (r + q));
+  *t1 = -b - h;
+  *t2 = -b + h;
+  return 1;
+}
+
+/* The part [t0, t1] of the ray from p toward the sun that τ integrates (sun_depth.h: the cuts);
+ * 0 when it is empty. */
+static int ocs__clip(oc_dvec3 p, oc_dvec3 d, double *t0, double *t1) {
+  double a1, a2, i1, i2;
+  if (oc_ddot(p, p) < OCS__R_STOP * OCS__R_STOP) return 0;
+  if (!ocs__sphere(p, d, OCS__R_ATMO, &a1, &a2)) return 0;
+  double lo = a1 > 0.0 ? a1 : 0.0, hi = a2;
+  if (ocs__sphere(p, d, OCS__R_STOP, &i1, &i2) && i1 >= 0.0 && i1 < hi) hi = i1;
+  double pv[3] = {p.x, p.y, p.z}, dv[3] = {d.x, d.y, d.z};
+  for (int a = 0; a < 3; a++) { /* the root cube (the atmosphere sphere is inscribed: rounding only) */
+    if (dv[a] > 0.0) hi = fmin(hi, (OCS__S - pv[a]) / dv[a]);
+    else if (dv[a] < 0.0) hi = fmin(hi, (-OCS__S - pv[a]) / dv[a]);
+  }
+  if (!(hi > lo)) return 0;
+  *t0 = lo;
+  *t1 = hi;
+  return 1;
+}
+
+/*-*** The march ***/
+
+/* ∫ σt over p + t·sun, t ∈ [t0, t1], with cone steps Δ = max(h0, cone·(t + t_ref)) and
+ * empty-space skipping. */
+static double ocs__march(ocs__ctx_t *c, oc_dvec3 p, double t0, double t1, double t_ref) {
+  const ocs__desc_t *d = c->d;
+  oc_dvec3 s = d->sun;
+  int jmax = c->level_m - c->level_lo;
+  double dmax = jmax > 0 ? c->step_up[jmax - 1] : c->h0;
+  double tau = 0.0, t = t0;
+  for (int it = 0; t < t1 && it < OCS__MAX_ITER && !c->err; it++) {
+    double step = d->cone * (t + t_ref);
+    if (step < c->h0) step = c->h0;
+    if (step > dmax) step = dmax;
+    int j = 0;
+    while (j < jmax && step >= c->step_up[j]) j++;
+    int level = c->level_m - j;
+    oc_dvec3 x = oc_dmad(p, s, t);
+    double skip = ocs__skip(c, x, s, level);
+    if (skip > 0.0) {
+      t += skip;
+      continue;
+    }
+    if (step > t1 - t) step = t1 - t;
+    tau += ocs__sigma_at(c, oc_dmad(p, s, t + 0.5 * step), level) * step;
+    t += step;
+  }
+  return tau;
+}
+
+/* τ at p: the clipped ray, marched. */
+static double ocs__tau_point(ocs__ctx_t *c, oc_dvec3 p, double t_ref) {
+  double t0, t1;
+  if (!ocs__clip(p, c->d->sun, &t0, &t1)) return 0.0;
+  return ocs__march(c, p, t0, t1, t_ref);
+}
+
+static float ocs__to_float(double tau) {
+  if (!(tau > 0.0)) return 0.0f;
+  return tau < 3.0e38 ? (float)tau : 3.0e38f;
+}
+
+int ocs_tau_direct(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
+  ocs__desc_t d;
+  if (!tau || !oc_key_valid(key)) return OC_EINVAL;
+  OC_TRY(ocs__desc(du, &d));
+  ocs__ctx_t c;
+  OC_TRY(ocs__ctx_init(&c, &d, oc_key_level(key)));
+  for (int k = 0; k < 8 && !c.err; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++) tau[i + 8 * j + 64 * k] = ocs__to_float(ocs__tau_point(&c, oc_brick_sample_pos(key, i, j, k), 0.0));
+  int err = c.err;
+  ocs__ctx_free(&c);
+  if (err) memset(tau, 0, sizeof(float) * OC_BRICK_VOXELS);
+  return err;
+}
+
+/*-*** The group volume ***/
+
+#define OCS__VOL_MAGIC 0x5441554fu /* "OUAT" */
+#define OCS__VOL_VERSION 1u
+
+/* The block: this header, the coverage bitmap (one bit per descendant, x fastest), the column
+ * table (na × nb, a fastest), then the floats; each part starts on a 16-byte boundary. */
+typedef struct {
+  uint32_t magic, version;
+  oc_key_t group;
+  int32_t level, nd;  /* nodes' level; descendants per axis (2^(level − level(group))) */
+  int32_t na, nb;     /* columns along e1, e2 */
+  uint64_t nfloats, bytes;
+  uint64_t off_cov, off_cols, off_vals; /* byte offsets of the parts */
+  double o[3], e1[3], e2[3], s[3]; /* grid origin (group centre) and the sun frame */
+  double a_lo, b_lo, c_lo, da, dc; /* column (ia, ib) at a_lo + ia·da, b_lo + ib·da; slice k at c_lo + k·dc */
+} ocs__vol_t;
+
+typedef struct {
+  int32_t k0, n; /* slices k0 .. k0 + n − 1 */
+  uint32_t off;  /* first float */
+} ocs__col_t;
+
+/* Grid coordinates (column a, column b, slice) of the 512 samples of node (kx, ky, kz) at the
+ * volume's level, f[v][3] with v = i + 8j + 64k: sample 0 projected, then affine steps along i, j,
+ * k (samples lie on a lattice). The build marks what each sample needs with exactly the
+ * operations the lookup uses, so a lookup always finds the slices it reads. */
+static void ocs__grid_of(const ocs__vol_t *v, uint32_t kx, uint32_t ky, uint32_t kz, double f[512][3]) {
+  double u = ocs__voxel(v->level);
+  double rel[3] = {-OCS__S + (double)(7 * (int64_t)kx) * u - v->o[0], -OCS__S + (double)(7 * (int64_t)ky) * u - v->o[1],
+                   -OCS__S + (double)(7 * (int64_t)kz) * u - v->o[2]};
+  const double *ax[3] = {v->e1, v->e2, v->s};
+  double lo[3] = {v->a_lo, v->b_lo, v->c_lo}, sp[3] = {v->da, v->da, v->dc}, f0[3], st[3][3];
+  for (int a = 0; a < 3; a++) {
+    f0[a] = (rel[0] * ax[a][0] + rel[1] * ax[a][1] + rel[2] * ax[a][2] - lo[a]) / sp[a];
+    for (int d = 0; d < 3; d++) st[d][a] = u * ax[a][d] / sp[a]; /* one sample along axis d */
+  }
+  for (int k = 0; k < 8; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++)
+        for (int a = 0; a < 3; a++) f[i + 8 * j + 64 * k][a] = f0[a] + i * st[0][a] + j * st[1][a] + k * st[2][a];
+}
+
+static oc_key_t ocs__group(const ocs__desc_t *d, oc_key_t key) {
+  int l = oc_key_level(key) - d->group_levels;
+  return oc_key_ancestor(key, l > 0 ? l : 0);
+}
+
+oc_key_t ocs_tau_group_of(const ocs_tau_desc_t *du, oc_key_t key) {
+  ocs__desc_t d;
+  if (!oc_key_valid(key) || ocs__desc(du, &d) < 0) return OC_KEY_INVALID;
+  return ocs__group(&d, key);
+}
+
+/* ∫ σt over the column line q0 + c·s, c ∈ [ca, cb], at the march level with midpoint sub-steps no
+ * longer than h0; σt counts only inside the atmosphere sphere and outside the stop sphere. */
+static double ocs__segment(ocs__ctx_t *c, oc_dvec3 q0, double ca, double cb) {
+  double len = cb - ca;
+  if (!(len > 0.0)) return 0.0;
+  int n = (int)ceil(len / c->h0 - 1e-9);
+  if (n < 1) n = 1;
+  double h = len / n, sum = 0.0;
+  for (int i = 0; i < n; i++) {
+    oc_dvec3 x = oc_dmad(q0, c->d->sun, ca + (i + 0.5) * h);
+    double r2 = oc_ddot(x, x);
+    if (r2 > OCS__R_ATMO * OCS__R_ATMO || r2 < OCS__R_STOP * OCS__R_STOP) continue;
+    sum += ocs__sigma_at(c, x, c->level_m);
+  }
+  return sum * h;
+}
+
+/* One column: τ at slices k0 .. k0 + n − 1 (c_k = c_lo + k·dc), from the top down. The top is a
+ * march toward the sun (cone distances counted from the middle of the column's run); below it
+ * each slice adds the segment up to the next one, so every slice's τ is the integral to the sun,
+ * with the same cut as a march from that point (sun_depth.h): a slice inside the stop sphere has
+ * τ = 0, one below it only integrates up to where its ray enters it. */
+static void ocs__column(ocs__ctx_t *c, const ocs__vol_t *v, oc_dvec3 q0, int32_t k0, int32_t n, float *out) {
+  oc_dvec3 s = c->d->sun;
+  double ci1 = INFINITY, ci2 = -INFINITY;
+  ocs__sphere(q0, s, OCS__R_STOP, &ci1, &ci2);
+  double ctop = v->c_lo + (k0 + n - 1) * v->dc;
+  double cmid = v->c_lo + (k0 + 0.5 * (n - 1)) * v->dc;
+  double acc = ocs__tau_point(c, oc_dmad(q0, s, ctop), ctop - cmid);
+  out[n - 1] = ocs__to_float(acc);
+  for (int32_t i = n - 2; i >= 0 && !c->err; i--) {
+    double ck = v->c_lo + (k0 + i) * v->dc, ck1 = ck + v->dc;
+    if (ck >= ci1 && ck <= ci2) { /* the sample point is inside the stop sphere */
+      acc = 0.0;
+    } else if (ck < ci1 && ck1 >= ci1) { /* its ray is cut where it enters the stop sphere */
+      acc = ocs__segment(c, q0, ck, ci1);
+    } else {
+      acc += ocs__segment(c, q0, ck, ck1);
+    }
+    out[i] = ocs__to_float(acc);
+  }
+}
+
+static size_t ocs__align16(size_t x) { return (x + 15) & ~(size_t)15; }
+
+/* Whether node (ix, iy, iz) of `level` may hold σt, judged from the march level's samples (its
+ * ancestor A at level m): the sample cubes of a level (edge size/7 around each sample) tile space,
+ * so when every sample of A whose cube overlaps the node's footprint (the node grown by half its
+ * voxel) is 0, σt is 0 over the whole footprint and so are all the node's samples (exactly for an
+ * exact box filter; a source that estimates box averages from sub-samples may, rarely, see a
+ * thin wisp at the finer level only: ocs_tau_volume_lookup() then says OC_ENOENT and the caller
+ * uses ocs_tau_direct()). The bricks asked for are those the columns march through anyway.
+ * @return 1, 0, or a negative OC_E*. */
+static int ocs__covered(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
+  int m = c->level_m, fe = level - m;
+  uint32_t ax = ix >> fe, ay = iy >> fe, az = iz >> fe;
+  int32_t slot = ocs__lookup(c, oc_key_make(m, ax, ay, az));
+  if (slot < 0) return c->err;
+  if (!(c->tab[slot].smax > 0.0f)) return 0;
+  if (c->tab[slot].smin > 0.0f) return 1;
+  const float *b = ocs__brick(c, slot);
+  if (!b) return c->err;
+  if (!(c->tab[slot].smax > 0.0f)) return 0; /* the brick itself is all zero */
+  /* per axis, the local samples j of A whose cube [j − ½, j + ½] (level-m voxels) overlaps the
+   * footprint [(7i − ½)/2^fe, (7i + 7½)/2^fe] − 7·a (open overlap; exact in binary) */
+  uint32_t in[3] = {ix, iy, iz}, an[3] = {ax, ay, az};
+  int lo[3], hi[3];
+  for (int k = 0; k < 3; k++) {
+    double u0 = ldexp(7.0 * in[k] - 0.5, -fe) - 7.0 * an[k], u1 = ldexp(7.0 * in[k] + 7.5, -fe) - 7.0 * an[k];
+    lo[k] = (int)floor(u0 - 0.5) + 1;
+    hi[k] = (int)ceil(u1 + 0.5) - 1;
+    lo[k] = lo[k] < 0 ? 0 : lo[k];
+    hi[k] = hi[k] > 7 ? 7 : hi[k];
+  }
+  for (int k = lo[2]; k <= hi[2]; k++)
+    for (int j = lo[1]; j <= hi[1]; j++)
+      for (int i = lo[0]; i <= hi[0]; i++)
+        if (b[i + 8 * j + 64 * k] > 0.0f) return 1;
+  return 0;
+}
+
+int ocs_tau_volume_build(const ocs_tau_desc_t *du, oc_key_t group, int level, void **vol, size_t *bytes) {
+  ocs__desc_t d;
+  if (!vol || !bytes) return OC_EINVAL;
+  *vol = NULL;
+  *bytes = 0;
+  OC_TRY(ocs__desc(du, &d));
+  int gl = oc_key_level(group);
+  if (gl < 0 || level < gl || level > OC_KEY_MAX_LEVEL || level - gl > OCS_TAU_MAX_GROUP_LEVELS) return OC_EINVAL;
+
+  /* The sun frame: s, and e1 ⊥ s from the axis least aligned with it, e2 = s × e1. */
+  oc_dvec3 s = d.sun;
+  double as[3] = {fabs(s.x), fabs(s.y), fabs(s.z)};
+  int ax = as[0] < as[1] ? (as[0] < as[2] ? 0 : 2) : (as[1] < as[2] ? 1 : 2);
+  oc_dvec3 axis = oc_dv3(ax == 0, ax == 1, ax == 2);
+  oc_dvec3 e1 = oc_dnorm(oc_dmad(axis, s, -oc_ddot(axis, s))), e2 = oc_dcross(s, e1);
+  double k1 = fabs(e1.x) + fabs(e1.y) + fabs(e1.z), k2 = fabs(e2.x) + fabs(e2.y) + fabs(e2.z);
+  double ks = as[0] + as[1] + as[2];
+
+  oc_dvec3 go;
+  double gsize;
+  oc_key_bounds(group, &go, &gsize);
+  uint32_t gx, gy, gz;
+  oc_key_coords(group, &gx, &gy, &gz);
+  int32_t nd = 1 << (level - gl);
+  double vox = ocs__voxel(level);
+  /* The grid spans the group's cube (every sample lies in its closed box) with a column and two
+   * slices to spare on every side; the volume's header doubles as the projection's parameters. */
+  ocs__vol_t hv;
+  memset(&hv, 0, sizeof hv);
+  hv.da = OCS_TAU_COLUMN_SPACING * vox, hv.dc = OCS_TAU_SLICE_SPACING * vox;
+  double gh = 0.5 * gsize * (1.0 + 1e-9) + 1e-6;
+  double ea = gh * k1, eb = gh * k2, ec = gh * ks;
+  int32_t na = (int32_t)ceil(2.0 * ea / hv.da) + 3, nb = (int32_t)ceil(2.0 * eb / hv.da) + 3;
+  int32_t nc = (int32_t)ceil((2.0 * ec + 4.0 * hv.dc) / hv.dc) + 2;
+  hv.level = level, hv.nd = nd, hv.na = na, hv.nb = nb;
+  hv.o[0] = go.x + 0.5 * gsize, hv.o[1] = go.y + 0.5 * gsize, hv.o[2] = go.z + 0.5 * gsize;
+  hv.e1[0] = e1.x, hv.e1[1] = e1.y, hv.e1[2] = e1.z;
+  hv.e2[0] = e2.x, hv.e2[1] = e2.y, hv.e2[2] = e2.z;
+  hv.s[0] = s.x, hv.s[1] = s.y, hv.s[2] = s.z;
+  hv.a_lo = -ea - hv.da, hv.b_lo = -eb - hv.da, hv.c_lo = -ec - 2.0 * hv.dc;
+
+  ocs__ctx_t c;
+  OC_TRY(ocs__ctx_init(&c, &d, level));
+  size_t ncol = (size_t)na * (size_t)nb, ndesc = (size_t)nd * nd * nd;
+  size_t off_cov = ocs__align16(sizeof(ocs__vol_t)), off_cols = off_cov + ocs__align16((ndesc + 7) / 8);
+  size_t off_vals = off_cols + ocs__align16(ncol * sizeof(ocs__col_t));
+  unsigned char *cov = calloc(1, (ndesc + 7) / 8);
+  int32_t *krange = malloc(2 * ncol * sizeof(int32_t));
+  ocs__col_t *cols = malloc(ncol * sizeof *cols);
+  double(*f)[3] = malloc(sizeof(double[OC_BRICK_VOXELS][3])); /* one node's grid coordinates */
+  int r = 0;
+  if (!cov || !krange || !cols || !f) {
+    r = OC_ENOMEM;
+    goto out;
+  }
+
+  /* Pass 1: coverage (descendants the march level's σt says may hold σt, ocs__covered()) and the
+   * slices each column must hold: for every sample of a covered descendant, slices ⌊c⌋ and ⌊c⌋ + 1
+   * of the four columns around its sun ray. */
+  for (size_t i = 0; i < ncol; i++) krange[2 * i] = INT32_MAX, krange[2 * i + 1] = -1;
+  for (size_t q = 0; q < ndesc; q++) {
+    uint32_t qx = (uint32_t)(q % (size_t)nd), qy = (uint32_t)(q / (size_t)nd % (size_t)nd), qz = (uint32_t)(q / ((size_t)nd * nd));
+    uint32_t kx = gx * (uint32_t)nd + qx, ky = gy * (uint32_t)nd + qy, kz = gz * (uint32_t)nd + qz;
+    int cv = du->cover_all ? 1 : ocs__covered(&c, level, kx, ky, kz);
+    if (cv < 0) {
+      r = cv;
+      goto out;
+    }
+    if (!cv) continue;
+    cov[q / 8] |= (unsigned char)(1u << (q % 8));
+    ocs__grid_of(&hv, kx, ky, kz, f);
+    for (int vi = 0; vi < OC_BRICK_VOXELS; vi++) {
+      /* the margins keep every coordinate ≥ 1: truncation is floor */
+      if (!(f[vi][0] >= 0.0 && f[vi][0] < na - 1 && f[vi][1] >= 0.0 && f[vi][1] < nb - 1 && f[vi][2] >= 0.0 &&
+            f[vi][2] < nc - 1)) {
+        r = OC_ECORRUPT; /* the margins make this impossible */
+        goto out;
+      }
+      int32_t ia = (int32_t)f[vi][0], ib = (int32_t)f[vi][1], kc = (int32_t)f[vi][2];
+      int32_t *kr = &krange[2 * ((size_t)ib * (size_t)na + (size_t)ia)];
+      for (int m = 0; m < 4; m++) {
+        int32_t *km = kr + 2 * ((m & 1) + (m >> 1) * na);
+        km[0] = kc < km[0] ? kc : km[0];
+        km[1] = kc + 1 > km[1] ? kc + 1 : km[1];
+      }
+    }
+  }
+  uint64_t nfloats = 0;
+  for (size_t i = 0; i < ncol; i++) {
+    cols[i].k0 = 0, cols[i].n = 0, cols[i].off = (uint32_t)nfloats;
+    if (krange[2 * i + 1] < 0) continue;
+    cols[i].k0 = krange[2 * i], cols[i].n = krange[2 * i + 1] - krange[2 * i] + 1;
+    nfloats += (uint64_t)cols[i].n;
+  }
+
+  size_t total = off_vals + (size_t)nfloats * sizeof(float);
+  unsigned char *blk = malloc(total);
+  if (!blk) {
+    r = OC_ENOMEM;
+    goto out;
+  }
+  ocs__vol_t *v = (ocs__vol_t *)blk;
+  memset(blk, 0, off_vals);
+  *v = hv;
+  v->magic = OCS__VOL_MAGIC, v->version = OCS__VOL_VERSION;
+  v->group = group;
+  v->nfloats = nfloats, v->bytes = total;
+  v->off_cov = off_cov, v->off_cols = off_cols, v->off_vals = off_vals;
+  memcpy(blk + off_cov, cov, (ndesc + 7) / 8);
+  memcpy(blk + off_cols, cols, ncol * sizeof *cols);
+  float *val = (float *)(blk + off_vals);
+
+  /* Pass 2: march every column once. */
+  oc_dvec3 o = oc_dv3(hv.o[0], hv.o[1], hv.o[2]);
+  for (size_t i = 0; i < ncol && !c.err; i++) {
+    if (!cols[i].n) continue;
+    double a = hv.a_lo + (double)(i % (size_t)na) * hv.da, b = hv.b_lo + (double)(i / (size_t)na) * hv.da;
+    oc_dvec3 q0 = oc_dadd(o, oc_dadd(oc_dscale(e1, a), oc_dscale(e2, b)));
+    ocs__column(&c, v, q0, cols[i].k0, cols[i].n, val + cols[i].off);
+  }
+  r = c.err;
+  if (r < 0) {
+    free(blk);
+    goto out;
+  }
+  *vol = blk;
+  *bytes = total;
+out:
+  ocs__ctx_free(&c);
+  free(cov);
+  free(krange);
+  free(cols);
+  free(f);
+  return r;
+}
+
+int ocs_tau_volume_lookup(const void *vol, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
+  const ocs__vol_t *v = vol;
+  if (!v || !tau || v->magic != OCS__VOL_MAGIC || v->version != OCS__VOL_VERSION) return OC_EINVAL;
+  int gl = oc_key_level(v->group);
+  if (oc_key_level(key) != v->level || oc_key_ancestor(key, gl) != v->group) return OC_EINVAL;
+  const unsigned char *blk = vol;
+  uint32_t kx, ky, kz, gx, gy, gz;
+  oc_key_coords(key, &kx, &ky, &kz);
+  oc_key_coords(v->group, &gx, &gy, &gz);
+  size_t q = (size_t)(kx - gx * (uint32_t)v->nd) + (size_t)v->nd * ((ky - gy * (uint32_t)v->nd) + (size_t)v->nd * (kz - gz * (uint32_t)v->nd));
+  if (!(blk[v->off_cov + q / 8] >> (q % 8) & 1u)) return OC_ENOENT;
+  const ocs__col_t *cols = (const ocs__col_t *)(blk + v->off_cols);
+  const float *val = (const float *)(blk + v->off_vals);
+  double f[OC_BRICK_VOXELS][3];
+  ocs__grid_of(v, kx, ky, kz, f);
+  for (int vi = 0; vi < OC_BRICK_VOXELS; vi++) {
+    if (!(f[vi][0] >= 0.0 && f[vi][0] < v->na - 1 && f[vi][1] >= 0.0 && f[vi][1] < v->nb - 1 && f[vi][2] >= 0.0))
+      return OC_ECORRUPT;
+    int32_t ia = (int32_t)f[vi][0], ib = (int32_t)f[vi][1], kc = (int32_t)f[vi][2]; /* floor: ≥ 0 */
+    double wa = f[vi][0] - ia, wb = f[vi][1] - ib, wc = f[vi][2] - kc;
+    const ocs__col_t *c00 = &cols[(size_t)ib * (size_t)v->na + (size_t)ia];
+    const ocs__col_t *qc[4] = {c00, c00 + 1, c00 + v->na, c00 + v->na + 1};
+    double t[4];
+    for (int m = 0; m < 4; m++) {
+      if (kc < qc[m]->k0 || kc + 1 > qc[m]->k0 + qc[m]->n - 1) return OC_ECORRUPT; /* the build marked these */
+      const float *cv = val + qc[m]->off + (uint32_t)(kc - qc[m]->k0);
+      t[m] = cv[0] + (cv[1] - (double)cv[0]) * wc;
+    }
+    double x0 = t[0] + (t[1] - t[0]) * wa, x1 = t[2] + (t[3] - t[2]) * wa;
+    tau[vi] = ocs__to_float(x0 + (x1 - x0) * wb);
+  }
+  return 0;
+}
+
+int ocs_tau_node(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
+  ocs__desc_t d;
+  if (!tau || !oc_key_valid(key)) return OC_EINVAL;
+  OC_TRY(ocs__desc(du, &d));
+  void *vol = NULL;
+  size_t bytes = 0;
+  OC_TRY(ocs_tau_volume_build(du, ocs__group(&d, key), oc_key_level(key), &vol, &bytes));
+  int r = ocs_tau_volume_lookup(vol, key, tau);
+  free(vol);
+  return r == OC_ENOENT ? ocs_tau_direct(du, key, tau) : r; /* σt bound [0, 0]: not in the volume */
+}

@@ -1,0 +1,168 @@
+/* sun_depth.h — the τ channel: optical depth toward the sun at a node's 512 sample positions.
+ *
+ * τ(p) = ∫₀^∞ σt(p + s·sun) ds (dimensionless; design.md, Conventions: bricks and codes; light,
+ * sun, world). It is view-independent: the level of detail follows the node's OWN level, never a
+ * viewer's tree, so a node's τ is a function of (node key, σt at the field's time step, sun) and
+ * may be shared by every viewer.
+ *
+ * What is integrated (docs/numerics.md, "Sun optical depth τ", has the derivation and the errors):
+ *   - Filtering (Pettersson's shadow filtering): a node of level L is marched through σt
+ *     box-filtered at level m = L − filter_levels (never coarser than min_level unless the node
+ *     itself is), reconstructed between samples exactly as the renderer does (shaders/brick.h:
+ *     trilinear in the node of that level containing the point).
+ *   - A cone: the step at distance t from the start is Δ(t) = max(h0, cone·t), h0 = step_factor ×
+ *     the voxel (size/7) of level m, and each step samples the level whose voxel is about Δ /
+ *     step_factor (m − ⌊log2(Δ/h0)⌋, not coarser than min_level; Δ stops growing there). Far
+ *     occluders are therefore sampled coarser, as the cone of directions toward the sun's disc
+ *     widens. Steps are midpoint samples: τ += σt(midpoint)·Δ, accumulated in double.
+ *   - Empty-space skipping: at each step the coarsest node (min_level … the step's level) whose
+ *     σt bound is [0, 0] is jumped over to where the ray leaves it. The sampled reconstruction is
+ *     exactly 0 there (every sample of a node at that level or finer inside it is a box average
+ *     over its footprint), so skipping changes nothing but the cost; it is what makes clear sky
+ *     cheap. A node whose bound is [v, v] is taken as uniform v without fetching its brick.
+ *   - Where the march stops: the planet's shadow is NOT in τ (the renderer multiplies by clear-sky
+ *     transmittance). The ray is cut where it enters the sphere of radius OCS_TAU_PLANET_STOP
+ *     (R − 10 km, the lowest altitude a scene may use), where it leaves the atmosphere sphere
+ *     (R + 100 km) and where it leaves the root cube; a start point already below R − 10 km has
+ *     τ = 0, and σt outside the atmosphere sphere counts as 0.
+ *
+ * Two methods give the same quantity:
+ *   - ocs_tau_direct(): the reference. Each of the 512 samples (oc_brick_sample_pos) is marched on
+ *     its own.
+ *   - The group volume: nodes of one level that share the ancestor `group_levels` up (default 2:
+ *     4³ = 64 nodes) share one sun-aligned optical-depth grid. Columns run along the sun, one voxel
+ *     v_L (size/7 of the nodes' level) apart laterally (OCS_TAU_COLUMN_SPACING), where the group
+ *     needs τ: the four columns around the sun ray of every sample of a covered node (note 2 of
+ *     ocs_tau_volume_build()), over the slices around those samples. Each column is marched ONCE:
+ *     from the top of that run toward the sun by the same cone march (distances counted from the
+ *     middle of the run), then down the run with slices 1.5·v_L apart (OCS_TAU_SLICE_SPACING),
+ *     accumulating τ in double with one midpoint sample per slice. A sample's τ is the trilinear
+ *     interpolation of the grid (bilinear across the four columns around its sun ray, linear
+ *     between slices). Only the slices a column needs are stored.
+ *     Resolution and memory for a fully covered group (group_levels 2, any level): 930–1 500
+ *     columns marched by sun direction (a 22nd to a 35th of the 32 768 marches of ocs_tau_direct()
+ *     for the 64 nodes), 18 500–19 900 stored slices and a 1 050–2 070-entry column table:
+ *     83–102 KiB per volume (the 64 nodes' τ floats are 128 KiB); partly covered groups cost
+ *     less. Its slices, shorter than the march step, make the volume MORE accurate
+ *     than the direct march at the same step factor (docs/numerics.md); the speed-up over it is
+ *     in docs/performance.md.
+ *
+ * Nodes without σt: a node whose σt is all zero needs no τ (nothing scatters there, and a renderer
+ * never reads τ where σt = 0), so callers may skip it and store the node as empty. The functions
+ * still compute its τ when asked: ocs_tau_direct() and ocs_tau_node() always, a volume when built
+ * with cover_all (by default its lookup answers OC_ENOENT for such nodes).
+ *
+ * Thread safety and determinism: every function is pure given the callbacks; it keeps its own
+ * memo of bricks and bounds for the duration of one call and shares nothing, so calls may run on
+ * any number of threads at once, and results are bit-identical whatever the thread count or call
+ * order (given deterministic callbacks). No -ffast-math: results are bit-identical across runs. */
+#ifndef OC_SERVER_SUN_DEPTH_H
+#define OC_SERVER_SUN_DEPTH_H
+
+#include <stddef.h> /* size_t */
+
+#include "oc_brick.h"  /* OC_BRICK_VOXELS */
+#include "oc_key.h"    /* oc_key_t */
+#include "oc_math.h"   /* oc_dvec3 */
+#include "oc_planet.h" /* OC_PLANET_RADIUS */
+
+/*! Defaults of the zero fields of ocs_tau_desc_t. */
+#define OCS_TAU_DEFAULT_FILTER_LEVELS 1
+#define OCS_TAU_DEFAULT_STEP_FACTOR 1.0
+/*! Growth of the step (and of the voxel sampled) with distance: 0.02·t, a cone of full angle 1.15°,
+ *  about twice the sun's disc (0.53°). A cloud 10 km away is still seen at 200 m, the clear sky
+ *  above the clouds costs a few dozen steps, and the cone's level-of-detail is what the volume's
+ *  columns share with the direct march. */
+#define OCS_TAU_DEFAULT_CONE 0.02
+/*! Coarsest level sampled or asked for a bound by default: level 6 has 202 km nodes and 28.9 km
+ *  voxels, about the height of the weather; a coarser voxel would average the clouds with the
+ *  empty sky above them, and the cone only reaches it after about 1 450 km (grazing rays). */
+#define OCS_TAU_DEFAULT_MIN_LEVEL 6
+#define OCS_TAU_DEFAULT_GROUP_LEVELS 2
+/*! Most levels between a group and its nodes (ocs_tau_volume_build refuses more: 16³ nodes). */
+#define OCS_TAU_MAX_GROUP_LEVELS 4
+/*! The march stops where the ray enters this sphere (m from the planet centre). */
+#define OCS_TAU_PLANET_STOP (OC_PLANET_RADIUS - 10000.0)
+
+/*! Lateral column spacing of the group volume, in voxels of the nodes' level (half the march
+ *  level's voxel at the default filter_levels). τ has sharp lateral edges in the shadows of
+ *  optically thick clouds, and interpolating across them is the volume's main error: at 1.0 its
+ *  RMS error in e^-τ against a converged march is 0.4–0.9× the direct march's own at the same
+ *  step factor (its worst, at a few samples on the sharpest edges, 0.8–1.5×); 1.5 costs half as
+ *  much for 0.6–1.1×; 0.5 costs 3.4× more for 0.3–0.6× (docs/numerics.md). */
+#ifndef OCS_TAU_COLUMN_SPACING
+#define OCS_TAU_COLUMN_SPACING 1.0
+#endif
+/*! Spacing of the slices along each column, in voxels of the nodes' level; one midpoint sample
+ *  each (sub-steps where a slice is longer than h0, 2 voxels at the default filter_levels). 1.0
+ *  costs 23 % more for 15–25 % less error, 2.0 (one march step) 12 % less for 30 % more. */
+#ifndef OCS_TAU_SLICE_SPACING
+#define OCS_TAU_SLICE_SPACING 1.5
+#endif
+
+/* How τ is computed. Zero-initialise (ocs_tau_desc_t d = {0};), set the callbacks and the sun;
+ * every other zero field takes the default given here. */
+typedef struct {
+  /*! sigma() : the node's 512 box-filtered σt samples (m⁻¹, i + 8j + 64k), sanitised (≥ 0, finite;
+   *  they are sanitised again here). @return 0 or a negative OC_E*, which aborts the call. */
+  int (*sigma)(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]);
+  /*! bound() : a conservative σt range over the node's sample footprint (the node grown by
+   *  size/14), as ocs_field_bound() gives. [0, 0] must mean every sample is 0 (the node is then
+   *  skipped), [v, v] that every sample is v (its brick is then never fetched). */
+  void (*bound)(void *ctx, oc_key_t key, float *smin, float *smax);
+  void *ctx;          /**< passed to both; the callbacks must be thread-safe; they may be slow (a
+                           cache lookup): each call here asks for a node at most once */
+  oc_dvec3 sun_dir;   /**< toward the sun, planet frame; required, finite and non-zero (normalised
+                           here) */
+  int filter_levels;  /**< march level = node level − this, 1..21; 0 → 1 (a 2× wider filter) */
+  double step_factor; /**< h0 = step_factor × voxel (size/7) of the march level, (0, 16];
+                           default 0 → 1 */
+  double cone;        /**< Δ(t) = max(h0, cone·t), [0, 1]; default 0 → OCS_TAU_DEFAULT_CONE (0.02).
+                           To march without a cone, give a tiny value (1e-12) */
+  int min_level;      /**< coarsest level marched or bounded, 1..21; 0 → 6
+                           (OCS_TAU_DEFAULT_MIN_LEVEL); a node coarser than it marches at its own
+                           level */
+  int group_levels;   /**< the volume's group is the ancestor this many levels up, 0..4; default
+                           0 → 2 (64 nodes share one volume) */
+  int cover_all;      /**< volumes cover every descendant; default 0: only those the march level's
+                           σt says may hold σt (ocs_tau_volume_build(), note 2) */
+} ocs_tau_desc_t;
+
+/*! ocs_tau_direct() : τ at the node's 512 sample positions, each marched on its own (the reference).
+ *  @return 0; OC_EINVAL for a bad desc or key; OC_ENOMEM; or the sigma callback's error. */
+int ocs_tau_direct(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOXELS]);
+
+/*! ocs_tau_group_of() : the ancestor `group_levels` (default 2) up of key, clamped at the root;
+ *  OC_KEY_INVALID for an invalid key or desc. */
+oc_key_t ocs_tau_group_of(const ocs_tau_desc_t *d, oc_key_t key);
+
+/*! ocs_tau_volume_build() : the sun-aligned optical-depth grid for the descendants of `group` at
+ *  `level` (level(group) ≤ level ≤ level(group) + OCS_TAU_MAX_GROUP_LEVELS, ≤ 21).
+ *  On success *vol is ONE malloc'd block (release it with free()) of *bytes bytes; it holds all it
+ *  needs (geometry and values, not the callbacks) and may be shared read-only between threads.
+ *  note 1 : group need not be ocs_tau_group_of() of anything: any ancestor works (bigger groups
+ *           cost more memory per node and less marching).
+ *  note 2 : coverage. By default the volume covers the descendants whose footprint meets a
+ *           non-zero σt sample of the march level (the bricks its columns march through anyway;
+ *           the sample cubes of a level tile space, so a descendant that is not covered has no σt
+ *           at its own level either, up to the source's box-filter estimate: a faint wisp that
+ *           only the finer level catches). Only covered descendants cost columns, so a group
+ *           where few nodes hold σt is cheap. With cover_all every descendant is covered.
+ *  @return 0; OC_EINVAL (bad desc, key or level); OC_ENOMEM; or the sigma callback's error (then
+ *  *vol is NULL and *bytes 0). */
+int ocs_tau_volume_build(const ocs_tau_desc_t *d, oc_key_t group, int level, void **vol, size_t *bytes);
+
+/*! ocs_tau_volume_lookup() : τ at the 512 samples of `key`, a descendant of the volume's group at the
+ *  volume's level (the group itself when the two levels are equal).
+ *  @return 0; OC_ENOENT when the volume does not cover key (ocs_tau_volume_build(), note 2: its
+ *  σt is zero at the march level, so it needs no τ; if its own brick does hold σt after all, use
+ *  ocs_tau_direct() for it); OC_EINVAL when vol is not a volume or key is not such a
+ *  descendant; OC_ECORRUPT if a sample falls outside the grid (a bug). */
+int ocs_tau_volume_lookup(const void *vol, oc_key_t key, float tau[OC_BRICK_VOXELS]);
+
+/*! ocs_tau_node() : ocs_tau_volume_build() of ocs_tau_group_of(key) at key's level, then
+ *  ocs_tau_volume_lookup() and free(); ocs_tau_direct() for a node the volume does not cover. A
+ *  convenience for tests (the server caches volumes). @return as those. */
+int ocs_tau_node(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOXELS]);
+
+#endif /* OC_SERVER_SUN_DEPTH_H */

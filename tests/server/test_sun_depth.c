@@ -1,0 +1,760 @@
+/* test_sun_depth.c — the τ channel (server/sun_depth.h): the direct march and the group volume
+ * against the analytic optical depth of a homogeneous slab (below it at three sun angles, inside
+ * it, sun at the zenith along a grid axis, sun below the horizon, at the root cube's edge, huge
+ * σt), the volume against the direct march on the procedural planet, τ = 0 above the clouds,
+ * thread-count independence, and argument errors. */
+#include <math.h>
+#include <pthread.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include <cmocka.h>
+
+#include "oc_analytic.h"
+#include "oc_err.h"
+#include "oc_scene.h"
+#include "oc_scene_voxelize.h"
+#include "oc_voxelize.h"
+#include "ocs_field.h"
+#include "report.h"
+#include "sun_depth.h"
+
+/* Optimised builds run the full workload; unoptimised or sanitised ones (the CI's ASan+UBSan stage
+ * is a Debug build) the same code paths on fewer nodes. */
+#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__)
+#define FULL 1
+#else
+#define FULL 0
+#endif
+#define SIZE(full, smoke) (FULL ? (full) : (smoke))
+
+/*-*** A field behind the callbacks, with a thread-safe memo (the server's shared brick cache) ***/
+
+typedef struct {
+  oc_key_t key;
+  int has_bound, has_sigma;
+  float lo, hi;
+  float *s;
+} tc_ent_t;
+
+typedef struct {
+  ocs_field_t *f;
+  double t;
+  pthread_mutex_t mu;
+  tc_ent_t *tab;
+  size_t cap, n;
+  long sigma_fetches, bound_fetches;
+  int fail_sigma; /* make sigma() fail with OC_EIO */
+} tcache_t;
+
+static tc_ent_t *tc_find(tcache_t *c, oc_key_t key) { /* under the lock */
+  if ((c->n + 1) * 2 > c->cap) {
+    size_t ncap = c->cap ? c->cap * 2 : 1024;
+    tc_ent_t *nt = calloc(ncap, sizeof *nt);
+    assert_non_null(nt);
+    for (size_t i = 0; i < c->cap; i++) {
+      if (!c->tab[i].key) continue;
+      size_t h = (size_t)((c->tab[i].key * 0x9E3779B97F4A7C15ull) >> 20) & (ncap - 1);
+      while (nt[h].key) h = (h + 1) & (ncap - 1);
+      nt[h] = c->tab[i];
+    }
+    free(c->tab);
+    c->tab = nt;
+    c->cap = ncap;
+  }
+  size_t h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 20) & (c->cap - 1);
+  while (c->tab[h].key && c->tab[h].key != key) h = (h + 1) & (c->cap - 1);
+  if (!c->tab[h].key) {
+    c->tab[h].key = key;
+    c->n++;
+  }
+  return &c->tab[h];
+}
+
+static int tc_sigma(void *ctx, oc_key_t key, float out[512]) {
+  tcache_t *c = ctx;
+  if (c->fail_sigma) return OC_EIO;
+  pthread_mutex_lock(&c->mu);
+  tc_ent_t *e = tc_find(c, key);
+  if (e->has_sigma) {
+    memcpy(out, e->s, sizeof(float) * 512);
+    pthread_mutex_unlock(&c->mu);
+    return 0;
+  }
+  pthread_mutex_unlock(&c->mu);
+  int r = ocs_field_sample(c->f, key, c->t, out); /* deterministic: racing threads compute the same */
+  if (r < 0) return r;
+  oc_sanitize(out, 512, NULL);
+  pthread_mutex_lock(&c->mu);
+  e = tc_find(c, key);
+  if (!e->has_sigma) {
+    e->s = malloc(sizeof(float) * 512);
+    memcpy(e->s, out, sizeof(float) * 512);
+    e->has_sigma = 1;
+    c->sigma_fetches++;
+  }
+  pthread_mutex_unlock(&c->mu);
+  return 0;
+}
+
+static void tc_bound(void *ctx, oc_key_t key, float *lo, float *hi) {
+  tcache_t *c = ctx;
+  pthread_mutex_lock(&c->mu);
+  tc_ent_t *e = tc_find(c, key);
+  if (!e->has_bound) {
+    ocs_field_bound(c->f, key, c->t, &e->lo, &e->hi);
+    e->has_bound = 1;
+    c->bound_fetches++;
+  }
+  *lo = e->lo, *hi = e->hi;
+  pthread_mutex_unlock(&c->mu);
+}
+
+static void tc_init(tcache_t *c, const char *json, double t) {
+  memset(c, 0, sizeof *c);
+  oc_scene_t sc;
+  char why[512];
+  if (json) {
+    assert_int_equal(oc_scene_parse(&sc, json, strlen(json), "test.json", why, sizeof why), 0);
+  } else {
+    oc_scene_default(&sc);
+  }
+  if (ocs_field_create(&c->f, &sc, why, sizeof why) < 0) fail_msg("field: %s", why);
+  oc_scene_free(&sc);
+  c->t = t;
+  pthread_mutex_init(&c->mu, NULL);
+}
+
+static void tc_free(tcache_t *c) {
+  for (size_t i = 0; i < c->cap; i++) free(c->tab[i].s);
+  free(c->tab);
+  pthread_mutex_destroy(&c->mu);
+  ocs_field_free(c->f);
+}
+
+static ocs_tau_desc_t desc_for(tcache_t *c, oc_dvec3 sun) {
+  ocs_tau_desc_t d = {0};
+  d.sigma = tc_sigma;
+  d.bound = tc_bound;
+  d.ctx = c;
+  d.sun_dir = sun;
+  return d;
+}
+
+static double now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+/*-*** Analytic truth ***/
+
+static void medium_from(const char *json, oc_medium_t *m) {
+  oc_scene_t sc;
+  char why[512];
+  assert_int_equal(oc_scene_parse(&sc, json, strlen(json), "test.json", why, sizeof why), 0);
+  assert_int_equal(oc_scene_medium(&sc, m, why, sizeof why), 0);
+  oc_scene_free(&sc);
+}
+
+/* The sun at zenith angle z (degrees) toward the east of point p. */
+static oc_dvec3 sun_at(oc_dvec3 p, double zenith_deg) {
+  oc_enu_t f = oc_enu_at(p);
+  return oc_dnorm(oc_dadd(oc_dscale(f.up, cos(zenith_deg * OC_DEG)), oc_dscale(f.east, sin(zenith_deg * OC_DEG))));
+}
+
+/* Distance along the ray p + t·d (d unit) to where it enters the sphere |x| = r, or INFINITY. */
+static double enter_sphere(oc_dvec3 p, oc_dvec3 d, double r) {
+  double b = oc_ddot(p, d);
+  double q = oc_dlen(oc_dmad(p, d, -b));
+  if (!(q < r) || oc_dlen(p) < r) return INFINITY;
+  double t = -b - sqrt((r - q) * (r + q));
+  return t >= 0.0 ? t : INFINITY;
+}
+
+/* The analytic τ with the march's cut: up to where the ray enters R − 10 km. */
+static double tau_truth(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 sun) {
+  double t = enter_sphere(p, sun, OCS_TAU_PLANET_STOP);
+  return isfinite(t) ? oc_medium_optical_depth(m, p, sun, t) : oc_medium_tau_sun(m, p, sun);
+}
+
+static double altitude(oc_dvec3 p) { return oc_dlen(p) - OC_PLANET_RADIUS; }
+
+/* A slab, the node marched, and how to judge it (docs/numerics.md, "Sun optical depth τ").
+ *
+ * Tolerance: τ integrates σt box-filtered at the march level and reconstructed trilinearly. For a
+ * homogeneous slab that keeps the line integral only on average over positions: a ray crossing a
+ * face at an angle to the grid picks up an error of up to about κ·σt·v/μ, v the voxel of the level
+ * sampled there (the march level's, or coarser where the cone has grown the step), μ the cosine
+ * between the ray and the face's normal; its sign depends on where the ray meets the lattice. We
+ * measured κ ≤ 0.12 over levels 13–18 and sun angles 0–80° (independent of the step factor: it is
+ * the reconstruction, not the quadrature), and assert κ ≤ 0.2 at every sample farther than the
+ * filter footprint from both faces (closer, the filtered slab itself differs from the true one).
+ * Averaged over a node's samples the sign varies, so the MEAN relative error must stay within 1 %:
+ * that is the check of the weights, steps, cone and cuts; the per-sample bound checks the filter. */
+typedef struct {
+  double kappa;    /* worst |Δτ| / (σt Σ v/μ) */
+  double rel_max;  /* worst |Δτ| / τ */
+  double rel_mean; /* |mean of Δτ / τ| */
+  int n;
+} slab_err_t;
+
+static double sigma_of(const char *json) { /* the slab's σt, parsed back from the JSON */
+  oc_medium_t m;
+  medium_from(json, &m);
+  return m.prims[0].sigma_t;
+}
+
+/* The voxel of the level a march samples at distance t (cone distance t + extra), an upper bound. */
+static double voxel_at(int node_level, double t) {
+  double vm = oc_key_size(node_level - 1) / 7.0, v = vm, want = OCS_TAU_DEFAULT_CONE * t;
+  int l = node_level - 1;
+  while (v < want && l > OCS_TAU_DEFAULT_MIN_LEVEL) v *= 2.0, l--;
+  return v;
+}
+
+static void slab_judge(const oc_medium_t *m, const float *tau, oc_key_t key, oc_dvec3 sun, slab_err_t *e) {
+  const oc_prim_t *pr = &m->prims[0];
+  int level = oc_key_level(key);
+  double fp = 1.5 * sqrt(3.0) * oc_key_size(level - 1) / 7.0; /* box (½ voxel) + trilinear (1 voxel), diagonal */
+  double extra = 0.5 * sqrt(3.0) * oc_key_size(level - OCS_TAU_DEFAULT_GROUP_LEVELS); /* the volume's cone offset */
+  double base = pr->slab.r_in - OC_PLANET_RADIUS, top = pr->slab.r_out - OC_PLANET_RADIUS, sum = 0.0;
+  for (int v = 0; v < 512; v++) {
+    oc_dvec3 p = oc_brick_sample_pos(key, v & 7, (v >> 3) & 7, v >> 6);
+    double h = altitude(p);
+    if (fabs(h - base) < fp || fabs(h - top) < fp) continue;
+    double truth = tau_truth(m, p, sun), cut = enter_sphere(p, sun, OCS_TAU_PLANET_STOP);
+    /* faces the ray crosses before the cut: each sphere's entries and exits at t > 0 */
+    double scale = 0.0;
+    const double radii[2] = {pr->slab.r_in, pr->slab.r_out};
+    for (int f = 0; f < 2; f++) {
+      double b = oc_ddot(p, sun), q = oc_dlen(oc_dmad(p, sun, -b)), r = radii[f];
+      if (!(q < r)) continue;
+      double hh = sqrt((r - q) * (r + q));
+      for (int sg = -1; sg <= 1; sg += 2) {
+        double t = -b + sg * hh;
+        if (!(t > 0.0 && t < cut)) continue;
+        oc_dvec3 x = oc_dmad(p, sun, t);
+        double mu = fabs(oc_ddot(x, sun)) / oc_dlen(x);
+        scale += pr->sigma_t * voxel_at(level, t + extra) / fmax(mu, 1e-3);
+      }
+    }
+    assert_true(isfinite(tau[v]));
+    double err = tau[v] - truth;
+    if (scale > 0.0) e->kappa = fmax(e->kappa, fabs(err) / scale);
+    else assert_true(fabs(err) <= 1e-6 + 1e-6 * truth); /* no face crossed: σt·chord exactly */
+    if (truth > 0.0) {
+      e->rel_max = fmax(e->rel_max, fabs(err) / truth);
+      sum += err / truth;
+    }
+    e->n++;
+  }
+  if (e->n) e->rel_mean = fmax(e->rel_mean, fabs(sum / e->n));
+}
+
+/* Direct and volume τ of one node against the slab's analytic τ. The volume covers every
+ * descendant (cover_all), so nodes without σt are judged too. check_mean: also the node's mean
+ * relative error (not for grazing rays from inside the slab, where a single face crossing at
+ * μ ≈ 0.05 is the whole error and the same for every sample). */
+static void slab_case_cb(tcache_t *c, const oc_medium_t *m, oc_key_t key, oc_dvec3 sun, slab_err_t *ed, slab_err_t *ev,
+                         const char *what, int check_mean, int (*sigma)(void *, oc_key_t, float *)) {
+  ocs_tau_desc_t d = desc_for(c, sun), dv;
+  if (sigma) d.sigma = sigma;
+  dv = d;
+  dv.cover_all = 1;
+  float td[512], tv[512];
+  assert_int_equal(ocs_tau_direct(&d, key, td), 0);
+  assert_int_equal(ocs_tau_node(&dv, key, tv), 0);
+  slab_err_t a = {0}, b = {0};
+  slab_judge(m, td, key, sun, &a);
+  slab_judge(m, tv, key, sun, &b);
+  printf("%s: %d samples judged; direct κ %.3f, worst %.2e, mean %.1e relative; volume κ %.3f, worst %.2e, mean %.1e\n",
+         what, a.n, a.kappa, a.rel_max, a.rel_mean, b.kappa, b.rel_max, b.rel_mean);
+  assert_true(a.kappa <= 0.2 && b.kappa <= 0.2);
+  if (!check_mean) a.rel_mean = b.rel_mean = 0.0;
+  assert_true(a.rel_mean <= 0.01 && b.rel_mean <= 0.01);
+  ed->kappa = fmax(ed->kappa, a.kappa), ed->rel_max = fmax(ed->rel_max, a.rel_max);
+  ed->rel_mean = fmax(ed->rel_mean, a.rel_mean), ed->n += a.n;
+  ev->kappa = fmax(ev->kappa, b.kappa), ev->rel_max = fmax(ev->rel_max, b.rel_max);
+  ev->rel_mean = fmax(ev->rel_mean, b.rel_mean), ev->n += b.n;
+}
+
+static void slab_case(tcache_t *c, const oc_medium_t *m, oc_key_t key, oc_dvec3 sun, slab_err_t *ed, slab_err_t *ev,
+                      const char *what) {
+  slab_case_cb(c, m, key, sun, ed, ev, what, 1, NULL);
+}
+
+static void slab_report(const char *name, const slab_err_t *ed, const slab_err_t *ev) {
+  char row[256];
+  snprintf(row, sizeof row, "%s: direct, worst κ (error per σt·v/μ per face)", name);
+  oc_report("tau", row, ed->kappa, 0.2, "");
+  snprintf(row, sizeof row, "%s: volume, worst κ", name);
+  oc_report("tau", row, ev->kappa, 0.2, "");
+  snprintf(row, sizeof row, "%s: direct, mean relative error of a node", name);
+  oc_report("tau", row, ed->rel_mean, 0.01, "rel");
+  snprintf(row, sizeof row, "%s: volume, mean relative error of a node", name);
+  oc_report("tau", row, ev->rel_mean, 0.01, "rel");
+  printf("%s: worst relative error of a sample: direct %.2e, volume %.2e\n", name, ed->rel_max, ev->rel_max);
+}
+
+static const char *slab_json =
+    "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
+    " \"sources\": [{\"type\": \"slab\", \"base\": 2000, \"top\": 3000, \"sigma_t\": 0.01}]}";
+
+/*-*** Tests ***/
+
+/* Below the slab: a level-14 node (790 m) at about 0.3–1.3 km, the slab at 2–3 km lying in other
+ * nodes, with the sun 0°, 60° and 80° from the zenith at the node. */
+static void test_sun_depth__slab_below_three_sun_angles(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, slab_json, 0.0);
+  oc_medium_t m;
+  medium_from(slab_json, &m);
+  oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
+  float lo, hi;
+  tc_bound(&c, below, &lo, &hi);
+  assert_true(hi == 0.0f); /* the slab is not in the node */
+  const double zen[3] = {0.0, 60.0, 80.0};
+  slab_err_t ed = {0}, ev = {0};
+  for (int z = 0; z < 3; z++) {
+    char what[64];
+    snprintf(what, sizeof what, "below the slab, sun %.0f° from the zenith", zen[z]);
+    int n0 = ed.n;
+    slab_case(&c, &m, below, sun_at(oc_key_center(below), zen[z]), &ed, &ev, what);
+    assert_true(ed.n - n0 >= 500);
+  }
+  slab_report("slab 2-3 km, node below at level 14, sun 0/60/80°", &ed, &ev);
+  tc_free(&c);
+}
+
+/* Inside the slab: a level-15 node (395 m) at 2.3–2.7 km; only the top face is crossed. */
+static void test_sun_depth__slab_inside(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, slab_json, 0.0);
+  oc_medium_t m;
+  medium_from(slab_json, &m);
+  oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
+  slab_err_t ed = {0}, ev = {0};
+  slab_case(&c, &m, inside, sun_at(oc_key_center(inside), 60.0), &ed, &ev, "inside the slab, sun 60°");
+  slab_case(&c, &m, inside, sun_at(oc_key_center(inside), 0.0), &ed, &ev, "inside the slab, sun 0°");
+  assert_true(ed.n >= 300);
+  slab_report("slab 2-3 km, node inside at level 15, sun 0/60°", &ed, &ev);
+  tc_free(&c);
+}
+
+/* The slab's exact box filter for nodes near the north pole: over each sample's cube, 16 × 16
+ * (x, y) columns, each with its exact z-extent inside the shell. The field's own box filter
+ * estimates the average from sub-samples, whose layers all agree when a face is parallel to them
+ * (here the faces are ⊥ z): up to 1/16 of σt·v per face, the same sign at every sample, which
+ * would hide what is tested here. Sampling is exact in z, so nearly exact for these faces. */
+static double shell_len(double x, double y, double z0, double z1, double ri, double ro) {
+  double q = x * x + y * y, a2 = ri * ri - q, b2 = ro * ro - q, len = 0.0;
+  if (b2 <= 0.0) return 0.0;
+  double b = sqrt(b2), a = a2 > 0.0 ? sqrt(a2) : 0.0;
+  const double iv[2][2] = {{a, b}, {-b, -a}}; /* inside: a ≤ |z| ≤ b */
+  for (int k = 0; k < 2; k++) {
+    double lo = fmax(z0, iv[k][0]), hi = fmin(z1, iv[k][1]);
+    if (hi > lo) len += hi - lo;
+  }
+  return len;
+}
+
+static int exact_slab_sigma(void *ctx, oc_key_t key, float out[512]) {
+  (void)ctx;
+  const double ri = OC_PLANET_RADIUS + 2000.0, ro = OC_PLANET_RADIUS + 3000.0, sg = 0.01;
+  double h = oc_key_size(oc_key_level(key)) / 7.0;
+  enum { N = 16 };
+  for (int v = 0; v < 512; v++) {
+    oc_dvec3 p = oc_brick_sample_pos(key, v & 7, (v >> 3) & 7, v >> 6);
+    double sum = 0.0;
+    for (int a = 0; a < N; a++)
+      for (int b = 0; b < N; b++)
+        sum += shell_len(p.x + ((a + 0.5) / N - 0.5) * h, p.y + ((b + 0.5) / N - 0.5) * h, p.z - h / 2, p.z + h / 2, ri, ro);
+    out[v] = (float)(sg * sum / ((double)N * N * h));
+  }
+  return 0;
+}
+
+/* The sun exactly at the zenith of the north pole: the ray runs along +Z, parallel to two axes of
+ * every node (no division by a zero component, columns parallel to the lattice). The bound still
+ * comes from the field (exact for slabs); the samples from the exact box filter above. */
+static void test_sun_depth__zenith_along_an_axis(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, slab_json, 0.0);
+  oc_medium_t m;
+  medium_from(slab_json, &m);
+  oc_key_t pole = oc_key_from_point(14, oc_dv3(100.0, 100.0, OC_PLANET_RADIUS + 700.0));
+  slab_err_t ed = {0}, ev = {0};
+  slab_case_cb(&c, &m, pole, oc_dv3(0.0, 0.0, 1.0), &ed, &ev, "north pole, sun along +Z", 1, exact_slab_sigma);
+  assert_true(ed.n >= 500);
+  slab_report("slab, node at the north pole, sun exactly along +Z", &ed, &ev);
+  tc_free(&c);
+}
+
+/* The sun 5° and 30° below the horizon at a node inside the slab: the ray leaves the slab
+ * downward and is cut where it enters R − 10 km. Finite, matches the cut analytic τ, and fast. */
+static void test_sun_depth__sun_below_horizon(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, slab_json, 0.0);
+  oc_medium_t m;
+  medium_from(slab_json, &m);
+  oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
+  slab_err_t ed = {0}, ev = {0};
+  double t0 = now();
+  slab_case(&c, &m, inside, sun_at(oc_key_center(inside), 95.0), &ed, &ev, "inside the slab, sun 5° below the horizon");
+  slab_case(&c, &m, inside, sun_at(oc_key_center(inside), 120.0), &ed, &ev, "inside the slab, sun 30° below the horizon");
+  double t1 = now() - t0;
+  printf("both: %.3f s\n", t1);
+  /* a node below the slab sees nothing when the sun is below the horizon: the ray never reaches it */
+  oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
+  ocs_tau_desc_t d = desc_for(&c, sun_at(oc_key_center(below), 100.0));
+  float t[512];
+  assert_int_equal(ocs_tau_direct(&d, below, t), 0);
+  for (int v = 0; v < 512; v++) assert_true(t[v] == 0.0f);
+  assert_int_equal(ocs_tau_node(&d, below, t), 0);
+  for (int v = 0; v < 512; v++) assert_true(t[v] == 0.0f);
+  slab_report("slab, node inside, sun 5° and 30° below the horizon (cut at R - 10 km)", &ed, &ev);
+  tc_free(&c);
+}
+
+/* A node at the root cube's +X face (96.8–100 km: its samples reach the atmosphere's edge and its
+ * corners lie outside the atmosphere sphere) above a slab at 80–93 km: the sun outward (nothing
+ * ahead: τ = 0 exactly), inward (through the slab, then cut at R − 10 km) and sideways-down. */
+static void test_sun_depth__root_cube_edge(void **st) {
+  (void)st;
+  const char *json = "{\"version\": 1, \"features\": {\"animation\": false},"
+                     " \"sources\": [{\"type\": \"slab\", \"base\": 80000, \"top\": 93000, \"sigma_t\": 0.001}]}";
+  tcache_t c;
+  tc_init(&c, json, 0.0);
+  oc_medium_t m;
+  medium_from(json, &m);
+  int L = 12;
+  uint32_t n = 1u << L;
+  oc_key_t edge = oc_key_make(L, n - 1, n / 2, n / 2);
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(edge, &o, &size);
+  assert_true(o.x + size == OC_ROOT_HALF);
+  slab_err_t ed = {0}, ev = {0};
+  slab_case(&c, &m, edge, oc_dv3(1.0, 0.0, 0.0), &ed, &ev, "root cube edge, sun outward (+X)");
+  slab_case(&c, &m, edge, oc_dv3(-1.0, 0.0, 0.0), &ed, &ev, "root cube edge, sun inward (-X)");
+  slab_case(&c, &m, edge, oc_dnorm(oc_dv3(-0.3, 1.0, 0.2)), &ed, &ev, "root cube edge, sun sideways and down");
+  assert_true(ed.n >= 3 * 500);
+  /* samples outside the atmosphere sphere with the sun outward: nothing ahead, exactly 0 */
+  ocs_tau_desc_t d = desc_for(&c, oc_dv3(1.0, 0.0, 0.0));
+  float td[512], tv[512];
+  assert_int_equal(ocs_tau_direct(&d, edge, td), 0);
+  assert_int_equal(ocs_tau_node(&d, edge, tv), 0);
+  int outside = 0;
+  for (int v = 0; v < 512; v++)
+    if (oc_dlen(oc_brick_sample_pos(edge, v & 7, (v >> 3) & 7, v >> 6)) > OC_ROOT_HALF) {
+      assert_true(td[v] == 0.0f && tv[v] == 0.0f);
+      outside++;
+    }
+  assert_true(outside > 0);
+  slab_report("slab 80-93 km, level-12 node on the root cube's +X face", &ed, &ev);
+  tc_free(&c);
+}
+
+/* σt = 1000 m⁻¹: τ of about 10⁶ below the slab, finite and as accurate (relative) as anywhere. */
+static void test_sun_depth__huge_sigma(void **st) {
+  (void)st;
+  const char *json = "{\"version\": 1, \"features\": {\"animation\": false},"
+                     " \"sources\": [{\"type\": \"slab\", \"base\": 2000, \"top\": 3000, \"sigma_t\": 1000}]}";
+  tcache_t c;
+  tc_init(&c, json, 0.0);
+  oc_medium_t m;
+  medium_from(json, &m);
+  assert_true(sigma_of(json) == 1000.0);
+  oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
+  oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
+  slab_err_t ed = {0}, ev = {0};
+  slab_case(&c, &m, below, sun_at(oc_key_center(below), 30.0), &ed, &ev, "σt 1000, below the slab, sun 30°");
+  slab_case(&c, &m, inside, sun_at(oc_key_center(inside), 60.0), &ed, &ev, "σt 1000, inside the slab, sun 60°");
+  slab_case_cb(&c, &m, inside, sun_at(oc_key_center(inside), 89.0), &ed, &ev, "σt 1000, inside the slab, sun 89°", 0, NULL);
+  ocs_tau_desc_t d = desc_for(&c, sun_at(oc_key_center(below), 30.0));
+  float t[512];
+  assert_int_equal(ocs_tau_direct(&d, below, t), 0);
+  for (int v = 0; v < 512; v++) assert_true(isfinite(t[v]) && t[v] > 1e6f && t[v] < 2e6f);
+  slab_report("slab with σt 1000 m^-1 (τ ~ 1e6)", &ed, &ev);
+  tc_free(&c);
+}
+
+/* Above every cloud (30 km) τ is exactly 0, and clear sky costs no brick at all: the bound skips it. */
+static void test_sun_depth__above_clouds_is_zero(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, NULL, 600.0);
+  oc_key_t k = oc_key_from_point(13, oc_geo_to_xyz((oc_geo_t){45.5, -4.0, 30000.0}));
+  ocs_tau_desc_t d = desc_for(&c, sun_at(oc_key_center(k), 30.0));
+  float td[512], tv[512];
+  assert_int_equal(ocs_tau_direct(&d, k, td), 0);
+  long fetched = c.sigma_fetches;
+  assert_int_equal(ocs_tau_node(&d, k, tv), 0);
+  for (int v = 0; v < 512; v++) assert_true(td[v] == 0.0f && tv[v] == 0.0f);
+  printf("above the clouds: %ld bricks, %ld bounds fetched\n", c.sigma_fetches, c.bound_fetches);
+  assert_int_equal(fetched, 0);
+  assert_int_equal(c.sigma_fetches, 0);
+  tc_free(&c);
+}
+
+/*-*** The procedural planet: the volume against the direct march ***/
+
+/* A group of level-14 nodes in a cumulus field at about 2.3 km (45.5°N 4°W, t = 600 s): the one of
+ * the 8 groups around that point with the most nodes holding σt (59 of 64; searched once, kept as
+ * an offset because sampling 512 bricks costs 25 s under ASan). */
+static oc_key_t cloudy_group(const ocs_tau_desc_t *d, int level) {
+  oc_key_t k0 = oc_key_from_point(level, oc_geo_to_xyz((oc_geo_t){45.5, -4.0, 2000.0}));
+  return ocs_tau_group_of(d, oc_key_neighbor(k0, -2, 2, 2));
+}
+
+typedef struct {
+  double tau_max, tau_s2, t_max, t_s2;
+  long n;
+} stat_t;
+
+static void stat_add(stat_t *s, double a, double b) {
+  double e = a - b, t = fabs(exp(-a) - exp(-b));
+  s->tau_max = fmax(s->tau_max, fabs(e) / (1.0 + fabs(b)));
+  s->tau_s2 += e * e / ((1.0 + fabs(b)) * (1.0 + fabs(b)));
+  s->t_max = fmax(s->t_max, t);
+  s->t_s2 += t * t;
+  s->n++;
+}
+
+/* One volume for the 64 nodes of a cloudy group (sun 60° from the zenith), against ocs_tau_direct at
+ * every sample holding σt (τ matters only there). Bounds, from the measurements in
+ * docs/numerics.md with about 2× margin: RMS |Δe^-τ| ≤ 0.03, worst |Δe^-τ| ≤ 0.6 (a few samples
+ * at the sharp shadow edges of optically thick cumulus, where the direct march itself is off by
+ * up to 0.35 from a converged one); |Δτ|/(1 + τ): RMS ≤ 0.15, worst ≤ 2 (the same edges: there
+ * a sample's τ is interpolated between columns one voxel apart whose τ differ by tens). And the
+ * volume is not less accurate than the direct march: against a converged march (steps 8×
+ * shorter) its RMS |Δe^-τ| is at most 1.25× the direct march's. */
+static void test_sun_depth__volume_matches_direct_on_the_planet(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, NULL, 600.0);
+  int level = 14;
+  oc_dvec3 at = oc_geo_to_xyz((oc_geo_t){45.5, -4.0, 2000.0});
+  ocs_tau_desc_t d = desc_for(&c, sun_at(at, 60.0));
+  oc_key_t grp = cloudy_group(&d, level);
+  void *vol = NULL;
+  size_t bytes = 0;
+  double t0 = now();
+  assert_int_equal(ocs_tau_volume_build(&d, grp, level, &vol, &bytes), 0);
+  double t_build = now() - t0, t_direct = 0.0;
+  stat_t s = {0};
+  int with_sigma = 0, fallback = 0;
+  oc_key_t ref_keys[64];
+  int nref = 0;
+  for (int q = 0; q < 64; q++) {
+    oc_key_t k = oc_key_child(oc_key_child(grp, q & 7), q >> 3);
+    float sg[512], td[512], tv[512];
+    assert_int_equal(tc_sigma(&c, k, sg), 0);
+    float smax = 0.0f;
+    for (int v = 0; v < 512; v++) smax = fmaxf(smax, sg[v]);
+    int r = ocs_tau_volume_lookup(vol, k, tv);
+    if (r == OC_ENOENT) { /* the march level sees no σt around it: at most a faint wisp */
+      assert_true(smax < 1e-3f);
+      fallback += smax > 0.0f;
+      continue;
+    }
+    assert_int_equal(r, 0);
+    if (!(smax > 0.0f)) continue;
+    with_sigma++;
+    double t1 = now();
+    assert_int_equal(ocs_tau_direct(&d, k, td), 0);
+    t_direct += now() - t1;
+    for (int v = 0; v < 512; v++)
+      if (sg[v] > 0.0f) stat_add(&s, tv[v], td[v]);
+    ref_keys[nref++] = k;
+  }
+  free(vol);
+  double rms_t = sqrt(s.t_s2 / s.n), rms_tau = sqrt(s.tau_s2 / s.n);
+  printf("group of 64 level-%d nodes, %d with σt (+%d faint ones left to the direct march): one volume of %zu bytes "
+         "in %.1f ms (cold brick cache), direct %.1f ms for them (warm)\n", level, with_sigma, fallback, bytes,
+         1e3 * t_build, 1e3 * t_direct);
+  printf("volume vs direct over %ld samples with σt: |Δe^-τ| worst %.3f RMS %.4f; |Δτ|/(1+τ) worst %.3f RMS %.4f\n", s.n,
+         s.t_max, rms_t, s.tau_max, rms_tau);
+  assert_true(with_sigma >= 48);
+  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, RMS error of e^-τ (samples with σt)", rms_t, 0.03, "");
+  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, worst error of e^-τ", s.t_max, 0.6, "");
+  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, RMS of Δτ/(1+τ)", rms_tau, 0.15, "");
+  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, worst Δτ/(1+τ)", s.tau_max, 2.0, "");
+  assert_true(rms_t <= 0.03 && s.t_max <= 0.6 && rms_tau <= 0.15 && s.tau_max <= 2.0);
+
+  /* Both against a converged march (same levels, steps and cone 8× finer), on a few nodes. */
+  ocs_tau_desc_t dr = d;
+  dr.step_factor = 0.125;
+  dr.cone = OCS_TAU_DEFAULT_CONE / 8.0;
+  stat_t sd = {0}, sv = {0};
+  int nuse = SIZE(8, 2);
+  for (int i = 0; i < nref && i < nuse; i++) {
+    oc_key_t k = ref_keys[i * (nref / nuse)];
+    float sg[512], td[512], tv[512], tr[512];
+    assert_int_equal(tc_sigma(&c, k, sg), 0);
+    assert_int_equal(ocs_tau_direct(&d, k, td), 0);
+    assert_int_equal(ocs_tau_node(&d, k, tv), 0);
+    assert_int_equal(ocs_tau_direct(&dr, k, tr), 0);
+    for (int v = 0; v < 512; v++)
+      if (sg[v] > 0.0f) stat_add(&sd, td[v], tr[v]), stat_add(&sv, tv[v], tr[v]);
+  }
+  double rd = sqrt(sd.t_s2 / sd.n), rv = sqrt(sv.t_s2 / sv.n);
+  printf("against a converged march over %ld samples: RMS |Δe^-τ| direct %.4f, volume %.4f; worst direct %.3f, "
+         "volume %.3f\n", sd.n, rd, rv, sd.t_max, sv.t_max);
+  oc_report("tau", "planet: volume's RMS error of e^-τ against a converged march, per direct march's", rv / fmax(rd, 1e-9), 1.25,
+            "x");
+  assert_true(rv <= 1.25 * rd + 0.002);
+  tc_free(&c);
+}
+
+/*-*** Threads ***/
+
+typedef struct {
+  const ocs_tau_desc_t *d;
+  const oc_key_t *keys;
+  int n, first, stride;
+  float (*out)[2][512];
+  int err;
+} job_t;
+
+static void *worker(void *arg) {
+  job_t *j = arg;
+  for (int i = j->first; i < j->n; i += j->stride) {
+    if (ocs_tau_direct(j->d, j->keys[i], j->out[i][0]) < 0) j->err = 1;
+    if (ocs_tau_node(j->d, j->keys[i], j->out[i][1]) < 0) j->err = 1;
+  }
+  return NULL;
+}
+
+/* The same nodes on 1 and on 4 threads sharing one brick cache: identical bits. */
+static void test_sun_depth__thread_count_independent(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, NULL, 600.0);
+  oc_dvec3 at = oc_geo_to_xyz((oc_geo_t){45.5, -4.0, 2000.0});
+  ocs_tau_desc_t d = desc_for(&c, sun_at(at, 45.0));
+  enum { N = 8 };
+  oc_key_t keys[N];
+  oc_key_t k0 = oc_key_from_point(14, at);
+  for (int i = 0; i < N; i++) keys[i] = oc_key_neighbor(k0, (i & 1) * 5, ((i >> 1) & 1) * 3, (i >> 2) - 1);
+  int n = SIZE(N, 4);
+  static float one[N][2][512], four[N][2][512];
+  job_t j1 = {&d, keys, n, 0, 1, one, 0};
+  worker(&j1);
+  assert_int_equal(j1.err, 0);
+  tcache_t c4; /* a fresh cache, filled in a different order by racing threads */
+  tc_init(&c4, NULL, 600.0);
+  ocs_tau_desc_t d4 = d;
+  d4.ctx = &c4;
+  pthread_t th[4];
+  job_t j4[4];
+  for (int t = 0; t < 4; t++) {
+    j4[t] = (job_t){&d4, keys, n, 3 - t, 4, four, 0}; /* reverse order across threads */
+    assert_int_equal(pthread_create(&th[t], NULL, worker, &j4[t]), 0);
+  }
+  for (int t = 0; t < 4; t++) {
+    pthread_join(th[t], NULL);
+    assert_int_equal(j4[t].err, 0);
+  }
+  int nonzero = 0;
+  for (int i = 0; i < n; i++) {
+    assert_memory_equal(one[i], four[i], sizeof one[i]);
+    for (int v = 0; v < 512; v++) nonzero += one[i][0][v] > 0.0f;
+  }
+  printf("%d nodes, %d non-zero direct samples: identical on 1 and 4 threads\n", n, nonzero);
+  assert_true(nonzero > 0);
+  tc_free(&c4);
+  tc_free(&c);
+}
+
+/*-*** Arguments and errors ***/
+
+static void test_sun_depth__bad_arguments(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, slab_json, 0.0);
+  oc_key_t k = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
+  ocs_tau_desc_t d = desc_for(&c, oc_dv3(0.0, 0.0, 1.0));
+  float t[512];
+  void *vol = NULL;
+  size_t bytes = 0;
+  assert_int_equal(ocs_tau_direct(&d, OC_KEY_INVALID, t), OC_EINVAL);
+  assert_int_equal(ocs_tau_direct(NULL, k, t), OC_EINVAL);
+  assert_int_equal(ocs_tau_direct(&d, k, NULL), OC_EINVAL);
+  ocs_tau_desc_t bad = d;
+  bad.sun_dir = oc_dv3(0.0, 0.0, 0.0);
+  assert_int_equal(ocs_tau_direct(&bad, k, t), OC_EINVAL);
+  bad = d, bad.sun_dir.x = NAN;
+  assert_int_equal(ocs_tau_node(&bad, k, t), OC_EINVAL);
+  bad = d, bad.sigma = NULL;
+  assert_int_equal(ocs_tau_direct(&bad, k, t), OC_EINVAL);
+  bad = d, bad.step_factor = -1.0;
+  assert_int_equal(ocs_tau_direct(&bad, k, t), OC_EINVAL);
+  bad = d, bad.group_levels = OCS_TAU_MAX_GROUP_LEVELS + 1;
+  assert_int_equal(ocs_tau_node(&bad, k, t), OC_EINVAL);
+  assert_true(ocs_tau_group_of(&bad, k) == OC_KEY_INVALID);
+  /* groups: the ancestor 2 up, clamped at the root */
+  assert_true(ocs_tau_group_of(&d, k) == oc_key_ancestor(k, 12));
+  assert_true(ocs_tau_group_of(&d, oc_key_child(OC_KEY_ROOT, 3)) == OC_KEY_ROOT);
+  /* a volume: only descendants at its level */
+  oc_key_t grp = ocs_tau_group_of(&d, k);
+  assert_int_equal(ocs_tau_volume_build(&d, grp, 11, &vol, &bytes), OC_EINVAL);
+  assert_int_equal(ocs_tau_volume_build(&d, grp, 12 + OCS_TAU_MAX_GROUP_LEVELS + 1, &vol, &bytes), OC_EINVAL);
+  assert_null(vol);
+  assert_int_equal(ocs_tau_volume_build(&d, grp, 14, &vol, &bytes), 0);
+  assert_true(bytes > 0);
+  assert_int_equal(ocs_tau_volume_lookup(vol, oc_key_parent(k), t), OC_EINVAL);
+  assert_int_equal(ocs_tau_volume_lookup(vol, oc_key_neighbor(k, 8, 0, 0), t), OC_EINVAL);
+  assert_int_equal(ocs_tau_volume_lookup(NULL, k, t), OC_EINVAL);
+  int junk[64] = {0};
+  assert_int_equal(ocs_tau_volume_lookup(junk, k, t), OC_EINVAL);
+  /* the node below the slab holds no σt: the volume does not cover it, the direct march does */
+  assert_int_equal(ocs_tau_volume_lookup(vol, k, t), OC_ENOENT);
+  free(vol);
+  /* a node with no σt still gets its τ from ocs_tau_node (through the direct march) */
+  float td[512];
+  assert_int_equal(ocs_tau_node(&d, k, t), 0);
+  assert_int_equal(ocs_tau_direct(&d, k, td), 0);
+  assert_memory_equal(t, td, sizeof t);
+  /* the sigma callback's error aborts the call */
+  oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
+  tcache_t c2;
+  tc_init(&c2, "{\"version\": 1, \"features\": {\"animation\": false},"
+               " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}",
+          0.0);
+  c2.fail_sigma = 1;
+  ocs_tau_desc_t d2 = desc_for(&c2, oc_dv3(0.0, 0.0, 1.0));
+  assert_int_equal(ocs_tau_direct(&d2, inside, t), OC_EIO);
+  assert_int_equal(ocs_tau_node(&d2, inside, t), OC_EIO);
+  assert_int_equal(ocs_tau_volume_build(&d2, ocs_tau_group_of(&d2, inside), 15, &vol, &bytes), OC_EIO);
+  assert_null(vol);
+  tc_free(&c2);
+  tc_free(&c);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_sun_depth__slab_below_three_sun_angles),
+      cmocka_unit_test(test_sun_depth__slab_inside),
+      cmocka_unit_test(test_sun_depth__zenith_along_an_axis),
+      cmocka_unit_test(test_sun_depth__sun_below_horizon),
+      cmocka_unit_test(test_sun_depth__root_cube_edge),
+      cmocka_unit_test(test_sun_depth__huge_sigma),
+      cmocka_unit_test(test_sun_depth__above_clouds_is_zero),
+      cmocka_unit_test(test_sun_depth__volume_matches_direct_on_the_planet),
+      cmocka_unit_test(test_sun_depth__thread_count_independent),
+      cmocka_unit_test(test_sun_depth__bad_arguments),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
