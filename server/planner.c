@@ -31,6 +31,8 @@ typedef struct {
   uint8_t kind;      /* record kind (cost) */
   uint8_t age;       /* 1..K-1: content held in that state; AGE_NEW: to produce */
   uint8_t flags;
+  uint32_t topo;     /* commit count when it was last split or merged: until K commits later its
+                        children (or, for a merged node, itself) may still be in a held state */
 } pn_t;
 
 typedef struct {
@@ -66,6 +68,7 @@ struct ocs_planner_s {
   int32_t count, cap;
   int32_t free_block; /* first free block (linked through .parent), -1 none */
   int32_t placed;     /* blocks allocated since the pool was last laid out in walk order */
+  uint32_t commits;   /* states committed */
   snap_t snap[OCS_PLAN_MAX_KEPT]; /* snap[0] newest held state */
   heap_t split_h, merge_h;
   /* the plan of the last ocs_plan_epoch() */
@@ -282,6 +285,7 @@ static void tree_reset(ocs_planner_t *p) {
   r->child = -1;
   r->kind = r->skind = OC_NODE_BRICK;
   r->age = AGE_NEW;
+  r->topo = p->commits;
 }
 
 /*-*** Held states ***/
@@ -343,11 +347,16 @@ uint64_t ocs_plan_resident(const ocs_planner_t *p) { return (uint64_t)held_bytes
 
 /*-*** Content and costs ***/
 
-/* What a node would hold at this epoch's stamp: held content when some kept state has it. */
-static void content_for(ocs_planner_t *p, pn_t *n, int level) {
+/* Whether the held states may hold a node whose topology changed at commit count `topo`: the
+ * binary searches of content_for() are skipped for the rest (most splits and merges). */
+static int recent(const ocs_planner_t *p, uint32_t topo) { return (uint64_t)topo + (uint64_t)p->K >= p->commits; }
+
+/* What a node would hold at this epoch's stamp: held content when some kept state has it (looked
+ * up only when `look`). */
+static void content_for(ocs_planner_t *p, pn_t *n, int level, int look) {
   uint64_t st = p->in->stamp[level];
   n->stamp = st;
-  for (int i = 0; i < p->K - 1; i++) {
+  for (int i = 0; look && i < p->K - 1; i++) {
     const snap_rec_t *r = snap_find(&p->snap[i], n->key);
     if (r && r->stamp == st) {
       n->kind = r->kind;
@@ -473,6 +482,7 @@ static int do_split(ocs_planner_t *p, int32_t i, const pn_t kids[8], const frust
   pn_t *n = &p->nodes[i];
   n->child = b;
   n->flags |= F_SPLIT;
+  n->topo = p->commits;
   for (int c = 0; c < 8; c++) {
     pn_t *ch = &p->nodes[b + c];
     *ch = kids[c];
@@ -533,7 +543,8 @@ static int try_merge(ocs_planner_t *p, double limit, int32_t keep, ocs_plan_stat
     if (e.idx == keep) return -1;
     int level = oc_key_level(m->key);
     pn_t pc = *m;
-    content_for(p, &pc, level);
+    content_for(p, &pc, level, recent(p, m->topo));
+    pc.topo = p->commits;
     double dc[OCS_PLAN_MAX_KEPT], dt;
     int dnew;
     merge_delta(p, e.idx, &pc, level, dc, &dt, &dnew);
@@ -653,7 +664,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     pn_t *n = &p->nodes[refresh[i].idx];
     int level = oc_key_level(n->key);
     pn_t nc = *n;
-    content_for(p, &nc, level);
+    content_for(p, &nc, level, 1);
     double c0[OCS_PLAN_MAX_KEPT], c1[OCS_PLAN_MAX_KEPT], t0c, t1c;
     leaf_cost(p, n, level, c0, &t0c);
     leaf_cost(p, &nc, level, c1, &t1c);
@@ -711,7 +722,8 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       for (int k = 0; k < 8; k++) {
         memset(&kids[k], 0, sizeof kids[k]);
         kids[k].key = oc_key_child(n->key, k);
-        content_for(p, &kids[k], level + 1);
+        content_for(p, &kids[k], level + 1, recent(p, n->topo));
+        kids[k].topo = n->topo; /* their children can be held only if n was internal lately */
       }
       kids_of = n->key;
     }
@@ -848,6 +860,7 @@ int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick
   memmove(&p->snap[1], &p->snap[0], (size_t)(p->K - 1) * sizeof p->snap[0]);
   p->snap[0] = s;
   p->pending = 0;
+  p->commits++;
   return 0;
 }
 
@@ -877,6 +890,7 @@ void ocs_plan_abandon(ocs_planner_t *p) {
           ch->key = oc_key_child(n->key, c);
           ch->parent = idx;
           ch->child = -1;
+          ch->topo = p->commits; /* history unknown: look everything up */
         }
       }
       oc_key_t a = oc_key_ancestor(key, l);
