@@ -26,8 +26,8 @@
 #define OC__DEF_CAM_LAT 45.0
 #define OC__DEF_CAM_LON 0.0
 #define OC__DEF_CAM_ALT 2000.0
-#define OC__DEF_CAM_HEADING 90.0
-#define OC__DEF_CAM_PITCH 5.0
+#define OC__DEF_CAM_HEADING 260.0
+#define OC__DEF_CAM_PITCH -5.0
 #define OC__DEF_CAM_FOV 60.0
 #define OC__DEF_ALBEDO 1.0
 #define OC__DEF_MS_OCTAVES 4

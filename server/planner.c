@@ -196,6 +196,7 @@ typedef struct {
   double th, tv, ch, cv; /* tangents of the half angles and 1/sqrt(1+t²) */
   double ppr;            /* pixels per radian */
   double out_w;
+  double horizon;        /* eye's distance to its horizon (0 inside the planet) */
 } frustum_t;
 
 static frustum_t frustum_make(const ocs_view_t *v, double out_w) {
@@ -210,6 +211,8 @@ static frustum_t frustum_make(const ocs_view_t *v, double out_w) {
   fr.ch = 1.0 / sqrt(1.0 + fr.th * fr.th);
   fr.ppr = v->height / (2.0 * fr.tv);
   fr.out_w = out_w;
+  double de = oc_dlen(v->pos), R = OC_PLANET_RADIUS;
+  fr.horizon = de > R ? sqrt(de * de - R * R) : 0.0;
   return fr;
 }
 
@@ -228,7 +231,13 @@ static double prio_box(const frustum_t *fr, oc_dvec3 o, double s) {
   double x = oc_ddot(c, fr->r), y = oc_ddot(c, fr->u), z = oc_ddot(c, fr->f);
   int out = z < -rad || (fr->th * z - x) * fr->ch < -rad || (fr->th * z + x) * fr->ch < -rad ||
             (fr->tv * z - y) * fr->cv < -rad || (fr->tv * z + y) * fr->cv < -rad;
-  return out ? p * fr->out_w : p;
+  if (out) p *= fr->out_w;
+  /* Behind the planet: two points see each other over the sphere only when their distance is less
+   * than the sum of their horizon distances; the node's highest point bounds its own. */
+  double rc = oc_dlen(oc_dadd(c, fr->eye)) + rad, R = OC_PLANET_RADIUS;
+  double h_node = rc > R ? sqrt(rc * rc - R * R) : 0.0;
+  if (d > fr->horizon + h_node) p *= fr->out_w * fr->out_w;
+  return p;
 }
 
 double ocs_view_priority(const ocs_view_t *v, oc_key_t key, double outside_weight) {
@@ -347,6 +356,8 @@ uint64_t ocs_plan_resident(const ocs_planner_t *p) { return (uint64_t)held_bytes
 
 /*-*** Content and costs ***/
 
+int ocs_plan_ground_tau(oc_key_t key) { return oc_key_level(key) >= OCS_GROUND_TAU_LEVEL && oc_key_meets_ground(key); }
+
 /* Whether the held states may hold a node whose topology changed at commit count `topo`: the
  * binary searches of content_for() are skipped for the rest (most splits and merges). */
 static int recent(const ocs_planner_t *p, uint32_t topo) { return (uint64_t)topo + (uint64_t)p->K >= p->commits; }
@@ -369,7 +380,7 @@ static void content_for(ocs_planner_t *p, pn_t *n, int level, int look) {
   oc_node_kind_t k = p->in->classify(p->in->ctx, n->key);
   n->skind = (uint8_t)k;
   n->kind = (uint8_t)k;
-  if ((k == OC_NODE_UNIFORM && p->in->uniform_is_brick) || (k == OC_NODE_EMPTY && p->in->ground_tau && oc_key_meets_ground(n->key)))
+  if ((k == OC_NODE_UNIFORM && p->in->uniform_is_brick) || (k == OC_NODE_EMPTY && p->in->ground_tau && ocs_plan_ground_tau(n->key)))
     n->kind = OC_NODE_BRICK;
   n->brick_id = 0;
   n->age = AGE_NEW;

@@ -7,7 +7,9 @@
  * split is taken while it fits, else the cheapest merge is taken to make room, and the loop stops
  * when the cheapest merge is worth more than the best split. Priority is a screen-space error: the
  * pixels a voxel (node size / 7) spans at the node's nearest point to the eye, times
- * `outside_weight` outside the view frustum. Nodes known (or bounded) to be empty or uniform in σt,
+ * `outside_weight` outside the view frustum and outside_weight² again when the whole node is hidden
+ * behind the planet's horizon (its nearest point is farther than the sum of the eye's and the
+ * node's highest point's horizon distances). Nodes known (or bounded) to be empty or uniform in σt,
  * inside the planet or above the atmosphere, or at max_depth, are never split.
  *
  * Budget (the Conventions' measure). The viewer keeps K states (3 animated, 2 static): resident =
@@ -77,8 +79,9 @@ typedef struct {
   oc_node_kind_t (*classify)(void *ctx, oc_key_t key);
   void *ctx;
   int uniform_is_brick;    /**< shadows on: a uniform σt node still carries a τ gradient (a brick) */
-  int ground_tau;          /**< shadows on the ground: an empty node touching the planet surface
-                                carries τ for the ground (a brick, still never split) */
+  int ground_tau;          /**< shadows on the ground: an empty node of level ≥ OCS_GROUND_TAU_LEVEL
+                                touching the planet surface carries τ for the ground (a brick,
+                                still never split); see ocs_plan_ground_tau() */
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];    /**< content stamp per level at this epoch's time */
   double refresh_rate[OC_KEY_MAX_LEVEL + 1]; /**< fraction of epochs a level's content changes, [0,1] */
   uint32_t max_new_bricks; /**< throughput limit for this plan (slow viewer); 0 = none */
@@ -129,6 +132,12 @@ void ocs_plan_abandon(ocs_planner_t *p);
 
 /*! ocs_plan_resident() : resident bytes of the held states (the window ending at the newest). */
 uint64_t ocs_plan_resident(const ocs_planner_t *p);
+
+/*! Coarsest level whose empty ground nodes carry τ: a 6 km node, 880 m voxels. Coarser ground
+ *  nodes are far from any camera that sees their shadows at that resolution. */
+#define OCS_GROUND_TAU_LEVEL 11
+/*! ocs_plan_ground_tau() : whether an empty node carries τ for cloud shadows on the ground. */
+int ocs_plan_ground_tau(oc_key_t key);
 
 /*! ocs_view_priority() : the split priority of a node: voxel pixels at the nearest point, times
  *  outside_weight when the node's bounding sphere is outside the frustum. */

@@ -185,7 +185,7 @@ static int produce_one(void *ctx, size_t i, int worker) {
   for (int j = 0; r >= 0 && j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
   /* nothing scatters where σt is all zero: such a node needs no τ and stays empty, unless it holds
    * the ground, which the renderer lights through τ (cloud shadows on the ground) */
-  if (r >= 0 && w->shadows && (any || (w->ground_tau && oc_key_meets_ground(q->key)))) r = tau_get(w, q->key, tau);
+  if (r >= 0 && w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(w, q->key, tau);
   payload_t *p = r >= 0 ? malloc(sizeof *p) : NULL;
   if (!p) {
     ocs_cache_abandon(w->cache, q->entry);

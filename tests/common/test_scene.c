@@ -139,7 +139,7 @@ static void test_defaults(void **state) {
   assert_true(fabs(sun.x - cos(20 * OC_DEG) * cos(10 * OC_DEG)) < 1e-15);
   assert_true(fabs(sun.y - cos(20 * OC_DEG) * sin(10 * OC_DEG)) < 1e-15);
   assert_true(s.camera.pos.lat == 45 && s.camera.pos.lon == 0 && s.camera.pos.alt == 2000);
-  assert_true(s.camera.heading == 90 && s.camera.pitch == 5 && s.camera.fov == 60);
+  assert_true(s.camera.heading == 260 && s.camera.pitch == -5 && s.camera.fov == 60);
   assert_true(s.optics.albedo == 1.0 && s.optics.ms_octaves == 4);
   assert_true(s.optics.ms_a == 0.5 && s.optics.ms_b == 0.5 && s.optics.ms_c == 0.5);
   assert_int_equal(s.nsources, 0);

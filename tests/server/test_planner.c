@@ -249,11 +249,12 @@ static void sim_free(sim_t *s) {
 }
 
 /* What the planner must predict for new content: the bound's class, a brick when a uniform node
- * carries τ (shadows) or an empty one touching the ground carries the ground's τ. */
+ * carries τ (shadows) or an empty one touching the ground, of level OCS_GROUND_TAU_LEVEL or finer,
+ * carries the ground's τ. */
 static oc_node_kind_t predicted_kind(const sim_t *s, oc_key_t key) {
   oc_node_kind_t k = shell_kind(&s->shell, key);
   if (k == OC_NODE_UNIFORM && s->in.uniform_is_brick) return OC_NODE_BRICK;
-  if (k == OC_NODE_EMPTY && s->in.ground_tau) {
+  if (k == OC_NODE_EMPTY && s->in.ground_tau && oc_key_level(key) >= OCS_GROUND_TAU_LEVEL) {
     double dmin, dmax, sz;
     oc_dvec3 o;
     box_radii(key, &dmin, &dmax, &o, &sz);
