@@ -68,6 +68,8 @@ typedef struct {
   uint32_t cap, count; /* cap: power of two */
   float *pool;
   int32_t nbricks, pool_cap;
+  double *scr; /* a column's slice positions and running integrals */
+  int32_t scr_cap;
   int err;
   int level_m;  /* march level */
   int level_lo; /* coarsest level sampled or bounded */
@@ -110,6 +112,7 @@ static int ocs__ctx_init(ocs__ctx_t *c, const ocs__desc_t *d, int node_level) {
 static void ocs__ctx_free(ocs__ctx_t *c) {
   free(c->tab);
   free(c->pool);
+  free(c->scr);
 }
 
 static inline uint32_t ocs__hash(oc_key_t k) { return (uint32_t)((k * 0x9E3779B97F4A7C15ull) >> 32); }
@@ -192,91 +195,30 @@ static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
   return c->pool + (size_t)e->brick * OC_BRICK_VOXELS;
 }
 
-/* Cell of x at a level, as lattice-of-nodes coordinates; the fractions f ∈ [0, 1] inside it.
- * @return 0 outside the closed root cube. */
-static inline int ocs__cell(const ocs__ctx_t *c, oc_dvec3 x, int level, uint32_t *ix, uint32_t *iy, uint32_t *iz,
-                            double f[3]) {
-  double n = c->cell_n[level], k = c->cell_k[level];
-  double g[3] = {(x.x + OCS__S) * k, (x.y + OCS__S) * k, (x.z + OCS__S) * k};
-  uint32_t i3[3];
-  for (int a = 0; a < 3; a++) {
-    if (!(g[a] >= 0.0 && g[a] <= n)) return 0;
-    uint32_t i = (uint32_t)g[a]; /* floor: g ≥ 0 */
-    if (i >= (uint32_t)n) i = (uint32_t)n - 1u; /* the root's max face belongs to the last cell */
-    i3[a] = i;
-    f[a] = g[a] - (double)i;
-  }
-  *ix = i3[0], *iy = i3[1], *iz = i3[2];
-  return 1;
-}
-
-/* σt at x reconstructed from the bricks of `level` (shaders/brick.h's trilinear reconstruction);
- * 0 outside the root cube. */
-static double ocs__sigma_at(ocs__ctx_t *c, oc_dvec3 x, int level) {
-  uint32_t ix, iy, iz;
-  double f[3];
-  if (!ocs__cell(c, x, level, &ix, &iy, &iz, f)) return 0.0;
+/* The slot of node (ix, iy, iz) of `level` through the per-level "current node" cache; -1 on error. */
+static int32_t ocs__slot(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
   ocs__cur_t *cu = &c->cur[level];
-  int32_t slot;
-  if (cu->slot >= 0 && cu->ix == ix && cu->iy == iy && cu->iz == iz) {
-    slot = cu->slot;
-  } else {
-    slot = ocs__lookup(c, oc_key_make(level, ix, iy, iz));
-    if (slot < 0) return 0.0;
-    cu = &c->cur[level]; /* a grow may have reset it */
-    cu->ix = ix, cu->iy = iy, cu->iz = iz, cu->slot = slot;
-  }
-  const ocs__ent_t *e = &c->tab[slot];
-  if (!(e->smax > 0.0f)) return 0.0;
-  if (e->smin == e->smax) return e->smin;
-  const float *b = ocs__brick(c, slot);
-  if (!b) return 0.0;
-  ocg_vec3 u = ocg_v3((float)f[0], (float)f[1], (float)f[2]);
-  ocg_vec3 base = ocg_brick_base(u), w = ocg_brick_frac(u, base);
-  ocg_uint b0 = ocg_brick_base_voxel(base);
-  return ocg_trilerp(ocg_v4(b[b0], b[b0 + 1], b[b0 + 8], b[b0 + 9]),
-                     ocg_v4(b[b0 + 64], b[b0 + 65], b[b0 + 72], b[b0 + 73]), w);
+  if (cu->slot >= 0 && cu->ix == ix && cu->iy == iy && cu->iz == iz) return cu->slot;
+  int32_t slot = ocs__lookup(c, oc_key_make(level, ix, iy, iz));
+  if (slot < 0) return -1;
+  cu = &c->cur[level]; /* a grow may have reset it */
+  cu->ix = ix, cu->iy = iy, cu->iz = iz, cu->slot = slot;
+  return slot;
 }
 
-/* Distance along dir from x to where the ray leaves the node (ix, iy, iz) of `level` (≥ 0). */
-static double ocs__exit(oc_dvec3 x, oc_dvec3 dir, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
-  double size = oc_key_size(level);
-  double o[3] = {-OCS__S + ix * size, -OCS__S + iy * size, -OCS__S + iz * size};
-  double p[3] = {x.x, x.y, x.z}, d[3] = {dir.x, dir.y, dir.z}, t = INFINITY;
-  for (int a = 0; a < 3; a++) {
-    if (d[a] > 0.0) t = fmin(t, (o[a] + size - p[a]) / d[a]);
-    else if (d[a] < 0.0) t = fmin(t, (o[a] - p[a]) / d[a]);
-  }
-  return t > 0.0 ? t : 0.0;
-}
-
-/* When x lies in a node of level_lo..level whose bound is [0, 0]: the distance to leave the
- * coarsest such node, plus a little to land in the next one; else 0. */
-static double ocs__skip(ocs__ctx_t *c, oc_dvec3 x, oc_dvec3 dir, int level) {
-  uint32_t ix, iy, iz;
-  double f[3];
-  if (!ocs__cell(c, x, level, &ix, &iy, &iz, f)) return 0.0;
-  if (c->chk_level == level && c->chk_ix == ix && c->chk_iy == iy && c->chk_iz == iz) return 0.0;
+/* The coarsest level l in level_lo..level whose node holding node (ix, iy, iz) of `level` has the
+ * bound [0, 0] (every sample of a node at l or finer inside it is then 0, and so is the
+ * reconstruction); -1 when there is none; -2 on error. */
+static int ocs__empty_level(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
+  if (c->chk_level == level && c->chk_ix == ix && c->chk_iy == iy && c->chk_iz == iz) return -1;
   for (int l = c->level_lo; l <= level; l++) {
     int sh = level - l;
-    uint32_t jx = ix >> sh, jy = iy >> sh, jz = iz >> sh;
-    int32_t slot;
-    ocs__cur_t *cu = &c->cur[l];
-    if (cu->slot >= 0 && cu->ix == jx && cu->iy == jy && cu->iz == jz) {
-      slot = cu->slot;
-    } else {
-      slot = ocs__lookup(c, oc_key_make(l, jx, jy, jz));
-      if (slot < 0) return 0.0;
-      cu = &c->cur[l];
-      cu->ix = jx, cu->iy = jy, cu->iz = jz, cu->slot = slot;
-    }
-    if (!(c->tab[slot].smax > 0.0f)) {
-      double size = oc_key_size(l);
-      return ocs__exit(x, dir, l, jx, jy, jz) + 1e-6 + 1e-9 * size;
-    }
+    int32_t slot = ocs__slot(c, l, ix >> sh, iy >> sh, iz >> sh);
+    if (slot < 0) return -2;
+    if (!(c->tab[slot].smax > 0.0f)) return l;
   }
   c->chk_level = level, c->chk_ix = ix, c->chk_iy = iy, c->chk_iz = iz;
-  return 0.0;
+  return -1;
 }
 
 /*-*** Ray geometry ***/
@@ -313,32 +255,173 @@ static int ocs__clip(oc_dvec3 p, oc_dvec3 d, double *t0, double *t1) {
   return 1;
 }
 
-/*-*** The march ***/
+/*-*** Exact integration of the reconstruction ***/
 
-/* ∫ σt over p + t·sun, t ∈ [t0, t1], with cone steps Δ = max(h0, cone·(t + t_ref)) and
- * empty-space skipping. */
-static double ocs__march(ocs__ctx_t *c, oc_dvec3 p, double t0, double t1, double t_ref) {
-  const ocs__desc_t *d = c->d;
-  oc_dvec3 s = d->sun;
-  int jmax = c->level_m - c->level_lo;
-  double dmax = jmax > 0 ? c->step_up[jmax - 1] : c->h0;
-  double tau = 0.0, t = t0;
-  for (int it = 0; t < t1 && it < OCS__MAX_ITER && !c->err; it++) {
-    double step = d->cone * (t + t_ref);
-    if (step < c->h0) step = c->h0;
-    if (step > dmax) step = dmax;
-    int j = 0;
-    while (j < jmax && step >= c->step_up[j]) j++;
-    int level = c->level_m - j;
-    oc_dvec3 x = oc_dmad(p, s, t);
-    double skip = ocs__skip(c, x, s, level);
-    if (skip > 0.0) {
-      t += skip;
+/* Trilinear interpolation of a cell's corners k[i + 2j + 4l] at fractions (fx, fy, fz). */
+static inline double ocs__tri(const double k[8], double fx, double fy, double fz) {
+  double a = k[0] + (k[1] - k[0]) * fx, b = k[2] + (k[3] - k[2]) * fx;
+  double e = k[4] + (k[5] - k[4]) * fx, g = k[6] + (k[7] - k[6]) * fx;
+  double y0 = a + (b - a) * fy, y1 = e + (g - e) * fy;
+  return y0 + (y1 - y0) * fz;
+}
+
+/* Running integrals to record during a walk: out[i] = base + ∫ from the walk's start to cp[i], for
+ * the ascending checkpoints cp[*i ..] that the walk passes. */
+typedef struct {
+  const double *cp;
+  double *out;
+  int n, i;
+  double base;
+} ocs__cps_t;
+
+/* Records the checkpoints up to `upto` (inclusive) on a piece where σt is the constant `val` from
+ * t (where the integral so far is sum). */
+static void ocs__cps_const(ocs__cps_t *q, double upto, double t, double sum, double val) {
+  if (!q) return;
+  for (; q->i < q->n && q->cp[q->i] <= upto; q->i++) {
+    double x = q->cp[q->i] > t ? q->cp[q->i] : t;
+    q->out[q->i] = q->base + sum + val * (x - t);
+  }
+}
+
+/* Distance along the ray p + t·dir (pv = p + S per axis, idv = 1/dir or 0) to where it leaves the
+ * node (ix, iy, iz) of `level`. */
+static double ocs__node_exit(const double pv[3], const int sg[3], const double idv[3], int level, const uint32_t n[3]) {
+  double size = oc_key_size(level), t = INFINITY;
+  for (int a = 0; a < 3; a++) {
+    double f = sg[a] > 0 ? ((double)n[a] + 1.0) * size : (double)n[a] * size;
+    if (sg[a] != 0) t = fmin(t, (f - pv[a]) * idv[a]);
+  }
+  return t;
+}
+
+/* ∫ σt over p + t·sun, t ∈ [ta, tb], with σt reconstructed from the bricks of `level`, EXACTLY up to
+ * rounding: a 3D DDA walks the ray cell by cell through the level's sample lattice (cells of edge
+ * v = size/7, 7³ per node, never straddling two nodes), and on each cell segment the trilinear
+ * interpolant is a cubic in t, which Simpson's rule integrates exactly (both ends and the middle;
+ * the end is the next cell's start inside a brick). Nodes inside an empty node of level_lo..level
+ * are jumped over, a uniform node [v, v] adds v·length. Checkpoints (may be NULL) are recorded on
+ * the way: a checkpoint inside a cell splits its segment, each part again exact. The ray must lie
+ * in the root cube over [ta, tb] (ocs__clip). */
+static double ocs__walk(ocs__ctx_t *c, oc_dvec3 p, double ta, double tb, int level, ocs__cps_t *q) {
+  const oc_dvec3 s = c->d->sun;
+  const double pv[3] = {p.x + OCS__S, p.y + OCS__S, p.z + OCS__S}, dv[3] = {s.x, s.y, s.z};
+  const double v = ocs__voxel(level), inv = 1.0 / v, eta = 1e-6 * v;
+  const int64_t ncell = (int64_t)7 << level;
+  int sg[3];
+  double idv[3];
+  for (int a = 0; a < 3; a++) {
+    sg[a] = dv[a] > 0.0 ? 1 : dv[a] < 0.0 ? -1 : 0;
+    idv[a] = sg[a] ? 1.0 / dv[a] : 0.0;
+  }
+  double sum = 0.0, t = ta;
+  int64_t g[3] = {0, 0, 0};
+  int have = 0; /* g holds the cell at t */
+  for (long it = 0; t < tb && !c->err && it < OCS__MAX_ITER; it++) {
+    if (!have) { /* locate the cell just past t */
+      double tl = t + fmin(eta, 0.5 * (tb - t));
+      for (int a = 0; a < 3; a++) {
+        double u = floor((pv[a] + tl * dv[a]) * inv);
+        g[a] = u < 0.0 ? 0 : u >= (double)ncell ? ncell - 1 : (int64_t)u;
+      }
+      have = 1;
+    }
+    uint32_t n[3] = {(uint32_t)(g[0] / 7), (uint32_t)(g[1] / 7), (uint32_t)(g[2] / 7)};
+    int le = ocs__empty_level(c, level, n[0], n[1], n[2]);
+    if (le == -2) break;
+    if (le >= 0) { /* jump over the coarsest empty node */
+      int sh = level - le;
+      uint32_t ne[3] = {n[0] >> sh, n[1] >> sh, n[2] >> sh};
+      double te = ocs__node_exit(pv, sg, idv, le, ne);
+      if (!(te > t)) te = t + eta; /* rounding: never stall */
+      if (te > tb) te = tb;
+      ocs__cps_const(q, te, t, sum, 0.0);
+      t = te, have = 0;
       continue;
     }
-    if (step > t1 - t) step = t1 - t;
-    tau += ocs__sigma_at(c, oc_dmad(p, s, t + 0.5 * step), level) * step;
-    t += step;
+    int32_t slot = ocs__slot(c, level, n[0], n[1], n[2]);
+    if (slot < 0) break;
+    const ocs__ent_t *e = &c->tab[slot];
+    if (e->smin == e->smax) { /* uniform: v·length */
+      double te = ocs__node_exit(pv, sg, idv, level, n), val = e->smin;
+      if (!(te > t)) te = t + eta;
+      if (te > tb) te = tb;
+      ocs__cps_const(q, te, t, sum, val);
+      sum += val * (te - t);
+      t = te, have = 0;
+      continue;
+    }
+    const float *b = ocs__brick(c, slot);
+    if (!b) break;
+    if (c->tab[slot].smin == c->tab[slot].smax) continue; /* the brick itself is uniform or zero */
+    /* cell by cell through this node */
+    int64_t lo[3] = {7 * (int64_t)n[0], 7 * (int64_t)n[1], 7 * (int64_t)n[2]};
+    double k[8], o[3], fa = 0.0;
+    int first = 1;
+    for (;;) {
+      int bi = (int)(g[0] - lo[0]) + 8 * (int)(g[1] - lo[1]) + 64 * (int)(g[2] - lo[2]);
+      k[0] = b[bi], k[1] = b[bi + 1], k[2] = b[bi + 8], k[3] = b[bi + 9];
+      k[4] = b[bi + 64], k[5] = b[bi + 65], k[6] = b[bi + 72], k[7] = b[bi + 73];
+      for (int a = 0; a < 3; a++) o[a] = (double)g[a] * v - pv[a];
+#define OCS__F(tt) ocs__tri(k, ((tt) * dv[0] - o[0]) * inv, ((tt) * dv[1] - o[1]) * inv, ((tt) * dv[2] - o[2]) * inv)
+      if (first) fa = OCS__F(t), first = 0;
+      double tc = tb;
+      int am = -1;
+      for (int a = 0; a < 3; a++) {
+        if (!sg[a]) continue;
+        double tn = ((double)(g[a] + (sg[a] > 0)) * v - pv[a]) * idv[a];
+        if (tn < tc) tc = tn, am = a;
+      }
+      if (q) /* checkpoints inside this cell split its segment */
+        for (; q->i < q->n && q->cp[q->i] <= tc; q->i++) {
+          double x = q->cp[q->i];
+          if (x > t) {
+            double fx = OCS__F(x);
+            sum += (x - t) * (1.0 / 6.0) * (fa + 4.0 * OCS__F(0.5 * (t + x)) + fx);
+            t = x, fa = fx;
+          }
+          q->out[q->i] = q->base + sum;
+        }
+      if (tc > t) {
+        double fb = OCS__F(tc);
+        sum += (tc - t) * (1.0 / 6.0) * (fa + 4.0 * OCS__F(0.5 * (t + tc)) + fb);
+        t = tc, fa = fb;
+      }
+#undef OCS__F
+      if (am < 0 || !(t < tb)) break; /* the end */
+      g[am] += sg[am];
+      if (g[am] < 0 || g[am] >= ncell) { /* out of the root cube (rounding at its face) */
+        t = tb;
+        break;
+      }
+      if (g[am] < lo[am] || g[am] >= lo[am] + 7) break; /* into the next node */
+      if (++it >= OCS__MAX_ITER) break;
+    }
+  }
+  ocs__cps_const(q, tb, t, sum, 0.0);
+  return sum;
+}
+
+/* ∫ σt over p + t·sun, t ∈ [t0, t1], through the cone's levels: the level sampled at distance t is
+ * the one the step Δ(t) = max(h0, cone·(t + t_ref)) selects (level_m − j where Δ ≥ h0·2^(j+1),
+ * not coarser than level_lo), so the ray is cut where cone·(t + t_ref) = h0·2^(j+1) and each piece
+ * is integrated exactly at its level (ocs__walk). */
+static double ocs__march(ocs__ctx_t *c, oc_dvec3 p, double t0, double t1, double t_ref) {
+  int jmax = c->level_m - c->level_lo, j = 0;
+  double cone = c->d->cone, tau = 0.0, t = t0;
+  while (j < jmax && t0 >= c->step_up[j] / cone - t_ref) j++;
+  while (t < t1 && !c->err) {
+    double te = t1;
+    if (j < jmax) {
+      double tj = c->step_up[j] / cone - t_ref;
+      if (tj < te) te = tj;
+    }
+    if (te > t) {
+      tau += ocs__walk(c, p, t, te, c->level_m - j, NULL);
+      t = te;
+    }
+    if (j >= jmax) break;
+    j++;
   }
   return tau;
 }
@@ -424,46 +507,68 @@ oc_key_t ocs_tau_group_of(const ocs_tau_desc_t *du, oc_key_t key) {
   return ocs__group(&d, key);
 }
 
-/* ∫ σt over the column line q0 + c·s, c ∈ [ca, cb], at the march level with midpoint sub-steps no
- * longer than h0; σt counts only inside the atmosphere sphere and outside the stop sphere. */
-static double ocs__segment(ocs__ctx_t *c, oc_dvec3 q0, double ca, double cb) {
-  double len = cb - ca;
-  if (!(len > 0.0)) return 0.0;
-  int n = (int)ceil(len / c->h0 - 1e-9);
-  if (n < 1) n = 1;
-  double h = len / n, sum = 0.0;
-  for (int i = 0; i < n; i++) {
-    oc_dvec3 x = oc_dmad(q0, c->d->sun, ca + (i + 0.5) * h);
-    double r2 = oc_ddot(x, x);
-    if (r2 > OCS__R_ATMO * OCS__R_ATMO || r2 < OCS__R_STOP * OCS__R_STOP) continue;
-    sum += ocs__sigma_at(c, x, c->level_m);
+/* The part [lo, hi] of the line q0 + c·s inside the root cube; 0 when it misses it. */
+static int ocs__line_root(oc_dvec3 q0, oc_dvec3 s, double *lo, double *hi) {
+  double pv[3] = {q0.x, q0.y, q0.z}, dv[3] = {s.x, s.y, s.z}, a = -INFINITY, b = INFINITY;
+  for (int k = 0; k < 3; k++) {
+    if (dv[k] == 0.0) {
+      if (!(pv[k] >= -OCS__S && pv[k] <= OCS__S)) return 0;
+      continue;
+    }
+    double u = (-OCS__S - pv[k]) / dv[k], w = (OCS__S - pv[k]) / dv[k];
+    a = fmax(a, fmin(u, w)), b = fmin(b, fmax(u, w));
   }
-  return sum * h;
+  *lo = a, *hi = b;
+  return b > a;
 }
 
-/* One column: τ at slices k0 .. k0 + n − 1 (c_k = c_lo + k·dc), from the top down. The top is a
- * march toward the sun (cone distances counted from the middle of the column's run); below it
- * each slice adds the segment up to the next one, so every slice's τ is the integral to the sun,
- * with the same cut as a march from that point (sun_depth.h): a slice inside the stop sphere has
- * τ = 0, one below it only integrates up to where its ray enters it. */
+/* One column: τ at slices k0 .. k0 + n − 1 (c_k = c_lo + k·dc). The top is a march toward the sun
+ * (cone distances counted from the middle of the column's run). Below it the column is integrated
+ * exactly at the march level (ocs__walk) from the lowest slice up to the top, recording the running
+ * integral J at every slice, with σt counted only inside the atmosphere sphere and the root cube
+ * and outside the stop sphere: a slice's τ is then τ(top) + J(top) − J(c_k), the same cut as a
+ * march from that point (sun_depth.h): a slice inside the stop sphere has τ = 0, one below it
+ * integrates only up to where its ray enters it (J(entry) − J(c_k)). */
 static void ocs__column(ocs__ctx_t *c, const ocs__vol_t *v, oc_dvec3 q0, int32_t k0, int32_t n, float *out) {
   oc_dvec3 s = c->d->sun;
-  double ci1 = INFINITY, ci2 = -INFINITY;
-  ocs__sphere(q0, s, OCS__R_STOP, &ci1, &ci2);
   double ctop = v->c_lo + (k0 + n - 1) * v->dc;
   double cmid = v->c_lo + (k0 + 0.5 * (n - 1)) * v->dc;
-  double acc = ocs__tau_point(c, oc_dmad(q0, s, ctop), ctop - cmid);
-  out[n - 1] = ocs__to_float(acc);
-  for (int32_t i = n - 2; i >= 0 && !c->err; i--) {
-    double ck = v->c_lo + (k0 + i) * v->dc, ck1 = ck + v->dc;
-    if (ck >= ci1 && ck <= ci2) { /* the sample point is inside the stop sphere */
-      acc = 0.0;
-    } else if (ck < ci1 && ck1 >= ci1) { /* its ray is cut where it enters the stop sphere */
-      acc = ocs__segment(c, q0, ck, ci1);
-    } else {
-      acc += ocs__segment(c, q0, ck, ck1);
+  double top = ocs__tau_point(c, oc_dmad(q0, s, ctop), ctop - cmid);
+  out[n - 1] = ocs__to_float(top);
+  if (n < 2 || c->err) return;
+  if (c->scr_cap < 2 * n) {
+    double *ns = realloc(c->scr, 2 * (size_t)n * sizeof *ns);
+    if (!ns) {
+      c->err = OC_ENOMEM;
+      return;
     }
-    out[i] = ocs__to_float(acc);
+    c->scr = ns, c->scr_cap = 2 * n;
+  }
+  double *cp = c->scr, *J = c->scr + n;
+  for (int32_t i = 0; i < n; i++) cp[i] = v->c_lo + (k0 + i) * v->dc, J[i] = 0.0;
+  double ci1 = INFINITY, ci2 = -INFINITY, a1, a2, r1, r2, ji1 = 0.0;
+  int stop = ocs__sphere(q0, s, OCS__R_STOP, &ci1, &ci2);
+  ocs__cps_t q = {cp, J, n, 0, 0.0};
+  if (ocs__sphere(q0, s, OCS__R_ATMO, &a1, &a2) && ocs__line_root(q0, s, &r1, &r2)) {
+    double lo = fmax(cp[0], fmax(a1, r1)), hi = fmin(ctop, fmin(a2, r2));
+    /* the pieces where σt counts: [lo, hi] without the stop sphere's (ci1, ci2) */
+    double pa[2] = {lo, stop ? fmax(lo, ci2) : hi}, pb[2] = {stop ? fmin(hi, ci1) : hi, hi};
+    for (int k = 0; k < 2 && !c->err; k++) {
+      if (pb[k] > pa[k]) {
+        ocs__cps_const(&q, pa[k], pa[k], 0.0, 0.0); /* J is constant before the piece */
+        q.base += ocs__walk(c, q0, pa[k], pb[k], c->level_m, &q);
+      }
+      if (k == 0) ji1 = q.base; /* J where the ray enters the stop sphere */
+      if (!stop) break;
+    }
+  }
+  ocs__cps_const(&q, INFINITY, 0.0, 0.0, 0.0);
+  for (int32_t i = n - 2; i >= 0; i--) {
+    double ck = cp[i], tau;
+    if (ck >= ci1 && ck <= ci2) tau = 0.0;                /* the sample point is inside the stop sphere */
+    else if (ck < ci1 && ctop >= ci1) tau = ji1 - J[i]; /* its ray is cut where it enters it */
+    else tau = top + (J[n - 1] - J[i]);
+    out[i] = ocs__to_float(tau);
   }
 }
 

@@ -14,12 +14,18 @@
  *     the voxel (size/7) of level m, and each step samples the level whose voxel is about Δ /
  *     step_factor (m − ⌊log2(Δ/h0)⌋, not coarser than min_level; Δ stops growing there). Far
  *     occluders are therefore sampled coarser, as the cone of directions toward the sun's disc
- *     widens. Steps are midpoint samples: τ += σt(midpoint)·Δ, accumulated in double.
- *   - Empty-space skipping: at each step the coarsest node (min_level … the step's level) whose
- *     σt bound is [0, 0] is jumped over to where the ray leaves it. The sampled reconstruction is
+ *     widens. The ray is cut where the level changes, and each piece is integrated EXACTLY (up to
+ *     rounding) through the reconstruction of its level: a 3D DDA walks it cell by cell through
+ *     that level's sample lattice (cells of edge size/7, 7³ per node, never straddling nodes); on
+ *     a cell segment the trilinear σt is a cubic in the ray parameter, which Simpson's rule (both
+ *     ends and the middle) integrates exactly. τ is accumulated in double. step_factor therefore
+ *     no longer sets a quadrature step, only (through h0) the distances where the cone changes
+ *     level.
+ *   - Empty-space skipping: on entering a node the coarsest node (min_level … the level walked)
+ *     holding it whose σt bound is [0, 0] is jumped over to where the ray leaves it. The sampled reconstruction is
  *     exactly 0 there (every sample of a node at that level or finer inside it is a box average
  *     over its footprint), so skipping changes nothing but the cost; it is what makes clear sky
- *     cheap. A node whose bound is [v, v] is taken as uniform v without fetching its brick.
+ *     cheap. A node whose bound is [v, v] adds v·length without fetching its brick (exact too).
  *   - Where the march stops: the planet's shadow is NOT in τ (the renderer multiplies by clear-sky
  *     transmittance). The ray is cut where it enters the sphere of radius OCS_TAU_PLANET_STOP
  *     (R − 10 km, the lowest altitude a scene may use), where it leaves the atmosphere sphere
@@ -35,17 +41,18 @@
  *     needs τ: the four columns around the sun ray of every sample of a covered node (note 2 of
  *     ocs_tau_volume_build()), over the slices around those samples. Each column is marched ONCE:
  *     from the top of that run toward the sun by the same cone march (distances counted from the
- *     middle of the run), then down the run with slices 1.5·v_L apart (OCS_TAU_SLICE_SPACING),
- *     accumulating τ in double with one midpoint sample per slice. A sample's τ is the trilinear
+ *     middle of the run), then along the run, integrated exactly at the march level like the
+ *     direct march, recording the running integral at slices 1.5·v_L apart
+ *     (OCS_TAU_SLICE_SPACING; a slice inside a cell splits it, each part again exact by Simpson),
+ *     so every slice holds the exact τ of its point. A sample's τ is the trilinear
  *     interpolation of the grid (bilinear across the four columns around its sun ray, linear
  *     between slices). Only the slices a column needs are stored.
  *     Resolution and memory for a fully covered group (group_levels 2, any level): 930–1 500
  *     columns marched by sun direction (a 22nd to a 35th of the 32 768 marches of ocs_tau_direct()
  *     for the 64 nodes), 18 500–19 900 stored slices and a 1 050–2 070-entry column table:
  *     83–102 KiB per volume (the 64 nodes' τ floats are 128 KiB); partly covered groups cost
- *     less. Its slices, shorter than the march step, make the volume MORE accurate
- *     than the direct march at the same step factor (docs/numerics.md); the speed-up over it is
- *     in docs/performance.md.
+ *     less. Its only error against the direct march is the interpolation between columns and
+ *     slices (docs/numerics.md); the speed-up over it is in docs/performance.md.
  *
  * Nodes without σt: a node whose σt is all zero needs no τ (nothing scatters there, and a renderer
  * never reads τ where σt = 0), so callers may skip it and store the node as empty. The functions
@@ -87,15 +94,15 @@
 /*! Lateral column spacing of the group volume, in voxels of the nodes' level (half the march
  *  level's voxel at the default filter_levels). τ has sharp lateral edges in the shadows of
  *  optically thick clouds, and interpolating across them is the volume's main error: at 1.0 its
- *  RMS error in e^-τ against a converged march is 0.4–0.9× the direct march's own at the same
- *  step factor (its worst, at a few samples on the sharpest edges, 0.8–1.5×); 1.5 costs half as
- *  much for 0.6–1.1×; 0.5 costs 3.4× more for 0.3–0.6× (docs/numerics.md). */
+ *  RMS error in e^-τ against the (exact) direct march is 0.005–0.019 on the bench's cumulus; 1.5
+ *  costs 0.6× for 1.35–1.4× the error; 0.5 costs 3.3× more for 0.7× (docs/numerics.md). */
 #ifndef OCS_TAU_COLUMN_SPACING
 #define OCS_TAU_COLUMN_SPACING 1.0
 #endif
-/*! Spacing of the slices along each column, in voxels of the nodes' level; one midpoint sample
- *  each (sub-steps where a slice is longer than h0, 2 voxels at the default filter_levels). 1.0
- *  costs 23 % more for 15–25 % less error, 2.0 (one march step) 12 % less for 30 % more. */
+/*! Spacing of the slices along each column, in voxels of the nodes' level: where the exact
+ *  running integral is recorded (τ is linear between slices). It costs memory, hardly time (the
+ *  column is walked cell by cell whatever the spacing): 0.75 gives 10–25 % less error for 1.6×
+ *  the memory, 2.0 15–35 % more error for 0.85×, 3.0 50–80 % more for 0.7× (docs/numerics.md). */
 #ifndef OCS_TAU_SLICE_SPACING
 #define OCS_TAU_SLICE_SPACING 1.5
 #endif
@@ -116,7 +123,8 @@ typedef struct {
                            here) */
   int filter_levels;  /**< march level = node level − this, 1..21; 0 → 1 (a 2× wider filter) */
   double step_factor; /**< h0 = step_factor × voxel (size/7) of the march level, (0, 16];
-                           default 0 → 1 */
+                           default 0 → 1. Only sets where the cone changes level (the
+                           integration is exact, not stepped) */
   double cone;        /**< Δ(t) = max(h0, cone·t), [0, 1]; default 0 → OCS_TAU_DEFAULT_CONE (0.02).
                            To march without a cone, give a tiny value (1e-12) */
   int min_level;      /**< coarsest level marched or bounded, 1..21; 0 → 6

@@ -188,7 +188,13 @@ static void test_world__unacknowledged_viewer_is_coalesced_and_throttled(void **
   ocs_world_free(w);
 }
 
-/* τ in produced bricks against the slab's analytic optical depth (sun straight overhead at 0,0). */
+/* τ in produced bricks against the slab's analytic optical depth (sun straight overhead at 0,0).
+ * The march integrates the trilinear σt exactly (test_sun_depth), so what remains per sample is the
+ * field's box filter: the analytic source estimates each sample's box average from 4 sub-samples per
+ * axis, so the σt samples next to a face know the covered fraction only to 1/8, an optical depth
+ * error of up to σt·v/8 per face crossed (v the voxel of the march level, one level coarser than the
+ * node). That is the per-sample bound. (The error does not average out over a node: its samples
+ * share the face samples their rays cross.) */
 static void test_world__tau_matches_slab(void **st) {
   (void)st;
   ocs_world_t *w = world_from(SLAB, 2);
@@ -202,7 +208,7 @@ static void test_world__tau_matches_slab(void **st) {
   ocs_epoch_out_t o;
   ocs_viewer_output(v, &o);
   double worst = 0.0;
-  int checked = 0;
+  int checked = 0, nodes = 0;
   for (uint32_t i = 0; i < o.state->node_count; i++) {
     const oc_node_t *n = &o.state->nodes[i];
     if (n->kind != OC_NODE_BRICK) continue;
@@ -212,25 +218,32 @@ static void test_world__tau_matches_slab(void **st) {
     oc_dvec3 org;
     double size;
     oc_key_bounds(n->key, &org, &size);
-    for (int s = 0; s < 512; s += 37) {
+    double vm = oc_key_size(oc_key_level(n->key) - 1) / 7.0;
+    int count = 0;
+    for (int s = 0; s < 512; s++) {
       oc_dvec3 p = oc_dv3(org.x + (s & 7) * size / 7, org.y + ((s >> 3) & 7) * size / 7, org.z + (s >> 6) * size / 7);
       double alt = oc_dlen(p) - OC_PLANET_RADIUS;
-      /* away from the slab's faces by more than the filter footprint (two voxels of the node) */
-      double margin = 2.0 * size / 7.0 + 50.0;
+      /* away from the faces by the filter footprint: a march-level voxel and the node's own */
+      double margin = vm + size / 7.0;
       if (fabs(alt - 2000.0) < margin || fabs(alt - 3000.0) < margin || sg[s] <= 0.0f) continue;
       double ref = oc_medium_tau_sun(&m, p, ocs_world_scene(w)->sun_dir);
-      double err = fabs(tau[s] - ref) / fmax(ref, 1e-3);
+      int faces = alt < 2000.0 ? 2 : 1;
+      double bound = faces * 0.01 * vm / 8.0 + 0.002 * ref;
+      double err = fabs(tau[s] - ref) / bound;
       if (err > worst) {
         worst = err;
         if (getenv("OC_TEST_VERBOSE"))
-          printf("tau: level %d alt %.1f sigma %g tau %g ref %g err %.3g\n", oc_key_level(n->key), alt, sg[s], tau[s], ref, err);
+          printf("tau: level %d alt %.1f tau %g ref %g |error| / bound %.3g\n", oc_key_level(n->key), alt, tau[s], ref, err);
       }
+      count++;
       checked++;
     }
+    nodes += count > 0;
   }
-  oc_report("world", "τ of produced bricks vs slab, worst relative error", worst, 0.02, "");
-  assert_true(checked > 20);
-  assert_true(worst < 0.02);
+  oc_report("world", "τ of produced bricks vs slab, worst |error| / (σt·v/8 per face)", worst, 1.0, "");
+  printf("world: τ vs slab over %d samples in %d nodes: worst |error| %.2f of the box-filter bound\n", checked, nodes, worst);
+  assert_true(checked > 1000 && nodes > 10);
+  assert_true(worst < 1.0);
   ocs_world_free(w);
 }
 
