@@ -103,27 +103,6 @@ static void h_down(heap_t *h, size_t i) {
   }
 }
 
-static int h_push(heap_t *h, hent_t e) {
-  if (h->n == h->cap) {
-    size_t nc = h->cap ? 2 * h->cap : 1024;
-    hent_t *a = realloc(h->a, nc * sizeof *a);
-    if (!a) return OC_ENOMEM;
-    h->a = a;
-    h->cap = nc;
-  }
-  size_t i = h->n++;
-  h->a[i] = e;
-  while (i > 0) {
-    size_t p = (i - 1) / 2;
-    if (!h_before(h, &h->a[i], &h->a[p])) break;
-    hent_t t = h->a[i];
-    h->a[i] = h->a[p];
-    h->a[p] = t;
-    i = p;
-  }
-  return 0;
-}
-
 /* append without ordering; h_heapify() afterwards */
 static int h_append(heap_t *h, hent_t e) {
   if (h->n == h->cap) {
@@ -134,6 +113,20 @@ static int h_append(heap_t *h, hent_t e) {
     h->cap = nc;
   }
   h->a[h->n++] = e;
+  return 0;
+}
+
+static int h_push(heap_t *h, hent_t e) {
+  OC_TRY(h_append(h, e));
+  size_t i = h->n - 1;
+  while (i > 0) {
+    size_t p = (i - 1) / 2;
+    if (!h_before(h, &h->a[i], &h->a[p])) break;
+    hent_t t = h->a[i];
+    h->a[i] = h->a[p];
+    h->a[p] = t;
+    i = p;
+  }
   return 0;
 }
 

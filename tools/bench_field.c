@@ -15,12 +15,6 @@
 #include "oc_scene.h"
 #include "ocs_field.h"
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
 int oct_bench_field(const char *prog, int argc, char **argv) {
   enum { O_SCENE = 256, O_LEVELS, O_BLOCK, O_ALT, O_AT, O_TIME, O_HELP };
   static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE}, {"levels", required_argument, 0, O_LEVELS},
@@ -43,8 +37,7 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
       case O_ALT: if (oc_cli_double(prog, "--alt", optarg, -1e4, 1e5, &alt)) return OC_EXIT_USAGE; break;
       case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &t)) return OC_EXIT_USAGE; break;
       case O_AT:
-        if (sscanf(optarg, "%lf,%lf", &at[0], &at[1]) != 2 || !(at[0] >= -90 && at[0] <= 90 && at[1] >= -360 && at[1] <= 360))
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--at: expected LAT,LON in degrees, got \"%s\"", optarg);
+        if (oct_parse_at(prog, optarg, at)) return OC_EXIT_USAGE;
         have_at = 1;
         break;
       case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
@@ -58,15 +51,11 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
 
   char why[1024];
   static oc_scene_t sc;
-  if (scene_path) {
-    if (oc_scene_load(&sc, scene_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  } else {
-    oc_scene_default(&sc);
-  }
+  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
   ocs_field_t *f = NULL;
-  double tc = now();
+  double tc = oct_now();
   if (ocs_field_create(&f, &sc, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  tc = now() - tc;
+  tc = oct_now() - tc;
   oc_geo_t g = {have_at ? at[0] : sc.camera.pos.lat, have_at ? at[1] : sc.camera.pos.lon, alt};
   oc_dvec3 centre = oc_geo_to_xyz(g);
   printf("# field sources of %s (%d source(s), built in %.3f s), %ld³ nodes per level around %.3f°, %.3f°, %.0f m, "
@@ -89,15 +78,15 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
           if (k == OC_KEY_INVALID) continue;
           nodes++;
           float lo, hi;
-          double t0 = now();
+          double t0 = oct_now();
           ocs_field_bound(f, k, t, &lo, &hi);
           if (lo == hi) {
             classified++;
-            ts += now() - t0;
+            ts += oct_now() - t0;
             continue;
           }
           if (ocs_field_sample(f, k, t, s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
-          ts += now() - t0;
+          ts += oct_now() - t0;
           sampled++;
           for (int i = 0; i < OC_BRICK_VOXELS; i++) nonempty += s[i] > 0.0f;
         }

@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "bench.h"
 #include "oc_cli.h"
@@ -86,6 +87,33 @@ int oct_parse_list(const char *p, const char *opt, const char *text, long lo, lo
   }
   if (*n == 0) {
     oc_cli_fail(p, 0, "%s: empty list", opt);
+    return -1;
+  }
+  return 0;
+}
+
+double oct_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+int oct_parse_at(const char *p, const char *text, double at[2]) {
+  if (sscanf(text, "%lf,%lf", &at[0], &at[1]) != 2 || !(at[0] >= -90 && at[0] <= 90 && at[1] >= -360 && at[1] <= 360)) {
+    oc_cli_fail(p, 0, "--at: expected LAT,LON in degrees, got \"%s\"", text);
+    return -1;
+  }
+  return 0;
+}
+
+int oct_load_scene(const char *p, const char *path, oc_scene_t *sc) {
+  char why[1024];
+  if (!path) {
+    oc_scene_default(sc);
+    return 0;
+  }
+  if (oc_scene_load(sc, path, why, sizeof why) < 0) {
+    oc_cli_fail(p, 0, "%s", why);
     return -1;
   }
   return 0;

@@ -28,12 +28,6 @@
 #define KEPT 2
 #define RESERVE 0.05
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
 /* A brick where the node's box meets the shell R .. R + 10 km, empty elsewhere. */
 static oc_node_kind_t shell_classify(void *ctx, oc_key_t key) {
   (void)ctx;
@@ -62,9 +56,9 @@ static int epoch(run_t *r, oc_camera_pose_t pose) {
   ocs_view_t v = view_of(pose);
   const ocs_plan_leaf_t *L;
   uint32_t n;
-  double t0 = now();
+  double t0 = oct_now();
   int rc = ocs_plan_epoch(r->p, &v, &r->in, &L, &n, &r->st);
-  r->plan_s = now() - t0;
+  r->plan_s = oct_now() - t0;
   if (rc < 0) return rc;
   if (n > r->cap) {
     free(r->kinds);
@@ -74,13 +68,13 @@ static int epoch(run_t *r, oc_camera_pose_t pose) {
     r->ids = malloc(r->cap * sizeof *r->ids);
     if (!r->kinds || !r->ids) return OC_ENOMEM;
   }
-  t0 = now();
+  t0 = oct_now();
   for (uint32_t i = 0; i < n; i++) {
     r->kinds[i] = L[i].kind;
     r->ids[i] = L[i].kind != OC_NODE_BRICK ? 0 : L[i].produce ? r->next_id++ : L[i].brick_id;
   }
   rc = ocs_plan_commit(r->p, r->kinds, r->ids);
-  r->commit_s = now() - t0;
+  r->commit_s = oct_now() - t0;
   return rc;
 }
 

@@ -17,12 +17,6 @@
 #include "field_state.h"
 #include "oc_scene_voxelize.h"
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
 int oct_bench_render(const char *prog, int argc, char **argv) {
   enum { O_SCENE = 256, O_CAMERA, O_SIZE, O_THREADS, O_REPEAT, O_STEP, O_PNG, O_TIME, O_HELP };
   static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},   {"camera", required_argument, 0, O_CAMERA},
@@ -80,9 +74,9 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
   }
   ocg_atmosphere ap;
   oc_atmo_params_default(&ap);
-  double ta = now();
+  double ta = oct_now();
   oc_atmo_t *atmo = oc_atmo_create(&ap, 2);
-  ta = now() - ta;
+  ta = oct_now() - ta;
   if (!atmo) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
 
   printf("# CPU reference renderer: %s, %dx%d, step factor %g, state %u nodes / %u bricks, atmosphere tables %.3f s\n\n",
@@ -108,9 +102,9 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     oc_render_stats_t rs = {0};
     for (long r = 0; r < repeat; r++) {
       fprintf(stderr, "\r%s: render: %ld threads, run %ld/%ld ", prog, threads[i], r + 1, repeat);
-      double t0 = now();
+      double t0 = oct_now();
       if (oc_render_state(&st, &d, &img, &rs) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed");
-      double t = now() - t0;
+      double t = oct_now() - t0;
       if (t < best) best = t;
     }
     fprintf(stderr, "\r\033[K");

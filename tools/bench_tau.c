@@ -24,12 +24,6 @@
 #include "ocs_field.h"
 #include "sun_depth.h"
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
 /*-*** A single-threaded brick cache in front of the field ***/
 
 typedef struct {
@@ -144,8 +138,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
       case O_REF: reference = 1; break;
       case O_SUN: if (oc_cli_double(prog, "--sun-zenith", optarg, 0.0, 180.0, &zenith)) return OC_EXIT_USAGE; break;
       case O_AT:
-        if (sscanf(optarg, "%lf,%lf", &at[0], &at[1]) != 2 || !(at[0] >= -90 && at[0] <= 90 && at[1] >= -360 && at[1] <= 360))
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--at: expected LAT,LON in degrees, got \"%s\"", optarg);
+        if (oct_parse_at(prog, optarg, at)) return OC_EXIT_USAGE;
         have_at = 1;
         break;
       case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
@@ -159,11 +152,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
 
   char why[1024];
   static oc_scene_t sc;
-  if (scene_path) {
-    if (oc_scene_load(&sc, scene_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  } else {
-    oc_scene_default(&sc);
-  }
+  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
   ocs_field_t *f = NULL;
   if (ocs_field_create(&f, &sc, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   oc_geo_t g = {have_at ? at[0] : sc.camera.pos.lat, have_at ? at[1] : sc.camera.pos.lon, alt};
@@ -262,9 +251,9 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
     long calls_d = 0, calls_v = 0;
     for (long r = 0; r < repeat; r++) {
       long a0 = cd.sigma_calls + cd.bound_calls, b0 = cv.sigma_calls + cv.bound_calls;
-      double t0 = now();
+      double t0 = oct_now();
       for (int i = 0; i < nk; i++) ocs_tau_direct(&dd, keys[i], tmp);
-      double t1 = now();
+      double t1 = oct_now();
       for (int i = 0; i < nk;) {
         oc_key_t grp = ocs_tau_group_of(&dv, keys[i]);
         void *vol;
@@ -274,7 +263,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
           if (ocs_tau_volume_lookup(vol, keys[i], tmp) == OC_ENOENT) ocs_tau_direct(&dv, keys[i], tmp);
         free(vol);
       }
-      double t2 = now();
+      double t2 = oct_now();
       best_d = fmin(best_d, t1 - t0);
       best_v = fmin(best_v, t2 - t1);
       calls_d = cd.sigma_calls + cd.bound_calls - a0;

@@ -67,11 +67,7 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
 
   char why[1024];
   static oc_scene_t sc;
-  if (scene_path) {
-    if (oc_scene_load(&sc, scene_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  } else {
-    oc_scene_default(&sc);
-  }
+  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
   oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
   if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
     oc_scene_free(&sc);
