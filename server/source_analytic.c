@@ -1,5 +1,7 @@
 /* source_analytic.c — homogeneous spheres, boxes and slabs as field sources (closed-form oracles
- * for the whole pipeline). σt is box-filtered with OCS_ANALYTIC_SUB³ sub-samples per sample; the
+ * for the whole pipeline). Spheres and boxes are box-filtered with OCS_ANALYTIC_SUB³ (or more)
+ * sub-samples per sample; slabs exactly, from the volume of the sample's cube between the shell's
+ * two spheres taken as planes across the cube (ocs__slab_fraction); the
  * bound is exact in the sense of oc_prim_intersects_box (0 outside, σt where the box meets it, and
  * σt as the minimum only when the primitive contains the whole box). */
 #include <stdio.h>
@@ -28,7 +30,52 @@ typedef struct {
   double feature;     /* m: the primitive's smallest dimension */
 } ocs__analytic_t;
 
+/*! Largest voxel a slab is filtered exactly for: across it the shell's spheres bend from a plane by
+ *  v²/(8R) ≤ 7.9 m. Coarser voxels are sub-sampled like the other primitives. */
+#define OCS_SLAB_EXACT_MAX_VOXEL 20000.0
+
 static double ocs__analytic_fn(void *ctx, oc_dvec3 p) { return oc_medium_sigma_t(ctx, p); }
+
+static double ocs__pos3(double x) { return x > 0.0 ? x * x * x : 0.0; }
+static double ocs__pos2(double x) { return x > 0.0 ? x * x : 0.0; }
+
+/* Fraction of an axis-aligned cube whose points u (relative to its centre) have n·u ≤ s, with
+ * a, b, c = |n_x|, |n_y|, |n_z| times the cube's edge: the volume under a plane, the classic
+ * inclusion-exclusion over the 8 corners, Σ ±max(0, t − corner)³ / (6abc), with lower-dimensional
+ * forms when the plane is (nearly) parallel to an axis, where that sum would cancel. */
+static double ocs__cube_below(double a, double b, double c, double s) {
+  double w = a + b + c, t = s + 0.5 * w;
+  if (!(t > 0.0)) return 0.0;
+  if (!(t < w)) return 1.0;
+  if (t > 0.5 * w) return 1.0 - ocs__cube_below(a, b, c, -s); /* the smaller side: less cancellation */
+  if (a < b) { double x = a; a = b; b = x; }
+  if (b < c) { double x = b; b = c; c = x; }
+  if (a < b) { double x = a; a = b; b = x; }
+  double v;
+  if (c > 1e-6 * a) {
+    v = 0.0;
+    for (int i = 0; i < 8; i++) {
+      double q = t - ((i & 1) ? a : 0.0) - ((i & 2) ? b : 0.0) - ((i & 4) ? c : 0.0);
+      v += ((__builtin_popcount((unsigned)i) & 1) ? -1.0 : 1.0) * ocs__pos3(q);
+    }
+    v /= 6.0 * a * b * c;
+  } else if (b > 1e-6 * a) {
+    double u = t - 0.5 * c;
+    v = (ocs__pos2(u) - ocs__pos2(u - a) - ocs__pos2(u - b) + ocs__pos2(u - a - b)) / (2.0 * a * b);
+  } else {
+    v = (t - 0.5 * (b + c)) / a;
+  }
+  return v < 0.0 ? 0.0 : (v > 1.0 ? 1.0 : v);
+}
+
+/* A slab's exact box average at one sample (cube of edge v centred at p). */
+static double ocs__slab_fraction(const oc_prim_t *pr, oc_dvec3 p, double v) {
+  double r = oc_dlen(p);
+  if (!(r > 0.0)) return 0.0;
+  oc_dvec3 n = oc_dscale(p, 1.0 / r);
+  double a = fabs(n.x) * v, b = fabs(n.y) * v, c = fabs(n.z) * v;
+  return ocs__cube_below(a, b, c, pr->slab.r_out - r) - ocs__cube_below(a, b, c, pr->slab.r_in - r);
+}
 
 /* The box lies inside a sphere or box when its 8 corners do (both are convex). The slab's shell is
  * not convex: the box is inside it when its closest point to the planet centre is beyond r_in and
@@ -71,7 +118,13 @@ static int ocs__analytic_sample(const ocs_source_t *s, oc_key_t key, double t, f
     for (int i = 0; i < OC_BRICK_VOXELS; i++) out[i] += smax;
     return 0;
   }
+  const oc_prim_t *pr = &a->medium.prims[0];
   double spacing = a->feature / OCS_ANALYTIC_FEATURE_DIV, voxel = size / 7.0;
+  if (pr->kind == OC_PRIM_SLAB && voxel <= OCS_SLAB_EXACT_MAX_VOXEL) {
+    for (int i = 0; i < OC_BRICK_VOXELS; i++)
+      out[i] += (float)(pr->sigma_t * ocs__slab_fraction(pr, oc_brick_sample_pos(key, i & 7, (i >> 3) & 7, i >> 6), voxel));
+    return 0;
+  }
   int sub = (int)ceil(voxel / spacing);
   sub = sub < OCS_ANALYTIC_SUB ? OCS_ANALYTIC_SUB : sub > OC_VOXELIZE_MAX_SUB ? OC_VOXELIZE_MAX_SUB : sub;
   oc_brick_sample(key, ocs__analytic_fn, (void *)&a->medium, sub, tmp);

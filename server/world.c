@@ -550,7 +550,7 @@ int ocs_world_step(ocs_world_t *w) {
 
   /* One request per distinct (key, stamp) over all viewers. */
   if (rc >= 0) {
-    qsort(want, nwant, sizeof *want, cmp_want);
+    if (nwant) qsort(want, nwant, sizeof *want, cmp_want); /* qsort(NULL, 0) is undefined */
     w->nreq = 0;
     w->brick_requests += nwant;
     for (size_t i = 0; i < nwant; i++) {

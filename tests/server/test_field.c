@@ -12,6 +12,8 @@
 
 #include "oc_err.h"
 #include "oc_scene.h"
+#include "oc_planet.h"
+#include "oc_voxelize.h"
 #include "ocs_field.h"
 #include "report.h"
 #include "test_util.h"
@@ -182,6 +184,44 @@ static void test_field__bad_source_names_it(void **st) {
   oc_scene_free(&sc);
 }
 
+/* Slabs are box-filtered exactly: against the covered fraction along the face normal (a node at
+ * 0°N 0°E, where the normal is +X) and against dense sampling on an oblique node. */
+static double slab_exact_point(void *ctx, oc_dvec3 p) {
+  const double *r = ctx;
+  double d = oc_dlen(p);
+  return d >= r[0] && d <= r[1] ? 1.0 : 0.0;
+}
+
+static void test_field__slab_filter_is_exact(void **st) {
+  (void)st;
+  ocs_field_t *f = field_from("{\"version\":1,\"sources\":[{\"type\":\"slab\",\"base\":2000,\"top\":3000,\"sigma_t\":1}]}");
+  const double rr[2] = {OC_PLANET_RADIUS + 2000.0, OC_PLANET_RADIUS + 3000.0};
+  double worst_axis = 0.0, worst_oblique = 0.0;
+  for (int lvl = 13; lvl <= 17; lvl += 2) {
+    /* on the axis: the fraction of the voxel below each face, in one dimension */
+    oc_key_t k = oc_key_from_point(lvl, oc_geo_to_xyz((oc_geo_t){0.0, 0.0, 2000.0}));
+    float s[512];
+    assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
+    double v = oc_key_size(lvl) / 7.0;
+    for (int i = 0; i < 512; i++) {
+      oc_dvec3 p = oc_brick_sample_pos(k, i & 7, (i >> 3) & 7, i >> 6);
+      double r = oc_dlen(p), lo = fmin(1.0, fmax(0.0, (rr[1] - r) / v + 0.5)), hi = fmin(1.0, fmax(0.0, (rr[0] - r) / v + 0.5));
+      worst_axis = fmax(worst_axis, fabs(s[i] - (lo - hi)));
+    }
+    /* oblique: dense stratified sampling (16³ points, the most oc_brick_sample takes) near the base */
+    k = oc_key_from_point(lvl, oc_geo_to_xyz((oc_geo_t){37.0, 23.0, 2000.0}));
+    assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
+    float dense[512];
+    oc_brick_sample(k, slab_exact_point, (void *)rr, 16, dense);
+    for (int i = 0; i < 512; i++) worst_oblique = fmax(worst_oblique, fabs(s[i] - dense[i]));
+  }
+  oc_report("field", "exact slab filter vs 1-D covered fraction on the axis", worst_axis, 1e-3, "σt");
+  oc_report("field", "exact slab filter vs 16³-point box average, oblique", worst_oblique, 5e-3, "σt");
+  assert_true(worst_axis < 1e-3);
+  assert_true(worst_oblique < 5e-3);
+  ocs_field_free(f);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_field__box_filter_preserves_the_mean),
@@ -189,6 +229,7 @@ int main(void) {
       cmocka_unit_test(test_field__sources_add_and_static_steps),
       cmocka_unit_test(test_field__static_procedural_is_frozen),
       cmocka_unit_test(test_field__bad_source_names_it),
+      cmocka_unit_test(test_field__slab_filter_is_exact),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
