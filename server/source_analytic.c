@@ -30,8 +30,8 @@ typedef struct {
   double feature;     /* m: the primitive's smallest dimension */
 } ocs__analytic_t;
 
-/*! Largest voxel a slab is filtered exactly for: across it the shell's spheres bend from a plane by
- *  v²/(8R) ≤ 7.9 m. Coarser voxels are sub-sampled like the other primitives. */
+/*! Largest cube a slab is filtered in one piece: across it the shell's spheres bend from a plane by
+ *  v²/(8R) ≤ 7.9 m. A coarser voxel is split into n³ such cubes (n ≤ 16), each exact to that. */
 #define OCS_SLAB_EXACT_MAX_VOXEL 20000.0
 
 static double ocs__analytic_fn(void *ctx, oc_dvec3 p) { return oc_medium_sigma_t(ctx, p); }
@@ -120,9 +120,20 @@ static int ocs__analytic_sample(const ocs_source_t *s, oc_key_t key, double t, f
   }
   const oc_prim_t *pr = &a->medium.prims[0];
   double spacing = a->feature / OCS_ANALYTIC_FEATURE_DIV, voxel = size / 7.0;
-  if (pr->kind == OC_PRIM_SLAB && voxel <= OCS_SLAB_EXACT_MAX_VOXEL) {
-    for (int i = 0; i < OC_BRICK_VOXELS; i++)
-      out[i] += (float)(pr->sigma_t * ocs__slab_fraction(pr, oc_brick_sample_pos(key, i & 7, (i >> 3) & 7, i >> 6), voxel));
+  if (pr->kind == OC_PRIM_SLAB) {
+    int n = (int)ceil(voxel / OCS_SLAB_EXACT_MAX_VOXEL);
+    n = n < 1 ? 1 : (n > OC_VOXELIZE_MAX_SUB ? OC_VOXELIZE_MAX_SUB : n);
+    double e = voxel / n;
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) {
+      oc_dvec3 c = oc_brick_sample_pos(key, i & 7, (i >> 3) & 7, i >> 6);
+      double f = 0.0;
+      for (int m = 0; m < n * n * n; m++) {
+        oc_dvec3 q = oc_dv3(c.x + ((m % n) + 0.5 - 0.5 * n) * e, c.y + (((m / n) % n) + 0.5 - 0.5 * n) * e,
+                            c.z + ((m / (n * n)) + 0.5 - 0.5 * n) * e);
+        f += ocs__slab_fraction(pr, q, e);
+      }
+      out[i] += (float)(pr->sigma_t * f / (double)(n * n * n));
+    }
     return 0;
   }
   int sub = (int)ceil(voxel / spacing);

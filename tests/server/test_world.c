@@ -242,6 +242,38 @@ static void test_world__tau_matches_slab(void **st) {
   ocs_world_free(w);
 }
 
+/* A weather change while the world runs (what the control channel will call): a static procedural
+ * field is never regenerated until the preset changes; then every viewer's next states refresh. */
+static void test_world__weather_change_refreshes_every_viewer(void **st) {
+  (void)st;
+  const char *json = "{\"version\":1,\"features\":{\"animation\":false,\"shadows\":false},"
+                     "\"sources\":[{\"type\":\"procedural\",\"preset\":\"fair\"}]}";
+  ocs_world_t *w = world_from(json, 2);
+  ocs_viewer_t *v[2] = {add_viewer(w, 512u << 10), add_viewer(w, 512u << 10)};
+  ocs_view_t view = view_at(45.0, 0.0, 3000, 260, -10);
+  ocs_viewer_set_view(v[0], &view);
+  ocs_viewer_set_view(v[1], &view);
+  ocs_epoch_out_t o0, o1;
+  for (int e = 0; e < 3; e++) {
+    step_ack(w, v, 2);
+    ocs_viewer_output(v[0], &o0);
+    assert_int_equal(o0.plan.refreshed, 0); /* static: no content is ever regenerated */
+  }
+  ocs_world_stats_t a, b;
+  ocs_world_stats(w, &a);
+  assert_int_equal(ocs_world_set_weather(w, OC_PRESET_OVERCAST, 10.0), 0);
+  step_ack(w, v, 2);
+  ocs_world_stats(w, &b);
+  ocs_viewer_output(v[0], &o0);
+  ocs_viewer_output(v[1], &o1);
+  printf("world: weather change: %llu bricks produced for both viewers, %u leaves refreshed each\n",
+         (unsigned long long)(b.bricks_produced - a.bricks_produced), o0.plan.refreshed);
+  assert_true(b.bricks_produced > a.bricks_produced);
+  assert_true(o0.plan.refreshed > 0 && o0.plan.refreshed == o1.plan.refreshed);
+  assert_true(oc_state_checksum(o0.state) == oc_state_checksum(o1.state)); /* both see the same weather */
+  ocs_world_free(w);
+}
+
 static void test_world__admission_and_bad_input(void **st) {
   (void)st;
   oc_scene_t sc;
@@ -281,6 +313,7 @@ int main(void) {
       cmocka_unit_test(test_world__thread_count_does_not_change_states),
       cmocka_unit_test(test_world__unacknowledged_viewer_is_coalesced_and_throttled),
       cmocka_unit_test(test_world__tau_matches_slab),
+      cmocka_unit_test(test_world__weather_change_refreshes_every_viewer),
       cmocka_unit_test(test_world__admission_and_bad_input),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
