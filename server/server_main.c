@@ -59,36 +59,16 @@ static int save_state(const oc_scene_t *sc, const oc_camera_pose_t *pose, double
   ocs_world_t *w = NULL;
   if (ocs_world_create(&w, sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   ocs_plan_desc_t d = {.budget = budget, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21};
-  ocs_viewer_t *v = NULL;
   oc_camera_t cam = oc_camera_from_pose(*pose);
   ocs_view_t view = {cam.pos, cam.forward, cam.up, pose->fov, vw, vh};
+  oc_state_t st;
+  oc_state_init(&st);
   int rc = OC_EXIT_OK;
-  if (ocs_world_add_viewer(w, &d, &v, NULL, why, sizeof why) < 0 || ocs_viewer_set_view(v, &view) < 0) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "viewer: %s", why);
-    goto out;
-  }
-  for (int e = 0; e < epochs; e++) {
-    int r = ocs_world_step(w);
-    if (r < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "epoch %d: %s", e + 1, oc_strerror(r));
-      goto out;
-    }
-    ocs_epoch_out_t o;
-    ocs_viewer_output(v, &o);
-    ocs_viewer_ack(v, o.state->epoch);
-    ocs_world_stats_t ws;
-    ocs_world_stats(w, &ws);
-    oc_log_info("epoch %d/%d: %u leaves, %u new bricks, %u splits, %u merges, plan %.1f ms, produce %.1f ms", e + 1, epochs,
-                o.plan.leaves, o.nlacking, o.plan.splits, o.plan.merges, 1e3 * ws.plan_seconds, 1e3 * ws.produce_seconds);
-  }
-  ocs_epoch_out_t o;
-  ocs_viewer_output(v, &o);
-  if (oc_state_save(o.state, path, why, sizeof why) < 0) {
+  if (ocs_world_plan_offline(w, &d, &view, epochs, &st, why, sizeof why) < 0 || oc_state_save(&st, path, why, sizeof why) < 0)
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-    goto out;
-  }
-  printf("%s\n", path);
-out:
+  else
+    printf("%s\n", path);
+  oc_state_free(&st);
   ocs_world_free(w);
   return rc;
 }

@@ -9,6 +9,7 @@
 
 #include "brick_cache.h"
 #include "oc_err.h"
+#include "oc_log.h"
 #include "oc_planet.h"
 #include "ocs_field.h"
 #include "pool.h"
@@ -639,4 +640,31 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
     }
   out->produce_seconds = w->produce_seconds;
   out->plan_seconds = w->plan_seconds;
+}
+
+int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs_view_t *view, int epochs, oc_state_t *out,
+                           char *why, size_t why_len) {
+  if (!w || !req || !out || epochs < 1) return OC_EINVAL;
+  ocs_viewer_t *v = NULL;
+  int r = ocs_world_add_viewer(w, req, &v, NULL, why, why_len);
+  if (r < 0) return r;
+  if ((r = ocs_viewer_set_view(v, view)) < 0) {
+    if (why) snprintf(why, why_len, "invalid camera for the viewer");
+    ocs_world_remove_viewer(w, v);
+    return r;
+  }
+  ocs_epoch_out_t o = {0};
+  for (int e = 0; e < epochs; e++) {
+    if ((r = ocs_world_step(w)) < 0 || (r = ocs_viewer_output(v, &o)) < 0) {
+      if (why) snprintf(why, why_len, "epoch %d: %s", e + 1, oc_strerror(r));
+      ocs_world_remove_viewer(w, v);
+      return r;
+    }
+    ocs_viewer_ack(v, o.state->epoch);
+    oc_log_info("epoch %d/%d: %u leaves, %u new bricks, %u splits, %u merges, plan %.1f ms, produce %.1f ms", e + 1, epochs,
+                o.plan.leaves, o.nlacking, o.plan.splits, o.plan.merges, 1e3 * w->plan_seconds, 1e3 * w->produce_seconds);
+  }
+  r = oc_state_copy(out, o.state);
+  ocs_world_remove_viewer(w, v);
+  return r;
 }

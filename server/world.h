@@ -103,6 +103,13 @@ int ocs_world_set_time_scale(ocs_world_t *w, double scale);
 /*! ocs_world_set_weather() : every procedural source moves to `preset` over `seconds` from now. */
 int ocs_world_set_weather(ocs_world_t *w, oc_preset_t preset, double seconds);
 void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out);
+
+/*! ocs_world_plan_offline() : adds a viewer with `req` looking through `view`, steps `epochs`
+ *  epochs acknowledging each state (progress per epoch through oc_log_info), copies its final
+ *  state into `out` (initialised) and removes the viewer: the state a viewer would hold, for
+ *  overcast-server --save-state and the benches. @return 0 or a negative OC_E* with a reason. */
+int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs_view_t *view, int epochs, oc_state_t *out,
+                           char *why, size_t why_len);
 const oc_scene_t *ocs_world_scene(const ocs_world_t *w);
 const struct ocs_field_s *ocs_world_field(const ocs_world_t *w);
 

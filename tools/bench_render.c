@@ -14,7 +14,7 @@
 #include "oc_image.h"
 #include "oc_render.h"
 #include "oc_scene.h"
-#include "field_state.h"
+#include "world.h"
 #include "oc_scene_voxelize.h"
 
 int oct_bench_render(const char *prog, int argc, char **argv) {
@@ -53,7 +53,7 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
 
   char why[512];
   static oc_scene_t sc;
-  if (oc_scene_load(&sc, scene_path, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
   oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
   if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
@@ -64,12 +64,14 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
   if (oc_scene_medium(&sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
     oc_scene_voxelize_desc_t vd = {cam, h, 2.0, 16, 0, 2};
     if (oc_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
-  } else { /* procedural or VDB: through the server's field */
-    ocs_field_t *field = NULL;
-    if (ocs_field_create(&field, &sc, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
-    oct_field_state_desc_t fd = {field, world_time, sc.sun_dir, cam, h, 2.0, 16, oc_scene_has(&sc, OC_FEATURE_SHADOWS), 0, 0, 2};
-    int r = oct_field_state(&st, &fd, why, sizeof why);
-    ocs_field_free(field);
+  } else { /* procedural or VDB: the state the server core plans for a viewer at this camera */
+    ocs_world_desc_t wd = {.threads = 2, .time = world_time};
+    ocs_world_t *world = NULL;
+    if (ocs_world_create(&world, &sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+    ocs_plan_desc_t pd = {.budget = 64u << 20, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21, .split_fraction = 0.5};
+    ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, w, h};
+    int r = ocs_world_plan_offline(world, &pd, &view, 8, &st, why, sizeof why);
+    ocs_world_free(world);
     if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
   }
   ocg_atmosphere ap;
