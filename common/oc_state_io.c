@@ -26,53 +26,8 @@
 #define XXH_INLINE_ALL
 #include <xxhash.h> /* XXH3_state_t, XXH3_64bits_* */
 
-#include "oc_err.h" /* OC_E* */
-
-/*-*** Byte packing ***/
-
-static void oc__put_u16(uint8_t *p, uint16_t v) {
-  p[0] = (uint8_t)v;
-  p[1] = (uint8_t)(v >> 8);
-}
-static void oc__put_u32(uint8_t *p, uint32_t v) {
-  for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (8 * i));
-}
-static void oc__put_u64(uint8_t *p, uint64_t v) {
-  for (int i = 0; i < 8; i++) p[i] = (uint8_t)(v >> (8 * i));
-}
-static void oc__put_f32(uint8_t *p, float f) {
-  uint32_t u;
-  memcpy(&u, &f, 4); /* bit pattern of one scalar, not a struct image */
-  oc__put_u32(p, u);
-}
-static void oc__put_f64(uint8_t *p, double f) {
-  uint64_t u;
-  memcpy(&u, &f, 8);
-  oc__put_u64(p, u);
-}
-static uint16_t oc__get_u16(const uint8_t *p) { return (uint16_t)(p[0] | (p[1] << 8)); }
-static uint32_t oc__get_u32(const uint8_t *p) {
-  uint32_t v = 0;
-  for (int i = 3; i >= 0; i--) v = (v << 8) | p[i];
-  return v;
-}
-static uint64_t oc__get_u64(const uint8_t *p) {
-  uint64_t v = 0;
-  for (int i = 7; i >= 0; i--) v = (v << 8) | p[i];
-  return v;
-}
-static float oc__get_f32(const uint8_t *p) {
-  uint32_t u = oc__get_u32(p);
-  float f;
-  memcpy(&f, &u, 4);
-  return f;
-}
-static double oc__get_f64(const uint8_t *p) {
-  uint64_t u = oc__get_u64(p);
-  double f;
-  memcpy(&f, &u, 8);
-  return f;
-}
+#include "oc_bytes.h" /* oc_put_*, oc_get_* */
+#include "oc_err.h"   /* OC_E* */
 
 /*-*** Emitter ***/
 
@@ -83,33 +38,33 @@ typedef int (*oc__sink_fn)(void *ctx, const uint8_t *p, size_t n);
 static void oc__pack_header(const oc_state_t *s, uint8_t h[OC_STATE_HEADER_BYTES]) {
   memset(h, 0, OC_STATE_HEADER_BYTES);
   memcpy(h, OC_STATE_MAGIC, 4);
-  oc__put_u32(h + 4, OC_STATE_VERSION);
-  oc__put_u64(h + 8, s->epoch);
-  oc__put_f64(h + 16, s->time);
-  oc__put_f64(h + 24, s->sun_dir.x);
-  oc__put_f64(h + 32, s->sun_dir.y);
-  oc__put_f64(h + 40, s->sun_dir.z);
-  oc__put_u32(h + 48, s->node_count);
-  oc__put_u32(h + 52, s->brick_count);
+  oc_put_u32(h + 4, OC_STATE_VERSION);
+  oc_put_u64(h + 8, s->epoch);
+  oc_put_f64(h + 16, s->time);
+  oc_put_f64(h + 24, s->sun_dir.x);
+  oc_put_f64(h + 32, s->sun_dir.y);
+  oc_put_f64(h + 40, s->sun_dir.z);
+  oc_put_u32(h + 48, s->node_count);
+  oc_put_u32(h + 52, s->brick_count);
   /* 56..63 reserved, zero */
 }
 
 static void oc__pack_record(const oc_node_t *n, uint8_t r[OC_STATE_RECORD_BYTES]) {
-  oc__put_u64(r, n->key);
+  oc_put_u64(r, n->key);
   r[8] = n->kind;
   r[9] = r[10] = r[11] = 0;
-  oc__put_u32(r + 12, n->brick_id);
-  oc__put_f32(r + 16, n->range[OC_CH_SIGMA].lo);
-  oc__put_f32(r + 20, n->range[OC_CH_SIGMA].hi);
-  oc__put_f32(r + 24, n->range[OC_CH_TAU].lo);
-  oc__put_f32(r + 28, n->range[OC_CH_TAU].hi);
+  oc_put_u32(r + 12, n->brick_id);
+  oc_put_f32(r + 16, n->range[OC_CH_SIGMA].lo);
+  oc_put_f32(r + 20, n->range[OC_CH_SIGMA].hi);
+  oc_put_f32(r + 24, n->range[OC_CH_TAU].lo);
+  oc_put_f32(r + 28, n->range[OC_CH_TAU].hi);
 }
 
 static void oc__pack_brick(const oc_brick_t *b, uint8_t p[OC_STATE_BRICK_BYTES]) {
-  oc__put_u32(p, b->id);
+  oc_put_u32(p, b->id);
   p += 4;
   for (int c = 0; c < OC_CHANNELS; c++)
-    for (int v = 0; v < OC_BRICK_VOXELS; v++, p += 2) oc__put_u16(p, b->codes.code[c][v]);
+    for (int v = 0; v < OC_BRICK_VOXELS; v++, p += 2) oc_put_u16(p, b->codes.code[c][v]);
 }
 
 /* Everything but the trailing checksum, in order, through `sink`. */
@@ -162,7 +117,7 @@ int64_t oc_state_serialize(const oc_state_t *s, uint8_t *dst, size_t cap) {
   if (!dst || cap < size) return OC_ENOBUFS;
   oc__mem_sink_t m = {dst, 0};
   OC_TRY(oc__emit(s, oc__sink_mem, &m));
-  oc__put_u64(dst + m.pos, XXH3_64bits(dst, m.pos));
+  oc_put_u64(dst + m.pos, XXH3_64bits(dst, m.pos));
   return (int64_t)size;
 }
 
@@ -198,10 +153,10 @@ int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *
     return oc__err(OC_ETRUNC, why, why_len, "truncated: %zu bytes, less than the %d-byte header and checksum", len,
                    OC_STATE_HEADER_BYTES + 8);
   if (memcmp(src, OC_STATE_MAGIC, 4) != 0) return oc__err(OC_ECORRUPT, why, why_len, "not a state: bad magic");
-  uint32_t version = oc__get_u32(src + 4);
+  uint32_t version = oc_get_u32(src + 4);
   if (version != OC_STATE_VERSION)
     return oc__err(OC_EVERSION, why, why_len, "state version %" PRIu32 ", expected %d", version, OC_STATE_VERSION);
-  uint32_t n = oc__get_u32(src + 48), m = oc__get_u32(src + 52);
+  uint32_t n = oc_get_u32(src + 48), m = oc_get_u32(src + 52);
   if (n > OC_STATE_MAX_NODES) return oc__err(OC_ETOOBIG, why, why_len, "%" PRIu32 " nodes exceed the limit %u", n, OC_STATE_MAX_NODES);
   if (m > OC_STATE_MAX_BRICKS)
     return oc__err(OC_ETOOBIG, why, why_len, "%" PRIu32 " bricks exceed the limit %u", m, OC_STATE_MAX_BRICKS);
@@ -212,7 +167,7 @@ int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *
   if ((uint64_t)len > need)
     return oc__err(OC_ECORRUPT, why, why_len, "%" PRIu64 " trailing bytes after %" PRIu32 " nodes and %" PRIu32 " bricks",
                    (uint64_t)len - need, n, m);
-  uint64_t stored = oc__get_u64(src + need - 8), actual = XXH3_64bits(src, (size_t)need - 8);
+  uint64_t stored = oc_get_u64(src + need - 8), actual = XXH3_64bits(src, (size_t)need - 8);
   if (stored != actual)
     return oc__err(OC_ECHECKSUM, why, why_len, "checksum mismatch: stored %016" PRIx64 ", computed %016" PRIx64, stored, actual);
   for (int i = 56; i < OC_STATE_HEADER_BYTES; i++)
@@ -220,9 +175,9 @@ int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *
 
   oc_state_t s;
   oc_state_init(&s);
-  s.epoch = oc__get_u64(src + 8);
-  s.time = oc__get_f64(src + 16);
-  s.sun_dir = oc_dv3(oc__get_f64(src + 24), oc__get_f64(src + 32), oc__get_f64(src + 40));
+  s.epoch = oc_get_u64(src + 8);
+  s.time = oc_get_f64(src + 16);
+  s.sun_dir = oc_dv3(oc_get_f64(src + 24), oc_get_f64(src + 32), oc_get_f64(src + 40));
   if (n) {
     s.nodes = malloc((size_t)n * sizeof *s.nodes);
     if (!s.nodes) return oc__err(OC_ENOMEM, why, why_len, "out of memory for %" PRIu32 " nodes", n);
@@ -244,21 +199,21 @@ int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *
       return oc__err(OC_ECORRUPT, why, why_len, "node %" PRIu32 ": reserved bytes are not zero", i);
     }
     memset(nd, 0, sizeof *nd);
-    nd->key = oc__get_u64(p);
+    nd->key = oc_get_u64(p);
     nd->kind = p[8];
-    nd->brick_id = oc__get_u32(p + 12);
-    nd->range[OC_CH_SIGMA].lo = oc__get_f32(p + 16);
-    nd->range[OC_CH_SIGMA].hi = oc__get_f32(p + 20);
-    nd->range[OC_CH_TAU].lo = oc__get_f32(p + 24);
-    nd->range[OC_CH_TAU].hi = oc__get_f32(p + 28);
+    nd->brick_id = oc_get_u32(p + 12);
+    nd->range[OC_CH_SIGMA].lo = oc_get_f32(p + 16);
+    nd->range[OC_CH_SIGMA].hi = oc_get_f32(p + 20);
+    nd->range[OC_CH_TAU].lo = oc_get_f32(p + 24);
+    nd->range[OC_CH_TAU].hi = oc_get_f32(p + 28);
   }
   s.node_count = n;
   for (uint32_t i = 0; i < m; i++) {
     oc_brick_t *b = &s.bricks[i];
-    b->id = oc__get_u32(p);
+    b->id = oc_get_u32(p);
     p += 4;
     for (int c = 0; c < OC_CHANNELS; c++)
-      for (int v = 0; v < OC_BRICK_VOXELS; v++, p += 2) b->codes.code[c][v] = oc__get_u16(p);
+      for (int v = 0; v < OC_BRICK_VOXELS; v++, p += 2) b->codes.code[c][v] = oc_get_u16(p);
   }
   s.brick_count = m;
   int err = oc_state_validate(&s, why, why_len);
@@ -307,7 +262,7 @@ int oc_state_save(const oc_state_t *s, const char *path, char *why, size_t why_l
   int err = oc__emit(s, oc__sink_file, &fs), e = 0;
   if (!err) {
     uint8_t sum[8];
-    oc__put_u64(sum, XXH3_64bits_digest(&h));
+    oc_put_u64(sum, XXH3_64bits_digest(&h));
     if (fwrite(sum, 1, 8, f) != 8) err = OC_EIO;
   }
   if (err) e = errno;

@@ -1,8 +1,9 @@
-/* overcast-server — the server. Today: load a scene and build its field (--check), inspect VDB
+/* overcast-server — the server. By default it serves the scene's world to viewers and control
+ * clients over TCP (net.h). Other modes: load a scene and build its field (--check), inspect VDB
  * files (--inspect), export a region of the field to a .vdb (--export-vdb), and run the server
- * core for one viewer for some epochs, writing the state it would hold (--save-state). The
- * network listener and streaming arrive with issue [4/7]. */
+ * core for one viewer offline, writing the state it would hold (--save-state). */
 #include <getopt.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,6 +17,8 @@
 #include "oc_state.h"
 #include "ocs_field.h"
 #include "vdb_tools.h"
+#include "net.h"
+#include "ocp_wire.h"
 #include "world.h"
 
 static const char *prog = "overcast-server";
@@ -23,9 +26,29 @@ static const char *prog = "overcast-server";
 static void usage(FILE *f) {
   fprintf(f,
           "usage: overcast-server [options]\n"
-          "Owns the cloud field of a scene (procedural, analytic, or imported from OpenVDB).\n"
+          "Owns the cloud field of a scene (procedural, analytic, or imported from OpenVDB) and serves\n"
+          "it to viewers (overcast-view) and control clients (overcast-ctl) over TCP.\n"
           "\n"
           "  --scene FILE          scene file (default: the built-in procedural planet)\n"
+          "Serving (the default mode):\n"
+          "  --listen HOST:PORT    address to listen on (default 127.0.0.1:7420; port 0 picks a free\n"
+          "                        port; the address bound is printed as \"listening on HOST:PORT\")\n"
+          "  --token TEXT          clients must present this token (viewers and control alike)\n"
+          "  --epoch-period S      seconds between epochs (default: the scene's, 1); 0: epochs are\n"
+          "                        stepped only by control requests (overcast-ctl step)\n"
+          "  --max-viewers N       viewers at once (default 64)\n"
+          "  --max-budget MIB      largest budget granted to one viewer (default: the total)\n"
+          "  --total-budget MIB    sum of all viewers' budgets (default 4096)\n"
+          "  --cache MIB           shared brick cache (default 256)\n"
+          "  --linger S            keep a dropped viewer's session this long for resume (default 30; 0 off)\n"
+          "  --idle-timeout S      close connections silent this long (default 60)\n"
+          "  --stall-timeout S     close connections that stop reading this long (default 30)\n"
+          "  --queue-limits SOFT,HARD  unsent bytes per connection in MiB (default 4,16)\n"
+          "  --zstd-level N        compression level 1..19 (default 3)\n"
+          "  --send-buffer KIB     kernel send buffer per connection (default: the system's); smaller\n"
+          "                        keeps more of a slow viewer's backlog under the server's own limits\n"
+          "  --no-deltas           send refreshed bricks whole\n"
+          "Other modes:\n"
           "  --check               load the scene, build every source, print a summary and exit\n"
           "  --inspect FILE.vdb    print the grids of a VDB file and exit (types, classes, voxel size,\n"
           "                        active voxels, bounding box, value range)\n"
@@ -46,8 +69,7 @@ static void usage(FILE *f) {
           "  -q, --quiet           only errors\n"
           "  --help, --version\n"
           "\n"
-          "The network listener arrives with a later release; today the server validates, exports and\n"
-          "plans states offline.\n"
+          "SIGINT or SIGTERM: every client gets a goodbye and the server exits with status 0.\n"
           "exit status: 0 ok, 1 runtime error (bad scene or file), 2 usage error\n");
 }
 
@@ -73,6 +95,48 @@ static int save_state(const oc_scene_t *sc, const oc_camera_pose_t *pose, double
   return rc;
 }
 
+/* "HOST:PORT" or "[V6]:PORT" or ":PORT" or "PORT". */
+static int parse_listen(const char *text, char *host, size_t cap, int *port) {
+  const char *colon = strrchr(text, ':');
+  const char *ps = colon ? colon + 1 : text;
+  char *end;
+  long p = strtol(ps, &end, 10);
+  if (end == ps || *end || p < 0 || p > 65535) return -1;
+  *port = (int)p;
+  if (!colon || colon == text) {
+    snprintf(host, cap, "127.0.0.1");
+    return 0;
+  }
+  const char *h = text;
+  size_t n = (size_t)(colon - text);
+  if (h[0] == '[' && n >= 2 && h[n - 1] == ']') {
+    h++;
+    n -= 2;
+  }
+  if (n == 0 || n >= cap) return -1;
+  memcpy(host, h, n);
+  host[n] = 0;
+  return 0;
+}
+
+/* Serves the world until SIGINT/SIGTERM. */
+static int serve(const oc_scene_t *sc, ocs_server_desc_t *d) {
+  char why[1024];
+  ocs_server_t *srv = NULL;
+  signal(SIGPIPE, SIG_IGN); /* a vanished peer is an error code on write, not a killed server */
+  if (ocs_server_create(&srv, sc, d, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  printf("listening on %s\n", ocs_server_address(srv));
+  fflush(stdout);
+  oc_log_info("serving scene %s (%s), epoch period %s", sc->name,
+              oc_scene_has(sc, OC_FEATURE_ANIMATION) ? "animated" : "static",
+              d->epoch_period == 0 ? "0: stepped by command" : "as configured");
+  int r = ocs_server_run(srv, 1);
+  ocs_server_free(srv);
+  if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", oc_strerror(r));
+  oc_log_info("stopped");
+  return OC_EXIT_OK;
+}
+
 static int parse_region(const char *text, double v[4]) {
   char *end;
   const char *s = text;
@@ -86,7 +150,8 @@ static int parse_region(const char *text, double v[4]) {
 
 int main(int argc, char **argv) {
   enum { O_SCENE = 256, O_CHECK, O_INSPECT, O_JSON, O_EXPORT, O_REGION, O_LEVEL, O_TIME, O_SAVE, O_CAMERA, O_EPOCHS,
-         O_BUDGET, O_VIEWPORT, O_THREADS, O_HELP, O_VERSION };
+         O_BUDGET, O_VIEWPORT, O_THREADS, O_HELP, O_VERSION, O_LISTEN, O_TOKEN, O_PERIOD, O_MAXV, O_MAXB, O_TOTAL,
+         O_CACHE, O_LINGER, O_IDLE, O_STALL, O_QUEUE, O_ZLEVEL, O_NODELTA, O_SNDBUF };
   static const struct option opts[] = {
       {"scene", required_argument, 0, O_SCENE},   {"check", no_argument, 0, O_CHECK},
       {"inspect", required_argument, 0, O_INSPECT}, {"json", no_argument, 0, O_JSON},
@@ -96,12 +161,24 @@ int main(int argc, char **argv) {
       {"epochs", required_argument, 0, O_EPOCHS}, {"budget", required_argument, 0, O_BUDGET},
       {"viewport", required_argument, 0, O_VIEWPORT}, {"threads", required_argument, 0, O_THREADS},
       {"quiet", no_argument, 0, 'q'},             {"help", no_argument, 0, O_HELP},
-      {"version", no_argument, 0, O_VERSION},     {0, 0, 0, 0}};
+      {"version", no_argument, 0, O_VERSION},     {"listen", required_argument, 0, O_LISTEN},
+      {"token", required_argument, 0, O_TOKEN},   {"epoch-period", required_argument, 0, O_PERIOD},
+      {"max-viewers", required_argument, 0, O_MAXV}, {"max-budget", required_argument, 0, O_MAXB},
+      {"total-budget", required_argument, 0, O_TOTAL}, {"cache", required_argument, 0, O_CACHE},
+      {"linger", required_argument, 0, O_LINGER}, {"idle-timeout", required_argument, 0, O_IDLE},
+      {"stall-timeout", required_argument, 0, O_STALL}, {"queue-limits", required_argument, 0, O_QUEUE},
+      {"zstd-level", required_argument, 0, O_ZLEVEL}, {"no-deltas", no_argument, 0, O_NODELTA},
+      {"send-buffer", required_argument, 0, O_SNDBUF},
+      {0, 0, 0, 0}};
   const char *scene_path = NULL, *inspect = NULL, *export_path = NULL, *region_text = NULL, *save_path = NULL,
              *camera_text = NULL;
   int check = 0, json = 0, c, vw = 1280, vh = 720;
   long level = 16, epochs = 8, budget_mib = 64, threads = 0;
   double t = 0.0;
+  ocs_server_desc_t sd = {.epoch_period = -1, .linger_s = -1};
+  char host[64] = "127.0.0.1";
+  int port = 7420, serve_opts = 0;
+  long lv;
   opterr = 0;
   while ((c = getopt_long(argc, argv, "q", opts, NULL)) != -1) {
     switch (c) {
@@ -122,6 +199,38 @@ int main(int argc, char **argv) {
         if (sscanf(optarg, "%dx%d", &vw, &vh) != 2 || vw < 1 || vh < 1 || vw > 16384 || vh > 16384)
           return oc_cli_fail(prog, OC_EXIT_USAGE, "--viewport: expected WxH (1..16384), got \"%s\"", optarg);
         break;
+      case O_LISTEN:
+        if (parse_listen(optarg, host, sizeof host, &port) < 0)
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--listen: expected HOST:PORT (port 0..65535), got \"%s\"", optarg);
+        serve_opts = 1;
+        break;
+      case O_TOKEN:
+        if (!*optarg || strlen(optarg) > OCP_TOKEN_MAX)
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--token: 1..%d bytes", OCP_TOKEN_MAX);
+        sd.token = optarg;
+        serve_opts = 1;
+        break;
+      case O_PERIOD: if (oc_cli_double(prog, "--epoch-period", optarg, 0, 60, &sd.epoch_period)) return OC_EXIT_USAGE; serve_opts = 1; break;
+      case O_MAXV: if (oc_cli_int(prog, "--max-viewers", optarg, 1, 100000, &lv)) return OC_EXIT_USAGE; sd.world.max_viewers = (int)lv; serve_opts = 1; break;
+      case O_MAXB: if (oc_cli_int(prog, "--max-budget", optarg, 1, 1 << 24, &lv)) return OC_EXIT_USAGE; sd.world.max_budget = (uint64_t)lv << 20; serve_opts = 1; break;
+      case O_TOTAL: if (oc_cli_int(prog, "--total-budget", optarg, 1, 1 << 24, &lv)) return OC_EXIT_USAGE; sd.world.viewer_bytes = (uint64_t)lv << 20; serve_opts = 1; break;
+      case O_CACHE: if (oc_cli_int(prog, "--cache", optarg, 1, 1 << 20, &lv)) return OC_EXIT_USAGE; sd.world.cache_bytes = (uint64_t)lv << 20; serve_opts = 1; break;
+      case O_LINGER: if (oc_cli_double(prog, "--linger", optarg, 0, 86400, &sd.linger_s)) return OC_EXIT_USAGE; serve_opts = 1; break;
+      case O_IDLE: if (oc_cli_double(prog, "--idle-timeout", optarg, 0.1, 86400, &sd.idle_s)) return OC_EXIT_USAGE; serve_opts = 1; break;
+      case O_STALL: if (oc_cli_double(prog, "--stall-timeout", optarg, 0.1, 86400, &sd.stall_s)) return OC_EXIT_USAGE; serve_opts = 1; break;
+      case O_QUEUE: {
+        long a, b;
+        char extra;
+        if (sscanf(optarg, "%ld,%ld%c", &a, &b, &extra) != 2 || a < 1 || b < a || b > 65536)
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--queue-limits: expected SOFT,HARD in MiB (1 ≤ SOFT ≤ HARD ≤ 65536), got \"%s\"", optarg);
+        sd.queue_soft = (uint64_t)a << 20;
+        sd.queue_hard = (uint64_t)b << 20;
+        serve_opts = 1;
+        break;
+      }
+      case O_ZLEVEL: if (oc_cli_int(prog, "--zstd-level", optarg, 1, 19, &lv)) return OC_EXIT_USAGE; sd.zstd_level = (int)lv; serve_opts = 1; break;
+      case O_NODELTA: sd.deltas = -1; serve_opts = 1; break;
+      case O_SNDBUF: if (oc_cli_int(prog, "--send-buffer", optarg, 1, 1 << 20, &lv)) return OC_EXIT_USAGE; sd.send_buffer = (int)lv << 10; serve_opts = 1; break;
       case 'q': oc_log_set_level(OC_LOG_ERROR); break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -142,9 +251,8 @@ int main(int argc, char **argv) {
     if (ocs_vdb_inspect(inspect, json, stdout, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
     return OC_EXIT_OK;
   }
-  if (!check && !export_path && !save_path)
-    return oc_cli_fail(prog, OC_EXIT_USAGE,
-                       "nothing to do: the network listener is not in this build (use --check, --inspect, --export-vdb or --save-state)");
+  int serving = !check && !export_path && !save_path;
+  if (serve_opts && !serving) return oc_cli_fail(prog, OC_EXIT_USAGE, "serving options go without --check, --export-vdb and --save-state");
   if (camera_text && !save_path) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera goes with --save-state");
   oc_camera_pose_t pose;
   if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
@@ -164,7 +272,7 @@ int main(int argc, char **argv) {
   }
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
-  if (ocs_field_create(&field, sc, why, sizeof why) < 0) {
+  if ((check || export_path) && ocs_field_create(&field, sc, why, sizeof why) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path ? scene_path : "built-in planet", why);
     goto out;
   }
@@ -188,6 +296,14 @@ int main(int argc, char **argv) {
       goto out;
     }
     printf("%s\n", export_path);
+  }
+  if (serving) {
+    sd.host = host;
+    sd.port = port;
+    sd.scene_path = scene_path;
+    sd.world.threads = (int)threads;
+    sd.world.time = t;
+    rc = serve(sc, &sd);
   }
   if (save_path) {
     if (!camera_text) pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};

@@ -280,6 +280,8 @@ void ocs_world_free(ocs_world_t *w) {
 }
 
 const oc_scene_t *ocs_world_scene(const ocs_world_t *w) { return &w->scene; }
+int ocs_world_kept_states(const ocs_world_t *w) { return w->K; }
+oc_dvec3 ocs_world_sun(const ocs_world_t *w) { return w->sun; }
 const struct ocs_field_s *ocs_world_field(const ocs_world_t *w) { return w->field; }
 
 int ocs_world_set_sun(ocs_world_t *w, oc_dvec3 sun) {
@@ -410,6 +412,12 @@ void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out) {
   for (int i = 0; i < v->nheld; i++) s[i] = &v->held[i];
   out->resident_bytes = oc_resident_bytes(s, v->nheld, v->desc.slot_bytes, v->desc.record_bytes);
 }
+
+const oc_state_t *ocs_viewer_held(const ocs_viewer_t *v, int i) {
+  return v && i >= 0 && i < v->nheld ? &v->held[i] : NULL;
+}
+
+int ocs_viewer_in_flight(const ocs_viewer_t *v) { return v && v->unacked; }
 
 /*-*** Epochs ***/
 

@@ -89,6 +89,11 @@ int ocs_viewer_ack(ocs_viewer_t *v, uint64_t epoch);
 /*! ocs_viewer_output() : the newest state produced for the viewer. @return 0 or OC_ENOENT. */
 int ocs_viewer_output(const ocs_viewer_t *v, ocs_epoch_out_t *out);
 void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out);
+/*! ocs_viewer_held() : the i-th newest state sent to the viewer (0: the newest, possibly not yet
+ *  acknowledged), or NULL. Valid until the viewer's next epoch is produced. */
+const oc_state_t *ocs_viewer_held(const ocs_viewer_t *v, int i);
+/*! ocs_viewer_in_flight() : 1 while the newest state is unacknowledged. */
+int ocs_viewer_in_flight(const ocs_viewer_t *v);
 
 /*! ocs_world_step() : one epoch: advances the clock by the scene's epoch period (times the time
  *  scale), plans every ready viewer, produces, emits. @return 0 or a negative OC_E* (the
@@ -111,6 +116,10 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out);
 int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs_view_t *view, int epochs, oc_state_t *out,
                            char *why, size_t why_len);
 const oc_scene_t *ocs_world_scene(const ocs_world_t *w);
+/*! ocs_world_kept_states() : K, the states every viewer keeps: 3 animated, 2 static. */
+int ocs_world_kept_states(const ocs_world_t *w);
+/*! ocs_world_sun() : the unit vector toward the sun now. */
+oc_dvec3 ocs_world_sun(const ocs_world_t *w);
 const struct ocs_field_s *ocs_world_field(const ocs_world_t *w);
 
 #endif /* OC_SERVER_WORLD_H */

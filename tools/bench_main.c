@@ -20,6 +20,7 @@ void oct_bench_usage(FILE *f) {
           "  tau        sun optical depth τ: direct march vs group volume, µs per brick and the volume's error\n"
           "  plan       LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core\n"
           "  world      the server core stepped for some epochs: plans, production, cache, refresh savings\n"
+          "  wire       epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary\n"
           "\n"
           "render options:\n"
           "  --scene FILE        analytic scene (default scenes/analytic_sphere.json)\n"
@@ -68,6 +69,13 @@ void oct_bench_usage(FILE *f) {
           "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera)\n"
           "  --orbit DEG         heading change per epoch (default 0: a still camera)\n"
           "  --split-fraction X  planner split cap per epoch as a fraction of capacity (default 0.1)\n"
+          "\n"
+          "wire options (the built-in procedural planet, one viewer at its camera; every decode is checked):\n"
+          "  --epochs N          epochs to step (default 8)\n"
+          "  --budget MIB        the viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
+          "  --level N           zstd level of every variant, 1..19 (default 3)\n"
+          "  --threads N         producer threads (default: all cores)\n"
+          "  --csv FILE          also write one row per epoch and variant\n"
           "\n"
           "  --help, --version\n"
           "\n"
@@ -119,6 +127,8 @@ int oct_load_scene(const char *p, const char *path, oc_scene_t *sc) {
   return 0;
 }
 
+int oct_bench_wire(const char *prog, int argc, char **argv); /* bench_wire.c */
+
 int main(int argc, char **argv) {
   if (argc < 2) return oc_cli_fail(prog, OC_EXIT_USAGE, "missing command (see --help for usage)");
   if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
@@ -134,5 +144,6 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "tau")) return oct_bench_tau(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "plan")) return oct_bench_plan(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "world")) return oct_bench_world(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "wire")) return oct_bench_wire(prog, argc - 1, argv + 1);
   return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown command \"%s\" (see --help)", argv[1]);
 }

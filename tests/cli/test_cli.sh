@@ -91,5 +91,25 @@ check "bench: tau, bad level" 2 "--level: 30 is outside" -- "$B" tau --level 30
 check "bench: tau, bad place" 2 "--at: expected LAT,LON" -- "$B" tau --at 100,0
 check "bench: steps the world" 0 "" -- "$B" world --scene scenes/analytic_sphere.json --epochs 2 --budget 2 --threads 2
 
+C=$BIN/overcast-ctl
+check "ctl: --help" 0 "" -- "$C" --help
+grep -q "weather PRESET" "$tmp/out" || { echo "FAIL ctl --help: commands not listed"; fail=$((fail + 1)); }
+check "ctl: --version" 0 "" -- "$C" --version
+grep -Eq "^overcast-ctl [0-9]+\.[0-9]+\.[0-9]+$" "$tmp/out" || { echo "FAIL ctl --version: $(cat "$tmp/out")"; fail=$((fail + 1)); }
+check "ctl: no command" 2 "no command" -- "$C"
+check "ctl: unknown command" 2 "unknown command \"frob\"" -- "$C" frob
+check "ctl: unknown option" 2 "unknown or incomplete option \"--frobnicate\"" -- "$C" --frobnicate stats
+check "ctl: bad address" 2 "--connect: expected HOST:PORT" -- "$C" --connect localhost:0 stats
+check "ctl: bad preset" 2 "PRESET must be one of" -- "$C" weather hail
+check "ctl: step out of range" 2 "1001 is outside" -- "$C" step 1001
+check "ctl: sun without a place" 2 "sun: give" -- "$C" sun --lat 10
+check "ctl: raw non-object" 2 "raw: not a JSON object" -- "$C" raw '[1]'
+check "ctl: stray argument" 2 "unexpected argument \"x\"" -- "$C" stats x
+check "ctl: connection refused" 1 "^overcast-ctl: 127\.0\.0\.1:1: cannot connect" -- "$C" --connect 127.0.0.1:1 --timeout 5 stats
+check "view: --connect with --state" 2 "--connect excludes --state and --scene" -- "$V" --connect 127.0.0.1:1 --state "$tmp/s.ocst"
+check "view: --step without --connect" 2 "go with --connect" -- "$V" --step
+check "view: bad --connect" 2 "--connect: expected HOST:PORT" -- "$V" --connect "[::1"
+check "view: connection refused" 1 "^overcast-view: 127\.0\.0\.1:1: cannot connect" -- "$V" --connect 127.0.0.1:1 --timeout 5 --out "$tmp"
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

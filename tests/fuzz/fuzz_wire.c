@@ -1,0 +1,235 @@
+/* fuzz_wire.c — libFuzzer target for the wire's frame reader, message decoders and the viewer's
+ * session (proto/ocp_wire.c, proto/ocp_viewer.c).
+ *
+ * Each input is read twice:
+ *  - as a stream of frames: every frame is decoded by its type from an exact-size copy (so ASan
+ *    sees any over-read), and whatever a decoder accepts must encode back to the same bytes (each
+ *    message has one byte form);
+ *  - as what a server sends a viewer (and a control client) after a synthetic WELCOME, fed in
+ *    chunks: the session must fail cleanly (an ERROR frame last in its output) or keep only valid
+ *    states, never more than K − 1, and survive a reconnect with resume.
+ * Seeds: tests/fuzz/corpus/wire/ (written by tests/proto/test_viewer.c with
+ * OC_FUZZ_WIRE_CORPUS_OUT=<dir>). */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "oc_state.h"
+#include "ocp_viewer.h"
+#include "ocp_wire.h"
+
+/*-*** Decoders ***/
+
+/* The payload p re-encoded by the type's encoder equals p. */
+static void check_same(const oc_buf_t *b, const uint8_t *p, size_t n) {
+  if (b->err) return;
+  if (b->len != OCP_HEADER_BYTES + n || memcmp(b->data + OCP_HEADER_BYTES, p, n) != 0) abort();
+}
+
+static void check_frame(const ocp_header_t *h, const uint8_t *payload) {
+  uint8_t *p = malloc(h->length ? h->length : 1);
+  if (!p) return;
+  memcpy(p, payload, h->length);
+  size_t n = h->length;
+  char why[256];
+  oc_buf_t b = {0};
+  switch (h->type) {
+    case OCP_MSG_HELLO: {
+      ocp_hello_t m;
+      if (ocp_get_hello(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_hello(&b, &m);
+        check_same(&b, p, n);
+        (void)ocp_version_pick(m.min_version, m.max_version);
+      }
+      break;
+    }
+    case OCP_MSG_WELCOME: {
+      ocp_welcome_t m;
+      if (ocp_get_welcome(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_welcome(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    case OCP_MSG_CAMERA: {
+      ocp_camera_t m;
+      if (ocp_get_camera(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_camera(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    case OCP_MSG_ACK: {
+      ocp_ack_t m;
+      if (ocp_get_ack(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_ack(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    case OCP_MSG_GOODBYE:
+    case OCP_MSG_ERROR: {
+      ocp_text_msg_t m;
+      if (ocp_get_text(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_text(&b, h->version, h->type, m.code, m.text);
+        check_same(&b, p, n);
+        (void)ocp_code_text(m.code);
+      }
+      break;
+    }
+    case OCP_MSG_KEEPALIVE:
+      if (ocp_get_empty(p, n, why, sizeof why) == 0 && n != 0) abort();
+      break;
+    case OCP_MSG_EPOCH_BEGIN: {
+      ocp_epoch_begin_t m;
+      if (ocp_get_epoch_begin(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_epoch_begin(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    case OCP_MSG_EPOCH_END: {
+      ocp_epoch_end_t m;
+      if (ocp_get_epoch_end(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_epoch_end(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    case OCP_MSG_STATS: {
+      ocp_stats_t m;
+      if (ocp_get_stats(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_stats(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    case OCP_MSG_CONTROL:
+    case OCP_MSG_CONTROL_REPLY: {
+      ocp_control_t m;
+      if (ocp_get_control(p, n, &m, why, sizeof why) == 0) {
+        if (m.json != (const char *)p + 8) abort();
+        ocp_put_control(&b, h->version, h->type, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
+    default: /* epoch payloads: fuzz_epoch.c, and the viewer below */
+      (void)ocp_msg_name(h->type);
+      break;
+  }
+  oc_buf_free(&b);
+  free(p);
+}
+
+static void fuzz_frames(const uint8_t *data, size_t size) {
+  ocp_reader_t r;
+  ocp_header_t h;
+  const uint8_t *p;
+  ocp_reader_init(&r, OCP_MAX_PAYLOAD);
+  if (ocp_reader_feed(&r, data, size) == 0) {
+    int e;
+    while ((e = ocp_reader_next(&r, &h, &p)) == 1) check_frame(&h, p);
+    if (e == 0 && ocp_reader_pending(&r) > size) abort();
+  }
+  ocp_reader_free(&r);
+}
+
+/*-*** Viewer ***/
+
+static void on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
+  (void)ctx;
+  if (bricks > s->brick_count || oc_state_validate(s, NULL, 0) != 0) abort();
+}
+
+/* out ends with an ERROR frame. */
+static void check_error_last(const oc_buf_t *out) {
+  size_t at = 0, last = SIZE_MAX;
+  ocp_header_t h;
+  while (at + OCP_HEADER_BYTES <= out->len) {
+    if (ocp_header_parse(out->data + at, OCP_MAX_PAYLOAD, &h) != 0) abort();
+    last = at;
+    at += OCP_HEADER_BYTES + (size_t)h.length;
+  }
+  if (at != out->len || last == SIZE_MAX) abort();
+  ocp_header_parse(out->data + last, OCP_MAX_PAYLOAD, &h);
+  if (h.type != OCP_MSG_ERROR) abort();
+}
+
+static void put_welcome(oc_buf_t *b, int kept, int resumed) {
+  ocp_welcome_t w;
+  memset(&w, 0, sizeof w);
+  w.version = OCP_VERSION_MAX;
+  w.flags = resumed ? OCP_WELCOME_RESUMED : 0;
+  w.kept_states = (uint8_t)kept;
+  w.session = 1;
+  w.secret = 2;
+  w.budget = kept ? 1u << 20 : 0;
+  w.slot_bytes = kept ? 2048 : 0;
+  w.record_bytes = kept ? 32 : 0;
+  w.sun_dir = oc_dv3(0, 0, 1);
+  ocp_put_welcome(b, OCP_VERSION_MAX, &w);
+}
+
+/* Feeds data in chunks of `chunk` bytes; @return the first error, or 0. */
+static int feed_chunks(ocp_viewer_t *v, const uint8_t *data, size_t size, size_t chunk, oc_buf_t *out) {
+  char why[256];
+  for (size_t at = 0; at < size; at += chunk) {
+    size_t n = size - at < chunk ? size - at : chunk;
+    out->len = 0;
+    int e = ocp_viewer_feed(v, data + at, n, out, why, sizeof why);
+    if (e < 0) {
+      if (!why[0]) abort(); /* a failure always has a reason */
+      check_error_last(out);
+      return e;
+    }
+  }
+  return 0;
+}
+
+static void fuzz_viewer(const uint8_t *data, size_t size, int role, int kept, size_t chunk) {
+  ocp_viewer_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.role = (uint8_t)role;
+  d.budget = 1u << 20;
+  d.width = d.height = 64;
+  d.caps = OCP_CAP_ALL;
+  ocp_viewer_events_t ev = {NULL, NULL, on_state, NULL, NULL, NULL};
+  ocp_viewer_t *v;
+  if (ocp_viewer_create(&v, &d, &ev) != 0) return;
+  oc_buf_t out = {0}, w = {0};
+  char why[256];
+  for (int conn = 0; conn < 2; conn++) { /* a viewer's second connection resumes */
+    out.len = w.len = 0;
+    ocp_viewer_connected(v, &out);
+    put_welcome(&w, role == OCP_ROLE_VIEWER ? kept : 0, conn == 1 && role == OCP_ROLE_VIEWER);
+    if (ocp_viewer_feed(v, w.data, w.len, &out, why, sizeof why) != 0) abort();
+    if (!ocp_viewer_ready(v)) abort();
+    (void)feed_chunks(v, data, size, chunk, &out);
+    /* what is held: at most K − 1 states, all valid, newest first */
+    for (int i = 0; i < 3; i++) {
+      const oc_state_t *s = ocp_viewer_state(v, i);
+      if (role != OCP_ROLE_VIEWER || i >= kept - 1) {
+        if (s) abort();
+      } else if (s && oc_state_validate(s, NULL, 0) != 0) {
+        abort();
+      }
+    }
+  }
+  ocp_viewer_stats_t st;
+  ocp_viewer_stats(v, &st);
+  if (st.reconnects != 1) abort();
+  oc_buf_free(&out);
+  oc_buf_free(&w);
+  ocp_viewer_free(v);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+  fuzz_frames(data, size);
+  /* the chunk size comes from the input's length, so every byte stays part of the stream */
+  size_t chunk = 1 + size % 509;
+  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 2 + (int)(size & 1), size);
+  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 3, chunk);
+  fuzz_viewer(data, size, OCP_ROLE_CONTROL, 0, chunk);
+  return 0;
+}

@@ -1,0 +1,573 @@
+/* test_server.c — overcast-server end to end over loopback: the real binary (OC_BIN_DIR), bound to
+ * 127.0.0.1 port 0, epochs stepped by control requests; viewers through client/net.h (the same
+ * code as overcast-view), hostile peers through raw sockets. Checks sharing, verified states,
+ * budgets, resume, limits, malformed input, backpressure, the control channel and shutdown. */
+#include <setjmp.h> /* cmocka */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+
+#include <errno.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "net.h" /* client/net.h */
+#include "oc_bytes.h"
+#include "oc_camera.h"
+#include "oc_err.h"
+#include "ocp_viewer.h"
+#include "ocp_wire.h"
+
+static void sleep_us(long us) {
+  struct timespec t = {us / 1000000, (us % 1000000) * 1000};
+  nanosleep(&t, NULL);
+}
+
+/*-*** The server process ***/
+
+typedef struct {
+  pid_t pid;
+  int port;
+  FILE *out;
+} server_t;
+
+static char scene_sphere[4096];
+static pid_t running = 0; /* killed by the teardown when a test failed before stopping it */
+
+static void start_server(server_t *s, const char *const *extra) {
+  const char *bin = getenv("OC_BIN_DIR");
+  assert_non_null(bin);
+  char path[4096];
+  snprintf(path, sizeof path, "%s/overcast-server", bin);
+  const char *argv[32] = {path, "--listen", "127.0.0.1:0", "--epoch-period", "0", "--threads", "2", "-q"};
+  int n = 8;
+  for (int i = 0; extra && extra[i]; i++) argv[n++] = extra[i];
+  argv[n] = NULL;
+  int fd[2];
+  assert_int_equal(pipe(fd), 0);
+  s->pid = fork();
+  assert_true(s->pid >= 0);
+  if (s->pid == 0) {
+    dup2(fd[1], 1);
+    close(fd[0]);
+    close(fd[1]);
+    execv(path, (char *const *)argv);
+    _exit(127);
+  }
+  close(fd[1]);
+  running = s->pid;
+  s->out = fdopen(fd[0], "r");
+  char line[256] = "";
+  assert_non_null(fgets(line, sizeof line, s->out)); /* "listening on 127.0.0.1:PORT" */
+  const char *c = strrchr(line, ':');
+  assert_non_null(c);
+  assert_non_null(strstr(line, "listening on 127.0.0.1:"));
+  s->port = atoi(c + 1);
+  assert_true(s->port > 0);
+}
+
+/* SIGTERM and the exit status (must be 0). */
+static int stop_server(server_t *s) {
+  running = 0;
+  kill(s->pid, SIGTERM);
+  int st = 0;
+  for (int i = 0; i < 300; i++) {
+    if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
+      fclose(s->out);
+      return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    }
+    sleep_us(50000);
+  }
+  kill(s->pid, SIGKILL);
+  waitpid(s->pid, &st, 0);
+  fclose(s->out);
+  return -1;
+}
+
+/*-*** Viewers and control ***/
+
+typedef struct {
+  ocv_conn_t *c;
+  int states, welcomes, resumed;
+  uint64_t epoch, bricks_last;
+  uint32_t closed_code;
+  char closed_text[256];
+} viewer_t;
+
+static void ev_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
+  viewer_t *v = ctx;
+  (void)w;
+  v->welcomes++;
+  v->resumed += resumed;
+}
+static void ev_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
+  viewer_t *v = ctx;
+  v->states++;
+  v->epoch = s->epoch;
+  v->bricks_last = bricks;
+}
+static void ev_closed(void *ctx, uint32_t code, const char *text) {
+  viewer_t *v = ctx;
+  v->closed_code = code;
+  snprintf(v->closed_text, sizeof v->closed_text, "%s", text);
+}
+
+/* The sphere scene's own camera. */
+static ocp_camera_t sphere_camera(int w, int h) {
+  oc_camera_pose_t p = {{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0};
+  oc_camera_t cam = oc_camera_from_pose(p);
+  return (ocp_camera_t){cam.pos, cam.forward, cam.up, 40.0, (uint32_t)w, (uint32_t)h};
+}
+
+static void viewer_open(viewer_t *v, int port, uint64_t budget, const char *token) {
+  memset(v, 0, sizeof *v);
+  ocp_viewer_desc_t d = {.role = OCP_ROLE_VIEWER, .budget = budget, .max_depth = 21, .width = 160, .height = 90,
+                         .caps = OCP_CAP_ALL, .token = token};
+  ocp_viewer_events_t ev = {.ctx = v, .welcome = ev_welcome, .state = ev_state, .closed = ev_closed};
+  char why[512];
+  int r = ocv_conn_open(&v->c, "127.0.0.1", port, &d, &ev, 5.0, why, sizeof why);
+  if (r < 0) fail_msg("viewer: %s", why);
+  ocp_camera_t cam = sphere_camera(160, 90);
+  assert_int_equal(ocv_conn_camera(v->c, &cam), 0);
+}
+
+/* Polls until the viewer has `n` states, or is closed (returns its poll result). */
+static int viewer_wait(viewer_t *v, int n, double timeout_s) {
+  char why[512];
+  struct timespec t0, t;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  while (v->states < n) {
+    int r = ocv_conn_poll(v->c, 0.05, why, sizeof why);
+    if (r != 0) return r;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    if ((double)(t.tv_sec - t0.tv_sec) + 1e-9 * (double)(t.tv_nsec - t0.tv_nsec) > timeout_s) return OC_EIO;
+  }
+  return 0;
+}
+
+/* One control request; returns the reply (malloc'd) and its status. */
+static char *control(int port, const char *token, const char *json, int32_t *status) {
+  ocp_viewer_desc_t d = {.role = OCP_ROLE_CONTROL, .token = token};
+  ocv_conn_t *c = NULL;
+  char why[512];
+  if (ocv_conn_open(&c, "127.0.0.1", port, &d, NULL, 5.0, why, sizeof why) < 0) fail_msg("control: %s", why);
+  char *reply = NULL;
+  int32_t st = -1;
+  int r = ocv_control_request(c, json, 120.0, &reply, &st, why, sizeof why);
+  ocv_conn_close(c);
+  if (r < 0) {
+    if (status) *status = -1;
+    return strdup(why);
+  }
+  if (status) *status = st;
+  return reply;
+}
+
+static void step(int port, int n) {
+  char json[64];
+  snprintf(json, sizeof json, "{\"op\":\"step\",\"epochs\":%d}", n);
+  int32_t st;
+  char *r = control(port, NULL, json, &st);
+  assert_int_equal(st, 0);
+  free(r);
+}
+
+/* A number in the JSON text after `"key":` (first occurrence after `after`, if given). */
+static double json_num(const char *json, const char *after, const char *key) {
+  const char *p = after ? strstr(json, after) : json;
+  assert_non_null(p);
+  char pat[64];
+  snprintf(pat, sizeof pat, "\"%s\":", key);
+  p = strstr(p, pat);
+  assert_non_null(p);
+  return strtod(p + strlen(pat), NULL);
+}
+
+/*-*** Raw sockets (hostile peers) ***/
+
+static int raw_connect(int port) {
+  int fd = socket(AF_INET, SOCK_STREAM, 0);
+  struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port), .sin_addr.s_addr = htonl(0x7f000001)};
+  assert_int_equal(connect(fd, (struct sockaddr *)&a, sizeof a), 0);
+  return fd;
+}
+
+/* Reads frames until EOF (within timeout); returns the code of the last ERROR/GOODBYE, or -1. */
+static int raw_read_close_code(int fd, double timeout_s, char *text, size_t cap) {
+  ocp_reader_t rd;
+  ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
+  int code = -1;
+  uint8_t buf[65536];
+  for (int i = 0; i < (int)(timeout_s * 20); i++) {
+    struct pollfd p = {fd, POLLIN, 0};
+    if (poll(&p, 1, 50) <= 0) continue;
+    ssize_t n = read(fd, buf, sizeof buf);
+    if (n <= 0) break;
+    ocp_reader_feed(&rd, buf, (size_t)n);
+    ocp_header_t h;
+    const uint8_t *pl;
+    while (ocp_reader_next(&rd, &h, &pl) == 1)
+      if (h.type == OCP_MSG_ERROR || h.type == OCP_MSG_GOODBYE) {
+        ocp_text_msg_t t;
+        if (ocp_get_text(pl, h.length, &t, NULL, 0) == 0) {
+          code = (int)t.code;
+          if (text) snprintf(text, cap, "%s", t.text);
+        }
+      }
+  }
+  ocp_reader_free(&rd);
+  close(fd);
+  return code;
+}
+
+static void raw_send(int fd, const void *p, size_t n) { assert_int_equal(write(fd, p, n), (ssize_t)n); }
+
+/*-*** Tests ***/
+
+/* Two viewers share one world: both get every epoch, verified (checksums), within budget; a
+ * second viewer looking at the same place costs no extra generation; the server exits 0. */
+static void test_server__two_viewers(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(&s, extra);
+  viewer_t a, b;
+  viewer_open(&a, s.port, 8u << 20, NULL);
+  viewer_open(&b, s.port, 8u << 20, NULL);
+  for (int e = 1; e <= 4; e++) {
+    /* the cameras must have reached the server before the step: wait for both WELCOMEs */
+    char why[256];
+    assert_int_equal(ocv_conn_wait_ready(a.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_wait_ready(b.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_flush(a.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_flush(b.c, 5, why, sizeof why), 0);
+    sleep_us(50000);
+    step(s.port, 1);
+    assert_int_equal(viewer_wait(&a, e, 60), 0);
+    assert_int_equal(viewer_wait(&b, e, 60), 0);
+  }
+  assert_int_equal(a.epoch, 4);
+  assert_int_equal(b.epoch, 4);
+  ocp_viewer_stats_t va, vb;
+  ocp_viewer_stats(ocv_conn_session(a.c), &va);
+  ocp_viewer_stats(ocv_conn_session(b.c), &vb);
+  assert_int_equal(va.over_budget, 0);
+  assert_true(va.resident_peak <= (8u << 20));
+  assert_true(va.bricks_in > 0);
+  assert_int_equal(va.bricks_in, vb.bricks_in); /* same camera, same plan */
+  int32_t st;
+  char *stats = control(s.port, NULL, "{\"op\":\"stats\"}", &st);
+  assert_int_equal(st, 0);
+  double produced = json_num(stats, NULL, "bricks_produced"), requested = json_num(stats, NULL, "brick_requests");
+  print_message("two viewers: %llu bricks each, %g requested, %g produced\n", (unsigned long long)va.bricks_in, requested,
+                produced);
+  assert_true(produced <= requested / 2 + 1e-9); /* shared: one generation for both */
+  free(stats);
+  char *sess = control(s.port, NULL, "{\"op\":\"sessions\"}", &st);
+  assert_int_equal(st, 0);
+  assert_non_null(strstr(sess, "\"role\":\"viewer\""));
+  free(sess);
+  ocv_conn_close(a.c);
+  ocv_conn_close(b.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
+/* Garbage, oversized frames, a foreign version, a vanished peer: each closed with an ERROR naming
+ * the problem, while a viewer on the same server keeps getting its epochs. */
+static void test_server__hostile_peers(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(&s, extra);
+  viewer_t v;
+  viewer_open(&v, s.port, 8u << 20, NULL);
+  char why[256], text[1100];
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+  sleep_us(50000);
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&v, 1, 60), 0);
+
+  int fd = raw_connect(s.port); /* an HTTP client */
+  raw_send(fd, "GET / HTTP/1.1\r\nHost: x\r\n\r\n", 27);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_MALFORMED);
+
+  fd = raw_connect(s.port); /* a frame claiming 1 GiB */
+  uint8_t hdr[8] = {OCP_MAGIC0, OCP_MAGIC1, 1, OCP_MSG_HELLO, 0, 0, 0, 0x40};
+  raw_send(fd, hdr, 8);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_TOO_BIG);
+
+  fd = raw_connect(s.port); /* a viewer from the future */
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 50, .max_version = 60, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
+                   .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16};
+  ocp_put_hello(&b, &h);
+  raw_send(fd, b.data, b.len);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_VERSION);
+  assert_non_null(strstr(text, "50..60"));
+
+  fd = raw_connect(s.port); /* a HELLO with a bad field */
+  h.min_version = h.max_version = 1;
+  h.max_depth = 40;
+  b.len = 0;
+  ocp_put_hello(&b, &h);
+  raw_send(fd, b.data, b.len);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_MALFORMED);
+  assert_non_null(strstr(text, "max_depth"));
+
+  fd = raw_connect(s.port); /* a camera before hello */
+  b.len = 0;
+  ocp_camera_t cam = sphere_camera(16, 16);
+  ocp_put_camera(&b, 1, &cam);
+  raw_send(fd, b.data, b.len);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_UNEXPECTED);
+
+  fd = raw_connect(s.port); /* half a frame, then gone */
+  raw_send(fd, hdr, 5);
+  close(fd);
+  oc_buf_free(&b);
+
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&v, 2, 60), 0);
+  int32_t st;
+  char *stats = control(s.port, NULL, "{\"op\":\"stats\"}", &st);
+  assert_true(json_num(stats, NULL, "closed_errors") >= 5);
+  free(stats);
+  ocv_conn_close(v.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
+/* --token: refused without it (viewer and control), served with it. */
+static void test_server__token(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, "--token", "s3cret", NULL};
+  start_server(&s, extra);
+  viewer_t v;
+  char why[256];
+  viewer_open(&v, s.port, 8u << 20, "wrong");
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 1);
+  assert_int_equal(v.closed_code, OCP_CODE_TOKEN);
+  ocv_conn_close(v.c);
+  viewer_open(&v, s.port, 8u << 20, "s3cret");
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+  ocv_conn_close(v.c);
+  int32_t st;
+  char *r = control(s.port, NULL, "{\"op\":\"stats\"}", &st);
+  assert_int_not_equal(st, 0);
+  free(r);
+  r = control(s.port, "s3cret", "{\"op\":\"stats\"}", &st);
+  assert_int_equal(st, 0);
+  free(r);
+  assert_int_equal(stop_server(&s), 0);
+}
+
+/* A viewer that drops its connection resumes with what it holds: after an acknowledged epoch (the
+ * next one is a difference), and after losing an epoch in flight (it is sent again). */
+static void test_server__resume(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(&s, extra);
+  viewer_t v;
+  char why[256];
+  viewer_open(&v, s.port, 8u << 20, NULL);
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+  sleep_us(50000);
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&v, 1, 60), 0);
+  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0); /* the ACK */
+  sleep_us(100000);
+
+  /* 1: drop and reconnect after an acknowledged epoch */
+  assert_int_equal(ocv_conn_reconnect(v.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+  assert_int_equal(v.resumed, 1);
+  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+  sleep_us(50000);
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&v, 2, 60), 0);
+  assert_int_equal(v.epoch, 2);
+
+  /* 2: the epoch in flight is lost with the connection: the server sends it again */
+  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+  sleep_us(100000);
+  step(s.port, 1); /* epoch 3 goes out; we do not read it */
+  sleep_us(300000);
+  assert_int_equal(ocv_conn_reconnect(v.c, 5, why, sizeof why), 0);
+  assert_int_equal(viewer_wait(&v, 3, 60), 0);
+  assert_int_equal(v.resumed, 2);
+  assert_int_equal(v.epoch, 3);
+
+  /* 3: a stranger's resume fields start a new session */
+  ocp_viewer_stats_t vs;
+  ocp_viewer_stats(ocv_conn_session(v.c), &vs);
+  assert_int_equal(vs.resumed, 2);
+  ocv_conn_close(v.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
+/* A viewer that never reads does not hold up the others: they get every epoch, it is coalesced,
+ * the server keeps its unsent bytes bounded (an epoch is produced only as the socket drains), and
+ * the stall timeout closes it. Small socket buffers make its backlog visible to the server. */
+static void test_server__slow_viewer(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, "--stall-timeout", "2", "--send-buffer", "8", NULL};
+  start_server(&s, extra);
+  viewer_t v;
+  char why[256];
+  viewer_open(&v, s.port, 8u << 20, NULL);
+  int slow = raw_connect(s.port);
+  int small = 4096;
+  setsockopt(slow, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 64u << 20,
+                   .slot_bytes = 2048, .record_bytes = 32, .width = 1920, .height = 1080, .caps = OCP_CAP_ALL};
+  ocp_put_hello(&b, &h);
+  ocp_camera_t cam = sphere_camera(1920, 1080);
+  ocp_put_camera(&b, 1, &cam);
+  raw_send(slow, b.data, b.len);
+  oc_buf_free(&b);
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+  sleep_us(100000);
+  double coalesced_max = 0, queued_max = 0;
+  for (int e = 1; e <= 3; e++) {
+    step(s.port, 1);
+    assert_int_equal(viewer_wait(&v, e, 60), 0);
+    assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+    int32_t st;
+    char *sess = control(s.port, NULL, "{\"op\":\"sessions\"}", &st);
+    assert_int_equal(st, 0);
+    for (const char *p = strstr(sess, "\"queued\":"); p; p = strstr(p + 1, "\"queued\":"))
+      if (strtod(p + 9, NULL) > queued_max) queued_max = strtod(p + 9, NULL);
+    for (const char *p = strstr(sess, "\"coalesced\":"); p; p = strstr(p + 1, "\"coalesced\":"))
+      if (strtod(p + 12, NULL) > coalesced_max) coalesced_max = strtod(p + 12, NULL);
+    free(sess);
+  }
+  print_message("slow viewer: coalesced %g epochs, at most %g bytes unsent on the server\n", coalesced_max, queued_max);
+  assert_true(coalesced_max >= 2);         /* planned once, then skipped while unacknowledged */
+  assert_true(queued_max > 0);             /* it did fall behind... */
+  assert_true(queued_max < (600u << 10));  /* ...but the server holds at most low water + a burst */
+  /* Not drained for 2 s: closed (its ERROR, if it got one, sits behind unread frames). The good
+   * viewer stays served meanwhile. */
+  int closed = 0;
+  for (int i = 0; i < 100 && !closed; i++) {
+    ocv_conn_keepalive(v.c);
+    ocv_conn_poll(v.c, 0.1, why, sizeof why);
+    int32_t st;
+    char *sess = control(s.port, NULL, "{\"op\":\"sessions\"}", &st);
+    closed = strstr(sess, "\"address\"") && !strstr(sess, "1920") && json_num(sess, NULL, "id") >= 0 &&
+             !strstr(sess, "\"queued\":0,") ? 0 : 0;
+    /* count viewer sessions still there */
+    int viewers = 0;
+    for (const char *p = strstr(sess, "\"role\":\"viewer\""); p; p = strstr(p + 1, "\"role\":\"viewer\"")) viewers++;
+    closed = viewers == 1;
+    free(sess);
+  }
+  assert_true(closed);
+  close(slow);
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&v, 4, 60), 0);
+  ocv_conn_close(v.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
+/* The control channel: every op answers; bad requests are refused with a reason; reload sends
+ * viewers away; the viewer limit gives FULL; SIGTERM says goodbye and exits 0. */
+static void test_server__control(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--max-viewers", "1", NULL}; /* the procedural planet (weather) */
+  start_server(&s, extra);
+  static const struct {
+    const char *json, *expect;
+    int ok;
+  } req[] = {
+      {"{\"op\":\"weather\",\"preset\":\"storm\",\"seconds\":60}", "\"ok\":true", 1},
+      {"{\"op\":\"weather\",\"preset\":\"hail\"}", "preset", 0},
+      {"{\"op\":\"time\",\"set\":3600,\"scale\":2}", "\"ok\":true", 1},
+      {"{\"op\":\"time\"}", "time:", 0},
+      {"{\"op\":\"pause\"}", "\"ok\":true", 1},
+      {"{\"op\":\"resume\"}", "\"ok\":true", 1},
+      {"{\"op\":\"sun\",\"lat\":10,\"lon\":20}", "\"ok\":true", 1},
+      {"{\"op\":\"sun\",\"dir\":[0,0,0]}", "non-zero", 0},
+      {"{\"op\":\"step\",\"epochs\":0}", "1..1000", 0},
+      {"{\"op\":\"disconnect\",\"session\":999}", "no session 999", 0},
+      {"{\"op\":\"fly\"}", "unknown op", 0},
+      {"[1,2]", "not a JSON object", 0},
+      {"{\"op\":\"stats\"}", "\"epoch\"", 1},
+  };
+  for (size_t i = 0; i < sizeof req / sizeof req[0]; i++) {
+    int32_t st;
+    char *r = control(s.port, NULL, req[i].json, &st);
+    if (!strstr(r, req[i].expect) || (st == 0) != req[i].ok) fail_msg("%s → status %d, %s", req[i].json, st, r);
+    free(r);
+  }
+  int32_t st;
+  char *r = control(s.port, NULL, "{\"op\":\"stats\"}", &st);
+  assert_true(fabs(json_num(r, NULL, "time") - 3600) < 1e-9);
+  free(r);
+
+  viewer_t a, b;
+  char why[256];
+  viewer_open(&a, s.port, 4u << 20, NULL);
+  assert_int_equal(ocv_conn_wait_ready(a.c, 5, why, sizeof why), 0);
+  viewer_open(&b, s.port, 4u << 20, NULL);
+  assert_int_equal(ocv_conn_wait_ready(b.c, 5, why, sizeof why), 1);
+  assert_int_equal(b.closed_code, OCP_CODE_FULL);
+  ocv_conn_close(b.c);
+
+  r = control(s.port, NULL, "{\"op\":\"reload\"}", &st);
+  assert_int_equal(st, 0);
+  free(r);
+  assert_int_equal(ocv_conn_wait_ready(a.c, 0.01, why, sizeof why), 0);
+  for (int i = 0; i < 50 && !a.closed_code; i++) ocv_conn_poll(a.c, 0.1, why, sizeof why);
+  assert_int_equal(a.closed_code, OCP_CODE_RELOAD);
+  ocv_conn_close(a.c);
+
+  viewer_open(&a, s.port, 4u << 20, NULL);
+  assert_int_equal(ocv_conn_wait_ready(a.c, 5, why, sizeof why), 0);
+  assert_int_equal(stop_server(&s), 0);
+  for (int i = 0; i < 50 && !a.closed_code; i++) ocv_conn_poll(a.c, 0.1, why, sizeof why);
+  assert_int_equal(a.closed_code, OCP_CODE_SHUTDOWN);
+  ocv_conn_close(a.c);
+}
+
+static int teardown(void **state) {
+  (void)state;
+  if (running > 0) {
+    kill(running, SIGKILL);
+    waitpid(running, NULL, 0);
+    running = 0;
+  }
+  return 0;
+}
+
+int main(void) {
+  const char *src = getenv("OC_SOURCE_DIR");
+  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
+  signal(SIGPIPE, SIG_IGN);
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test_teardown(test_server__two_viewers, teardown),
+      cmocka_unit_test_teardown(test_server__hostile_peers, teardown),
+      cmocka_unit_test_teardown(test_server__token, teardown),
+      cmocka_unit_test_teardown(test_server__resume, teardown),
+      cmocka_unit_test_teardown(test_server__slow_viewer, teardown),
+      cmocka_unit_test_teardown(test_server__control, teardown),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

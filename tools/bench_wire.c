@@ -1,0 +1,470 @@
+/* bench_wire.c — `overcast-bench wire`: what an epoch costs on the wire, four ways side by side.
+ *
+ * The server core plans and produces epochs for one viewer at the scene camera, acknowledging
+ * each, and every epoch is encoded
+ *   plain  each lacking brick's 2048 code bytes zstd'd alone (one frame each), the records zstd'd
+ *          as one blob: the baseline
+ *   batch  the epoch encoder (proto/ocp_epoch.h): record op stream, batches of x-predicted planes
+ *   delta  the same, with deltas against the node's previous brick where its range is unchanged
+ *   dict   the same, with a dictionary trained on the first epoch's bricks (its DICT frame counted)
+ * all at the same zstd level, then decoded again (ocp_epoch_dec_*; plain zstd for `plain`) by a
+ * viewer holding its K−1 newest states: every decoded state must hash exactly like the server's,
+ * or the bench fails. Speeds are of the uncompressed content (2048 bytes per brick sent and 32 per
+ * record, the same figure for every variant) over one core's encode or decode wall time.
+ *
+ * The plain baseline links zstd directly: it measures what ocp_epoch.c saves over it. */
+#include <getopt.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <zstd.h> /* the plain baseline only */
+
+#include "bench.h"
+#include "oc_camera.h"
+#include "oc_cli.h"
+#include "oc_err.h"
+#include "oc_scene.h"
+#include "ocp_epoch.h"
+#include "ocp_wire.h"
+#include "ocs_field.h"
+#include "world.h"
+
+/* Prototype here rather than in bench.h (shared); bench_main.c declares it likewise. */
+int oct_bench_wire(const char *prog, int argc, char **argv);
+
+enum { W_PLAIN, W_BATCH, W_DELTA, W_DICT, W_N };
+static const char *const wname[W_N] = {"plain", "batch", "delta", "dict"};
+
+#define W_HELD_MAX 4
+#define W_DICT_ID 1u
+#define W_DICT_BYTES (64u << 10)
+#define W_VERSION OCP_VERSION_MAX
+
+typedef struct {
+  ocp_epoch_enc_t *enc; /* batch, delta, dict */
+  ocp_epoch_dec_t *dec;
+  int enabled;
+  oc_buf_t buf;      /* this epoch's frames */
+  oc_state_t out;    /* this epoch's decoded state */
+  /* this epoch */
+  uint64_t wire, brick_bytes;
+  uint32_t delta_ch, full_ch;
+  double enc_s, dec_s;
+  /* the run */
+  uint64_t t_wire, t_brick_bytes, t_bricks, t_content, anim_delta, anim_full;
+  double t_enc, t_dec;
+} wvar_t;
+
+/* What the viewer holds: its K−1 newest states, newest first (the same for every variant, since
+ * each variant's decode is checked against the server's checksum). */
+typedef struct {
+  oc_state_t s[W_HELD_MAX];
+  int n, keep;
+} held_t;
+
+static const oc_brick_codes_t *held_lookup(void *ctx, uint32_t id) {
+  const held_t *h = ctx;
+  for (int i = 0; i < h->n; i++) {
+    const oc_brick_t *b = oc_state_find_brick(&h->s[i], id);
+    if (b) return &b->codes;
+  }
+  return NULL;
+}
+
+/* The newest state becomes held[0] (moved); the oldest beyond `keep` is dropped. */
+static void held_push(held_t *h, oc_state_t *s) {
+  if (h->n == h->keep) oc_state_free(&h->s[--h->n]);
+  memmove(&h->s[1], &h->s[0], sizeof h->s[0] * (size_t)h->n);
+  h->s[0] = *s;
+  h->n++;
+  oc_state_init(s);
+}
+
+/*-*** The plain baseline ***/
+
+static void w_pack_record(const oc_node_t *n, uint8_t *r) {
+  oc_put_u64(r, n->key);
+  r[8] = n->kind;
+  r[9] = r[10] = r[11] = 0;
+  oc_put_u32(r + 12, n->brick_id);
+  oc_put_f32(r + 16, n->range[0].lo);
+  oc_put_f32(r + 20, n->range[0].hi);
+  oc_put_f32(r + 24, n->range[1].lo);
+  oc_put_f32(r + 28, n->range[1].hi);
+}
+
+/* Appends one frame of `type`: `head` (0 or 4 bytes), then src zstd'd. @return 0 or -1. */
+static int plain_frame(oc_buf_t *out, uint8_t type, const uint8_t *head, size_t head_len, ZSTD_CCtx *cc, int level,
+                       const void *src, size_t n) {
+  size_t h = ocp_frame_begin(out, W_VERSION, type);
+  oc_buf_append(out, head, head_len);
+  size_t bound = ZSTD_compressBound(n);
+  uint8_t *dst = oc_buf_grow(out, bound);
+  if (!dst) return -1;
+  size_t z = ZSTD_compressCCtx(cc, dst, bound, src, n, level);
+  if (ZSTD_isError(z)) return -1;
+  out->len -= bound - z;
+  ocp_frame_end(out, h);
+  return 0;
+}
+
+static int plain_encode(ZSTD_CCtx *cc, int level, const oc_state_t *s, const uint32_t *lacking, uint32_t n, oc_buf_t *out,
+                        uint8_t *scratch, uint64_t *brick_bytes) {
+  ocp_epoch_begin_t m = {s->epoch, s->time, s->sun_dir, OCP_NO_BASE, s->node_count, s->brick_count, n};
+  ocp_put_epoch_begin(out, W_VERSION, &m);
+  for (uint32_t i = 0; i < s->node_count; i++) w_pack_record(&s->nodes[i], scratch + (size_t)i * OC_STATE_RECORD_BYTES);
+  if (plain_frame(out, OCP_MSG_RECORDS, NULL, 0, cc, level, scratch, (size_t)s->node_count * OC_STATE_RECORD_BYTES)) return -1;
+  for (uint32_t k = 0; k < n; k++) {
+    const oc_brick_t *b = oc_state_find_brick(s, lacking[k]);
+    uint8_t raw[OC_BRICK_CODE_BYTES], head[4];
+    for (int c = 0; c < OC_CHANNELS; c++)
+      for (int v = 0; v < OC_BRICK_VOXELS; v++) oc_put_u16(raw + 2 * (c * OC_BRICK_VOXELS + v), b->codes.code[c][v]);
+    oc_put_u32(head, b->id);
+    size_t before = out->len;
+    if (plain_frame(out, OCP_MSG_BRICKS, head, sizeof head, cc, level, raw, sizeof raw)) return -1;
+    *brick_bytes += out->len - before;
+  }
+  ocp_epoch_end_t e = {s->epoch, oc_state_checksum(s)};
+  ocp_put_epoch_end(out, W_VERSION, &e);
+  return out->err ? -1 : 0;
+}
+
+static int cmp_u32(const void *a, const void *b) {
+  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return (x > y) - (x < y);
+}
+
+/* Rebuilds the state from plain frames and the held bricks. @return 0 or -1 with a reason. */
+static int plain_decode(ZSTD_DCtx *dc, const oc_buf_t *in, const held_t *held, oc_state_t *out, uint8_t *scratch, size_t scratch_cap,
+                        char *why, size_t why_len) {
+  ocp_epoch_begin_t m = {0};
+  oc_state_t recv; /* received bricks, in arrival (ascending id) order */
+  oc_state_init(&recv);
+  oc_state_free(out);
+  int r = -1;
+  uint32_t *ids = NULL;
+  for (size_t at = 0; at + OCP_HEADER_BYTES <= in->len;) {
+    ocp_header_t h;
+    if (ocp_header_parse(in->data + at, OCP_MAX_PAYLOAD, &h) < 0) goto done;
+    const uint8_t *p = in->data + at + OCP_HEADER_BYTES;
+    at += OCP_HEADER_BYTES + h.length;
+    if (h.type == OCP_MSG_EPOCH_BEGIN) {
+      if (ocp_get_epoch_begin(p, h.length, &m, why, why_len) < 0) goto done;
+      out->epoch = m.epoch, out->time = m.time, out->sun_dir = m.sun_dir;
+    } else if (h.type == OCP_MSG_RECORDS) {
+      size_t want = (size_t)m.node_count * OC_STATE_RECORD_BYTES;
+      if (want > scratch_cap || ZSTD_getFrameContentSize(p, h.length) != want) goto bad;
+      if (ZSTD_decompressDCtx(dc, scratch, want, p, h.length) != want) goto bad;
+      for (uint32_t i = 0; i < m.node_count; i++) {
+        const uint8_t *q = scratch + (size_t)i * OC_STATE_RECORD_BYTES;
+        oc_node_t n = {.key = oc_get_u64(q), .kind = q[8], .brick_id = oc_get_u32(q + 12)};
+        n.range[0] = (oc_range_t){oc_get_f32(q + 16), oc_get_f32(q + 20)};
+        n.range[1] = (oc_range_t){oc_get_f32(q + 24), oc_get_f32(q + 28)};
+        if (oc_state_add_node(out, &n) < 0) goto done;
+      }
+    } else if (h.type == OCP_MSG_BRICKS) {
+      uint8_t raw[OC_BRICK_CODE_BYTES];
+      oc_brick_codes_t c;
+      if (h.length < 4 || ZSTD_decompressDCtx(dc, raw, sizeof raw, p + 4, h.length - 4) != sizeof raw) goto bad;
+      for (int ch = 0; ch < OC_CHANNELS; ch++)
+        for (int v = 0; v < OC_BRICK_VOXELS; v++) c.code[ch][v] = oc_get_u16(raw + 2 * (ch * OC_BRICK_VOXELS + v));
+      if (oc_state_add_brick(&recv, oc_get_u32(p), &c) < 0) goto done;
+    }
+  }
+  /* the state's bricks in id order: received, or held */
+  ids = malloc(sizeof *ids * ((size_t)out->node_count + 1));
+  if (!ids) goto done;
+  uint32_t nb = 0;
+  for (uint32_t i = 0; i < out->node_count; i++)
+    if (out->nodes[i].kind == OC_NODE_BRICK) ids[nb++] = out->nodes[i].brick_id;
+  qsort(ids, nb, sizeof *ids, cmp_u32);
+  for (uint32_t k = 0; k < nb; k++) {
+    const oc_brick_t *b = oc_state_find_brick(&recv, ids[k]);
+    const oc_brick_codes_t *c = b ? &b->codes : held_lookup((void *)held, ids[k]);
+    if (!c) {
+      snprintf(why, why_len, "brick %" PRIu32 " neither sent nor held", ids[k]);
+      goto done;
+    }
+    if (oc_state_add_brick(out, ids[k], c) < 0) goto done;
+  }
+  if (oc_state_validate(out, why, why_len) < 0) goto done;
+  r = 0;
+  goto done;
+bad:
+  snprintf(why, why_len, "bad zstd frame");
+done:
+  free(ids);
+  oc_state_free(&recv);
+  return r;
+}
+
+/*-*** The epoch encoder and decoder ***/
+
+static int epoch_encode(ocp_epoch_enc_t *e, const oc_state_t *s, const oc_state_t *base, const uint32_t *lacking, uint32_t n,
+                        oc_buf_t *out, uint64_t *brick_bytes) {
+  if (ocp_epoch_enc_begin(e, s, base, lacking, n) < 0) return -1;
+  for (;;) {
+    size_t start = out->len;
+    int r = ocp_epoch_enc_next(e, W_VERSION, out);
+    if (r < 0) return -1;
+    if (r == 0) return 0;
+    if (out->data[start + 3] == OCP_MSG_BRICKS) *brick_bytes += out->len - start;
+  }
+}
+
+static int epoch_decode(ocp_epoch_dec_t *d, const oc_buf_t *in, held_t *held, oc_state_t *out, char *why, size_t why_len) {
+  int r = OC_ECORRUPT;
+  snprintf(why, why_len, "no epoch end");
+  for (size_t at = 0; at + OCP_HEADER_BYTES <= in->len;) {
+    ocp_header_t h;
+    if ((r = ocp_header_parse(in->data + at, OCP_MAX_PAYLOAD, &h)) < 0) return r;
+    const uint8_t *p = in->data + at + OCP_HEADER_BYTES;
+    at += OCP_HEADER_BYTES + h.length;
+    switch (h.type) {
+      case OCP_MSG_EPOCH_BEGIN: {
+        ocp_epoch_begin_t m;
+        if ((r = ocp_get_epoch_begin(p, h.length, &m, why, why_len)) < 0) return r;
+        const oc_state_t *base = NULL;
+        for (int i = 0; i < held->n && m.base_epoch != OCP_NO_BASE && !base; i++)
+          if (held->s[i].epoch == m.base_epoch) base = &held->s[i];
+        r = ocp_epoch_dec_begin(d, &m, base, held_lookup, held, why, why_len);
+        break;
+      }
+      case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, p, h.length, why, why_len); break;
+      case OCP_MSG_BRICKS: r = ocp_epoch_dec_bricks(d, p, h.length, why, why_len); break;
+      case OCP_MSG_DICT: r = ocp_epoch_dec_dict(d, p, h.length, why, why_len); break;
+      case OCP_MSG_EPOCH_END: {
+        ocp_epoch_end_t m;
+        if ((r = ocp_get_epoch_end(p, h.length, &m, why, why_len)) < 0) return r;
+        return ocp_epoch_dec_end(d, &m, out, why, why_len);
+      }
+      default: snprintf(why, why_len, "unexpected frame type 0x%02x", h.type); return OC_ECORRUPT;
+    }
+    if (r < 0) return r;
+  }
+  return r < 0 ? r : OC_ECORRUPT;
+}
+
+/*-*** The subcommand ***/
+
+int oct_bench_wire(const char *prog, int argc, char **argv) {
+  enum { O_EPOCHS = 256, O_BUDGET, O_LEVEL, O_THREADS, O_CSV, O_HELP };
+  static const struct option opts[] = {{"epochs", required_argument, 0, O_EPOCHS}, {"budget", required_argument, 0, O_BUDGET},
+                                       {"level", required_argument, 0, O_LEVEL},   {"threads", required_argument, 0, O_THREADS},
+                                       {"csv", required_argument, 0, O_CSV},       {"help", no_argument, 0, O_HELP},
+                                       {0, 0, 0, 0}};
+  long epochs = 8, budget_mib = 64, level = OCP_LEVEL_DEFAULT, threads = 0;
+  const char *csv_path = NULL;
+  int c;
+  opterr = 0;
+  optind = 1;
+  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+    switch (c) {
+      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &epochs)) return OC_EXIT_USAGE; break;
+      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
+      case O_LEVEL: if (oc_cli_int(prog, "--level", optarg, 1, 19, &level)) return OC_EXIT_USAGE; break;
+      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 0, 64, &threads)) return OC_EXIT_USAGE; break;
+      case O_CSV: csv_path = optarg; break;
+      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
+      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "wire: unknown or incomplete option \"%s\"", argv[optind - 1]);
+    }
+  }
+  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "wire: unexpected argument \"%s\"", argv[optind]);
+
+  char why[1024];
+  static oc_scene_t sc;
+  oc_scene_default(&sc);
+  ocs_world_desc_t wd = {.threads = (int)threads, .cache_bytes = 1ull << 30};
+  ocs_world_t *w = NULL;
+  if (ocs_world_create(&w, &sc, &wd, why, sizeof why) < 0) {
+    oc_scene_free(&sc);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  }
+  ocs_viewer_t *v = NULL;
+  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21}, granted;
+  if (ocs_world_add_viewer(w, &req, &v, &granted, why, sizeof why) < 0) {
+    ocs_world_free(w);
+    oc_scene_free(&sc);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  }
+  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, 1280, 720};
+  ocs_viewer_set_view(v, &view);
+  int animated = ocs_field_animated(ocs_world_field(w));
+
+  FILE *csv = NULL;
+  if (csv_path && !(csv = fopen(csv_path, "w"))) {
+    ocs_world_free(w);
+    oc_scene_free(&sc);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot open '%s'", csv_path);
+  }
+  if (csv) fprintf(csv, "epoch,variant,records,bricks_sent,content_bytes,wire_bytes,brick_bytes,encode_s,decode_s,delta_channels,full_channels\n");
+
+  wvar_t var[W_N];
+  memset(var, 0, sizeof var);
+  held_t held = {.n = 0, .keep = granted.kept_states - 1};
+  if (held.keep < 1) held.keep = 1;
+  if (held.keep > W_HELD_MAX) held.keep = W_HELD_MAX;
+  oc_state_t prev; /* the server's previous state: the base of each difference */
+  oc_state_init(&prev);
+  ZSTD_CCtx *cc = ZSTD_createCCtx();
+  ZSTD_DCtx *dc = ZSTD_createDCtx();
+  uint8_t *scratch = NULL;
+  size_t scratch_cap = 0;
+  double train_s = 0.0;
+  size_t dict_len = 0;
+  int rc = OC_EXIT_OK;
+  for (int i = 0; i < W_N; i++) {
+    oc_state_init(&var[i].out);
+    var[i].enabled = 1;
+    ocp_enc_desc_t d = {.level = (int)level, .deltas = i >= W_DELTA};
+    if (!cc || !dc || ocp_epoch_dec_create(&var[i].dec) < 0 || (i != W_PLAIN && i != W_DICT && ocp_epoch_enc_create(&var[i].enc, &d) < 0)) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: out of memory");
+      goto out;
+    }
+  }
+
+  printf("scene %s (%s), budget %ld MiB, %d kept states, zstd level %ld\n", sc.name, animated ? "animated" : "static", budget_mib,
+         granted.kept_states, level);
+  printf("epoch  leaves  bricks   wire KiB: %9s %9s %9s %9s\n", wname[0], wname[1], wname[2], wname[3]);
+  for (long e = 0; e < epochs; e++) {
+    int r;
+    ocs_epoch_out_t o;
+    if ((r = ocs_world_step(w)) < 0 || (r = ocs_viewer_output(v, &o)) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld: %s", e, oc_strerror(r));
+      goto out;
+    }
+    const oc_state_t *s = o.state;
+    const oc_state_t *base = prev.node_count ? &prev : NULL;
+    uint64_t checksum = oc_state_checksum(s);
+    uint64_t content = (uint64_t)o.nlacking * OC_BRICK_CODE_BYTES + (uint64_t)s->node_count * OC_STATE_RECORD_BYTES;
+    size_t need = (size_t)s->node_count * OC_STATE_RECORD_BYTES;
+    if (need > scratch_cap) {
+      uint8_t *p = realloc(scratch, need);
+      if (!p) {
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: out of memory");
+        goto out;
+      }
+      scratch = p, scratch_cap = need;
+    }
+    if (e == 0) { /* the dictionary: trained on this epoch's bricks, sent before its first BRICKS */
+      wvar_t *x = &var[W_DICT];
+      const oc_brick_codes_t **smp = malloc(sizeof *smp * ((size_t)o.nlacking + 1));
+      oc_buf_t dict = {0};
+      double t0 = oct_now();
+      int tr = smp ? 0 : OC_ENOMEM;
+      for (uint32_t k = 0; smp && k < o.nlacking; k++) smp[k] = &oc_state_find_brick(s, o.lacking[k])->codes;
+      if (tr == 0) tr = ocp_dict_train(smp, o.nlacking, W_DICT_BYTES, &dict);
+      train_s = oct_now() - t0;
+      free(smp);
+      ocp_enc_desc_t d = {.level = (int)level, .deltas = 1, .dict_id = W_DICT_ID, .dict = dict.data, .dict_len = dict.len};
+      if (tr < 0 || ocp_epoch_enc_create(&x->enc, &d) < 0) {
+        printf("(no dictionary: training on %u bricks failed: %s)\n", o.nlacking, oc_strerror(tr < 0 ? tr : OC_ENOMEM));
+        x->enabled = 0;
+      } else {
+        dict_len = dict.len;
+        ocp_put_dict(&x->buf, W_VERSION, W_DICT_ID, dict.data, dict.len); /* counted in epoch 0 */
+      }
+      oc_buf_free(&dict);
+    }
+    for (int i = 0; i < W_N; i++) {
+      wvar_t *x = &var[i];
+      if (!x->enabled) continue;
+      if (!(i == W_DICT && e == 0)) x->buf.len = 0;
+      x->brick_bytes = 0;
+      double t0 = oct_now();
+      r = i == W_PLAIN ? plain_encode(cc, (int)level, s, o.lacking, o.nlacking, &x->buf, scratch, &x->brick_bytes)
+                       : epoch_encode(x->enc, s, base, o.lacking, o.nlacking, &x->buf, &x->brick_bytes);
+      x->enc_s = oct_now() - t0;
+      if (r < 0) {
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: encoding failed", e, wname[i]);
+        goto out;
+      }
+      x->wire = x->buf.len;
+      x->delta_ch = x->full_ch = 0;
+      if (x->enc) {
+        ocp_enc_stats_t st;
+        ocp_epoch_enc_stats(x->enc, &st);
+        x->delta_ch = st.delta_channels, x->full_ch = st.full_channels;
+      }
+      why[0] = '\0';
+      t0 = oct_now();
+      r = i == W_PLAIN ? plain_decode(dc, &x->buf, &held, &x->out, scratch, scratch_cap, why, sizeof why)
+                       : epoch_decode(x->dec, &x->buf, &held, &x->out, why, sizeof why);
+      x->dec_s = oct_now() - t0;
+      if (r < 0) {
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: DECODE FAILED: %s", e, wname[i], why);
+        goto out;
+      }
+      uint64_t got = oc_state_checksum(&x->out);
+      if (got != checksum) {
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: ROUND TRIP MISMATCH: server %016" PRIx64 ", decoded %016" PRIx64,
+                         e, wname[i], checksum, got);
+        goto out;
+      }
+      x->t_wire += x->wire, x->t_brick_bytes += x->brick_bytes, x->t_bricks += o.nlacking, x->t_content += content;
+      x->t_enc += x->enc_s, x->t_dec += x->dec_s;
+      if (e > 0 && animated) x->anim_delta += x->delta_ch, x->anim_full += x->full_ch;
+      if (csv)
+        fprintf(csv, "%ld,%s,%u,%u,%" PRIu64 ",%" PRIu64 ",%" PRIu64 ",%.6f,%.6f,%u,%u\n", e, wname[i], s->node_count, o.nlacking,
+                content, x->wire, x->brick_bytes, x->enc_s, x->dec_s, x->delta_ch, x->full_ch);
+    }
+    printf("%5ld %7u %7u            ", e, s->node_count, o.nlacking);
+    for (int i = 0; i < W_N; i++) {
+      if (var[i].enabled)
+        printf(" %9.1f", var[i].wire / 1024.0);
+      else
+        printf(" %9s", "-");
+    }
+    printf("\n");
+    fflush(stdout);
+    /* the viewer now holds this state (every variant decoded it identically); the server too */
+    int keep_from = var[W_DICT].enabled ? W_DICT : W_DELTA;
+    held_push(&held, &var[keep_from].out);
+    for (int i = 0; i < W_N; i++) oc_state_free(&var[i].out);
+    if (oc_state_copy(&prev, s) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: out of memory");
+      goto out;
+    }
+    ocs_viewer_ack(v, s->epoch);
+  }
+
+  printf("\nover %ld epochs (%" PRIu64 " bricks sent); MB/s of content (2048 B a brick sent + 32 B a record) on one core\n", epochs,
+         var[W_PLAIN].t_bricks);
+  if (var[W_DICT].enabled)
+    printf("dictionary: %zu bytes, trained in %.1f ms on epoch 0's bricks; its DICT frame is in dict's epoch-0 wire bytes\n", dict_len,
+           1e3 * train_s);
+  printf("variant  bytes/brick  wire KiB/epoch  vs plain  ratio  encode MB/s  decode MB/s  delta channels (epochs 1..)\n");
+  for (int i = 0; i < W_N; i++) {
+    const wvar_t *x = &var[i];
+    if (!x->enabled) continue;
+    char dfrac[32] = "-";
+    if (x->enc && i >= W_DELTA && animated && epochs > 1 && x->anim_delta + x->anim_full)
+      snprintf(dfrac, sizeof dfrac, "%.1f%%", 100.0 * (double)x->anim_delta / (double)(x->anim_delta + x->anim_full));
+    printf("%-7s %12.1f %15.1f %8.3f %6.2f %12.1f %12.1f  %s\n", wname[i],
+           x->t_bricks ? (double)x->t_brick_bytes / (double)x->t_bricks : 0.0, x->t_wire / 1024.0 / (double)epochs,
+           (double)x->t_wire / (double)var[W_PLAIN].t_wire, (double)x->t_content / (double)x->t_wire,
+           x->t_enc > 0 ? x->t_content / 1e6 / x->t_enc : 0.0, x->t_dec > 0 ? x->t_content / 1e6 / x->t_dec : 0.0, dfrac);
+  }
+  printf("every decoded state matched the server's checksum\n");
+
+out:
+  if (csv && fclose(csv) != 0 && rc == OC_EXIT_OK) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot write '%s'", csv_path);
+  for (int i = 0; i < W_N; i++) {
+    ocp_epoch_enc_free(var[i].enc);
+    ocp_epoch_dec_free(var[i].dec);
+    oc_buf_free(&var[i].buf);
+    oc_state_free(&var[i].out);
+  }
+  for (int i = 0; i < held.n; i++) oc_state_free(&held.s[i]);
+  oc_state_free(&prev);
+  ZSTD_freeCCtx(cc);
+  ZSTD_freeDCtx(dc);
+  free(scratch);
+  ocs_world_free(w);
+  oc_scene_free(&sc);
+  return rc;
+}
