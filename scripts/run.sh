@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# The main job: installs what is missing, builds, and runs server and viewer on the built-in
-# procedural planet. Until the network server and the GL viewer land (issues [4/7], [5/7]) the
-# server core plans and produces the viewer's state offline (overcast-server --save-state, several
-# epochs, progress on stderr) and the viewer renders it with the CPU reference renderer, headless,
-# writing PNG frames and printing their paths. Extra arguments go to overcast-view (e.g. --size
-# 1280x720 --camera 45,0,2000,250,0,60). OC_OUT sets the output folder (default out).
+# The main job: installs what is missing, builds, starts overcast-server on the built-in procedural
+# planet (127.0.0.1, a free port, 1 s epochs) and connects overcast-view to it. The viewer receives
+# and verifies states over the wire protocol for some epochs, then — until the GL viewer of issue
+# [5/7] lands, whether or not a display is present — renders the newest with the CPU reference
+# renderer, headless, writing PNG frames and printing their paths. Extra arguments go to
+# overcast-view (e.g. --size 1280x720 --camera 45,0,2000,250,0,60 --epochs 20). OC_OUT sets the
+# output folder (default out); the server's log goes to $OC_OUT/server.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh >&2
@@ -15,8 +16,16 @@ mkdir -p "$OUT"
 if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
   echo "run: a display is present, but this build has no GL window yet: writing PNG frames instead" >&2
 fi
+build/bin/overcast-server --listen 127.0.0.1:0 >"$OUT/server.addr" 2>"$OUT/server.log" &
+SERVER=$!
+trap 'kill -TERM $SERVER 2>/dev/null; wait $SERVER 2>/dev/null || true' EXIT
+for _ in $(seq 100); do
+  grep -q "listening on" "$OUT/server.addr" 2>/dev/null && break
+  kill -0 $SERVER 2>/dev/null || { cat "$OUT/server.log" >&2; exit 1; }
+  sleep 0.1
+done
+ADDR=$(sed -n 's/^listening on //p' "$OUT/server.addr")
+echo "run: overcast-server on $ADDR (log: $OUT/server.log)" >&2
 CAMERA=45,0,2000,260,-5,60 # the built-in planet's camera (scenes/planet.json)
-build/bin/overcast-server --save-state "$OUT/planet.ocst" --camera "$CAMERA" --epochs 10 --budget 64 \
-  --viewport 640x360 >/dev/null
-exec build/bin/overcast-view --state "$OUT/planet.ocst" --camera "$CAMERA" --out "$OUT" --size 640x360 \
-  --threads "$(nproc)" "$@"
+build/bin/overcast-view --connect "$ADDR" --epochs 10 --timeout 900 --camera "$CAMERA" --out "$OUT" \
+  --size 640x360 --threads "$(nproc)" "$@"
