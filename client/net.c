@@ -33,7 +33,7 @@ struct ocv_conn_s {
   char host[OCV_HOST_MAX];
   int port;
   char addr[OCV_HOST_MAX + 16]; /* "HOST:PORT" for messages */
-  int fd, wake_fd;
+  int fd, wake_fd, cancel_fd;
   ocp_viewer_t *v;
   ocp_viewer_events_t user; /* forwarded from our own callbacks */
   oc_buf_t out;             /* unsent output is out.data[out_pos, out.len) */
@@ -175,9 +175,10 @@ static void ocv__close_reason(const ocv_conn_t *c, char *why, size_t why_len) {
     ocv__why(why, why_len, "%s: connection closed by the server", c->addr);
   else if (c->close_code == OCP_CODE_OK)
     ocv__why(why, why_len, "%s: closed by the server%s%s", c->addr, c->close_text[0] ? ": " : "", c->close_text);
+  else if (!c->close_text[0] || !strcmp(c->close_text, ocp_code_text(c->close_code)))
+    ocv__why(why, why_len, "%s: closed by the server: %s", c->addr, ocp_code_text(c->close_code));
   else
-    ocv__why(why, why_len, "%s: closed by the server: %s%s%s", c->addr, ocp_code_text(c->close_code),
-             c->close_text[0] ? ": " : "", c->close_text);
+    ocv__why(why, why_len, "%s: closed by the server: %s: %s", c->addr, ocp_code_text(c->close_code), c->close_text);
 }
 
 /*-*** Addresses ***/
@@ -228,7 +229,7 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
     ocv__why(why, why_len, "out of memory");
     return OC_ENOMEM;
   }
-  c->fd = c->wake_fd = -1;
+  c->fd = c->wake_fd = c->cancel_fd = -1;
   snprintf(c->host, sizeof c->host, "%s", host);
   c->port = port;
   snprintf(c->addr, sizeof c->addr, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, port);
@@ -247,8 +248,9 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
   return 0;
 }
 
-/* Connects one address within the deadline. @return the socket or -errno. */
-static int ocv__connect_one(const struct addrinfo *ai, double deadline) {
+/* Connects one address within the deadline (-ECANCELED once `cancel` is readable).
+ * @return the socket or -errno. */
+static int ocv__connect_one(const struct addrinfo *ai, double deadline, int cancel) {
   int fd = socket(ai->ai_family, ai->ai_socktype, ai->ai_protocol);
   if (fd < 0) return -errno;
   int fl = fcntl(fd, F_GETFL);
@@ -264,13 +266,14 @@ static int ocv__connect_one(const struct addrinfo *ai, double deadline) {
     return -e;
   }
   if (r < 0) {
-    struct pollfd p = {fd, POLLOUT, 0};
+    struct pollfd p[2] = {{fd, POLLOUT, 0}, {cancel, POLLIN, 0}};
     int k;
-    do k = poll(&p, 1, ocv__ms_left(deadline));
+    do k = poll(p, 2, ocv__ms_left(deadline));
     while (k < 0 && errno == EINTR);
-    if (k <= 0) {
+    if (k <= 0 || !p[0].revents) {
+      int e = k < 0 ? errno : k == 0 ? ETIMEDOUT : ECANCELED;
       close(fd);
-      return k == 0 ? -ETIMEDOUT : -errno;
+      return -e;
     }
     int err = 0;
     socklen_t len = sizeof err;
@@ -309,13 +312,15 @@ int ocv_conn_reconnect(ocv_conn_t *c, double timeout_s, char *why, size_t why_le
   }
   int fd = -ECONNREFUSED;
   for (const struct addrinfo *ai = res; ai; ai = ai->ai_next) {
-    fd = ocv__connect_one(ai, deadline);
-    if (fd >= 0 || fd == -ETIMEDOUT) break;
+    fd = ocv__connect_one(ai, deadline, c->cancel_fd);
+    if (fd >= 0 || fd == -ETIMEDOUT || fd == -ECANCELED) break;
   }
   freeaddrinfo(res);
   if (fd < 0) {
     if (fd == -ETIMEDOUT) {
       ocv__why(why, why_len, "%s: cannot connect: timed out after %g s", c->addr, timeout_s);
+    } else if (fd == -ECANCELED) {
+      ocv__why(why, why_len, "%s: connect cancelled", c->addr);
     } else {
       char e[128];
       ocv__errstr(-fd, e, sizeof e);
@@ -401,8 +406,10 @@ static int ocv__poll(ocv_conn_t *c, double deadline, int until_flushed, char *wh
       return w;
     }
     if (until_flushed && !ocv__pending(c)) return 0;
-    struct pollfd p[2] = {{c->fd, (short)(POLLIN | (ocv__pending(c) ? POLLOUT : 0)), 0}, {c->wake_fd, POLLIN, 0}};
-    int k = poll(p, c->wake_fd >= 0 ? 2 : 1, ocv__ms_left(deadline));
+    /* poll() ignores entries with a negative fd */
+    struct pollfd p[3] = {{c->fd, (short)(POLLIN | (ocv__pending(c) ? POLLOUT : 0)), 0}, {c->wake_fd, POLLIN, 0},
+                          {c->cancel_fd, POLLIN, 0}};
+    int k = poll(p, 3, ocv__ms_left(deadline));
     if (k < 0) {
       if (errno == EINTR) continue;
       char e[128];
@@ -411,7 +418,7 @@ static int ocv__poll(ocv_conn_t *c, double deadline, int until_flushed, char *wh
       return OC_EIO;
     }
     if (p[0].revents & (POLLIN | POLLHUP | POLLERR)) return ocv__read(c, why, why_len);
-    if (c->wake_fd >= 0 && (p[1].revents & (POLLIN | POLLHUP | POLLERR))) return 0;
+    if ((p[1].revents | p[2].revents) & (POLLIN | POLLHUP | POLLERR)) return 0;
     if (k == 0 || ocv__now() >= deadline) return 0;
   }
 }
@@ -420,7 +427,10 @@ int ocv_conn_poll(ocv_conn_t *c, double timeout_s, char *why, size_t why_len) {
   return ocv__poll(c, ocv__now() + (timeout_s > 0 ? timeout_s : 0), 0, why, why_len);
 }
 
-void ocv_conn_set_wake(ocv_conn_t *c, int fd) { c->wake_fd = fd; }
+void ocv_conn_set_wake(ocv_conn_t *c, int wake, int cancel) {
+  c->wake_fd = wake;
+  c->cancel_fd = cancel;
+}
 
 int ocv_conn_flush(ocv_conn_t *c, double timeout_s, char *why, size_t why_len) {
   double deadline = ocv__now() + (timeout_s > 0 ? timeout_s : 0);
@@ -495,7 +505,8 @@ int ocv_control_request(ocv_conn_t *c, const char *json, double timeout_s, char 
       r = OC_EIO;
       break;
     }
-    r = ocv__poll(c, deadline, 0, why, why_len);
+    if (ocv_conn_silence(c) >= OCV_KEEPALIVE_S) ocv_conn_keepalive(c);
+    r = ocv__poll(c, fmin(deadline, ocv__now() + OCV_KEEPALIVE_S), 0, why, why_len);
     if (r == 1) r = OC_EIO; /* closed before the reply: why holds the server's reason */
     if (r < 0) break;
   }
@@ -557,7 +568,8 @@ struct ocv_net_s {
   char host[OCV_HOST_MAX];
   char token[OCP_TOKEN_MAX + 1];
   pthread_t thread;
-  int pipe_rd, pipe_wr; /* wakes the thread: a new camera, or stop */
+  int pipe_rd, pipe_wr; /* wakes the thread for a new camera (drained) */
+  int stop_rd, stop_wr; /* written once by ocv_net_stop(), never drained: ends every wait, connects too */
   ocv_conn_t *c;        /* the thread's own */
   pthread_mutex_t mu;   /* guards everything below */
   int stop;
@@ -617,7 +629,7 @@ static void ocv__drain_pipe(int fd) {
 
 /* Sleeps up to t seconds unless woken; @return 1 when asked to stop. */
 static int ocv__net_sleep(ocv_net_t *n, double t) {
-  struct pollfd p = {n->pipe_rd, POLLIN, 0};
+  struct pollfd p[2] = {{n->pipe_rd, POLLIN, 0}, {n->stop_rd, POLLIN, 0}};
   double deadline = ocv__now() + t;
   int stop;
   for (;;) {
@@ -625,7 +637,7 @@ static int ocv__net_sleep(ocv_net_t *n, double t) {
     stop = n->stop;
     pthread_mutex_unlock(&n->mu);
     if (stop || ocv__now() >= deadline) return stop;
-    if (poll(&p, 1, ocv__ms_left(deadline)) > 0) ocv__drain_pipe(n->pipe_rd);
+    if (poll(p, 2, ocv__ms_left(deadline)) > 0 && p[0].revents) ocv__drain_pipe(n->pipe_rd);
   }
 }
 
@@ -699,8 +711,9 @@ static int ocv__camera_valid(const ocp_camera_t *cam) {
 
 static void ocv__net_free(ocv_net_t *n) {
   ocv_conn_close(n->c);
-  if (n->pipe_rd >= 0) close(n->pipe_rd);
-  if (n->pipe_wr >= 0) close(n->pipe_wr);
+  int fds[4] = {n->pipe_rd, n->pipe_wr, n->stop_rd, n->stop_wr};
+  for (int i = 0; i < 4; i++)
+    if (fds[i] >= 0) close(fds[i]);
   oc_state_free(&n->latest);
   pthread_mutex_destroy(&n->mu);
   free(n);
@@ -714,7 +727,7 @@ int ocv_net_start(ocv_net_t **out, const ocv_net_desc_t *d) {
     return OC_EINVAL;
   ocv_net_t *n = calloc(1, sizeof *n);
   if (!n) return OC_ENOMEM;
-  n->pipe_rd = n->pipe_wr = -1;
+  n->pipe_rd = n->pipe_wr = n->stop_rd = n->stop_wr = -1;
   if (pthread_mutex_init(&n->mu, NULL) != 0) {
     free(n);
     return OC_ENOMEM;
@@ -732,17 +745,24 @@ int ocv_net_start(ocv_net_t **out, const ocv_net_desc_t *d) {
   if (!(n->d.backoff_min_s > 0)) n->d.backoff_min_s = 0.2;
   if (!(n->d.backoff_max_s > 0)) n->d.backoff_max_s = 5.0;
   if (n->d.backoff_max_s < n->d.backoff_min_s) n->d.backoff_max_s = n->d.backoff_min_s;
-  if (!(n->d.keepalive_s > 0)) n->d.keepalive_s = 10.0;
+  if (!(n->d.keepalive_s > 0)) n->d.keepalive_s = OCV_KEEPALIVE_S;
 
-  int p[2];
+  int p[2], q[2];
   if (pipe(p) != 0) {
     ocv__net_free(n);
     return OC_EIO;
   }
   n->pipe_rd = p[0];
   n->pipe_wr = p[1];
-  for (int i = 0; i < 2; i++)
-    if (fcntl(p[i], F_SETFL, fcntl(p[i], F_GETFL) | O_NONBLOCK) < 0 || fcntl(p[i], F_SETFD, FD_CLOEXEC) < 0) {
+  if (pipe(q) != 0) {
+    ocv__net_free(n);
+    return OC_EIO;
+  }
+  n->stop_rd = q[0];
+  n->stop_wr = q[1];
+  int fds[4] = {p[0], p[1], q[0], q[1]};
+  for (int i = 0; i < 4; i++)
+    if (fcntl(fds[i], F_SETFL, fcntl(fds[i], F_GETFL) | O_NONBLOCK) < 0 || fcntl(fds[i], F_SETFD, FD_CLOEXEC) < 0) {
       ocv__net_free(n);
       return OC_EIO;
     }
@@ -753,7 +773,7 @@ int ocv_net_start(ocv_net_t **out, const ocv_net_desc_t *d) {
     ocv__net_free(n);
     return r;
   }
-  ocv_conn_set_wake(n->c, n->pipe_rd);
+  ocv_conn_set_wake(n->c, n->pipe_rd, n->stop_rd);
   if (pthread_create(&n->thread, NULL, ocv__net_main, n) != 0) {
     ocv__net_free(n);
     return OC_EIO;
@@ -762,10 +782,10 @@ int ocv_net_start(ocv_net_t **out, const ocv_net_desc_t *d) {
   return 0;
 }
 
-static void ocv__net_wake(ocv_net_t *n) {
+static void ocv__net_wake(int fd) {
   char b = 1;
   ssize_t k;
-  do k = write(n->pipe_wr, &b, 1);
+  do k = write(fd, &b, 1);
   while (k < 0 && errno == EINTR); /* EAGAIN: the pipe is full, so the thread is woken anyway */
 }
 
@@ -775,7 +795,7 @@ int ocv_net_set_camera(ocv_net_t *n, const ocp_camera_t *cam) {
   n->cam = *cam;
   n->cam_new = 1;
   pthread_mutex_unlock(&n->mu);
-  ocv__net_wake(n);
+  ocv__net_wake(n->pipe_wr);
   return 0;
 }
 
@@ -806,7 +826,7 @@ void ocv_net_stop(ocv_net_t *n) {
   pthread_mutex_lock(&n->mu);
   n->stop = 1;
   pthread_mutex_unlock(&n->mu);
-  ocv__net_wake(n);
+  ocv__net_wake(n->stop_wr);
   pthread_join(n->thread, NULL);
   ocv__net_free(n); /* the thread closed and freed its connection */
 }

@@ -28,6 +28,9 @@
 #define OCV_DEFAULT_HOST "127.0.0.1"
 #define OCV_DEFAULT_PORT 7420
 #define OCV_HOST_MAX 256 /**< bytes of a host name or address, NUL included */
+/*! Blocking waits send KEEPALIVE after this long without sending (the server's idle timeout is 60 s
+ *  by default, and a "step" reply can take longer than that). */
+#define OCV_KEEPALIVE_S 10.0
 
 /*! ocv_parse_address() : "HOST:PORT", "[V6]:PORT", ":PORT" or "PORT" (the last two: host
  *  127.0.0.1). The port must be 1..65535. @return 0 or OC_EINVAL. */
@@ -54,15 +57,15 @@ int ocv_conn_reconnect(ocv_conn_t *c, double timeout_s, char *why, size_t why_le
 /*! ocv_conn_poll() : writes pending output and waits up to timeout_s (0: not at all) for input;
  *  feeds all input that is there to the session (events fire from inside this call) and writes
  *  what the session answers. It returns after the first input, or at the timeout, or as soon as
- *  the wake fd (ocv_conn_set_wake()) is readable.
+ *  a wake fd (ocv_conn_set_wake()) is readable.
  *  @return 0 while the connection is open; 1 when the server closed it (EOF, or GOODBYE/ERROR: why
  *  holds the server's reason); a negative OC_E* on a network or protocol error (the socket is then
  *  closed; for a protocol error the ERROR frame naming it was sent first). When not connected it
  *  returns 1 at once. */
 int ocv_conn_poll(ocv_conn_t *c, double timeout_s, char *why, size_t why_len);
-/*! ocv_conn_set_wake() : another fd (e.g. a self-pipe's read end) that ends ocv_conn_poll()'s wait
- *  when readable; -1: none. ocv_conn_poll() does not read it. */
-void ocv_conn_set_wake(ocv_conn_t *c, int fd);
+/*! ocv_conn_set_wake() : fds (e.g. self-pipes' read ends; -1: none) that end ocv_conn_poll()'s wait
+ *  when readable; `cancel` also aborts a connect in progress (OC_EIO). Neither is read here. */
+void ocv_conn_set_wake(ocv_conn_t *c, int wake, int cancel);
 
 /*! ocv_conn_camera() / ocv_conn_control() / ocv_conn_keepalive() : queue the message and write
  *  what fits without blocking (the rest goes with the next poll). A camera given before WELCOME is
@@ -80,7 +83,7 @@ int ocv_conn_flush(ocv_conn_t *c, double timeout_s, char *why, size_t why_len);
  *  @return 0, 1 (closed by the server first), OC_EIO (timed out) or another negative OC_E*. */
 int ocv_conn_wait_ready(ocv_conn_t *c, double timeout_s, char *why, size_t why_len);
 /*! ocv_control_request() : for role control: waits for WELCOME if needed, sends {json} as a CONTROL
- *  request and waits for its CONTROL_REPLY. On 0, *reply_json is the reply's JSON (malloc'd,
+ *  request and waits for its CONTROL_REPLY, keeping the connection alive meanwhile. On 0, *reply_json is the reply's JSON (malloc'd,
  *  NUL-terminated; free() it) and *status its wire status (OCP_CODE_OK or, say, OCP_CODE_REQUEST).
  *  @return 0 or a negative OC_E* (OC_EIO: timed out or closed before the reply) with a reason. */
 int ocv_control_request(ocv_conn_t *c, const char *json, double timeout_s, char **reply_json, int32_t *status, char *why,

@@ -199,6 +199,9 @@ static int net_receive(const view_net_opts_t *o, const oc_camera_pose_t *pose_in
         awaiting_reply = 1;
       }
     }
+    /* a step can outlast the server's idle timeout: say we are still here */
+    if (ocv_conn_silence(vc) >= OCV_KEEPALIVE_S) ocv_conn_keepalive(vc);
+    if (cc && ocv_conn_silence(cc) >= OCV_KEEPALIVE_S) ocv_conn_keepalive(cc);
     uint64_t before = bytes_in(vc);
     r = ocv_conn_poll(vc, fmin(deadline - t, cc ? 0.05 : 0.5), why, why_len);
     if (bytes_in(vc) != before) n.last_input = now_s();
@@ -367,14 +370,12 @@ int main(int argc, char **argv) {
     }
   }
   oc_camera_t cam = oc_camera_from_pose(pose);
-  if (net.connect) {
-    /* received above */
-  } else if (state_path) {
+  if (state_path) {
     if (oc_state_load(&st, state_path, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       goto out;
     }
-  } else {
+  } else if (!net.connect) {
     oc_scene_voxelize_desc_t vd = {cam, h, 2.0, (int)max_level, 0, (int)threads};
     if (oc_scene_voxelize(&st, sc, &vd, why, sizeof why) < 0)
       {

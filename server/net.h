@@ -27,7 +27,7 @@ typedef struct {
   const char *token;       /**< required from every client; NULL: none */
   double epoch_period;     /**< s; < 0 → the scene's; 0 → stepped by control requests only */
   double linger_s;         /**< keep a dropped viewer's session for resume; < 0 → 30, 0 → none */
-  double handshake_s;      /**< HELLO must arrive within; 0 → 10 */
+  double handshake_s;      /**< HELLO must arrive within; 0 → 10 (at most idle_s) */
   double idle_s;           /**< close a connection silent this long; 0 → 60 */
   double stall_s;          /**< close a connection whose unsent bytes do not drain; 0 → 30 */
   double soft_s;           /**< time allowed over the soft limit; 0 → 10 */

@@ -104,7 +104,7 @@ void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
     return;
   }
   uv_read_stop((uv_stream_t *)&s->tcp);
-  if (code == OCP_CODE_SLOW || code == OCP_CODE_TIMEOUT) { /* the peer is not draining: do not queue more */
+  if (code == OCP_CODE_SLOW || (code == OCP_CODE_TIMEOUT && s->queued)) { /* not draining: queue nothing more */
     close_handle(s);
     return;
   }
@@ -825,6 +825,7 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
   ocs_server_desc_t *d = &srv->desc;
   if (d->linger_s < 0) d->linger_s = 30;
   if (!(d->handshake_s > 0)) d->handshake_s = 10;
+  if (d->idle_s > 0 && d->handshake_s > d->idle_s) d->handshake_s = d->idle_s;
   if (!(d->idle_s > 0)) d->idle_s = 60;
   if (!(d->stall_s > 0)) d->stall_s = 30;
   if (!(d->soft_s > 0)) d->soft_s = 10;

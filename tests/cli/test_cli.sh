@@ -61,7 +61,11 @@ check "view: renders the saved state" 0 "" -- "$V" --state "$tmp/s.ocst" --camer
 cmp -s "$tmp/a/frame_0000.png" "$tmp/b/frame_0000.png" || { echo "FAIL view: state file + stored camera do not reproduce the frame"; fail=$((fail + 1)); }
 
 S=$BIN/overcast-server
-check "server: nothing to do" 2 "nothing to do" -- "$S"
+check "server: bad --listen" 2 "--listen: expected HOST:PORT" -- "$S" --listen 127.0.0.1:99999
+check "server: bad --epoch-period" 2 "--epoch-period" -- "$S" --epoch-period -1
+check "server: serving option with --check" 2 "serving options go without" -- "$S" --check --token x
+check "server: bad --queue-limits" 2 "--queue-limits" -- "$S" --queue-limits 8,4
+check "server: address not an IP" 1 "not an IPv4 or IPv6 address" -- "$S" --listen nohost:0 -q
 check "server: --json without --inspect" 2 "--json goes with --inspect" -- "$S" --json
 check "server: bad level" 2 "--level: 30 is outside" -- "$S" --export-vdb "$tmp/x.vdb" --level 30
 check "server: bad region" 2 "--region: expected" -- "$S" --export-vdb "$tmp/x.vdb" --region 1,2

@@ -26,6 +26,7 @@
 #include "oc_bytes.h"
 #include "oc_camera.h"
 #include "oc_err.h"
+#include "oc_state.h"
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
 
@@ -283,6 +284,62 @@ static void test_server__two_viewers(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
+/* Runs a program to completion; returns its exit status. */
+static int run_program(const char *const *argv) {
+  pid_t pid = fork();
+  assert_true(pid >= 0);
+  if (pid == 0) {
+    execv(argv[0], (char *const *)argv);
+    _exit(127);
+  }
+  int st = 0;
+  waitpid(pid, &st, 0);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : 128;
+}
+
+/* What a viewer assembles from the wire is exactly what the server core plans offline for the
+ * same request and camera (overcast-server --save-state): same records, bricks and checksum. */
+static void test_server__matches_offline(void **state) {
+  (void)state;
+  char bin[4096], path[4096];
+  snprintf(bin, sizeof bin, "%s/overcast-server", getenv("OC_BIN_DIR"));
+  snprintf(path, sizeof path, "/tmp/oc_net_offline_%d.ocst", (int)getpid());
+  const char *argv[] = {bin, "--scene", scene_sphere, "--save-state", path, "--epochs", "3", "--budget", "8",
+                        "--viewport", "160x90", "--camera", "0,-0.09,3000,90,0,40", "--threads", "2", "-q", NULL};
+  assert_int_equal(run_program(argv), 0);
+  oc_state_t offline;
+  oc_state_init(&offline);
+  char why[512];
+  if (oc_state_load(&offline, path, why, sizeof why) < 0) fail_msg("%s", why);
+  remove(path);
+
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(&s, extra);
+  viewer_t v;
+  viewer_open(&v, s.port, 8u << 20, NULL);
+  for (int e = 1; e <= 3; e++) {
+    assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
+    sleep_us(50000);
+    step(s.port, 1);
+    assert_int_equal(viewer_wait(&v, e, 60), 0);
+  }
+  const oc_state_t *net = ocp_viewer_state(ocv_conn_session(v.c), 0);
+  assert_non_null(net);
+  print_message("offline %u nodes, %u bricks, checksum %016llx; over the wire %u nodes, %u bricks, %016llx\n",
+                offline.node_count, offline.brick_count, (unsigned long long)oc_state_checksum(&offline), net->node_count,
+                net->brick_count, (unsigned long long)oc_state_checksum(net));
+  assert_true(offline.brick_count > 10);
+  assert_int_equal(net->epoch, offline.epoch);
+  assert_int_equal(net->node_count, offline.node_count);
+  assert_int_equal(net->brick_count, offline.brick_count);
+  assert_int_equal(oc_state_checksum(net), oc_state_checksum(&offline));
+  oc_state_free(&offline);
+  ocv_conn_close(v.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
 /* Garbage, oversized frames, a foreign version, a vanished peer: each closed with an ERROR naming
  * the problem, while a viewer on the same server keeps getting its epochs. */
 static void test_server__hostile_peers(void **state) {
@@ -486,6 +543,28 @@ static void test_server__slow_viewer(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
+/* Silent connections time out with ERROR TIMEOUT: before HELLO and after WELCOME. */
+static void test_server__idle_timeout(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, "--idle-timeout", "1", NULL};
+  start_server(&s, extra);
+  char text[1100];
+  int fd = raw_connect(s.port);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_TIMEOUT);
+  assert_non_null(strstr(text, "no hello"));
+  fd = raw_connect(s.port);
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
+                   .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16};
+  ocp_put_hello(&b, &h);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_TIMEOUT);
+  assert_non_null(strstr(text, "nothing received"));
+  assert_int_equal(stop_server(&s), 0);
+}
+
 /* The control channel: every op answers; bad requests are refused with a reason; reload sends
  * viewers away; the viewer limit gives FULL; SIGTERM says goodbye and exits 0. */
 static void test_server__control(void **state) {
@@ -563,10 +642,12 @@ int main(void) {
   signal(SIGPIPE, SIG_IGN);
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_server__two_viewers, teardown),
+      cmocka_unit_test_teardown(test_server__matches_offline, teardown),
       cmocka_unit_test_teardown(test_server__hostile_peers, teardown),
       cmocka_unit_test_teardown(test_server__token, teardown),
       cmocka_unit_test_teardown(test_server__resume, teardown),
       cmocka_unit_test_teardown(test_server__slow_viewer, teardown),
+      cmocka_unit_test_teardown(test_server__idle_timeout, teardown),
       cmocka_unit_test_teardown(test_server__control, teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
