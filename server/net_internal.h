@@ -46,6 +46,7 @@ struct ocs_session_s {
   int streaming, awaiting_ack, ack_pending, cam_new;
   uint64_t stream_epoch, stream_checksum, last_out_epoch;
   ocs_view_t cam;
+  ocp_stats_t stats_msg; /* the STATS sent after the epoch being streamed */
   double linger_until, stream_started;
   uint64_t epochs, acks;
   double ack_latency_sum, ack_latency_max;

@@ -215,18 +215,9 @@ static void pump(ocs_session_t *s) {
       s->awaiting_ack = 1;
       ocp_enc_stats_t es;
       ocp_epoch_enc_stats(s->enc, &es);
-      ocs_epoch_out_t o;
-      ocs_viewer_stats_t vs;
-      ocs_viewer_stats(s->viewer, &vs);
-      ocs_world_stats_t ws;
-      ocs_world_stats(s->srv->world, &ws);
-      if (ocs_viewer_output(s->viewer, &o) == 0) {
-        ocp_stats_t st = {.epoch = s->stream_epoch, .leaves = o.plan.leaves, .splits = o.plan.splits,
-                          .merges = o.plan.merges, .deferred = o.plan.deferred, .coalesced = vs.coalesced,
-                          .resident_bytes = vs.resident_bytes, .wire_bytes = es.wire_bytes, .raw_bytes = es.raw_bytes,
-                          .plan_ms = 1e3 * ws.plan_seconds, .produce_ms = 1e3 * ws.produce_seconds};
-        ocp_put_stats(&b, s->version, &st);
-      }
+      s->stats_msg.wire_bytes = es.wire_bytes;
+      s->stats_msg.raw_bytes = es.raw_bytes;
+      ocp_put_stats(&b, s->version, &s->stats_msg);
     }
     ocs_session_send(s, &b);
   }
@@ -241,6 +232,16 @@ static void stream_state(ocs_session_t *s, const oc_state_t *base) {
     ocs_session_close(s, OCP_CODE_INTERNAL, oc_strerror(r));
     return;
   }
+  /* The epoch's STATS are taken now: a step may run while the frames go out, and the world is
+   * not read during a step. */
+  ocs_viewer_stats_t vs;
+  ocs_viewer_stats(s->viewer, &vs);
+  ocs_world_stats_t ws;
+  ocs_world_stats(s->srv->world, &ws);
+  s->stats_msg = (ocp_stats_t){.epoch = o.state->epoch, .leaves = o.plan.leaves, .splits = o.plan.splits,
+                               .merges = o.plan.merges, .deferred = o.plan.deferred, .coalesced = vs.coalesced,
+                               .resident_bytes = vs.resident_bytes, .plan_ms = 1e3 * ws.plan_seconds,
+                               .produce_ms = 1e3 * ws.produce_seconds};
   s->streaming = 1;
   s->awaiting_ack = 0;
   s->stream_epoch = o.state->epoch;

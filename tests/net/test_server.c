@@ -104,7 +104,10 @@ typedef struct {
   uint64_t epoch, bricks_last;
   uint32_t closed_code;
   char closed_text[256];
+  ocp_stats_t last_stats;
 } viewer_t;
+
+static void ev_stats(void *ctx, const ocp_stats_t *st) { ((viewer_t *)ctx)->last_stats = *st; }
 
 static void ev_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
   viewer_t *v = ctx;
@@ -135,7 +138,7 @@ static void viewer_open(viewer_t *v, int port, uint64_t budget, const char *toke
   memset(v, 0, sizeof *v);
   ocp_viewer_desc_t d = {.role = OCP_ROLE_VIEWER, .budget = budget, .max_depth = 21, .width = 160, .height = 90,
                          .caps = OCP_CAP_ALL, .token = token};
-  ocp_viewer_events_t ev = {.ctx = v, .welcome = ev_welcome, .state = ev_state, .closed = ev_closed};
+  ocp_viewer_events_t ev = {.ctx = v, .welcome = ev_welcome, .state = ev_state, .stats = ev_stats, .closed = ev_closed};
   char why[512];
   int r = ocv_conn_open(&v->c, "127.0.0.1", port, &d, &ev, 5.0, why, sizeof why);
   if (r < 0) fail_msg("viewer: %s", why);
@@ -260,6 +263,10 @@ static void test_server__two_viewers(void **state) {
   }
   assert_int_equal(a.epoch, 4);
   assert_int_equal(b.epoch, 4);
+  for (int i = 0; i < 20 && a.last_stats.epoch != 4; i++) ocv_conn_poll(a.c, 0.05, NULL, 0);
+  assert_int_equal(a.last_stats.epoch, 4); /* STATS follows each epoch */
+  assert_true(a.last_stats.leaves > 1 && a.last_stats.wire_bytes > 0 && a.last_stats.raw_bytes > a.last_stats.wire_bytes);
+  assert_true(a.last_stats.resident_bytes > 0 && a.last_stats.resident_bytes <= (8u << 20));
   ocp_viewer_stats_t va, vb;
   ocp_viewer_stats(ocv_conn_session(a.c), &va);
   ocp_viewer_stats(ocv_conn_session(b.c), &vb);
