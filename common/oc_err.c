@@ -1,5 +1,8 @@
 #include "oc_err.h"
 
+#include <stdarg.h>
+#include <stdio.h>
+
 const char *oc_strerror(int err) {
   switch (err) {
 #define OC__ERR_MSG(name, val, msg) \
@@ -26,4 +29,14 @@ const char *oc_err_name(int err) {
     default:
       return "UNKNOWN";
   }
+}
+
+int oc_errorf(int code, char *why, size_t why_len, const char *fmt, ...) {
+  if (why && why_len) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(why, why_len, fmt, ap);
+    va_end(ap);
+  }
+  return code;
 }

@@ -34,6 +34,12 @@ const char *oc_strerror(int err);
 /*! oc_err_name() : @return the code's name without prefix, e.g. "ECORRUPT". */
 const char *oc_err_name(int err);
 
+#include <stddef.h> /* size_t */
+
+/*! oc_errorf() : writes a one-line reason into why (when why is not NULL and why_len > 0) and
+ *  returns `code`, for `return oc_errorf(OC_ECORRUPT, why, why_len, "...", ...)`. */
+int oc_errorf(int code, char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+
 /* Internal helpers in the manner of zstd's RETURN_ERROR_IF / FORWARD_IF_ERROR. */
 #define OC_RETURN_IF(cond, err) \
   do {                          \

@@ -105,16 +105,6 @@ int oc_state_copy(oc_state_t *dst, const oc_state_t *src) {
 
 /*-*** Validation ***/
 
-static int oc__fail(char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-static int oc__fail(char *why, size_t why_len, const char *fmt, ...) {
-  if (why && why_len) {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, why_len, fmt, ap);
-    va_end(ap);
-  }
-  return OC_ECORRUPT;
-}
 
 /* Level of a key already known to be valid: the sentinel sits at bit 3L. */
 static int oc__level(oc_key_t k) { return (63 - __builtin_clzll(k)) / 3; }
@@ -146,31 +136,31 @@ static const char *oc__kind_name(int kind) {
 static int oc__check_node(const oc_node_t *n, uint32_t i, char *why, size_t why_len) {
   static const char *ch_name[OC_CHANNELS] = {"sigma", "tau"};
   if (n->kind > OC_NODE_BRICK)
-    return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): bad kind %u", i, n->key, (unsigned)n->kind);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): bad kind %u", i, n->key, (unsigned)n->kind);
   for (int c = 0; c < OC_CHANNELS; c++) {
     const char *e = oc__range_error(n->range[c]);
     if (e)
-      return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s range [%g, %g] %s", i, n->key,
+      return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s range [%g, %g] %s", i, n->key,
                       ch_name[c], (double)n->range[c].lo, (double)n->range[c].hi, e);
   }
   bool zero = n->range[0].hi == 0.0f && n->range[1].hi == 0.0f;
   switch (n->kind) {
     case OC_NODE_EMPTY:
-      if (!zero) return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): empty node with non-zero range", i, n->key);
+      if (!zero) return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): empty node with non-zero range", i, n->key);
       break;
     case OC_NODE_UNIFORM:
       for (int c = 0; c < OC_CHANNELS; c++)
         if (n->range[c].lo != n->range[c].hi)
-          return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): uniform node with %s lo != hi", i, n->key,
+          return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): uniform node with %s lo != hi", i, n->key,
                           ch_name[c]);
       /* fall through */
     default:
       if (zero)
-        return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s node with both channels zero (must be empty)",
+        return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s node with both channels zero (must be empty)",
                         i, n->key, oc__kind_name(n->kind));
   }
   if (n->kind != OC_NODE_BRICK && n->brick_id != 0)
-    return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s node with brick id %" PRIu32, i, n->key,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s node with brick id %" PRIu32, i, n->key,
                     oc__kind_name(n->kind), n->brick_id);
   return 0;
 }
@@ -201,7 +191,7 @@ static int oc__check_partition(const oc_state_t *s, char *why, size_t why_len) {
         while (p < end && s->nodes[p].key < a) p++;
         if (p == end) break;
         if (s->nodes[p].key == a)
-          return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 ") overlaps its ancestor, node %" PRIu32 " (key 0x%" PRIx64 ")",
+          return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 ") overlaps its ancestor, node %" PRIu32 " (key 0x%" PRIx64 ")",
                           i, s->nodes[i].key, p, a);
       }
     }
@@ -209,7 +199,7 @@ static int oc__check_partition(const oc_state_t *s, char *why, size_t why_len) {
   /* Disjoint now, so the sum cannot exceed 2^63 (no overflow). */
   for (int L = 0; L <= OC_KEY_MAX_LEVEL; L++) volume += (uint64_t)count[L] << (3 * (OC_KEY_MAX_LEVEL - L));
   if (volume != (uint64_t)1 << 63)
-    return oc__fail(why, why_len, "leaves leave a gap: they cover %" PRIu64 " of 2^63 level-21 cells", volume);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "leaves leave a gap: they cover %" PRIu64 " of 2^63 level-21 cells", volume);
   return 0;
 }
 
@@ -218,7 +208,7 @@ static int oc__check_bricks(const oc_state_t *s, char *why, size_t why_len) {
   static const char *ch_name[OC_CHANNELS] = {"sigma", "tau"};
   for (uint32_t b = 1; b < s->brick_count; b++)
     if (s->bricks[b].id <= s->bricks[b - 1].id)
-      return oc__fail(why, why_len, "brick %" PRIu32 ": id %" PRIu32 " %s", b, s->bricks[b].id,
+      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": id %" PRIu32 " %s", b, s->bricks[b].id,
                       s->bricks[b].id == s->bricks[b - 1].id ? "is duplicated" : "is out of order");
   uint8_t *seen = NULL;
   if (s->brick_count) {
@@ -231,12 +221,12 @@ static int oc__check_bricks(const oc_state_t *s, char *why, size_t why_len) {
     if (n->kind != OC_NODE_BRICK) continue;
     const oc_brick_t *b = oc_state_find_brick(s, n->brick_id);
     if (!b) {
-      err = oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 ") references missing brick %" PRIu32, i, n->key, n->brick_id);
+      err = oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 ") references missing brick %" PRIu32, i, n->key, n->brick_id);
       break;
     }
     size_t bi = (size_t)(b - s->bricks);
     if (seen[bi / 8] & (1u << (bi % 8))) {
-      err = oc__fail(why, why_len, "brick %" PRIu32 " is referenced by more than one node (again by node %" PRIu32 ")",
+      err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 " is referenced by more than one node (again by node %" PRIu32 ")",
                      n->brick_id, i);
       break;
     }
@@ -247,14 +237,14 @@ static int oc__check_bricks(const oc_state_t *s, char *why, size_t why_len) {
       if (n->range[c].hi != 0.0f) continue;
       for (int v = 0; v < OC_BRICK_VOXELS; v++)
         if (b->codes.code[c][v] != OC_CODE_ZERO) {
-          err = oc__fail(why, why_len, "brick %" PRIu32 ": non-zero %s code in a zero channel", n->brick_id, ch_name[c]);
+          err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": non-zero %s code in a zero channel", n->brick_id, ch_name[c]);
           break;
         }
     }
   }
   for (uint32_t bi = 0; bi < s->brick_count && !err; bi++)
     if (!(seen[bi / 8] & (1u << (bi % 8))))
-      err = oc__fail(why, why_len, "brick %" PRIu32 " is not referenced by any node", s->bricks[bi].id);
+      err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 " is not referenced by any node", s->bricks[bi].id);
   free(seen);
   return err;
 }
@@ -262,19 +252,19 @@ static int oc__check_bricks(const oc_state_t *s, char *why, size_t why_len) {
 int oc_state_validate(const oc_state_t *s, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
   if (!s) return OC_EINVAL;
-  if (!isfinite(s->time)) return oc__fail(why, why_len, "world time is not finite");
+  if (!isfinite(s->time)) return oc_errorf(OC_ECORRUPT, why, why_len, "world time is not finite");
   double sl = oc_dlen(s->sun_dir);
   if (!isfinite(sl) || fabs(sl - 1.0) > 1e-6)
-    return oc__fail(why, why_len, "sun direction (%g, %g, %g) is not a unit vector", s->sun_dir.x, s->sun_dir.y, s->sun_dir.z);
-  if (s->node_count == 0) return oc__fail(why, why_len, "no nodes: the leaves must cover the root cube");
-  if (s->node_count > OC_STATE_MAX_NODES) return oc__fail(why, why_len, "%" PRIu32 " nodes exceed the limit", s->node_count);
-  if (s->brick_count > OC_STATE_MAX_BRICKS) return oc__fail(why, why_len, "%" PRIu32 " bricks exceed the limit", s->brick_count);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "sun direction (%g, %g, %g) is not a unit vector", s->sun_dir.x, s->sun_dir.y, s->sun_dir.z);
+  if (s->node_count == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "no nodes: the leaves must cover the root cube");
+  if (s->node_count > OC_STATE_MAX_NODES) return oc_errorf(OC_ECORRUPT, why, why_len, "%" PRIu32 " nodes exceed the limit", s->node_count);
+  if (s->brick_count > OC_STATE_MAX_BRICKS) return oc_errorf(OC_ECORRUPT, why, why_len, "%" PRIu32 " bricks exceed the limit", s->brick_count);
   if (!s->nodes || (s->brick_count && !s->bricks)) return OC_EINVAL;
   for (uint32_t i = 0; i < s->node_count; i++) {
     const oc_node_t *n = &s->nodes[i];
-    if (!oc__key_ok(n->key)) return oc__fail(why, why_len, "node %" PRIu32 ": invalid key 0x%" PRIx64, i, n->key);
+    if (!oc__key_ok(n->key)) return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 ": invalid key 0x%" PRIx64, i, n->key);
     if (i > 0 && n->key <= s->nodes[i - 1].key)
-      return oc__fail(why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s", i, n->key,
+      return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 "): %s", i, n->key,
                       n->key == s->nodes[i - 1].key ? "duplicate key" : "keys not in ascending order");
     OC_TRY(oc__check_node(n, i, why, why_len));
   }

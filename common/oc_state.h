@@ -82,6 +82,11 @@ int64_t oc_state_serialize(const oc_state_t *s, uint8_t *dst, size_t cap);
  *  @return 0, or OC_ETRUNC / OC_ECORRUPT / OC_EVERSION / OC_ECHECKSUM / OC_ETOOBIG / OC_ENOMEM,
  *  with a one-line reason in why (may be NULL). On error, out is left empty. */
 int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *why, size_t why_len);
+/*! oc_state_pack_record() / oc_state_unpack_record() : one 32-byte node record of the
+ *  serialisation (docs/protocol.md), shared by the state file and the wire. Unpacking checks only
+ *  the reserved bytes (OC_ECORRUPT when not zero); the rest is oc_state_validate()'s. */
+void oc_state_pack_record(const oc_node_t *n, uint8_t r[OC_STATE_RECORD_BYTES]);
+int oc_state_unpack_record(const uint8_t r[OC_STATE_RECORD_BYTES], oc_node_t *n);
 /*! oc_state_checksum() : XXH3-64 (seed 0) of the serialisation up to, not including, its checksum. */
 uint64_t oc_state_checksum(const oc_state_t *s);
 /*! oc_state_save() / oc_state_load() : one serialised state per file. Errors name the file. */

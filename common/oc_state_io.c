@@ -49,7 +49,7 @@ static void oc__pack_header(const oc_state_t *s, uint8_t h[OC_STATE_HEADER_BYTES
   /* 56..63 reserved, zero */
 }
 
-static void oc__pack_record(const oc_node_t *n, uint8_t r[OC_STATE_RECORD_BYTES]) {
+void oc_state_pack_record(const oc_node_t *n, uint8_t r[OC_STATE_RECORD_BYTES]) {
   oc_put_u64(r, n->key);
   r[8] = n->kind;
   r[9] = r[10] = r[11] = 0;
@@ -58,6 +58,18 @@ static void oc__pack_record(const oc_node_t *n, uint8_t r[OC_STATE_RECORD_BYTES]
   oc_put_f32(r + 20, n->range[OC_CH_SIGMA].hi);
   oc_put_f32(r + 24, n->range[OC_CH_TAU].lo);
   oc_put_f32(r + 28, n->range[OC_CH_TAU].hi);
+}
+
+int oc_state_unpack_record(const uint8_t r[OC_STATE_RECORD_BYTES], oc_node_t *n) {
+  memset(n, 0, sizeof *n);
+  n->key = oc_get_u64(r);
+  n->kind = r[8];
+  n->brick_id = oc_get_u32(r + 12);
+  n->range[OC_CH_SIGMA].lo = oc_get_f32(r + 16);
+  n->range[OC_CH_SIGMA].hi = oc_get_f32(r + 20);
+  n->range[OC_CH_TAU].lo = oc_get_f32(r + 24);
+  n->range[OC_CH_TAU].hi = oc_get_f32(r + 28);
+  return (r[9] | r[10] | r[11]) ? OC_ECORRUPT : 0;
 }
 
 static void oc__pack_brick(const oc_brick_t *b, uint8_t p[OC_STATE_BRICK_BYTES]) {
@@ -75,7 +87,7 @@ static int oc__emit(const oc_state_t *s, oc__sink_fn sink, void *ctx) {
   OC_TRY(sink(ctx, buf, OC_STATE_HEADER_BYTES));
   for (uint32_t i = 0; i < s->node_count;) {
     uint32_t k = 0;
-    for (; k < OC__REC_CHUNK && i < s->node_count; k++, i++) oc__pack_record(&s->nodes[i], buf + k * OC_STATE_RECORD_BYTES);
+    for (; k < OC__REC_CHUNK && i < s->node_count; k++, i++) oc_state_pack_record(&s->nodes[i], buf + k * OC_STATE_RECORD_BYTES);
     OC_TRY(sink(ctx, buf, (size_t)k * OC_STATE_RECORD_BYTES));
   }
   for (uint32_t i = 0; i < s->brick_count; i++) {
@@ -131,16 +143,6 @@ uint64_t oc_state_checksum(const oc_state_t *s) {
 
 /*-*** Deserialise ***/
 
-static int oc__err(int code, char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
-static int oc__err(int code, char *why, size_t why_len, const char *fmt, ...) {
-  if (why && why_len) {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, why_len, fmt, ap);
-    va_end(ap);
-  }
-  return code;
-}
 
 int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
@@ -150,28 +152,28 @@ int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *
   /* Order: size of the fixed header, identity, limits, exact length, checksum; only then is
    * anything allocated, and never more than the length already proved present. */
   if (len < OC_STATE_HEADER_BYTES + 8)
-    return oc__err(OC_ETRUNC, why, why_len, "truncated: %zu bytes, less than the %d-byte header and checksum", len,
+    return oc_errorf(OC_ETRUNC, why, why_len, "truncated: %zu bytes, less than the %d-byte header and checksum", len,
                    OC_STATE_HEADER_BYTES + 8);
-  if (memcmp(src, OC_STATE_MAGIC, 4) != 0) return oc__err(OC_ECORRUPT, why, why_len, "not a state: bad magic");
+  if (memcmp(src, OC_STATE_MAGIC, 4) != 0) return oc_errorf(OC_ECORRUPT, why, why_len, "not a state: bad magic");
   uint32_t version = oc_get_u32(src + 4);
   if (version != OC_STATE_VERSION)
-    return oc__err(OC_EVERSION, why, why_len, "state version %" PRIu32 ", expected %d", version, OC_STATE_VERSION);
+    return oc_errorf(OC_EVERSION, why, why_len, "state version %" PRIu32 ", expected %d", version, OC_STATE_VERSION);
   uint32_t n = oc_get_u32(src + 48), m = oc_get_u32(src + 52);
-  if (n > OC_STATE_MAX_NODES) return oc__err(OC_ETOOBIG, why, why_len, "%" PRIu32 " nodes exceed the limit %u", n, OC_STATE_MAX_NODES);
+  if (n > OC_STATE_MAX_NODES) return oc_errorf(OC_ETOOBIG, why, why_len, "%" PRIu32 " nodes exceed the limit %u", n, OC_STATE_MAX_NODES);
   if (m > OC_STATE_MAX_BRICKS)
-    return oc__err(OC_ETOOBIG, why, why_len, "%" PRIu32 " bricks exceed the limit %u", m, OC_STATE_MAX_BRICKS);
+    return oc_errorf(OC_ETOOBIG, why, why_len, "%" PRIu32 " bricks exceed the limit %u", m, OC_STATE_MAX_BRICKS);
   uint64_t need = oc__size_for(n, m); /* ≤ 2^34: no overflow from the limits above */
   if ((uint64_t)len < need)
-    return oc__err(OC_ETRUNC, why, why_len, "truncated: %zu bytes, %" PRIu64 " needed for %" PRIu32 " nodes and %" PRIu32 " bricks",
+    return oc_errorf(OC_ETRUNC, why, why_len, "truncated: %zu bytes, %" PRIu64 " needed for %" PRIu32 " nodes and %" PRIu32 " bricks",
                    len, need, n, m);
   if ((uint64_t)len > need)
-    return oc__err(OC_ECORRUPT, why, why_len, "%" PRIu64 " trailing bytes after %" PRIu32 " nodes and %" PRIu32 " bricks",
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%" PRIu64 " trailing bytes after %" PRIu32 " nodes and %" PRIu32 " bricks",
                    (uint64_t)len - need, n, m);
   uint64_t stored = oc_get_u64(src + need - 8), actual = XXH3_64bits(src, (size_t)need - 8);
   if (stored != actual)
-    return oc__err(OC_ECHECKSUM, why, why_len, "checksum mismatch: stored %016" PRIx64 ", computed %016" PRIx64, stored, actual);
+    return oc_errorf(OC_ECHECKSUM, why, why_len, "checksum mismatch: stored %016" PRIx64 ", computed %016" PRIx64, stored, actual);
   for (int i = 56; i < OC_STATE_HEADER_BYTES; i++)
-    if (src[i]) return oc__err(OC_ECORRUPT, why, why_len, "reserved header byte %d is not zero", i);
+    if (src[i]) return oc_errorf(OC_ECORRUPT, why, why_len, "reserved header byte %d is not zero", i);
 
   oc_state_t s;
   oc_state_init(&s);
@@ -180,32 +182,23 @@ int oc_state_deserialize(oc_state_t *out, const uint8_t *src, size_t len, char *
   s.sun_dir = oc_dv3(oc_get_f64(src + 24), oc_get_f64(src + 32), oc_get_f64(src + 40));
   if (n) {
     s.nodes = malloc((size_t)n * sizeof *s.nodes);
-    if (!s.nodes) return oc__err(OC_ENOMEM, why, why_len, "out of memory for %" PRIu32 " nodes", n);
+    if (!s.nodes) return oc_errorf(OC_ENOMEM, why, why_len, "out of memory for %" PRIu32 " nodes", n);
     s.node_cap = n;
   }
   if (m) {
     s.bricks = malloc((size_t)m * sizeof *s.bricks);
     if (!s.bricks) {
       oc_state_free(&s);
-      return oc__err(OC_ENOMEM, why, why_len, "out of memory for %" PRIu32 " bricks", m);
+      return oc_errorf(OC_ENOMEM, why, why_len, "out of memory for %" PRIu32 " bricks", m);
     }
     s.brick_cap = m;
   }
   const uint8_t *p = src + OC_STATE_HEADER_BYTES;
   for (uint32_t i = 0; i < n; i++, p += OC_STATE_RECORD_BYTES) {
-    oc_node_t *nd = &s.nodes[i];
-    if (p[9] | p[10] | p[11]) {
+    if (oc_state_unpack_record(p, &s.nodes[i]) < 0) {
       oc_state_free(&s);
-      return oc__err(OC_ECORRUPT, why, why_len, "node %" PRIu32 ": reserved bytes are not zero", i);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 ": reserved bytes are not zero", i);
     }
-    memset(nd, 0, sizeof *nd);
-    nd->key = oc_get_u64(p);
-    nd->kind = p[8];
-    nd->brick_id = oc_get_u32(p + 12);
-    nd->range[OC_CH_SIGMA].lo = oc_get_f32(p + 16);
-    nd->range[OC_CH_SIGMA].hi = oc_get_f32(p + 20);
-    nd->range[OC_CH_TAU].lo = oc_get_f32(p + 24);
-    nd->range[OC_CH_TAU].hi = oc_get_f32(p + 28);
   }
   s.node_count = n;
   for (uint32_t i = 0; i < m; i++) {
@@ -247,14 +240,14 @@ int oc_state_save(const oc_state_t *s, const char *path, char *why, size_t why_l
   if (!s || !path) return OC_EINVAL;
   size_t plen = strlen(path);
   char *tmp = malloc(plen + 5);
-  if (!tmp) return oc__err(OC_ENOMEM, why, why_len, "state file '%s': out of memory", path);
+  if (!tmp) return oc_errorf(OC_ENOMEM, why, why_len, "state file '%s': out of memory", path);
   memcpy(tmp, path, plen);
   memcpy(tmp + plen, ".tmp", 5);
   FILE *f = fopen(tmp, "wb");
   if (!f) {
     int e = errno;
     free(tmp);
-    return oc__err(oc__errno_code(e), why, why_len, "state file '%s': cannot create: %s", path, strerror(e));
+    return oc_errorf(oc__errno_code(e), why, why_len, "state file '%s': cannot create: %s", path, strerror(e));
   }
   XXH3_state_t h;
   XXH3_64bits_reset(&h);
@@ -277,7 +270,7 @@ int oc_state_save(const oc_state_t *s, const char *path, char *why, size_t why_l
   if (err) {
     remove(tmp);
     free(tmp);
-    return oc__err(err, why, why_len, "state file '%s': write failed: %s", path, e ? strerror(e) : oc_strerror(err));
+    return oc_errorf(err, why, why_len, "state file '%s': write failed: %s", path, e ? strerror(e) : oc_strerror(err));
   }
   free(tmp);
   return 0;
@@ -290,7 +283,7 @@ int oc_state_load(oc_state_t *out, const char *path, char *why, size_t why_len) 
   FILE *f = fopen(path, "rb");
   if (!f) {
     int e = errno;
-    return oc__err(oc__errno_code(e), why, why_len, "state file '%s': cannot open: %s", path, strerror(e));
+    return oc_errorf(oc__errno_code(e), why, why_len, "state file '%s': cannot open: %s", path, strerror(e));
   }
   /* The file's own size bounds the allocation; anything larger than the biggest legal state is
    * refused before reading. */
@@ -299,28 +292,28 @@ int oc_state_load(oc_state_t *out, const char *path, char *why, size_t why_len) 
   if (size < 0 || fseeko(f, 0, SEEK_SET) != 0) {
     int e = errno;
     fclose(f);
-    return oc__err(OC_EIO, why, why_len, "state file '%s': cannot seek: %s", path, strerror(e));
+    return oc_errorf(OC_EIO, why, why_len, "state file '%s': cannot seek: %s", path, strerror(e));
   }
   if ((uint64_t)size > oc__size_for(OC_STATE_MAX_NODES, OC_STATE_MAX_BRICKS) || (uint64_t)size > SIZE_MAX) {
     fclose(f);
-    return oc__err(OC_ETOOBIG, why, why_len, "state file '%s': %lld bytes exceed the largest legal state", path,
+    return oc_errorf(OC_ETOOBIG, why, why_len, "state file '%s': %lld bytes exceed the largest legal state", path,
                    (long long)size);
   }
   uint8_t *buf = malloc(size ? (size_t)size : 1);
   if (!buf) {
     fclose(f);
-    return oc__err(OC_ENOMEM, why, why_len, "state file '%s': out of memory for %lld bytes", path, (long long)size);
+    return oc_errorf(OC_ENOMEM, why, why_len, "state file '%s': out of memory for %lld bytes", path, (long long)size);
   }
   size_t got = fread(buf, 1, (size_t)size, f);
   int rerr = ferror(f);
   fclose(f);
   if (rerr || got != (size_t)size) {
     free(buf);
-    return oc__err(OC_EIO, why, why_len, "state file '%s': read failed", path);
+    return oc_errorf(OC_EIO, why, why_len, "state file '%s': read failed", path);
   }
   char inner[256];
   int err = oc_state_deserialize(out, buf, got, inner, sizeof inner);
   free(buf);
-  if (err < 0) return oc__err(err, why, why_len, "state file '%s': %s", path, inner);
+  if (err < 0) return oc_errorf(err, why, why_len, "state file '%s': %s", path, inner);
   return 0;
 }

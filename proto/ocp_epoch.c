@@ -28,36 +28,15 @@
 
 _Static_assert(4 + (size_t)OCP_BATCH_MAX * OCP__BRICK_WIRE <= OCP_CHUNK_RAW_MAX, "a full batch must fit one chunk");
 
-static int ocp__fail(char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-static int ocp__fail(char *why, size_t why_len, const char *fmt, ...) {
-  if (why && why_len) {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, why_len, fmt, ap);
-    va_end(ap);
-  }
-  return OC_ECORRUPT;
-}
 
 /*-*** Records and bricks in their wire form ***/
 
-/* The 32-byte record of "State" (same packing as oc_state_io.c). */
-static void ocp__pack_record(const oc_node_t *n, uint8_t r[OC_STATE_RECORD_BYTES]) {
-  oc_put_u64(r, n->key);
-  r[8] = n->kind;
-  r[9] = r[10] = r[11] = 0;
-  oc_put_u32(r + 12, n->brick_id);
-  oc_put_f32(r + 16, n->range[OC_CH_SIGMA].lo);
-  oc_put_f32(r + 20, n->range[OC_CH_SIGMA].hi);
-  oc_put_f32(r + 24, n->range[OC_CH_TAU].lo);
-  oc_put_f32(r + 28, n->range[OC_CH_TAU].hi);
-}
 
 /* Equal in all 32 serialised bytes: floats by bit pattern, so a KEEP reproduces the checksum. */
 static int ocp__record_same(const oc_node_t *a, const oc_node_t *b) {
   uint8_t x[OC_STATE_RECORD_BYTES], y[OC_STATE_RECORD_BYTES];
-  ocp__pack_record(a, x);
-  ocp__pack_record(b, y);
+  oc_state_pack_record(a, x);
+  oc_state_pack_record(b, y);
   return memcmp(x, y, sizeof x) == 0;
 }
 
@@ -352,7 +331,7 @@ static int ocp__next_records(ocp_epoch_enc_t *e, uint8_t version, oc_buf_t *out)
     oc_put_u32(e->raw + len + 1, k);
     len += OCP__OP_BYTES;
     for (uint32_t r = 0; r < k; r++, len += OC_STATE_RECORD_BYTES)
-      ocp__pack_record(&e->state->nodes[o->first + e->op_done + r], e->raw + len);
+      oc_state_pack_record(&e->state->nodes[o->first + e->op_done + r], e->raw + len);
     e->op_done += k;
     if (e->op_done == o->n) e->op_i++, e->op_done = 0;
   }
@@ -506,17 +485,17 @@ int ocp_epoch_dec_active(const ocp_epoch_dec_t *d) { return d && d->active; }
 
 int ocp_epoch_dec_dict(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, char *why, size_t why_len) {
   if (!d || (!payload && n)) return OC_EINVAL;
-  if (n < 4) return ocp__fail(why, why_len, "dictionary: %zu-byte payload is too short", n);
+  if (n < 4) return oc_errorf(OC_ECORRUPT, why, why_len, "dictionary: %zu-byte payload is too short", n);
   uint32_t id = oc_get_u32(payload);
   size_t len = n - 4;
-  if (id == 0) return ocp__fail(why, why_len, "dictionary: id 0");
-  if (len == 0 || len > OCP_DICT_MAX) return ocp__fail(why, why_len, "dictionary %" PRIu32 ": %zu bytes (1..%u)", id, len, OCP_DICT_MAX);
+  if (id == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "dictionary: id 0");
+  if (len == 0 || len > OCP_DICT_MAX) return oc_errorf(OC_ECORRUPT, why, why_len, "dictionary %" PRIu32 ": %zu bytes (1..%u)", id, len, OCP_DICT_MAX);
   /* Bytes with the zstd dictionary magic must parse as one; anything else is a raw-content
    * dictionary, which zstd accepts as history. The DDict holds its own copy. */
   ZSTD_DDict *dd = ZSTD_createDDict(payload + 4, len);
   if (!dd) {
     if (len >= 4 && oc_get_u32(payload + 4) == ZSTD_MAGIC_DICTIONARY)
-      return ocp__fail(why, why_len, "dictionary %" PRIu32 ": not a valid zstd dictionary", id);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "dictionary %" PRIu32 ": not a valid zstd dictionary", id);
     return OC_ENOMEM;
   }
   ZSTD_freeDDict(d->ddict);
@@ -532,15 +511,15 @@ int ocp_epoch_dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc
   ocp__dec_reset(d);
   if (m->node_count == 0 || m->node_count > OC_STATE_MAX_NODES || m->brick_count > OC_STATE_MAX_BRICKS ||
       m->bricks_sent > m->brick_count) {
-    ocp__fail(why, why_len, "epoch %" PRIu64 ": bad counts (%" PRIu32 " records, %" PRIu32 " bricks, %" PRIu32 " sent)", m->epoch,
+    oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": bad counts (%" PRIu32 " records, %" PRIu32 " bricks, %" PRIu32 " sent)", m->epoch,
               m->node_count, m->brick_count, m->bricks_sent);
     return OC_EINVAL;
   }
   if ((m->base_epoch == OCP_NO_BASE) != (base == NULL) || (base && base->epoch != m->base_epoch)) {
     if (m->base_epoch == OCP_NO_BASE)
-      ocp__fail(why, why_len, "epoch %" PRIu64 ": a base state was given for an epoch without one", m->epoch);
+      oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": a base state was given for an epoch without one", m->epoch);
     else
-      ocp__fail(why, why_len, "epoch %" PRIu64 ": base state of epoch %" PRIu64 " not held", m->epoch, m->base_epoch);
+      oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": base state of epoch %" PRIu64 " not held", m->epoch, m->base_epoch);
     return OC_EINVAL;
   }
   d->m = *m;
@@ -559,22 +538,22 @@ int ocp_epoch_dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc
 static int ocp__inflate(ocp_epoch_dec_t *d, const uint8_t *z, size_t zn, uint32_t raw_len, const ZSTD_DDict *dd,
                         const char *what, char *why, size_t why_len) {
   if (raw_len == 0 || raw_len > OCP_CHUNK_RAW_MAX)
-    return ocp__fail(why, why_len, "%s: raw length %" PRIu32 " (1..%u)", what, raw_len, OCP_CHUNK_RAW_MAX);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: raw length %" PRIu32 " (1..%u)", what, raw_len, OCP_CHUNK_RAW_MAX);
   unsigned long long cs = ZSTD_getFrameContentSize(z, zn);
   if (cs == ZSTD_CONTENTSIZE_ERROR || cs == ZSTD_CONTENTSIZE_UNKNOWN)
-    return ocp__fail(why, why_len, "%s: not a zstd frame with a content size", what);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: not a zstd frame with a content size", what);
   if (cs != raw_len)
-    return ocp__fail(why, why_len, "%s: zstd frame holds %llu bytes, raw length says %" PRIu32, what, cs, raw_len);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: zstd frame holds %llu bytes, raw length says %" PRIu32, what, cs, raw_len);
   size_t fz = ZSTD_findFrameCompressedSize(z, zn);
-  if (ZSTD_isError(fz) || fz != zn) return ocp__fail(why, why_len, "%s: payload is not exactly one zstd frame", what);
+  if (ZSTD_isError(fz) || fz != zn) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: payload is not exactly one zstd frame", what);
   if (d->raw_cap < raw_len) {
     uint8_t *p = realloc(d->raw, raw_len);
     if (!p) return OC_ENOMEM;
     d->raw = p, d->raw_cap = raw_len;
   }
   size_t r = dd ? ZSTD_decompress_usingDDict(d->dctx, d->raw, raw_len, z, zn, dd) : ZSTD_decompressDCtx(d->dctx, d->raw, raw_len, z, zn);
-  if (ZSTD_isError(r)) return ocp__fail(why, why_len, "%s: zstd: %s", what, ZSTD_getErrorName(r));
-  if (r != raw_len) return ocp__fail(why, why_len, "%s: zstd frame decompressed to %zu of %" PRIu32 " bytes", what, r, raw_len);
+  if (ZSTD_isError(r)) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: zstd: %s", what, ZSTD_getErrorName(r));
+  if (r != raw_len) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: zstd frame decompressed to %zu of %" PRIu32 " bytes", what, r, raw_len);
   return 0;
 }
 
@@ -596,26 +575,26 @@ static int ocp__dec_ops(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *wh
   oc_state_t *s = &d->st;
   size_t pos = 0;
   while (pos < n) {
-    if (n - pos < OCP__OP_BYTES) return ocp__fail(why, why_len, "records: op cut at byte %zu", pos);
+    if (n - pos < OCP__OP_BYTES) return oc_errorf(OC_ECORRUPT, why, why_len, "records: op cut at byte %zu", pos);
     uint8_t op = p[pos];
     uint32_t k = oc_get_u32(p + pos + 1);
     pos += OCP__OP_BYTES;
-    if (k == 0) return ocp__fail(why, why_len, "records: op %u with count 0", (unsigned)op);
+    if (k == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "records: op %u with count 0", (unsigned)op);
     if (op == OCP_OP_SKIP || op == OCP_OP_KEEP) {
       if (k > nbase - d->base_pos)
-        return ocp__fail(why, why_len, "records: %s %" PRIu32 " past the base (%" PRIu32 " of %" PRIu32 " records left)",
+        return oc_errorf(OC_ECORRUPT, why, why_len, "records: %s %" PRIu32 " past the base (%" PRIu32 " of %" PRIu32 " records left)",
                          op == OCP_OP_SKIP ? "SKIP" : "KEEP", k, nbase - d->base_pos, nbase);
     }
     if (op == OCP_OP_SKIP) {
       d->base_pos += k;
       continue;
     }
-    if (op != OCP_OP_KEEP && op != OCP_OP_ADD) return ocp__fail(why, why_len, "records: unknown op %u", (unsigned)op);
+    if (op != OCP_OP_KEEP && op != OCP_OP_ADD) return oc_errorf(OC_ECORRUPT, why, why_len, "records: unknown op %u", (unsigned)op);
     if (k > d->m.node_count - s->node_count)
-      return ocp__fail(why, why_len, "records: %" PRIu32 " more records than the %" PRIu32 " announced", k,
+      return oc_errorf(OC_ECORRUPT, why, why_len, "records: %" PRIu32 " more records than the %" PRIu32 " announced", k,
                        d->m.node_count - s->node_count);
     if (op == OCP_OP_ADD && k > (n - pos) / OC_STATE_RECORD_BYTES)
-      return ocp__fail(why, why_len, "records: ADD %" PRIu32 " with bytes for %zu", k, (n - pos) / OC_STATE_RECORD_BYTES);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "records: ADD %" PRIu32 " with bytes for %zu", k, (n - pos) / OC_STATE_RECORD_BYTES);
     OC_TRY(ocp__reserve_nodes(d, s->node_count + k));
     oc_node_t *dst = s->nodes + s->node_count;
     if (op == OCP_OP_KEEP) {
@@ -623,17 +602,8 @@ static int ocp__dec_ops(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *wh
       d->base_pos += k;
     } else {
       for (uint32_t r = 0; r < k; r++, pos += OC_STATE_RECORD_BYTES) {
-        const uint8_t *q = p + pos;
-        if (q[9] | q[10] | q[11]) return ocp__fail(why, why_len, "records: record %" PRIu32 " has non-zero reserved bytes", s->node_count + r);
-        oc_node_t *nd = &dst[r];
-        memset(nd, 0, sizeof *nd);
-        nd->key = oc_get_u64(q);
-        nd->kind = q[8];
-        nd->brick_id = oc_get_u32(q + 12);
-        nd->range[OC_CH_SIGMA].lo = oc_get_f32(q + 16);
-        nd->range[OC_CH_SIGMA].hi = oc_get_f32(q + 20);
-        nd->range[OC_CH_TAU].lo = oc_get_f32(q + 24);
-        nd->range[OC_CH_TAU].hi = oc_get_f32(q + 28);
+        if (oc_state_unpack_record(p + pos, &dst[r]) < 0)
+          return oc_errorf(OC_ECORRUPT, why, why_len, "records: record %" PRIu32 " has non-zero reserved bytes", s->node_count + r);
       }
     }
     /* Ascending keys (the rest of validity waits for oc_state_validate at the end): a KEEP run is
@@ -641,7 +611,7 @@ static int ocp__dec_ops(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *wh
     for (uint32_t r = 0; r < k; r++) {
       uint32_t at = s->node_count + r;
       if (at > 0 && s->nodes[at].key <= s->nodes[at - 1].key)
-        return ocp__fail(why, why_len, "records: record %" PRIu32 " (key 0x%" PRIx64 ") is not after key 0x%" PRIx64, at,
+        return oc_errorf(OC_ECORRUPT, why, why_len, "records: record %" PRIu32 " (key 0x%" PRIx64 ") is not after key 0x%" PRIx64, at,
                          s->nodes[at].key, s->nodes[at - 1].key);
       if (op == OCP_OP_KEEP) break;
     }
@@ -653,12 +623,12 @@ static int ocp__dec_ops(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *wh
 int ocp_epoch_dec_records(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
   if (!d || (!payload && n)) return OC_EINVAL;
-  if (!d->active) return ocp__fail(why, why_len, "records outside an epoch");
+  if (!d->active) return oc_errorf(OC_ECORRUPT, why, why_len, "records outside an epoch");
   int r;
   if (d->bricks_started)
-    r = ocp__fail(why, why_len, "records after the first bricks of epoch %" PRIu64, d->m.epoch);
+    r = oc_errorf(OC_ECORRUPT, why, why_len, "records after the first bricks of epoch %" PRIu64, d->m.epoch);
   else if (n < 4)
-    r = ocp__fail(why, why_len, "records: %zu-byte payload is too short", n);
+    r = oc_errorf(OC_ECORRUPT, why, why_len, "records: %zu-byte payload is too short", n);
   else if ((r = ocp__inflate(d, payload + 4, n - 4, oc_get_u32(payload), NULL, "records", why, why_len)) == 0)
     r = ocp__dec_ops(d, d->raw, oc_get_u32(payload), why, why_len);
   if (r < 0) ocp__dec_reset(d); /* the stream is broken: the epoch cannot complete */
@@ -676,14 +646,14 @@ static int ocp__records_done(ocp_epoch_dec_t *d, char *why, size_t why_len) {
   const oc_state_t *s = &d->st;
   uint32_t nbase = d->base ? d->base->node_count : 0, nb = 0;
   if (s->node_count != d->m.node_count)
-    return ocp__fail(why, why_len, "epoch %" PRIu64 ": %" PRIu32 " of %" PRIu32 " records arrived", d->m.epoch, s->node_count,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": %" PRIu32 " of %" PRIu32 " records arrived", d->m.epoch, s->node_count,
                      d->m.node_count);
   if (d->base_pos != nbase)
-    return ocp__fail(why, why_len, "epoch %" PRIu64 ": ops consumed %" PRIu32 " of the base's %" PRIu32 " records", d->m.epoch,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": ops consumed %" PRIu32 " of the base's %" PRIu32 " records", d->m.epoch,
                      d->base_pos, nbase);
   for (uint32_t i = 0; i < s->node_count; i++) nb += s->nodes[i].kind == OC_NODE_BRICK;
   if (nb != d->m.brick_count)
-    return ocp__fail(why, why_len, "epoch %" PRIu64 ": the records name %" PRIu32 " bricks, %" PRIu32 " announced", d->m.epoch, nb,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": the records name %" PRIu32 " bricks, %" PRIu32 " announced", d->m.epoch, nb,
                      d->m.brick_count);
   if (nb) {
     d->refs = malloc((size_t)nb * sizeof *d->refs);
@@ -694,7 +664,7 @@ static int ocp__records_done(ocp_epoch_dec_t *d, char *why, size_t why_len) {
   if (d->nrefs > 1) qsort(d->refs, d->nrefs, sizeof *d->refs, ocp__cmp_ref);
   for (uint32_t k = 1; k < d->nrefs; k++)
     if (d->refs[k].id == d->refs[k - 1].id)
-      return ocp__fail(why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " is named by two records", d->m.epoch, d->refs[k].id);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " is named by two records", d->m.epoch, d->refs[k].id);
   d->bricks_started = 1;
   return 0;
 }
@@ -712,15 +682,15 @@ static ocp__ref_t *ocp__find_ref(ocp_epoch_dec_t *d, uint32_t id) {
 }
 
 static int ocp__dec_batch(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *why, size_t why_len) {
-  if (n < 4) return ocp__fail(why, why_len, "bricks: %zu raw bytes, no brick count", n);
+  if (n < 4) return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %zu raw bytes, no brick count", n);
   uint32_t count = oc_get_u32(p);
   if (count == 0 || count > OCP_BATCH_MAX)
-    return ocp__fail(why, why_len, "bricks: batch of %" PRIu32 " bricks (1..%d)", count, OCP_BATCH_MAX);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: batch of %" PRIu32 " bricks (1..%d)", count, OCP_BATCH_MAX);
   if (n != 4 + (size_t)count * OCP__BRICK_WIRE)
-    return ocp__fail(why, why_len, "bricks: %zu raw bytes for %" PRIu32 " bricks (%zu expected)", n, count,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %zu raw bytes for %" PRIu32 " bricks (%zu expected)", n, count,
                      4 + (size_t)count * OCP__BRICK_WIRE);
   if (count > d->m.bricks_sent - d->st.brick_count)
-    return ocp__fail(why, why_len, "bricks: %" PRIu32 " more bricks than the %" PRIu32 " announced", count,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %" PRIu32 " more bricks than the %" PRIu32 " announced", count,
                      d->m.bricks_sent - d->st.brick_count);
   const uint8_t *planes = p + 4 + (size_t)count * OCP__BRICK_HEAD;
   for (uint32_t k = 0; k < count; k++) {
@@ -728,15 +698,15 @@ static int ocp__dec_batch(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *
     uint32_t id = oc_get_u32(h), base_id = oc_get_u32(h + 4);
     unsigned flags = h[8];
     ocp__ref_t *ref = ocp__find_ref(d, id);
-    if (!ref) return ocp__fail(why, why_len, "brick %" PRIu32 ": no brick record of this state names it", id);
-    if (ref->slot != OCP__NONE) return ocp__fail(why, why_len, "brick %" PRIu32 ": sent twice", id);
+    if (!ref) return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": no brick record of this state names it", id);
+    if (ref->slot != OCP__NONE) return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": sent twice", id);
     if (flags & ~(OCP_BRICK_DELTA_SIGMA | OCP_BRICK_DELTA_TAU) || (h[9] | h[10] | h[11]))
-      return ocp__fail(why, why_len, "brick %" PRIu32 ": bad flags 0x%02x or reserved bytes", id, flags);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": bad flags 0x%02x or reserved bytes", id, flags);
     if ((base_id != 0) != (flags != 0))
-      return ocp__fail(why, why_len, "brick %" PRIu32 ": base id %" PRIu32 " with flags 0x%02x", id, base_id, flags);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": base id %" PRIu32 " with flags 0x%02x", id, base_id, flags);
     const oc_brick_codes_t *base = NULL;
     if (flags && !(base = d->lookup(d->ctx, base_id)))
-      return ocp__fail(why, why_len, "brick %" PRIu32 ": delta base %" PRIu32 " not held", id, base_id);
+      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": delta base %" PRIu32 " not held", id, base_id);
     oc_brick_codes_t c;
     ocp__planes_get(planes + (size_t)k * OCP__BRICK_PLANES, base, flags, &c);
     ref->slot = d->st.brick_count;
@@ -748,20 +718,20 @@ static int ocp__dec_batch(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *
 int ocp_epoch_dec_bricks(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
   if (!d || (!payload && n)) return OC_EINVAL;
-  if (!d->active) return ocp__fail(why, why_len, "bricks outside an epoch");
+  if (!d->active) return oc_errorf(OC_ECORRUPT, why, why_len, "bricks outside an epoch");
   int r = 0;
   if (!d->bricks_started && (r = ocp__records_done(d, why, why_len)) < 0) {
     if (r == OC_ECORRUPT) {
       char tmp[256];
       snprintf(tmp, sizeof tmp, "%s", why && why_len ? why : "");
-      r = ocp__fail(why, why_len, "bricks before the records are complete: %s", tmp);
+      r = oc_errorf(OC_ECORRUPT, why, why_len, "bricks before the records are complete: %s", tmp);
     }
   } else if (n < 8) {
-    r = ocp__fail(why, why_len, "bricks: %zu-byte payload is too short", n);
+    r = oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %zu-byte payload is too short", n);
   } else {
     uint32_t dict_id = oc_get_u32(payload), raw_len = oc_get_u32(payload + 4);
     if (dict_id != 0 && (!d->ddict || dict_id != d->dict_id))
-      r = ocp__fail(why, why_len, "bricks: unknown dictionary %" PRIu32 " (installed: %" PRIu32 ")", dict_id, d->ddict ? d->dict_id : 0);
+      r = oc_errorf(OC_ECORRUPT, why, why_len, "bricks: unknown dictionary %" PRIu32 " (installed: %" PRIu32 ")", dict_id, d->ddict ? d->dict_id : 0);
     else if ((r = ocp__inflate(d, payload + 8, n - 8, raw_len, dict_id ? d->ddict : NULL, "bricks", why, why_len)) == 0)
       r = ocp__dec_batch(d, d->raw, raw_len, why, why_len);
   }
@@ -772,16 +742,16 @@ int ocp_epoch_dec_bricks(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, c
 int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *out, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
   if (!d || !m || !out) return OC_EINVAL;
-  if (!d->active) return ocp__fail(why, why_len, "epoch end outside an epoch");
+  if (!d->active) return oc_errorf(OC_ECORRUPT, why, why_len, "epoch end outside an epoch");
   int r = 0;
   oc_brick_t *bricks = NULL;
   if (m->epoch != d->m.epoch) {
-    r = ocp__fail(why, why_len, "epoch end for epoch %" PRIu64 " during epoch %" PRIu64, m->epoch, d->m.epoch);
+    r = oc_errorf(OC_ECORRUPT, why, why_len, "epoch end for epoch %" PRIu64 " during epoch %" PRIu64, m->epoch, d->m.epoch);
     goto done;
   }
   if (!d->bricks_started && (r = ocp__records_done(d, why, why_len)) < 0) goto done;
   if (d->st.brick_count != d->m.bricks_sent) {
-    r = ocp__fail(why, why_len, "epoch %" PRIu64 ": %" PRIu32 " of %" PRIu32 " bricks arrived", d->m.epoch, d->st.brick_count,
+    r = oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": %" PRIu32 " of %" PRIu32 " bricks arrived", d->m.epoch, d->st.brick_count,
                   d->m.bricks_sent);
     goto done;
   }
@@ -789,7 +759,7 @@ int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *
   for (uint32_t k = 0; k < d->nrefs; k++) {
     ocp__ref_t *ref = &d->refs[k];
     if (ref->slot == OCP__NONE && !(ref->held = d->lookup(d->ctx, ref->id))) {
-      r = ocp__fail(why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " was neither sent nor held", d->m.epoch, ref->id);
+      r = oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " was neither sent nor held", d->m.epoch, ref->id);
       goto done;
     }
   }
@@ -808,12 +778,12 @@ int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *
   bricks = NULL;
   char tmp[256];
   if ((r = oc_state_validate(&d->st, tmp, sizeof tmp)) < 0) {
-    if (r == OC_ECORRUPT) r = ocp__fail(why, why_len, "state epoch %" PRIu64 ": %s", d->m.epoch, tmp);
+    if (r == OC_ECORRUPT) r = oc_errorf(OC_ECORRUPT, why, why_len, "state epoch %" PRIu64 ": %s", d->m.epoch, tmp);
     goto done;
   }
   uint64_t h = oc_state_checksum(&d->st);
   if (h != m->checksum) {
-    ocp__fail(why, why_len, "state epoch %" PRIu64 ": checksum mismatch: sent %016" PRIx64 ", rebuilt %016" PRIx64, d->m.epoch,
+    oc_errorf(OC_ECORRUPT, why, why_len, "state epoch %" PRIu64 ": checksum mismatch: sent %016" PRIx64 ", rebuilt %016" PRIx64, d->m.epoch,
               m->checksum, h);
     r = OC_ECHECKSUM;
     goto done;

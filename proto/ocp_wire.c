@@ -316,16 +316,6 @@ void ocp_put_control(oc_buf_t *b, uint8_t version, uint8_t type, const ocp_contr
 
 /*-*** Decoders ***/
 
-static int ocp__fail(char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-static int ocp__fail(char *why, size_t why_len, const char *fmt, ...) {
-  if (why && why_len) {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, why_len, fmt, ap);
-    va_end(ap);
-  }
-  return OC_ECORRUPT;
-}
 
 static void ocp__why_clear(char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
@@ -334,7 +324,7 @@ static void ocp__why_clear(char *why, size_t why_len) {
 /* The payload length must be exactly `want`: names the message and both lengths. */
 static int ocp__exact(const char *msg, size_t n, size_t want, char *why, size_t why_len) {
   if (n == want) return 0;
-  return ocp__fail(why, why_len, "%s: payload is %zu bytes, expected %zu", msg, n, want);
+  return oc_errorf(OC_ECORRUPT, why, why_len, "%s: payload is %zu bytes, expected %zu", msg, n, want);
 }
 
 static oc_dvec3 ocp__read_dvec3(oc_reader_t *r) {
@@ -349,25 +339,25 @@ static int ocp__dvec3_finite(oc_dvec3 v) { return isfinite(v.x) && isfinite(v.y)
 
 /* Finite with |len − 1| ≤ tol. */
 static int ocp__check_unit(const char *msg, const char *field, oc_dvec3 v, double tol, char *why, size_t why_len) {
-  if (!ocp__dvec3_finite(v)) return ocp__fail(why, why_len, "%s: %s is not finite", msg, field);
+  if (!ocp__dvec3_finite(v)) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not finite", msg, field);
   double len = oc_dlen(v);
   if (!(fabs(len - 1.0) <= tol))
-    return ocp__fail(why, why_len, "%s: %s (%g, %g, %g) is not a unit vector", msg, field, v.x, v.y, v.z);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s (%g, %g, %g) is not a unit vector", msg, field, v.x, v.y, v.z);
   return 0;
 }
 
 static int ocp__check_finite(const char *msg, const char *field, double x, char *why, size_t why_len) {
-  return isfinite(x) ? 0 : ocp__fail(why, why_len, "%s: %s is not finite", msg, field);
+  return isfinite(x) ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not finite", msg, field);
 }
 
 static int ocp__check_range_u32(const char *msg, const char *field, uint32_t x, uint32_t lo, uint32_t hi, char *why,
                                 size_t why_len) {
   if (x >= lo && x <= hi) return 0;
-  return ocp__fail(why, why_len, "%s: %s %" PRIu32 " is outside %" PRIu32 "..%" PRIu32, msg, field, x, lo, hi);
+  return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %" PRIu32 " is outside %" PRIu32 "..%" PRIu32, msg, field, x, lo, hi);
 }
 
 static int ocp__check_zero(const char *msg, const char *field, uint64_t x, char *why, size_t why_len) {
-  return x == 0 ? 0 : ocp__fail(why, why_len, "%s: %s is not zero", msg, field);
+  return x == 0 ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not zero", msg, field);
 }
 
 int ocp_get_hello(const uint8_t *p, size_t n, ocp_hello_t *m, char *why, size_t why_len) {
@@ -375,7 +365,7 @@ int ocp_get_hello(const uint8_t *p, size_t n, ocp_hello_t *m, char *why, size_t 
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);
   if (n < OCP__HELLO_BYTES)
-    return ocp__fail(why, why_len, "hello: payload is %zu bytes, shorter than %d", n, OCP__HELLO_BYTES);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: payload is %zu bytes, shorter than %d", n, OCP__HELLO_BYTES);
   oc_reader_t r = oc_reader(p, n);
   m->min_version = oc_read_u16(&r);
   m->max_version = oc_read_u16(&r);
@@ -393,21 +383,21 @@ int ocp_get_hello(const uint8_t *p, size_t n, ocp_hello_t *m, char *why, size_t 
   m->held_epoch = oc_read_u64(&r);
   m->held_checksum = oc_read_u64(&r);
   if (m->token_len > OCP_TOKEN_MAX)
-    return ocp__fail(why, why_len, "hello: token_len %u is above %d", (unsigned)m->token_len, OCP_TOKEN_MAX);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: token_len %u is above %d", (unsigned)m->token_len, OCP_TOKEN_MAX);
   OC_TRY(ocp__exact(msg, n, (size_t)OCP__HELLO_BYTES + m->token_len, why, why_len));
   const uint8_t *tok = oc_reader_take(&r, m->token_len);
-  if (r.err || !tok) return ocp__fail(why, why_len, "hello: truncated"); /* cannot happen after the length check */
+  if (r.err || !tok) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: truncated"); /* cannot happen after the length check */
   if (m->token_len) memcpy(m->token, tok, m->token_len);
   if (m->min_version > m->max_version)
-    return ocp__fail(why, why_len, "hello: min_version %u is above max_version %u", (unsigned)m->min_version,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: min_version %u is above max_version %u", (unsigned)m->min_version,
                      (unsigned)m->max_version);
   if (m->role != OCP_ROLE_VIEWER && m->role != OCP_ROLE_CONTROL)
-    return ocp__fail(why, why_len, "hello: role %u is neither viewer (0) nor control (1)", (unsigned)m->role);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: role %u is neither viewer (0) nor control (1)", (unsigned)m->role);
   if (m->max_depth > OCP__MAX_DEPTH)
-    return ocp__fail(why, why_len, "hello: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
-  if (m->caps & ~OCP_CAP_ALL) return ocp__fail(why, why_len, "hello: caps 0x%" PRIx32 " has unknown bits", m->caps);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
+  if (m->caps & ~OCP_CAP_ALL) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: caps 0x%" PRIx32 " has unknown bits", m->caps);
   if (m->role == OCP_ROLE_VIEWER) {
-    if (m->budget == 0) return ocp__fail(why, why_len, "hello: budget is zero");
+    if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: budget is zero");
     OC_TRY(ocp__check_range_u32(msg, "slot_bytes", m->slot_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
     OC_TRY(ocp__check_range_u32(msg, "record_bytes", m->record_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
     OC_TRY(ocp__check_range_u32(msg, "width", m->width, 1, OCP__VIEWPORT_MAX, why, why_len));
@@ -431,7 +421,7 @@ int ocp_get_welcome(const uint8_t *p, size_t n, ocp_welcome_t *m, char *why, siz
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);
   if (n < OCP__WELCOME_BYTES)
-    return ocp__fail(why, why_len, "welcome: payload is %zu bytes, shorter than %d", n, OCP__WELCOME_BYTES);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: payload is %zu bytes, shorter than %d", n, OCP__WELCOME_BYTES);
   oc_reader_t r = oc_reader(p, n);
   m->version = oc_read_u16(&r);
   m->flags = oc_read_u8(&r);
@@ -463,36 +453,36 @@ int ocp_get_welcome(const uint8_t *p, size_t n, ocp_welcome_t *m, char *why, siz
   m->cam_fov = oc_read_f64(&r);
   uint16_t name_len = oc_read_u16(&r);
   if (name_len > OCP_NAME_MAX)
-    return ocp__fail(why, why_len, "welcome: name length %u is above %d", (unsigned)name_len, OCP_NAME_MAX);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: name length %u is above %d", (unsigned)name_len, OCP_NAME_MAX);
   OC_TRY(ocp__exact(msg, n, (size_t)OCP__WELCOME_BYTES + name_len, why, why_len));
   const uint8_t *name = oc_reader_take(&r, name_len);
-  if (r.err || !name) return ocp__fail(why, why_len, "welcome: truncated");
-  if (name_len && memchr(name, 0, name_len)) return ocp__fail(why, why_len, "welcome: name contains a NUL byte");
+  if (r.err || !name) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: truncated");
+  if (name_len && memchr(name, 0, name_len)) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: name contains a NUL byte");
   if (name_len) memcpy(m->name, name, name_len);
   m->name[name_len] = '\0';
-  if (m->version == 0) return ocp__fail(why, why_len, "welcome: version is zero");
+  if (m->version == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: version is zero");
   if (m->flags & ~OCP_WELCOME_RESUMED)
-    return ocp__fail(why, why_len, "welcome: flags 0x%x has unknown bits", (unsigned)m->flags);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: flags 0x%x has unknown bits", (unsigned)m->flags);
   if (m->kept_states != 0 && m->kept_states != 2 && m->kept_states != 3)
-    return ocp__fail(why, why_len, "welcome: kept_states %u is not 0, 2 or 3", (unsigned)m->kept_states);
-  if (m->session == 0) return ocp__fail(why, why_len, "welcome: session is zero");
+    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: kept_states %u is not 0, 2 or 3", (unsigned)m->kept_states);
+  if (m->session == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: session is zero");
   if (m->max_depth > OCP__MAX_DEPTH)
-    return ocp__fail(why, why_len, "welcome: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
-  if (res0) return ocp__fail(why, why_len, "welcome: reserved bytes 33..35 are not zero");
-  if (res1) return ocp__fail(why, why_len, "welcome: reserved bytes 124..127 are not zero");
+    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
+  if (res0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: reserved bytes 33..35 are not zero");
+  if (res1) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: reserved bytes 124..127 are not zero");
   if (m->kept_states) { /* a viewer's grant */
-    if (m->budget == 0) return ocp__fail(why, why_len, "welcome: budget is zero");
+    if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: budget is zero");
     OC_TRY(ocp__check_range_u32(msg, "slot_bytes", m->slot_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
     OC_TRY(ocp__check_range_u32(msg, "record_bytes", m->record_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
   }
   OC_TRY(ocp__check_finite(msg, "epoch_period", m->epoch_period, why, why_len));
-  if (m->epoch_period < 0) return ocp__fail(why, why_len, "welcome: epoch_period %g is negative", m->epoch_period);
+  if (m->epoch_period < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: epoch_period %g is negative", m->epoch_period);
   OC_TRY(ocp__check_finite(msg, "planet_radius", m->planet_radius, why, why_len));
-  if (m->planet_radius < 0) return ocp__fail(why, why_len, "welcome: planet_radius %g is negative", m->planet_radius);
+  if (m->planet_radius < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: planet_radius %g is negative", m->planet_radius);
   OC_TRY(ocp__check_finite(msg, "time", m->time, why, why_len));
   OC_TRY(ocp__check_unit(msg, "sun_dir", m->sun_dir, OCP__SUN_TOL, why, why_len));
   OC_TRY(ocp__check_finite(msg, "albedo", m->albedo, why, why_len));
-  if (m->albedo < 0 || m->albedo > 1) return ocp__fail(why, why_len, "welcome: albedo %g is outside [0, 1]", m->albedo);
+  if (m->albedo < 0 || m->albedo > 1) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: albedo %g is outside [0, 1]", m->albedo);
   OC_TRY(ocp__check_finite(msg, "ms_a", m->ms_a, why, why_len));
   OC_TRY(ocp__check_finite(msg, "ms_b", m->ms_b, why, why_len));
   OC_TRY(ocp__check_finite(msg, "ms_c", m->ms_c, why, why_len));
@@ -517,14 +507,14 @@ int ocp_get_camera(const uint8_t *p, size_t n, ocp_camera_t *m, char *why, size_
   m->vfov_deg = oc_read_f64(&r);
   m->width = oc_read_u32(&r);
   m->height = oc_read_u32(&r);
-  if (!ocp__dvec3_finite(m->pos)) return ocp__fail(why, why_len, "camera: pos is not finite");
+  if (!ocp__dvec3_finite(m->pos)) return oc_errorf(OC_ECORRUPT, why, why_len, "camera: pos is not finite");
   OC_TRY(ocp__check_unit(msg, "forward", m->forward, OCP__CAMERA_TOL, why, why_len));
   OC_TRY(ocp__check_unit(msg, "up", m->up, OCP__CAMERA_TOL, why, why_len));
   double d = oc_ddot(m->forward, m->up);
   if (!(fabs(d) <= OCP__CAMERA_TOL))
-    return ocp__fail(why, why_len, "camera: forward and up are not orthogonal (dot %g)", d);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "camera: forward and up are not orthogonal (dot %g)", d);
   if (!(m->vfov_deg > 0 && m->vfov_deg < 180))
-    return ocp__fail(why, why_len, "camera: vfov_deg %g is outside (0, 180)", m->vfov_deg);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "camera: vfov_deg %g is outside (0, 180)", m->vfov_deg);
   OC_TRY(ocp__check_range_u32(msg, "width", m->width, 1, OCP__VIEWPORT_MAX, why, why_len));
   OC_TRY(ocp__check_range_u32(msg, "height", m->height, 1, OCP__VIEWPORT_MAX, why, why_len));
   return 0;
@@ -543,13 +533,13 @@ int ocp_get_text(const uint8_t *p, size_t n, ocp_text_msg_t *m, char *why, size_
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);
   if (n < OCP__TEXT_BYTES)
-    return ocp__fail(why, why_len, "error/goodbye: payload is %zu bytes, shorter than %d", n, OCP__TEXT_BYTES);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "error/goodbye: payload is %zu bytes, shorter than %d", n, OCP__TEXT_BYTES);
   m->code = oc_get_u32(p);
   uint16_t len = oc_get_u16(p + 4);
   if (len > OCP_TEXT_MAX)
-    return ocp__fail(why, why_len, "error/goodbye: text length %u is above %d", (unsigned)len, OCP_TEXT_MAX);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "error/goodbye: text length %u is above %d", (unsigned)len, OCP_TEXT_MAX);
   OC_TRY(ocp__exact("error/goodbye", n, (size_t)OCP__TEXT_BYTES + len, why, why_len));
-  if (len && memchr(p + OCP__TEXT_BYTES, 0, len)) return ocp__fail(why, why_len, "error/goodbye: text contains a NUL byte");
+  if (len && memchr(p + OCP__TEXT_BYTES, 0, len)) return oc_errorf(OC_ECORRUPT, why, why_len, "error/goodbye: text contains a NUL byte");
   if (len) memcpy(m->text, p + OCP__TEXT_BYTES, len);
   m->text[len] = '\0';
   return 0;
@@ -575,20 +565,20 @@ int ocp_get_epoch_begin(const uint8_t *p, size_t n, ocp_epoch_begin_t *m, char *
   m->brick_count = oc_read_u32(&r);
   m->bricks_sent = oc_read_u32(&r);
   uint32_t res = oc_read_u32(&r);
-  if (res) return ocp__fail(why, why_len, "epoch-begin: reserved bytes 60..63 are not zero");
+  if (res) return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: reserved bytes 60..63 are not zero");
   OC_TRY(ocp__check_finite(msg, "time", m->time, why, why_len));
   OC_TRY(ocp__check_unit(msg, "sun_dir", m->sun_dir, OCP__SUN_TOL, why, why_len));
   /* epochs only move forward, so a base is always older than the state built on it */
   if (m->base_epoch != OCP_NO_BASE && m->base_epoch >= m->epoch)
-    return ocp__fail(why, why_len, "epoch-begin: base_epoch %" PRIu64 " is not before epoch %" PRIu64, m->base_epoch,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: base_epoch %" PRIu64 " is not before epoch %" PRIu64, m->base_epoch,
                      m->epoch);
   OC_TRY(ocp__check_range_u32(msg, "node_count", m->node_count, 1, OC_STATE_MAX_NODES, why, why_len));
   OC_TRY(ocp__check_range_u32(msg, "brick_count", m->brick_count, 0, OC_STATE_MAX_BRICKS, why, why_len));
   if (m->bricks_sent > m->brick_count)
-    return ocp__fail(why, why_len, "epoch-begin: bricks_sent %" PRIu32 " is above brick_count %" PRIu32, m->bricks_sent,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: bricks_sent %" PRIu32 " is above brick_count %" PRIu32, m->bricks_sent,
                      m->brick_count);
   if (m->brick_count > m->node_count)
-    return ocp__fail(why, why_len, "epoch-begin: brick_count %" PRIu32 " is above node_count %" PRIu32, m->brick_count,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: brick_count %" PRIu32 " is above node_count %" PRIu32, m->brick_count,
                      m->node_count);
   return 0;
 }
@@ -621,10 +611,10 @@ int ocp_get_stats(const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t 
   m->produce_ms = oc_read_f64(&r);
   uint64_t res = oc_read_u64(&r);
   res |= oc_read_u64(&r);
-  if (res) return ocp__fail(why, why_len, "stats: reserved bytes 72..87 are not zero");
+  if (res) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: reserved bytes 72..87 are not zero");
   OC_TRY(ocp__check_finite(msg, "plan_ms", m->plan_ms, why, why_len));
   OC_TRY(ocp__check_finite(msg, "produce_ms", m->produce_ms, why, why_len));
-  if (m->plan_ms < 0 || m->produce_ms < 0) return ocp__fail(why, why_len, "stats: negative plan_ms or produce_ms");
+  if (m->plan_ms < 0 || m->produce_ms < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: negative plan_ms or produce_ms");
   return 0;
 }
 
@@ -632,15 +622,15 @@ int ocp_get_control(const uint8_t *p, size_t n, ocp_control_t *m, char *why, siz
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);
   if (n < OCP__CONTROL_BYTES)
-    return ocp__fail(why, why_len, "control: payload is %zu bytes, shorter than %d", n, OCP__CONTROL_BYTES);
+    return oc_errorf(OC_ECORRUPT, why, why_len, "control: payload is %zu bytes, shorter than %d", n, OCP__CONTROL_BYTES);
   if (n - OCP__CONTROL_BYTES > OCP__CONTROL_JSON_MAX)
-    return ocp__fail(why, why_len, "control: json of %zu bytes is above %u", n - OCP__CONTROL_BYTES,
+    return oc_errorf(OC_ECORRUPT, why, why_len, "control: json of %zu bytes is above %u", n - OCP__CONTROL_BYTES,
                      (unsigned)OCP__CONTROL_JSON_MAX);
   m->request = oc_get_u32(p);
   m->status = (int32_t)oc_get_u32(p + 4);
   m->json_len = (uint32_t)(n - OCP__CONTROL_BYTES);
   m->json = (const char *)p + OCP__CONTROL_BYTES;
-  if (m->status < 0) return ocp__fail(why, why_len, "control: status %" PRId32 " is negative", m->status);
-  if (m->json_len && memchr(m->json, 0, m->json_len)) return ocp__fail(why, why_len, "control: json contains a NUL byte");
+  if (m->status < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "control: status %" PRId32 " is negative", m->status);
+  if (m->json_len && memchr(m->json, 0, m->json_len)) return oc_errorf(OC_ECORRUPT, why, why_len, "control: json contains a NUL byte");
   return 0;
 }

@@ -18,69 +18,12 @@
 
 #include "oc_err.h"
 #include "oc_state.h"
+#include "state_fixture.h" /* child, node, golden_codes, golden_state */
 
 /* Golden: the checksum of golden_state() (also in docs/protocol.md, "State"). A change here means
  * the byte format changed: bump OC_STATE_VERSION and document it, never just update the number. */
 #define GOLDEN_SIZE 6708u
 #define GOLDEN_CHECKSUM 0xc9d949fa8e9ec21bull
-
-static oc_key_t child(oc_key_t k, int i) { return (k << 3) | (oc_key_t)i; }
-
-static oc_node_t node(oc_key_t key, int kind, uint32_t brick, float slo, float shi, float tlo, float thi) {
-  oc_node_t n;
-  memset(&n, 0, sizeof n);
-  n.key = key;
-  n.kind = (uint8_t)kind;
-  n.brick_id = brick;
-  n.range[0].lo = slo, n.range[0].hi = shi, n.range[1].lo = tlo, n.range[1].hi = thi;
-  return n;
-}
-
-/* Codes from integer arithmetic only, so the golden bytes do not depend on libm. */
-static void golden_codes(uint32_t id, oc_brick_codes_t *c) {
-  for (int ch = 0; ch < OC_CHANNELS; ch++)
-    for (uint32_t v = 0; v < OC_BRICK_VOXELS; v++)
-      c->code[ch][v] = (uint16_t)((v * 131u + (uint32_t)ch * 7919u + id * 17u) % 65536u);
-}
-
-/* Root split in 8; child 7 split again: 15 leaves, 3 bricks (ids 3, 7, 42), every kind. */
-static void golden_state(oc_state_t *s) {
-  oc_brick_codes_t c;
-  oc_state_init(s);
-  s->epoch = 42;
-  s->time = 1234.5;
-  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
-  oc_key_t r = OC_KEY_ROOT, c7 = child(r, 7);
-  oc_node_t n = node(child(r, 0), OC_NODE_EMPTY, 0, 0, 0, 0, 0);
-  assert_int_equal(oc_state_add_node(s, &n), 0);
-  n = node(child(r, 1), OC_NODE_UNIFORM, 0, 0.01f, 0.01f, 2.0f, 2.0f);
-  oc_state_add_node(s, &n);
-  n = node(child(r, 2), OC_NODE_UNIFORM, 0, 0.0f, 0.0f, 0.5f, 0.5f);
-  oc_state_add_node(s, &n);
-  n = node(child(r, 3), OC_NODE_BRICK, 7, 1e-6f, 10.0f, 0.001f, 30.0f);
-  oc_state_add_node(s, &n);
-  for (int i = 4; i < 7; i++) {
-    n = node(child(r, i), OC_NODE_UNIFORM, 0, 0.001f * (float)i, 0.001f * (float)i, 0.0f, 0.0f);
-    oc_state_add_node(s, &n);
-  }
-  for (int i = 0; i < 8; i++) {
-    if (i == 0)
-      n = node(child(c7, i), OC_NODE_BRICK, 3, 0.25f, 0.5f, 0.0f, 0.0f);
-    else if (i == 7)
-      n = node(child(c7, i), OC_NODE_BRICK, 42, 0.125f, 0.125f, 1.0f, 4.0f);
-    else
-      n = node(child(c7, i), OC_NODE_EMPTY, 0, 0, 0, 0, 0);
-    oc_state_add_node(s, &n);
-  }
-  golden_codes(42, &c);
-  oc_state_add_brick(s, 42, &c);
-  golden_codes(3, &c);
-  memset(c.code[1], 0, sizeof c.code[1]); /* brick 3's τ channel is zero */
-  oc_state_add_brick(s, 3, &c);
-  golden_codes(7, &c);
-  oc_state_add_brick(s, 7, &c);
-  oc_state_canonicalize(s);
-}
 
 static void expect_valid(const oc_state_t *s) {
   char why[256];

@@ -12,7 +12,7 @@
  * instead of dying in zstd.
  *
  * Seeds (tests/fuzz/corpus/epoch) come from this file's generator, built by hand once:
- *   cc -std=c17 -DFUZZ_EPOCH_SEEDS -D_POSIX_C_SOURCE=200809L -Icommon -Ishaders -Iproto \
+ *   cc -std=c17 -DFUZZ_EPOCH_SEEDS -D_POSIX_C_SOURCE=200809L -Icommon -Ishaders -Iproto -Itests \
  *      tests/fuzz/fuzz_epoch.c proto/ocp_epoch.c proto/ocp_wire.c common/oc_*.c \
  *      -lzstd -lxxhash -lcjson -lpng -lm -lpthread -o /tmp/epoch_seeds && /tmp/epoch_seeds tests/fuzz/corpus/epoch */
 #include <stdint.h>
@@ -23,18 +23,7 @@
 #include "oc_state.h"
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
-
-static oc_key_t child(oc_key_t k, int i) { return (k << 3) | (oc_key_t)i; }
-
-static oc_node_t node(oc_key_t key, int kind, uint32_t brick, float slo, float shi, float tlo, float thi) {
-  oc_node_t n;
-  memset(&n, 0, sizeof n);
-  n.key = key;
-  n.kind = (uint8_t)kind;
-  n.brick_id = brick;
-  n.range[0].lo = slo, n.range[0].hi = shi, n.range[1].lo = tlo, n.range[1].hi = thi;
-  return n;
-}
+#include "state_fixture.h" /* child, node, golden_codes, golden_state */
 
 static void codes(uint32_t id, int tau_zero, oc_brick_codes_t *c) {
   for (int ch = 0; ch < OC_CHANNELS; ch++)

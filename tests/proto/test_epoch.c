@@ -18,22 +18,11 @@
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
 #include "test_util.h" /* rng_u64 */
+#include "state_fixture.h" /* child, node, golden_codes, golden_state */
 
 #define VERSION OCP_VERSION_MAX
 
 /*-*** States ***/
-
-static oc_key_t child(oc_key_t k, int i) { return (k << 3) | (oc_key_t)i; }
-
-static oc_node_t node(oc_key_t key, int kind, uint32_t brick, float slo, float shi, float tlo, float thi) {
-  oc_node_t n;
-  memset(&n, 0, sizeof n);
-  n.key = key;
-  n.kind = (uint8_t)kind;
-  n.brick_id = brick;
-  n.range[0].lo = slo, n.range[0].hi = shi, n.range[1].lo = tlo, n.range[1].hi = thi;
-  return n;
-}
 
 /* Smooth-ish codes with a little hashed noise, like a real field: gradients along x, y and z. */
 static void smooth_codes(uint32_t seed, oc_brick_codes_t *c) {
@@ -51,45 +40,6 @@ static void smooth_codes(uint32_t seed, oc_brick_codes_t *c) {
 static void zero_channels(const oc_node_t *n, oc_brick_codes_t *c) {
   for (int ch = 0; ch < OC_CHANNELS; ch++)
     if (n->range[ch].hi == 0.0f) memset(c->code[ch], 0, sizeof c->code[ch]);
-}
-
-/* The golden state of tests/common/test_state.c: 15 leaves, bricks 3, 7, 42. */
-static void golden_state(oc_state_t *s) {
-  oc_brick_codes_t c;
-  oc_state_init(s);
-  s->epoch = 42;
-  s->time = 1234.5;
-  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
-  oc_key_t r = OC_KEY_ROOT, c7 = child(r, 7);
-  oc_node_t n = node(child(r, 0), OC_NODE_EMPTY, 0, 0, 0, 0, 0);
-  oc_state_add_node(s, &n);
-  n = node(child(r, 1), OC_NODE_UNIFORM, 0, 0.01f, 0.01f, 2.0f, 2.0f);
-  oc_state_add_node(s, &n);
-  n = node(child(r, 2), OC_NODE_UNIFORM, 0, 0.0f, 0.0f, 0.5f, 0.5f);
-  oc_state_add_node(s, &n);
-  n = node(child(r, 3), OC_NODE_BRICK, 7, 1e-6f, 10.0f, 0.001f, 30.0f);
-  oc_state_add_node(s, &n);
-  for (int i = 4; i < 7; i++) {
-    n = node(child(r, i), OC_NODE_UNIFORM, 0, 0.001f * (float)i, 0.001f * (float)i, 0.0f, 0.0f);
-    oc_state_add_node(s, &n);
-  }
-  for (int i = 0; i < 8; i++) {
-    if (i == 0)
-      n = node(child(c7, i), OC_NODE_BRICK, 3, 0.25f, 0.5f, 0.0f, 0.0f);
-    else if (i == 7)
-      n = node(child(c7, i), OC_NODE_BRICK, 42, 0.125f, 0.125f, 1.0f, 4.0f);
-    else
-      n = node(child(c7, i), OC_NODE_EMPTY, 0, 0, 0, 0, 0);
-    oc_state_add_node(s, &n);
-  }
-  for (uint32_t id = 3; id <= 42; id++) {
-    if (id != 3 && id != 7 && id != 42) continue;
-    for (int ch = 0; ch < OC_CHANNELS; ch++)
-      for (uint32_t v = 0; v < OC_BRICK_VOXELS; v++) c.code[ch][v] = (uint16_t)((v * 131u + (uint32_t)ch * 7919u + id * 17u) % 65536u);
-    if (id == 3) memset(c.code[1], 0, sizeof c.code[1]); /* brick 3's τ channel is zero */
-    oc_state_add_brick(s, id, &c);
-  }
-  oc_state_canonicalize(s);
 }
 
 static const float range_set[] = {1e-4f, 0.003f, 0.02f, 0.125f, 0.5f, 1.0f, 3.0f, 12.0f};
