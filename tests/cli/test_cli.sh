@@ -91,6 +91,9 @@ check "bench: renders" 0 "" -- "$B" render --size 16x9 --repeat 1 --threads 1,2
 grep -q "identical" "$tmp/out" || { echo "FAIL bench: thread counts not reported identical"; fail=$((fail + 1)); }
 check "bench: world, bad viewers" 2 "--viewers" -- "$B" world --viewers 0
 check "bench: plan, bad repeat" 2 "--repeat: 0 is outside" -- "$B" plan --repeat 0
+check "bench: wire, bad epochs" 2 "--epochs: 0 is outside" -- "$B" wire --epochs 0
+check "bench: wire, bad level" 2 "--level: 30 is outside" -- "$B" wire --level 30
+check "bench: wire, unknown option" 2 "wire: unknown or incomplete option" -- "$B" wire --bogus
 check "bench: tau, bad level" 2 "--level: 30 is outside" -- "$B" tau --level 30
 check "bench: tau, bad place" 2 "--at: expected LAT,LON" -- "$B" tau --at 100,0
 check "bench: steps the world" 0 "" -- "$B" world --scene scenes/analytic_sphere.json --epochs 2 --budget 2 --threads 2
