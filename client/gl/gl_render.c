@@ -1,0 +1,214 @@
+/* gl_render.c — the raymarch compute pass: oc_render_state()'s model on the GPU
+ * (shaders/raymarch.comp.glsl), same description, same defaults, same output (linear radiance and
+ * cloud transmittance, before tone mapping).
+ *
+ * Everything the shader needs in double precision is reduced here, per camera, to quantities that
+ * are exact or small in float (design.md, Conventions): the camera's level-21 cell (integers) and the
+ * offset inside it, |o|² - R² for the spheres, o·sun, and o split into two floats for o·d. */
+#include <epoxy/gl.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "oc_err.h"
+#include "oc_planet.h"
+#include "ocv_gl.h"
+
+_Static_assert(sizeof(ocg_atmosphere) == 96, "ocg_atmosphere is the std140 block of the shader");
+
+#define OCV__KERNEL "raymarch.comp.glsl"
+#define OCV__GROUP 8 /* local_size_x/y of the kernel */
+
+struct ocv_gl_renderer_s {
+  GLuint prog;
+  GLuint atmo_ubo;
+  GLuint tab[OC_ATMO_TABLE_COUNT];
+  const oc_atmo_t *atmo; /* whose tables tab[] hold */
+  GLuint out;
+  size_t out_bytes;
+};
+
+static void ocv__setf(char *dst, size_t n, const char *fmt, ...) {
+  if (!dst || !n) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(dst, n, fmt, ap);
+  va_end(ap);
+}
+
+ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
+  ocv_gl_renderer_t *r = calloc(1, sizeof *r);
+  if (!r) {
+    ocv__setf(why, why_len, "out of memory");
+    return NULL;
+  }
+  char defines[512];
+  /* The flag bits and constants the kernel shares with oc_render.c, from their one definition. */
+  snprintf(defines, sizeof defines,
+           "#define OCV_RF_NO_AMBIENT %uu\n#define OCV_RF_NO_SUN_DISC %uu\n#define OCV_RF_JITTER %uu\n"
+           "#define OCV_LOCATE_EPS 1e-4\n#define OCV_MAX_STEPS 200000\n",
+           (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER);
+  r->prog = ocv_gl_compute_program(OCV__KERNEL, defines, why, why_len);
+  if (!r->prog) {
+    free(r);
+    return NULL;
+  }
+  ocg_atmosphere zero;
+  memset(&zero, 0, sizeof zero);
+  glCreateBuffers(1, &r->atmo_ubo);
+  glNamedBufferStorage(r->atmo_ubo, sizeof zero, &zero, GL_DYNAMIC_STORAGE_BIT);
+  return r;
+}
+
+static void ocv__drop_tables(ocv_gl_renderer_t *r) {
+  for (int k = 0; k < OC_ATMO_TABLE_COUNT; k++)
+    if (r->tab[k]) glDeleteTextures(1, &r->tab[k]);
+  memset(r->tab, 0, sizeof r->tab);
+  r->atmo = NULL;
+}
+
+void ocv_gl_renderer_free(ocv_gl_renderer_t *r) {
+  if (!r) return;
+  ocv__drop_tables(r);
+  if (r->atmo_ubo) glDeleteBuffers(1, &r->atmo_ubo);
+  if (r->out) glDeleteBuffers(1, &r->out);
+  if (r->prog) glDeleteProgram(r->prog);
+  free(r);
+}
+
+/* The four tables as RGBA32F textures, sampled with texelFetch (the shader interpolates exactly as
+ * oc_atmo's look-ups do, rather than trusting the hardware's filter weights). */
+static int ocv__upload_tables(ocv_gl_renderer_t *r, const oc_atmo_t *a) {
+  if (r->atmo == a) return 0;
+  ocv__drop_tables(r);
+  for (int k = 0; k < OC_ATMO_TABLE_COUNT; k++) {
+    int w = 0, h = 0;
+    const float *px = NULL;
+    if (oc_atmo_table(a, k, &w, &h, &px) < 0) return OC_EINVAL;
+    glCreateTextures(GL_TEXTURE_2D, 1, &r->tab[k]);
+    glTextureParameteri(r->tab[k], GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTextureParameteri(r->tab[k], GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTextureStorage2D(r->tab[k], 1, GL_RGBA32F, w, h);
+    glTextureSubImage2D(r->tab[k], 0, 0, 0, w, h, GL_RGBA, GL_FLOAT, px);
+  }
+  glNamedBufferSubData(r->atmo_ubo, 0, sizeof(ocg_atmosphere), oc_atmo_params(a));
+  r->atmo = a;
+  return 0;
+}
+
+static int ocv__bad(char *why, size_t wl, const char *field) {
+  ocv__setf(why, wl, "gl render: invalid %s", field);
+  return OC_EINVAL;
+}
+
+int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
+                        char *why, size_t why_len) {
+  if (!r || !gs || !desc || !img || !img->px) return ocv__bad(why, why_len, "argument (NULL)");
+  oc_render_desc_t d = *desc;
+  /* The defaults and checks of oc_render_state(). */
+  if (d.width <= 0 || d.height <= 0 || img->w != d.width || img->h != d.height) return ocv__bad(why, why_len, "size");
+  if (!(d.camera.vfov_deg > 0.0 && d.camera.vfov_deg < 180.0)) return ocv__bad(why, why_len, "camera fov");
+  if (d.step_factor == 0.0) d.step_factor = OC_RENDER_DEFAULT_STEP_FACTOR;
+  if (!(d.step_factor > 0.0 && d.step_factor <= 1e6)) return ocv__bad(why, why_len, "step_factor (0, 1e6]");
+  if (d.air_steps == 0) d.air_steps = OC_RENDER_DEFAULT_AIR_STEPS;
+  if (d.air_steps < 1 || d.air_steps > 1 << 20) return ocv__bad(why, why_len, "air_steps");
+  if (d.exit_t == 0.0) d.exit_t = OC_RENDER_DEFAULT_EXIT_T;
+  if (d.flags & OC_RF_NO_EARLY_EXIT) d.exit_t = -1.0;
+  if (d.ms_octaves == 0) d.ms_octaves = OC_RENDER_DEFAULT_MS_OCTAVES;
+  if (d.ms_octaves < 1 || d.ms_octaves > 16) return ocv__bad(why, why_len, "ms_octaves [1, 16]");
+  if (d.ms_a == 0.0f) d.ms_a = 0.5f;
+  if (d.ms_b == 0.0f) d.ms_b = 0.5f;
+  if (d.ms_c == 0.0f) d.ms_c = 0.5f;
+  if (d.albedo == 0.0f) d.albedo = 1.0f;
+  if (d.albedo_zero) d.albedo = 0.0f;
+  if (!(d.albedo >= 0.0f && d.albedo <= 1.0f)) return ocv__bad(why, why_len, "albedo [0, 1]");
+  if (d.sun_irradiance == 0.0f) d.sun_irradiance = 1.0f;
+
+  int have_atmo = d.background != OC_BG_CONSTANT && !(d.flags & OC_RF_NO_ATMOSPHERE);
+  if (have_atmo && !d.atmo) return ocv__bad(why, why_len, "atmo (required with an atmosphere)");
+  double air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT, bottom = OC_PLANET_RADIUS;
+  ocg_vec3 sun_e = ocg_v3s(d.sun_irradiance);
+  if (have_atmo) {
+    const ocg_atmosphere *ap = oc_atmo_params(d.atmo);
+    air_top = ap->top_radius;
+    bottom = ap->bottom_radius;
+    sun_e = ocg_scale3(ap->solar_irradiance, d.sun_irradiance);
+    if (ocv__upload_tables(r, d.atmo) < 0) return ocv__bad(why, why_len, "atmo tables");
+  }
+  double ground_r = (d.background == OC_BG_CONSTANT || (d.flags & OC_RF_NO_PLANET)) ? 0.0 : bottom;
+
+  /* Camera: its level-21 cell in integers and the offset inside it. */
+  const oc_dvec3 o = d.camera.pos;
+  const double cell = OC_CELL21_SIZE;
+  double oo[3] = {o.x, o.y, o.z}, fr[3];
+  int ic[3];
+  for (int i = 0; i < 3; i++) {
+    double c = floor((oo[i] + OC_ROOT_HALF) / cell);
+    if (!(fabs(c) < 1e9)) return ocv__bad(why, why_len, "camera position");
+    ic[i] = (int)c;
+    fr[i] = (oo[i] + OC_ROOT_HALF) - c * cell;
+  }
+  double r2 = oc_ddot(o, o);
+  oc_dvec3 sun = gs->sun_dir;
+  float hi[3] = {(float)o.x, (float)o.y, (float)o.z};
+  float lo[3] = {(float)(o.x - hi[0]), (float)(o.y - hi[1]), (float)(o.z - hi[2])};
+  double tn = tan(0.5 * d.camera.vfov_deg * OC_DEG);
+
+  GLuint p = r->prog;
+  glProgramUniform3i(p, 0, ic[0], ic[1], ic[2]);
+  glProgramUniform3f(p, 1, (float)fr[0], (float)fr[1], (float)fr[2]);
+  glProgramUniform3f(p, 2, hi[0], hi[1], hi[2]);
+  glProgramUniform3f(p, 3, lo[0], lo[1], lo[2]);
+  glProgramUniform1f(p, 4, (float)r2);
+  glProgramUniform3f(p, 5, (float)d.camera.forward.x, (float)d.camera.forward.y, (float)d.camera.forward.z);
+  glProgramUniform3f(p, 6, (float)d.camera.right.x, (float)d.camera.right.y, (float)d.camera.right.z);
+  glProgramUniform3f(p, 7, (float)d.camera.up.x, (float)d.camera.up.y, (float)d.camera.up.z);
+  glProgramUniform2f(p, 8, (float)(tn * ((double)d.width / d.height)), (float)tn);
+  glProgramUniform2i(p, 9, d.width, d.height);
+  glProgramUniform3f(p, 10, (float)sun.x, (float)sun.y, (float)sun.z);
+  glProgramUniform1f(p, 11, (float)oc_ddot(o, sun));
+  glProgramUniform1f(p, 12, (float)cell);
+  glProgramUniform1f(p, 13, (float)d.step_factor);
+  glProgramUniform1i(p, 14, d.air_steps);
+  glProgramUniform1f(p, 15, (float)d.exit_t);
+  glProgramUniform1i(p, 16, d.ms_octaves);
+  glProgramUniform3f(p, 17, d.ms_a, d.ms_b, d.ms_c);
+  glProgramUniform1f(p, 18, d.albedo);
+  glProgramUniform3f(p, 19, sun_e.x, sun_e.y, sun_e.z);
+  glProgramUniform1ui(p, 20, d.flags);
+  glProgramUniform1ui(p, 21, d.frame);
+  glProgramUniform1i(p, 22, have_atmo);
+  glProgramUniform1f(p, 23, (float)ground_r);
+  glProgramUniform1i(p, 24, d.background == OC_BG_CONSTANT);
+  glProgramUniform1f(p, 25, d.background_radiance);
+  glProgramUniform1f(p, 26, (float)(r2 - ground_r * ground_r));
+  glProgramUniform1f(p, 27, (float)(r2 - air_top * air_top));
+  glProgramUniform3i(p, 28, gs->atlas_bricks[0], gs->atlas_bricks[1], gs->atlas_bricks[2]);
+
+  size_t bytes = (size_t)d.width * (size_t)d.height * 4 * sizeof(float);
+  if (bytes != r->out_bytes) {
+    if (r->out) glDeleteBuffers(1, &r->out);
+    glCreateBuffers(1, &r->out);
+    glNamedBufferStorage(r->out, (GLsizeiptr)bytes, NULL, 0);
+    r->out_bytes = bytes;
+  }
+  glUseProgram(p);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, r->out);
+  glBindBufferBase(GL_UNIFORM_BUFFER, 0, r->atmo_ubo);
+  glBindTextureUnit(0, gs->atlas);
+  for (int k = 0; k < OC_ATMO_TABLE_COUNT; k++) glBindTextureUnit((GLuint)(1 + k), have_atmo ? r->tab[k] : 0);
+  glDispatchCompute((GLuint)((d.width + OCV__GROUP - 1) / OCV__GROUP), (GLuint)((d.height + OCV__GROUP - 1) / OCV__GROUP), 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glGetNamedBufferSubData(r->out, 0, (GLsizeiptr)bytes, img->px);
+  glUseProgram(0);
+  GLenum err = glGetError();
+  if (err != GL_NO_ERROR) {
+    ocv__setf(why, why_len, "gl render: GL error 0x%x", (unsigned)err);
+    return OC_EIO;
+  }
+  return 0;
+}

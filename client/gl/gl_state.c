@@ -1,0 +1,187 @@
+/* gl_state.c — the GPU copy of a state: brick atlas, pointer octree, leaf records (README.md).
+ *
+ * The state's leaves are a linear octree in key order, which is not depth-first order across levels,
+ * so the shader cannot binary-search it cheaply. Instead the CPU builds a pointer octree from the
+ * leaves: each interior node holds 8 child references and the shader descends from the root with
+ * the integer level-21 cell of a point, one level per step, never touching a float position. */
+#include <epoxy/gl.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "oc_err.h"
+#include "ocv_gl.h"
+
+#define OCV__LEAF_BIT 0x80000000u
+#define OCV__UNSET 0xFFFFFFFFu
+#define OCV__NO_SLOT 0xFFFFFFFFu
+
+static void ocv__setf(char *dst, size_t n, const char *fmt, ...) {
+  if (!dst || !n) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(dst, n, fmt, ap);
+  va_end(ap);
+}
+
+/* The leaf record as the shader reads it (std430: vec4 then uvec4, 32 bytes). */
+typedef struct {
+  float range[4];   /* σt lo, hi, τ lo, hi */
+  uint32_t info[4]; /* kind, atlas slot (OCV__NO_SLOT unless a brick), level, 0 */
+} ocv__leaf_rec_t;
+_Static_assert(sizeof(ocv__leaf_rec_t) == OCV_GL_LEAF_BYTES, "leaf record is 32 bytes");
+
+typedef struct {
+  uint32_t *w; /* word 0: root reference; then 8 words per interior node */
+  uint32_t inner, cap;
+} ocv__tree_t;
+
+static int ocv__tree_new_inner(ocv__tree_t *t, uint32_t *idx) {
+  if (t->inner == t->cap) {
+    uint32_t cap = t->cap ? t->cap * 2 : 1024;
+    uint32_t *w = realloc(t->w, (1 + (size_t)cap * 8) * sizeof *w);
+    if (!w) return OC_ENOMEM;
+    t->w = w;
+    t->cap = cap;
+  }
+  *idx = t->inner++;
+  for (int c = 0; c < 8; c++) t->w[1 + (size_t)*idx * 8 + (size_t)c] = OCV__UNSET;
+  return 0;
+}
+
+/* Inserts leaf i (key) below the root, creating interior nodes on the way. */
+static int ocv__tree_insert(ocv__tree_t *t, oc_key_t key, uint32_t leaf) {
+  int level = oc_key_level(key);
+  if (level < 0) return OC_ECORRUPT;
+  if (level == 0) {
+    if (t->w[0] != OCV__UNSET) return OC_ECORRUPT;
+    t->w[0] = OCV__LEAF_BIT | leaf;
+    return 0;
+  }
+  uint32_t ix, iy, iz;
+  oc_key_coords(key, &ix, &iy, &iz);
+  if (t->w[0] == OCV__UNSET) {
+    uint32_t root;
+    int rc = ocv__tree_new_inner(t, &root);
+    if (rc) return rc;
+    t->w[0] = root;
+  }
+  if (t->w[0] & OCV__LEAF_BIT) return OC_ECORRUPT;
+  uint32_t cur = t->w[0];
+  for (int l = 1; l <= level; l++) {
+    int sh = level - l;
+    uint32_t c = ((ix >> sh) & 1u) | (((iy >> sh) & 1u) << 1) | (((iz >> sh) & 1u) << 2);
+    size_t slot = 1 + (size_t)cur * 8 + c;
+    if (l == level) {
+      if (t->w[slot] != OCV__UNSET) return OC_ECORRUPT;
+      t->w[slot] = OCV__LEAF_BIT | leaf;
+      return 0;
+    }
+    if (t->w[slot] == OCV__UNSET) {
+      uint32_t child;
+      int rc = ocv__tree_new_inner(t, &child); /* may move t->w */
+      if (rc) return rc;
+      t->w[slot] = child;
+    }
+    if (t->w[slot] & OCV__LEAF_BIT) return OC_ECORRUPT; /* a leaf with descendants */
+    cur = t->w[slot];
+  }
+  return 0;
+}
+
+void ocv_gl_state_free(ocv_gl_state_t *gs) {
+  if (!gs) return;
+  if (gs->atlas) glDeleteTextures(1, &gs->atlas);
+  if (gs->tree) glDeleteBuffers(1, &gs->tree);
+  if (gs->leaves) glDeleteBuffers(1, &gs->leaves);
+  memset(gs, 0, sizeof *gs);
+}
+
+int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size_t why_len) {
+  memset(gs, 0, sizeof *gs);
+  if (!s || s->node_count == 0) {
+    ocv__setf(why, why_len, "gl state: empty state");
+    return OC_EINVAL;
+  }
+  gs->sun_dir = s->sun_dir;
+  gs->leaf_count = s->node_count;
+  gs->brick_count = s->brick_count;
+
+  /* Atlas shape: bricks per axis within GL_MAX_3D_TEXTURE_SIZE. */
+  GLint max3d = 0;
+  glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+  uint32_t per = (uint32_t)(max3d > 0 ? max3d : 256) / 8u, n = s->brick_count ? s->brick_count : 1;
+  uint32_t bx = n < per ? n : per, by = (n + bx - 1) / bx;
+  if (by > per) by = per;
+  uint32_t bz = (n + bx * by - 1) / (bx * by);
+  if (bz > per) {
+    ocv__setf(why, why_len, "gl state: %u bricks exceed a %d³ atlas", s->brick_count, max3d);
+    return OC_ETOOBIG;
+  }
+  gs->atlas_bricks[0] = (int)bx;
+  gs->atlas_bricks[1] = (int)by;
+  gs->atlas_bricks[2] = (int)bz;
+
+  ocv__leaf_rec_t *rec = calloc(s->node_count, sizeof *rec);
+  ocv__tree_t t = {0};
+  uint16_t *texels = malloc(512 * 2 * sizeof *texels);
+  int rc = rec && texels && (t.w = malloc(sizeof *t.w)) ? 0 : OC_ENOMEM;
+  if (!rc) t.w[0] = OCV__UNSET;
+  for (uint32_t i = 0; !rc && i < s->node_count; i++) {
+    const oc_node_t *nd = &s->nodes[i];
+    rec[i].range[0] = nd->range[OC_CH_SIGMA].lo;
+    rec[i].range[1] = nd->range[OC_CH_SIGMA].hi;
+    rec[i].range[2] = nd->range[OC_CH_TAU].lo;
+    rec[i].range[3] = nd->range[OC_CH_TAU].hi;
+    rec[i].info[0] = nd->kind;
+    rec[i].info[1] = OCV__NO_SLOT;
+    rec[i].info[2] = (uint32_t)oc_key_level(nd->key);
+    if (nd->kind == OC_NODE_BRICK) {
+      const oc_brick_t *b = oc_state_find_brick(s, nd->brick_id);
+      if (!b) rc = OC_ECORRUPT;
+      else rec[i].info[1] = (uint32_t)(b - s->bricks); /* slot = the brick's index (ascending id) */
+    }
+    if (!rc) rc = ocv__tree_insert(&t, nd->key, i);
+  }
+  for (size_t w = 0; !rc && w < 1 + (size_t)t.inner * 8; w++)
+    if (t.w[w] == OCV__UNSET) rc = OC_ECORRUPT; /* a hole: the leaves do not cover the cube */
+  if (rc) {
+    ocv__setf(why, why_len, rc == OC_ENOMEM ? "gl state: out of memory" : "gl state: leaves do not partition the root cube");
+    goto out;
+  }
+  gs->inner_count = t.inner;
+
+  glCreateBuffers(1, &gs->tree);
+  glNamedBufferStorage(gs->tree, (GLsizeiptr)((1 + (size_t)t.inner * 8) * sizeof *t.w), t.w, 0);
+  glCreateBuffers(1, &gs->leaves);
+  glNamedBufferStorage(gs->leaves, (GLsizeiptr)((size_t)s->node_count * sizeof *rec), rec, 0);
+
+  glCreateTextures(GL_TEXTURE_3D, 1, &gs->atlas);
+  glTextureParameteri(gs->atlas, GL_TEXTURE_MIN_FILTER, GL_NEAREST); /* integer texture: texelFetch only */
+  glTextureParameteri(gs->atlas, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTextureStorage3D(gs->atlas, 1, GL_RG16UI, (GLsizei)(bx * 8), (GLsizei)(by * 8), (GLsizei)(bz * 8));
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  for (uint32_t k = 0; k < s->brick_count; k++) {
+    const oc_brick_t *b = &s->bricks[k];
+    for (int v = 0; v < 512; v++) {
+      texels[2 * v] = b->codes.code[OC_CH_SIGMA][v];
+      texels[2 * v + 1] = b->codes.code[OC_CH_TAU][v];
+    }
+    glTextureSubImage3D(gs->atlas, 0, (GLint)(k % bx * 8), (GLint)(k / bx % by * 8), (GLint)(k / (bx * by) * 8), 8, 8, 8,
+                        GL_RG_INTEGER, GL_UNSIGNED_SHORT, texels);
+  }
+  gs->resident_bytes = (uint64_t)bx * by * bz * OCV_GL_SLOT_BYTES + (uint64_t)s->node_count * OCV_GL_LEAF_BYTES +
+                       (4 + (uint64_t)t.inner * OCV_GL_INNER_BYTES);
+  GLenum err = glGetError();
+  if (err != GL_NO_ERROR) {
+    ocv__setf(why, why_len, "gl state: upload failed (GL error 0x%x)", (unsigned)err);
+    rc = OC_ENOMEM;
+  }
+out:
+  free(rec);
+  free(t.w);
+  free(texels);
+  if (rc) ocv_gl_state_free(gs);
+  return rc;
+}

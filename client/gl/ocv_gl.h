@@ -1,0 +1,84 @@
+/* ocv_gl.h — the viewer's GL renderer: headless context, GLSL programs from the shared headers,
+ * GPU copy of a state, and the raymarch compute pass that reproduces the CPU reference renderer
+ * (common/oc_render.c) on the GPU. See client/gl/README.md for the GPU data layout.
+ *
+ * Threads: every call but ocv_gl_shader_dir() must be made on the thread that made the context
+ * current (ocv_gl_context_init). Errors: negative OC_E* codes with a one-line reason in `why`. */
+#ifndef OC_CLIENT_GL_H
+#define OC_CLIENT_GL_H
+
+#include <epoxy/gl.h> /* GLuint; libepoxy, never <GL/gl.h> */
+#include <stddef.h>
+#include <stdint.h>
+
+#include "oc_render.h" /* oc_render_desc_t, oc_image_t, oc_state_t */
+
+/* ---- Context (gl_context.c) ------------------------------------------------------------------------ */
+
+typedef struct ocv_gl_context_s ocv_gl_context_t;
+
+/*! ocv_gl_context_init() : a headless OpenGL 4.5 core context, current on this thread. EGL platforms
+ *  tried in order: surfaceless Mesa (llvmpipe, no X server), each EGL device (NVIDIA), the default
+ *  display. @return the context, or NULL with why naming each platform's failure. */
+ocv_gl_context_t *ocv_gl_context_init(char *why, size_t why_len);
+/*! ocv_gl_context_free() : releases the context (NULL is fine). The EGL display is not terminated:
+ *  Mesa would dlclose its driver and leak-check tools could no longer name its allocations. */
+void ocv_gl_context_free(ocv_gl_context_t *c);
+/*! ocv_gl_context_platform() : which EGL platform worked ("EGL_PLATFORM_SURFACELESS_MESA", ...). */
+const char *ocv_gl_context_platform(const ocv_gl_context_t *c);
+/*! ocv_gl_context_describe() : "vendor | renderer | version | via platform" into out. */
+void ocv_gl_context_describe(const ocv_gl_context_t *c, char *out, size_t cap);
+
+/* ---- Programs (gl_program.c) ------------------------------------------------------------------------ */
+
+/*! ocv_gl_shader_dir() : $OC_SHADER_DIR if set, else the build's OC_SHADER_DIR. */
+const char *ocv_gl_shader_dir(void);
+/*! ocv_gl_compute_program() : "#version 450", "#define OC_GLSL", `defines` (may be NULL), then the
+ *  shared headers oc_port.h, sampling.h, optics.h, brick.h, atmosphere.h and the kernel file, all
+ *  read from the shader directory, compiled and linked as a compute program. Compiler messages are
+ *  rewritten to name the file and line ("shaders/optics.h:12(5): error: ...").
+ *  @return the program, or 0 with the (translated) log or the read error in why. */
+GLuint ocv_gl_compute_program(const char *kernel, const char *defines, char *why, size_t why_len);
+
+/* ---- GPU state (gl_state.c) ------------------------------------------------------------------------- */
+
+/*! GPU bytes per node record (std430 leaf record) and per interior node of the pointer octree. */
+#define OCV_GL_LEAF_BYTES 32u
+#define OCV_GL_INNER_BYTES 32u
+/*! GPU bytes per brick slot in the atlas: 8³ texels of RG16UI. */
+#define OCV_GL_SLOT_BYTES (512u * 4u)
+
+typedef struct {
+  GLuint atlas;         /**< GL_TEXTURE_3D, RG16UI: (σt code, τ code) per sample; 0 without bricks */
+  int atlas_bricks[3];  /**< bricks per axis; brick slot s sits at (s % x, s / x % y, s / (x·y)) · 8 */
+  GLuint tree;          /**< SSBO of uint: word 0 the root reference, then 8 child references per interior node */
+  GLuint leaves;        /**< SSBO of leaf records (README.md) */
+  uint32_t inner_count; /**< interior nodes of the pointer octree */
+  uint32_t leaf_count;  /**< = the state's node_count */
+  uint32_t brick_count;
+  uint64_t resident_bytes; /**< atlas + tree + leaf records actually allocated on the GPU */
+  oc_dvec3 sun_dir;        /**< the state's sun */
+} ocv_gl_state_t;
+
+/*! ocv_gl_state_upload() : the GPU copy of a validated state (gs is overwritten; free it first if it
+ *  held one). @return 0, OC_ETOOBIG (atlas larger than GL_MAX_3D_TEXTURE_SIZE allows), OC_ENOMEM, or
+ *  OC_ECORRUPT for leaves that do not partition the root cube. */
+int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size_t why_len);
+void ocv_gl_state_free(ocv_gl_state_t *gs);
+
+/* ---- Raymarch (gl_render.c) --------------------------------------------------------------------------- */
+
+typedef struct ocv_gl_renderer_s ocv_gl_renderer_t;
+
+/*! ocv_gl_renderer_create() : compiles shaders/raymarch.comp.glsl. @return NULL with why on failure. */
+ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len);
+void ocv_gl_renderer_free(ocv_gl_renderer_t *r);
+
+/*! ocv_gl_render_state() : renders gs with the model of oc_render_state() (same desc, same defaults
+ *  and checks; desc->threads is ignored) into img (w×h of desc): linear RGB radiance and cloud
+ *  transmittance, before tone mapping. The atmosphere tables of desc->atmo are uploaded on first use
+ *  and kept while the same tables are passed. @return 0, or OC_EINVAL / OC_ENOMEM / OC_EIO with why. */
+int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
+                        char *why, size_t why_len);
+
+#endif /* OC_CLIENT_GL_H */

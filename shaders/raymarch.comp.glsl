@@ -1,0 +1,363 @@
+/* raymarch.comp.glsl — one state raymarched per pixel: the integral of oc__trace in
+ * common/oc_render.c, step for step, with the same shared functions (ocg_*).
+ *
+ * Assembled after oc_port.h, sampling.h, optics.h, brick.h and atmosphere.h by client/gl/gl_program.c;
+ * the OCV_* constants come from client/gl/gl_render.c. GPU data layout: client/gl/README.md.
+ *
+ * Positions (design.md, Conventions): the shader never holds an absolute planet coordinate in float.
+ * A point is its distance t along the ray from the camera, or the offset `rel` from the origin of the
+ * camera's level-21 cell (u_cam_cell, integers; u_cam_frac, metres). Its level-21 cell is
+ * u_cam_cell + floor(rel / cell) in integers, so the octree descent is exact, and a node's origin is
+ * an integer cell difference times the cell size. Radii and sun cosines come from t and per-camera
+ * constants the CPU computed in double (|o|², o·d split in two floats, o·sun), not from |o + t·d|. */
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+struct OcLeaf {
+  vec4 range; /* σt lo, hi, τ lo, hi */
+  uvec4 info; /* kind, atlas slot, level, 0 */
+};
+layout(std430, binding = 0) readonly buffer OcTree { uint oc_tree[]; };
+layout(std430, binding = 1) readonly buffer OcLeaves { OcLeaf oc_leaf[]; };
+layout(std430, binding = 2) writeonly buffer OcOut { vec4 oc_out[]; };
+layout(std140, binding = 0) uniform OcAtmo { ocg_atmosphere u_atm; };
+
+layout(binding = 0) uniform usampler3D u_atlas;
+layout(binding = 1) uniform sampler2D u_tab_transmittance;
+layout(binding = 2) uniform sampler2D u_tab_multiscatter;
+layout(binding = 3) uniform sampler2D u_tab_irradiance;
+layout(binding = 4) uniform sampler2D u_tab_fluence;
+
+layout(location = 0) uniform ivec3 u_cam_cell;   /* camera's level-21 cell */
+layout(location = 1) uniform vec3 u_cam_frac;    /* camera - that cell's origin, m */
+layout(location = 2) uniform vec3 u_cam_hi;      /* camera (planet frame) = hi + lo: only for o·d */
+layout(location = 3) uniform vec3 u_cam_lo;
+layout(location = 4) uniform float u_cam_r2;     /* |o|², m² */
+layout(location = 5) uniform vec3 u_fwd;
+layout(location = 6) uniform vec3 u_right;
+layout(location = 7) uniform vec3 u_up;
+layout(location = 8) uniform vec2 u_tan;         /* tan(fov/2)·aspect, tan(fov/2) */
+layout(location = 9) uniform ivec2 u_size;
+layout(location = 10) uniform vec3 u_sun;
+layout(location = 11) uniform float u_sun_o;     /* o·sun, m */
+layout(location = 12) uniform float u_cell;      /* level-21 cell edge, m */
+layout(location = 13) uniform float u_step_factor;
+layout(location = 14) uniform int u_air_steps;
+layout(location = 15) uniform float u_exit_t;    /* <= 0: no early exit */
+layout(location = 16) uniform int u_ms_octaves;
+layout(location = 17) uniform vec3 u_ms;         /* a, b, c */
+layout(location = 18) uniform float u_albedo;
+layout(location = 19) uniform vec3 u_sun_e;
+layout(location = 20) uniform uint u_flags;
+layout(location = 21) uniform uint u_frame;
+layout(location = 22) uniform int u_have_atmo;
+layout(location = 23) uniform float u_ground_r;  /* 0: no planet */
+layout(location = 24) uniform int u_bg_constant;
+layout(location = 25) uniform float u_bg_radiance;
+layout(location = 26) uniform float u_c_ground;  /* |o|² - ground_r², m² */
+layout(location = 27) uniform float u_c_top;     /* |o|² - air_top², m² */
+layout(location = 28) uniform ivec3 u_atlas_bricks;
+
+#define OCV_LEAF_BIT 0x80000000u
+#define OCV_NO_SLOT 0xFFFFFFFFu
+#define OCV_CELLS21 (1 << 21)
+#define OCV_BIG 1e30
+
+struct OcvLeaf {
+  int idx;      /* -1 outside the root cube */
+  ivec3 lo;     /* level-21 cell of the node's origin */
+  int cells;    /* edge in level-21 cells */
+  vec3 origin;  /* relative to the camera cell's origin, m */
+  float size;   /* m */
+};
+
+/* The leaf holding level-21 cell ic: descend the pointer octree one level per step. */
+OcvLeaf ocv_locate_cell(ivec3 ic) {
+  OcvLeaf lf;
+  lf.idx = -1;
+  lf.lo = ivec3(0);
+  lf.cells = OCV_CELLS21;
+  lf.origin = vec3(0.0);
+  lf.size = 0.0;
+  if (any(lessThan(ic, ivec3(0))) || any(greaterThanEqual(ic, ivec3(OCV_CELLS21)))) return lf;
+  uint ref = oc_tree[0];
+  int level = 0;
+  while ((ref & OCV_LEAF_BIT) == 0u && level < 21) {
+    level++;
+    uvec3 b = (uvec3(ic) >> uint(21 - level)) & 1u;
+    ref = oc_tree[1u + 8u * ref + (b.x | (b.y << 1) | (b.z << 2))];
+  }
+  lf.idx = int(ref & ~OCV_LEAF_BIT);
+  lf.cells = 1 << (21 - level);
+  lf.lo = (ic >> (21 - level)) << (21 - level);
+  lf.origin = vec3(lf.lo - u_cam_cell) * u_cell;
+  lf.size = float(lf.cells) * u_cell;
+  return lf;
+}
+
+ivec3 ocv_cell_of(vec3 rel) { return u_cam_cell + ivec3(floor(rel / u_cell)); }
+
+bool ocv_inside(OcvLeaf lf, ivec3 ic) {
+  return all(greaterThanEqual(ic, lf.lo)) && all(lessThan(ic, lf.lo + ivec3(lf.cells)));
+}
+
+/* σt and τ of a leaf at local position u ∈ [0,1]³: brick.h's reconstruction, as oc__leaf_channel. */
+vec2 ocv_leaf_sample(OcvLeaf lf, vec3 u) {
+  if (lf.idx < 0) return vec2(0.0);
+  OcLeaf L = oc_leaf[lf.idx];
+  if (L.info.x == 0u) return vec2(0.0);
+  if (L.info.x == 1u || L.info.y == OCV_NO_SLOT) return vec2(L.range.x, L.range.z);
+  uint s = L.info.y;
+  uint bx = uint(u_atlas_bricks.x), by = uint(u_atlas_bricks.y);
+  vec3 base = ocg_brick_base(u), f = ocg_brick_frac(u, base);
+  ivec3 at = ivec3(int(s % bx), int((s / bx) % by), int(s / (bx * by))) * 8 + ivec3(base);
+  float vs[8], vt[8];
+  for (int q = 0; q < 8; q++) {
+    uvec2 c = texelFetch(u_atlas, at + ivec3(q & 1, (q >> 1) & 1, q >> 2), 0).rg;
+    vs[q] = ocg_code_decode(c.x, L.range.x, L.range.y);
+    vt[q] = ocg_code_decode(c.y, L.range.z, L.range.w);
+  }
+  float sig = L.range.y == 0.0 ? 0.0 : ocg_trilerp(vec4(vs[0], vs[1], vs[2], vs[3]), vec4(vs[4], vs[5], vs[6], vs[7]), f);
+  float tau = L.range.w == 0.0 ? 0.0 : ocg_trilerp(vec4(vt[0], vt[1], vt[2], vt[3]), vec4(vt[4], vt[5], vt[6], vt[7]), f);
+  return vec2(sig, tau);
+}
+
+vec3 ocv_local(OcvLeaf lf, vec3 rel) { return (rel - lf.origin) / lf.size; }
+
+/* ---- Atmosphere tables: bilinear at texel centres, clamp to edge (oc_atmo_bake.c, oc__bilinear) ---- */
+
+vec3 ocv_bilinear(sampler2D tab, vec2 uv) {
+  ivec2 n = textureSize(tab, 0);
+  float x = clamp(uv.x * float(n.x) - 0.5, -1.0, float(n.x));
+  float y = clamp(uv.y * float(n.y) - 0.5, -1.0, float(n.y));
+  int i0 = int(floor(x)), j0 = int(floor(y));
+  float fx = x - float(i0), fy = y - float(j0);
+  int i1 = clamp(i0 + 1, 0, n.x - 1), j1 = clamp(j0 + 1, 0, n.y - 1);
+  i0 = clamp(i0, 0, n.x - 1);
+  j0 = clamp(j0, 0, n.y - 1);
+  vec3 a = texelFetch(tab, ivec2(i0, j0), 0).rgb, b = texelFetch(tab, ivec2(i1, j0), 0).rgb;
+  vec3 c = texelFetch(tab, ivec2(i0, j1), 0).rgb, d = texelFetch(tab, ivec2(i1, j1), 0).rgb;
+  return (1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d);
+}
+
+/* oc__atmo_sun_transmittance */
+vec3 ocv_atmo_sun_transmittance(float r, float mu_s) {
+  if (!ocg_isfinite(r) || !ocg_isfinite(mu_s)) return vec3(0.0);
+  mu_s = ocg_clamp_cos(mu_s);
+  r = max(r, u_atm.bottom_radius);
+  vec3 e = ocg_atmo_enter(u_atm, r, mu_s);
+  if (e.z == 0.0) return vec3(1.0);
+  float v = ocg_atmo_sun_visibility(u_atm, e.x, e.y);
+  if (!(v > 0.0)) return vec3(0.0);
+  return ocv_bilinear(u_tab_transmittance, ocg_atmo_transmittance_uv(u_atm, e.x, e.y)) * v;
+}
+
+vec3 ocv_atmo_rmus(sampler2D tab, float r, float mu_s) {
+  if (!ocg_isfinite(r) || !ocg_isfinite(mu_s)) return vec3(0.0);
+  ivec2 n = textureSize(tab, 0);
+  return ocv_bilinear(tab, ocg_atmo_rmus_uv(u_atm, r, mu_s, float(n.x), float(n.y)));
+}
+
+/* oc__sun_transmittance: with air the tables; without, the planet's hard shadow. */
+vec3 ocv_sun_transmittance(float r, float mu_s) {
+  if (u_have_atmo != 0) return ocv_atmo_sun_transmittance(r, mu_s);
+  if (u_ground_r > 0.0 && r > u_ground_r) {
+    float g = u_ground_r / r;
+    if (mu_s < -sqrt(max(0.0, 1.0 - g * g))) return vec3(0.0);
+  }
+  return vec3(1.0);
+}
+
+/* ---- Geometry -------------------------------------------------------------------------------------- */
+
+/* Ray–sphere about the planet centre from b = o·d and c = |o|² - R² (stable quadratic, as oc__ray_sphere). */
+bool ocv_ray_sphere(float b, float c, out float t0, out float t1) {
+  t0 = 0.0;
+  t1 = 0.0;
+  float disc = b * b - c;
+  if (disc < 0.0) return false;
+  float sq = sqrt(disc);
+  float q = b > 0.0 ? -(b + sq) : -(b - sq);
+  float a0 = q, a1 = q != 0.0 ? c / q : 0.0;
+  t0 = min(a0, a1);
+  t1 = max(a0, a1);
+  return true;
+}
+
+bool ocv_ray_box(vec3 o, vec3 d, vec3 lo, vec3 hi, out float t0, out float t1) {
+  float a = -OCV_BIG, b = OCV_BIG;
+  t0 = 0.0;
+  t1 = 0.0;
+  for (int i = 0; i < 3; i++) {
+    if (d[i] == 0.0) {
+      if (o[i] < lo[i] || o[i] > hi[i]) return false;
+      continue;
+    }
+    float ta = (lo[i] - o[i]) / d[i], tb = (hi[i] - o[i]) / d[i];
+    a = max(a, min(ta, tb));
+    b = min(b, max(ta, tb));
+  }
+  if (a > b) return false;
+  t0 = a;
+  t1 = b;
+  return true;
+}
+
+float ocv_node_exit(OcvLeaf lf, vec3 p, vec3 d) {
+  float t = OCV_BIG;
+  for (int i = 0; i < 3; i++) {
+    if (d[i] > 0.0) t = min(t, (lf.origin[i] + lf.size - p[i]) / d[i]);
+    else if (d[i] < 0.0) t = min(t, (lf.origin[i] - p[i]) / d[i]);
+  }
+  return t;
+}
+
+/* Radius at distance t along the ray: |o + t·d|² = |o|² + t(2 o·d + t). */
+float ocv_radius(float b, float t) { return sqrt(max(u_cam_r2 + t * (2.0 * b + t), 0.0)); }
+
+/* oc__air_step */
+float ocv_air_step(float b, float t, float air_step) {
+  float r = ocv_radius(b, t);
+  float h = r - u_atm.bottom_radius;
+  float mu = abs((b + t) / r);
+  float lim = 0.25 * (max(h, 0.0) + 500.0) / max(mu, 1e-3);
+  return min(air_step, max(lim, air_step / 16.0));
+}
+
+/* ---- One ray (oc__trace) ------------------------------------------------------------------------------ */
+
+vec4 ocv_trace(vec3 dir, float jitter) {
+  float mu = dot(dir, u_sun);
+  float b = dot(u_cam_hi, dir) + dot(u_cam_lo, dir); /* o·d without the 0.5 m rounding of a float o */
+  vec3 o = u_cam_frac;
+  vec3 L = vec3(0.0), T = vec3(1.0);
+  float Tc = 1.0;
+
+  float t0 = 0.0, t1 = 0.0, a0, a1;
+  vec3 box_lo = vec3(-u_cam_cell) * u_cell, box_hi = vec3(ivec3(OCV_CELLS21) - u_cam_cell) * u_cell;
+  bool in_cube = ocv_ray_box(o, dir, box_lo, box_hi, a0, a1);
+  if (in_cube) {
+    t0 = a0;
+    t1 = a1;
+  }
+  float air_len = 0.0, air0 = 0.0, air1 = 0.0;
+  if (u_have_atmo != 0 && ocv_ray_sphere(b, u_c_top, a0, a1) && a1 > 0.0) {
+    a0 = max(a0, 0.0);
+    air0 = a0;
+    air1 = a1;
+    if (!in_cube) {
+      t0 = a0;
+      t1 = a1;
+      in_cube = true;
+    }
+  }
+  t0 = max(t0, 0.0);
+  bool hit_ground = false;
+  if (u_ground_r > 0.0) {
+    if (u_c_ground < 0.0) return vec4(0.0); /* camera inside the planet */
+    if (ocv_ray_sphere(b, u_c_ground, a0, a1) && a0 > 0.0) {
+      hit_ground = true;
+      t1 = min(t1, a0);
+    }
+  }
+  if (u_have_atmo != 0) air_len = min(air1, t1) - air0;
+  float air_step = u_have_atmo != 0 && air_len > 0.0 ? air_len / float(u_air_steps) : OCV_BIG;
+
+  OcvLeaf lf;
+  lf.idx = -1;
+  lf.lo = ivec3(0);
+  lf.cells = 0; /* matches no cell: the first step locates */
+  lf.origin = vec3(0.0);
+  lf.size = 0.0;
+  bool exited = false;
+  float t = t0;
+  for (int it = 0; in_cube && t < t1 && it < OCV_MAX_STEPS; it++) {
+    /* The look-ahead that puts a point on a shared face into the node being entered: CPU's 1e-4 m,
+     * or more where a float t cannot resolve that (it must also guarantee progress). */
+    float eps = max(OCV_LOCATE_EPS, t * 1e-6);
+    vec3 p = o + dir * t;
+    ivec3 ic = ocv_cell_of(o + dir * (t + eps));
+    if (lf.cells == 0 || !ocv_inside(lf, ic)) lf = ocv_locate_cell(ic);
+    bool has = lf.idx >= 0;
+    vec4 range = has ? oc_leaf[lf.idx].range : vec4(0.0);
+    uint kind = has ? oc_leaf[lf.idx].info.x : 0u;
+    bool cloudy = has && range.y > 0.0;
+    float te = t1;
+    if (has) te = min(te, t + max(ocv_node_exit(lf, p, dir), eps));
+    if (cloudy) te = min(te, t + u_step_factor * lf.size / 7.0);
+    if (u_have_atmo != 0) te = min(te, t + ocv_air_step(b, t, air_step));
+    te = max(te, t + eps);
+    float seg = te - t;
+    float tm = t + jitter * seg;
+
+    float sig = 0.0, tau = 0.0;
+    if (has && kind != 0u) {
+      vec2 st = ocv_leaf_sample(lf, ocv_local(lf, o + dir * tm));
+      if (cloudy) sig = st.x;
+      tau = st.y;
+    }
+    float r = ocv_radius(b, tm);
+    float mu_s = (u_sun_o + tm * mu) / r;
+    vec3 Esun = u_sun_e * ocv_sun_transmittance(r, mu_s);
+    vec3 sigma_t = vec3(sig);
+    vec3 J = vec3(0.0);
+    if (sig > 0.0) {
+      float ms = ocg_ms_octaves(tau, mu, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves);
+      vec3 Sc = Esun * ms;
+      if (u_have_atmo != 0 && (u_flags & OCV_RF_NO_AMBIENT) == 0u)
+        Sc += u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s) * OCG_INV_4PI;
+      J = Sc * (u_albedo * sig);
+    }
+    if (u_have_atmo != 0 && r < u_atm.top_radius) {
+      vec3 sr = ocg_atmo_rayleigh_scattering(u_atm, r);
+      float sm = ocg_atmo_mie_scattering(u_atm, r);
+      sigma_t += ocg_atmo_extinction(u_atm, r);
+      vec3 lit = Esun * exp(-tau);
+      vec3 single = sr * ocg_phase_rayleigh(mu) + vec3(sm * ocg_phase_cornette_shanks(mu, u_atm.mie_g));
+      vec3 multi = (sr + vec3(sm)) * (u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
+      J += single * lit + multi;
+    }
+    vec3 w = ocg_segment_weight3(sigma_t, seg);
+    L += T * (J * w);
+    T *= exp(-sigma_t * seg);
+    Tc *= exp(-sig * seg);
+    t = te;
+    if (u_exit_t > 0.0 && max(T.x, max(T.y, T.z)) < u_exit_t) {
+      exited = true;
+      break;
+    }
+  }
+
+  if (!exited) {
+    if (hit_ground) {
+      vec3 pg = o + dir * t1;
+      float r = ocv_radius(b, t1);
+      float mu_s = (u_sun_o + t1 * mu) / r;
+      OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
+      float tg = g.idx >= 0 ? ocv_leaf_sample(g, ocv_local(g, pg)).y : 0.0;
+      vec3 E = ocv_sun_transmittance(r, mu_s) * (max(mu_s, 0.0) * exp(-tg));
+      if (u_have_atmo != 0) E += ocv_atmo_rmus(u_tab_irradiance, r, mu_s);
+      vec3 albedo = u_have_atmo != 0 ? u_atm.ground_albedo : vec3(0.1);
+      L += T * ((albedo * (1.0 / OCG_PI)) * (u_sun_e * E));
+    } else if (u_bg_constant != 0) {
+      L += T * u_bg_radiance;
+    } else if (u_have_atmo != 0 && (u_flags & OCV_RF_NO_SUN_DISC) == 0u) {
+      float cos_r = cos(u_atm.sun_angular_radius);
+      if (mu > cos_r) {
+        float solid = 2.0 * OCG_PI * (1.0 - cos_r);
+        L += T * (u_sun_e * (1.0 / solid));
+      }
+    }
+  }
+  return vec4(L, Tc);
+}
+
+void main() {
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  if (px.x >= u_size.x || px.y >= u_size.y) return;
+  float x = (2.0 * (float(px.x) + 0.5) / float(u_size.x) - 1.0) * u_tan.x;
+  float y = (1.0 - 2.0 * (float(px.y) + 0.5) / float(u_size.y)) * u_tan.y;
+  vec3 dir = normalize(u_fwd + u_right * x + u_up * y);
+  float j = (u_flags & OCV_RF_JITTER) != 0u ? ocg_jitter(uint(px.x), uint(px.y), u_frame) : 0.5;
+  oc_out[px.y * u_size.x + px.x] = ocv_trace(dir, j);
+}

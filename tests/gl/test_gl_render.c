@@ -1,0 +1,309 @@
+/* test_gl_render.c — the GL compute renderer (client/gl) against the CPU reference renderer.
+ *
+ * The same state is rendered by oc_render_state() and ocv_gl_render_state() and both images are
+ * tone-mapped alike (oc_image_tonemap); the RMSE and the largest channel difference on the 0–255
+ * scale are printed and bounded:
+ *   1. constant_background: scenes/analytic_sphere.json voxelized locally, seen from its camera,
+ *      no atmosphere and no planet (OC_BG_CONSTANT): RMSE ≤ 1;
+ *   2. atmosphere: the same state with atmosphere, planet and sun disc: RMSE ≤ 2;
+ *   3. camera_inside: the camera inside the sphere near its edge, looking out: RMSE ≤ 2;
+ *   4. low_sun: the sun 3° above the horizon (τ baked for it): RMSE ≤ 2;
+ *   5. errors_name_file_and_line: a broken kernel's compile error names shaders/FILE:LINE.
+ * A test that passes on a black or uniform image proves nothing, so each image must also have a
+ * spread of values. With $OC_TEST_OUT set, both renders are written there as PNGs.
+ * Images are 160×90, LP_NUM_THREADS=2 (design.md, CI). */
+#include <setjmp.h> /* cmocka needs these three before cmocka.h */
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h> /* unlink, rmdir */
+
+#include "oc_atmo.h"
+#include "oc_camera.h"
+#include "oc_image.h"
+#include "oc_planet.h"
+#include "oc_render.h"
+#include "oc_scene.h"
+#include "oc_scene_voxelize.h"
+#include "ocv_gl.h"
+
+#define W 160
+#define H 90
+#define EXPOSURE 10.0f
+
+typedef struct {
+  ocv_gl_context_t *ctx;
+  ocv_gl_renderer_t *r;
+  oc_atmo_t *atmo;
+} fixture_t;
+
+static fixture_t fx;
+
+static int setup(void **state) {
+  (void)state;
+  char why[1024] = "";
+  fx.ctx = ocv_gl_context_init(why, sizeof why);
+  if (!fx.ctx) {
+    printf("%s\n", why);
+    return 0; /* each test skips or fails (OC_GL_REQUIRE=1) */
+  }
+  char info[512];
+  ocv_gl_context_describe(fx.ctx, info, sizeof info);
+  printf("GL: %s\n", info);
+  fx.r = ocv_gl_renderer_create(why, sizeof why);
+  if (!fx.r) printf("raymarch program: %s\n", why);
+  ocg_atmosphere ap;
+  oc_atmo_params_default(&ap);
+  fx.atmo = oc_atmo_create(&ap, 2);
+  return 0;
+}
+
+static int teardown(void **state) {
+  (void)state;
+  oc_atmo_free(fx.atmo);
+  ocv_gl_renderer_free(fx.r);
+  ocv_gl_context_free(fx.ctx);
+  return 0;
+}
+
+static void require_gl(void) {
+  if (fx.ctx) {
+    assert_non_null(fx.r); /* the kernel must compile wherever a context exists */
+    return;
+  }
+  const char *req = getenv("OC_GL_REQUIRE");
+  if (req && req[0] == '1') fail_msg("OC_GL_REQUIRE=1 but no headless OpenGL 4.5 context");
+  skip();
+}
+
+/* The analytic sphere scene, optionally with another camera pose or sun, voxelized for that view. */
+static void make_scene(oc_scene_t *sc, oc_state_t *st, oc_camera_t *cam, const oc_scene_camera_t *pose_over,
+                       const oc_dvec3 *sun_over) {
+  char path[1024], why[512];
+  const char *root = getenv("OC_SOURCE_DIR");
+  snprintf(path, sizeof path, "%s/scenes/analytic_sphere.json", root && *root ? root : ".");
+  assert_int_equal(oc_scene_load(sc, path, why, sizeof why), 0);
+  if (pose_over) sc->camera = *pose_over;
+  if (sun_over) sc->sun_dir = *sun_over;
+  oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
+  *cam = oc_camera_from_pose(pose);
+  oc_state_init(st);
+  oc_scene_voxelize_desc_t vd = {*cam, H, 2.0, 0, 0, 2};
+  if (oc_scene_voxelize(st, sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
+}
+
+/* Mean and standard deviation of the 8-bit image (all channels). */
+static void spread(const uint8_t *rgb, double *mean, double *sd) {
+  double s = 0.0, s2 = 0.0;
+  for (int i = 0; i < W * H * 3; i++) {
+    s += rgb[i];
+    s2 += (double)rgb[i] * rgb[i];
+  }
+  *mean = s / (W * H * 3);
+  *sd = sqrt(fmax(s2 / (W * H * 3) - *mean * *mean, 0.0));
+}
+
+static void save_png(const char *name, const char *which, const uint8_t *rgb) {
+  const char *dir = getenv("OC_TEST_OUT");
+  if (!dir || !*dir) return;
+  char path[1024], why[512];
+  snprintf(path, sizeof path, "%s/gl_render_%s_%s.png", dir, name, which);
+  if (oc_png_write(path, W, H, rgb, NULL, 0, why, sizeof why) < 0) printf("warning: %s\n", why);
+}
+
+/* Renders st both ways, prints and checks RMSE and max error, and that the image has content. */
+static void compare(const char *name, const oc_state_t *st, const oc_render_desc_t *d, double max_rmse, int max_err) {
+  oc_image_t cpu = {0}, gpu = {0};
+  assert_int_equal(oc_image_alloc(&cpu, W, H), 0);
+  assert_int_equal(oc_image_alloc(&gpu, W, H), 0);
+  oc_render_stats_t stats;
+  assert_int_equal(oc_render_state(st, d, &cpu, &stats), 0);
+  assert_int_equal(stats.nonfinite, 0);
+
+  char why[1024] = "";
+  ocv_gl_state_t gs;
+  int rc = ocv_gl_state_upload(&gs, st, why, sizeof why);
+  if (rc) fail_msg("upload: %s", why);
+  rc = ocv_gl_render_state(fx.r, &gs, d, &gpu, why, sizeof why);
+  if (rc) fail_msg("render: %s", why);
+
+  uint8_t *a = malloc(W * H * 3), *b = malloc(W * H * 3);
+  assert_non_null(a);
+  assert_non_null(b);
+  assert_int_equal(oc_image_tonemap(&cpu, EXPOSURE, a), 0);
+  assert_int_equal(oc_image_tonemap(&gpu, EXPOSURE, b), 0); /* no non-finite pixel */
+  double rmse = oc_rgb8_rmse(a, b, W, H);
+  int worst = 0, wi = 0;
+  for (int i = 0; i < W * H * 3; i++) {
+    int e = abs((int)a[i] - (int)b[i]);
+    if (e > worst) {
+      worst = e;
+      wi = i;
+    }
+  }
+  double lin = 0.0, peak = 0.0; /* linear radiance: largest difference relative to the image's peak */
+  for (int i = 0; i < W * H * 4; i++)
+    if (i % 4 != 3) peak = fmax(peak, fabs(cpu.px[i]));
+  for (int i = 0; i < W * H * 4; i++)
+    if (i % 4 != 3) lin = fmax(lin, fabs(cpu.px[i] - gpu.px[i]) / fmax(peak, 1e-30));
+  double mean, sd, gmean, gsd;
+  spread(a, &mean, &sd);
+  spread(b, &gmean, &gsd);
+  printf("%-20s %u leaves, %u bricks, %u inner, GPU %.2f MiB | RMSE %.3f, max %d at (%d, %d), linear %.1e of peak | CPU mean %.1f sd %.1f, "
+         "GPU mean %.1f sd %.1f | %llu samples\n",
+         name, st->node_count, st->brick_count, gs.inner_count, gs.resident_bytes / 1048576.0, rmse, worst, wi / 3 % W,
+         wi / 3 / W, lin, mean, sd, gmean, gsd, (unsigned long long)stats.samples);
+  save_png(name, "cpu", a);
+  save_png(name, "gpu", b);
+
+  assert_true(mean > 10.0 && sd > 5.0);   /* the CPU image is neither black nor uniform */
+  assert_true(gmean > 10.0 && gsd > 5.0); /* nor the GPU's */
+  assert_true(rmse <= max_rmse);
+  assert_true(worst <= max_err);
+  ocv_gl_state_free(&gs);
+  free(a);
+  free(b);
+  oc_image_free(&cpu);
+  oc_image_free(&gpu);
+}
+
+static oc_render_desc_t base_desc(const oc_scene_t *sc, oc_camera_t cam) {
+  oc_render_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.width = W;
+  d.height = H;
+  d.camera = cam;
+  d.ms_octaves = sc->optics.ms_octaves;
+  d.ms_a = (float)sc->optics.ms_a;
+  d.ms_b = (float)sc->optics.ms_b;
+  d.ms_c = (float)sc->optics.ms_c;
+  d.albedo = (float)sc->optics.albedo;
+  d.threads = 2;
+  d.atmo = fx.atmo;
+  return d;
+}
+
+static void test_gl_render__constant_background(void **state) {
+  (void)state;
+  require_gl();
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, NULL, NULL);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  compare("constant_background", &st, &d, 1.0, 16);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
+static void test_gl_render__atmosphere(void **state) {
+  (void)state;
+  require_gl();
+  assert_non_null(fx.atmo);
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, NULL, NULL);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  compare("atmosphere", &st, &d, 2.0, 32);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
+static void test_gl_render__camera_inside(void **state) {
+  (void)state;
+  require_gl();
+  assert_non_null(fx.atmo);
+  /* 1950 m east of the centre of the 2000 m sphere (lat 0, lon 0, alt 3 km), looking east and up. */
+  oc_scene_camera_t pose = {{0.0, 1950.0 / (OC_PLANET_RADIUS + 3000.0) / OC_DEG, 3000.0}, 90.0, 10.0, 60.0};
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, &pose, NULL);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  compare("camera_inside", &st, &d, 2.0, 32);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
+static void test_gl_render__low_sun(void **state) {
+  (void)state;
+  require_gl();
+  assert_non_null(fx.atmo);
+  /* At (0°N, 0°E) up is +X, east +Y, north +Z: the sun 3° above the north-eastern horizon. */
+  double el = 3.0 * OC_DEG;
+  oc_dvec3 sun = oc_dnorm(oc_dv3(sin(el), cos(el) * sqrt(0.5), cos(el) * sqrt(0.5)));
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, NULL, &sun);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  compare("low_sun", &st, &d, 2.0, 32);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
+/* A kernel error names the kernel file and line; a missing shader folder says where it looked. */
+static void test_gl_render__errors_name_file_and_line(void **state) {
+  (void)state;
+  require_gl();
+  char dir[] = "/tmp/oc_gl_render_XXXXXX", path[1200], src[1200], why[2048] = "";
+  assert_non_null(mkdtemp(dir));
+  static const char *const headers[] = {"oc_port.h", "sampling.h", "optics.h", "brick.h", "atmosphere.h"};
+  for (int i = 0; i < 5; i++) { /* the real headers, then a broken kernel */
+    snprintf(src, sizeof src, "%s/%s", ocv_gl_shader_dir(), headers[i]);
+    snprintf(path, sizeof path, "%s/%s", dir, headers[i]);
+    FILE *in = fopen(src, "rb"), *out = fopen(path, "wb");
+    assert_non_null(in);
+    assert_non_null(out);
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, in)) > 0) assert_int_equal(fwrite(buf, 1, n, out), n);
+    fclose(in);
+    fclose(out);
+  }
+  snprintf(path, sizeof path, "%s/raymarch.comp.glsl", dir);
+  FILE *k = fopen(path, "wb");
+  assert_non_null(k);
+  fputs("layout(local_size_x = 1) in;\nvoid main() {\n  float x = undefined_name;\n}\n", k);
+  fclose(k);
+  const char *old = getenv("OC_SHADER_DIR");
+  char *saved = old ? strdup(old) : NULL;
+  setenv("OC_SHADER_DIR", dir, 1);
+  ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
+  assert_null(r);
+  printf("broken kernel: %s", why);
+  assert_non_null(strstr(why, "shaders/raymarch.comp.glsl:3("));
+  setenv("OC_SHADER_DIR", "/nonexistent-oc-shaders", 1);
+  assert_null(ocv_gl_renderer_create(why, sizeof why));
+  printf("missing folder: %s\n", why);
+  assert_non_null(strstr(why, "cannot read /nonexistent-oc-shaders/oc_port.h"));
+  if (saved) setenv("OC_SHADER_DIR", saved, 1);
+  else unsetenv("OC_SHADER_DIR");
+  free(saved);
+  for (int i = 0; i < 5; i++) {
+    snprintf(path, sizeof path, "%s/%s", dir, headers[i]);
+    unlink(path);
+  }
+  snprintf(path, sizeof path, "%s/raymarch.comp.glsl", dir);
+  unlink(path);
+  rmdir(dir);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_gl_render__constant_background),
+      cmocka_unit_test(test_gl_render__atmosphere),
+      cmocka_unit_test(test_gl_render__camera_inside),
+      cmocka_unit_test(test_gl_render__low_sun),
+      cmocka_unit_test(test_gl_render__errors_name_file_and_line),
+  };
+  return cmocka_run_group_tests_name("gl_render", tests, setup, teardown);
+}
