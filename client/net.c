@@ -69,15 +69,6 @@ static void ocv__errstr(int e, char *buf, size_t cap) {
   if (strerror_r(e, buf, cap) != 0) snprintf(buf, cap, "error %d", e);
 }
 
-static void ocv__why(char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-static void ocv__why(char *why, size_t why_len, const char *fmt, ...) {
-  if (!why || !why_len) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(why, why_len, fmt, ap);
-  va_end(ap);
-}
-
 static size_t ocv__pending(const ocv_conn_t *c) { return c->out.len - c->out_pos; }
 
 static void ocv__close_fd(ocv_conn_t *c) {
@@ -88,7 +79,7 @@ static void ocv__close_fd(ocv_conn_t *c) {
 /* Writes what the socket takes now. @return 0 or OC_EIO (why says why). */
 static int ocv__write(ocv_conn_t *c, char *why, size_t why_len) {
   if (c->out.err) {
-    ocv__why(why, why_len, "%s: out of memory for output", c->addr);
+    (void)oc_errorf(0, why, why_len, "%s: out of memory for output", c->addr);
     return OC_ENOMEM;
   }
   while (c->fd >= 0 && ocv__pending(c)) {
@@ -98,7 +89,7 @@ static int ocv__write(ocv_conn_t *c, char *why, size_t why_len) {
       if (errno == EAGAIN || errno == EWOULDBLOCK) break;
       char e[128];
       ocv__errstr(errno, e, sizeof e);
-      ocv__why(why, why_len, "%s: send: %s", c->addr, e);
+      (void)oc_errorf(0, why, why_len, "%s: send: %s", c->addr, e);
       return OC_EIO;
     }
     c->out_pos += (size_t)k;
@@ -172,13 +163,13 @@ static void ocv__on_closed(void *ctx, uint32_t code, const char *text) {
 /* The reason for a server-side close, naming the server. */
 static void ocv__close_reason(const ocv_conn_t *c, char *why, size_t why_len) {
   if (!c->server_closed)
-    ocv__why(why, why_len, "%s: connection closed by the server", c->addr);
+    (void)oc_errorf(0, why, why_len, "%s: connection closed by the server", c->addr);
   else if (c->close_code == OCP_CODE_OK)
-    ocv__why(why, why_len, "%s: closed by the server%s%s", c->addr, c->close_text[0] ? ": " : "", c->close_text);
+    (void)oc_errorf(0, why, why_len, "%s: closed by the server%s%s", c->addr, c->close_text[0] ? ": " : "", c->close_text);
   else if (!c->close_text[0] || !strcmp(c->close_text, ocp_code_text(c->close_code)))
-    ocv__why(why, why_len, "%s: closed by the server: %s", c->addr, ocp_code_text(c->close_code));
+    (void)oc_errorf(0, why, why_len, "%s: closed by the server: %s", c->addr, ocp_code_text(c->close_code));
   else
-    ocv__why(why, why_len, "%s: closed by the server: %s: %s", c->addr, ocp_code_text(c->close_code), c->close_text);
+    (void)oc_errorf(0, why, why_len, "%s: closed by the server: %s: %s", c->addr, ocp_code_text(c->close_code), c->close_text);
 }
 
 /*-*** Addresses ***/
@@ -220,13 +211,13 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
   if (!out) return OC_EINVAL;
   *out = NULL;
   if (!host || !*host || strlen(host) >= OCV_HOST_MAX || port < 1 || port > 65535) {
-    ocv__why(why, why_len, "bad server address \"%s:%d\"", host ? host : "", port);
+    (void)oc_errorf(0, why, why_len, "bad server address \"%s:%d\"", host ? host : "", port);
     return OC_EINVAL;
   }
   ocv_conn_t *c = calloc(1, sizeof *c);
   if (!c || !(c->rbuf = malloc(OCV__READ_CHUNK))) {
     free(c);
-    ocv__why(why, why_len, "out of memory");
+    (void)oc_errorf(0, why, why_len, "out of memory");
     return OC_ENOMEM;
   }
   c->fd = c->wake_fd = c->cancel_fd = -1;
@@ -237,7 +228,7 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
   ocp_viewer_events_t mine = {c, ocv__on_welcome, ocv__on_state, ocv__on_stats, ocv__on_control_reply, ocv__on_closed};
   int r = vd ? ocp_viewer_create(&c->v, vd, &mine) : OC_EINVAL;
   if (r < 0) {
-    ocv__why(why, why_len, "%s: %s", c->addr,
+    (void)oc_errorf(0, why, why_len, "%s: %s", c->addr,
              r == OC_ENOMEM ? "out of memory" : "invalid session settings (budget, viewport, depth or token)");
     free(c->rbuf);
     free(c);
@@ -307,7 +298,7 @@ int ocv_conn_reconnect(ocv_conn_t *c, double timeout_s, char *why, size_t why_le
   hints.ai_flags = AI_NUMERICSERV;
   int g = getaddrinfo(c->host, service, &hints, &res);
   if (g != 0) {
-    ocv__why(why, why_len, "%s: cannot resolve \"%s\": %s", c->addr, c->host, gai_strerror(g));
+    (void)oc_errorf(0, why, why_len, "%s: cannot resolve \"%s\": %s", c->addr, c->host, gai_strerror(g));
     return OC_EIO;
   }
   int fd = -ECONNREFUSED;
@@ -318,13 +309,13 @@ int ocv_conn_reconnect(ocv_conn_t *c, double timeout_s, char *why, size_t why_le
   freeaddrinfo(res);
   if (fd < 0) {
     if (fd == -ETIMEDOUT) {
-      ocv__why(why, why_len, "%s: cannot connect: timed out after %g s", c->addr, timeout_s);
+      (void)oc_errorf(0, why, why_len, "%s: cannot connect: timed out after %g s", c->addr, timeout_s);
     } else if (fd == -ECANCELED) {
-      ocv__why(why, why_len, "%s: connect cancelled", c->addr);
+      (void)oc_errorf(0, why, why_len, "%s: connect cancelled", c->addr);
     } else {
       char e[128];
       ocv__errstr(-fd, e, sizeof e);
-      ocv__why(why, why_len, "%s: cannot connect: %s", c->addr, e);
+      (void)oc_errorf(0, why, why_len, "%s: cannot connect: %s", c->addr, e);
     }
     return OC_EIO;
   }
@@ -359,7 +350,7 @@ static int ocv__read(ocv_conn_t *c, char *why, size_t why_len) {
       if (errno == EAGAIN || errno == EWOULDBLOCK) break;
       char e[128];
       ocv__errstr(errno, e, sizeof e);
-      ocv__why(why, why_len, "%s: %s", c->addr, e);
+      (void)oc_errorf(0, why, why_len, "%s: %s", c->addr, e);
       ocv__close_fd(c);
       return OC_EIO;
     }
@@ -372,7 +363,7 @@ static int ocv__read(ocv_conn_t *c, char *why, size_t why_len) {
     char reason[OCP_TEXT_MAX + 1];
     int e = ocp_viewer_feed(c->v, c->rbuf, (size_t)n, &c->out, reason, sizeof reason);
     if (e < 0) { /* the session appended ERROR naming the problem: send it, then close */
-      ocv__why(why, why_len, "%s: %s", c->addr, reason[0] ? reason : oc_strerror(e));
+      (void)oc_errorf(0, why, why_len, "%s: %s", c->addr, reason[0] ? reason : oc_strerror(e));
       ocv__write_for(c, OCV__ERROR_FLUSH_S);
       ocv__close_fd(c);
       return e;
@@ -396,7 +387,7 @@ static int ocv__read(ocv_conn_t *c, char *why, size_t why_len) {
 static int ocv__poll(ocv_conn_t *c, double deadline, int until_flushed, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
   if (c->fd < 0) {
-    ocv__why(why, why_len, "%s: not connected", c->addr);
+    (void)oc_errorf(0, why, why_len, "%s: not connected", c->addr);
     return 1;
   }
   for (;;) {
@@ -414,7 +405,7 @@ static int ocv__poll(ocv_conn_t *c, double deadline, int until_flushed, char *wh
       if (errno == EINTR) continue;
       char e[128];
       ocv__errstr(errno, e, sizeof e);
-      ocv__why(why, why_len, "%s: poll: %s", c->addr, e);
+      (void)oc_errorf(0, why, why_len, "%s: poll: %s", c->addr, e);
       return OC_EIO;
     }
     if (p[0].revents & (POLLIN | POLLHUP | POLLERR)) return ocv__read(c, why, why_len);
@@ -439,7 +430,7 @@ int ocv_conn_flush(ocv_conn_t *c, double timeout_s, char *why, size_t why_len) {
     if (r != 0) return r;
     if (!ocv__pending(c)) return 0;
     if (ocv__now() >= deadline) {
-      ocv__why(why, why_len, "%s: timed out after %g s with %zu bytes unsent", c->addr, timeout_s, ocv__pending(c));
+      (void)oc_errorf(0, why, why_len, "%s: timed out after %g s with %zu bytes unsent", c->addr, timeout_s, ocv__pending(c));
       return OC_EIO;
     }
   }
@@ -472,7 +463,7 @@ int ocv_conn_wait_ready(ocv_conn_t *c, double timeout_s, char *why, size_t why_l
   double deadline = ocv__now() + (timeout_s > 0 ? timeout_s : 0);
   while (!(c->fd >= 0 && ocp_viewer_ready(c->v))) {
     if (ocv__now() >= deadline) {
-      ocv__why(why, why_len, "%s: no welcome within %g s", c->addr, timeout_s);
+      (void)oc_errorf(0, why, why_len, "%s: no welcome within %g s", c->addr, timeout_s);
       return OC_EIO;
     }
     int r = ocv__poll(c, deadline, 0, why, why_len);
@@ -494,14 +485,14 @@ int ocv_control_request(ocv_conn_t *c, const char *json, double timeout_s, char 
   c->got_reply = 0;
   r = ocv_conn_control(c, id, json);
   if (r == OC_EINVAL) {
-    ocv__why(why, why_len, "%s: request refused before sending (not a control session, or over %u bytes)", c->addr,
+    (void)oc_errorf(0, why, why_len, "%s: request refused before sending (not a control session, or over %u bytes)", c->addr,
              (unsigned)(OCP_MAX_CLIENT_PAYLOAD - 8u));
     c->want_request = 0;
     return r;
   }
   while (!c->got_reply) {
     if (ocv__now() >= deadline) {
-      ocv__why(why, why_len, "%s: no reply within %g s", c->addr, timeout_s);
+      (void)oc_errorf(0, why, why_len, "%s: no reply within %g s", c->addr, timeout_s);
       r = OC_EIO;
       break;
     }
@@ -514,7 +505,7 @@ int ocv_control_request(ocv_conn_t *c, const char *json, double timeout_s, char 
   if (!c->got_reply) return r;
   c->got_reply = 0;
   if (!c->reply_json) {
-    ocv__why(why, why_len, "out of memory");
+    (void)oc_errorf(0, why, why_len, "out of memory");
     return OC_ENOMEM;
   }
   *reply_json = c->reply_json;

@@ -629,6 +629,18 @@ static void on_connection(uv_stream_t *ls, int status) {
 
 static void start_step(ocs_server_t *srv);
 
+/* What a viewer said while a step ran (its acknowledgement, its newest camera) reaches the world. */
+static void apply_pending(ocs_session_t *s) {
+  if (s->ack_pending) {
+    ocs_viewer_ack(s->viewer, s->stream_epoch);
+    s->ack_pending = 0;
+  }
+  if (s->cam_new) {
+    ocs_viewer_set_view(s->viewer, &s->cam);
+    s->cam_new = 0;
+  }
+}
+
 static void step_work(uv_work_t *req) {
   ocs_server_t *srv = req->data;
   srv->step_rc = ocs_world_step(srv->world);
@@ -647,14 +659,7 @@ static void step_done(uv_work_t *req, int status) {
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
     nx = s->next;
     if (s->state != OCS_SS_READY || !s->viewer) continue;
-    if (s->ack_pending) {
-      ocs_viewer_ack(s->viewer, s->stream_epoch);
-      s->ack_pending = 0;
-    }
-    if (s->cam_new) {
-      ocs_viewer_set_view(s->viewer, &s->cam);
-      s->cam_new = 0;
-    }
+    apply_pending(s);
     const oc_state_t *h0 = ocs_viewer_held(s->viewer, 0);
     if (h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack)
       stream_state(s, ocs_viewer_held(s->viewer, 1));
@@ -671,18 +676,8 @@ static void step_done(uv_work_t *req, int status) {
 static void start_step(ocs_server_t *srv) {
   if (srv->stepping || srv->stopping) return;
   if (srv->steps_queued) srv->steps_queued--;
-  /* What arrived since the last step reaches the world now. */
-  for (ocs_session_t *s = srv->sessions; s; s = s->next) {
-    if (!s->viewer) continue;
-    if (s->ack_pending) {
-      ocs_viewer_ack(s->viewer, s->stream_epoch);
-      s->ack_pending = 0;
-    }
-    if (s->cam_new) {
-      ocs_viewer_set_view(s->viewer, &s->cam);
-      s->cam_new = 0;
-    }
-  }
+  for (ocs_session_t *s = srv->sessions; s; s = s->next)
+    if (s->viewer) apply_pending(s);
   srv->stepping = 1;
   srv->work.data = srv;
   uv_queue_work(&srv->loop, &srv->work, step_work, step_done);

@@ -11,20 +11,13 @@
 #include <string.h>
 
 #include "ocv_gl.h"
+#include "oc_err.h" /* oc_errorf */
 
 struct ocv_gl_context_s {
   EGLDisplay dpy;
   EGLContext ctx;
   const char *platform;
 };
-
-static void ocv__setf(char *dst, size_t n, const char *fmt, ...) {
-  if (!dst || !n) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(dst, n, fmt, ap);
-  va_end(ap);
-}
 
 static int ocv__has_ext(const char *list, const char *name) {
   size_t n = strlen(name);
@@ -37,21 +30,21 @@ static int ocv__has_ext(const char *list, const char *name) {
 static int ocv__try_display(ocv_gl_context_t *c, EGLDisplay dpy, const char *platform, char *why, size_t wl) {
   EGLint major = 0, minor = 0;
   if (dpy == EGL_NO_DISPLAY) {
-    ocv__setf(why, wl, "%s: no display (EGL error 0x%x)", platform, (unsigned)eglGetError());
+    (void)oc_errorf(0, why, wl, "%s: no display (EGL error 0x%x)", platform, (unsigned)eglGetError());
     return -1;
   }
   if (!eglInitialize(dpy, &major, &minor)) {
-    ocv__setf(why, wl, "%s: eglInitialize failed (0x%x)", platform, (unsigned)eglGetError());
+    (void)oc_errorf(0, why, wl, "%s: eglInitialize failed (0x%x)", platform, (unsigned)eglGetError());
     return -1;
   }
   const char *ext = eglQueryString(dpy, EGL_EXTENSIONS);
   if (!ocv__has_ext(ext, "EGL_KHR_surfaceless_context")) {
-    ocv__setf(why, wl, "%s: EGL %d.%d lacks EGL_KHR_surfaceless_context", platform, major, minor);
+    (void)oc_errorf(0, why, wl, "%s: EGL %d.%d lacks EGL_KHR_surfaceless_context", platform, major, minor);
     eglTerminate(dpy);
     return -1;
   }
   if (!eglBindAPI(EGL_OPENGL_API)) {
-    ocv__setf(why, wl, "%s: eglBindAPI(EGL_OPENGL_API) failed (0x%x)", platform, (unsigned)eglGetError());
+    (void)oc_errorf(0, why, wl, "%s: eglBindAPI(EGL_OPENGL_API) failed (0x%x)", platform, (unsigned)eglGetError());
     eglTerminate(dpy);
     return -1;
   }
@@ -60,7 +53,7 @@ static int ocv__try_display(ocv_gl_context_t *c, EGLDisplay dpy, const char *pla
     const EGLint want[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
     EGLint n = 0;
     if (!eglChooseConfig(dpy, want, &cfg, 1, &n) || n < 1) {
-      ocv__setf(why, wl, "%s: no EGL config with EGL_OPENGL_BIT", platform);
+      (void)oc_errorf(0, why, wl, "%s: no EGL config with EGL_OPENGL_BIT", platform);
       eglTerminate(dpy);
       return -1;
     }
@@ -71,18 +64,18 @@ static int ocv__try_display(ocv_gl_context_t *c, EGLDisplay dpy, const char *pla
                           EGL_NONE};
   EGLContext ctx = eglCreateContext(dpy, cfg, EGL_NO_CONTEXT, attrs);
   if (ctx == EGL_NO_CONTEXT) {
-    ocv__setf(why, wl, "%s: no OpenGL 4.5 core context (0x%x)", platform, (unsigned)eglGetError());
+    (void)oc_errorf(0, why, wl, "%s: no OpenGL 4.5 core context (0x%x)", platform, (unsigned)eglGetError());
     eglTerminate(dpy);
     return -1;
   }
   if (!eglMakeCurrent(dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, ctx)) {
-    ocv__setf(why, wl, "%s: eglMakeCurrent without surface failed (0x%x)", platform, (unsigned)eglGetError());
+    (void)oc_errorf(0, why, wl, "%s: eglMakeCurrent without surface failed (0x%x)", platform, (unsigned)eglGetError());
     eglDestroyContext(dpy, ctx);
     eglTerminate(dpy);
     return -1;
   }
   if (epoxy_gl_version() < 45 || !epoxy_is_desktop_gl()) {
-    ocv__setf(why, wl, "%s: context is GL %d, need desktop 4.5", platform, epoxy_gl_version());
+    (void)oc_errorf(0, why, wl, "%s: context is GL %d, need desktop 4.5", platform, epoxy_gl_version());
     eglMakeCurrent(dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(dpy, ctx);
     eglTerminate(dpy);
@@ -97,7 +90,7 @@ static int ocv__try_display(ocv_gl_context_t *c, EGLDisplay dpy, const char *pla
 ocv_gl_context_t *ocv_gl_context_init(char *why, size_t why_len) {
   ocv_gl_context_t *c = calloc(1, sizeof *c);
   if (!c) {
-    ocv__setf(why, why_len, "out of memory");
+    (void)oc_errorf(0, why, why_len, "out of memory");
     return NULL;
   }
   char first[256] = "", last[256] = "no EGL platform tried";
@@ -120,8 +113,8 @@ ocv_gl_context_t *ocv_gl_context_init(char *why, size_t why_len) {
   }
   if (ocv__try_display(c, eglGetDisplay(EGL_DEFAULT_DISPLAY), "EGL_DEFAULT_DISPLAY", last, sizeof last) == 0)
     return c;
-  if (first[0]) ocv__setf(why, why_len, "no headless OpenGL 4.5 context: %s; %s", first, last);
-  else ocv__setf(why, why_len, "no headless OpenGL 4.5 context: %s", last);
+  if (first[0]) (void)oc_errorf(0, why, why_len, "no headless OpenGL 4.5 context: %s; %s", first, last);
+  else (void)oc_errorf(0, why, why_len, "no headless OpenGL 4.5 context: %s", last);
   free(c);
   return NULL;
 }
@@ -136,6 +129,6 @@ void ocv_gl_context_free(ocv_gl_context_t *c) {
 const char *ocv_gl_context_platform(const ocv_gl_context_t *c) { return c ? c->platform : "none"; }
 
 void ocv_gl_context_describe(const ocv_gl_context_t *c, char *out, size_t cap) {
-  ocv__setf(out, cap, "%s | %s | %s | via %s", (const char *)glGetString(GL_VENDOR),
+  (void)oc_errorf(0, out, cap, "%s | %s | %s | via %s", (const char *)glGetString(GL_VENDOR),
             (const char *)glGetString(GL_RENDERER), (const char *)glGetString(GL_VERSION), ocv_gl_context_platform(c));
 }

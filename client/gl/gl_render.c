@@ -30,18 +30,10 @@ struct ocv_gl_renderer_s {
   size_t out_bytes;
 };
 
-static void ocv__setf(char *dst, size_t n, const char *fmt, ...) {
-  if (!dst || !n) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(dst, n, fmt, ap);
-  va_end(ap);
-}
-
 ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
   ocv_gl_renderer_t *r = calloc(1, sizeof *r);
   if (!r) {
-    ocv__setf(why, why_len, "out of memory");
+    (void)oc_errorf(0, why, why_len, "out of memory");
     return NULL;
   }
   char defines[512];
@@ -99,7 +91,7 @@ static int ocv__upload_tables(ocv_gl_renderer_t *r, const oc_atmo_t *a) {
 }
 
 static int ocv__bad(char *why, size_t wl, const char *field) {
-  ocv__setf(why, wl, "gl render: invalid %s", field);
+  (void)oc_errorf(0, why, wl, "gl render: invalid %s", field);
   return OC_EINVAL;
 }
 
@@ -207,7 +199,7 @@ int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc
   glUseProgram(0);
   GLenum err = glGetError();
   if (err != GL_NO_ERROR) {
-    ocv__setf(why, why_len, "gl render: GL error 0x%x", (unsigned)err);
+    (void)oc_errorf(0, why, why_len, "gl render: GL error 0x%x", (unsigned)err);
     return OC_EIO;
   }
   return 0;

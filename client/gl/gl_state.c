@@ -17,14 +17,6 @@
 #define OCV__UNSET 0xFFFFFFFFu
 #define OCV__NO_SLOT 0xFFFFFFFFu
 
-static void ocv__setf(char *dst, size_t n, const char *fmt, ...) {
-  if (!dst || !n) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(dst, n, fmt, ap);
-  va_end(ap);
-}
-
 /* The leaf record as the shader reads it (std430: vec4 then uvec4, 32 bytes). */
 typedef struct {
   float range[4];   /* σt lo, hi, τ lo, hi */
@@ -101,7 +93,7 @@ void ocv_gl_state_free(ocv_gl_state_t *gs) {
 int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size_t why_len) {
   memset(gs, 0, sizeof *gs);
   if (!s || s->node_count == 0) {
-    ocv__setf(why, why_len, "gl state: empty state");
+    (void)oc_errorf(0, why, why_len, "gl state: empty state");
     return OC_EINVAL;
   }
   gs->sun_dir = s->sun_dir;
@@ -116,7 +108,7 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
   if (by > per) by = per;
   uint32_t bz = (n + bx * by - 1) / (bx * by);
   if (bz > per) {
-    ocv__setf(why, why_len, "gl state: %u bricks exceed a %d³ atlas", s->brick_count, max3d);
+    (void)oc_errorf(0, why, why_len, "gl state: %u bricks exceed a %d³ atlas", s->brick_count, max3d);
     return OC_ETOOBIG;
   }
   gs->atlas_bricks[0] = (int)bx;
@@ -147,7 +139,7 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
   for (size_t w = 0; !rc && w < 1 + (size_t)t.inner * 8; w++)
     if (t.w[w] == OCV__UNSET) rc = OC_ECORRUPT; /* a hole: the leaves do not cover the cube */
   if (rc) {
-    ocv__setf(why, why_len, rc == OC_ENOMEM ? "gl state: out of memory" : "gl state: leaves do not partition the root cube");
+    (void)oc_errorf(0, why, why_len, rc == OC_ENOMEM ? "gl state: out of memory" : "gl state: leaves do not partition the root cube");
     goto out;
   }
   gs->inner_count = t.inner;
@@ -175,7 +167,7 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
                        (4 + (uint64_t)t.inner * OCV_GL_INNER_BYTES);
   GLenum err = glGetError();
   if (err != GL_NO_ERROR) {
-    ocv__setf(why, why_len, "gl state: upload failed (GL error 0x%x)", (unsigned)err);
+    (void)oc_errorf(0, why, why_len, "gl state: upload failed (GL error 0x%x)", (unsigned)err);
     rc = OC_ENOMEM;
   }
 out:

@@ -2,8 +2,9 @@
  * GPU copy of a state, and the raymarch compute pass that reproduces the CPU reference renderer
  * (common/oc_render.c) on the GPU. See client/gl/README.md for the GPU data layout.
  *
- * Threads: every call but ocv_gl_shader_dir() must be made on the thread that made the context
- * current (ocv_gl_context_init). Errors: negative OC_E* codes with a one-line reason in `why`. */
+ * Threads: every call that touches GL must be made on the thread that made the context current
+ * (ocv_gl_context_init); ocv_gl_shader_dir(), ocv_gl_read_file() and the ocv_gl_src_* builders but
+ * ocv_gl_src_compile() need no context. Errors: negative OC_E* codes with a one-line reason in `why`. */
 #ifndef OC_CLIENT_GL_H
 #define OC_CLIENT_GL_H
 
@@ -31,12 +32,61 @@ void ocv_gl_context_describe(const ocv_gl_context_t *c, char *out, size_t cap);
 
 /* ---- Programs (gl_program.c) ------------------------------------------------------------------------ */
 
+/* GLSL has no #include: a program's source is the concatenation of named segments (the prelude, the
+ * shared headers, the kernel). The first line of each segment in the concatenation is recorded and
+ * every segment after the first is preceded by "#line <its first line>", so that drift inside one
+ * segment (Mesa's glcpp joins a function-like macro call spanning lines onto one line) does not
+ * spread to the next. The compiler's "0:LINE(COL)" (Mesa) or "0(LINE)" (NVIDIA) is then rewritten as
+ * "SEGMENT:LINE(COL)"; the source-string number is ignored (Mesa 22.3 prints it inconsistently). */
+
+#define OCV_GL_MAX_SEGMENTS 32
+
+typedef struct {
+  char *text;      /**< the concatenation, NUL-terminated, always ending with '\n' (NULL while empty) */
+  size_t len, cap; /**< bytes in text (without the NUL) and allocated */
+  int lines;       /**< lines in text so far, #line directives included */
+  int nseg;
+  struct {
+    char name[256]; /**< as messages name it: "shaders/optics.h", "<kernel>" */
+    int first;      /**< 1-based line of the segment's first line in text */
+    int count;      /**< its lines */
+  } seg[OCV_GL_MAX_SEGMENTS];
+  int failed;    /**< an add failed: later adds are no-ops and ocv_gl_src_compile() reports why */
+  char why[512]; /**< the first failure: "out of memory", "more than 32 source segments", "cannot read PATH" */
+} ocv_gl_src_t;
+
+/*! ocv_gl_src_init() : s starts with "#version 450\n#define OC_GLSL\n" (segment "<prelude>"), then
+ *  `defines` (segment "<defines>") unless NULL. @return 0, or -1 with s->why (free s all the same). */
+int ocv_gl_src_init(ocv_gl_src_t *s, const char *defines);
+/*! ocv_gl_src_add() : appends a piece of source named `name` in messages; a missing final newline is
+ *  supplied. @return 0, or -1 with s->why set (and s->failed, so later calls are no-ops). */
+int ocv_gl_src_add(ocv_gl_src_t *s, const char *name, const char *text);
+/*! ocv_gl_src_add_file() : appends the file at `path`, named `name` in messages (path itself if NULL).
+ *  @return 0, or -1 with s->why ("cannot read PATH", ...) and s->failed set. */
+int ocv_gl_src_add_file(ocv_gl_src_t *s, const char *name, const char *path);
+/*! ocv_gl_src_free() : releases the text; s is left empty (initialise it again to reuse it). */
+void ocv_gl_src_free(ocv_gl_src_t *s);
+/*! ocv_gl_src_map_line() : the segment holding line `line` of the concatenation, and in *local the line
+ *  within it. @return the segment's name, or NULL outside every segment (or on a #line directive). */
+const char *ocv_gl_src_map_line(const ocv_gl_src_t *s, int line, int *local);
+/*! ocv_gl_src_translate_log() : a GLSL info log with each "0:L(C): msg" (Mesa) or "0(L) : msg"
+ *  (NVIDIA) rewritten as "name:l(C): msg" / "name:l : msg"; other lines copied unchanged, every line
+ *  ending with '\n'. @return a malloc'd string (caller frees), or NULL when out of memory. */
+char *ocv_gl_src_translate_log(const ocv_gl_src_t *s, const char *log);
+/*! ocv_gl_src_compile() : compiles and links s as a compute program. *log (may be NULL) receives a
+ *  malloc'd, translated log (caller frees): the errors on failure (s->why if an add had failed), the
+ *  compiler's warnings on success, or NULL when it said nothing. @return the program, or 0. */
+GLuint ocv_gl_src_compile(const ocv_gl_src_t *s, char **log);
+/*! ocv_gl_read_file() : the whole file at path. @return a malloc'd, NUL-terminated string (caller
+ *  frees), or NULL when it cannot be opened or read (or out of memory). */
+char *ocv_gl_read_file(const char *path);
+
 /*! ocv_gl_shader_dir() : $OC_SHADER_DIR if set, else the build's OC_SHADER_DIR. */
 const char *ocv_gl_shader_dir(void);
-/*! ocv_gl_compute_program() : "#version 450", "#define OC_GLSL", `defines` (may be NULL), then the
- *  shared headers oc_port.h, sampling.h, optics.h, brick.h, atmosphere.h and the kernel file, all
- *  read from the shader directory, compiled and linked as a compute program. Compiler messages are
- *  rewritten to name the file and line ("shaders/optics.h:12(5): error: ...").
+/*! ocv_gl_compute_program() : ocv_gl_src_init(defines), then the shared headers oc_port.h,
+ *  sampling.h, optics.h, brick.h, atmosphere.h and the kernel file, all read from the shader
+ *  directory and named "shaders/FILE", compiled by ocv_gl_src_compile(). Compiler messages name the
+ *  file and line ("shaders/optics.h:12(5): error: ...").
  *  @return the program, or 0 with the (translated) log or the read error in why. */
 GLuint ocv_gl_compute_program(const char *kernel, const char *defines, char *why, size_t why_len);
 

@@ -8,7 +8,7 @@
  *    brick.h, atmosphere.h in that order, then any other header in shaders/, alphabetically) in one kernel;
  *    the list of compiled headers is printed.
  * 3. errors_name_file_and_line: a header with a deliberate error, and a kernel with one, give logs that
- *    name the file and line of the error (the harness maps GLSL lines back to their segment).
+ *    name the file and line of the error (ocv_gl_src_t maps GLSL lines back to their segment).
  * 4. headers_keep_their_line_numbers: a probe error appended to each header is reported on the header's
  *    last line + 1, i.e. no construct inside it (a function-like macro invocation spanning lines, which
  *    Mesa's glcpp joins) shifts GLSL error lines. Fails for oc_port.h and optics.h; other headers'
@@ -31,7 +31,7 @@
 #include <string.h> /* strstr, strcmp */
 #include <unistd.h> /* rmdir, unlink */
 
-#include "gl/gl_harness.h" /* EGL context, source assembly with line mapping */
+#include "gl/gl_harness.h" /* client/gl's context and source builder; skip without GL */
 #include "optics.h"        /* the C build the GLSL results are compared with */
 
 /* ---- One list of cases for both languages ------------------------------------------------------------- */
@@ -201,19 +201,19 @@ static const char *const optics_headers[] = {"shaders/oc_port.h", "shaders/optic
 
 static void test_glsl__optics_matches_c(void **state) {
   (void)state;
-  ocgl_ctx ctx;
-  OCGL_REQUIRE_CONTEXT(&ctx);
-  ocgl_print_info(&ctx);
+  ocv_gl_context_t *ctx = NULL;
+  OCGL_REQUIRE_CONTEXT(ctx);
+  ocgl_print_info(ctx);
 
-  ocgl_src src;
-  assert_int_equal(ocgl_src_init(&src, NULL), 0);
-  for (int i = 0; i < LEN(optics_headers); ++i) ocgl_src_add_file(&src, optics_headers[i]);
+  ocv_gl_src_t src;
+  assert_int_equal(ocv_gl_src_init(&src, NULL), 0);
+  for (int i = 0; i < LEN(optics_headers); ++i) ocgl_add_file(&src, optics_headers[i]);
   char *kernel = make_kernel();
   assert_non_null(kernel);
-  ocgl_src_add(&src, "<kernel>", kernel);
+  ocv_gl_src_add(&src, "<kernel>", kernel);
   free(kernel);
   char *log = NULL;
-  GLuint prog = ocgl_compute_program(&src, &log);
+  GLuint prog = ocv_gl_src_compile(&src, &log);
   if (!prog) fail_msg("optics kernel does not compile:\n%s", log ? log : "(no log)");
   if (log) printf("compiler said:\n%s", log);
   free(log);
@@ -272,8 +272,8 @@ static void test_glsl__optics_matches_c(void **state) {
   free(out);
   free(c.in);
   free(c.fn);
-  ocgl_src_free(&src);
-  ocgl_close(&ctx);
+  ocv_gl_src_free(&src);
+  ocv_gl_context_free(ctx);
   assert_int_equal(bad, 0);
 }
 
@@ -292,7 +292,7 @@ static int collect_headers(char *names[MAX_HEADERS]) {
     if (ocgl_file_exists(rel)) names[n++] = strdup(rel);
   }
   char dir[1024];
-  ocgl_src_path(dir, sizeof dir, "shaders");
+  ocgl_path(dir, sizeof dir, "shaders");
   DIR *d = opendir(dir);
   assert_non_null(d);
   char *others[MAX_HEADERS];
@@ -316,43 +316,42 @@ static int collect_headers(char *names[MAX_HEADERS]) {
 
 static void test_glsl__all_shared_headers_compile(void **state) {
   (void)state;
-  ocgl_ctx ctx;
-  OCGL_REQUIRE_CONTEXT(&ctx);
+  ocv_gl_context_t *ctx = NULL;
+  OCGL_REQUIRE_CONTEXT(ctx);
   char *names[MAX_HEADERS];
   int n = collect_headers(names);
-  ocgl_src src;
-  assert_int_equal(ocgl_src_init(&src, NULL), 0);
+  ocv_gl_src_t src;
+  assert_int_equal(ocv_gl_src_init(&src, NULL), 0);
   printf("compiling as one GLSL 4.50 compute shader:");
   for (int i = 0; i < n; ++i) {
     printf(" %s", names[i]);
-    ocgl_src_add_file(&src, names[i]);
+    ocgl_add_file(&src, names[i]);
   }
   printf("\n");
-  ocgl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {}\n");
+  ocv_gl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {}\n");
   char *log = NULL;
-  GLuint prog = ocgl_compute_program(&src, &log);
+  GLuint prog = ocv_gl_src_compile(&src, &log);
   if (log) printf("compiler said:\n%s", log);
   int ok = prog != 0;
   if (prog) glDeleteProgram(prog);
   for (int i = 0; i < n; ++i) free(names[i]);
-  ocgl_src_free(&src);
-  ocgl_close(&ctx);
+  ocv_gl_src_free(&src);
+  ocv_gl_context_free(ctx);
   if (!ok) fail_msg("shared headers do not compile as GLSL:\n%s", log ? log : "(no log)");
   free(log);
 }
 
 static void test_glsl__headers_keep_their_line_numbers(void **state) {
   (void)state;
-  ocgl_ctx ctx;
-  OCGL_REQUIRE_CONTEXT(&ctx);
+  ocv_gl_context_t *ctx = NULL;
+  OCGL_REQUIRE_CONTEXT(ctx);
   char *names[MAX_HEADERS];
   int n = collect_headers(names), bad_own = 0;
   for (int h = 0; h < n; ++h) {
-    ocgl_src src;
-    assert_int_equal(ocgl_src_init(&src, NULL), 0);
-    for (int i = 0; i < h; ++i) ocgl_src_add_file(&src, names[i]);
-    char why[256];
-    char *text = ocgl_read_file(names[h], why, sizeof why);
+    ocv_gl_src_t src;
+    assert_int_equal(ocv_gl_src_init(&src, NULL), 0);
+    for (int i = 0; i < h; ++i) ocgl_add_file(&src, names[i]);
+    char *text = ocgl_read_file(names[h]);
     assert_non_null(text);
     size_t len = strlen(text);
     int lines = 0;
@@ -362,12 +361,12 @@ static void test_glsl__headers_keep_their_line_numbers(void **state) {
     char *t = malloc(len + sizeof probe + 2);
     assert_non_null(t);
     snprintf(t, len + sizeof probe + 2, "%s%s%s", text, (len && text[len - 1] != '\n') ? "\n" : "", probe);
-    ocgl_src_add(&src, names[h], t);
+    ocv_gl_src_add(&src, names[h], t);
     free(t);
     free(text);
-    ocgl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {}\n");
+    ocv_gl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {}\n");
     char *log = NULL;
-    GLuint prog = ocgl_compute_program(&src, &log);
+    GLuint prog = ocv_gl_src_compile(&src, &log);
     assert_int_equal(prog, 0);
     assert_non_null(log);
     char want[300];
@@ -385,17 +384,17 @@ static void test_glsl__headers_keep_their_line_numbers(void **state) {
       bad_own += own;
     }
     free(log);
-    ocgl_src_free(&src);
+    ocv_gl_src_free(&src);
   }
   for (int i = 0; i < n; ++i) free(names[i]);
-  ocgl_close(&ctx);
+  ocv_gl_context_free(ctx);
   assert_int_equal(bad_own, 0);
 }
 
 static void test_glsl__errors_name_file_and_line(void **state) {
   (void)state;
-  ocgl_ctx ctx;
-  OCGL_REQUIRE_CONTEXT(&ctx);
+  ocv_gl_context_t *ctx = NULL;
+  OCGL_REQUIRE_CONTEXT(ctx);
   char dir[] = "/tmp/oc_glsl_test_XXXXXX";
   assert_non_null(mkdtemp(dir));
   char path[512];
@@ -413,13 +412,13 @@ static void test_glsl__errors_name_file_and_line(void **state) {
   assert_int_equal(fclose(f), 0);
 
   /* Error in a header, after the two real headers. */
-  ocgl_src src;
-  assert_int_equal(ocgl_src_init(&src, NULL), 0);
-  for (int i = 0; i < LEN(optics_headers); ++i) ocgl_src_add_file(&src, optics_headers[i]);
-  ocgl_src_add_file(&src, path);
-  ocgl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {}\n");
+  ocv_gl_src_t src;
+  assert_int_equal(ocv_gl_src_init(&src, NULL), 0);
+  for (int i = 0; i < LEN(optics_headers); ++i) ocgl_add_file(&src, optics_headers[i]);
+  ocgl_add_file(&src, path);
+  ocv_gl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {}\n");
   char *log = NULL;
-  GLuint prog = ocgl_compute_program(&src, &log);
+  GLuint prog = ocv_gl_src_compile(&src, &log);
   printf("header error log:\n%s", log ? log : "(none)\n");
   assert_int_equal(prog, 0);
   assert_non_null(log);
@@ -427,49 +426,49 @@ static void test_glsl__errors_name_file_and_line(void **state) {
   snprintf(want, sizeof want, "%s:5", path);
   if (!strstr(log, want)) fail_msg("log does not name %s", want);
   free(log);
-  ocgl_src_free(&src);
+  ocv_gl_src_free(&src);
 
   /* Error in the kernel, line 3 of the kernel. */
-  assert_int_equal(ocgl_src_init(&src, NULL), 0);
-  for (int i = 0; i < LEN(optics_headers); ++i) ocgl_src_add_file(&src, optics_headers[i]);
-  ocgl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {\n  float y = ocg_phase_hg(0.5);\n}\n");
-  prog = ocgl_compute_program(&src, &log);
+  assert_int_equal(ocv_gl_src_init(&src, NULL), 0);
+  for (int i = 0; i < LEN(optics_headers); ++i) ocgl_add_file(&src, optics_headers[i]);
+  ocv_gl_src_add(&src, "<kernel>", "layout(local_size_x = 1) in;\nvoid main() {\n  float y = ocg_phase_hg(0.5);\n}\n");
+  prog = ocv_gl_src_compile(&src, &log);
   printf("kernel error log:\n%s", log ? log : "(none)\n");
   assert_int_equal(prog, 0);
   assert_non_null(log);
   assert_non_null(strstr(log, "<kernel>:3"));
   free(log);
-  ocgl_src_free(&src);
+  ocv_gl_src_free(&src);
 
   unlink(path);
   rmdir(dir);
-  ocgl_close(&ctx);
+  ocv_gl_context_free(ctx);
 }
 
 static void test_harness__log_translation(void **state) {
   (void)state;
-  ocgl_src src;
-  assert_int_equal(ocgl_src_init(&src, NULL), 0);              /* lines 1-2 */
-  assert_int_equal(ocgl_src_add(&src, "a.h", "x\ny\nz\n"), 0); /* "#line 4" on line 3, a.h on 4-6 */
-  assert_int_equal(ocgl_src_add(&src, "b.h", "p\nq"), 0);      /* "#line 8" on 7, b.h on 8-9 (newline supplied) */
-  assert_int_equal(ocgl_src_add(&src, "<kernel>", "k\n"), 0);  /* "#line 11" on 10, kernel on 11 */
+  ocv_gl_src_t src;
+  assert_int_equal(ocv_gl_src_init(&src, NULL), 0);              /* lines 1-2 */
+  assert_int_equal(ocv_gl_src_add(&src, "a.h", "x\ny\nz\n"), 0); /* "#line 4" on line 3, a.h on 4-6 */
+  assert_int_equal(ocv_gl_src_add(&src, "b.h", "p\nq"), 0);      /* "#line 8" on 7, b.h on 8-9 (newline supplied) */
+  assert_int_equal(ocv_gl_src_add(&src, "<kernel>", "k\n"), 0);  /* "#line 11" on 10, kernel on 11 */
   assert_string_equal(src.text, "#version 450\n#define OC_GLSL\n#line 4\nx\ny\nz\n#line 8\np\nq\n#line 11\nk\n");
   int local = 0;
-  assert_string_equal(ocgl_src_map_line(&src, 5, &local), "a.h");
+  assert_string_equal(ocv_gl_src_map_line(&src, 5, &local), "a.h");
   assert_int_equal(local, 2);
-  assert_string_equal(ocgl_src_map_line(&src, 9, &local), "b.h");
+  assert_string_equal(ocv_gl_src_map_line(&src, 9, &local), "b.h");
   assert_int_equal(local, 2);
-  assert_string_equal(ocgl_src_map_line(&src, 11, &local), "<kernel>");
+  assert_string_equal(ocv_gl_src_map_line(&src, 11, &local), "<kernel>");
   assert_int_equal(local, 1);
-  assert_null(ocgl_src_map_line(&src, 7, &local)); /* a #line directive */
-  assert_null(ocgl_src_map_line(&src, 12, &local));
-  char *t = ocgl_translate_log(&src, "0:6(12): error: `foo' undeclared\n0(8) : error C1008: bar\n"
+  assert_null(ocv_gl_src_map_line(&src, 7, &local)); /* a #line directive */
+  assert_null(ocv_gl_src_map_line(&src, 12, &local));
+  char *t = ocv_gl_src_translate_log(&src, "0:6(12): error: `foo' undeclared\n0(8) : error C1008: bar\n"
                                      "1:2(1): error: baz\nplain line\n");
   assert_non_null(t);
   assert_string_equal(t, "a.h:3(12): error: `foo' undeclared\nb.h:1 : error C1008: bar\n<prelude>:2(1): error: baz\n"
                          "plain line\n");
   free(t);
-  ocgl_src_free(&src);
+  ocv_gl_src_free(&src);
 }
 
 int main(void) {
