@@ -125,7 +125,6 @@ static void session_lost(ocs_session_t *s, const char *cause) {
     s->state = OCS_SS_LINGER;
     s->linger_until = ocs_net_now() + srv->desc.linger_s;
     s->streaming = s->awaiting_ack = 0; /* the epoch in flight is lost with the connection */
-    s->queued = 0;
     uv_read_stop((uv_stream_t *)&s->tcp);
     close_handle(s);
     return;
