@@ -31,6 +31,8 @@ void oct_bench_usage(FILE *f) {
           "  --step-factor X     (default 0.5)\n"
           "  --time T            world time in seconds (default 0)\n"
           "  --png FILE          also write the first thread count's image\n"
+          "  --gl                also time the GL compute renderer (headless EGL) on the same state and give\n"
+          "                      its RMSE against the CPU image\n"
           "  (scenes with procedural or vdb sources: the state the server core plans for a viewer at\n"
           "   this camera, 8 epochs, 64 MiB)\n"
           "\n"

@@ -16,20 +16,101 @@
 #include "oc_scene.h"
 #include "world.h"
 #include "oc_scene_voxelize.h"
+#ifdef OC_HAVE_GL
+#include <math.h>
+
+#include "ocv_gl.h"
+#endif
+
+/* The render description both renderers get. */
+static oc_render_desc_t render_desc(const oc_scene_t *sc, oc_camera_t cam, int w, int h, double step, const oc_atmo_t *atmo) {
+  oc_render_desc_t d = {0};
+  d.width = w;
+  d.height = h;
+  d.camera = cam;
+  d.step_factor = step;
+  d.atmo = atmo;
+  d.ms_octaves = sc->optics.ms_octaves;
+  d.albedo = (float)sc->optics.albedo;
+  d.albedo_zero = sc->optics.albedo == 0.0;
+  return d;
+}
+
+#ifdef OC_HAVE_GL
+/* The GL compute renderer on the same state (upload once, best of `repeat` renders including the
+ * read-back), its time against one CPU thread and its RMSE (0–255, after tone mapping) against the
+ * CPU image. */
+static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam, int w, int h, double step,
+                    const oc_atmo_t *atmo, long repeat, const oc_image_t *ref, double cpu1) {
+  const char *prog = "overcast-bench";
+  char why[1024], info[512];
+  ocv_gl_context_t *ctx = ocv_gl_context_init(why, sizeof why);
+  if (!ctx) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
+  ocv_gl_context_describe(ctx, info, sizeof info);
+  ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
+  ocv_gl_state_t gs;
+  memset(&gs, 0, sizeof gs);
+  int rc = OC_EXIT_OK;
+  double tu = oct_now();
+  if (!r || ocv_gl_state_upload(&gs, st, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
+    goto out;
+  }
+  tu = oct_now() - tu;
+  oc_render_desc_t d = render_desc(sc, cam, w, h, step, atmo);
+  oc_image_t img = {0};
+  if (oc_image_alloc(&img, w, h) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+    goto out;
+  }
+  double best = 1e30;
+  for (long i = 0; i <= repeat; i++) { /* the first run compiles and uploads the tables: not counted */
+    double t0 = oct_now();
+    if (ocv_gl_render_state(r, &gs, &d, &img, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
+      break;
+    }
+    double t = oct_now() - t0;
+    if (i > 0 && t < best) best = t;
+  }
+  if (rc == OC_EXIT_OK) {
+    size_t n = (size_t)w * (size_t)h * 3;
+    uint8_t *a = malloc(n), *b = malloc(n);
+    double se = 0.0;
+    if (a && b) {
+      oc_image_tonemap(ref, 10.0f, a);
+      oc_image_tonemap(&img, 10.0f, b);
+      for (size_t i = 0; i < n; i++) se += ((double)a[i] - b[i]) * ((double)a[i] - b[i]);
+    }
+    printf("\n# GL compute renderer (%s), state upload %.3f s\n\n", info, tu);
+    printf("| renderer | best of %ld (s) | M rays/s | vs 1 CPU thread | RMSE vs CPU (0–255) |\n|---|---:|---:|---:|---:|\n", repeat);
+    printf("| gl | %.3f | %.3f | %.2f | %.3f |\n", best, (double)w * h / best * 1e-6, cpu1 / best, sqrt(se / (double)n));
+    free(a);
+    free(b);
+  }
+  oc_image_free(&img);
+out:
+  ocv_gl_state_free(&gs);
+  ocv_gl_renderer_free(r);
+  ocv_gl_context_free(ctx);
+  return rc;
+}
+#endif
 
 int oct_bench_render(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_CAMERA, O_SIZE, O_THREADS, O_REPEAT, O_STEP, O_PNG, O_TIME, O_HELP };
+  enum { O_SCENE = 256, O_CAMERA, O_SIZE, O_THREADS, O_REPEAT, O_STEP, O_PNG, O_TIME, O_GL, O_HELP };
   static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},   {"camera", required_argument, 0, O_CAMERA},
                                        {"size", required_argument, 0, O_SIZE},     {"threads", required_argument, 0, O_THREADS},
                                        {"repeat", required_argument, 0, O_REPEAT}, {"step-factor", required_argument, 0, O_STEP},
                                        {"png", required_argument, 0, O_PNG}, {"time", required_argument, 0, O_TIME},
+                                       {"gl", no_argument, 0, O_GL},
                                        {"help", no_argument, 0, O_HELP},           {0, 0, 0, 0}};
   const char *scene_path = "scenes/analytic_sphere.json", *camera_text = NULL, *threads_text = "1,2", *png = NULL;
   double world_time = 0.0;
   int w = 320, h = 180;
   long repeat = 3;
   double step = 0.5;
-  int c;
+  int c, gl = 0;
   opterr = 0;
   optind = 1;
   while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
@@ -42,6 +123,13 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
       case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &step)) return OC_EXIT_USAGE; break;
       case O_PNG: png = optarg; break;
       case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &world_time)) return OC_EXIT_USAGE; break;
+      case O_GL:
+#ifdef OC_HAVE_GL
+        gl = 1;
+        break;
+#else
+        return oc_cli_fail(prog, OC_EXIT_USAGE, "--gl: this build has no GL renderer");
+#endif
       case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
       default: return oc_cli_fail(prog, OC_EXIT_USAGE, "render: unknown or incomplete option \"%s\"", argv[optind - 1]);
     }
@@ -89,12 +177,7 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
   double base = 0.0;
   int rc = OC_EXIT_OK;
   for (int i = 0; i < nthreads; i++) {
-    oc_render_desc_t d = {0};
-    d.width = w;
-    d.height = h;
-    d.camera = cam;
-    d.step_factor = step;
-    d.atmo = atmo;
+    oc_render_desc_t d = render_desc(&sc, cam, w, h, step, atmo);
     d.threads = (int)threads[i];
     d.ms_octaves = sc.optics.ms_octaves;
     d.albedo = (float)sc.optics.albedo;
@@ -134,6 +217,10 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     printf("| %ld | %.3f | %llu | %.2f | %.3f | %.2f | %s |\n", threads[i], best, (unsigned long long)rs.samples,
            rs.samples / best * 1e-6, (double)w * h / best * 1e-6, base / best, same);
   }
+  (void)gl;
+#ifdef OC_HAVE_GL
+  if (gl && rc == OC_EXIT_OK) rc = bench_gl(&st, &sc, cam, w, h, step, atmo, repeat, &ref, base);
+#endif
   oc_image_free(&ref);
   oc_atmo_free(atmo);
   oc_state_free(&st);
