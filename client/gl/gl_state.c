@@ -11,11 +11,12 @@
 #include <string.h>
 
 #include "oc_err.h"
+#include "gl_internal.h"
 #include "ocv_gl.h"
 
 #define OCV__LEAF_BIT 0x80000000u
 #define OCV__UNSET 0xFFFFFFFFu
-#define OCV__NO_SLOT 0xFFFFFFFFu
+/* OCV__NO_SLOT: gl_internal.h */
 
 /* The leaf record as the shader reads it (std430: vec4 then uvec4, 32 bytes). */
 typedef struct {
@@ -82,9 +83,70 @@ static int ocv__tree_insert(ocv__tree_t *t, oc_key_t key, uint32_t leaf) {
   return 0;
 }
 
+/* Builds the leaf records and the pointer octree of s; slot_of(ctx, id) gives a brick's atlas slot
+ * (OCV__NO_SLOT: missing). On success *rec_out and *tree_out (1 + 8·inner words) are malloc'd. */
+int ocv__gl_build(const oc_state_t *s, uint32_t (*slot_of)(void *ctx, const oc_state_t *s, uint32_t id), void *ctx,
+                  void **rec_out, uint32_t **tree_out, uint32_t *inner_out, char *why, size_t why_len) {
+  ocv__leaf_rec_t *rec = calloc(s->node_count, sizeof *rec);
+  ocv__tree_t t = {0};
+  int rc = rec && (t.w = malloc(sizeof *t.w)) ? 0 : OC_ENOMEM;
+  if (!rc) t.w[0] = OCV__UNSET;
+  for (uint32_t i = 0; !rc && i < s->node_count; i++) {
+    const oc_node_t *nd = &s->nodes[i];
+    rec[i].range[0] = nd->range[OC_CH_SIGMA].lo;
+    rec[i].range[1] = nd->range[OC_CH_SIGMA].hi;
+    rec[i].range[2] = nd->range[OC_CH_TAU].lo;
+    rec[i].range[3] = nd->range[OC_CH_TAU].hi;
+    rec[i].info[0] = nd->kind;
+    rec[i].info[1] = OCV__NO_SLOT;
+    rec[i].info[2] = (uint32_t)oc_key_level(nd->key);
+    if (nd->kind == OC_NODE_BRICK && (rec[i].info[1] = slot_of(ctx, s, nd->brick_id)) == OCV__NO_SLOT) rc = OC_ECORRUPT;
+    if (!rc) rc = ocv__tree_insert(&t, nd->key, i);
+  }
+  for (size_t w = 0; !rc && w < 1 + (size_t)t.inner * 8; w++)
+    if (t.w[w] == OCV__UNSET) rc = OC_ECORRUPT; /* a hole: the leaves do not cover the cube */
+  if (rc) {
+    (void)oc_errorf(0, why, why_len, rc == OC_ENOMEM ? "gl state: out of memory" : "gl state: leaves do not partition the root cube, or a brick is missing");
+    free(rec);
+    free(t.w);
+    return rc;
+  }
+  *rec_out = rec;
+  *tree_out = t.w;
+  *inner_out = t.inner;
+  return 0;
+}
+
+/* slot = the brick's index in the state (ascending id): a one-state atlas. */
+static uint32_t ocv__slot_by_index(void *ctx, const oc_state_t *s, uint32_t id) {
+  (void)ctx;
+  const oc_brick_t *b = oc_state_find_brick(s, id);
+  return b ? (uint32_t)(b - s->bricks) : OCV__NO_SLOT;
+}
+
+/* The tree and leaf buffers of gs from built arrays. */
+void ocv__gl_buffers(ocv_gl_state_t *gs, const void *rec, uint32_t nrec, const uint32_t *tree, uint32_t inner) {
+  gs->inner_count = inner;
+  glCreateBuffers(1, &gs->tree);
+  glNamedBufferStorage(gs->tree, (GLsizeiptr)((1 + (size_t)inner * 8) * sizeof *tree), tree, 0);
+  glCreateBuffers(1, &gs->leaves);
+  glNamedBufferStorage(gs->leaves, (GLsizeiptr)((size_t)nrec * sizeof(ocv__leaf_rec_t)), rec, 0);
+}
+
+/* Brick codes → 8³ RG16UI texels of atlas slot k. */
+void ocv__gl_put_brick(GLuint atlas, const int bricks[3], uint32_t k, const oc_brick_codes_t *c, uint16_t *texels) {
+  uint32_t bx = (uint32_t)bricks[0], by = (uint32_t)bricks[1];
+  for (int v = 0; v < 512; v++) {
+    texels[2 * v] = c->code[OC_CH_SIGMA][v];
+    texels[2 * v + 1] = c->code[OC_CH_TAU][v];
+  }
+  glTextureSubImage3D(atlas, 0, (GLint)(k % bx * 8), (GLint)(k / bx % by * 8), (GLint)(k / (bx * by) * 8), 8, 8, 8,
+                      GL_RG_INTEGER, GL_UNSIGNED_SHORT, texels);
+}
+
 void ocv_gl_state_free(ocv_gl_state_t *gs) {
   if (!gs) return;
-  if (gs->atlas) glDeleteTextures(1, &gs->atlas);
+  if (gs->atlas && !gs->shared_atlas) glDeleteTextures(1, &gs->atlas);
   if (gs->tree) glDeleteBuffers(1, &gs->tree);
   if (gs->leaves) glDeleteBuffers(1, &gs->leaves);
   memset(gs, 0, sizeof *gs);
@@ -115,39 +177,15 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
   gs->atlas_bricks[1] = (int)by;
   gs->atlas_bricks[2] = (int)bz;
 
-  ocv__leaf_rec_t *rec = calloc(s->node_count, sizeof *rec);
-  ocv__tree_t t = {0};
+  void *rec = NULL;
+  uint32_t *tree = NULL, inner = 0;
   uint16_t *texels = malloc(512 * 2 * sizeof *texels);
-  int rc = rec && texels && (t.w = malloc(sizeof *t.w)) ? 0 : OC_ENOMEM;
-  if (!rc) t.w[0] = OCV__UNSET;
-  for (uint32_t i = 0; !rc && i < s->node_count; i++) {
-    const oc_node_t *nd = &s->nodes[i];
-    rec[i].range[0] = nd->range[OC_CH_SIGMA].lo;
-    rec[i].range[1] = nd->range[OC_CH_SIGMA].hi;
-    rec[i].range[2] = nd->range[OC_CH_TAU].lo;
-    rec[i].range[3] = nd->range[OC_CH_TAU].hi;
-    rec[i].info[0] = nd->kind;
-    rec[i].info[1] = OCV__NO_SLOT;
-    rec[i].info[2] = (uint32_t)oc_key_level(nd->key);
-    if (nd->kind == OC_NODE_BRICK) {
-      const oc_brick_t *b = oc_state_find_brick(s, nd->brick_id);
-      if (!b) rc = OC_ECORRUPT;
-      else rec[i].info[1] = (uint32_t)(b - s->bricks); /* slot = the brick's index (ascending id) */
-    }
-    if (!rc) rc = ocv__tree_insert(&t, nd->key, i);
-  }
-  for (size_t w = 0; !rc && w < 1 + (size_t)t.inner * 8; w++)
-    if (t.w[w] == OCV__UNSET) rc = OC_ECORRUPT; /* a hole: the leaves do not cover the cube */
+  int rc = texels ? ocv__gl_build(s, ocv__slot_by_index, NULL, &rec, &tree, &inner, why, why_len) : OC_ENOMEM;
   if (rc) {
-    (void)oc_errorf(0, why, why_len, rc == OC_ENOMEM ? "gl state: out of memory" : "gl state: leaves do not partition the root cube");
+    if (rc == OC_ENOMEM) (void)oc_errorf(0, why, why_len, "gl state: out of memory");
     goto out;
   }
-  gs->inner_count = t.inner;
-
-  glCreateBuffers(1, &gs->tree);
-  glNamedBufferStorage(gs->tree, (GLsizeiptr)((1 + (size_t)t.inner * 8) * sizeof *t.w), t.w, 0);
-  glCreateBuffers(1, &gs->leaves);
-  glNamedBufferStorage(gs->leaves, (GLsizeiptr)((size_t)s->node_count * sizeof *rec), rec, 0);
+  ocv__gl_buffers(gs, rec, s->node_count, tree, inner);
 
   glCreateTextures(GL_TEXTURE_3D, 1, &gs->atlas);
   glTextureParameteri(gs->atlas, GL_TEXTURE_MIN_FILTER, GL_NEAREST); /* integer texture: texelFetch only */
@@ -156,15 +194,10 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   for (uint32_t k = 0; k < s->brick_count; k++) {
     const oc_brick_t *b = &s->bricks[k];
-    for (int v = 0; v < 512; v++) {
-      texels[2 * v] = b->codes.code[OC_CH_SIGMA][v];
-      texels[2 * v + 1] = b->codes.code[OC_CH_TAU][v];
-    }
-    glTextureSubImage3D(gs->atlas, 0, (GLint)(k % bx * 8), (GLint)(k / bx % by * 8), (GLint)(k / (bx * by) * 8), 8, 8, 8,
-                        GL_RG_INTEGER, GL_UNSIGNED_SHORT, texels);
+    ocv__gl_put_brick(gs->atlas, gs->atlas_bricks, k, &b->codes, texels);
   }
   gs->resident_bytes = (uint64_t)bx * by * bz * OCV_GL_SLOT_BYTES + (uint64_t)s->node_count * OCV_GL_LEAF_BYTES +
-                       (4 + (uint64_t)t.inner * OCV_GL_INNER_BYTES);
+                       (4 + (uint64_t)inner * OCV_GL_INNER_BYTES);
   GLenum err = glGetError();
   if (err != GL_NO_ERROR) {
     (void)oc_errorf(0, why, why_len, "gl state: upload failed (GL error 0x%x)", (unsigned)err);
@@ -172,7 +205,7 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
   }
 out:
   free(rec);
-  free(t.w);
+  free(tree);
   free(texels);
   if (rc) ocv_gl_state_free(gs);
   return rc;

@@ -108,6 +108,7 @@ typedef struct {
   uint32_t brick_count;
   uint64_t resident_bytes; /**< atlas + tree + leaf records actually allocated on the GPU */
   oc_dvec3 sun_dir;        /**< the state's sun */
+  int shared_atlas;        /**< the atlas belongs to an ocv_gl_store_t: ocv_gl_state_free() keeps it */
 } ocv_gl_state_t;
 
 /*! ocv_gl_state_upload() : the GPU copy of a validated state (gs is overwritten; free it first if it
@@ -115,6 +116,42 @@ typedef struct {
  *  OC_ECORRUPT for leaves that do not partition the root cube. */
 int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size_t why_len);
 void ocv_gl_state_free(ocv_gl_state_t *gs);
+
+/* ---- Kept states (gl_store.c) ------------------------------------------------------------------------ */
+
+/* The viewer's GPU memory across epochs (design.md, Conventions: state, budget): one brick atlas
+ * sized from the granted budget, shared by the kept states, each brick uploaded once however many
+ * states reference it (brick ids name one content); node records and the pointer octree per state.
+ * A new state is staged, its missing bricks are uploaded a bounded number of bytes per call (so a
+ * big epoch never stalls a frame), and only when all are resident does it become the newest kept
+ * state; the oldest beyond `kept` is dropped and bricks no kept state references free their slots. */
+typedef struct ocv_gl_store_s ocv_gl_store_t;
+
+typedef struct {
+  uint32_t capacity, used;           /**< atlas slots */
+  uint32_t pending;                  /**< bricks of the staged state still to upload */
+  uint32_t ready;                    /**< complete states kept */
+  uint64_t uploaded_bricks, uploaded_bytes;
+  uint64_t resident_bytes;           /**< the Conventions' measure: distinct bricks of the kept and the
+                                          staged states × OCV_GL_SLOT_BYTES + their records × OCV_GL_LEAF_BYTES */
+  uint64_t gpu_bytes;                /**< what is allocated: the atlas, trees and leaf buffers */
+} ocv_gl_store_stats_t;
+
+/*! ocv_gl_store_create() : an atlas of `slots` bricks (budget / slot bytes) and room for `kept`
+ *  complete states (the K−1 of the Conventions: 2 animated, 1 static). NULL with why on failure. */
+ocv_gl_store_t *ocv_gl_store_create(uint32_t slots, int kept, char *why, size_t why_len);
+void ocv_gl_store_free(ocv_gl_store_t *st);
+/*! ocv_gl_store_stage() : s (validated; it must stay unchanged until it is ready) becomes the state
+ *  being uploaded, replacing one still staged. @return 0, or OC_ETOOBIG (its new bricks do not fit
+ *  the atlas beside the kept states: more than the budget) / OC_ENOMEM with why. */
+int ocv_gl_store_stage(ocv_gl_store_t *st, const oc_state_t *s, char *why, size_t why_len);
+/*! ocv_gl_store_pump() : uploads at most max_bytes of the staged state's bricks (at least one).
+ *  @return 1 when the staged state became ready (now ocv_gl_store_state(st, 0)), 0 when bricks
+ *  remain or nothing is staged, or a negative OC_E* with why. */
+int ocv_gl_store_pump(ocv_gl_store_t *st, uint64_t max_bytes, char *why, size_t why_len);
+/*! ocv_gl_store_state() : the i-th newest ready state (0: newest), or NULL. */
+const ocv_gl_state_t *ocv_gl_store_state(const ocv_gl_store_t *st, int i);
+void ocv_gl_store_stats(const ocv_gl_store_t *st, ocv_gl_store_stats_t *out);
 
 /* ---- Raymarch (gl_render.c) --------------------------------------------------------------------------- */
 

@@ -1,0 +1,219 @@
+/* test_gl_store.c — the viewer's kept states on the GPU (client/gl/gl_store.c): uploads bounded per
+ * call, bricks shared between states uploaded once, slots freed when the oldest state is dropped,
+ * resident bytes by the Conventions' measure within the atlas, and the image of a stored state
+ * identical to the one-shot upload's (slot placement must not change a value). */
+#include <setjmp.h> /* cmocka needs these three before cmocka.h */
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "oc_atmo.h"
+#include "oc_camera.h"
+#include "oc_err.h"
+#include "oc_image.h"
+#include "oc_render.h"
+#include "oc_scene.h"
+#include "oc_scene_voxelize.h"
+#include "ocv_gl.h"
+
+#define W 96
+#define H 54
+
+static ocv_gl_context_t *ctx;
+static ocv_gl_renderer_t *ren;
+
+static int setup(void **state) {
+  (void)state;
+  char why[1024];
+  ctx = ocv_gl_context_init(why, sizeof why);
+  if (!ctx) printf("%s\n", why);
+  else if (!(ren = ocv_gl_renderer_create(why, sizeof why))) printf("raymarch program: %s\n", why);
+  return 0;
+}
+
+static int teardown(void **state) {
+  (void)state;
+  ocv_gl_renderer_free(ren);
+  ocv_gl_context_free(ctx);
+  return 0;
+}
+
+static void require_gl(void) {
+  if (ctx && ren) return;
+  const char *req = getenv("OC_GL_REQUIRE");
+  if (req && req[0] == '1') fail_msg("OC_GL_REQUIRE=1 but no headless OpenGL 4.5 context");
+  skip();
+}
+
+/* The analytic sphere voxelized for a camera; brick ids shifted by id_base. */
+static void make_state(oc_state_t *st, oc_camera_t *cam, double lon, uint32_t id_base) {
+  char path[1024], why[512];
+  const char *root = getenv("OC_SOURCE_DIR");
+  snprintf(path, sizeof path, "%s/scenes/analytic_sphere.json", root && *root ? root : ".");
+  oc_scene_t sc;
+  assert_int_equal(oc_scene_load(&sc, path, why, sizeof why), 0);
+  oc_camera_pose_t pose = {{0.0, lon, 3000.0}, 90.0, 0.0, 40.0};
+  *cam = oc_camera_from_pose(pose);
+  oc_state_init(st);
+  oc_scene_voxelize_desc_t vd = {*cam, H, 2.0, 0, 0, 2};
+  if (oc_scene_voxelize(st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
+  for (uint32_t i = 0; i < st->node_count; i++)
+    if (st->nodes[i].kind == OC_NODE_BRICK) st->nodes[i].brick_id += id_base;
+  for (uint32_t b = 0; b < st->brick_count; b++) st->bricks[b].id += id_base;
+  oc_scene_free(&sc);
+  assert_true(st->brick_count > 40);
+}
+
+/* A copy of s in which `n` bricks got new content under new ids (a refreshed epoch). */
+static void refresh(oc_state_t *dst, const oc_state_t *s, uint32_t n) {
+  oc_state_init(dst);
+  assert_int_equal(oc_state_copy(dst, s), 0);
+  uint32_t next = s->bricks[s->brick_count - 1].id + 1, done = 0;
+  oc_node_t *nodes[64];
+  oc_brick_t *bricks[64];
+  assert_true(n <= 64);
+  for (uint32_t i = 0; i < dst->node_count && done < n; i++) /* look up first: ids change below */
+    if (dst->nodes[i].kind == OC_NODE_BRICK) {
+      nodes[done] = &dst->nodes[i];
+      bricks[done++] = (oc_brick_t *)oc_state_find_brick(dst, dst->nodes[i].brick_id);
+    }
+  for (uint32_t k = 0; k < done; k++) {
+    bricks[k]->id = nodes[k]->brick_id = next++;
+    for (int v = 0; v < 512; v++)
+      if (bricks[k]->codes.code[0][v] > 1 && bricks[k]->codes.code[0][v] < 65535) bricks[k]->codes.code[0][v]++;
+  }
+  oc_state_canonicalize(dst);
+  char why[256];
+  if (oc_state_validate(dst, why, sizeof why)) fail_msg("refresh: %s", why);
+}
+
+static void render(const ocv_gl_state_t *gs, oc_camera_t cam, oc_image_t *img) {
+  oc_render_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.width = W;
+  d.height = H;
+  d.camera = cam;
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  char why[512];
+  assert_int_equal(oc_image_alloc(img, W, H), 0);
+  if (ocv_gl_render_state(ren, gs, &d, img, why, sizeof why) < 0) fail_msg("render: %s", why);
+}
+
+/* The stored state renders exactly like a one-shot upload of the same state. */
+static void expect_same_image(const ocv_gl_state_t *stored, const oc_state_t *s, oc_camera_t cam) {
+  ocv_gl_state_t one;
+  char why[512];
+  assert_int_equal(ocv_gl_state_upload(&one, s, why, sizeof why), 0);
+  oc_image_t a = {0}, b = {0};
+  render(stored, cam, &a);
+  render(&one, cam, &b);
+  double lo = 1e30, hi = -1e30;
+  for (int i = 0; i < W * H * 4; i++) {
+    lo = a.px[i] < lo ? a.px[i] : lo;
+    hi = a.px[i] > hi ? a.px[i] : hi;
+  }
+  assert_true(hi > lo); /* not a uniform image */
+  assert_memory_equal(a.px, b.px, sizeof(float) * 4 * W * H);
+  oc_image_free(&a);
+  oc_image_free(&b);
+  ocv_gl_state_free(&one);
+}
+
+static uint32_t distinct_bricks(const oc_state_t *a, const oc_state_t *b) {
+  uint32_t n = a->brick_count;
+  for (uint32_t i = 0; i < b->brick_count; i++) n += oc_state_find_brick(a, b->bricks[i].id) == NULL;
+  return n;
+}
+
+static void test_gl_store__epochs(void **state) {
+  (void)state;
+  require_gl();
+  char why[512];
+  oc_state_t s1, s2, s3;
+  oc_camera_t cam, cam3;
+  make_state(&s1, &cam, -0.09, 0);
+  refresh(&s2, &s1, 10);
+  make_state(&s3, &cam3, -0.08, 1000000);
+  uint32_t slots = distinct_bricks(&s1, &s2) + s3.brick_count; /* room for two kept and one staged */
+  ocv_gl_store_t *st = ocv_gl_store_create(slots, 2, why, sizeof why);
+  if (!st) fail_msg("%s", why);
+  ocv_gl_store_stats_t ss;
+
+  /* 1. the first state arrives in bounded pieces: 16 bricks a call */
+  assert_int_equal(ocv_gl_store_stage(st, &s1, why, sizeof why), 0);
+  int calls = 0, r;
+  while ((r = ocv_gl_store_pump(st, 16 * OCV_GL_SLOT_BYTES, why, sizeof why)) == 0) {
+    calls++;
+    assert_null(ocv_gl_store_state(st, 0)); /* nothing to render until it is complete */
+  }
+  assert_int_equal(r, 1);
+  assert_int_equal(calls + 1, (int)((s1.brick_count + 15) / 16));
+  ocv_gl_store_stats(st, &ss);
+  assert_int_equal(ss.uploaded_bricks, s1.brick_count);
+  assert_int_equal(ss.used, s1.brick_count);
+  expect_same_image(ocv_gl_store_state(st, 0), &s1, cam);
+
+  /* 2. a refresh uploads only its 10 new bricks; both states are kept */
+  assert_int_equal(ocv_gl_store_stage(st, &s2, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_store_pump(st, UINT64_MAX, why, sizeof why), 1);
+  ocv_gl_store_stats(st, &ss);
+  assert_int_equal(ss.uploaded_bricks, s1.brick_count + 10);
+  assert_int_equal(ss.ready, 2);
+  const oc_state_t *both[2] = {&s2, &s1};
+  assert_int_equal(ss.resident_bytes, oc_resident_bytes(both, 2, OCV_GL_SLOT_BYTES, OCV_GL_LEAF_BYTES));
+  expect_same_image(ocv_gl_store_state(st, 0), &s2, cam);
+  expect_same_image(ocv_gl_store_state(st, 1), &s1, cam);
+
+  /* 3. a new view: s1 is dropped, the bricks only it held free their slots */
+  assert_int_equal(ocv_gl_store_stage(st, &s3, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_store_pump(st, UINT64_MAX, why, sizeof why), 1);
+  ocv_gl_store_stats(st, &ss);
+  assert_int_equal(ss.used, s2.brick_count + s3.brick_count);
+  const oc_state_t *kept[2] = {&s3, &s2};
+  assert_int_equal(ss.resident_bytes, oc_resident_bytes(kept, 2, OCV_GL_SLOT_BYTES, OCV_GL_LEAF_BYTES));
+  assert_true(ss.resident_bytes <= (uint64_t)slots * OCV_GL_SLOT_BYTES + (uint64_t)(s2.node_count + s3.node_count) * OCV_GL_LEAF_BYTES);
+  expect_same_image(ocv_gl_store_state(st, 0), &s3, cam3);
+  printf("store: %u slots, %u used, %llu bricks uploaded for 3 states of %u, %u, %u bricks\n", ss.capacity, ss.used,
+         (unsigned long long)ss.uploaded_bricks, s1.brick_count, s2.brick_count, s3.brick_count);
+
+  /* 4. a state that cannot fit beside the kept ones is refused, and nothing leaks: the slots are
+   *    as before, and a state that fits is still taken */
+  oc_state_t s4;
+  oc_camera_t cam4;
+  make_state(&s4, &cam4, -0.07, 2000000);
+  uint32_t used = ss.used;
+  int rc = ocv_gl_store_stage(st, &s4, why, sizeof why);
+  if (s4.brick_count > slots - used) {
+    assert_int_equal(rc, OC_ETOOBIG);
+    assert_non_null(strstr(why, "brick slots"));
+    ocv_gl_store_stats(st, &ss);
+    assert_int_equal(ss.used, used);
+  }
+  /* a stage replaced before it completes releases its bricks */
+  oc_state_t s5;
+  refresh(&s5, &s3, 5);
+  assert_int_equal(ocv_gl_store_stage(st, &s5, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_store_pump(st, OCV_GL_SLOT_BYTES, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_store_stage(st, &s5, why, sizeof why), 0); /* staged again from scratch */
+  assert_int_equal(ocv_gl_store_pump(st, UINT64_MAX, why, sizeof why), 1);
+  ocv_gl_store_stats(st, &ss);
+  assert_int_equal(ss.used, distinct_bricks(&s5, &s3));
+  expect_same_image(ocv_gl_store_state(st, 0), &s5, cam3);
+
+  ocv_gl_store_free(st);
+  oc_state_free(&s1);
+  oc_state_free(&s2);
+  oc_state_free(&s3);
+  oc_state_free(&s4);
+  oc_state_free(&s5);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_store__epochs)};
+  return cmocka_run_group_tests(tests, setup, teardown);
+}
