@@ -250,6 +250,34 @@ static void test_gl_render__low_sun(void **state) {
   oc_scene_free(&sc);
 }
 
+/* Per-pixel jitter of the ray start (shaders/sampling.h): the same hash of pixel and frame on both
+ * sides, so jittered frames agree too, and two frames differ from each other. */
+static void test_gl_render__jitter(void **state) {
+  (void)state;
+  require_gl();
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, NULL, NULL);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  d.flags = OC_RF_JITTER;
+  d.frame = 7;
+  compare("jitter", &st, &d, 1.0, 16);
+  oc_image_t a = {0}, b = {0};
+  assert_int_equal(oc_image_alloc(&a, W, H), 0);
+  assert_int_equal(oc_image_alloc(&b, W, H), 0);
+  assert_int_equal(oc_render_state(&st, &d, &a, NULL), 0);
+  d.frame = 8;
+  assert_int_equal(oc_render_state(&st, &d, &b, NULL), 0);
+  assert_memory_not_equal(a.px, b.px, sizeof(float) * 4 * W * H);
+  oc_image_free(&a);
+  oc_image_free(&b);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
 /* A kernel error names the kernel file and line; a missing shader folder says where it looked. */
 static void test_gl_render__errors_name_file_and_line(void **state) {
   (void)state;
@@ -303,6 +331,7 @@ int main(void) {
       cmocka_unit_test(test_gl_render__atmosphere),
       cmocka_unit_test(test_gl_render__camera_inside),
       cmocka_unit_test(test_gl_render__low_sun),
+      cmocka_unit_test(test_gl_render__jitter),
       cmocka_unit_test(test_gl_render__errors_name_file_and_line),
   };
   return cmocka_run_group_tests_name("gl_render", tests, setup, teardown);
