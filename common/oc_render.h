@@ -45,6 +45,14 @@ typedef enum {
   OC_RF_NO_EARLY_EXIT = 1 << 5
 } oc_render_flags_t;
 
+/*! Debug views of the GL renderer: what the first cloudy sample along each ray sees. */
+typedef enum {
+  OC_DEBUG_NONE = 0,
+  OC_DEBUG_LOD = 1,    /**< the leaf's level as a hue (blue coarse → red level 21) */
+  OC_DEBUG_TAU = 2,    /**< exp(−τ), the cloud's transmittance toward the sun, as grey */
+  OC_DEBUG_BOUNDS = 3  /**< the normal image with the edges of the first cloudy leaf drawn */
+} oc_debug_view_t;
+
 typedef struct {
   int width, height;     /**< pixels (required) */
   oc_camera_t camera;    /**< required */
@@ -60,6 +68,8 @@ typedef struct {
   float background_radiance; /**< for OC_BG_CONSTANT */
   uint32_t flags;        /**< oc_render_flags_t */
   uint32_t frame;        /**< jitter sequence index */
+  int debug_view;        /**< OC_DEBUG_*: the GL renderer's debug views; the CPU reference renders
+                              the normal image whatever this says */
   int threads;           /**< default: 1 */
   const oc_atmo_t *atmo; /**< required unless OC_RF_NO_ATMOSPHERE or OC_BG_CONSTANT */
 } oc_render_desc_t;

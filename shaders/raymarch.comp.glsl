@@ -57,6 +57,20 @@ layout(location = 25) uniform float u_bg_radiance;
 layout(location = 26) uniform float u_c_ground;  /* |o|² - ground_r², m² */
 layout(location = 27) uniform float u_c_top;     /* |o|² - air_top², m² */
 layout(location = 28) uniform ivec3 u_atlas_bricks;
+layout(location = 29) uniform int u_debug;       /* OC_DEBUG_* (common/oc_render.h) */
+
+/* Debug colours are radiances: after exposure 10 and the ACES fit they come out saturated. */
+vec3 ocv_level_color(uint level) {
+  float h = float(level) / 21.0; /* blue (coarse) → green → red (level 21) */
+  return 0.3 * clamp(vec3(2.0 * h - 0.5, 1.0 - abs(2.0 * h - 1.0), 1.5 - 2.0 * h), 0.0, 1.0);
+}
+
+/* Near an edge of the leaf: within 2 % of its size of two faces at once. */
+bool ocv_on_edge(vec3 u) {
+  vec3 e = min(u, 1.0 - u);
+  int n = (e.x < 0.02 ? 1 : 0) + (e.y < 0.02 ? 1 : 0) + (e.z < 0.02 ? 1 : 0);
+  return n >= 2;
+}
 
 #define OCV_LEAF_BIT 0x80000000u
 #define OCV_NO_SLOT 0xFFFFFFFFu
@@ -295,6 +309,11 @@ vec4 ocv_trace(vec3 dir, float jitter) {
       vec2 st = ocv_leaf_sample(lf, ocv_local(lf, o + dir * tm));
       if (cloudy) sig = st.x;
       tau = st.y;
+    }
+    if (u_debug != 0 && sig > 0.0) {
+      if (u_debug == OCV_DEBUG_LOD) return vec4(ocv_level_color(oc_leaf[lf.idx].info.z), 0.0);
+      if (u_debug == OCV_DEBUG_TAU) return vec4(vec3(0.3 * exp(-tau)), 0.0);
+      if (u_debug == OCV_DEBUG_BOUNDS && ocv_on_edge(ocv_local(lf, p))) return vec4(0.3, 0.15, 0.0, 0.0);
     }
     float r = ocv_radius(b, tm);
     float mu_s = (u_sun_o + tm * mu) / r;

@@ -40,8 +40,10 @@ ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
   /* The flag bits and constants the kernel shares with oc_render.c, from their one definition. */
   snprintf(defines, sizeof defines,
            "#define OCV_RF_NO_AMBIENT %uu\n#define OCV_RF_NO_SUN_DISC %uu\n#define OCV_RF_JITTER %uu\n"
-           "#define OCV_LOCATE_EPS 1e-4\n#define OCV_MAX_STEPS 200000\n",
-           (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER);
+           "#define OCV_LOCATE_EPS 1e-4\n#define OCV_MAX_STEPS 200000\n"
+           "#define OCV_DEBUG_LOD %d\n#define OCV_DEBUG_TAU %d\n#define OCV_DEBUG_BOUNDS %d\n",
+           (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER, OC_DEBUG_LOD, OC_DEBUG_TAU,
+           OC_DEBUG_BOUNDS);
   r->prog = ocv_gl_compute_program(OCV__KERNEL, defines, why, why_len);
   if (!r->prog) {
     free(r);
@@ -178,6 +180,7 @@ int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc
   glProgramUniform1f(p, 26, (float)(r2 - ground_r * ground_r));
   glProgramUniform1f(p, 27, (float)(r2 - air_top * air_top));
   glProgramUniform3i(p, 28, gs->atlas_bricks[0], gs->atlas_bricks[1], gs->atlas_bricks[2]);
+  glProgramUniform1i(p, 29, d.debug_view);
 
   size_t bytes = (size_t)d.width * (size_t)d.height * 4 * sizeof(float);
   if (bytes != r->out_bytes) {

@@ -26,6 +26,7 @@
 #include "oc_atmo.h"
 #include "oc_camera.h"
 #include "oc_image.h"
+#include "oc_key.h"
 #include "oc_planet.h"
 #include "oc_render.h"
 #include "oc_scene.h"
@@ -278,6 +279,67 @@ static void test_gl_render__jitter(void **state) {
   oc_scene_free(&sc);
 }
 
+/* Debug views: a pixel that differs from the normal image shows a LOD colour of a level present in
+ * the state, a grey 0.3·exp(−τ) in [0, 0.3], or the edge colour; most cloudy pixels change in the LOD
+ * and τ views, a few (the edges) in the bounds view. */
+static void test_gl_render__debug_views(void **state) {
+  (void)state;
+  require_gl();
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, NULL, NULL);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  char why[512];
+  ocv_gl_state_t gs;
+  assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
+  oc_image_t normal = {0}, v = {0};
+  assert_int_equal(oc_image_alloc(&normal, W, H), 0);
+  assert_int_equal(oc_image_alloc(&v, W, H), 0);
+  assert_int_equal(ocv_gl_render_state(fx.r, &gs, &d, &normal, why, sizeof why), 0);
+  int levels[22] = {0};
+  for (uint32_t i = 0; i < st.node_count; i++)
+    if (st.nodes[i].range[0].hi > 0) levels[oc_key_level(st.nodes[i].key)] = 1;
+  for (int view = OC_DEBUG_LOD; view <= OC_DEBUG_BOUNDS; view++) {
+    d.debug_view = view;
+    assert_int_equal(ocv_gl_render_state(fx.r, &gs, &d, &v, why, sizeof why), 0);
+    int cloud = 0, changed = 0, ok = 1;
+    for (int i = 0; i < W * H; i++) {
+      const float *a = &normal.px[4 * i], *b = &v.px[4 * i];
+      int differs = memcmp(a, b, 4 * sizeof(float)) != 0;
+      cloud += a[3] < 1.0f;
+      changed += differs;
+      if (view == OC_DEBUG_BOUNDS && differs && !(b[0] == 0.3f && b[1] == 0.15f && b[2] == 0.0f)) ok = 0;
+      if (view == OC_DEBUG_TAU && differs && !(b[0] >= 0 && b[0] <= 0.3f && b[0] == b[1] && b[1] == b[2])) ok = 0;
+      if (view == OC_DEBUG_LOD && differs) {
+        int hit = 0;
+        for (int l = 0; l <= 21; l++) {
+          float h = (float)l / 21.0f, e = 2e-6f;
+          float c[3] = {0.3f * fminf(fmaxf(2 * h - 0.5f, 0), 1), 0.3f * fminf(fmaxf(1 - fabsf(2 * h - 1), 0), 1),
+                        0.3f * fminf(fmaxf(1.5f - 2 * h, 0), 1)};
+          if (levels[l] && fabsf(b[0] - c[0]) < e && fabsf(b[1] - c[1]) < e && fabsf(b[2] - c[2]) < e) hit = 1;
+        }
+        if (!hit) ok = 0;
+      }
+    }
+    printf("debug view %d: %d cloudy pixels, %d changed\n", view, cloud, changed);
+    uint8_t rgb[W * H * 3];
+    oc_image_tonemap(&v, EXPOSURE, rgb);
+    save_png("debug", view == OC_DEBUG_LOD ? "lod" : view == OC_DEBUG_TAU ? "tau" : "bounds", rgb);
+    assert_true(ok);
+    assert_true(cloud > 100);
+    if (view == OC_DEBUG_BOUNDS) assert_true(changed > 0 && changed < cloud / 2);
+    else assert_true(changed > cloud / 2);
+  }
+  oc_image_free(&normal);
+  oc_image_free(&v);
+  ocv_gl_state_free(&gs);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
 /* A kernel error names the kernel file and line; a missing shader folder says where it looked. */
 static void test_gl_render__errors_name_file_and_line(void **state) {
   (void)state;
@@ -332,6 +394,7 @@ int main(void) {
       cmocka_unit_test(test_gl_render__camera_inside),
       cmocka_unit_test(test_gl_render__low_sun),
       cmocka_unit_test(test_gl_render__jitter),
+      cmocka_unit_test(test_gl_render__debug_views),
       cmocka_unit_test(test_gl_render__errors_name_file_and_line),
   };
   return cmocka_run_group_tests_name("gl_render", tests, setup, teardown);
