@@ -251,6 +251,31 @@ static void test_gl_render__low_sun(void **state) {
   oc_scene_free(&sc);
 }
 
+/* Extreme places: from space (1000 km up, the whole limb in view), and from the ground (2 m up,
+ * looking at the cloud from below). */
+static void test_gl_render__space_and_ground(void **state) {
+  (void)state;
+  require_gl();
+  assert_non_null(fx.atmo);
+  static const struct {
+    const char *name;
+    oc_scene_camera_t pose;
+  } views[] = {
+      {"space", {{0.0, -12.0, 1.0e6}, 90.0, -60.0, 60.0}},
+      {"ground", {{0.0, -0.03, 2.0}, 90.0, 20.0, 60.0}},
+  };
+  for (int i = 0; i < 2; i++) {
+    oc_scene_t sc;
+    oc_state_t st;
+    oc_camera_t cam;
+    make_scene(&sc, &st, &cam, &views[i].pose, NULL);
+    oc_render_desc_t d = base_desc(&sc, cam);
+    compare(views[i].name, &st, &d, 2.0, 32);
+    oc_state_free(&st);
+    oc_scene_free(&sc);
+  }
+}
+
 /* Per-pixel jitter of the ray start (shaders/sampling.h): the same hash of pixel and frame on both
  * sides, so jittered frames agree too, and two frames differ from each other. */
 static void test_gl_render__jitter(void **state) {
@@ -394,6 +419,7 @@ int main(void) {
       cmocka_unit_test(test_gl_render__camera_inside),
       cmocka_unit_test(test_gl_render__low_sun),
       cmocka_unit_test(test_gl_render__jitter),
+      cmocka_unit_test(test_gl_render__space_and_ground),
       cmocka_unit_test(test_gl_render__debug_views),
       cmocka_unit_test(test_gl_render__errors_name_file_and_line),
   };
