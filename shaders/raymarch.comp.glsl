@@ -20,6 +20,7 @@ struct OcLeaf {
 layout(std430, binding = 0) readonly buffer OcTree { uint oc_tree[]; };
 layout(std430, binding = 1) readonly buffer OcLeaves { OcLeaf oc_leaf[]; };
 layout(std430, binding = 2) writeonly buffer OcOut { vec4 oc_out[]; };
+layout(std430, binding = 3) writeonly buffer OcDepth { float oc_depth[]; };
 layout(std140, binding = 0) uniform OcAtmo { ocg_atmosphere u_atm; };
 
 layout(binding = 0) uniform usampler3D u_atlas;
@@ -58,6 +59,11 @@ layout(location = 26) uniform float u_c_ground;  /* |o|² - ground_r², m² */
 layout(location = 27) uniform float u_c_top;     /* |o|² - air_top², m² */
 layout(location = 28) uniform ivec3 u_atlas_bricks;
 layout(location = 29) uniform int u_debug;       /* OC_DEBUG_* (common/oc_render.h) */
+layout(location = 30) uniform int u_phase;       /* < 0: every pixel; else the one of each 4×4 block */
+
+/* Depth for reprojection: where the view transmittance first fell below ½, else the ground, else
+ * far (a direction only). */
+#define OCV_FAR 1e8
 
 /* Debug colours are radiances: after exposure 10 and the ACES fit they come out saturated. */
 vec3 ocv_level_color(uint level) {
@@ -240,7 +246,8 @@ float ocv_air_step(float b, float t, float air_step) {
 
 /* ---- One ray (oc__trace) ------------------------------------------------------------------------------ */
 
-vec4 ocv_trace(vec3 dir, float jitter) {
+vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
+  depth = OCV_FAR;
   float mu = dot(dir, u_sun);
   float b = dot(u_cam_hi, dir) + dot(u_cam_lo, dir); /* o·d without the 0.5 m rounding of a float o */
   vec3 o = u_cam_frac;
@@ -338,7 +345,9 @@ vec4 ocv_trace(vec3 dir, float jitter) {
     }
     vec3 w = ocg_segment_weight3(sigma_t, seg);
     L += T * (J * w);
+    bool above = max(T.x, max(T.y, T.z)) >= 0.5;
     T *= exp(-sigma_t * seg);
+    if (above && max(T.x, max(T.y, T.z)) < 0.5 && depth == OCV_FAR) depth = tm;
     Tc *= exp(-sig * seg);
     t = te;
     if (u_exit_t > 0.0 && max(T.x, max(T.y, T.z)) < u_exit_t) {
@@ -349,6 +358,7 @@ vec4 ocv_trace(vec3 dir, float jitter) {
 
   if (!exited) {
     if (hit_ground) {
+      if (depth == OCV_FAR) depth = t1;
       vec3 pg = o + dir * t1;
       float r = ocv_radius(b, t1);
       float mu_s = (u_sun_o + t1 * mu) / r;
@@ -377,6 +387,9 @@ void main() {
   float x = (2.0 * (float(px.x) + 0.5) / float(u_size.x) - 1.0) * u_tan.x;
   float y = (1.0 - 2.0 * (float(px.y) + 0.5) / float(u_size.y)) * u_tan.y;
   vec3 dir = normalize(u_fwd + u_right * x + u_up * y);
+  if (u_phase >= 0 && ((px.x & 3) | ((px.y & 3) << 2)) != u_phase) return;
   float j = (u_flags & OCV_RF_JITTER) != 0u ? ocg_jitter(uint(px.x), uint(px.y), u_frame) : 0.5;
-  oc_out[px.y * u_size.x + px.x] = ocv_trace(dir, j);
+  float depth;
+  oc_out[px.y * u_size.x + px.x] = ocv_trace(dir, j, depth);
+  oc_depth[px.y * u_size.x + px.x] = depth;
 }

@@ -26,8 +26,9 @@ struct ocv_gl_renderer_s {
   GLuint atmo_ubo;
   GLuint tab[OC_ATMO_TABLE_COUNT];
   const oc_atmo_t *atmo; /* whose tables tab[] hold */
-  GLuint out;
-  size_t out_bytes;
+  GLuint out, depth;
+  size_t out_bytes, depth_bytes;
+  GLuint reproject; /* shaders/reproject.comp.glsl */
 };
 
 ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
@@ -45,7 +46,9 @@ ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
            (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER, OC_DEBUG_LOD, OC_DEBUG_TAU,
            OC_DEBUG_BOUNDS);
   r->prog = ocv_gl_compute_program(OCV__KERNEL, defines, why, why_len);
-  if (!r->prog) {
+  if (r->prog) r->reproject = ocv_gl_compute_program("reproject.comp.glsl", NULL, why, why_len);
+  if (!r->prog || !r->reproject) {
+    if (r->prog) glDeleteProgram(r->prog);
     free(r);
     return NULL;
   }
@@ -68,7 +71,9 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r) {
   ocv__drop_tables(r);
   if (r->atmo_ubo) glDeleteBuffers(1, &r->atmo_ubo);
   if (r->out) glDeleteBuffers(1, &r->out);
+  if (r->depth) glDeleteBuffers(1, &r->depth);
   if (r->prog) glDeleteProgram(r->prog);
+  if (r->reproject) glDeleteProgram(r->reproject);
   free(r);
 }
 
@@ -97,12 +102,13 @@ static int ocv__bad(char *why, size_t wl, const char *field) {
   return OC_EINVAL;
 }
 
-int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
-                        char *why, size_t why_len) {
-  if (!r || !gs || !desc || !img || !img->px) return ocv__bad(why, why_len, "argument (NULL)");
+/* Sets the kernel's uniforms for desc and traces into out (vec4 per pixel) and depth (float per
+ * pixel): every pixel (phase < 0) or those of one position in each 4×4 block (phase 0..15). */
+static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, GLuint out,
+                         GLuint depth, int phase, char *why, size_t why_len) {
   oc_render_desc_t d = *desc;
   /* The defaults and checks of oc_render_state(). */
-  if (d.width <= 0 || d.height <= 0 || img->w != d.width || img->h != d.height) return ocv__bad(why, why_len, "size");
+  if (d.width <= 0 || d.height <= 0) return ocv__bad(why, why_len, "size");
   if (!(d.camera.vfov_deg > 0.0 && d.camera.vfov_deg < 180.0)) return ocv__bad(why, why_len, "camera fov");
   if (d.step_factor == 0.0) d.step_factor = OC_RENDER_DEFAULT_STEP_FACTOR;
   if (!(d.step_factor > 0.0 && d.step_factor <= 1e6)) return ocv__bad(why, why_len, "step_factor (0, 1e6]");
@@ -182,28 +188,155 @@ int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc
   glProgramUniform3i(p, 28, gs->atlas_bricks[0], gs->atlas_bricks[1], gs->atlas_bricks[2]);
   glProgramUniform1i(p, 29, d.debug_view);
 
-  size_t bytes = (size_t)d.width * (size_t)d.height * 4 * sizeof(float);
-  if (bytes != r->out_bytes) {
-    if (r->out) glDeleteBuffers(1, &r->out);
-    glCreateBuffers(1, &r->out);
-    glNamedBufferStorage(r->out, (GLsizeiptr)bytes, NULL, 0);
-    r->out_bytes = bytes;
-  }
+  glProgramUniform1i(p, 30, phase);
   glUseProgram(p);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, r->out);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, out);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, depth);
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, r->atmo_ubo);
   glBindTextureUnit(0, gs->atlas);
   for (int k = 0; k < OC_ATMO_TABLE_COUNT; k++) glBindTextureUnit((GLuint)(1 + k), have_atmo ? r->tab[k] : 0);
   glDispatchCompute((GLuint)((d.width + OCV__GROUP - 1) / OCV__GROUP), (GLuint)((d.height + OCV__GROUP - 1) / OCV__GROUP), 1);
-  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-  glGetNamedBufferSubData(r->out, 0, (GLsizeiptr)bytes, img->px);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
   glUseProgram(0);
   GLenum err = glGetError();
   if (err != GL_NO_ERROR) {
     (void)oc_errorf(0, why, why_len, "gl render: GL error 0x%x", (unsigned)err);
     return OC_EIO;
   }
+  return 0;
+}
+
+/* A device buffer of exactly `bytes` (re-created when the size changes). */
+static void ocv__buffer(GLuint *b, size_t *have, size_t bytes) {
+  if (*b && *have == bytes) return;
+  if (*b) glDeleteBuffers(1, b);
+  glCreateBuffers(1, b);
+  glNamedBufferStorage(*b, (GLsizeiptr)bytes, NULL, GL_DYNAMIC_STORAGE_BIT);
+  *have = bytes;
+}
+
+int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
+                        char *why, size_t why_len) {
+  if (!r || !gs || !desc || !img || !img->px) return ocv__bad(why, why_len, "argument (NULL)");
+  if (img->w != desc->width || img->h != desc->height) return ocv__bad(why, why_len, "size");
+  size_t n = (size_t)desc->width * (size_t)desc->height;
+  ocv__buffer(&r->out, &r->out_bytes, n * 4 * sizeof(float));
+  ocv__buffer(&r->depth, &r->depth_bytes, n * sizeof(float));
+  int rc = ocv__dispatch(r, gs, desc, r->out, r->depth, -1, why, why_len);
+  if (rc == 0) glGetNamedBufferSubData(r->out, 0, (GLsizeiptr)(n * 4 * sizeof(float)), img->px);
+  return rc;
+}
+
+/*-*** Reprojection: one pixel in 16 traced per frame ***/
+
+/* The order in which the 16 positions of a 4×4 block are traced (a Bayer matrix: consecutive
+ * frames are far apart, so a moving camera's errors spread instead of crawling). */
+static const int ocv__bayer[16] = {0, 10, 2, 8, 5, 15, 7, 13, 1, 11, 3, 9, 4, 14, 6, 12};
+
+struct ocv_gl_history_s {
+  int w, h;
+  GLuint color[2], depth[2], cur, cur_depth, stats; /* ping-pong history; this frame's traced pixels */
+  int newest;                                       /* index of the newest history; -1: none */
+  oc_camera_t cam;                                  /* the camera of the newest history */
+  uint32_t frame;
+};
+
+ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len) {
+  if (w <= 0 || h <= 0 || w > 16384 || h > 16384) {
+    (void)oc_errorf(0, why, why_len, "gl history: invalid size %dx%d", w, h);
+    return NULL;
+  }
+  ocv_gl_history_t *hs = calloc(1, sizeof *hs);
+  if (!hs) {
+    (void)oc_errorf(0, why, why_len, "out of memory");
+    return NULL;
+  }
+  size_t n = (size_t)w * (size_t)h, have;
+  hs->w = w;
+  hs->h = h;
+  hs->newest = -1;
+  for (int i = 0; i < 2; i++) {
+    ocv__buffer(&hs->color[i], &have, n * 4 * sizeof(float));
+    ocv__buffer(&hs->depth[i], &have, n * sizeof(float));
+  }
+  ocv__buffer(&hs->cur, &have, n * 4 * sizeof(float));
+  ocv__buffer(&hs->cur_depth, &have, n * sizeof(float));
+  ocv__buffer(&hs->stats, &have, 2 * sizeof(uint32_t));
+  return hs;
+}
+
+void ocv_gl_history_free(ocv_gl_history_t *hs) {
+  if (!hs) return;
+  GLuint b[7] = {hs->color[0], hs->color[1], hs->depth[0], hs->depth[1], hs->cur, hs->cur_depth, hs->stats};
+  glDeleteBuffers(7, b);
+  free(hs);
+}
+
+void ocv_gl_history_reset(ocv_gl_history_t *hs) {
+  if (hs) hs->newest = -1;
+}
+
+int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,
+                        int reproject, oc_image_t *img, ocv_gl_frame_stats_t *fs, char *why, size_t why_len) {
+  if (!r || !hs || !gs || !desc || !img || !img->px) return ocv__bad(why, why_len, "argument (NULL)");
+  if (desc->width != hs->w || desc->height != hs->h || img->w != hs->w || img->h != hs->h)
+    return ocv__bad(why, why_len, "size (the history's)");
+  size_t n = (size_t)hs->w * (size_t)hs->h;
+  int next = hs->newest == 0 ? 1 : 0;
+  ocv_gl_frame_stats_t st = {0};
+  int rc;
+  if (!reproject) { /* every pixel traced: the frame is also the next history */
+    rc = ocv__dispatch(r, gs, desc, hs->color[next], hs->depth[next], -1, why, why_len);
+    st.traced = (uint32_t)n;
+  } else {
+    int phase = ocv__bayer[hs->frame % 16];
+    rc = ocv__dispatch(r, gs, desc, hs->cur, hs->cur_depth, phase, why, why_len);
+    if (rc == 0) {
+      const oc_camera_t *c = &desc->camera, *pc = hs->newest >= 0 ? &hs->cam : c;
+      double tn = tan(0.5 * c->vfov_deg * OC_DEG), ptn = tan(0.5 * pc->vfov_deg * OC_DEG), asp = (double)hs->w / hs->h;
+      oc_dvec3 dc = oc_dsub(pc->pos, c->pos); /* the previous eye seen from this one: small, exact in double */
+      GLuint p = r->reproject;
+      glProgramUniform2i(p, 0, hs->w, hs->h);
+      glProgramUniform1i(p, 1, phase);
+      glProgramUniform1i(p, 2, hs->newest >= 0);
+      glProgramUniform3f(p, 3, (float)c->forward.x, (float)c->forward.y, (float)c->forward.z);
+      glProgramUniform3f(p, 4, (float)c->right.x, (float)c->right.y, (float)c->right.z);
+      glProgramUniform3f(p, 5, (float)c->up.x, (float)c->up.y, (float)c->up.z);
+      glProgramUniform2f(p, 6, (float)(tn * asp), (float)tn);
+      glProgramUniform3f(p, 7, (float)pc->forward.x, (float)pc->forward.y, (float)pc->forward.z);
+      glProgramUniform3f(p, 8, (float)pc->right.x, (float)pc->right.y, (float)pc->right.z);
+      glProgramUniform3f(p, 9, (float)pc->up.x, (float)pc->up.y, (float)pc->up.z);
+      glProgramUniform2f(p, 10, (float)(ptn * asp), (float)ptn);
+      glProgramUniform3f(p, 11, (float)dc.x, (float)dc.y, (float)dc.z);
+      uint32_t zero[2] = {0, 0};
+      glNamedBufferSubData(hs->stats, 0, sizeof zero, zero);
+      glUseProgram(p);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, hs->cur);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, hs->cur_depth);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, hs->color[hs->newest >= 0 ? hs->newest : next]);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, hs->depth[hs->newest >= 0 ? hs->newest : next]);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, hs->color[next]);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, hs->depth[next]);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, hs->stats);
+      glDispatchCompute((GLuint)((hs->w + OCV__GROUP - 1) / OCV__GROUP), (GLuint)((hs->h + OCV__GROUP - 1) / OCV__GROUP), 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+      glUseProgram(0);
+      uint32_t counts[2];
+      glGetNamedBufferSubData(hs->stats, 0, sizeof counts, counts);
+      st.reprojected = counts[0];
+      st.rejected = counts[1];
+      st.traced = (uint32_t)(n - counts[0] - counts[1]);
+      GLenum err = glGetError();
+      if (err != GL_NO_ERROR) rc = oc_errorf(OC_EIO, why, why_len, "gl reproject: GL error 0x%x", (unsigned)err);
+    }
+  }
+  if (rc) return rc;
+  glGetNamedBufferSubData(hs->color[next], 0, (GLsizeiptr)(n * 4 * sizeof(float)), img->px);
+  hs->newest = next;
+  hs->cam = desc->camera;
+  hs->frame++;
+  if (fs) *fs = st;
   return 0;
 }

@@ -168,4 +168,28 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r);
 int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
                         char *why, size_t why_len);
 
+/* ---- Reprojection (gl_render.c, shaders/reproject.comp.glsl) ------------------------------------------ */
+
+/* A view's history for rendering one pixel in 16 per frame: each frame traces one position of every
+ * 4×4 block (Bayer order) and fills the others from the previous frame, reprojected through the
+ * depth it stored (where the cloud transmittance first fell below ½, else the ground, else far);
+ * history whose depth disagrees with the reprojected point's is rejected and the block's freshly
+ * traced pixel is used instead. With a still camera every pixel is fresh after 16 frames. */
+typedef struct ocv_gl_history_s ocv_gl_history_t;
+
+typedef struct {
+  uint32_t traced, reprojected; /**< pixels of the frame: traced now, taken from the history */
+  uint32_t rejected;            /**< filled from their block's traced pixel (no history, off screen,
+                                     or depth disagreed) */
+} ocv_gl_frame_stats_t;
+
+ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len);
+void ocv_gl_history_free(ocv_gl_history_t *hs);
+/*! ocv_gl_history_reset() : forget the history (a new state, a teleport). */
+void ocv_gl_history_reset(ocv_gl_history_t *hs);
+/*! ocv_gl_render_frame() : one frame of desc's view into img (the history's size); reproject 0
+ *  traces every pixel (and keeps it as history). @return 0 or a negative OC_E* with why. */
+int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,
+                        int reproject, oc_image_t *img, ocv_gl_frame_stats_t *fs, char *why, size_t why_len);
+
 #endif /* OC_CLIENT_GL_H */

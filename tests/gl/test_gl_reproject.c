@@ -1,0 +1,131 @@
+/* test_gl_reproject.c — one pixel in 16 traced per frame (client/gl, shaders/reproject.comp.glsl):
+ * with a still camera the 16th frame equals a full render bit for bit; the first frame has no
+ * history and fills each 4×4 block from its traced pixel; after a small turn the reprojected frame
+ * is much closer to a full render of the new view than the block fill is; switched off, a frame is
+ * the full render. */
+#include <setjmp.h> /* cmocka needs these three before cmocka.h */
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "oc_camera.h"
+#include "oc_image.h"
+#include "oc_render.h"
+#include "oc_scene.h"
+#include "oc_scene_voxelize.h"
+#include "ocv_gl.h"
+
+#define W 96
+#define H 56
+
+static ocv_gl_context_t *ctx;
+static ocv_gl_renderer_t *ren;
+
+static int setup(void **state) {
+  (void)state;
+  char why[1024];
+  ctx = ocv_gl_context_init(why, sizeof why);
+  if (!ctx) printf("%s\n", why);
+  else if (!(ren = ocv_gl_renderer_create(why, sizeof why))) printf("programs: %s\n", why);
+  return 0;
+}
+
+static int teardown(void **state) {
+  (void)state;
+  ocv_gl_renderer_free(ren);
+  ocv_gl_context_free(ctx);
+  return 0;
+}
+
+static void require_gl(void) {
+  if (ctx && ren) return;
+  const char *req = getenv("OC_GL_REQUIRE");
+  if (req && req[0] == '1') fail_msg("OC_GL_REQUIRE=1 but no headless OpenGL 4.5 context");
+  skip();
+}
+
+static double rmse(const oc_image_t *a, const oc_image_t *b) {
+  uint8_t ra[W * H * 3], rb[W * H * 3];
+  oc_image_tonemap(a, 10.0f, ra);
+  oc_image_tonemap(b, 10.0f, rb);
+  double se = 0.0;
+  for (int i = 0; i < W * H * 3; i++) se += ((double)ra[i] - rb[i]) * ((double)ra[i] - rb[i]);
+  return sqrt(se / (W * H * 3));
+}
+
+static void test_gl_reproject__frames(void **state) {
+  (void)state;
+  require_gl();
+  char path[1024], why[512];
+  const char *root = getenv("OC_SOURCE_DIR");
+  snprintf(path, sizeof path, "%s/scenes/analytic_sphere.json", root && *root ? root : ".");
+  oc_scene_t sc;
+  assert_int_equal(oc_scene_load(&sc, path, why, sizeof why), 0);
+  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  oc_state_t st;
+  oc_state_init(&st);
+  oc_scene_voxelize_desc_t vd = {cam, H, 2.0, 0, 0, 2};
+  if (oc_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
+  ocv_gl_state_t gs;
+  assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
+  oc_render_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.width = W;
+  d.height = H;
+  d.camera = cam;
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  oc_image_t full = {0}, img = {0};
+  assert_int_equal(oc_image_alloc(&full, W, H), 0);
+  assert_int_equal(oc_image_alloc(&img, W, H), 0);
+  assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &full, why, sizeof why), 0);
+  ocv_gl_history_t *hs = ocv_gl_history_create(W, H, why, sizeof why);
+  assert_non_null(hs);
+  ocv_gl_frame_stats_t fs;
+
+  /* frame 0: no history */
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+  assert_int_equal(fs.traced, W * H / 16);
+  assert_int_equal(fs.reprojected, 0);
+  double block_fill = rmse(&img, &full);
+  /* frames 1..15: still camera, every pixel traced once by the 16th */
+  for (int f = 1; f < 16; f++) {
+    assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+    assert_int_equal(fs.reprojected + fs.traced, W * H); /* still: nothing rejected */
+  }
+  assert_memory_equal(img.px, full.px, sizeof(float) * 4 * W * H);
+
+  /* a turn of 0.3°: reprojection keeps most pixels and beats filling the blocks */
+  pose.heading += 0.3;
+  d.camera = oc_camera_from_pose(pose);
+  assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &full, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+  double turned = rmse(&img, &full);
+  printf("first frame (blocks filled): RMSE %.2f; after a 0.3° turn: RMSE %.2f, %u traced, %u reprojected, %u filled\n",
+         block_fill, turned, fs.traced, fs.reprojected, fs.rejected);
+  assert_true(fs.reprojected > W * H / 2);
+  assert_true(turned < block_fill / 2);
+
+  /* off: every pixel traced */
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 0, &img, &fs, why, sizeof why), 0);
+  assert_int_equal(fs.traced, W * H);
+  assert_memory_equal(img.px, full.px, sizeof(float) * 4 * W * H);
+
+  ocv_gl_history_free(hs);
+  oc_image_free(&full);
+  oc_image_free(&img);
+  ocv_gl_state_free(&gs);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_reproject__frames)};
+  return cmocka_run_group_tests(tests, setup, teardown);
+}
