@@ -21,6 +21,12 @@ layout(std430, binding = 0) readonly buffer OcTree { uint oc_tree[]; };
 layout(std430, binding = 1) readonly buffer OcLeaves { OcLeaf oc_leaf[]; };
 layout(std430, binding = 2) writeonly buffer OcOut { vec4 oc_out[]; };
 layout(std430, binding = 3) writeonly buffer OcDepth { float oc_depth[]; };
+struct OcPrev {
+  vec4 value; /* uniform previous σt, τ */
+  uvec4 info; /* blends, uniform, pool entry, 0 */
+};
+layout(std430, binding = 4) readonly buffer OcPrevs { OcPrev oc_prev[]; };
+layout(binding = 5) uniform sampler3D u_prev_pool; /* RG32F: resampled previous bricks */
 layout(std140, binding = 0) uniform OcAtmo { ocg_atmosphere u_atm; };
 
 layout(binding = 0) uniform usampler3D u_atlas;
@@ -60,6 +66,9 @@ layout(location = 27) uniform float u_c_top;     /* |o|² - air_top², m² */
 layout(location = 28) uniform ivec3 u_atlas_bricks;
 layout(location = 29) uniform int u_debug;       /* OC_DEBUG_* (common/oc_render.h) */
 layout(location = 30) uniform int u_phase;       /* < 0: every pixel; else the one of each 4×4 block */
+layout(location = 31) uniform int u_blend;       /* previous values present and t < 1 */
+layout(location = 32) uniform float u_t;         /* blend parameter: mix(previous, newest, t) */
+layout(location = 33) uniform ivec3 u_pool_bricks;
 
 /* Depth for reprojection: where the view transmittance first fell below ½, else the ground, else
  * far (a direction only). */
@@ -143,6 +152,20 @@ vec2 ocv_leaf_sample(OcvLeaf lf, vec3 u) {
 }
 
 vec3 ocv_local(OcvLeaf lf, vec3 rel) { return (rel - lf.origin) / lf.size; }
+
+/* The leaf's previous σt, τ at u (client/interp.h): uniform, or the same reconstruction over the
+ * pool's decoded samples. */
+vec2 ocv_prev_sample(int idx, vec3 u) {
+  OcPrev P = oc_prev[idx];
+  if (P.info.y != 0u) return P.value.xy;
+  uint e = P.info.z, bx = uint(u_pool_bricks.x), by = uint(u_pool_bricks.y);
+  vec3 base = ocg_brick_base(u), f = ocg_brick_frac(u, base);
+  ivec3 at = ivec3(int(e % bx), int((e / bx) % by), int(e / (bx * by))) * 8 + ivec3(base);
+  vec2 v[8];
+  for (int q = 0; q < 8; q++) v[q] = texelFetch(u_prev_pool, at + ivec3(q & 1, (q >> 1) & 1, q >> 2), 0).rg;
+  return vec2(ocg_trilerp(vec4(v[0].x, v[1].x, v[2].x, v[3].x), vec4(v[4].x, v[5].x, v[6].x, v[7].x), f),
+              ocg_trilerp(vec4(v[0].y, v[1].y, v[2].y, v[3].y), vec4(v[4].y, v[5].y, v[6].y, v[7].y), f));
+}
 
 /* ---- Atmosphere tables: bilinear at texel centres, clamp to edge (oc_atmo_bake.c, oc__bilinear) ---- */
 
@@ -302,7 +325,8 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     bool has = lf.idx >= 0;
     vec4 range = has ? oc_leaf[lf.idx].range : vec4(0.0);
     uint kind = has ? oc_leaf[lf.idx].info.x : 0u;
-    bool cloudy = has && range.y > 0.0;
+    bool blend = u_blend != 0 && has && oc_prev[lf.idx].info.x != 0u;
+    bool cloudy = has && (range.y > 0.0 || blend); /* a leaf empty now may have been cloudy */
     float te = t1;
     if (has) te = min(te, t + max(ocv_node_exit(lf, p, dir), eps));
     if (cloudy) te = min(te, t + u_step_factor * lf.size / 7.0);
@@ -312,8 +336,10 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     float tm = t + jitter * seg;
 
     float sig = 0.0, tau = 0.0;
-    if (has && kind != 0u) {
-      vec2 st = ocv_leaf_sample(lf, ocv_local(lf, o + dir * tm));
+    if (has && (kind != 0u || blend)) {
+      vec3 u = ocv_local(lf, o + dir * tm);
+      vec2 st = ocv_leaf_sample(lf, u);
+      if (blend) st = mix(ocv_prev_sample(lf.idx, u), st, u_t);
       if (cloudy) sig = st.x;
       tau = st.y;
     }

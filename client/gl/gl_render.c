@@ -29,7 +29,15 @@ struct ocv_gl_renderer_s {
   GLuint out, depth;
   size_t out_bytes, depth_bytes;
   GLuint reproject; /* shaders/reproject.comp.glsl */
+  const ocv_gl_prev_t *prev; /* blending on when set */
+  float t;
 };
+
+void ocv_gl_renderer_set_prev(ocv_gl_renderer_t *r, const ocv_gl_prev_t *gp, float t) {
+  if (!r) return;
+  r->prev = gp;
+  r->t = t < 0.0f ? 0.0f : t > 1.0f ? 1.0f : t;
+}
 
 ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
   ocv_gl_renderer_t *r = calloc(1, sizeof *r);
@@ -189,11 +197,17 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   glProgramUniform1i(p, 29, d.debug_view);
 
   glProgramUniform1i(p, 30, phase);
+  int blend = r->prev && r->prev->count == gs->leaf_count && r->t < 1.0f;
+  glProgramUniform1i(p, 31, blend);
+  glProgramUniform1f(p, 32, r->t);
+  glProgramUniform3i(p, 33, blend ? r->prev->pool_bricks[0] : 1, blend ? r->prev->pool_bricks[1] : 1, 1);
   glUseProgram(p);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, out);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, depth);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, blend ? r->prev->records : gs->leaves); /* unread when not blending */
+  glBindTextureUnit(5, blend ? r->prev->pool : 0);
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, r->atmo_ubo);
   glBindTextureUnit(0, gs->atlas);
   for (int k = 0; k < OC_ATMO_TABLE_COUNT; k++) glBindTextureUnit((GLuint)(1 + k), have_atmo ? r->tab[k] : 0);

@@ -13,6 +13,7 @@
 #include <stdint.h>
 
 #include "oc_render.h" /* oc_render_desc_t, oc_image_t, oc_state_t */
+#include "interp.h"    /* ocv_interp_t (client/) */
 
 /* ---- Context (gl_context.c) ------------------------------------------------------------------------ */
 
@@ -167,6 +168,28 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r);
  *  and kept while the same tables are passed. @return 0, or OC_EINVAL / OC_ENOMEM / OC_EIO with why. */
 int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
                         char *why, size_t why_len);
+
+/* ---- Interpolation between states (gl_interp.c) -------------------------------------------------------- */
+
+/* The previous value of every leaf of the newest state (client/interp.h) on the GPU: per-leaf records
+ * (SSBO binding 4: vec4 uniform σt, τ; uvec4 blend, uniform, pool entry, 0) and the pool of resampled
+ * bricks as an RG32F 3D texture (unit 5). The kernel shows mix(previous, newest, t) where a leaf
+ * blends (design.md, Conventions: interpolation). */
+typedef struct {
+  GLuint records, pool;
+  int pool_bricks[3];
+  uint32_t count, pool_count;
+  uint64_t gpu_bytes;
+} ocv_gl_prev_t;
+
+/*! ocv_gl_prev_upload() : the previous values of `ip` (an ocv_interp_t built for the state that will
+ *  be rendered); `animated` chooses the weights (ocv_interp_weight: static scenes blend only split
+ *  and merged leaves). gp is overwritten. @return 0 or OC_ENOMEM / OC_ETOOBIG with why. */
+int ocv_gl_prev_upload(ocv_gl_prev_t *gp, const ocv_interp_t *ip, int animated, char *why, size_t why_len);
+void ocv_gl_prev_free(ocv_gl_prev_t *gp);
+/*! ocv_gl_renderer_set_prev() : later renders blend with gp at parameter t ∈ [0, 1] (1: the newest
+ *  state only); NULL switches blending off. gp must match the state rendered and outlive its use. */
+void ocv_gl_renderer_set_prev(ocv_gl_renderer_t *r, const ocv_gl_prev_t *gp, float t);
 
 /* ---- Reprojection (gl_render.c, shaders/reproject.comp.glsl) ------------------------------------------ */
 
