@@ -1,0 +1,27 @@
+/* hud.h — the viewer's heads-up display: text (stb_easy_font's quads) drawn into an 8-bit RGB image,
+ * so the headless PNGs and the window show the same overlay. */
+#ifndef OC_CLIENT_HUD_H
+#define OC_CLIENT_HUD_H
+
+#include <stdint.h>
+
+/*! ocv_hud_text() : draws `text` ('\n' starts a new line) with its top-left corner at (x, y), each
+ *  font pixel `scale` image pixels, over a darkened backdrop so it reads on bright clouds; clipped to
+ *  the image. @return the height in pixels of what was drawn. */
+int ocv_hud_text(uint8_t *rgb, int w, int h, int x, int y, int scale, const char *text, const uint8_t color[3]);
+
+typedef struct {
+  double frame_ms;          /**< wall time of the last frame */
+  double trace_ms, reproject_ms; /**< GPU time per pass (timer queries); < 0: not measured */
+  uint64_t epoch;           /**< of the newest state shown */
+  double epoch_age_s;       /**< since it arrived */
+  uint32_t bricks;          /**< resident bricks */
+  uint64_t resident_bytes, budget_bytes;
+  double bytes_per_s;       /**< received */
+  const char *renderer;     /**< "gl (llvmpipe)", "cpu" */
+} ocv_hud_stats_t;
+
+/*! ocv_hud_format() : the standard HUD lines for s into buf. */
+void ocv_hud_format(const ocv_hud_stats_t *s, char *buf, int cap);
+
+#endif /* OC_CLIENT_HUD_H */
