@@ -31,7 +31,27 @@ struct ocv_gl_renderer_s {
   GLuint reproject; /* shaders/reproject.comp.glsl */
   const ocv_gl_prev_t *prev; /* blending on when set */
   float t;
+  GLuint query[2];       /* GL_TIME_ELAPSED of the trace and the reprojection pass */
+  double pass_ms[2];     /* the last measured, < 0 before the first */
 };
+
+void ocv_gl_renderer_timings(const ocv_gl_renderer_t *r, double *trace_ms, double *reproject_ms) {
+  if (trace_ms) *trace_ms = r ? r->pass_ms[0] : -1.0;
+  if (reproject_ms) *reproject_ms = r ? r->pass_ms[1] : -1.0;
+}
+
+/* GPU time of the pass just dispatched. Mesa's llvmpipe reports about 0 for compute dispatches;
+ * a GPU reports the pass. */
+static void ocv__time_begin(ocv_gl_renderer_t *r, int k) {
+  if (!r->query[k]) glCreateQueries(GL_TIME_ELAPSED, 1, &r->query[k]);
+  glBeginQuery(GL_TIME_ELAPSED, r->query[k]);
+}
+static void ocv__time_end(ocv_gl_renderer_t *r, int k) {
+  glEndQuery(GL_TIME_ELAPSED);
+  GLuint64 ns = 0;
+  glGetQueryObjectui64v(r->query[k], GL_QUERY_RESULT, &ns);
+  r->pass_ms[k] = 1e-6 * (double)ns;
+}
 
 void ocv_gl_renderer_set_prev(ocv_gl_renderer_t *r, const ocv_gl_prev_t *gp, float t) {
   if (!r) return;
@@ -53,6 +73,7 @@ ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
            "#define OCV_DEBUG_LOD %d\n#define OCV_DEBUG_TAU %d\n#define OCV_DEBUG_BOUNDS %d\n",
            (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER, OC_DEBUG_LOD, OC_DEBUG_TAU,
            OC_DEBUG_BOUNDS);
+  r->pass_ms[0] = r->pass_ms[1] = -1.0;
   r->prog = ocv_gl_compute_program(OCV__KERNEL, defines, why, why_len);
   if (r->prog) r->reproject = ocv_gl_compute_program("reproject.comp.glsl", NULL, why, why_len);
   if (!r->prog || !r->reproject) {
@@ -82,6 +103,8 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r) {
   if (r->depth) glDeleteBuffers(1, &r->depth);
   if (r->prog) glDeleteProgram(r->prog);
   if (r->reproject) glDeleteProgram(r->reproject);
+  for (int k = 0; k < 2; k++)
+    if (r->query[k]) glDeleteQueries(1, &r->query[k]);
   free(r);
 }
 
@@ -211,7 +234,9 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, r->atmo_ubo);
   glBindTextureUnit(0, gs->atlas);
   for (int k = 0; k < OC_ATMO_TABLE_COUNT; k++) glBindTextureUnit((GLuint)(1 + k), have_atmo ? r->tab[k] : 0);
+  ocv__time_begin(r, 0);
   glDispatchCompute((GLuint)((d.width + OCV__GROUP - 1) / OCV__GROUP), (GLuint)((d.height + OCV__GROUP - 1) / OCV__GROUP), 1);
+  ocv__time_end(r, 0);
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
   glUseProgram(0);
   GLenum err = glGetError();
@@ -334,7 +359,9 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, hs->color[next]);
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, hs->depth[next]);
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, hs->stats);
+      ocv__time_begin(r, 1);
       glDispatchCompute((GLuint)((hs->w + OCV__GROUP - 1) / OCV__GROUP), (GLuint)((hs->h + OCV__GROUP - 1) / OCV__GROUP), 1);
+      ocv__time_end(r, 1);
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
       glUseProgram(0);
       uint32_t counts[2];

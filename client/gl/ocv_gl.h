@@ -169,6 +169,10 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r);
 int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
                         char *why, size_t why_len);
 
+/*! ocv_gl_renderer_timings() : GPU time of the last trace and reprojection passes (timer queries),
+ *  ms; −1 for a pass not run yet. */
+void ocv_gl_renderer_timings(const ocv_gl_renderer_t *r, double *trace_ms, double *reproject_ms);
+
 /* ---- Interpolation between states (gl_interp.c) -------------------------------------------------------- */
 
 /* The previous value of every leaf of the newest state (client/interp.h) on the GPU: per-leaf records
