@@ -1,6 +1,9 @@
-/* overcast-view — the viewer. Today it renders with the CPU reference renderer a saved state
- * (--state), a scene's analytic sources voxelized locally (--scene), or the newest of the states
- * received from overcast-server (--connect; client/net.h). The GL renderer arrives with issue [5/7]. */
+/* overcast-view — the viewer. Sources: a saved state (--state), a scene's analytic sources voxelized
+ * locally (--scene), or the states received from overcast-server (--connect; client/net.h).
+ * Renderers: the GL compute renderer (client/gl, ocv_gl_render_state) or the CPU reference
+ * (oc_render_state); both produce the same linear image, tone-mapped by the same code.
+ * Modes: --headless writes PNG frames (EGL, no display needed); --window opens a GLFW window
+ * (client/gl/gl_window.c) that renders continuously, with mouse look and WASD flight. */
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -16,19 +19,25 @@
 #include "oc_err.h"
 #include "oc_image.h"
 #include "oc_log.h"
+#include "oc_planet.h"
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "oc_scene_voxelize.h"
 #include "oc_state.h"
 #include "net.h"
 #include "ocp_viewer.h"
+#ifdef OC_HAVE_GL
+#include "gl_window.h"
+#include "ocv_gl.h"
+#endif
 
 static const char *prog = "overcast-view";
 
 static void usage(FILE *f) {
   fprintf(f,
           "usage: overcast-view [options]\n"
-          "Renders clouds and atmosphere to PNG frames with the CPU reference renderer.\n"
+          "Renders clouds and atmosphere in a window, or headless to PNG frames, with the GL renderer\n"
+          "or the CPU reference renderer.\n"
           "\n"
           "source (one of):\n"
           "  --state FILE          render a saved state file (what a viewer held)\n"
@@ -40,27 +49,45 @@ static void usage(FILE *f) {
           "  --token TEXT          the server's token, if it has one\n"
           "  --budget MIB          memory budget asked for (default 64)\n"
           "  --max-depth N         deepest octree level asked for, 0..21 (default 21)\n"
-          "  --epochs N            render once N states have arrived (default 4)\n"
-          "  --step                for a server run with --epoch-period 0: ask it (on a second, control\n"
-          "                        connection) to step one epoch whenever the previous state arrived\n"
-          "  --timeout S           give up when the states have not arrived within S s (default 60)\n"
+          "  --epochs N            headless: render once N states have arrived (default 4)\n"
+          "  --step                headless, for a server run with --epoch-period 0: ask it (on a second,\n"
+          "                        control connection) to step one epoch whenever the previous state arrived\n"
+          "  --timeout S           headless: give up when the states have not arrived within S s (default 60);\n"
+          "                        window: the connect timeout (at most 10 s; it reconnects with backoff)\n"
+          "mode:\n"
+          "  --window              a window (OpenGL 4.5 core through GLFW) rendering continuously; the default\n"
+          "                        when DISPLAY or WAYLAND_DISPLAY is set and none of --headless, --frames,\n"
+          "                        --out, --save-state, --epochs, --step is given\n"
+          "  --headless            render --frames PNG frames into --out and exit (no display needed)\n"
           "view:\n"
           "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   degrees, metres (default: the scene's camera)\n"
           "  --camera-from PNG     restore the camera stored in a screenshot's text chunk\n"
-          "  --size WxH            image size (default 640x360)\n"
-          "  --frames N            frames to write (default 1; with --jitter each frame has its own jitter)\n"
-          "  --out DIR             output folder (default out), files frame_NNNN.png\n"
+          "  --size WxH            image size, or the window's initial size (default 640x360)\n"
+          "  --frames N            headless: frames to write (default 1; with --jitter each frame has its own jitter)\n"
+          "  --out DIR             output folder (default out): frame_NNNN.png headless, screenshot_NNNN.png\n"
+          "                        in the window\n"
           "rendering:\n"
-          "  --renderer cpu        the CPU reference renderer (the only one in this build)\n"
+          "  --renderer gl|cpu     gl: the GL compute renderer (headless through EGL); cpu: the CPU reference\n"
+          "                        renderer (headless only). Default: gl when a GL context can be made, else\n"
+          "                        cpu with a notice; a forced gl without a context is an error\n"
           "  --step-factor X       step = X × voxel spacing (default 0.5)\n"
           "  --exposure X          (default 10)\n"
           "  --ms-octaves N        multiple-scattering octaves 1..8 (default: the scene's)\n"
           "  --jitter              per-pixel ray-start jitter\n"
-          "  --threads N           render threads (default 2)\n"
+          "  --threads N           render threads of the CPU renderer, voxelizer and tables (default 2)\n"
           "  --max-level N         deepest octree level for --scene (default 16)\n"
-          "  --save-state FILE     also write the state that was rendered\n"
+          "  --save-state FILE     headless: also write the state that was rendered\n"
           "  -q, --quiet           only errors\n"
           "  --help, --version\n"
+          "window keys:\n"
+          "  left mouse button + drag   look around\n"
+          "  W A S D, Q E               fly forward/left/back/right, down/up (arrow keys too); speed =\n"
+          "                             altitude above ground per second (at least 1 m/s), Shift ×10\n"
+          "  [ ]                        step factor × / ÷ 1.25\n"
+          "  - =                        exposure ÷ / × 1.25\n"
+          "  F12 or P                   screenshot (PNG with the camera in a text chunk, for --camera-from)\n"
+          "  Esc                        quit\n"
+          "The window's viewport and every camera move are sent to the server with --connect.\n"
           "\n"
           "exit status: 0 ok, 1 runtime error, 2 usage error\n");
 }
@@ -233,10 +260,399 @@ done:
   return r;
 }
 
+/*-*** What every renderer and mode shares ***/
+
+typedef enum { R_AUTO, R_CPU, R_GL } renderer_t;
+
+typedef struct {
+  const char *out_dir;
+  double step, exposure;
+  long octaves, threads;
+  int jitter;
+} view_opts_t;
+
+/* The render description for the scene's optics and features; the caller sets size and camera. */
+static oc_render_desc_t make_desc(const oc_scene_t *sc, const view_opts_t *o, const oc_atmo_t *atmo) {
+  oc_render_desc_t d = {0};
+  d.step_factor = o->step;
+  d.ms_octaves = o->octaves ? (int)o->octaves
+                 : oc_scene_has(sc, OC_FEATURE_MULTIPLE_SCATTERING) ? sc->optics.ms_octaves
+                                                                    : 1;
+  d.ms_a = (float)sc->optics.ms_a;
+  d.ms_b = (float)sc->optics.ms_b;
+  d.ms_c = (float)sc->optics.ms_c;
+  d.albedo = (float)sc->optics.albedo;
+  d.albedo_zero = sc->optics.albedo == 0.0;
+  d.atmo = atmo;
+  d.threads = (int)o->threads;
+  d.flags = (atmo ? 0 : OC_RF_NO_ATMOSPHERE) | (oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE) ? 0 : OC_RF_NO_PLANET) |
+            (o->jitter ? OC_RF_JITTER : 0);
+  return d;
+}
+
+/* The atmosphere tables when the scene has an atmosphere (*out stays NULL otherwise). */
+static int make_atmo(const oc_scene_t *sc, long threads, oc_atmo_t **out) {
+  *out = NULL;
+  if (!oc_scene_has(sc, OC_FEATURE_ATMOSPHERE)) return 0;
+  ocg_atmosphere ap;
+  oc_atmo_params_default(&ap);
+  if (!oc_scene_has(sc, OC_FEATURE_OZONE)) ap.ozone_absorption = ocg_v3s(0.0f);
+  *out = oc_atmo_create(&ap, (int)threads);
+  return *out ? 0 : -1;
+}
+
+/* A PNG with the camera and the settings in text chunks (what --camera-from reads back). */
+static int write_frame(const char *path, int w, int h, const uint8_t *rgb, oc_camera_pose_t pose, const char *renderer,
+                       const view_opts_t *o, int ms_octaves, char *why, size_t why_len) {
+  char cam_text[256], settings[256];
+  oc_camera_format(pose, cam_text, sizeof cam_text);
+  snprintf(settings, sizeof settings, "renderer=%s step_factor=%g exposure=%g ms_octaves=%d jitter=%d", renderer,
+           o->step, o->exposure, ms_octaves, o->jitter);
+  oc_png_text_t text[3] = {{"overcast-camera", cam_text}, {"overcast-settings", settings},
+                           {"Software", "overcast-view " OC_VERSION}};
+  return oc_png_write(path, w, h, rgb, text, 3, why, why_len);
+}
+
+static int make_dir(const char *dir, char *why, size_t why_len) {
+  if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+    return oc_errorf(OC_EIO, why, why_len, "%s: cannot create folder: %s", dir, strerror(errno));
+  return 0;
+}
+
+static int have_display(void) {
+  const char *x = getenv("DISPLAY"), *wl = getenv("WAYLAND_DISPLAY");
+  return (x && *x) || (wl && *wl);
+}
+
+#ifdef OC_HAVE_GL
+/*-*** Headless GL: an EGL context, the renderer and the GPU copy of the state ***/
+
+typedef struct {
+  ocv_gl_context_t *ctx;
+  ocv_gl_renderer_t *r;
+  ocv_gl_state_t gs;
+  int have_gs;
+} view_gl_t;
+
+static void view_gl_free(view_gl_t *g) {
+  if (g->have_gs) ocv_gl_state_free(&g->gs);
+  ocv_gl_renderer_free(g->r);
+  ocv_gl_context_free(g->ctx);
+  memset(g, 0, sizeof *g);
+}
+
+static int view_gl_open(view_gl_t *g, const oc_state_t *st, char *why, size_t why_len) {
+  memset(g, 0, sizeof *g);
+  char w2[1024];
+  if (!(g->ctx = ocv_gl_context_init(w2, sizeof w2)))
+    return oc_errorf(OC_EIO, why, why_len, "no GL context: %s", w2);
+  if (!(g->r = ocv_gl_renderer_create(w2, sizeof w2))) {
+    view_gl_free(g);
+    return oc_errorf(OC_EIO, why, why_len, "GL renderer: %s", w2);
+  }
+  int r = ocv_gl_state_upload(&g->gs, st, w2, sizeof w2);
+  if (r < 0) {
+    view_gl_free(g);
+    return oc_errorf(r, why, why_len, "GL state upload: %s", w2);
+  }
+  g->have_gs = 1;
+  return 0;
+}
+#endif
+
+/*-*** Headless: --frames PNGs ***/
+
+static int run_headless(renderer_t renderer, const oc_state_t *st, const oc_scene_t *sc, const oc_atmo_t *atmo,
+                        oc_camera_pose_t pose, int w, int h, long frames, const view_opts_t *o) {
+  char why[1024];
+  int rc = OC_EXIT_OK;
+  int use_gl = 0;
+#ifdef OC_HAVE_GL
+  view_gl_t g = {0};
+  if (renderer != R_CPU) {
+    if (view_gl_open(&g, st, why, sizeof why) == 0) {
+      use_gl = 1;
+      char info[512];
+      ocv_gl_context_describe(g.ctx, info, sizeof info);
+      oc_log_info("GL: %s", info);
+    } else if (renderer == R_GL) {
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: %s", why);
+    } else {
+      oc_log_warn("%s: rendering with the CPU reference renderer (--renderer cpu)", why);
+    }
+  }
+#else
+  if (renderer == R_GL)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: this build has no GL renderer (libepoxy was not found)");
+#endif
+  if (make_dir(o->out_dir, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    goto out_gl;
+  }
+  uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
+  oc_image_t img = {0};
+  if (!rgb || oc_image_alloc(&img, w, h) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d image", w, h);
+    goto out;
+  }
+  oc_render_desc_t d = make_desc(sc, o, atmo);
+  d.width = w;
+  d.height = h;
+  d.camera = oc_camera_from_pose(pose);
+  for (long f = 0; f < frames; f++) {
+    oc_render_stats_t rs = {0};
+    struct timespec t0, t1;
+    d.frame = (uint32_t)f;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int r;
+#ifdef OC_HAVE_GL
+    if (use_gl) r = ocv_gl_render_state(g.r, &g.gs, &d, &img, why, sizeof why);
+    else
+#endif
+    {
+      r = oc_render_state(st, &d, &img, &rs);
+      if (r < 0) snprintf(why, sizeof why, "%s", oc_strerror(r));
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (r < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
+      break;
+    }
+    int bad = oc_image_tonemap(&img, (float)o->exposure, rgb);
+    if (bad) oc_log_warn("frame %ld: %d non-finite pixels drawn black", f, bad);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/frame_%04ld.png", o->out_dir, f);
+    if (write_frame(path, w, h, rgb, pose, use_gl ? "gl" : "cpu", o, d.ms_octaves, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      break;
+    }
+    double sec = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+    if (use_gl) oc_log_info("frame %ld: %.3f s (gl)", f, sec);
+    else oc_log_info("frame %ld: %.2f s, %.1f M samples/s", f, sec, rs.samples / sec * 1e-6);
+    printf("%s\n", path);
+    fflush(stdout);
+  }
+out:
+  free(rgb);
+  oc_image_free(&img);
+out_gl:
+#ifdef OC_HAVE_GL
+  view_gl_free(&g);
+#endif
+  return rc;
+}
+
+#ifdef OC_HAVE_GL
+/*-*** The window ***/
+
+typedef struct {
+  ocv_window_t *win;
+  ocv_net_t *net; /* --connect */
+  const view_net_opts_t *net_opts;
+  oc_scene_t *sc;
+  oc_state_t *st; /* --state / --scene: the state; --connect: the newest taken */
+  int have_state;
+  oc_camera_pose_t pose;
+  int have_pose;
+  view_opts_t o;
+} view_win_t;
+
+static void net_wake(void *ctx) {
+  (void)ctx; /* the loop renders continuously: nothing to wake */
+}
+
+static ocp_camera_t wire_camera(oc_camera_pose_t pose, int w, int h) {
+  oc_camera_t c = oc_camera_from_pose(pose);
+  return (ocp_camera_t){c.pos, c.forward, c.up, pose.fov, (uint32_t)w, (uint32_t)h};
+}
+
+/* Mouse look and flight: speed = altitude above ground per second (≥ 1 m/s), Shift ×10. */
+static int fly(oc_camera_pose_t *pose, const ocv_window_input_t *in, double dt) {
+  int moved = 0;
+  if (in->look_dx != 0 || in->look_dy != 0) {
+    double deg_per_px = 0.1 * pose->fov / 60.0;
+    pose->heading = fmod(pose->heading + in->look_dx * deg_per_px + 360.0, 360.0);
+    pose->pitch = fmax(-89.9, fmin(89.9, pose->pitch - in->look_dy * deg_per_px));
+    moved = 1;
+  }
+  double f = in->held[OCV_KEY_FORWARD] - in->held[OCV_KEY_BACK];
+  double s = in->held[OCV_KEY_RIGHT] - in->held[OCV_KEY_LEFT];
+  double u = in->held[OCV_KEY_UP] - in->held[OCV_KEY_DOWN];
+  if ((f != 0 || s != 0 || u != 0) && dt > 0) {
+    oc_camera_t c = oc_camera_from_pose(*pose);
+    oc_enu_t enu = oc_enu_at(c.pos);
+    double speed = fmax(1.0, fabs(pose->geo.alt)) * (in->held[OCV_KEY_FAST] ? 10.0 : 1.0);
+    double k = speed * fmin(dt, 0.25);
+    oc_dvec3 p = c.pos;
+    p.x += k * (f * c.forward.x + s * c.right.x + u * enu.up.x);
+    p.y += k * (f * c.forward.y + s * c.right.y + u * enu.up.y);
+    p.z += k * (f * c.forward.z + s * c.right.z + u * enu.up.z);
+    oc_geo_t g = oc_xyz_to_geo(p);
+    if (g.alt < 1.0) g.alt = 1.0; /* stay above ground */
+    pose->geo = g;
+    moved = 1;
+  }
+  return moved;
+}
+
+static int screenshot(const view_win_t *v, int w, int h, const uint8_t *rgb, int ms_octaves, char *why, size_t why_len) {
+  if (make_dir(v->o.out_dir, why, why_len) < 0) return -1;
+  char path[4096];
+  struct stat sb;
+  for (int i = 0; i < 100000; i++) {
+    snprintf(path, sizeof path, "%s/screenshot_%04d.png", v->o.out_dir, i);
+    if (stat(path, &sb) != 0) break;
+  }
+  if (write_frame(path, w, h, rgb, v->pose, "gl", &v->o, ms_octaves, why, why_len) < 0) return -1;
+  printf("%s\n", path);
+  fflush(stdout);
+  return 0;
+}
+
+static int run_window(view_win_t *v) {
+  char why[1024];
+  int rc = OC_EXIT_OK;
+  ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
+  if (!r) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL renderer: %s", why);
+  ocv_gl_state_t gs;
+  int have_gs = 0;
+  uint64_t epoch = v->have_state ? v->st->epoch : 0;
+  oc_atmo_t *atmo = NULL;
+  int scene_ready = !v->net; /* with --connect: once the WELCOME brought features and optics */
+  if (scene_ready && make_atmo(v->sc, v->o.threads, &atmo) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+    goto out;
+  }
+  if (v->have_state) {
+    if (ocv_gl_state_upload(&gs, v->st, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload: %s", why);
+      goto out;
+    }
+    have_gs = 1;
+  }
+  oc_image_t img = {0};
+  uint8_t *rgb = NULL;
+  int iw = 0, ih = 0;
+  double last = now_s(), title_at = 0, frame_ms = 0;
+  int cam_dirty = 1;
+  for (;;) {
+    ocv_window_input_t in;
+    ocv_window_poll(v->win, &in);
+    if (in.presses[OCV_ACT_QUIT]) break;
+    double t = now_s(), dt = t - last;
+    last = t;
+
+    ocv_net_status_t ns = {0};
+    if (v->net) {
+      ocv_net_status(v->net, &ns);
+      if (!scene_ready && ns.have_welcome) {
+        const ocp_welcome_t *w = &ns.welcome;
+        v->sc->features = w->features;
+        v->sc->sun_dir = w->sun_dir;
+        v->sc->optics.albedo = w->albedo;
+        v->sc->optics.ms_a = w->ms_a;
+        v->sc->optics.ms_b = w->ms_b;
+        v->sc->optics.ms_c = w->ms_c;
+        v->sc->optics.ms_octaves = w->ms_octaves < 1 ? 1 : w->ms_octaves > 8 ? 8 : (int)w->ms_octaves;
+        snprintf(v->sc->name, sizeof v->sc->name, "%s", w->name);
+        if (!v->have_pose) {
+          v->pose = (oc_camera_pose_t){{w->cam_lat, w->cam_lon, w->cam_alt}, w->cam_heading, w->cam_pitch, w->cam_fov};
+          v->have_pose = 1;
+        }
+        if (make_atmo(v->sc, v->o.threads, &atmo) < 0) {
+          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+          break;
+        }
+        scene_ready = 1;
+        cam_dirty = 1;
+      }
+      uint64_t e;
+      if (ocv_net_take_state(v->net, v->st, &e) == 1) {
+        if (have_gs) ocv_gl_state_free(&gs);
+        have_gs = 0;
+        if (ocv_gl_state_upload(&gs, v->st, why, sizeof why) < 0) {
+          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload (epoch %llu): %s", (unsigned long long)e, why);
+          break;
+        }
+        have_gs = 1;
+        epoch = e;
+      }
+    }
+
+    if (v->have_pose && fly(&v->pose, &in, dt)) cam_dirty = 1;
+    for (int i = 0; i < in.presses[OCV_ACT_STEP_MUL]; i++) v->o.step = fmin(v->o.step * 1.25, 1e3);
+    for (int i = 0; i < in.presses[OCV_ACT_STEP_DIV]; i++) v->o.step = fmax(v->o.step / 1.25, 1e-3);
+    for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_UP]; i++) v->o.exposure = fmin(v->o.exposure * 1.25, 1e6);
+    for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_DOWN]; i++) v->o.exposure = fmax(v->o.exposure / 1.25, 1e-6);
+    if (in.resized) cam_dirty = 1;
+    if (v->net && cam_dirty && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
+      ocp_camera_t wc = wire_camera(v->pose, in.fb_w, in.fb_h);
+      if (ocv_net_set_camera(v->net, &wc) < 0) oc_log_warn("camera refused by the session (invalid camera)");
+    }
+    cam_dirty = 0;
+
+    int drawn = 0, ms_octaves = 1;
+    if (have_gs && scene_ready && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
+      if (in.fb_w != iw || in.fb_h != ih) {
+        oc_image_free(&img);
+        free(rgb);
+        rgb = malloc((size_t)in.fb_w * (size_t)in.fb_h * 3);
+        if (!rgb || oc_image_alloc(&img, in.fb_w, in.fb_h) < 0) {
+          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d image", in.fb_w, in.fb_h);
+          break;
+        }
+        iw = in.fb_w;
+        ih = in.fb_h;
+      }
+      oc_render_desc_t d = make_desc(v->sc, &v->o, atmo);
+      d.width = iw;
+      d.height = ih;
+      d.camera = oc_camera_from_pose(v->pose);
+      ms_octaves = d.ms_octaves;
+      double t0 = now_s();
+      if (ocv_gl_render_state(r, &gs, &d, &img, why, sizeof why) < 0) {
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
+        break;
+      }
+      frame_ms = 1e3 * (now_s() - t0);
+      (void)oc_image_tonemap(&img, (float)v->o.exposure, rgb);
+      drawn = 1;
+    }
+    if (ocv_window_present(v->win, drawn ? rgb : NULL, iw, ih, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      break;
+    }
+    if (in.presses[OCV_ACT_SCREENSHOT]) {
+      if (!drawn) oc_log_warn("screenshot: nothing rendered yet");
+      else if (screenshot(v, iw, ih, rgb, ms_octaves, why, sizeof why) < 0) oc_log_error("screenshot: %s", why);
+    }
+    if (t - title_at >= 0.25) {
+      char title[512];
+      if (v->net && !have_gs)
+        snprintf(title, sizeof title, "overcast-view — %.200s — %.200s", v->net_opts->host,
+                 ns.error[0] ? ns.error : ns.connected ? "waiting for the first state" : "connecting");
+      else
+        snprintf(title, sizeof title, "overcast-view — %s — epoch %llu — %.1f ms — step %.3g, exposure %.3g%s",
+                 v->sc->name[0] ? v->sc->name : "state", (unsigned long long)epoch, frame_ms, v->o.step, v->o.exposure,
+                 v->net && !ns.connected ? " — reconnecting" : "");
+      ocv_window_set_title(v->win, title);
+      title_at = t;
+    }
+  }
+  free(rgb);
+  oc_image_free(&img);
+out:
+  if (have_gs) ocv_gl_state_free(&gs);
+  ocv_gl_renderer_free(r);
+  oc_atmo_free(atmo);
+  return rc;
+}
+#endif
+
 int main(int argc, char **argv) {
   enum { O_STATE = 256, O_SCENE, O_CAMERA, O_CAMERA_FROM, O_SIZE, O_FRAMES, O_OUT, O_RENDERER, O_STEP, O_EXPOSURE,
          O_OCTAVES, O_JITTER, O_THREADS, O_MAXLEVEL, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
-         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT };
+         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS };
   static const struct option opts[] = {
       {"state", required_argument, 0, O_STATE},       {"scene", required_argument, 0, O_SCENE},
       {"camera", required_argument, 0, O_CAMERA},     {"camera-from", required_argument, 0, O_CAMERA_FROM},
@@ -250,15 +666,17 @@ int main(int argc, char **argv) {
       {"connect", required_argument, 0, O_CONNECT},   {"token", required_argument, 0, O_TOKEN},
       {"budget", required_argument, 0, O_BUDGET},     {"max-depth", required_argument, 0, O_MAXDEPTH},
       {"epochs", required_argument, 0, O_EPOCHS},     {"step", no_argument, 0, O_NETSTEP},
-      {"timeout", required_argument, 0, O_TIMEOUT},
+      {"timeout", required_argument, 0, O_TIMEOUT},   {"window", no_argument, 0, O_WINDOW},
+      {"headless", no_argument, 0, O_HEADLESS},
       {0, 0, 0, 0}};
-  const char *state_path = NULL, *scene_path = NULL, *camera_text = NULL, *camera_png = NULL, *out_dir = "out";
+  const char *state_path = NULL, *scene_path = NULL, *camera_text = NULL, *camera_png = NULL;
   const char *save_path = NULL;
-  int w = 640, h = 360, jitter = 0;
-  long frames = 1, threads = 2, max_level = 16, octaves = 0;
-  double step = 0.5, exposure = 10.0;
+  int w = 640, h = 360;
+  long frames = 1, max_level = 16;
+  view_opts_t vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2};
   view_net_opts_t net = {.budget_mib = 64, .max_depth = 21, .epochs = 4, .timeout = 60.0};
-  int net_opts = 0;
+  renderer_t renderer = R_AUTO;
+  int net_opts = 0, want_window = 0, want_headless = 0, batch_opts = 0, batch_net = 0;
   int c;
   opterr = 0;
   while ((c = getopt_long(argc, argv, "q", opts, NULL)) != -1) {
@@ -268,19 +686,20 @@ int main(int argc, char **argv) {
       case O_CAMERA: camera_text = optarg; break;
       case O_CAMERA_FROM: camera_png = optarg; break;
       case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &frames)) return OC_EXIT_USAGE; break;
-      case O_OUT: out_dir = optarg; break;
+      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &frames)) return OC_EXIT_USAGE; batch_opts = 1; break;
+      case O_OUT: vo.out_dir = optarg; batch_opts |= 2; break;
       case O_RENDERER:
-        if (strcmp(optarg, "cpu") != 0)
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer %s: only \"cpu\" is available in this build", optarg);
+        if (strcmp(optarg, "cpu") == 0) renderer = R_CPU;
+        else if (strcmp(optarg, "gl") == 0) renderer = R_GL;
+        else return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer %s: expected gl or cpu", optarg);
         break;
-      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &step)) return OC_EXIT_USAGE; break;
-      case O_EXPOSURE: if (oc_cli_double(prog, "--exposure", optarg, 1e-6, 1e6, &exposure)) return OC_EXIT_USAGE; break;
-      case O_OCTAVES: if (oc_cli_int(prog, "--ms-octaves", optarg, 1, 8, &octaves)) return OC_EXIT_USAGE; break;
-      case O_JITTER: jitter = 1; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &threads)) return OC_EXIT_USAGE; break;
+      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &vo.step)) return OC_EXIT_USAGE; break;
+      case O_EXPOSURE: if (oc_cli_double(prog, "--exposure", optarg, 1e-6, 1e6, &vo.exposure)) return OC_EXIT_USAGE; break;
+      case O_OCTAVES: if (oc_cli_int(prog, "--ms-octaves", optarg, 1, 8, &vo.octaves)) return OC_EXIT_USAGE; break;
+      case O_JITTER: vo.jitter = 1; break;
+      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &vo.threads)) return OC_EXIT_USAGE; break;
       case O_MAXLEVEL: if (oc_cli_int(prog, "--max-level", optarg, 0, 21, &max_level)) return OC_EXIT_USAGE; break;
-      case O_SAVE: save_path = optarg; break;
+      case O_SAVE: save_path = optarg; batch_opts = 1; break;
       case O_CONNECT:
         if (ocv_parse_address(optarg, net.host, sizeof net.host, &net.port) < 0)
           return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect: expected HOST:PORT (port 1..65535), got \"%s\"", optarg);
@@ -294,9 +713,11 @@ int main(int argc, char **argv) {
         break;
       case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &net.budget_mib)) return OC_EXIT_USAGE; net_opts = 1; break;
       case O_MAXDEPTH: if (oc_cli_int(prog, "--max-depth", optarg, 0, 21, &net.max_depth)) return OC_EXIT_USAGE; net_opts = 1; break;
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &net.epochs)) return OC_EXIT_USAGE; net_opts = 1; break;
-      case O_NETSTEP: net.step = 1; net_opts = 1; break;
+      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &net.epochs)) return OC_EXIT_USAGE; net_opts = 1; batch_net = 1; break;
+      case O_NETSTEP: net.step = 1; net_opts = 1; batch_net = 1; break;
       case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.01, 86400, &net.timeout)) return OC_EXIT_USAGE; net_opts = 1; break;
+      case O_WINDOW: want_window = 1; break;
+      case O_HEADLESS: want_headless = 1; break;
       case 'q': oc_log_set_level(OC_LOG_ERROR); break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -311,16 +732,39 @@ int main(int argc, char **argv) {
   if (net_opts && !net.connect)
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--token, --budget, --max-depth, --epochs, --step and --timeout go with --connect");
   if (camera_text && camera_png) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera and --camera-from exclude each other");
+  if (want_window && want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--window and --headless exclude each other");
+  if (want_window && ((batch_opts & 1) || batch_net))
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--frames, --save-state, --epochs and --step go with --headless, not --window");
+  if (want_window && renderer == R_CPU)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--window renders with GL: --renderer cpu goes with --headless");
+  /* A window by default when there is a display to show it and nothing asks for batch output. */
+  int window = want_window || (!want_headless && !batch_opts && !batch_net && renderer != R_CPU && have_display());
 
-  char why[512];
+  char why[1024];
   int rc = OC_EXIT_OK;
   oc_state_t st;
   oc_state_init(&st);
   oc_atmo_t *atmo = NULL;
-  uint8_t *rgb = NULL;
-  oc_image_t img = {0};
+#ifdef OC_HAVE_GL
+  ocv_window_t *win = NULL;
+#endif
   oc_scene_t *sc = calloc(1, sizeof *sc);
   if (!sc) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  if (window) { /* first, so that a missing display is said before any work */
+    if (!have_display()) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--window: no display (DISPLAY and WAYLAND_DISPLAY are unset); use --headless");
+      goto out;
+    }
+#ifdef OC_HAVE_GL
+    if (!(win = ocv_window_open(w, h, "overcast-view", why, sizeof why))) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--window: %s (or use --headless)", why);
+      goto out;
+    }
+#else
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--window: this build has no GL (libepoxy was not found); use --headless");
+    goto out;
+#endif
+  }
   if (!state_path && !net.connect) {
     if (!scene_path) scene_path = "scenes/analytic_sphere.json";
     if (oc_scene_load(sc, scene_path, why, sizeof why) < 0) {
@@ -333,17 +777,15 @@ int main(int argc, char **argv) {
 
   oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
   int have_pose = camera_text || camera_png;
-  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
-    {
-      rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
-      goto out;
-    }
+  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+    goto out;
+  }
   if (camera_png) {
     int pw, ph;
     uint8_t *px;
     char text[256];
-    if (oc_png_read(camera_png, &pw, &ph, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0)
-      {
+    if (oc_png_read(camera_png, &pw, &ph, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from: %s", why);
       goto out;
     }
@@ -352,8 +794,7 @@ int main(int argc, char **argv) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: no overcast-camera text chunk", camera_png);
       goto out;
     }
-    if (oc_camera_parse(text, &pose, why, sizeof why) < 0)
-      {
+    if (oc_camera_parse(text, &pose, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: %s", camera_png, why);
       goto out;
     }
@@ -361,7 +802,7 @@ int main(int argc, char **argv) {
 
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
-  if (net.connect) {
+  if (net.connect && !window) {
     net.width = w;
     net.height = h;
     if (net_receive(&net, have_pose ? &pose : NULL, &pose, sc, &st, why, sizeof why) < 0) {
@@ -369,100 +810,64 @@ int main(int argc, char **argv) {
       goto out;
     }
   }
-  oc_camera_t cam = oc_camera_from_pose(pose);
   if (state_path) {
     if (oc_state_load(&st, state_path, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       goto out;
     }
   } else if (!net.connect) {
-    oc_scene_voxelize_desc_t vd = {cam, h, 2.0, (int)max_level, 0, (int)threads};
-    if (oc_scene_voxelize(&st, sc, &vd, why, sizeof why) < 0)
-      {
+    oc_scene_voxelize_desc_t vd = {oc_camera_from_pose(pose), h, 2.0, (int)max_level, 0, (int)vo.threads};
+    if (oc_scene_voxelize(&st, sc, &vd, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
       goto out;
     }
   }
-  clock_gettime(CLOCK_MONOTONIC, &t1);
-  oc_log_info("state: %u nodes, %u bricks (%.2f s)", st.node_count, st.brick_count,
-              (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
-  if (save_path && oc_state_save(&st, save_path, why, sizeof why) < 0)
-    {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      goto out;
-    }
-
-  int use_atmo = oc_scene_has(sc, OC_FEATURE_ATMOSPHERE);
-  if (use_atmo) {
-    ocg_atmosphere ap;
-    oc_atmo_params_default(&ap);
-    if (!oc_scene_has(sc, OC_FEATURE_OZONE)) ap.ozone_absorption = ocg_v3s(0.0f);
-    atmo = oc_atmo_create(&ap, (int)threads);
-    if (!atmo) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
-      goto out;
-    }
-  }
-
-  if (mkdir(out_dir, 0777) != 0 && errno != EEXIST)
-    {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: cannot create folder: %s", out_dir, strerror(errno));
-      goto out;
-    }
-
-  oc_render_desc_t d = {0};
-  d.width = w;
-  d.height = h;
-  d.camera = cam;
-  d.step_factor = step;
-  d.ms_octaves = octaves ? (int)octaves : oc_scene_has(sc, OC_FEATURE_MULTIPLE_SCATTERING) ? sc->optics.ms_octaves : 1;
-  d.ms_a = (float)sc->optics.ms_a;
-  d.ms_b = (float)sc->optics.ms_b;
-  d.ms_c = (float)sc->optics.ms_c;
-  d.albedo = (float)sc->optics.albedo;
-  d.albedo_zero = sc->optics.albedo == 0.0;
-  d.atmo = atmo;
-  d.threads = (int)threads;
-  d.flags = (use_atmo ? 0 : OC_RF_NO_ATMOSPHERE) | (oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE) ? 0 : OC_RF_NO_PLANET) |
-            (jitter ? OC_RF_JITTER : 0);
-  rgb = malloc((size_t)w * (size_t)h * 3);
-  if (!rgb || oc_image_alloc(&img, w, h) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d image", w, h);
-      goto out;
-    }
-
-  char cam_text[256], settings[256];
-  oc_camera_format(pose, cam_text, sizeof cam_text);
-  snprintf(settings, sizeof settings, "renderer=cpu step_factor=%g exposure=%g ms_octaves=%d jitter=%d", step, exposure,
-           d.ms_octaves, jitter);
-  oc_png_text_t text[3] = {{"overcast-camera", cam_text}, {"overcast-settings", settings},
-                           {"Software", "overcast-view " OC_VERSION}};
-  for (long f = 0; f < frames; f++) {
-    oc_render_stats_t rs;
-    d.frame = (uint32_t)f;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    int r = oc_render_state(&st, &d, &img, &rs);
+  if (!(net.connect && window)) {
     clock_gettime(CLOCK_MONOTONIC, &t1);
-    if (r < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", oc_strerror(r));
-      break;
-    }
-    int bad = oc_image_tonemap(&img, (float)exposure, rgb);
-    if (bad) oc_log_warn("frame %ld: %d non-finite pixels drawn black", f, bad);
-    char path[4096];
-    snprintf(path, sizeof path, "%s/frame_%04ld.png", out_dir, f);
-    if (oc_png_write(path, w, h, rgb, text, 3, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      break;
-    }
-    double sec = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
-    oc_log_info("frame %ld: %.2f s, %.1f M samples/s", f, sec, rs.samples / sec * 1e-6);
-    printf("%s\n", path);
-    fflush(stdout);
+    oc_log_info("state: %u nodes, %u bricks (%.2f s)", st.node_count, st.brick_count,
+                (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
   }
+  if (save_path && oc_state_save(&st, save_path, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    goto out;
+  }
+
+  if (window) {
+#ifdef OC_HAVE_GL
+    view_win_t v = {.win = win, .net_opts = &net, .sc = sc, .st = &st, .have_state = !net.connect, .pose = pose,
+                    .have_pose = have_pose || !net.connect, .o = vo};
+    if (net.connect) {
+      ocv_net_desc_t nd = {.host = net.host, .port = net.port,
+                           .viewer = {.role = OCP_ROLE_VIEWER, .budget = (uint64_t)net.budget_mib << 20,
+                                      .max_depth = (uint8_t)net.max_depth, .width = (uint32_t)w, .height = (uint32_t)h,
+                                      .caps = OCP_CAP_ALL, .token = net.token},
+                           .connect_timeout_s = fmin(net.timeout, 10.0), .on_state = net_wake};
+      int r = ocv_net_start(&v.net, &nd);
+      if (r < 0) {
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s:%d: cannot start the network thread (%s)", net.host, net.port,
+                         oc_strerror(r));
+        goto out;
+      }
+      if (have_pose) {
+        ocp_camera_t wc = wire_camera(pose, w, h);
+        (void)ocv_net_set_camera(v.net, &wc);
+      }
+    }
+    rc = run_window(&v);
+    ocv_net_stop(v.net);
+#endif
+    goto out;
+  }
+
+  if (make_atmo(sc, vo.threads, &atmo) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+    goto out;
+  }
+  rc = run_headless(renderer, &st, sc, atmo, pose, w, h, frames, &vo);
 out:
-  free(rgb);
-  oc_image_free(&img);
+#ifdef OC_HAVE_GL
+  ocv_window_close(win);
+#endif
   oc_atmo_free(atmo);
   oc_state_free(&st);
   oc_scene_free(sc);
