@@ -13,6 +13,8 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "camera_path.h"
+#include "hud.h"
 #include "oc_atmo.h"
 #include "oc_camera.h"
 #include "oc_cli.h"
@@ -77,6 +79,11 @@ static void usage(FILE *f) {
           "  --threads N           render threads of the CPU renderer, voxelizer and tables (default 2)\n"
           "  --max-level N         deepest octree level for --scene (default 16)\n"
           "  --save-state FILE     headless: also write the state that was rendered\n"
+          "  --path FILE           headless: a recorded camera path (lines \"T LAT,LON,ALT,HEADING,PITCH,FOV\");\n"
+          "                        frame f is its pose at f / --fps s (frames: the path's length, unless\n"
+          "                        --frames says)\n"
+          "  --fps X               frames per second of --path (default 30)\n"
+          "  --record FILE         window: record the flight as a camera path (saved at exit)\n"
           "  -q, --quiet           only errors\n"
           "  --help, --version\n"
           "window keys:\n"
@@ -86,6 +93,10 @@ static void usage(FILE *f) {
           "  [ ]                        step factor × / ÷ 1.25\n"
           "  - =                        exposure ÷ / × 1.25\n"
           "  F12 or P                   screenshot (PNG with the camera in a text chunk, for --camera-from)\n"
+          "  R                          reprojection on/off (one pixel in 16 traced per frame)\n"
+          "  V                          debug views: off, level of detail, τ channel, node bounds\n"
+          "  H                          HUD on/off (frame and GPU pass times, epoch and age, resident\n"
+          "                             bytes against the budget, bytes/s received)\n"
           "  Esc                        quit\n"
           "The window's viewport and every camera move are sent to the server with --connect.\n"
           "\n"
@@ -269,6 +280,8 @@ typedef struct {
   double step, exposure;
   long octaves, threads;
   int jitter;
+  const ocv_path_t *path; /* --path: the camera of frame f is its pose at f / fps */
+  double fps;
 } view_opts_t;
 
 /* The render description for the scene's optics and features; the caller sets size and camera. */
@@ -403,6 +416,10 @@ static int run_headless(renderer_t renderer, const oc_state_t *st, const oc_scen
     oc_render_stats_t rs = {0};
     struct timespec t0, t1;
     d.frame = (uint32_t)f;
+    if (o->path) { /* --path: this frame's camera */
+      (void)ocv_path_sample(o->path, (double)f / o->fps, &pose);
+      d.camera = oc_camera_from_pose(pose);
+    }
     clock_gettime(CLOCK_MONOTONIC, &t0);
     int r;
 #ifdef OC_HAVE_GL
@@ -455,6 +472,8 @@ typedef struct {
   oc_camera_pose_t pose;
   int have_pose;
   view_opts_t o;
+  ocv_path_t *record; /* --record: poses of the flight, saved at exit */
+  double record_t0;
 } view_win_t;
 
 static void net_wake(void *ctx) {
@@ -514,17 +533,21 @@ static int run_window(view_win_t *v) {
   int rc = OC_EXIT_OK;
   ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
   if (!r) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL renderer: %s", why);
-  ocv_gl_state_t gs;
-  int have_gs = 0;
+  ocv_gl_view_t *view = NULL; /* kept states, bounded uploads, blending, reprojection */
+  int have_gs = 0, reproject = 0, hud = 1, debug = 0;
   uint64_t epoch = v->have_state ? v->st->epoch : 0;
+  double shown_at = now_s(), bytes_at = shown_at, bytes_rate = 0;
+  uint64_t bytes_prev = 0;
+  ocv_gl_view_stats_t vs = {0};
   oc_atmo_t *atmo = NULL;
   int scene_ready = !v->net; /* with --connect: once the WELCOME brought features and optics */
   if (scene_ready && make_atmo(v->sc, v->o.threads, &atmo) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
     goto out;
   }
-  if (v->have_state) {
-    if (ocv_gl_state_upload(&gs, v->st, why, sizeof why) < 0) {
+  if (v->have_state) { /* one local state: a budget that holds it, nothing to blend */
+    ocv_gl_view_desc_t vd = {.budget = ((uint64_t)v->st->brick_count + 1) * OCV_GL_SLOT_BYTES, .kept = 1};
+    if (!(view = ocv_gl_view_create(r, &vd, why, sizeof why)) || ocv_gl_view_push(view, v->st, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload: %s", why);
       goto out;
     }
@@ -563,19 +586,28 @@ static int run_window(view_win_t *v) {
           rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
           break;
         }
+        ocv_gl_view_desc_t vd = {.budget = w->budget, .kept = w->kept_states > 2 ? 2 : 1,
+                                 .animated = (w->features >> OC_FEATURE_ANIMATION) & 1u,
+                                 .epoch_period = w->epoch_period > 0 ? w->epoch_period : 1.0};
+        if (!(view = ocv_gl_view_create(r, &vd, why, sizeof why))) {
+          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL view: %s", why);
+          break;
+        }
         scene_ready = 1;
         cam_dirty = 1;
       }
       uint64_t e;
-      if (ocv_net_take_state(v->net, v->st, &e) == 1) {
-        if (have_gs) ocv_gl_state_free(&gs);
-        have_gs = 0;
-        if (ocv_gl_state_upload(&gs, v->st, why, sizeof why) < 0) {
+      if (view && ocv_net_take_state(v->net, v->st, &e) == 1) {
+        if (ocv_gl_view_push(view, v->st, why, sizeof why) < 0) {
           rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload (epoch %llu): %s", (unsigned long long)e, why);
           break;
         }
         have_gs = 1;
-        epoch = e;
+      }
+      if (t - bytes_at >= 1.0) { /* bytes/s received, for the HUD */
+        bytes_rate = (double)(ns.viewer.bytes_in - bytes_prev) / (t - bytes_at);
+        bytes_prev = ns.viewer.bytes_in;
+        bytes_at = t;
       }
     }
 
@@ -584,6 +616,9 @@ static int run_window(view_win_t *v) {
     for (int i = 0; i < in.presses[OCV_ACT_STEP_DIV]; i++) v->o.step = fmax(v->o.step / 1.25, 1e-3);
     for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_UP]; i++) v->o.exposure = fmin(v->o.exposure * 1.25, 1e6);
     for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_DOWN]; i++) v->o.exposure = fmax(v->o.exposure / 1.25, 1e-6);
+    if (in.presses[OCV_ACT_REPROJECT] & 1) reproject = !reproject;
+    if (in.presses[OCV_ACT_HUD] & 1) hud = !hud;
+    debug = (debug + in.presses[OCV_ACT_DEBUG]) % 4;
     if (in.resized) cam_dirty = 1;
     if (v->net && cam_dirty && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
       ocp_camera_t wc = wire_camera(v->pose, in.fb_w, in.fb_h);
@@ -608,15 +643,36 @@ static int run_window(view_win_t *v) {
       d.width = iw;
       d.height = ih;
       d.camera = oc_camera_from_pose(v->pose);
+      d.debug_view = debug;
       ms_octaves = d.ms_octaves;
       double t0 = now_s();
-      if (ocv_gl_render_state(r, &gs, &d, &img, why, sizeof why) < 0) {
+      if (ocv_gl_view_frame(view, &d, t0, reproject, &img, &vs, why, sizeof why) < 0) {
         rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
         break;
       }
       frame_ms = 1e3 * (now_s() - t0);
-      (void)oc_image_tonemap(&img, (float)v->o.exposure, rgb);
-      drawn = 1;
+      if (vs.shown) {
+        if (vs.epoch != epoch) shown_at = t0;
+        epoch = vs.epoch;
+        (void)oc_image_tonemap(&img, (float)v->o.exposure, rgb);
+        if (hud) {
+          ocv_hud_stats_t hs = {.frame_ms = frame_ms, .epoch = epoch, .epoch_age_s = t0 - shown_at,
+                                .bricks = vs.resident_bytes ? (uint32_t)(vs.resident_bytes / OCV_GL_SLOT_BYTES) : 0,
+                                .resident_bytes = vs.resident_bytes,
+                                .budget_bytes = v->net ? ns.welcome.budget : vs.resident_bytes,
+                                .bytes_per_s = bytes_rate, .renderer = reproject ? "gl, reprojected" : "gl"};
+          ocv_gl_renderer_timings(r, &hs.trace_ms, &hs.reproject_ms);
+          char text[512];
+          ocv_hud_format(&hs, text, sizeof text);
+          ocv_hud_text(rgb, iw, ih, 6, 6, 1, text, (const uint8_t[3]){255, 255, 255});
+        }
+        drawn = 1;
+      }
+      if (v->record) {
+        if (!v->record->count || t0 - v->record_t0 > v->record->t[v->record->count - 1] + 1e-3)
+          (void)ocv_path_add(v->record, v->record->count ? t0 - v->record_t0 : 0.0, v->pose);
+        if (v->record->count == 1) v->record_t0 = t0;
+      }
     }
     if (ocv_window_present(v->win, drawn ? rgb : NULL, iw, ih, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
@@ -642,7 +698,8 @@ static int run_window(view_win_t *v) {
   free(rgb);
   oc_image_free(&img);
 out:
-  if (have_gs) ocv_gl_state_free(&gs);
+  (void)have_gs;
+  ocv_gl_view_free(view);
   ocv_gl_renderer_free(r);
   oc_atmo_free(atmo);
   return rc;
@@ -652,7 +709,7 @@ out:
 int main(int argc, char **argv) {
   enum { O_STATE = 256, O_SCENE, O_CAMERA, O_CAMERA_FROM, O_SIZE, O_FRAMES, O_OUT, O_RENDERER, O_STEP, O_EXPOSURE,
          O_OCTAVES, O_JITTER, O_THREADS, O_MAXLEVEL, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
-         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS };
+         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS, O_RECORD, O_PATH, O_FPS };
   static const struct option opts[] = {
       {"state", required_argument, 0, O_STATE},       {"scene", required_argument, 0, O_SCENE},
       {"camera", required_argument, 0, O_CAMERA},     {"camera-from", required_argument, 0, O_CAMERA_FROM},
@@ -668,12 +725,18 @@ int main(int argc, char **argv) {
       {"epochs", required_argument, 0, O_EPOCHS},     {"step", no_argument, 0, O_NETSTEP},
       {"timeout", required_argument, 0, O_TIMEOUT},   {"window", no_argument, 0, O_WINDOW},
       {"headless", no_argument, 0, O_HEADLESS},
+      {"record", required_argument, 0, O_RECORD},     {"path", required_argument, 0, O_PATH},
+      {"fps", required_argument, 0, O_FPS},
       {0, 0, 0, 0}};
   const char *state_path = NULL, *scene_path = NULL, *camera_text = NULL, *camera_png = NULL;
   const char *save_path = NULL;
   int w = 640, h = 360;
   long frames = 1, max_level = 16;
-  view_opts_t vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2};
+  view_opts_t vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2, .fps = 30.0};
+  const char *record_path = NULL, *path_file = NULL;
+  int frames_given = 0;
+  ocv_path_t cam_path;
+  ocv_path_init(&cam_path);
   view_net_opts_t net = {.budget_mib = 64, .max_depth = 21, .epochs = 4, .timeout = 60.0};
   renderer_t renderer = R_AUTO;
   int net_opts = 0, want_window = 0, want_headless = 0, batch_opts = 0, batch_net = 0;
@@ -686,7 +749,10 @@ int main(int argc, char **argv) {
       case O_CAMERA: camera_text = optarg; break;
       case O_CAMERA_FROM: camera_png = optarg; break;
       case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &frames)) return OC_EXIT_USAGE; batch_opts = 1; break;
+      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &frames)) return OC_EXIT_USAGE; batch_opts = 1; frames_given = 1; break;
+      case O_RECORD: record_path = optarg; want_window = 1; break;
+      case O_PATH: path_file = optarg; batch_opts = 1; break;
+      case O_FPS: if (oc_cli_double(prog, "--fps", optarg, 0.01, 1000, &vo.fps)) return OC_EXIT_USAGE; break;
       case O_OUT: vo.out_dir = optarg; batch_opts |= 2; break;
       case O_RENDERER:
         if (strcmp(optarg, "cpu") == 0) renderer = R_CPU;
@@ -732,6 +798,14 @@ int main(int argc, char **argv) {
   if (net_opts && !net.connect)
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--token, --budget, --max-depth, --epochs, --step and --timeout go with --connect");
   if (camera_text && camera_png) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera and --camera-from exclude each other");
+  if (path_file && (camera_text || camera_png)) return oc_cli_fail(prog, OC_EXIT_USAGE, "--path gives the camera: no --camera or --camera-from");
+  if (record_path && want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--record records a window's flight: not with --headless");
+  if (path_file) {
+    char pwhy[512];
+    if (ocv_path_load(&cam_path, path_file, pwhy, sizeof pwhy) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--path: %s", pwhy);
+    vo.path = &cam_path;
+    if (!frames_given) frames = (long)floor(ocv_path_duration(&cam_path) * vo.fps) + 1;
+  }
   if (want_window && want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--window and --headless exclude each other");
   if (want_window && ((batch_opts & 1) || batch_net))
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--frames, --save-state, --epochs and --step go with --headless, not --window");
@@ -853,8 +927,17 @@ int main(int argc, char **argv) {
         (void)ocv_net_set_camera(v.net, &wc);
       }
     }
+    ocv_path_t rec;
+    ocv_path_init(&rec);
+    if (record_path) v.record = &rec;
     rc = run_window(&v);
     ocv_net_stop(v.net);
+    if (record_path) {
+      char pwhy[512];
+      if (ocv_path_save(&rec, record_path, pwhy, sizeof pwhy) < 0) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--record: %s", pwhy);
+      else oc_log_info("%zu camera keys recorded in %s", rec.count, record_path);
+    }
+    ocv_path_free(&rec);
 #endif
     goto out;
   }
@@ -865,6 +948,7 @@ int main(int argc, char **argv) {
   }
   rc = run_headless(renderer, &st, sc, atmo, pose, w, h, frames, &vo);
 out:
+  ocv_path_free(&cam_path);
 #ifdef OC_HAVE_GL
   ocv_window_close(win);
 #endif

@@ -43,6 +43,9 @@ static void ocv__on_key(GLFWwindow *w, int key, int scancode, int action, int mo
     case GLFW_KEY_EQUAL: case GLFW_KEY_KP_ADD: a = OCV_ACT_EXPOSURE_UP; break;
     case GLFW_KEY_F12: case GLFW_KEY_P: if (action == GLFW_PRESS) a = OCV_ACT_SCREENSHOT; break;
     case GLFW_KEY_ESCAPE: if (action == GLFW_PRESS) a = OCV_ACT_QUIT; break;
+    case GLFW_KEY_R: if (action == GLFW_PRESS) a = OCV_ACT_REPROJECT; break;
+    case GLFW_KEY_V: if (action == GLFW_PRESS) a = OCV_ACT_DEBUG; break;
+    case GLFW_KEY_H: if (action == GLFW_PRESS) a = OCV_ACT_HUD; break;
     default: break;
   }
   if (a >= 0) win->presses[a]++;

@@ -33,6 +33,9 @@ typedef enum {
   OCV_ACT_EXPOSURE_DOWN, /* - : exposure ÷ 1.25 */
   OCV_ACT_EXPOSURE_UP,  /* = : exposure × 1.25 */
   OCV_ACT_SCREENSHOT,   /* F12 or P */
+  OCV_ACT_REPROJECT,    /* R : reprojection (one pixel in 16 traced) on/off */
+  OCV_ACT_DEBUG,        /* V : cycle the debug views (off, LOD, τ, node bounds) */
+  OCV_ACT_HUD,          /* H : HUD on/off */
   OCV_ACT_QUIT,         /* Esc (or the window's close button) */
   OCV_ACT_COUNT
 } ocv_action_t;

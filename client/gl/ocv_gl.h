@@ -219,4 +219,41 @@ void ocv_gl_history_reset(ocv_gl_history_t *hs);
 int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,
                         int reproject, oc_image_t *img, ocv_gl_frame_stats_t *fs, char *why, size_t why_len);
 
+/* ---- The viewer's frame loop (gl_view.c) ---------------------------------------------------------------- */
+
+/* What overcast-view does every frame, without a window, so it can be tested headless: states that
+ * arrived are staged into the kept-state store (uploads bounded per frame), a state that became
+ * complete is shown from then on with the previous values of its leaves (the state shown before it)
+ * and blended in over one epoch period, optionally one pixel in 16 is traced (reprojection). */
+typedef struct ocv_gl_view_s ocv_gl_view_t;
+
+typedef struct {
+  uint64_t budget;             /**< the granted budget, bytes: the atlas holds budget / OCV_GL_SLOT_BYTES bricks */
+  int kept;                    /**< complete states kept: K − 1 (2 animated, 1 static) */
+  int animated;                /**< time interpolation (else only splits and merges cross-fade) */
+  double epoch_period;         /**< s; the blend lasts one period (≤ 0: no blend) */
+  uint64_t upload_per_frame;   /**< bytes of bricks uploaded per frame; 0 → 4 MiB */
+} ocv_gl_view_desc_t;
+
+typedef struct {
+  uint64_t epoch;        /**< of the state shown (0 before the first) */
+  float t;               /**< its blend parameter */
+  uint32_t pending;      /**< bricks of the staged state still to upload */
+  uint64_t uploaded_bytes; /**< this frame */
+  uint64_t resident_bytes; /**< the Conventions' measure (ocv_gl_store_stats) */
+  ocv_gl_frame_stats_t frame;
+  int shown;             /**< 1 when a state was rendered */
+} ocv_gl_view_stats_t;
+
+ocv_gl_view_t *ocv_gl_view_create(ocv_gl_renderer_t *r, const ocv_gl_view_desc_t *d, char *why, size_t why_len);
+void ocv_gl_view_free(ocv_gl_view_t *v);
+/*! ocv_gl_view_push() : a new complete state (copied), replacing one still being uploaded.
+ *  @return 0 or a negative OC_E* with why (OC_ETOOBIG: it does not fit the budget). */
+int ocv_gl_view_push(ocv_gl_view_t *v, const oc_state_t *s, char *why, size_t why_len);
+/*! ocv_gl_view_frame() : one frame at time `now` (s, any monotonic clock): pumps uploads, switches
+ *  to a state that became complete, renders desc's view (blended, reprojected when asked) into img.
+ *  Before the first state is complete nothing is rendered (stats->shown 0). @return 0 or OC_E*. */
+int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now, int reproject, oc_image_t *img,
+                      ocv_gl_view_stats_t *st, char *why, size_t why_len);
+
 #endif /* OC_CLIENT_GL_H */

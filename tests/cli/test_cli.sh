@@ -142,5 +142,13 @@ fi
 check "view: cpu renders headless" 0 "" -- "$V" --renderer cpu --headless --state "$tmp/p.ocst" --size 64x36 --out "$tmp/c2" -q
 grep -aq "renderer=cpu" "$tmp/c2/frame_0000.png" || { echo "FAIL view cpu: settings chunk does not say renderer=cpu"; fail=$((fail + 1)); }
 
+# overcast-view --path: frames along a recorded camera path (CPU reference, tiny images)
+printf '# test path\n0 0,-0.09,3000,90,0,40\n1 0,-0.08,3000,100,0,40\n' >"$tmp/path.txt"
+check "view: --path frames" 0 "" -- "$V" --scene "$OC_SOURCE_DIR/scenes/analytic_sphere.json" --path "$tmp/path.txt" --fps 2 --size 48x27 --renderer cpu --headless --out "$tmp/pathout" -q
+[ "$(grep -c frame_ "$tmp/out")" -eq 3 ] || { echo "FAIL view --path: want 3 frames, got: $(cat "$tmp/out")"; fail=$((fail + 1)); }
+printf '0 0,-0.09,3000,90,0,40\n0 0,-0.08,3000,90,0,40\n' >"$tmp/badpath.txt"
+check "view: --path, time not increasing" 1 "badpath.txt:2: time 0 is not after" -- "$V" --scene "$OC_SOURCE_DIR/scenes/analytic_sphere.json" --path "$tmp/badpath.txt" --renderer cpu --headless
+check "view: --path with --camera" 2 "--path gives the camera" -- "$V" --path "$tmp/path.txt" --camera 0,0,1,0,0,40
+check "view: --record headless" 2 "--record records a window" -- "$V" --record "$tmp/rec.txt" --headless
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
