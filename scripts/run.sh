@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # The main job: installs what is missing, builds, starts overcast-server on the built-in procedural
-# planet (127.0.0.1, a free port, 1 s epochs) and connects overcast-view to it. The viewer receives
-# and verifies states over the wire protocol for some epochs, then — until the GL viewer of issue
-# [5/7] lands, whether or not a display is present — renders the newest with the CPU reference
-# renderer, headless, writing PNG frames and printing their paths. Extra arguments go to
-# overcast-view (e.g. --size 1280x720 --camera 45,0,2000,250,0,60 --epochs 20). OC_OUT sets the
-# output folder (default out); the server's log goes to $OC_OUT/server.log.
+# planet (127.0.0.1, a free port, 1 s epochs) and connects overcast-view to it over the wire
+# protocol. With a display (DISPLAY or WAYLAND_DISPLAY) the viewer opens a window (mouse look, WASD,
+# Esc quits; keys in overcast-view --help); otherwise it runs headless: it receives and verifies
+# states for some epochs, renders the newest with the GL renderer through EGL (Mesa llvmpipe without
+# a GPU; the CPU reference where no GL context can be made) and writes PNG frames, printing their
+# paths. Extra arguments go to overcast-view (e.g. --size 1280x720 --camera 45,0,2000,250,0,60
+# --epochs 20). OC_OUT sets the output folder (default out); the server's log goes to
+# $OC_OUT/server.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh >&2
@@ -13,9 +15,6 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build build -j"$(nproc)" --target overcast-server overcast-view >&2
 OUT=${OC_OUT:-out}
 mkdir -p "$OUT"
-if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
-  echo "run: a display is present, but this build has no GL window yet: writing PNG frames instead" >&2
-fi
 build/bin/overcast-server --listen 127.0.0.1:0 >"$OUT/server.addr" 2>"$OUT/server.log" &
 SERVER=$!
 trap 'kill -TERM $SERVER 2>/dev/null; wait $SERVER 2>/dev/null || true' EXIT
@@ -27,5 +26,9 @@ done
 ADDR=$(sed -n 's/^listening on //p' "$OUT/server.addr")
 echo "run: overcast-server on $ADDR (log: $OUT/server.log)" >&2
 CAMERA=45,0,2000,260,-5,60 # the built-in planet's camera (scenes/planet.json)
-build/bin/overcast-view --connect "$ADDR" --epochs 10 --timeout 900 --camera "$CAMERA" --out "$OUT" \
-  --size 640x360 --threads "$(nproc)" "$@"
+if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
+  build/bin/overcast-view --connect "$ADDR" --window --camera "$CAMERA" --size 1280x720 --out "$OUT" "$@"
+else
+  build/bin/overcast-view --connect "$ADDR" --headless --epochs 10 --timeout 900 --camera "$CAMERA" --out "$OUT" \
+    --size 640x360 --threads "$(nproc)" "$@"
+fi
