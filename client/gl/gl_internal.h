@@ -21,4 +21,8 @@ void ocv__gl_buffers(ocv_gl_state_t *gs, const void *rec, uint32_t nrec, const u
 /*! ocv__gl_put_brick() : one brick's codes into atlas slot k (texels: scratch of 1024 u16). */
 void ocv__gl_put_brick(GLuint atlas, const int bricks[3], uint32_t k, const oc_brick_codes_t *c, uint16_t *texels);
 
+/*! ocv__gl_atlas_shape() : bricks per axis of an atlas of n bricks (8³ texels each) within
+ *  GL_MAX_3D_TEXTURE_SIZE. @return 0, or OC_ETOOBIG with "<what>: N bricks exceed a M³ atlas". */
+int ocv__gl_atlas_shape(uint32_t n, int bricks[3], const char *what, char *why, size_t why_len);
+
 #endif /* OC_CLIENT_GL_INTERNAL_H */

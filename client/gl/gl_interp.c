@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gl_internal.h"
 #include "interp.h"
 #include "oc_err.h"
 #include "ocv_gl.h"
@@ -40,18 +41,9 @@ int ocv_gl_prev_upload(ocv_gl_prev_t *gp, const ocv_interp_t *ip, int animated, 
     rec[i].value[0] = p->value[OC_CH_SIGMA];
     rec[i].value[1] = p->value[OC_CH_TAU];
   }
-  GLint max3d = 0;
-  glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
-  uint32_t per = (uint32_t)(max3d > 0 ? max3d : 256) / 8u, n = ip->pool_count ? ip->pool_count : 1;
-  uint32_t bx = n < per ? n : per, by = (n + bx - 1) / bx;
-  if (by > per) by = per;
-  uint32_t bz = (n + bx * by - 1) / (bx * by);
-  int rc = 0;
-  if (bz > per) {
-    rc = oc_errorf(OC_ETOOBIG, why, why_len, "gl prev: %u resampled bricks exceed a %d³ atlas", ip->pool_count, max3d);
-    goto out;
-  }
-  gp->pool_bricks[0] = (int)bx, gp->pool_bricks[1] = (int)by, gp->pool_bricks[2] = (int)bz;
+  int rc = ocv__gl_atlas_shape(ip->pool_count, gp->pool_bricks, "gl prev (resampled bricks)", why, why_len);
+  if (rc < 0) goto out;
+  uint32_t bx = (uint32_t)gp->pool_bricks[0], by = (uint32_t)gp->pool_bricks[1], bz = (uint32_t)gp->pool_bricks[2];
   gp->count = ip->node_count;
   gp->pool_count = ip->pool_count;
   glCreateBuffers(1, &gp->records);

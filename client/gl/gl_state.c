@@ -133,6 +133,18 @@ void ocv__gl_buffers(ocv_gl_state_t *gs, const void *rec, uint32_t nrec, const u
   glNamedBufferStorage(gs->leaves, (GLsizeiptr)((size_t)nrec * sizeof(ocv__leaf_rec_t)), rec, 0);
 }
 
+int ocv__gl_atlas_shape(uint32_t n, int bricks[3], const char *what, char *why, size_t why_len) {
+  GLint max3d = 0;
+  glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+  uint32_t per = (uint32_t)(max3d > 0 ? max3d : 256) / 8u, m = n ? n : 1;
+  uint32_t bx = m < per ? m : per, by = (m + bx - 1) / bx;
+  if (by > per) by = per;
+  uint32_t bz = (m + bx * by - 1) / (bx * by);
+  if (bz > per) return oc_errorf(OC_ETOOBIG, why, why_len, "%s: %u bricks exceed a %d³ atlas", what, n, max3d);
+  bricks[0] = (int)bx, bricks[1] = (int)by, bricks[2] = (int)bz;
+  return 0;
+}
+
 /* Brick codes → 8³ RG16UI texels of atlas slot k. */
 void ocv__gl_put_brick(GLuint atlas, const int bricks[3], uint32_t k, const oc_brick_codes_t *c, uint16_t *texels) {
   uint32_t bx = (uint32_t)bricks[0], by = (uint32_t)bricks[1];
@@ -162,20 +174,9 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
   gs->leaf_count = s->node_count;
   gs->brick_count = s->brick_count;
 
-  /* Atlas shape: bricks per axis within GL_MAX_3D_TEXTURE_SIZE. */
-  GLint max3d = 0;
-  glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
-  uint32_t per = (uint32_t)(max3d > 0 ? max3d : 256) / 8u, n = s->brick_count ? s->brick_count : 1;
-  uint32_t bx = n < per ? n : per, by = (n + bx - 1) / bx;
-  if (by > per) by = per;
-  uint32_t bz = (n + bx * by - 1) / (bx * by);
-  if (bz > per) {
-    (void)oc_errorf(0, why, why_len, "gl state: %u bricks exceed a %d³ atlas", s->brick_count, max3d);
-    return OC_ETOOBIG;
-  }
-  gs->atlas_bricks[0] = (int)bx;
-  gs->atlas_bricks[1] = (int)by;
-  gs->atlas_bricks[2] = (int)bz;
+  int sh = ocv__gl_atlas_shape(s->brick_count, gs->atlas_bricks, "gl state", why, why_len);
+  if (sh < 0) return sh;
+  uint32_t bx = (uint32_t)gs->atlas_bricks[0], by = (uint32_t)gs->atlas_bricks[1], bz = (uint32_t)gs->atlas_bricks[2];
 
   void *rec = NULL;
   uint32_t *tree = NULL, inner = 0;

@@ -103,16 +103,9 @@ ocv_gl_store_t *ocv_gl_store_create(uint32_t slots, int kept, char *why, size_t 
     (void)oc_errorf(0, why, why_len, "gl store: need at least one slot and 1..3 kept states");
     return NULL;
   }
-  GLint max3d = 0;
-  glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
-  uint32_t per = (uint32_t)(max3d > 0 ? max3d : 256) / 8u;
-  uint32_t bx = slots < per ? slots : per, by = (slots + bx - 1) / bx;
-  if (by > per) by = per;
-  uint32_t bz = (slots + bx * by - 1) / (bx * by);
-  if (bz > per) {
-    (void)oc_errorf(0, why, why_len, "gl store: %u brick slots exceed a %d³ atlas", slots, max3d);
-    return NULL;
-  }
+  int shape[3];
+  if (ocv__gl_atlas_shape(slots, shape, "gl store", why, why_len) < 0) return NULL;
+  uint32_t bx = (uint32_t)shape[0], by = (uint32_t)shape[1], bz = (uint32_t)shape[2];
   ocv_gl_store_t *st = calloc(1, sizeof *st);
   uint32_t mapn = 16;
   while (mapn < 2 * slots) mapn *= 2;

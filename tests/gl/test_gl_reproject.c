@@ -20,58 +20,19 @@
 #include "oc_scene_voxelize.h"
 #include "ocv_gl.h"
 
+#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, rmse */
+
 #define W 96
 #define H 56
-
-static ocv_gl_context_t *ctx;
-static ocv_gl_renderer_t *ren;
-
-static int setup(void **state) {
-  (void)state;
-  char why[1024];
-  ctx = ocv_gl_context_init(why, sizeof why);
-  if (!ctx) printf("%s\n", why);
-  else if (!(ren = ocv_gl_renderer_create(why, sizeof why))) printf("programs: %s\n", why);
-  return 0;
-}
-
-static int teardown(void **state) {
-  (void)state;
-  ocv_gl_renderer_free(ren);
-  ocv_gl_context_free(ctx);
-  return 0;
-}
-
-static void require_gl(void) {
-  if (ctx && ren) return;
-  const char *req = getenv("OC_GL_REQUIRE");
-  if (req && req[0] == '1') fail_msg("OC_GL_REQUIRE=1 but no headless OpenGL 4.5 context");
-  skip();
-}
-
-static double rmse(const oc_image_t *a, const oc_image_t *b) {
-  uint8_t ra[W * H * 3], rb[W * H * 3];
-  oc_image_tonemap(a, 10.0f, ra);
-  oc_image_tonemap(b, 10.0f, rb);
-  double se = 0.0;
-  for (int i = 0; i < W * H * 3; i++) se += ((double)ra[i] - rb[i]) * ((double)ra[i] - rb[i]);
-  return sqrt(se / (W * H * 3));
-}
 
 static void test_gl_reproject__frames(void **state) {
   (void)state;
   require_gl();
-  char path[1024], why[512];
-  const char *root = getenv("OC_SOURCE_DIR");
-  snprintf(path, sizeof path, "%s/scenes/analytic_sphere.json", root && *root ? root : ".");
-  oc_scene_t sc;
-  assert_int_equal(oc_scene_load(&sc, path, why, sizeof why), 0);
-  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
+  char why[512];
+  oc_camera_pose_t pose = {{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0}; /* the scene's camera */
   oc_camera_t cam = oc_camera_from_pose(pose);
   oc_state_t st;
-  oc_state_init(&st);
-  oc_scene_voxelize_desc_t vd = {cam, H, 2.0, 0, 0, 2};
-  if (oc_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
+  sphere_state(&st, cam, H, 0);
   ocv_gl_state_t gs;
   assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
   oc_render_desc_t d;
@@ -126,7 +87,6 @@ static void test_gl_reproject__frames(void **state) {
   oc_image_free(&img);
   ocv_gl_state_free(&gs);
   oc_state_free(&st);
-  oc_scene_free(&sc);
 }
 
 int main(void) {

@@ -20,51 +20,16 @@
 #include "oc_scene_voxelize.h"
 #include "ocv_gl.h"
 
+#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, rmse */
+
 #define W 96
 #define H 54
 
-static ocv_gl_context_t *ctx;
-static ocv_gl_renderer_t *ren;
-
-static int setup(void **state) {
-  (void)state;
-  char why[1024];
-  ctx = ocv_gl_context_init(why, sizeof why);
-  if (!ctx) printf("%s\n", why);
-  else if (!(ren = ocv_gl_renderer_create(why, sizeof why))) printf("raymarch program: %s\n", why);
-  return 0;
-}
-
-static int teardown(void **state) {
-  (void)state;
-  ocv_gl_renderer_free(ren);
-  ocv_gl_context_free(ctx);
-  return 0;
-}
-
-static void require_gl(void) {
-  if (ctx && ren) return;
-  const char *req = getenv("OC_GL_REQUIRE");
-  if (req && req[0] == '1') fail_msg("OC_GL_REQUIRE=1 but no headless OpenGL 4.5 context");
-  skip();
-}
-
-/* The analytic sphere voxelized for a camera; brick ids shifted by id_base. */
+/* The analytic sphere voxelized for a camera at longitude lon; brick ids shifted by id_base. */
 static void make_state(oc_state_t *st, oc_camera_t *cam, double lon, uint32_t id_base) {
-  char path[1024], why[512];
-  const char *root = getenv("OC_SOURCE_DIR");
-  snprintf(path, sizeof path, "%s/scenes/analytic_sphere.json", root && *root ? root : ".");
-  oc_scene_t sc;
-  assert_int_equal(oc_scene_load(&sc, path, why, sizeof why), 0);
   oc_camera_pose_t pose = {{0.0, lon, 3000.0}, 90.0, 0.0, 40.0};
   *cam = oc_camera_from_pose(pose);
-  oc_state_init(st);
-  oc_scene_voxelize_desc_t vd = {*cam, H, 2.0, 0, 0, 2};
-  if (oc_scene_voxelize(st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
-  for (uint32_t i = 0; i < st->node_count; i++)
-    if (st->nodes[i].kind == OC_NODE_BRICK) st->nodes[i].brick_id += id_base;
-  for (uint32_t b = 0; b < st->brick_count; b++) st->bricks[b].id += id_base;
-  oc_scene_free(&sc);
+  sphere_state(st, *cam, H, id_base);
   assert_true(st->brick_count > 40);
 }
 

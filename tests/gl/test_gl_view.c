@@ -21,49 +21,14 @@
 #include "oc_scene_voxelize.h"
 #include "ocv_gl.h"
 
+#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, rmse */
+
 #define W 96
 #define H 54
 
-static ocv_gl_context_t *ctx;
-static ocv_gl_renderer_t *ren;
-
-static int setup(void **state) {
-  (void)state;
-  char why[1024];
-  ctx = ocv_gl_context_init(why, sizeof why);
-  if (!ctx) printf("%s\n", why);
-  else if (!(ren = ocv_gl_renderer_create(why, sizeof why))) printf("programs: %s\n", why);
-  return 0;
-}
-
-static int teardown(void **state) {
-  (void)state;
-  ocv_gl_renderer_free(ren);
-  ocv_gl_context_free(ctx);
-  return 0;
-}
-
-static void require_gl(void) {
-  if (ctx && ren) return;
-  const char *req = getenv("OC_GL_REQUIRE");
-  if (req && req[0] == '1') fail_msg("OC_GL_REQUIRE=1 but no headless OpenGL 4.5 context");
-  skip();
-}
-
 static void make_state(oc_state_t *st, oc_camera_t cam, uint32_t id_base, uint64_t epoch) {
-  char path[1024], why[512];
-  const char *root = getenv("OC_SOURCE_DIR");
-  snprintf(path, sizeof path, "%s/scenes/analytic_sphere.json", root && *root ? root : ".");
-  oc_scene_t sc;
-  assert_int_equal(oc_scene_load(&sc, path, why, sizeof why), 0);
-  oc_state_init(st);
-  oc_scene_voxelize_desc_t vd = {cam, H, 2.0, 0, 0, 2};
-  if (oc_scene_voxelize(st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
-  for (uint32_t i = 0; i < st->node_count; i++)
-    if (st->nodes[i].kind == OC_NODE_BRICK) st->nodes[i].brick_id += id_base;
-  for (uint32_t b = 0; b < st->brick_count; b++) st->bricks[b].id += id_base;
+  sphere_state(st, cam, H, id_base);
   st->epoch = epoch;
-  oc_scene_free(&sc);
 }
 
 static void render_direct(const oc_state_t *s, const oc_render_desc_t *d, oc_image_t *img) {
@@ -73,15 +38,6 @@ static void render_direct(const oc_state_t *s, const oc_render_desc_t *d, oc_ima
   assert_int_equal(oc_image_alloc(img, W, H), 0);
   assert_int_equal(ocv_gl_render_state(ren, &gs, d, img, why, sizeof why), 0);
   ocv_gl_state_free(&gs);
-}
-
-static double rmse(const oc_image_t *a, const oc_image_t *b) {
-  uint8_t ra[W * H * 3], rb[W * H * 3];
-  oc_image_tonemap(a, 10.0f, ra);
-  oc_image_tonemap(b, 10.0f, rb);
-  double se = 0.0;
-  for (int i = 0; i < W * H * 3; i++) se += ((double)ra[i] - rb[i]) * ((double)ra[i] - rb[i]);
-  return sqrt(se / (W * H * 3));
 }
 
 static void test_gl_view__epochs(void **state) {
