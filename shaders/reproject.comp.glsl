@@ -12,7 +12,9 @@ layout(std430, binding = 2) readonly buffer Hist { vec4 hist[]; };        /* the
 layout(std430, binding = 3) readonly buffer HistDepth { float hist_depth[]; };
 layout(std430, binding = 4) writeonly buffer Out { vec4 out_color[]; };   /* this frame, the next history */
 layout(std430, binding = 5) writeonly buffer OutDepth { float out_depth[]; };
-layout(std430, binding = 6) buffer Stats { uint stats[2]; };              /* reprojected, filled from the block */
+layout(std430, binding = 6) buffer Stats { uint stats[2]; };
+layout(std430, binding = 7) readonly buffer HistCount { uint hist_count[]; }; /* samples averaged so far */
+layout(std430, binding = 8) writeonly buffer OutCount { uint out_count[]; };              /* reprojected, filled from the block */
 
 layout(location = 0) uniform ivec2 u_size;
 layout(location = 1) uniform int u_phase;
@@ -26,42 +28,78 @@ layout(location = 8) uniform vec3 u_pright;
 layout(location = 9) uniform vec3 u_pup;
 layout(location = 10) uniform vec2 u_ptan;
 layout(location = 11) uniform vec3 u_peye; /* previous eye − current eye, m */
+layout(location = 12) uniform float u_alpha; /* < 1: the traced pixel blends into its history (jitter
+                                                averages out, Ford's temporal accumulation) */
+
+/* The history pixel this pixel's ray came from last frame, or -1 (off screen, behind, or its depth
+ * disagrees with the reprojected point's). */
+int ocv_history_of(ivec2 px, int i) {
+  float x = (2.0 * (float(px.x) + 0.5) / float(u_size.x) - 1.0) * u_tan.x;
+  float y = (1.0 - 2.0 * (float(px.y) + 0.5) / float(u_size.y)) * u_tan.y;
+  vec3 dir = normalize(u_fwd + u_right * x + u_up * y);
+  float d = hist_depth[i];
+  vec3 q = dir * d - u_peye; /* the point seen from the previous eye */
+  float z = dot(q, u_pfwd);
+  if (z <= 0.0) return -1;
+  float sx = dot(q, u_pright) / (z * u_ptan.x), sy = dot(q, u_pup) / (z * u_ptan.y);
+  vec2 h = vec2((sx + 1.0) * 0.5 * float(u_size.x) - 0.5, (1.0 - sy) * 0.5 * float(u_size.y) - 0.5);
+  ivec2 j = ivec2(floor(h + 0.5));
+  if (any(lessThan(j, ivec2(0))) || any(greaterThanEqual(j, u_size))) return -1;
+  int ji = j.y * u_size.x + j.x;
+  float dq = length(q);
+  return abs(hist_depth[ji] - dq) <= 0.02 * dq + 1.0 ? ji : -1;
+}
+
+/* The traced pixels of the 3×3 blocks around px bound what its history may hold (neighbourhood
+ * clamping: stale history cannot drift outside what is seen now). */
+void ocv_neighbourhood(ivec2 px, out vec4 lo, out vec4 hi) {
+  lo = vec4(1e30);
+  hi = vec4(-1e30);
+  for (int by = -1; by <= 1; by++)
+    for (int bx = -1; bx <= 1; bx++) {
+      ivec2 b = (px & ~3) + ivec2(bx, by) * 4 + ivec2(u_phase & 3, u_phase >> 2);
+      if (any(lessThan(b, ivec2(0))) || any(greaterThanEqual(b, u_size))) continue;
+      vec4 c = cur[b.y * u_size.x + b.x];
+      lo = min(lo, c);
+      hi = max(hi, c);
+    }
+}
 
 void main() {
   ivec2 px = ivec2(gl_GlobalInvocationID.xy);
   if (px.x >= u_size.x || px.y >= u_size.y) return;
   int i = px.y * u_size.x + px.x;
   if (((px.x & 3) | ((px.y & 3) << 2)) == u_phase) { /* traced this frame */
-    out_color[i] = cur[i];
+    vec4 c = cur[i];
+    uint n = 1u;
+    if (u_have_hist != 0 && u_alpha < 1.0) {
+      int ji = ocv_history_of(px, i);
+      if (ji >= 0 && hist_count[ji] > 0u) { /* a history of this pixel's own samples, not a block fill */
+        vec4 lo, hi;
+        ocv_neighbourhood(px, lo, hi);
+        n = hist_count[ji] + 1u;
+        c = mix(clamp(hist[ji], lo, hi), c, max(u_alpha, 1.0 / float(n))); /* a running mean, then an EMA */
+      }
+    }
+    out_color[i] = c;
     out_depth[i] = cur_depth[i];
+    out_count[i] = min(n, 1000u);
     return;
   }
   ivec2 b = min((px & ~3) + ivec2(u_phase & 3, u_phase >> 2), u_size - 1);
   int bi = b.y * u_size.x + b.x;
   if (u_have_hist != 0) {
-    float x = (2.0 * (float(px.x) + 0.5) / float(u_size.x) - 1.0) * u_tan.x;
-    float y = (1.0 - 2.0 * (float(px.y) + 0.5) / float(u_size.y)) * u_tan.y;
-    vec3 dir = normalize(u_fwd + u_right * x + u_up * y);
-    float d = hist_depth[i];
-    vec3 q = dir * d - u_peye; /* the point seen from the previous eye */
-    float z = dot(q, u_pfwd);
-    if (z > 0.0) {
-      float sx = dot(q, u_pright) / (z * u_ptan.x), sy = dot(q, u_pup) / (z * u_ptan.y);
-      vec2 h = vec2((sx + 1.0) * 0.5 * float(u_size.x) - 0.5, (1.0 - sy) * 0.5 * float(u_size.y) - 0.5);
-      ivec2 j = ivec2(floor(h + 0.5));
-      if (all(greaterThanEqual(j, ivec2(0))) && all(lessThan(j, u_size))) {
-        int ji = j.y * u_size.x + j.x;
-        float dq = length(q), dh = hist_depth[ji];
-        if (abs(dh - dq) <= 0.02 * dq + 1.0) {
-          out_color[i] = hist[ji];
-          out_depth[i] = d;
-          atomicAdd(stats[0], 1u);
-          return;
-        }
-      }
+    int ji = ocv_history_of(px, i);
+    if (ji >= 0) {
+      out_color[i] = hist[ji];
+      out_depth[i] = hist_depth[i];
+      out_count[i] = hist_count[ji];
+      atomicAdd(stats[0], 1u);
+      return;
     }
   }
   atomicAdd(stats[1], 1u);
   out_color[i] = cur[bi];
   out_depth[i] = cur_depth[bi];
+  out_count[i] = 0u; /* not a sample of this pixel */
 }

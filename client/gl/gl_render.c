@@ -273,10 +273,13 @@ int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc
 /* The order in which the 16 positions of a 4×4 block are traced (a Bayer matrix: consecutive
  * frames are far apart, so a moving camera's errors spread instead of crawling). */
 static const int ocv__bayer[16] = {0, 10, 2, 8, 5, 15, 7, 13, 1, 11, 3, 9, 4, 14, 6, 12};
+/* the weight of a new jittered sample against its history: about 1/α samples are averaged */
+#define OCV__ACCUMULATE 0.2f
 
 struct ocv_gl_history_s {
   int w, h;
-  GLuint color[2], depth[2], cur, cur_depth, stats; /* ping-pong history; this frame's traced pixels */
+  GLuint color[2], depth[2], count[2];              /* ping-pong history (count: samples averaged) */
+  GLuint cur, cur_depth, stats;                     /* this frame's traced pixels */
   int newest;                                       /* index of the newest history; -1: none */
   oc_camera_t cam;                                  /* the camera of the newest history */
   uint32_t frame;
@@ -299,6 +302,7 @@ ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len)
   for (int i = 0; i < 2; i++) {
     ocv__buffer(&hs->color[i], &have, n * 4 * sizeof(float));
     ocv__buffer(&hs->depth[i], &have, n * sizeof(float));
+    ocv__buffer(&hs->count[i], &have, n * sizeof(uint32_t));
   }
   ocv__buffer(&hs->cur, &have, n * 4 * sizeof(float));
   ocv__buffer(&hs->cur_depth, &have, n * sizeof(float));
@@ -308,8 +312,9 @@ ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len)
 
 void ocv_gl_history_free(ocv_gl_history_t *hs) {
   if (!hs) return;
-  GLuint b[7] = {hs->color[0], hs->color[1], hs->depth[0], hs->depth[1], hs->cur, hs->cur_depth, hs->stats};
-  glDeleteBuffers(7, b);
+  GLuint b[9] = {hs->color[0], hs->color[1], hs->depth[0], hs->depth[1], hs->count[0], hs->count[1],
+                 hs->cur, hs->cur_depth, hs->stats};
+  glDeleteBuffers(9, b);
   free(hs);
 }
 
@@ -328,6 +333,7 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
   int rc;
   if (!reproject) { /* every pixel traced: the frame is also the next history */
     rc = ocv__dispatch(r, gs, desc, hs->color[next], hs->depth[next], -1, why, why_len);
+    glClearNamedBufferData(hs->count[next], GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, NULL); /* no averages yet */
     st.traced = (uint32_t)n;
   } else {
     int phase = ocv__bayer[hs->frame % 16];
@@ -349,6 +355,8 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
       glProgramUniform3f(p, 9, (float)pc->up.x, (float)pc->up.y, (float)pc->up.z);
       glProgramUniform2f(p, 10, (float)(ptn * asp), (float)ptn);
       glProgramUniform3f(p, 11, (float)dc.x, (float)dc.y, (float)dc.z);
+      /* with jittered ray starts each traced pixel joins its history: the jitter averages out */
+      glProgramUniform1f(p, 12, (desc->flags & OC_RF_JITTER) ? OCV__ACCUMULATE : 1.0f);
       uint32_t zero[2] = {0, 0};
       glNamedBufferSubData(hs->stats, 0, sizeof zero, zero);
       glUseProgram(p);
@@ -359,6 +367,8 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, hs->color[next]);
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, hs->depth[next]);
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, hs->stats);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, hs->count[hs->newest >= 0 ? hs->newest : next]);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 8, hs->count[next]);
       ocv__time_begin(r, 1);
       glDispatchCompute((GLuint)((hs->w + OCV__GROUP - 1) / OCV__GROUP), (GLuint)((hs->h + OCV__GROUP - 1) / OCV__GROUP), 1);
       ocv__time_end(r, 1);

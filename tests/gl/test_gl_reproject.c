@@ -2,7 +2,7 @@
  * with a still camera the 16th frame equals a full render bit for bit; the first frame has no
  * history and fills each 4×4 block from its traced pixel; after a small turn the reprojected frame
  * is much closer to a full render of the new view than the block fill is; switched off, a frame is
- * the full render. */
+ * the full render; with jittered ray starts the frames average the jitter. */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -81,6 +81,30 @@ static void test_gl_reproject__frames(void **state) {
   assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 0, &img, &fs, why, sizeof why), 0);
   assert_int_equal(fs.traced, W * H);
   assert_memory_equal(img.px, full.px, sizeof(float) * 4 * W * H);
+
+  /* jittered ray starts: the traced pixels join their history, so the frames average the jitter —
+   * closer to the mean of 16 jittered full renders than any single jittered frame */
+  d.camera = cam;
+  d.flags = OC_RF_JITTER;
+  oc_image_t mean = {0}, one = {0};
+  assert_int_equal(oc_image_alloc(&mean, W, H), 0);
+  assert_int_equal(oc_image_alloc(&one, W, H), 0);
+  memset(mean.px, 0, sizeof(float) * 4 * W * H);
+  for (uint32_t f = 0; f < 16; f++) {
+    d.frame = 100 + f;
+    assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &one, why, sizeof why), 0);
+    for (int i = 0; i < 4 * W * H; i++) mean.px[i] += one.px[i] / 16.0f;
+  }
+  ocv_gl_history_reset(hs);
+  for (uint32_t f = 0; f < 96; f++) {
+    d.frame = f;
+    assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+  }
+  double acc = rmse(&img, &mean), single = rmse(&one, &mean);
+  printf("jitter: accumulated frames vs the mean of 16 jittered renders RMSE %.3f; one jittered render %.3f\n", acc, single);
+  assert_true(acc < single);
+  oc_image_free(&mean);
+  oc_image_free(&one);
 
   ocv_gl_history_free(hs);
   oc_image_free(&full);
