@@ -251,8 +251,8 @@ static void test_gl_render__low_sun(void **state) {
   oc_scene_free(&sc);
 }
 
-/* Extreme places: from space (1000 km up, the whole limb in view), and from the ground (2 m up,
- * looking at the cloud from below). */
+/* Extreme places: from space (1000 km up, the whole limb in view), from the ground (2 m up,
+ * looking at the cloud from below), and 1 m from the cloud's surface. */
 static void test_gl_render__space_and_ground(void **state) {
   (void)state;
   require_gl();
@@ -263,8 +263,11 @@ static void test_gl_render__space_and_ground(void **state) {
   } views[] = {
       {"space", {{0.0, -12.0, 1.0e6}, 90.0, -60.0, 60.0}},
       {"ground", {{0.0, -0.03, 2.0}, 90.0, 20.0, 60.0}},
+      /* 1 m from the sphere's surface, 6 374 km from the planet's centre: no banding or jitter from
+       * float positions (they are camera-relative integer cells) */
+      {"one_metre", {{0.0, -2001.0 / (OC_PLANET_RADIUS + 3000.0) * 180.0 / 3.14159265358979323846, 3000.0}, 90.0, 0.0, 60.0}},
   };
-  for (int i = 0; i < 2; i++) {
+  for (int i = 0; i < 3; i++) {
     oc_scene_t sc;
     oc_state_t st;
     oc_camera_t cam;
