@@ -83,6 +83,7 @@ static void usage(FILE *f) {
           "                        frame f is its pose at f / --fps s (frames: the path's length, unless\n"
           "                        --frames says)\n"
           "  --fps X               frames per second of --path (default 30)\n"
+          "  --hud                 headless: draw the HUD into the frames too (the window has it on H)\n"
           "  --record FILE         window: record the flight as a camera path (saved at exit)\n"
           "  -q, --quiet           only errors\n"
           "  --help, --version\n"
@@ -282,6 +283,7 @@ typedef struct {
   int jitter;
   const ocv_path_t *path; /* --path: the camera of frame f is its pose at f / fps */
   double fps;
+  int hud;                 /* --hud: the HUD drawn into headless frames too */
 } view_opts_t;
 
 /* The render description for the scene's optics and features; the caller sets size and camera. */
@@ -437,6 +439,16 @@ static int run_headless(renderer_t renderer, const oc_state_t *st, const oc_scen
     }
     int bad = oc_image_tonemap(&img, (float)o->exposure, rgb);
     if (bad) oc_log_warn("frame %ld: %d non-finite pixels drawn black", f, bad);
+    if (o->hud) {
+      double sec = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+      ocv_hud_stats_t hs = {.frame_ms = 1e3 * sec, .trace_ms = -1, .epoch = st->epoch, .bricks = st->brick_count,
+                            .resident_bytes = (uint64_t)st->brick_count * 2048 + (uint64_t)st->node_count * 32,
+                            .budget_bytes = (uint64_t)st->brick_count * 2048 + (uint64_t)st->node_count * 32,
+                            .renderer = use_gl ? "gl" : "cpu"};
+      char text[512];
+      ocv_hud_format(&hs, text, sizeof text);
+      ocv_hud_text(rgb, w, h, 4, 4, 1, text, (const uint8_t[3]){255, 255, 255});
+    }
     char path[4096];
     snprintf(path, sizeof path, "%s/frame_%04ld.png", o->out_dir, f);
     if (write_frame(path, w, h, rgb, pose, use_gl ? "gl" : "cpu", o, d.ms_octaves, why, sizeof why) < 0) {
@@ -709,7 +721,7 @@ out:
 int main(int argc, char **argv) {
   enum { O_STATE = 256, O_SCENE, O_CAMERA, O_CAMERA_FROM, O_SIZE, O_FRAMES, O_OUT, O_RENDERER, O_STEP, O_EXPOSURE,
          O_OCTAVES, O_JITTER, O_THREADS, O_MAXLEVEL, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
-         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS, O_RECORD, O_PATH, O_FPS };
+         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS, O_RECORD, O_PATH, O_FPS, O_HUD };
   static const struct option opts[] = {
       {"state", required_argument, 0, O_STATE},       {"scene", required_argument, 0, O_SCENE},
       {"camera", required_argument, 0, O_CAMERA},     {"camera-from", required_argument, 0, O_CAMERA_FROM},
@@ -726,7 +738,7 @@ int main(int argc, char **argv) {
       {"timeout", required_argument, 0, O_TIMEOUT},   {"window", no_argument, 0, O_WINDOW},
       {"headless", no_argument, 0, O_HEADLESS},
       {"record", required_argument, 0, O_RECORD},     {"path", required_argument, 0, O_PATH},
-      {"fps", required_argument, 0, O_FPS},
+      {"fps", required_argument, 0, O_FPS},           {"hud", no_argument, 0, O_HUD},
       {0, 0, 0, 0}};
   const char *state_path = NULL, *scene_path = NULL, *camera_text = NULL, *camera_png = NULL;
   const char *save_path = NULL;
@@ -753,6 +765,7 @@ int main(int argc, char **argv) {
       case O_RECORD: record_path = optarg; want_window = 1; break;
       case O_PATH: path_file = optarg; batch_opts = 1; break;
       case O_FPS: if (oc_cli_double(prog, "--fps", optarg, 0.01, 1000, &vo.fps)) return OC_EXIT_USAGE; break;
+      case O_HUD: vo.hud = 1; break;
       case O_OUT: vo.out_dir = optarg; batch_opts |= 2; break;
       case O_RENDERER:
         if (strcmp(optarg, "cpu") == 0) renderer = R_CPU;

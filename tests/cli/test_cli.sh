@@ -150,5 +150,9 @@ printf '0 0,-0.09,3000,90,0,40\n0 0,-0.08,3000,90,0,40\n' >"$tmp/badpath.txt"
 check "view: --path, time not increasing" 1 "badpath.txt:2: time 0 is not after" -- "$V" --scene "$OC_SOURCE_DIR/scenes/analytic_sphere.json" --path "$tmp/badpath.txt" --renderer cpu --headless
 check "view: --path with --camera" 2 "--path gives the camera" -- "$V" --path "$tmp/path.txt" --camera 0,0,1,0,0,40
 check "view: --record headless" 2 "--record records a window" -- "$V" --record "$tmp/rec.txt" --headless
+# --hud draws the HUD into headless frames: the PNG differs from the one without
+check "view: --hud" 0 "" -- "$V" --scene "$OC_SOURCE_DIR/scenes/analytic_sphere.json" --renderer cpu --headless --size 64x36 --out "$tmp/hud1" --hud -q
+check "view: no --hud" 0 "" -- "$V" --scene "$OC_SOURCE_DIR/scenes/analytic_sphere.json" --renderer cpu --headless --size 64x36 --out "$tmp/hud0" -q
+cmp -s "$tmp/hud1/frame_0000.png" "$tmp/hud0/frame_0000.png" && { echo "FAIL view --hud: the frame is the same as without"; fail=$((fail + 1)); }
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
