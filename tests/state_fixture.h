@@ -71,4 +71,27 @@ static inline int golden_state(oc_state_t *s) {
   return r;
 }
 
+#ifdef assert_int_equal /* cmocka tests only (the fuzzers include this file too) */
+/* Two states equal in every field, brick code and checksum. */
+static inline void states_equal(const oc_state_t *a, const oc_state_t *b) {
+  assert_int_equal(a->epoch, b->epoch);
+  assert_memory_equal(&a->time, &b->time, sizeof a->time);
+  assert_memory_equal(&a->sun_dir, &b->sun_dir, sizeof a->sun_dir);
+  assert_int_equal(a->node_count, b->node_count);
+  assert_int_equal(a->brick_count, b->brick_count);
+  for (uint32_t i = 0; i < a->node_count; i++) {
+    const oc_node_t *x = &a->nodes[i], *y = &b->nodes[i];
+    assert_int_equal(x->key, y->key);
+    assert_int_equal(x->kind, y->kind);
+    assert_int_equal(x->brick_id, y->brick_id);
+    assert_memory_equal(x->range, y->range, sizeof x->range);
+  }
+  for (uint32_t i = 0; i < a->brick_count; i++) {
+    assert_int_equal(a->bricks[i].id, b->bricks[i].id);
+    assert_memory_equal(&a->bricks[i].codes, &b->bricks[i].codes, sizeof a->bricks[i].codes);
+  }
+  assert_int_equal(oc_state_checksum(a), oc_state_checksum(b));
+}
+#endif
+
 #endif /* OC_TESTS_STATE_FIXTURE_H */

@@ -39,25 +39,6 @@ static void expect_invalid(const oc_state_t *s, const char *needle) {
   if (!strstr(why, needle)) fail_msg("reason '%s' lacks '%s'", why, needle);
 }
 
-static void nodes_equal(const oc_state_t *a, const oc_state_t *b) {
-  assert_int_equal(a->epoch, b->epoch);
-  assert_memory_equal(&a->time, &b->time, sizeof a->time);
-  assert_memory_equal(&a->sun_dir, &b->sun_dir, sizeof a->sun_dir);
-  assert_int_equal(a->node_count, b->node_count);
-  assert_int_equal(a->brick_count, b->brick_count);
-  for (uint32_t i = 0; i < a->node_count; i++) {
-    const oc_node_t *x = &a->nodes[i], *y = &b->nodes[i];
-    assert_int_equal(x->key, y->key);
-    assert_int_equal(x->kind, y->kind);
-    assert_int_equal(x->brick_id, y->brick_id);
-    assert_memory_equal(x->range, y->range, sizeof x->range);
-  }
-  for (uint32_t i = 0; i < a->brick_count; i++) {
-    assert_int_equal(a->bricks[i].id, b->bricks[i].id);
-    assert_memory_equal(&a->bricks[i].codes, &b->bricks[i].codes, sizeof a->bricks[i].codes);
-  }
-}
-
 static uint8_t *serialize(const oc_state_t *s, size_t *len) {
   *len = oc_state_serialized_size(s);
   uint8_t *buf = malloc(*len);
@@ -92,7 +73,7 @@ static void test_state__valid_and_canonical(void **state) {
   expect_invalid(&t, "ascending");
   oc_state_canonicalize(&t);
   expect_valid(&t);
-  nodes_equal(&s, &t);
+  states_equal(&s, &t);
   /* a single root leaf is the smallest valid state */
   oc_state_free(&t);
   oc_node_t root = node(OC_KEY_ROOT, OC_NODE_UNIFORM, 0, 1e-4f, 1e-4f, 0.0f, 0.0f);
@@ -256,7 +237,7 @@ static void test_state__copy(void **state) {
   golden_state(&t);
   t.nodes[0].kind = OC_NODE_BRICK; /* dst content is replaced */
   assert_int_equal(oc_state_copy(&t, &s), 0);
-  nodes_equal(&s, &t);
+  states_equal(&s, &t);
   t.bricks[0].codes.code[0][0] ^= 1;
   assert_true(s.bricks[0].codes.code[0][0] != t.bricks[0].codes.code[0][0]);
   assert_int_equal(oc_state_copy(&t, &t), 0);
@@ -278,7 +259,7 @@ static void test_state__round_trip(void **state) {
   assert_int_equal(oc_state_serialize(&s, buf, len - 1), OC_ENOBUFS);
   oc_state_init(&t);
   assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), 0);
-  nodes_equal(&s, &t);
+  states_equal(&s, &t);
   assert_true(oc_state_checksum(&s) == oc_state_checksum(&t));
   uint64_t trailer = 0;
   for (int i = 7; i >= 0; i--) trailer = (trailer << 8) | buf[len - 8 + i];
@@ -473,7 +454,7 @@ static void test_state__save_load(void **state) {
   snprintf(path, sizeof path, "%s/a.ocst", tmpdir);
   assert_int_equal(oc_state_save(&s, path, why, sizeof why), 0);
   assert_int_equal(oc_state_load(&t, path, why, sizeof why), 0);
-  nodes_equal(&s, &t);
+  states_equal(&s, &t);
   /* the file is exactly the serialisation */
   FILE *f = fopen(path, "rb");
   assert_non_null(f);
@@ -616,7 +597,7 @@ static void test_state__fuzz_seeds(void **state) {
       snprintf(path, sizeof path, "%s/tests/fuzz/corpus/state/%s", src, names[i]);
       if (oc_state_load(&t, path, why, sizeof why) != 0) fail_msg("%s", why);
       /* bricks.ocst comes from the encoder, whose ties depend on libm's last ulp: only parsed */
-      if (i != 4) nodes_equal(&seeds[i], &t);
+      if (i != 4) states_equal(&seeds[i], &t);
     }
     oc_state_free(&seeds[i]);
   }
