@@ -74,6 +74,7 @@ struct ocs_server_s {
   uint32_t next_id;
   int stepping, step_rc, stopping;
   uint64_t steps_queued, steps_done, late_ticks;
+  double plan_ms, produce_ms; /* of the last step, for every viewer's STATS */
   double last_scale;
   /* viewers to remove once the running step ends */
   ocs_viewer_t **doomed;

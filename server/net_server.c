@@ -235,12 +235,10 @@ static void stream_state(ocs_session_t *s, const oc_state_t *base) {
    * not read during a step. */
   ocs_viewer_stats_t vs;
   ocs_viewer_stats(s->viewer, &vs);
-  ocs_world_stats_t ws;
-  ocs_world_stats(s->srv->world, &ws);
   s->stats_msg = (ocp_stats_t){.epoch = o.state->epoch, .leaves = o.plan.leaves, .splits = o.plan.splits,
                                .merges = o.plan.merges, .deferred = o.plan.deferred, .coalesced = vs.coalesced,
-                               .resident_bytes = vs.resident_bytes, .plan_ms = 1e3 * ws.plan_seconds,
-                               .produce_ms = 1e3 * ws.produce_seconds};
+                               .resident_bytes = vs.resident_bytes, .plan_ms = s->srv->plan_ms,
+                               .produce_ms = s->srv->produce_ms};
   s->streaming = 1;
   s->awaiting_ack = 0;
   s->stream_epoch = o.state->epoch;
@@ -651,6 +649,10 @@ static void step_done(uv_work_t *req, int status) {
   srv->stepping = 0;
   srv->steps_done++;
   if (srv->step_rc < 0) oc_log_error("epoch step failed: %s (viewers keep their states)", oc_strerror(srv->step_rc));
+  ocs_world_stats_t ws; /* once per step, not once per viewer */
+  ocs_world_stats(srv->world, &ws);
+  srv->plan_ms = 1e3 * ws.plan_seconds;
+  srv->produce_ms = 1e3 * ws.produce_seconds;
   for (int i = 0; i < srv->ndoomed; i++) ocs_world_remove_viewer(srv->world, srv->doomed[i]);
   srv->ndoomed = 0;
   /* New states go out; deferred input is handled; waiting "step" requests are answered. The list
