@@ -7,21 +7,26 @@
 #define STB_EASY_FONT_IMPLEMENTATION
 #include <stb_easy_font.h>
 
-/* Fills [x0, x1) × [y0, y1) clipped to the image, blending toward col by a (0..256). */
-static void ocv__fill(uint8_t *rgb, int w, int h, int x0, int y0, int x1, int y1, const uint8_t col[3], int a) {
+/* Fills [x0, x1) × [y0, y1) clipped to the image, blending toward col by a (0..256). With 4 channels
+ * the image is premultiplied RGBA and alpha composites the same way ("over"), so drawing into a
+ * transparent overlay and compositing it later gives what drawing into the frame gives. */
+static void ocv__fill(uint8_t *px, int channels, int w, int h, int x0, int y0, int x1, int y1, const uint8_t col[3],
+                      int a) {
+  const uint8_t c4[4] = {col[0], col[1], col[2], 255};
   if (x0 < 0) x0 = 0;
   if (y0 < 0) y0 = 0;
   if (x1 > w) x1 = w;
   if (y1 > h) y1 = h;
   for (int y = y0; y < y1; y++)
     for (int x = x0; x < x1; x++) {
-      uint8_t *p = rgb + 3 * ((size_t)y * (size_t)w + (size_t)x);
-      for (int c = 0; c < 3; c++) p[c] = (uint8_t)((p[c] * (256 - a) + col[c] * a) >> 8);
+      uint8_t *p = px + (size_t)channels * ((size_t)y * (size_t)w + (size_t)x);
+      for (int c = 0; c < channels; c++) p[c] = (uint8_t)((p[c] * (256 - a) + c4[c] * a) >> 8);
     }
 }
 
-int ocv_hud_text(uint8_t *rgb, int w, int h, int x, int y, int scale, const char *text, const uint8_t color[3]) {
-  if (!rgb || !text || w <= 0 || h <= 0) return 0;
+static int ocv__text(uint8_t *px, int channels, int w, int h, int x, int y, int scale, const char *text,
+                     const uint8_t color[3]) {
+  if (!px || !text || w <= 0 || h <= 0) return 0;
   if (scale < 1) scale = 1;
   static char quads[64 * 1024]; /* 270 bytes a character (stb_easy_font.h): about 240 characters */
   char line[256];
@@ -34,17 +39,25 @@ int ocv_hud_text(uint8_t *rgb, int w, int h, int x, int y, int scale, const char
     memcpy(line, p, n);
     line[n] = 0;
     int lw = stb_easy_font_width(line) * scale, lh = 12 * scale;
-    ocv__fill(rgb, w, h, x - 2, ty - 1, x + lw + 2, ty + lh - 1, black, 140); /* backdrop */
+    ocv__fill(px, channels, w, h, x - 2, ty - 1, x + lw + 2, ty + lh - 1, black, 140); /* backdrop */
     int nq = stb_easy_font_print(0.0f, 0.0f, line, NULL, quads, sizeof quads);
     for (int q = 0; q < nq; q++) { /* each quad: 4 vertices of x, y, z (float) and rgba (4 bytes) */
       const float *v0 = (const float *)(quads + q * 64), *v2 = (const float *)(quads + q * 64 + 32);
-      ocv__fill(rgb, w, h, x + (int)v0[0] * scale, ty + (int)v0[1] * scale, x + (int)v2[0] * scale, ty + (int)v2[1] * scale,
+      ocv__fill(px, channels, w, h, x + (int)v0[0] * scale, ty + (int)v0[1] * scale, x + (int)v2[0] * scale, ty + (int)v2[1] * scale,
                 color, 256);
     }
     ty += lh;
     p = e ? e + 1 : p + n;
   }
   return ty - y;
+}
+
+int ocv_hud_text(uint8_t *rgb, int w, int h, int x, int y, int scale, const char *text, const uint8_t color[3]) {
+  return ocv__text(rgb, 3, w, h, x, y, scale, text, color);
+}
+
+int ocv_hud_text_rgba(uint8_t *rgba, int w, int h, int x, int y, int scale, const char *text, const uint8_t color[3]) {
+  return ocv__text(rgba, 4, w, h, x, y, scale, text, color);
 }
 
 void ocv_hud_format(const ocv_hud_stats_t *s, char *buf, int cap) {

@@ -9,6 +9,11 @@
  *  font pixel `scale` image pixels, over a darkened backdrop so it reads on bright clouds; clipped to
  *  the image. @return the height in pixels of what was drawn. */
 int ocv_hud_text(uint8_t *rgb, int w, int h, int x, int y, int scale, const char *text, const uint8_t color[3]);
+/*! ocv_hud_text_rgba() : the same into a premultiplied RGBA8 overlay (start from all zeros:
+ *  transparent). Composited as out = overlay.rgb + frame·(1 − overlay.a), it gives what
+ *  ocv_hud_text() gives drawn into the frame (to rounding): the window draws its HUD this way on
+ *  the GPU (client/gl/gl_present.c). */
+int ocv_hud_text_rgba(uint8_t *rgba, int w, int h, int x, int y, int scale, const char *text, const uint8_t color[3]);
 
 typedef struct {
   double frame_ms;          /**< wall time of the last frame */

@@ -546,6 +546,11 @@ static int run_window(view_win_t *v) {
   ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
   if (!r) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL renderer: %s", why);
   ocv_gl_view_t *view = NULL; /* kept states, bounded uploads, blending, reprojection */
+  ocv_gl_present_t *present = ocv_gl_present_create(why, sizeof why); /* tone mapping and HUD on the GPU */
+  if (!present) {
+    ocv_gl_renderer_free(r);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL picture: %s", why);
+  }
   int have_gs = 0, reproject = 0, hud = 1, debug = 0;
   uint64_t epoch = v->have_state ? v->st->epoch : 0;
   double shown_at = now_s(), bytes_at = shown_at, bytes_rate = 0;
@@ -565,8 +570,9 @@ static int run_window(view_win_t *v) {
     }
     have_gs = 1;
   }
-  oc_image_t img = {0};
-  uint8_t *rgb = NULL;
+  uint8_t *overlay = NULL; /* the HUD: premultiplied RGBA8, the frame's width × OVERLAY_H */
+  enum { OVERLAY_H = 48 };
+  GLuint picture = 0;
   int iw = 0, ih = 0;
   double last = now_s(), title_at = 0, frame_ms = 0;
   int cam_dirty = 1;
@@ -641,11 +647,9 @@ static int run_window(view_win_t *v) {
     int drawn = 0, ms_octaves = 1;
     if (have_gs && scene_ready && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
       if (in.fb_w != iw || in.fb_h != ih) {
-        oc_image_free(&img);
-        free(rgb);
-        rgb = malloc((size_t)in.fb_w * (size_t)in.fb_h * 3);
-        if (!rgb || oc_image_alloc(&img, in.fb_w, in.fb_h) < 0) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d image", in.fb_w, in.fb_h);
+        free(overlay);
+        if (!(overlay = malloc((size_t)in.fb_w * OVERLAY_H * 4))) {
+          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d HUD", in.fb_w, (int)OVERLAY_H);
           break;
         }
         iw = in.fb_w;
@@ -658,7 +662,7 @@ static int run_window(view_win_t *v) {
       d.debug_view = debug;
       ms_octaves = d.ms_octaves;
       double t0 = now_s();
-      if (ocv_gl_view_frame(view, &d, t0, reproject, &img, &vs, why, sizeof why) < 0) {
+      if (ocv_gl_view_frame(view, &d, t0, reproject, NULL, &vs, why, sizeof why) < 0) {
         rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
         break;
       }
@@ -666,8 +670,9 @@ static int run_window(view_win_t *v) {
       if (vs.shown) {
         if (vs.epoch != epoch) shown_at = t0;
         epoch = vs.epoch;
-        (void)oc_image_tonemap(&img, (float)v->o.exposure, rgb);
+        int oh = ih < OVERLAY_H ? ih : OVERLAY_H;
         if (hud) {
+          memset(overlay, 0, (size_t)iw * OVERLAY_H * 4);
           ocv_hud_stats_t hs = {.frame_ms = frame_ms, .epoch = epoch, .epoch_age_s = t0 - shown_at,
                                 .bricks = vs.resident_bytes ? (uint32_t)(vs.resident_bytes / OCV_GL_SLOT_BYTES) : 0,
                                 .resident_bytes = vs.resident_bytes,
@@ -676,7 +681,13 @@ static int run_window(view_win_t *v) {
           ocv_gl_renderer_timings(r, &hs.trace_ms, &hs.reproject_ms);
           char text[512];
           ocv_hud_format(&hs, text, sizeof text);
-          ocv_hud_text(rgb, iw, ih, 6, 6, 1, text, (const uint8_t[3]){255, 255, 255});
+          ocv_hud_text_rgba(overlay, iw, oh, 6, 6, 1, text, (const uint8_t[3]){255, 255, 255});
+        }
+        picture = ocv_gl_present_tonemap(present, ocv_gl_view_output(view), iw, ih, (float)v->o.exposure,
+                                         hud ? overlay : NULL, iw, oh, why, sizeof why);
+        if (!picture) {
+          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+          break;
         }
         drawn = 1;
       }
@@ -686,13 +697,19 @@ static int run_window(view_win_t *v) {
         if (v->record->count == 1) v->record_t0 = t0;
       }
     }
-    if (ocv_window_present(v->win, drawn ? rgb : NULL, iw, ih, why, sizeof why) < 0) {
+    if (ocv_window_present(v->win, drawn ? picture : 0, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       break;
     }
     if (in.presses[OCV_ACT_SCREENSHOT]) {
       if (!drawn) oc_log_warn("screenshot: nothing rendered yet");
-      else if (screenshot(v, iw, ih, rgb, ms_octaves, why, sizeof why) < 0) oc_log_error("screenshot: %s", why);
+      else {
+        uint8_t *rgb = malloc((size_t)iw * (size_t)ih * 3); /* the only read-back: a screenshot */
+        if (!rgb) oc_log_error("screenshot: out of memory");
+        else if (ocv_gl_present_read(present, rgb, why, sizeof why) < 0 || screenshot(v, iw, ih, rgb, ms_octaves, why, sizeof why) < 0)
+          oc_log_error("screenshot: %s", why);
+        free(rgb);
+      }
     }
     if (t - title_at >= 0.25) {
       char title[512];
@@ -707,11 +724,11 @@ static int run_window(view_win_t *v) {
       title_at = t;
     }
   }
-  free(rgb);
-  oc_image_free(&img);
+  free(overlay);
 out:
   (void)have_gs;
   ocv_gl_view_free(view);
+  ocv_gl_present_free(present);
   ocv_gl_renderer_free(r);
   oc_atmo_free(atmo);
   return rc;

@@ -21,8 +21,8 @@ typedef struct {
 /*! oc_image_alloc() : zeroed image; @return 0 or OC_EINVAL (size ≤ 0 or > 16384) / OC_ENOMEM. */
 int oc_image_alloc(oc_image_t *img, int w, int h);
 void oc_image_free(oc_image_t *img);
-/*! oc_image_tonemap() : exposure, ACES fit, sRGB → 8-bit RGB (w·h·3 bytes). Non-finite → magenta
- *  is never produced silently: non-finite pixels are counted and returned (0 when all finite). */
+/*! oc_image_tonemap() : exposure, ACES fit, sRGB → 8-bit RGB (w·h·3 bytes). A non-finite pixel
+ *  shows black but never silently: non-finite pixels are counted and returned (0 when all finite). */
 int oc_image_tonemap(const oc_image_t *img, float exposure, uint8_t *rgb8);
 /*! oc_png_write() : 8-bit RGB PNG with optional text chunks. Errors name the path. */
 int oc_png_write(const char *path, int w, int h, const uint8_t *rgb8, const oc_png_text_t *text, int ntext,

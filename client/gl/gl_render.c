@@ -258,15 +258,17 @@ static void ocv__buffer(GLuint *b, size_t *have, size_t bytes) {
 
 int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
                         char *why, size_t why_len) {
-  if (!r || !gs || !desc || !img || !img->px) return ocv__bad(why, why_len, "argument (NULL)");
-  if (img->w != desc->width || img->h != desc->height) return ocv__bad(why, why_len, "size");
+  if (!r || !gs || !desc || (img && !img->px)) return ocv__bad(why, why_len, "argument (NULL)");
+  if (img && (img->w != desc->width || img->h != desc->height)) return ocv__bad(why, why_len, "size");
   size_t n = (size_t)desc->width * (size_t)desc->height;
   ocv__buffer(&r->out, &r->out_bytes, n * 4 * sizeof(float));
   ocv__buffer(&r->depth, &r->depth_bytes, n * sizeof(float));
   int rc = ocv__dispatch(r, gs, desc, r->out, r->depth, -1, why, why_len);
-  if (rc == 0) glGetNamedBufferSubData(r->out, 0, (GLsizeiptr)(n * 4 * sizeof(float)), img->px);
+  if (rc == 0 && img) glGetNamedBufferSubData(r->out, 0, (GLsizeiptr)(n * 4 * sizeof(float)), img->px);
   return rc;
 }
+
+GLuint ocv_gl_renderer_output(const ocv_gl_renderer_t *r) { return r ? r->out : 0; }
 
 /*-*** Reprojection: one pixel in 16 traced per frame ***/
 
@@ -318,14 +320,16 @@ void ocv_gl_history_free(ocv_gl_history_t *hs) {
   free(hs);
 }
 
+GLuint ocv_gl_history_output(const ocv_gl_history_t *hs) { return hs && hs->newest >= 0 ? hs->color[hs->newest] : 0; }
+
 void ocv_gl_history_reset(ocv_gl_history_t *hs) {
   if (hs) hs->newest = -1;
 }
 
 int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,
                         int reproject, oc_image_t *img, ocv_gl_frame_stats_t *fs, char *why, size_t why_len) {
-  if (!r || !hs || !gs || !desc || !img || !img->px) return ocv__bad(why, why_len, "argument (NULL)");
-  if (desc->width != hs->w || desc->height != hs->h || img->w != hs->w || img->h != hs->h)
+  if (!r || !hs || !gs || !desc || (img && !img->px)) return ocv__bad(why, why_len, "argument (NULL)");
+  if (desc->width != hs->w || desc->height != hs->h || (img && (img->w != hs->w || img->h != hs->h)))
     return ocv__bad(why, why_len, "size (the history's)");
   size_t n = (size_t)hs->w * (size_t)hs->h;
   int next = hs->newest == 0 ? 1 : 0;
@@ -384,7 +388,7 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
     }
   }
   if (rc) return rc;
-  glGetNamedBufferSubData(hs->color[next], 0, (GLsizeiptr)(n * 4 * sizeof(float)), img->px);
+  if (img) glGetNamedBufferSubData(hs->color[next], 0, (GLsizeiptr)(n * 4 * sizeof(float)), img->px);
   hs->newest = next;
   hs->cam = desc->camera;
   hs->frame++;

@@ -21,6 +21,7 @@ struct ocv_gl_view_s {
   int have_prev;
   ocv_gl_history_t *hist;
   int hw, hh;
+  GLuint out;               /* the buffer of the last frame */
 };
 
 ocv_gl_view_t *ocv_gl_view_create(ocv_gl_renderer_t *r, const ocv_gl_view_desc_t *d, char *why, size_t why_len) {
@@ -101,7 +102,7 @@ int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now
                       ocv_gl_view_stats_t *st, char *why, size_t why_len) {
   ocv_gl_view_stats_t s;
   memset(&s, 0, sizeof s);
-  if (!v || !desc || !img) return oc_errorf(OC_EINVAL, why, why_len, "gl view: NULL argument");
+  if (!v || !desc) return oc_errorf(OC_EINVAL, why, why_len, "gl view: NULL argument");
   ocv_gl_store_stats_t before, after;
   ocv_gl_store_stats(v->store, &before);
   if (v->have_staged) {
@@ -135,7 +136,10 @@ int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now
     }
     ocv_gl_renderer_set_prev(v->r, NULL, 1.0f);
     s.shown = rc == 0;
+    if (s.shown) v->out = reproject ? ocv_gl_history_output(v->hist) : ocv_gl_renderer_output(v->r);
   }
   if (st) *st = s;
   return rc;
 }
+
+GLuint ocv_gl_view_output(const ocv_gl_view_t *v) { return v ? v->out : 0; }

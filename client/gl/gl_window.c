@@ -15,8 +15,7 @@
 
 struct ocv_window_s {
   GLFWwindow *w;
-  GLuint prog, vao, tex;
-  int tex_w, tex_h;
+  GLuint prog, vao;
   int fb_w, fb_h;
   int presses[OCV_ACT_COUNT];
   int looking;          /* left button held */
@@ -183,7 +182,6 @@ void ocv_window_close(ocv_window_t *win) {
   if (!win) return;
   if (win->w) {
     glfwMakeContextCurrent(win->w);
-    if (win->tex) glDeleteTextures(1, &win->tex);
     if (win->vao) glDeleteVertexArrays(1, &win->vao);
     if (win->prog) glDeleteProgram(win->prog);
     glfwDestroyWindow(win->w);
@@ -217,30 +215,16 @@ void ocv_window_poll(ocv_window_t *win, ocv_window_input_t *in) {
 
 void ocv_window_set_title(ocv_window_t *win, const char *title) { glfwSetWindowTitle(win->w, title); }
 
-int ocv_window_present(ocv_window_t *win, const uint8_t *rgb8, int iw, int ih, char *why, size_t why_len) {
+int ocv_window_present(ocv_window_t *win, unsigned int tex, char *why, size_t why_len) {
   int fw = 0, fh = 0;
   glfwGetFramebufferSize(win->w, &fw, &fh);
   glViewport(0, 0, fw, fh);
   glClearColor(0.1f, 0.1f, 0.1f, 1.0f);
   glClear(GL_COLOR_BUFFER_BIT);
-  if (rgb8 && iw > 0 && ih > 0 && fw > 0 && fh > 0) {
-    if (!win->tex || win->tex_w != iw || win->tex_h != ih) {
-      if (win->tex) glDeleteTextures(1, &win->tex);
-      glCreateTextures(GL_TEXTURE_2D, 1, &win->tex);
-      glTextureParameteri(win->tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-      glTextureParameteri(win->tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-      glTextureParameteri(win->tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-      glTextureParameteri(win->tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-      /* GL_RGB8, not SRGB8: the pixels are display-encoded already and go out as they are */
-      glTextureStorage2D(win->tex, 1, GL_RGB8, iw, ih);
-      win->tex_w = iw;
-      win->tex_h = ih;
-    }
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTextureSubImage2D(win->tex, 0, 0, 0, iw, ih, GL_RGB, GL_UNSIGNED_BYTE, rgb8);
+  if (tex && fw > 0 && fh > 0) {
     glUseProgram(win->prog);
     glBindVertexArray(win->vao);
-    glBindTextureUnit(0, win->tex);
+    glBindTextureUnit(0, tex);
     glDrawArrays(GL_TRIANGLES, 0, 3);
     glBindVertexArray(0);
     glUseProgram(0);
@@ -279,11 +263,9 @@ void ocv_window_set_title(ocv_window_t *win, const char *title) {
   (void)win;
   (void)title;
 }
-int ocv_window_present(ocv_window_t *win, const uint8_t *rgb8, int iw, int ih, char *why, size_t why_len) {
+int ocv_window_present(ocv_window_t *win, unsigned int tex, char *why, size_t why_len) {
   (void)win;
-  (void)rgb8;
-  (void)iw;
-  (void)ih;
+  (void)tex;
   (void)oc_errorf(0, why, why_len, "no window in this build");
   return OC_EIO;
 }

@@ -60,9 +60,10 @@ void ocv_window_close(ocv_window_t *win);
 void ocv_window_poll(ocv_window_t *win, ocv_window_input_t *in);
 /*! ocv_window_set_title() : the window's title (UTF-8). */
 void ocv_window_set_title(ocv_window_t *win, const char *title);
-/*! ocv_window_present() : draws rgb8 (iw×ih, 8-bit RGB rows from the top, e.g. oc_image_tonemap()'s
- *  output) stretched over the whole framebuffer and swaps buffers; rgb8 NULL clears to dark grey.
+/*! ocv_window_present() : draws the texture `tex` (an RGBA8 picture with rows from the top and the
+ *  display encoding applied, as ocv_gl_present_tonemap() makes it) stretched over the whole
+ *  framebuffer and swaps buffers; tex 0 clears to dark grey. The picture stays on the GPU.
  *  @return 0, or OC_EIO with why on a GL error. */
-int ocv_window_present(ocv_window_t *win, const uint8_t *rgb8, int iw, int ih, char *why, size_t why_len);
+int ocv_window_present(ocv_window_t *win, unsigned int tex, char *why, size_t why_len);
 
 #endif /* OC_CLIENT_GL_WINDOW_H */

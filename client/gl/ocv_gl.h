@@ -168,6 +168,9 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r);
  *  and kept while the same tables are passed. @return 0, or OC_EINVAL / OC_ENOMEM / OC_EIO with why. */
 int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *desc, oc_image_t *img,
                         char *why, size_t why_len);
+/*! ocv_gl_renderer_output() : the GL buffer holding the last ocv_gl_render_state() image (w×h RGBA32F,
+ *  rows from the top), 0 before the first. img may be NULL there to keep the image on the GPU. */
+GLuint ocv_gl_renderer_output(const ocv_gl_renderer_t *r);
 
 /*! ocv_gl_renderer_timings() : GPU time of the last trace and reprojection passes (timer queries),
  *  ms; −1 for a pass not run yet. */
@@ -218,6 +221,9 @@ void ocv_gl_history_reset(ocv_gl_history_t *hs);
  *  traces every pixel (and keeps it as history). @return 0 or a negative OC_E* with why. */
 int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,
                         int reproject, oc_image_t *img, ocv_gl_frame_stats_t *fs, char *why, size_t why_len);
+/*! ocv_gl_history_output() : the GL buffer holding the newest frame (as ocv_gl_renderer_output()), 0
+ *  before the first. img may be NULL in ocv_gl_render_frame() to keep the frame on the GPU. */
+GLuint ocv_gl_history_output(const ocv_gl_history_t *hs);
 
 /* ---- The viewer's frame loop (gl_view.c) ---------------------------------------------------------------- */
 
@@ -255,5 +261,27 @@ int ocv_gl_view_push(ocv_gl_view_t *v, const oc_state_t *s, char *why, size_t wh
  *  Before the first state is complete nothing is rendered (stats->shown 0). @return 0 or OC_E*. */
 int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now, int reproject, oc_image_t *img,
                       ocv_gl_view_stats_t *st, char *why, size_t why_len);
+/*! ocv_gl_view_output() : the GL buffer of the last frame rendered (w×h RGBA32F radiance, rows from the
+ *  top), 0 before the first; img may be NULL in ocv_gl_view_frame() to keep frames on the GPU. */
+GLuint ocv_gl_view_output(const ocv_gl_view_t *v);
+
+/* ---- The picture (gl_present.c, shaders/present.comp.glsl) --------------------------------------------- */
+
+/* Tone mapping and the HUD on the GPU, so a window's frame never makes the GPU → CPU → GPU round trip:
+ * exposure, ACES fit and sRGB from shaders/optics.h (the CPU's oc_image_tonemap() runs the same
+ * code), then a premultiplied RGBA8 overlay (ocv_hud_text_rgba) composited over the top-left corner. */
+typedef struct ocv_gl_present_s ocv_gl_present_t;
+
+ocv_gl_present_t *ocv_gl_present_create(char *why, size_t why_len);
+void ocv_gl_present_free(ocv_gl_present_t *p);
+/*! ocv_gl_present_tonemap() : tone maps `radiance` (a w×h RGBA32F buffer, e.g. ocv_gl_view_output())
+ *  with `exposure` and composites `overlay` (ow×oh premultiplied RGBA8 rows from the top, placed at the
+ *  top-left; NULL for none) into an RGBA8 texture of w×h. @return the texture (rows from the top,
+ *  valid until the next call), or 0 with why. */
+GLuint ocv_gl_present_tonemap(ocv_gl_present_t *p, GLuint radiance, int w, int h, float exposure, const uint8_t *overlay,
+                              int ow, int oh, char *why, size_t why_len);
+/*! ocv_gl_present_read() : the last tone-mapped picture as 8-bit RGB rows from the top (w·h·3 bytes, the
+ *  layout of oc_image_tonemap()), for screenshots and tests. @return 0, or OC_EINVAL before the first. */
+int ocv_gl_present_read(ocv_gl_present_t *p, uint8_t *rgb8, char *why, size_t why_len);
 
 #endif /* OC_CLIENT_GL_H */
