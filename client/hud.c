@@ -62,7 +62,10 @@ int ocv_hud_text_rgba(uint8_t *rgba, int w, int h, int x, int y, int scale, cons
 
 void ocv_hud_format(const ocv_hud_stats_t *s, char *buf, int cap) {
   char gpu[64] = "";
-  if (s->trace_ms >= 0) snprintf(gpu, sizeof gpu, "  gpu trace %.2f ms, reproject %.2f ms", s->trace_ms, s->reproject_ms);
+  if (s->trace_ms >= 0 && s->reproject_ms >= 0)
+    snprintf(gpu, sizeof gpu, "  gpu trace %.2f ms, reproject %.2f ms", s->trace_ms, s->reproject_ms);
+  else if (s->trace_ms >= 0)
+    snprintf(gpu, sizeof gpu, "  gpu trace %.2f ms", s->trace_ms);
   snprintf(buf, (size_t)cap,
            "%s  frame %.1f ms%s\n"
            "epoch %llu, %.1f s old  |  %u bricks, %.1f of %.1f MiB\n"

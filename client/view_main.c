@@ -12,6 +12,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <pthread.h>
 
 #include "camera_path.h"
 #include "hud.h"
@@ -51,7 +52,8 @@ static void usage(FILE *f) {
           "  --token TEXT          the server's token, if it has one\n"
           "  --budget MIB          memory budget asked for (default 64)\n"
           "  --max-depth N         deepest octree level asked for, 0..21 (default 21)\n"
-          "  --epochs N            headless: render once N states have arrived (default 4)\n"
+          "  --wait-epochs N       headless: render once N complete states have arrived (default 4;\n"
+          "                        --epochs N is the same)\n"
           "  --step                headless, for a server run with --epoch-period 0: ask it (on a second,\n"
           "                        control connection) to step one epoch whenever the previous state arrived\n"
           "  --timeout S           headless: give up when the states have not arrived within S s (default 60);\n"
@@ -98,6 +100,13 @@ static void usage(FILE *f) {
           "  V                          debug views: off, level of detail, τ channel, node bounds\n"
           "  H                          HUD on/off (frame and GPU pass times, epoch and age, resident\n"
           "                             bytes against the budget, bytes/s received)\n"
+          "  J                          per-pixel ray-start jitter on/off (averaged by reprojection)\n"
+          "  M                          multiple-scattering octaves: 1, 2, ... 8, cycled\n"
+          "  N                          --connect: the server's next weather preset (clear, fair, overcast,\n"
+          "                             storm, cirrus; a 10 s transition), through a control connection\n"
+          "  K L                        --connect: the sun 15° west / east (time of day)\n"
+          "  T                          --connect: world time paused / resumed\n"
+          "                             (N, K, L, T use --token when the server has one)\n"
           "  Esc                        quit\n"
           "The window's viewport and every camera move are sent to the server with --connect.\n"
           "\n"
@@ -474,6 +483,58 @@ out_gl:
 #ifdef OC_HAVE_GL
 /*-*** The window ***/
 
+/* World state (sun, weather, time) belongs to the server: window keys ask for it on a control
+ * connection of their own, in a detached thread so a slow or refusing server never stalls a frame. */
+typedef struct {
+  char host[OCV_HOST_MAX];
+  int port;
+  char token[256];
+  char json[256];
+} world_request_t;
+
+static void *world_request_run(void *arg) {
+  world_request_t *q = arg;
+  char why[512], *reply = NULL;
+  int32_t status = 0;
+  ocv_conn_t *cc = NULL;
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL, .token = q->token[0] ? q->token : NULL};
+  int r = ocv_conn_open(&cc, q->host, q->port, &cd, NULL, 5.0, why, sizeof why);
+  if (r == 0) r = ocv_control_request(cc, q->json, 5.0, &reply, &status, why, sizeof why);
+  if (r < 0) oc_log_warn("%s: %s", q->json, why);
+  else if (status != OCP_CODE_OK) oc_log_warn("%s: refused: %s%s", q->json, reply ? reply : "",
+                                              q->token[0] ? "" : " (does the server want --token?)");
+  else oc_log_info("%s: done", q->json);
+  free(reply);
+  ocv_conn_close(cc);
+  free(q);
+  return NULL;
+}
+
+static void world_request(const view_net_opts_t *o, const char *json) {
+  world_request_t *q = calloc(1, sizeof *q);
+  pthread_t th;
+  if (!q) return;
+  snprintf(q->host, sizeof q->host, "%s", o->host);
+  q->port = o->port;
+  snprintf(q->token, sizeof q->token, "%s", o->token ? o->token : "");
+  snprintf(q->json, sizeof q->json, "%s", json);
+  if (pthread_create(&th, NULL, world_request_run, q) != 0) {
+    oc_log_warn("%s: no thread for the request", json);
+    free(q);
+    return;
+  }
+  pthread_detach(th);
+}
+
+/* The sun's direction, planet frame, moved by `deg` of longitude (westward negative): the time of day. */
+static void sun_request(const view_net_opts_t *o, oc_dvec3 sun, double deg) {
+  char json[160];
+  double lat = asin(fmax(-1.0, fmin(1.0, sun.z))) / OC_DEG, lon = atan2(sun.y, sun.x) / OC_DEG + deg;
+  lon = fmod(lon + 540.0, 360.0) - 180.0;
+  snprintf(json, sizeof json, "{\"op\":\"sun\",\"lat\":%.6f,\"lon\":%.6f}", lat, lon);
+  world_request(o, json);
+}
+
 typedef struct {
   ocv_window_t *win;
   ocv_net_t *net; /* --connect */
@@ -551,7 +612,7 @@ static int run_window(view_win_t *v) {
     ocv_gl_renderer_free(r);
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL picture: %s", why);
   }
-  int have_gs = 0, reproject = 0, hud = 1, debug = 0;
+  int have_gs = 0, reproject = 0, hud = 1, debug = 0, weather = OC_PRESET_FAIR, paused = 0;
   uint64_t epoch = v->have_state ? v->st->epoch : 0;
   double shown_at = now_s(), bytes_at = shown_at, bytes_rate = 0;
   uint64_t bytes_prev = 0;
@@ -636,6 +697,30 @@ static int run_window(view_win_t *v) {
     for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_DOWN]; i++) v->o.exposure = fmax(v->o.exposure / 1.25, 1e-6);
     if (in.presses[OCV_ACT_REPROJECT] & 1) reproject = !reproject;
     if (in.presses[OCV_ACT_HUD] & 1) hud = !hud;
+    if (in.presses[OCV_ACT_JITTER] & 1) v->o.jitter = !v->o.jitter;
+    for (int i = 0; i < in.presses[OCV_ACT_OCTAVES]; i++) {
+      long cur = v->o.octaves ? v->o.octaves : make_desc(v->sc, &v->o, atmo).ms_octaves;
+      v->o.octaves = cur % 8 + 1;
+    }
+    int world_keys = in.presses[OCV_ACT_WEATHER] + in.presses[OCV_ACT_SUN_WEST] + in.presses[OCV_ACT_SUN_EAST] +
+                     in.presses[OCV_ACT_TIME];
+    if (world_keys && !v->net) oc_log_warn("sun, weather and time are the server's: keys N, K, L, T need --connect");
+    else if (world_keys && scene_ready) {
+      oc_dvec3 sun = have_gs ? v->st->sun_dir : v->sc->sun_dir;
+      if (in.presses[OCV_ACT_WEATHER]) {
+        weather = (weather + in.presses[OCV_ACT_WEATHER]) % OC_PRESET_COUNT;
+        char json[128];
+        snprintf(json, sizeof json, "{\"op\":\"weather\",\"preset\":\"%s\",\"seconds\":10}",
+                 oc_scene_preset_name(weather));
+        world_request(v->net_opts, json);
+      }
+      int sun_steps = in.presses[OCV_ACT_SUN_EAST] - in.presses[OCV_ACT_SUN_WEST];
+      if (sun_steps) sun_request(v->net_opts, sun, 15.0 * sun_steps);
+      if (in.presses[OCV_ACT_TIME] & 1) {
+        paused = !paused;
+        world_request(v->net_opts, paused ? "{\"op\":\"pause\"}" : "{\"op\":\"resume\"}");
+      }
+    }
     debug = (debug + in.presses[OCV_ACT_DEBUG]) % 4;
     if (in.resized) cam_dirty = 1;
     if (v->net && cam_dirty && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
@@ -679,6 +764,7 @@ static int run_window(view_win_t *v) {
                                 .budget_bytes = v->net ? ns.welcome.budget : vs.resident_bytes,
                                 .bytes_per_s = bytes_rate, .renderer = reproject ? "gl, reprojected" : "gl"};
           ocv_gl_renderer_timings(r, &hs.trace_ms, &hs.reproject_ms);
+          if (!reproject) hs.reproject_ms = -1.0;
           char text[512];
           ocv_hud_format(&hs, text, sizeof text);
           ocv_hud_text_rgba(overlay, iw, oh, 6, 6, 1, text, (const uint8_t[3]){255, 255, 255});
@@ -752,6 +838,7 @@ int main(int argc, char **argv) {
       {"connect", required_argument, 0, O_CONNECT},   {"token", required_argument, 0, O_TOKEN},
       {"budget", required_argument, 0, O_BUDGET},     {"max-depth", required_argument, 0, O_MAXDEPTH},
       {"epochs", required_argument, 0, O_EPOCHS},     {"step", no_argument, 0, O_NETSTEP},
+      {"wait-epochs", required_argument, 0, O_EPOCHS},
       {"timeout", required_argument, 0, O_TIMEOUT},   {"window", no_argument, 0, O_WINDOW},
       {"headless", no_argument, 0, O_HEADLESS},
       {"record", required_argument, 0, O_RECORD},     {"path", required_argument, 0, O_PATH},

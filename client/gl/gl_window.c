@@ -45,6 +45,12 @@ static void ocv__on_key(GLFWwindow *w, int key, int scancode, int action, int mo
     case GLFW_KEY_R: if (action == GLFW_PRESS) a = OCV_ACT_REPROJECT; break;
     case GLFW_KEY_V: if (action == GLFW_PRESS) a = OCV_ACT_DEBUG; break;
     case GLFW_KEY_H: if (action == GLFW_PRESS) a = OCV_ACT_HUD; break;
+    case GLFW_KEY_J: if (action == GLFW_PRESS) a = OCV_ACT_JITTER; break;
+    case GLFW_KEY_M: if (action == GLFW_PRESS) a = OCV_ACT_OCTAVES; break;
+    case GLFW_KEY_N: if (action == GLFW_PRESS) a = OCV_ACT_WEATHER; break;
+    case GLFW_KEY_K: a = OCV_ACT_SUN_WEST; break;
+    case GLFW_KEY_L: a = OCV_ACT_SUN_EAST; break;
+    case GLFW_KEY_T: if (action == GLFW_PRESS) a = OCV_ACT_TIME; break;
     default: break;
   }
   if (a >= 0) win->presses[a]++;

@@ -36,6 +36,12 @@ typedef enum {
   OCV_ACT_REPROJECT,    /* R : reprojection (one pixel in 16 traced) on/off */
   OCV_ACT_DEBUG,        /* V : cycle the debug views (off, LOD, τ, node bounds) */
   OCV_ACT_HUD,          /* H : HUD on/off */
+  OCV_ACT_JITTER,       /* J : per-pixel ray-start jitter on/off */
+  OCV_ACT_OCTAVES,      /* M : multiple-scattering octaves 1..8, cycled */
+  OCV_ACT_WEATHER,      /* N : the server's next weather preset (control channel) */
+  OCV_ACT_SUN_WEST,     /* K : the sun 15° west (control channel) */
+  OCV_ACT_SUN_EAST,     /* L : the sun 15° east (control channel) */
+  OCV_ACT_TIME,         /* T : world time paused / resumed (control channel) */
   OCV_ACT_QUIT,         /* Esc (or the window's close button) */
   OCV_ACT_COUNT
 } ocv_action_t;

@@ -45,6 +45,8 @@ check "view: size out of range" 2 "--size: 0x5: each side" -- "$V" --size 0x5
 check "view: bad camera" 2 "camera fov 500 outside" -- "$V" --camera 0,0,100,0,0,500
 check "view: bad renderer" 2 "--renderer bogus: expected gl or cpu" -- "$V" --renderer bogus
 check "view: stray argument" 2 "unexpected argument" -- "$V" extra
+check "view: --wait-epochs needs --connect" 2 "go with --connect" -- "$V" --wait-epochs 3
+check "view: --wait-epochs range" 2 "--epochs: 0 is outside" -- "$V" --connect 127.0.0.1:1 --wait-epochs 0
 check "view: missing state" 1 "/nonexistent.ocst" -- "$V" --state /nonexistent.ocst --out "$tmp"
 echo "garbage" >"$tmp/bad.ocst"
 check "view: corrupt state" 1 "bad.ocst" -- "$V" --state "$tmp/bad.ocst" --out "$tmp"
