@@ -69,6 +69,8 @@ layout(location = 30) uniform int u_phase;       /* < 0: every pixel; else the o
 layout(location = 31) uniform int u_blend;       /* previous values present and t < 1 */
 layout(location = 32) uniform float u_t;         /* blend parameter: mix(previous, newest, t) */
 layout(location = 33) uniform ivec3 u_pool_bricks;
+layout(location = 34) uniform int u_map_level;   /* octree map: 0 none, else its level (gl_state.c) */
+layout(location = 35) uniform uint u_map_offset; /* its first word in oc_tree */
 
 /* Depth for reprojection: where the view transmittance first fell below ½, else the ground, else
  * far (a direction only). */
@@ -111,6 +113,12 @@ OcvLeaf ocv_locate_cell(ivec3 ic) {
   if (any(lessThan(ic, ivec3(0))) || any(greaterThanEqual(ic, ivec3(OCV_CELLS21)))) return lf;
   uint ref = oc_tree[0];
   int level = 0;
+  if (u_map_level > 0) { /* the map resolves the first u_map_level steps in one read */
+    uvec3 m = uvec3(ic) >> uint(21 - u_map_level);
+    uint n = 1u << uint(u_map_level);
+    ref = oc_tree[u_map_offset + m.x + n * (m.y + n * m.z)];
+    level = (ref & OCV_LEAF_BIT) != 0u ? int(oc_leaf[ref & ~OCV_LEAF_BIT].info.z) : u_map_level;
+  }
   while ((ref & OCV_LEAF_BIT) == 0u && level < 21) {
     level++;
     uvec3 b = (uvec3(ic) >> uint(21 - level)) & 1u;

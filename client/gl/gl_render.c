@@ -33,7 +33,12 @@ struct ocv_gl_renderer_s {
   float t;
   GLuint query[2];       /* GL_TIME_ELAPSED of the trace and the reprojection pass */
   double pass_ms[2];     /* the last measured, < 0 before the first */
+  int no_map;            /* descend from the root (benchmarks, tests) */
 };
+
+void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on) {
+  if (r) r->no_map = !on;
+}
 
 void ocv_gl_renderer_timings(const ocv_gl_renderer_t *r, double *trace_ms, double *reproject_ms) {
   if (trace_ms) *trace_ms = r ? r->pass_ms[0] : -1.0;
@@ -224,6 +229,8 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   glProgramUniform1i(p, 31, blend);
   glProgramUniform1f(p, 32, r->t);
   glProgramUniform3i(p, 33, blend ? r->prev->pool_bricks[0] : 1, blend ? r->prev->pool_bricks[1] : 1, 1);
+  glProgramUniform1i(p, 34, r->no_map ? 0 : gs->map_level);
+  glProgramUniform1ui(p, 35, gs->map_offset);
   glUseProgram(p);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);

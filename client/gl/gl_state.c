@@ -125,10 +125,46 @@ static uint32_t ocv__slot_by_index(void *ctx, const oc_state_t *s, uint32_t id) 
 }
 
 /* The tree and leaf buffers of gs from built arrays. */
+/* The octree map (Pettersson's 64³ map): the reference reached after up to `level` descent steps for
+ * every cell of that level, appended to the tree, so a lookup starts `level` steps down. Its level is
+ * the deepest ≤ OCV_GL_MAP_MAX_LEVEL, not past the deepest leaf, whose 8^level words stay within the
+ * tree and records' own size: a small state pays little, a big one saves up to six dependent reads. */
+static int ocv__map_level(const ocv__leaf_rec_t *rec, uint32_t nrec, uint32_t inner) {
+  uint32_t deepest = 0;
+  for (uint32_t i = 0; i < nrec; i++)
+    if (rec[i].info[2] > deepest) deepest = rec[i].info[2];
+  uint64_t words = 1 + 8 * (uint64_t)inner + 8 * (uint64_t)nrec;
+  int level = 0;
+  while (level < OCV_GL_MAP_MAX_LEVEL && (uint32_t)level < deepest && (1ull << (3 * (level + 1))) <= words) level++;
+  return level;
+}
+
 void ocv__gl_buffers(ocv_gl_state_t *gs, const void *rec, uint32_t nrec, const uint32_t *tree, uint32_t inner) {
   gs->inner_count = inner;
+  size_t tree_words = 1 + (size_t)inner * 8;
+  int level = ocv__map_level(rec, nrec, inner);
+  size_t n = (size_t)1 << level, map_words = level > 0 ? n * n * n : 0;
+  uint32_t *w = map_words ? malloc((tree_words + map_words) * sizeof *w) : NULL;
+  if (!w) map_words = 0, level = 0; /* no map: every lookup descends from the root */
+  if (w) {
+    memcpy(w, tree, tree_words * sizeof *w);
+    for (size_t z = 0; z < n; z++)
+      for (size_t y = 0; y < n; y++)
+        for (size_t x = 0; x < n; x++) {
+          uint32_t ref = tree[0];
+          for (int l = 1; l <= level && !(ref & OCV__LEAF_BIT); l++) {
+            int sh = level - l;
+            ref = tree[1 + 8 * (size_t)ref + (((x >> sh) & 1) | (((y >> sh) & 1) << 1) | (((z >> sh) & 1) << 2))];
+          }
+          w[tree_words + x + n * (y + n * z)] = ref;
+        }
+  }
+  gs->map_level = level;
+  gs->map_offset = (uint32_t)tree_words;
+  gs->tree_bytes = (tree_words + map_words) * sizeof *tree;
   glCreateBuffers(1, &gs->tree);
-  glNamedBufferStorage(gs->tree, (GLsizeiptr)((1 + (size_t)inner * 8) * sizeof *tree), tree, 0);
+  glNamedBufferStorage(gs->tree, (GLsizeiptr)gs->tree_bytes, w ? w : tree, 0);
+  free(w);
   glCreateBuffers(1, &gs->leaves);
   glNamedBufferStorage(gs->leaves, (GLsizeiptr)((size_t)nrec * sizeof(ocv__leaf_rec_t)), rec, 0);
 }
@@ -198,7 +234,7 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
     ocv__gl_put_brick(gs->atlas, gs->atlas_bricks, k, &b->codes, texels);
   }
   gs->resident_bytes = (uint64_t)bx * by * bz * OCV_GL_SLOT_BYTES + (uint64_t)s->node_count * OCV_GL_LEAF_BYTES +
-                       (4 + (uint64_t)inner * OCV_GL_INNER_BYTES);
+                       gs->tree_bytes;
   GLenum err = glGetError();
   if (err != GL_NO_ERROR) {
     (void)oc_errorf(0, why, why_len, "gl state: upload failed (GL error 0x%x)", (unsigned)err);

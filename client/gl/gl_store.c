@@ -223,7 +223,7 @@ int ocv_gl_store_pump(ocv_gl_store_t *st, uint64_t max_bytes, char *why, size_t 
   k.gs.brick_count = s->brick_count;
   k.gs.sun_dir = s->sun_dir;
   ocv__gl_buffers(&k.gs, rec, s->node_count, tree, inner);
-  k.gs.resident_bytes = (uint64_t)s->node_count * OCV_GL_LEAF_BYTES + 4 + (uint64_t)inner * OCV_GL_INNER_BYTES;
+  k.gs.resident_bytes = (uint64_t)s->node_count * OCV_GL_LEAF_BYTES + k.gs.tree_bytes;
   free(rec);
   free(tree);
   st->staged = NULL; /* its references now belong to the kept state */

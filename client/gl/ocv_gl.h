@@ -96,13 +96,19 @@ GLuint ocv_gl_compute_program(const char *kernel, const char *defines, char *why
 /*! GPU bytes per node record (std430 leaf record) and per interior node of the pointer octree. */
 #define OCV_GL_LEAF_BYTES 32u
 #define OCV_GL_INNER_BYTES 32u
+/*! Deepest octree-map level (64³ references): see gl_state.c. */
+#define OCV_GL_MAP_MAX_LEVEL 6
 /*! GPU bytes per brick slot in the atlas: 8³ texels of RG16UI. */
 #define OCV_GL_SLOT_BYTES (512u * 4u)
 
 typedef struct {
   GLuint atlas;         /**< GL_TEXTURE_3D, RG16UI: (σt code, τ code) per sample; 0 without bricks */
   int atlas_bricks[3];  /**< bricks per axis; brick slot s sits at (s % x, s / x % y, s / (x·y)) · 8 */
-  GLuint tree;          /**< SSBO of uint: word 0 the root reference, then 8 child references per interior node */
+  GLuint tree;          /**< SSBO of uint: word 0 the root reference, then 8 child references per interior
+                             node, then the octree map (8^map_level references, x fastest) */
+  uint32_t map_offset;  /**< word of the map in tree */
+  int map_level;        /**< 0: no map; else the level whose cells the map resolves */
+  uint64_t tree_bytes;  /**< of tree, map included */
   GLuint leaves;        /**< SSBO of leaf records (README.md) */
   uint32_t inner_count; /**< interior nodes of the pointer octree */
   uint32_t leaf_count;  /**< = the state's node_count */
@@ -171,6 +177,10 @@ int ocv_gl_render_state(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc
 /*! ocv_gl_renderer_output() : the GL buffer holding the last ocv_gl_render_state() image (w×h RGBA32F,
  *  rows from the top), 0 before the first. img may be NULL there to keep the image on the GPU. */
 GLuint ocv_gl_renderer_output(const ocv_gl_renderer_t *r);
+
+/*! ocv_gl_renderer_set_map() : use the states' octree maps (on, the default) or descend every lookup
+ *  from the root (off: the same image, for benchmarks and tests). */
+void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on);
 
 /*! ocv_gl_renderer_timings() : GPU time of the last trace and reprojection passes (timer queries),
  *  ms; −1 for a pass not run yet. */
