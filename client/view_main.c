@@ -25,6 +25,7 @@
 #include "oc_planet.h"
 #include "oc_render.h"
 #include "oc_scene.h"
+#include "oc_scene_render.h"
 #include "oc_scene_voxelize.h"
 #include "oc_state.h"
 #include "net.h"
@@ -114,6 +115,19 @@ static void usage(FILE *f) {
 }
 
 /*-*** --connect: receive states from a server ***/
+
+/* What a WELCOME says about the scene: its features, sun, optics and name. */
+static void scene_from_welcome(oc_scene_t *sc, const ocp_welcome_t *w) {
+  sc->features = w->features;
+  sc->sun_dir = w->sun_dir;
+  sc->optics.albedo = w->albedo;
+  sc->optics.ms_a = w->ms_a;
+  sc->optics.ms_b = w->ms_b;
+  sc->optics.ms_c = w->ms_c;
+  sc->optics.ms_octaves = w->ms_octaves < 1 ? 1 : w->ms_octaves > 8 ? 8 : (int)w->ms_octaves;
+  snprintf(sc->name, sizeof sc->name, "%s", w->name);
+}
+
 
 typedef struct {
   int connect, step;
@@ -266,14 +280,7 @@ static int net_receive(const view_net_opts_t *o, const oc_camera_pose_t *pose_in
     snprintf(why, why_len, "out of memory for a copy of the state");
     goto done;
   }
-  sc->features = w->features;
-  sc->sun_dir = w->sun_dir;
-  sc->optics.albedo = w->albedo;
-  sc->optics.ms_a = w->ms_a;
-  sc->optics.ms_b = w->ms_b;
-  sc->optics.ms_c = w->ms_c;
-  sc->optics.ms_octaves = w->ms_octaves < 1 ? 1 : w->ms_octaves > 8 ? 8 : (int)w->ms_octaves;
-  snprintf(sc->name, sizeof sc->name, "%s", w->name);
+  scene_from_welcome(sc, w);
 done:
   if (r == 1) r = OC_EIO; /* closed by the server: why holds its reason */
   ocv_conn_close(cc);
@@ -297,32 +304,17 @@ typedef struct {
 
 /* The render description for the scene's optics and features; the caller sets size and camera. */
 static oc_render_desc_t make_desc(const oc_scene_t *sc, const view_opts_t *o, const oc_atmo_t *atmo) {
-  oc_render_desc_t d = {0};
+  oc_render_desc_t d = oc_scene_render_desc(sc, atmo);
   d.step_factor = o->step;
-  d.ms_octaves = o->octaves ? (int)o->octaves
-                 : oc_scene_has(sc, OC_FEATURE_MULTIPLE_SCATTERING) ? sc->optics.ms_octaves
-                                                                    : 1;
-  d.ms_a = (float)sc->optics.ms_a;
-  d.ms_b = (float)sc->optics.ms_b;
-  d.ms_c = (float)sc->optics.ms_c;
-  d.albedo = (float)sc->optics.albedo;
-  d.albedo_zero = sc->optics.albedo == 0.0;
-  d.atmo = atmo;
+  if (o->octaves) d.ms_octaves = (int)o->octaves;
   d.threads = (int)o->threads;
-  d.flags = (atmo ? 0 : OC_RF_NO_ATMOSPHERE) | (oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE) ? 0 : OC_RF_NO_PLANET) |
-            (o->jitter ? OC_RF_JITTER : 0);
+  if (o->jitter) d.flags |= OC_RF_JITTER;
   return d;
 }
 
 /* The atmosphere tables when the scene has an atmosphere (*out stays NULL otherwise). */
 static int make_atmo(const oc_scene_t *sc, long threads, oc_atmo_t **out) {
-  *out = NULL;
-  if (!oc_scene_has(sc, OC_FEATURE_ATMOSPHERE)) return 0;
-  ocg_atmosphere ap;
-  oc_atmo_params_default(&ap);
-  if (!oc_scene_has(sc, OC_FEATURE_OZONE)) ap.ozone_absorption = ocg_v3s(0.0f);
-  *out = oc_atmo_create(&ap, (int)threads);
-  return *out ? 0 : -1;
+  return oc_scene_atmo(sc, (int)threads, out) < 0 ? -1 : 0;
 }
 
 /* A PNG with the camera and the settings in text chunks (what --camera-from reads back). */
@@ -649,14 +641,7 @@ static int run_window(view_win_t *v) {
       ocv_net_status(v->net, &ns);
       if (!scene_ready && ns.have_welcome) {
         const ocp_welcome_t *w = &ns.welcome;
-        v->sc->features = w->features;
-        v->sc->sun_dir = w->sun_dir;
-        v->sc->optics.albedo = w->albedo;
-        v->sc->optics.ms_a = w->ms_a;
-        v->sc->optics.ms_b = w->ms_b;
-        v->sc->optics.ms_c = w->ms_c;
-        v->sc->optics.ms_octaves = w->ms_octaves < 1 ? 1 : w->ms_octaves > 8 ? 8 : (int)w->ms_octaves;
-        snprintf(v->sc->name, sizeof v->sc->name, "%s", w->name);
+        scene_from_welcome(v->sc, w);
         if (!v->have_pose) {
           v->pose = (oc_camera_pose_t){{w->cam_lat, w->cam_lon, w->cam_alt}, w->cam_heading, w->cam_pitch, w->cam_fov};
           v->have_pose = 1;

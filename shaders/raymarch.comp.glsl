@@ -72,6 +72,20 @@ layout(location = 33) uniform ivec3 u_pool_bricks;
 layout(location = 34) uniform int u_map_level;   /* octree map: 0 none, else its level (gl_state.c) */
 layout(location = 35) uniform uint u_map_offset; /* its first word in oc_tree */
 
+/* Shader variants (client/gl/gl_render.c): the renderer compiles one program per combination of the
+ * features a frame uses, defining each of these as a constant, so the compiler drops the code of the
+ * features that are off (no atmosphere: no air integral, no tables; a still state: no blend; no
+ * debug view). Undefined, they read the uniforms: the generic program, kept for comparison. */
+#ifndef OCV_ATMO
+#define OCV_ATMO (u_have_atmo != 0)
+#endif
+#ifndef OCV_BLEND
+#define OCV_BLEND (u_blend != 0)
+#endif
+#ifndef OCV_DEBUG
+#define OCV_DEBUG (u_debug != 0)
+#endif
+
 /* Depth for reprojection: where the view transmittance first fell below ½, else the ground, else
  * far (a direction only). */
 #define OCV_FAR 1e8
@@ -211,7 +225,7 @@ vec3 ocv_atmo_rmus(sampler2D tab, float r, float mu_s) {
 
 /* oc__sun_transmittance: with air the tables; without, the planet's hard shadow. */
 vec3 ocv_sun_transmittance(float r, float mu_s) {
-  if (u_have_atmo != 0) return ocv_atmo_sun_transmittance(r, mu_s);
+  if (OCV_ATMO) return ocv_atmo_sun_transmittance(r, mu_s);
   if (u_ground_r > 0.0 && r > u_ground_r) {
     float g = u_ground_r / r;
     if (mu_s < -sqrt(max(0.0, 1.0 - g * g))) return vec3(0.0);
@@ -293,7 +307,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     t1 = a1;
   }
   float air_len = 0.0, air0 = 0.0, air1 = 0.0;
-  if (u_have_atmo != 0 && ocv_ray_sphere(b, u_c_top, a0, a1) && a1 > 0.0) {
+  if (OCV_ATMO && ocv_ray_sphere(b, u_c_top, a0, a1) && a1 > 0.0) {
     a0 = max(a0, 0.0);
     air0 = a0;
     air1 = a1;
@@ -312,8 +326,8 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       t1 = min(t1, a0);
     }
   }
-  if (u_have_atmo != 0) air_len = min(air1, t1) - air0;
-  float air_step = u_have_atmo != 0 && air_len > 0.0 ? air_len / float(u_air_steps) : OCV_BIG;
+  if (OCV_ATMO) air_len = min(air1, t1) - air0;
+  float air_step = OCV_ATMO && air_len > 0.0 ? air_len / float(u_air_steps) : OCV_BIG;
 
   OcvLeaf lf;
   lf.idx = -1;
@@ -333,12 +347,12 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     bool has = lf.idx >= 0;
     vec4 range = has ? oc_leaf[lf.idx].range : vec4(0.0);
     uint kind = has ? oc_leaf[lf.idx].info.x : 0u;
-    bool blend = u_blend != 0 && has && oc_prev[lf.idx].info.x != 0u;
+    bool blend = OCV_BLEND && has && oc_prev[lf.idx].info.x != 0u;
     bool cloudy = has && (range.y > 0.0 || blend); /* a leaf empty now may have been cloudy */
     float te = t1;
     if (has) te = min(te, t + max(ocv_node_exit(lf, p, dir), eps));
     if (cloudy) te = min(te, t + u_step_factor * lf.size / 7.0);
-    if (u_have_atmo != 0) te = min(te, t + ocv_air_step(b, t, air_step));
+    if (OCV_ATMO) te = min(te, t + ocv_air_step(b, t, air_step));
     te = max(te, t + eps);
     float seg = te - t;
     float tm = t + jitter * seg;
@@ -351,7 +365,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       if (cloudy) sig = st.x;
       tau = st.y;
     }
-    if (u_debug != 0 && sig > 0.0) {
+    if (OCV_DEBUG && sig > 0.0) {
       if (u_debug == OCV_DEBUG_LOD) return vec4(ocv_level_color(oc_leaf[lf.idx].info.z), 0.0);
       if (u_debug == OCV_DEBUG_TAU) return vec4(vec3(0.3 * exp(-tau)), 0.0);
       if (u_debug == OCV_DEBUG_BOUNDS && ocv_on_edge(ocv_local(lf, p))) return vec4(0.3, 0.15, 0.0, 0.0);
@@ -364,11 +378,11 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     if (sig > 0.0) {
       float ms = ocg_ms_octaves(tau, mu, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves);
       vec3 Sc = Esun * ms;
-      if (u_have_atmo != 0 && (u_flags & OCV_RF_NO_AMBIENT) == 0u)
+      if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u)
         Sc += u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s) * OCG_INV_4PI;
       J = Sc * (u_albedo * sig);
     }
-    if (u_have_atmo != 0 && r < u_atm.top_radius) {
+    if (OCV_ATMO && r < u_atm.top_radius) {
       vec3 sr = ocg_atmo_rayleigh_scattering(u_atm, r);
       float sm = ocg_atmo_mie_scattering(u_atm, r);
       sigma_t += ocg_atmo_extinction(u_atm, r);
@@ -399,12 +413,12 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
       float tg = g.idx >= 0 ? ocv_leaf_sample(g, ocv_local(g, pg)).y : 0.0;
       vec3 E = ocv_sun_transmittance(r, mu_s) * (max(mu_s, 0.0) * exp(-tg));
-      if (u_have_atmo != 0) E += ocv_atmo_rmus(u_tab_irradiance, r, mu_s);
-      vec3 albedo = u_have_atmo != 0 ? u_atm.ground_albedo : vec3(0.1);
+      if (OCV_ATMO) E += ocv_atmo_rmus(u_tab_irradiance, r, mu_s);
+      vec3 albedo = OCV_ATMO ? u_atm.ground_albedo : vec3(0.1);
       L += T * ((albedo * (1.0 / OCG_PI)) * (u_sun_e * E));
     } else if (u_bg_constant != 0) {
       L += T * u_bg_radiance;
-    } else if (u_have_atmo != 0 && (u_flags & OCV_RF_NO_SUN_DISC) == 0u) {
+    } else if (OCV_ATMO && (u_flags & OCV_RF_NO_SUN_DISC) == 0u) {
       float cos_r = cos(u_atm.sun_angular_radius);
       if (mu > cos_r) {
         float solid = 2.0 * OCG_PI * (1.0 - cos_r);

@@ -9,6 +9,7 @@
 
 #include "bench.h"
 #include "oc_atmo.h"
+#include "oc_scene_render.h"
 #include "oc_cli.h"
 #include "oc_err.h"
 #include "oc_image.h"
@@ -23,16 +24,13 @@
 #endif
 
 /* The render description both renderers get. */
+/* The scene's render description (its features and optics) at this view and step factor. */
 static oc_render_desc_t render_desc(const oc_scene_t *sc, oc_camera_t cam, int w, int h, double step, const oc_atmo_t *atmo) {
-  oc_render_desc_t d = {0};
+  oc_render_desc_t d = oc_scene_render_desc(sc, atmo);
   d.width = w;
   d.height = h;
   d.camera = cam;
   d.step_factor = step;
-  d.atmo = atmo;
-  d.ms_octaves = sc->optics.ms_octaves;
-  d.albedo = (float)sc->optics.albedo;
-  d.albedo_zero = sc->optics.albedo == 0.0;
   return d;
 }
 
@@ -63,22 +61,26 @@ static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam,
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
     goto out;
   }
-  /* with the octree map and without it (every lookup from the root), alternated so both see the
-   * same machine load; the images must be identical */
-  double best[2] = {1e30, 1e30};
-  for (long i = 0; i <= repeat && rc == OC_EXIT_OK; i++) { /* the first run compiles and uploads the tables: not counted */
-    for (int m = 1; m >= 0; m--) {
-      ocv_gl_renderer_set_map(r, m);
+  /* the full renderer, then each saving switched off alone (the octree map; the shader variant
+   * without the features this frame does not use), alternated in one run so all see the same
+   * machine load; every configuration renders the same image */
+  static const struct {
+    int map, variants;
+    const char *label;
+  } cf[] = {{1, 1, "gl"}, {0, 1, "gl, no octree map"}, {1, 0, "gl, generic kernel (no variant)"}};
+  enum { NCF = sizeof cf / sizeof cf[0] };
+  double best[NCF] = {1e30, 1e30, 1e30};
+  for (long i = 0; i <= repeat && rc == OC_EXIT_OK; i++) /* the first round compiles and uploads: not counted */
+    for (int c = 0; c < NCF && rc == OC_EXIT_OK; c++) {
+      ocv_gl_renderer_set_map(r, cf[c].map);
+      ocv_gl_renderer_set_variants(r, cf[c].variants);
       double t0 = oct_now();
-      if (ocv_gl_render_state(r, &gs, &d, &img, why, sizeof why) < 0) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
-        break;
-      }
+      if (ocv_gl_render_state(r, &gs, &d, &img, why, sizeof why) < 0) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
       double t = oct_now() - t0;
-      if (i > 0 && t < best[m]) best[m] = t;
+      if (i > 0 && t < best[c]) best[c] = t;
     }
-  }
   ocv_gl_renderer_set_map(r, 1);
+  ocv_gl_renderer_set_variants(r, 1);
   if (rc == OC_EXIT_OK) {
     size_t n = (size_t)w * (size_t)h * 3;
     uint8_t *a = malloc(n), *b = malloc(n);
@@ -88,13 +90,16 @@ static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam,
       oc_image_tonemap(&img, 10.0f, b);
       for (size_t i = 0; i < n; i++) se += ((double)a[i] - b[i]) * ((double)a[i] - b[i]);
     }
-    printf("\n# GL compute renderer (%s), state upload %.3f s, octree map level %d (%d descent steps saved)\n\n", info,
-           tu, gs.map_level, gs.map_level);
-    printf("| renderer | best of %ld (s) | M rays/s | vs 1 CPU thread | RMSE vs CPU (0–255) |\n|---|---:|---:|---:|---:|\n", repeat);
-    printf("| gl | %.3f | %.3f | %.2f | %.3f |\n", best[1], (double)w * h / best[1] * 1e-6, cpu1 / best[1], sqrt(se / (double)n));
-    printf("| gl, no octree map | %.3f | %.3f | %.2f | (same image) |\n", best[0], (double)w * h / best[0] * 1e-6,
-           cpu1 / best[0]);
-    printf("\noctree map: %.3f× the time without it\n", best[1] / best[0]);
+    printf("\n# GL compute renderer (%s), state upload %.3f s, octree map level %d (%d descent steps saved), %s\n\n",
+           info, tu, gs.map_level, gs.map_level, atmo ? "atmosphere" : "no atmosphere");
+    printf("| renderer | best of %ld (s) | M rays/s | vs 1 CPU thread | vs gl | RMSE vs CPU (0–255) |\n"
+           "|---|---:|---:|---:|---:|---:|\n", repeat);
+    for (int c = 0; c < NCF; c++) {
+      printf("| %s | %.3f | %.3f | %.2f | %.3f | ", cf[c].label, best[c], (double)w * h / best[c] * 1e-6, cpu1 / best[c],
+             best[c] / best[0]);
+      if (c == 0) printf("%.3f |\n", sqrt(se / (double)n));
+      else printf("(same image) |\n");
+    }
     free(a);
     free(b);
   }
@@ -172,12 +177,10 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     ocs_world_free(world);
     if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
   }
-  ocg_atmosphere ap;
-  oc_atmo_params_default(&ap);
   double ta = oct_now();
-  oc_atmo_t *atmo = oc_atmo_create(&ap, 2);
+  oc_atmo_t *atmo = NULL; /* none when the scene has no atmosphere */
+  if (oc_scene_atmo(&sc, 2, &atmo) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
   ta = oct_now() - ta;
-  if (!atmo) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
 
   printf("# CPU reference renderer: %s, %dx%d, step factor %g, state %u nodes / %u bricks, atmosphere tables %.3f s\n\n",
          scene_path, w, h, step, st.node_count, st.brick_count, ta);
@@ -189,9 +192,6 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
   for (int i = 0; i < nthreads; i++) {
     oc_render_desc_t d = render_desc(&sc, cam, w, h, step, atmo);
     d.threads = (int)threads[i];
-    d.ms_octaves = sc.optics.ms_octaves;
-    d.albedo = (float)sc.optics.albedo;
-    d.albedo_zero = sc.optics.albedo == 0.0;
     if (oc_image_alloc(&img, w, h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
     double best = 1e30;
     oc_render_stats_t rs = {0};

@@ -21,8 +21,15 @@ _Static_assert(sizeof(ocg_atmosphere) == 96, "ocg_atmosphere is the std140 block
 #define OCV__KERNEL "raymarch.comp.glsl"
 #define OCV__GROUP 8 /* local_size_x/y of the kernel */
 
+/* Shader variants: bit 0 atmosphere, bit 1 blending, bit 2 a debug view (raymarch.comp.glsl's OCV_ATMO,
+ * OCV_BLEND, OCV_DEBUG); OCV__GENERIC is the program reading them from uniforms. */
+#define OCV__VARIANTS 8
+#define OCV__GENERIC OCV__VARIANTS
+
 struct ocv_gl_renderer_s {
-  GLuint prog;
+  GLuint prog[OCV__VARIANTS + 1]; /* compiled on first use, but for the common one at creation */
+  char defines[512];
+  int generic;                    /* always the generic program (benchmarks) */
   GLuint atmo_ubo;
   GLuint tab[OC_ATMO_TABLE_COUNT];
   const oc_atmo_t *atmo; /* whose tables tab[] hold */
@@ -64,25 +71,41 @@ void ocv_gl_renderer_set_prev(ocv_gl_renderer_t *r, const ocv_gl_prev_t *gp, flo
   r->t = t < 0.0f ? 0.0f : t > 1.0f ? 1.0f : t;
 }
 
+/* The kernel for variant v (or the generic one), compiled the first time it is asked for. */
+static GLuint ocv__program(ocv_gl_renderer_t *r, int v, char *why, size_t why_len) {
+  if (r->prog[v]) return r->prog[v];
+  char defines[1024];
+  if (v == OCV__GENERIC)
+    snprintf(defines, sizeof defines, "%s", r->defines);
+  else
+    snprintf(defines, sizeof defines, "%s#define OCV_ATMO %s\n#define OCV_BLEND %s\n#define OCV_DEBUG %s\n", r->defines,
+             v & 1 ? "true" : "false", v & 2 ? "true" : "false", v & 4 ? "true" : "false");
+  r->prog[v] = ocv_gl_compute_program(OCV__KERNEL, defines, why, why_len);
+  return r->prog[v];
+}
+
+void ocv_gl_renderer_set_variants(ocv_gl_renderer_t *r, int on) {
+  if (r) r->generic = !on;
+}
+
 ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
   ocv_gl_renderer_t *r = calloc(1, sizeof *r);
   if (!r) {
     (void)oc_errorf(0, why, why_len, "out of memory");
     return NULL;
   }
-  char defines[512];
   /* The flag bits and constants the kernel shares with oc_render.c, from their one definition. */
-  snprintf(defines, sizeof defines,
+  snprintf(r->defines, sizeof r->defines,
            "#define OCV_RF_NO_AMBIENT %uu\n#define OCV_RF_NO_SUN_DISC %uu\n#define OCV_RF_JITTER %uu\n"
            "#define OCV_LOCATE_EPS 1e-4\n#define OCV_MAX_STEPS 200000\n"
            "#define OCV_DEBUG_LOD %d\n#define OCV_DEBUG_TAU %d\n#define OCV_DEBUG_BOUNDS %d\n",
            (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER, OC_DEBUG_LOD, OC_DEBUG_TAU,
            OC_DEBUG_BOUNDS);
   r->pass_ms[0] = r->pass_ms[1] = -1.0;
-  r->prog = ocv_gl_compute_program(OCV__KERNEL, defines, why, why_len);
-  if (r->prog) r->reproject = ocv_gl_compute_program("reproject.comp.glsl", NULL, why, why_len);
-  if (!r->prog || !r->reproject) {
-    if (r->prog) glDeleteProgram(r->prog);
+  GLuint common = ocv__program(r, 1, why, why_len); /* atmosphere, no blend, no debug view */
+  if (common) r->reproject = ocv_gl_compute_program("reproject.comp.glsl", NULL, why, why_len);
+  if (!common || !r->reproject) {
+    if (common) glDeleteProgram(common);
     free(r);
     return NULL;
   }
@@ -106,7 +129,8 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r) {
   if (r->atmo_ubo) glDeleteBuffers(1, &r->atmo_ubo);
   if (r->out) glDeleteBuffers(1, &r->out);
   if (r->depth) glDeleteBuffers(1, &r->depth);
-  if (r->prog) glDeleteProgram(r->prog);
+  for (int v = 0; v <= OCV__VARIANTS; v++)
+    if (r->prog[v]) glDeleteProgram(r->prog[v]);
   if (r->reproject) glDeleteProgram(r->reproject);
   for (int k = 0; k < 2; k++)
     if (r->query[k]) glDeleteQueries(1, &r->query[k]);
@@ -192,7 +216,10 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   float lo[3] = {(float)(o.x - hi[0]), (float)(o.y - hi[1]), (float)(o.z - hi[2])};
   double tn = tan(0.5 * d.camera.vfov_deg * OC_DEG);
 
-  GLuint p = r->prog;
+  int blend = r->prev && r->prev->count == gs->leaf_count && r->t < 1.0f;
+  int variant = r->generic ? OCV__GENERIC : (have_atmo ? 1 : 0) | (blend ? 2 : 0) | (d.debug_view ? 4 : 0);
+  GLuint p = ocv__program(r, variant, why, why_len);
+  if (!p) return OC_EIO;
   glProgramUniform3i(p, 0, ic[0], ic[1], ic[2]);
   glProgramUniform3f(p, 1, (float)fr[0], (float)fr[1], (float)fr[2]);
   glProgramUniform3f(p, 2, hi[0], hi[1], hi[2]);
@@ -225,7 +252,6 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   glProgramUniform1i(p, 29, d.debug_view);
 
   glProgramUniform1i(p, 30, phase);
-  int blend = r->prev && r->prev->count == gs->leaf_count && r->t < 1.0f;
   glProgramUniform1i(p, 31, blend);
   glProgramUniform1f(p, 32, r->t);
   glProgramUniform3i(p, 33, blend ? r->prev->pool_bricks[0] : 1, blend ? r->prev->pool_bricks[1] : 1, 1);

@@ -182,6 +182,12 @@ GLuint ocv_gl_renderer_output(const ocv_gl_renderer_t *r);
  *  from the root (off: the same image, for benchmarks and tests). */
 void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on);
 
+/*! ocv_gl_renderer_set_variants() : compile one kernel per combination of the features a frame uses
+ *  (atmosphere, blending, a debug view) with the others left out (on, the default), or always use the
+ *  generic kernel that branches on uniforms (off: the same image, for benchmarks). A variant is
+ *  compiled when first used; the common one (atmosphere only) when the renderer is created. */
+void ocv_gl_renderer_set_variants(ocv_gl_renderer_t *r, int on);
+
 /*! ocv_gl_renderer_timings() : GPU time of the last trace and reprojection passes (timer queries),
  *  ms; −1 for a pass not run yet. */
 void ocv_gl_renderer_timings(const ocv_gl_renderer_t *r, double *trace_ms, double *reproject_ms);

@@ -1,7 +1,11 @@
-/* test_gl_map.c — the octree map (client/gl/gl_state.c, Pettersson's 64³ map): a state deep enough
- * gets a map whose level is within OCV_GL_MAP_MAX_LEVEL and its deepest leaf, the map's words stay
- * within the tree and records' own size, and an image rendered with the map is bit-identical to one
- * descending every lookup from the root (a wrong map entry would pick another leaf and change it). */
+/* test_gl_savings.c — what the GL renderer leaves out changes no pixel:
+ *   - the octree map (client/gl/gl_state.c, Pettersson's 64³ map): a state deep enough gets a map
+ *     whose level is within OCV_GL_MAP_MAX_LEVEL and its deepest leaf, its words stay within the
+ *     tree and records' own size, and an image rendered with the map is bit-identical to one
+ *     descending every lookup from the root (a wrong map entry would pick another leaf);
+ *   - shader variants (client/gl/gl_render.c): the kernel compiled without the features a frame does
+ *     not use (here: no atmosphere; a debug view) renders what the generic kernel renders, bit for
+ *     bit (a variant constant of the wrong value would drop or add a term). */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -21,7 +25,7 @@
 #define W 96
 #define H 54
 
-static void test_gl_map__same_image(void **state) {
+static void test_gl_savings__same_image(void **state) {
   (void)state;
   require_gl();
   char why[512];
@@ -58,6 +62,14 @@ static void test_gl_map__same_image(void **state) {
     assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &b, why, sizeof why), 0);
     ocv_gl_renderer_set_map(ren, 1);
     assert_memory_equal(a.px, b.px, sizeof(float) * 4 * W * H);
+    for (int debug = 0; debug <= OC_DEBUG_LOD; debug += OC_DEBUG_LOD) {
+      d.debug_view = debug;
+      assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &a, why, sizeof why), 0);
+      ocv_gl_renderer_set_variants(ren, 0);
+      assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &b, why, sizeof why), 0);
+      ocv_gl_renderer_set_variants(ren, 1);
+      assert_memory_equal(a.px, b.px, sizeof(float) * 4 * W * H);
+    }
     oc_image_free(&a);
     oc_image_free(&b);
     ocv_gl_state_free(&gs);
@@ -66,6 +78,6 @@ static void test_gl_map__same_image(void **state) {
 }
 
 int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_map__same_image)};
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_savings__same_image)};
   return cmocka_run_group_tests(tests, setup, teardown);
 }
