@@ -21,6 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "oc_camera.h" /* oc_camera_pose_t */
 #include "oc_state.h"
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
@@ -144,5 +145,29 @@ int ocv_net_take_state(ocv_net_t *n, oc_state_t *dst, uint64_t *epoch);
 void ocv_net_status(ocv_net_t *n, ocv_net_status_t *out);
 /*! ocv_net_stop() : GOODBYE, joins the thread, frees. NULL is fine. */
 void ocv_net_stop(ocv_net_t *n);
+
+/* ---- One state, the simple way (fetch.c) ---------------------------------------------------------- */
+
+typedef struct {
+  const char *host;
+  int port;
+  const char *token;              /**< NULL: none */
+  uint64_t budget;                /**< bytes asked for */
+  int max_depth;                  /**< 0..21 */
+  int width, height;              /**< the viewport the camera is planned for */
+  const oc_camera_pose_t *pose;   /**< the camera; NULL: the WELCOME's default camera */
+  int step;                       /**< the server steps by command: ask for each epoch on a control
+                                       connection of our own (token as above) */
+  uint64_t epochs;                /**< complete states to wait for (≥ 1) */
+  double timeout_s;               /**< for everything */
+} ocv_fetch_desc_t;
+
+/*! ocv_fetch() : connects as a viewer, sends the camera, (step) steps the server one epoch at a time,
+ *  waits for `epochs` complete, verified states, and copies the newest into st (initialised), the
+ *  WELCOME into *welcome and the camera used into *pose_out (either may be NULL). Closes with
+ *  GOODBYE. @return 0, or a negative OC_E* with a one-line reason naming the server (OC_EIO:
+ *  refused, closed, timed out). */
+int ocv_fetch(const ocv_fetch_desc_t *d, oc_state_t *st, ocp_welcome_t *welcome, oc_camera_pose_t *pose_out, char *why,
+              size_t why_len);
 
 #endif /* OC_CLIENT_NET_H */

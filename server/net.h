@@ -52,6 +52,9 @@ int ocs_server_port(const ocs_server_t *s);
 int ocs_server_run(ocs_server_t *s, int handle_signals);
 /*! ocs_server_stop() : from the loop thread: says GOODBYE to everyone and ends the loop. */
 void ocs_server_stop(ocs_server_t *s);
+/*! ocs_server_stop_async() : the same, asked from any thread (a server run on a thread of its own,
+ *  as overcast-bench and overcast-stress do): ocs_server_run() returns soon after. */
+void ocs_server_stop_async(ocs_server_t *s);
 void ocs_server_free(ocs_server_t *s);
 
 #endif /* OC_SERVER_NET_H */

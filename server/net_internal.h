@@ -60,6 +60,7 @@ struct ocs_server_s {
   uv_loop_t loop;
   uv_tcp_t listener;
   uv_timer_t epoch_timer, house_timer;
+  uv_async_t stop_async;     /* ocs_server_stop_async(): a stop asked from another thread */
   uv_signal_t sig_int, sig_term;
   uv_work_t work;
   int signals;

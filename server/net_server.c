@@ -761,6 +761,10 @@ static void on_signal(uv_signal_t *h, int signum) {
   ocs_server_stop(srv);
 }
 
+static void on_stop_async(uv_async_t *h) { ocs_server_stop(h->data); }
+
+void ocs_server_stop_async(ocs_server_t *srv) { uv_async_send(&srv->stop_async); }
+
 void ocs_server_stop(ocs_server_t *srv) {
   if (srv->stopping) return;
   srv->stopping = 1;
@@ -777,6 +781,7 @@ void ocs_server_stop(ocs_server_t *srv) {
   }
   close_quiet((uv_handle_t *)&srv->listener);
   close_quiet((uv_handle_t *)&srv->epoch_timer);
+  close_quiet((uv_handle_t *)&srv->stop_async);
   if (srv->signals) {
     close_quiet((uv_handle_t *)&srv->sig_int);
     close_quiet((uv_handle_t *)&srv->sig_term);
@@ -874,6 +879,8 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
   uv_tcp_getsockname(&srv->listener, (struct sockaddr *)&sa, &len);
   int port = sa.ss_family == AF_INET6 ? ntohs(((struct sockaddr_in6 *)&sa)->sin6_port) : ntohs(((struct sockaddr_in *)&sa)->sin_port);
   snprintf(srv->address, sizeof srv->address, strchr(srv->host, ':') ? "[%s]:%d" : "%s:%d", srv->host, port);
+  uv_async_init(&srv->loop, &srv->stop_async, on_stop_async);
+  srv->stop_async.data = srv;
   uv_timer_init(&srv->loop, &srv->epoch_timer);
   uv_timer_init(&srv->loop, &srv->house_timer);
   srv->epoch_timer.data = srv->house_timer.data = srv;
