@@ -57,6 +57,8 @@ static void ocv__on_reply(void *ctx, const ocp_control_t *c) {
 int ocv_fetch(const ocv_fetch_desc_t *o, oc_state_t *st, ocp_welcome_t *welcome, oc_camera_pose_t *pose_out, char *why,
               size_t why_len) {
   const oc_camera_pose_t *pose_in = o->pose;
+  oc_camera_pose_t pose_local;
+  if (!pose_out) pose_out = &pose_local;
   ocv__fetch_t n = {0};
   ocv_conn_t *vc = NULL, *cc = NULL;
   double deadline = ocv__now() + o->timeout_s;

@@ -5,7 +5,7 @@
 
 #include <uv.h>
 
-#include "net.h"
+#include "ocs_server.h"
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
 

@@ -1,5 +1,5 @@
 /* net_server.c — the libuv loop: listener, sessions, epochs, backpressure, timeouts, resume
- * (net.h; wire format in docs/protocol.md). Control requests are in net_control.c. */
+ * (ocs_server.h; wire format in docs/protocol.md). Control requests are in net_control.c. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>

@@ -1,5 +1,5 @@
 /* overcast-server — the server. By default it serves the scene's world to viewers and control
- * clients over TCP (net.h). Other modes: load a scene and build its field (--check), inspect VDB
+ * clients over TCP (ocs_server.h). Other modes: load a scene and build its field (--check), inspect VDB
  * files (--inspect), export a region of the field to a .vdb (--export-vdb), and run the server
  * core for one viewer offline, writing the state it would hold (--save-state). */
 #include <getopt.h>
@@ -17,7 +17,7 @@
 #include "oc_state.h"
 #include "ocs_field.h"
 #include "vdb_tools.h"
-#include "net.h"
+#include "ocs_server.h"
 #include "ocp_wire.h"
 #include "world.h"
 

@@ -1,4 +1,4 @@
-/* net.h — the network server: one libuv loop serving one shared world (world.h) to many viewers
+/* ocs_server.h — the network server: one libuv loop serving one shared world (world.h) to many viewers
  * and control clients over the wire protocol (docs/protocol.md, "Wire").
  *
  * The loop thread does all I/O and owns every session; ocs_world_step() runs on libuv's thread
@@ -11,8 +11,8 @@
  * limits (as Redis's client output buffer limits) and a stall timeout close what still falls
  * behind. A slow viewer does not delay anyone's epoch: it is skipped (coalesced) until it
  * acknowledges, and its next plan is sized from what it absorbed. */
-#ifndef OC_SERVER_NET_H
-#define OC_SERVER_NET_H
+#ifndef OC_SERVER_OCS_SERVER_H
+#define OC_SERVER_OCS_SERVER_H
 
 #include <stdint.h>
 
@@ -57,4 +57,4 @@ void ocs_server_stop(ocs_server_t *s);
 void ocs_server_stop_async(ocs_server_t *s);
 void ocs_server_free(ocs_server_t *s);
 
-#endif /* OC_SERVER_NET_H */
+#endif /* OC_SERVER_OCS_SERVER_H */
