@@ -1,8 +1,9 @@
 /* test_gl_interp.c — interpolation between states on the GPU (client/interp.h → client/gl/gl_interp.c
  * → the kernel's mix(previous, newest, t)): at t = 1 the newest state exactly; at t = 0 the previous
  * state (exactly where bricks were refreshed in place, closely where the tree was re-planned, since
- * a split parent and merged children are resampled); in between, in between; a static scene's
- * refreshed brick snaps (only splits and merges cross-fade). */
+ * a split parent and merged children are resampled); in between, in between; halfway, the CPU
+ * reference renderer's image of the interpolated state, materialised on the CPU (refreshed in
+ * place, split, merged); a static scene's refreshed brick snaps (only splits and merges cross-fade). */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -28,10 +29,7 @@
 
 static void make_state(oc_state_t *st, oc_camera_t cam, uint32_t id_base) { sphere_state(st, cam, H, id_base); }
 
-static void render(const oc_state_t *s, oc_camera_t cam, const ocv_gl_prev_t *gp, float t, oc_image_t *img) {
-  char why[512];
-  ocv_gl_state_t gs;
-  assert_int_equal(ocv_gl_state_upload(&gs, s, why, sizeof why), 0);
+static oc_render_desc_t view_desc(oc_camera_t cam) {
   oc_render_desc_t d;
   memset(&d, 0, sizeof d);
   d.width = W;
@@ -39,6 +37,15 @@ static void render(const oc_state_t *s, oc_camera_t cam, const ocv_gl_prev_t *gp
   d.camera = cam;
   d.background = OC_BG_CONSTANT;
   d.background_radiance = 0.02f;
+  d.threads = 2;
+  return d;
+}
+
+static void render(const oc_state_t *s, oc_camera_t cam, const ocv_gl_prev_t *gp, float t, oc_image_t *img) {
+  char why[512];
+  ocv_gl_state_t gs;
+  assert_int_equal(ocv_gl_state_upload(&gs, s, why, sizeof why), 0);
+  oc_render_desc_t d = view_desc(cam);
   assert_int_equal(oc_image_alloc(img, W, H), 0);
   ocv_gl_renderer_set_prev(ren, gp, t);
   if (ocv_gl_render_state(ren, &gs, &d, img, why, sizeof why) < 0) fail_msg("render: %s", why);
@@ -79,6 +86,113 @@ static void blend_case(const char *name, oc_state_t *P, oc_state_t *N, oc_camera
   ocv_interp_free(&ip);
 }
 
+/* The state the kernel shows at blend parameter t, materialised on the CPU: every leaf of N keeps
+ * its key; its samples are mix(previous, newest, w) per channel with w the weight of its source
+ * (the kernel mixes the two trilinear reconstructions, and trilinear reconstruction is linear in
+ * the samples, so mixing the samples gives the same field), re-encoded by oc_brick_encode (empty,
+ * uniform or a brick with new sequential ids). Leaves with w = 1 are N's own. */
+static void interpolated_state(oc_state_t *out, const oc_state_t *N, const ocv_interp_t *ip, int animated, float t) {
+  oc_state_init(out);
+  out->epoch = N->epoch;
+  out->time = N->time;
+  out->sun_dir = N->sun_dir;
+  uint32_t next_id = 1;
+  for (uint32_t i = 0; i < N->node_count; i++) {
+    const oc_node_t *n = &N->nodes[i];
+    const ocv_interp_prev_t *p = &ip->prev[i];
+    /* the Conventions' weights, written out rather than taken from ocv_interp_weight(): t where
+     * the leaf changed (OWN only when animated; PARENT, CHILDREN always), else N's own value */
+    int blends = p->source == OCV_INTERP_PARENT || p->source == OCV_INTERP_CHILDREN ||
+                 (animated && p->source == OCV_INTERP_OWN);
+    float w = blends ? t : 1.0f;
+    float cur[OC_CHANNELS][OC_BRICK_VOXELS], mixed[OC_CHANNELS][OC_BRICK_VOXELS];
+    if (n->kind == OC_NODE_BRICK) {
+      const oc_brick_t *b = oc_state_find_brick(N, n->brick_id);
+      assert_non_null(b);
+      oc_brick_decode(&b->codes, n->range, cur[OC_CH_SIGMA], cur[OC_CH_TAU]);
+    } else {
+      for (int c = 0; c < OC_CHANNELS; c++)
+        for (int v = 0; v < OC_BRICK_VOXELS; v++) cur[c][v] = n->kind == OC_NODE_UNIFORM ? n->range[c].lo : 0.0f;
+    }
+    for (int c = 0; c < OC_CHANNELS; c++) {
+      const float *prev = w < 1.0f ? ocv_interp_samples(ip, i, c) : NULL;
+      for (int v = 0; v < OC_BRICK_VOXELS; v++) {
+        float a = w < 1.0f ? (prev ? prev[v] : p->value[c]) : cur[c][v];
+        mixed[c][v] = a * (1.0f - w) + cur[c][v] * w; /* GLSL mix(a, b, w) */
+      }
+    }
+    oc_node_t m = *n;
+    oc_brick_codes_t codes;
+    m.kind = (uint8_t)oc_brick_encode(mixed[OC_CH_SIGMA], mixed[OC_CH_TAU], &codes, m.range);
+    m.brick_id = 0;
+    if (m.kind == OC_NODE_BRICK) {
+      m.brick_id = next_id++;
+      assert_int_equal(oc_state_add_brick(out, m.brick_id, &codes), 0);
+    }
+    assert_int_equal(oc_state_add_node(out, &m), 0);
+  }
+  oc_state_canonicalize(out);
+  char why[256];
+  if (oc_state_validate(out, why, sizeof why) < 0) fail_msg("interpolated state: %s", why);
+}
+
+static void cpu_render(const oc_state_t *s, oc_camera_t cam, oc_image_t *img) {
+  oc_render_desc_t d = view_desc(cam);
+  assert_int_equal(oc_image_alloc(img, W, H), 0);
+  oc_render_stats_t st;
+  assert_int_equal(oc_render_state(s, &d, img, &st), 0);
+  assert_int_equal(st.nonfinite, 0);
+}
+
+/* Halfway through an epoch the GL image (N with P's previous values, t = ½) matches the CPU
+ * reference renderer of the interpolated state within HALF_BOUND — GL vs CPU of one state differs
+ * by ~0.01 and the re-encoding by at most oc_code_rel_error_bound (~1e-4 relative), so any real
+ * error in the previous values (a wrong pool entry, a parent resampled at the wrong offset, the
+ * wrong weight) or in the kernel's mix shows. Negative controls: the CPU render of N alone and of
+ * P alone are farther than 4·HALF_BOUND, and that of the state interpolated at t = 0.4 instead of
+ * ½ farther than 2·HALF_BOUND (a blend parameter off by 0.1 breaks the bound too). Measured on
+ * llvmpipe: 0.000–0.011; controls ≥ 0.66 (t = 0.4), ≥ 2.5 (N, P). */
+#define HALF_BOUND 0.25
+
+static void half_matches_cpu(const char *name, const oc_state_t *P, const oc_state_t *N, oc_camera_t view,
+                             int animated) {
+  char why[512];
+  ocv_interp_t ip;
+  ocv_interp_init(&ip);
+  assert_int_equal(ocv_interp_build(&ip, P, N), 0);
+  ocv_gl_prev_t gp;
+  if (ocv_gl_prev_upload(&gp, &ip, animated, why, sizeof why) < 0) fail_msg("%s", why);
+  oc_state_t M, M4;
+  interpolated_state(&M, N, &ip, animated, 0.5f);
+  interpolated_state(&M4, N, &ip, animated, 0.4f);
+  oc_image_t gl, cm, c4, cn, cp;
+  render(N, view, &gp, 0.5f, &gl);
+  cpu_render(&M, view, &cm);
+  cpu_render(&M4, view, &c4);
+  cpu_render(N, view, &cn);
+  cpu_render(P, view, &cp);
+  double e = rmse(&gl, &cm), e4 = rmse(&gl, &c4), en = rmse(&gl, &cn), ep = rmse(&gl, &cp);
+  ocv_interp_stats_t is;
+  ocv_interp_stats(&ip, &is);
+  printf("%s, t=½ (own %u parent %u children %u; interpolated state: %u leaves, %u bricks): GL vs CPU of the "
+         "interpolated state RMSE %.3f (bound %.2f); controls: CPU at t=0.4 %.3f, N %.3f, P %.3f\n",
+         name, is.count[OCV_INTERP_OWN], is.count[OCV_INTERP_PARENT], is.count[OCV_INTERP_CHILDREN], M.node_count,
+         M.brick_count, e, HALF_BOUND, e4, en, ep);
+  assert_true(e <= HALF_BOUND);
+  assert_true(e4 > 2 * HALF_BOUND);
+  assert_true(en > 4 * HALF_BOUND);
+  assert_true(ep > 4 * HALF_BOUND);
+  oc_image_free(&gl);
+  oc_image_free(&cm);
+  oc_image_free(&c4);
+  oc_image_free(&cn);
+  oc_image_free(&cp);
+  oc_state_free(&M);
+  oc_state_free(&M4);
+  ocv_gl_prev_free(&gp);
+  ocv_interp_free(&ip);
+}
+
 static void test_gl_interp__refresh_and_replan(void **state) {
   (void)state;
   require_gl();
@@ -96,6 +210,7 @@ static void test_gl_interp__refresh_and_replan(void **state) {
     for (int v = 0; v < 512; v++) R.bricks[b].codes.code[0][v] = (uint16_t)(R.bricks[b].codes.code[0][v] ? 65535 - (v & 255) : 0);
   }
   blend_case("refresh", &P, &R, cf, 1, 0.5);
+  half_matches_cpu("refresh", &P, &R, cf, 1);
   { /* a static scene has no time interpolation: a brick refreshed in place snaps to the newest */
     char why[512];
     ocv_interp_t ip;
@@ -115,6 +230,8 @@ static void test_gl_interp__refresh_and_replan(void **state) {
   /* re-planned for a nearer camera: splits and merges, seen from the far camera */
   make_state(&N, cn, 1000000);
   blend_case("replan", &P, &N, cf, 1, 3.0);
+  half_matches_cpu("replan", &P, &N, cf, 1); /* splits: PARENT */
+  half_matches_cpu("merge", &N, &P, cf, 1);  /* the other way: CHILDREN */
   oc_state_free(&P);
   oc_state_free(&N);
   oc_state_free(&R);

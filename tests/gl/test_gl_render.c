@@ -4,14 +4,19 @@
  * tone-mapped alike (oc_image_tonemap); the RMSE and the largest channel difference on the 0–255
  * scale are printed and bounded:
  *   1. constant_background: scenes/analytic_sphere.json voxelized locally, seen from its camera,
- *      no atmosphere and no planet (OC_BG_CONSTANT): RMSE ≤ 1;
- *   2. atmosphere: the same state with atmosphere, planet and sun disc: RMSE ≤ 2;
- *   3. camera_inside: the camera inside the sphere near its edge, looking out: RMSE ≤ 2;
- *   4. low_sun: the sun 3° above the horizon (τ baked for it): RMSE ≤ 2;
- *   5. errors_name_file_and_line: a broken kernel's compile error names shaders/FILE:LINE.
+ *      no atmosphere and no planet (OC_BG_CONSTANT);
+ *   2. atmosphere: the same state with atmosphere, planet and sun disc;
+ *   3. camera_inside: the camera inside the sphere near its edge, looking out;
+ *   4. low_sun: the sun 3° above the horizon (τ baked for it);
+ *   5. jitter, space, ground, one metre from the cloud: likewise;
+ *   6. step_factor_sensitivity: the bound is tight — a 10 % change of the GLSL step factor breaks it;
+ *   7. errors_name_file_and_line: a broken kernel's compile error names shaders/FILE:LINE.
+ * Bounds (1–6): RMSE ≤ CMP_RMSE = 0.25 and no channel off by more than CMP_MAX = 8; measured on
+ * llvmpipe (Mesa 22.3): RMSE 0.000–0.025, largest difference 1 — about 10× margin for rounding
+ * differences between Mesa/LLVM versions, while a 10 % step-factor change gives ≥ 0.67 (test 6).
  * A test that passes on a black or uniform image proves nothing, so each image must also have a
  * spread of values. With $OC_TEST_OUT set, both renders are written there as PNGs.
- * Images are 160×90, LP_NUM_THREADS=2 (design.md, CI). */
+ * Images are 160×90 (test 6: 96×54), LP_NUM_THREADS=2 (design.md, CI). */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -36,6 +41,8 @@
 #define W 160
 #define H 90
 #define EXPOSURE 10.0f
+#define CMP_RMSE 0.25 /* see the top of the file */
+#define CMP_MAX 8
 
 typedef struct {
   ocv_gl_context_t *ctx;
@@ -199,7 +206,7 @@ static void test_gl_render__constant_background(void **state) {
   oc_render_desc_t d = base_desc(&sc, cam);
   d.background = OC_BG_CONSTANT;
   d.background_radiance = 0.02f;
-  compare("constant_background", &st, &d, 1.0, 16);
+  compare("constant_background", &st, &d, CMP_RMSE, CMP_MAX);
   oc_state_free(&st);
   oc_scene_free(&sc);
 }
@@ -213,7 +220,7 @@ static void test_gl_render__atmosphere(void **state) {
   oc_camera_t cam;
   make_scene(&sc, &st, &cam, NULL, NULL);
   oc_render_desc_t d = base_desc(&sc, cam);
-  compare("atmosphere", &st, &d, 2.0, 32);
+  compare("atmosphere", &st, &d, CMP_RMSE, CMP_MAX);
   oc_state_free(&st);
   oc_scene_free(&sc);
 }
@@ -229,7 +236,7 @@ static void test_gl_render__camera_inside(void **state) {
   oc_camera_t cam;
   make_scene(&sc, &st, &cam, &pose, NULL);
   oc_render_desc_t d = base_desc(&sc, cam);
-  compare("camera_inside", &st, &d, 2.0, 32);
+  compare("camera_inside", &st, &d, CMP_RMSE, CMP_MAX);
   oc_state_free(&st);
   oc_scene_free(&sc);
 }
@@ -246,9 +253,85 @@ static void test_gl_render__low_sun(void **state) {
   oc_camera_t cam;
   make_scene(&sc, &st, &cam, NULL, &sun);
   oc_render_desc_t d = base_desc(&sc, cam);
-  compare("low_sun", &st, &d, 2.0, 32);
+  compare("low_sun", &st, &d, CMP_RMSE, CMP_MAX);
   oc_state_free(&st);
   oc_scene_free(&sc);
+}
+
+/* The bound is tight: the GLSL image matches the CPU reference within STEP_BOUND at the same step
+ * factor, and rendering the GLSL side with the step factor changed by 10 % (either way) breaks
+ * that bound — so a kernel that stepped differently from oc__trace (another step length, another
+ * sample position inside the segment, a segment dropped or doubled at node faces) would fail here.
+ * The sphere (constant σt, τ from the sun) seen from the scene's camera, no jitter, the default
+ * step factor 0.5 and a constant background: along a ray σt changes at the sphere's edge (a ramp
+ * across one voxel of the trilinear reconstruction) and τ varies everywhere, so the segment
+ * integral is not exact and the step length shows (measured on llvmpipe: 0.011 at the same step,
+ * 1.03 at ×1.1 and 0.80 at ×0.9, 0–255 scale). A second view with atmosphere at step factor 1.0,
+ * where air segments interleave with cloud segments (0.021; 1.08 and 0.67). 96×54 to stay cheap. */
+#define STEP_W 96
+#define STEP_H 54
+#define STEP_BOUND CMP_RMSE /* the bound every view above is held to */
+
+static void render_small(const oc_state_t *st, const oc_render_desc_t *d, int gl, uint8_t *rgb) {
+  oc_image_t img = {0};
+  assert_int_equal(oc_image_alloc(&img, d->width, d->height), 0);
+  if (gl) {
+    char why[1024] = "";
+    ocv_gl_state_t gs;
+    if (ocv_gl_state_upload(&gs, st, why, sizeof why)) fail_msg("upload: %s", why);
+    if (ocv_gl_render_state(fx.r, &gs, d, &img, why, sizeof why)) fail_msg("render: %s", why);
+    ocv_gl_state_free(&gs);
+  } else {
+    assert_int_equal(oc_render_state(st, d, &img, NULL), 0);
+  }
+  assert_int_equal(oc_image_tonemap(&img, EXPOSURE, rgb), 0);
+  oc_image_free(&img);
+}
+
+static void test_gl_render__step_factor_sensitivity(void **state) {
+  (void)state;
+  require_gl();
+  assert_non_null(fx.atmo);
+  static const struct {
+    const char *name;
+    int atmosphere;
+    double step;
+  } views[] = {{"constant_background", 0, 0.5}, {"atmosphere", 1, 1.0}};
+  uint8_t *cpu = malloc(STEP_W * STEP_H * 3), *gpu = malloc(STEP_W * STEP_H * 3);
+  assert_non_null(cpu);
+  assert_non_null(gpu);
+  for (int v = 0; v < 2; v++) {
+    oc_scene_t sc;
+    oc_state_t st;
+    oc_camera_t cam;
+    make_scene(&sc, &st, &cam, NULL, NULL);
+    oc_render_desc_t d = base_desc(&sc, cam);
+    d.width = STEP_W;
+    d.height = STEP_H;
+    if (!views[v].atmosphere) {
+      d.background = OC_BG_CONSTANT;
+      d.background_radiance = 0.02f;
+    }
+    d.step_factor = views[v].step;
+    render_small(&st, &d, 0, cpu);
+    render_small(&st, &d, 1, gpu);
+    double same = oc_rgb8_rmse(cpu, gpu, STEP_W, STEP_H);
+    d.step_factor = views[v].step * 1.1;
+    render_small(&st, &d, 1, gpu);
+    double longer = oc_rgb8_rmse(cpu, gpu, STEP_W, STEP_H);
+    d.step_factor = views[v].step * 0.9;
+    render_small(&st, &d, 1, gpu);
+    double shorter = oc_rgb8_rmse(cpu, gpu, STEP_W, STEP_H);
+    printf("step factor %.1f, %-19s GLSL vs CPU RMSE %.3f (bound %.2f); GLSL at ×1.1 %.3f, at ×0.9 %.3f\n",
+           views[v].step, views[v].name, same, STEP_BOUND, longer, shorter);
+    assert_true(same <= STEP_BOUND);   /* the same step factor: within the bound */
+    assert_true(longer > STEP_BOUND);  /* negative controls: a 10 % change breaks it */
+    assert_true(shorter > STEP_BOUND);
+    oc_state_free(&st);
+    oc_scene_free(&sc);
+  }
+  free(cpu);
+  free(gpu);
 }
 
 /* Extreme places: from space (1000 km up, the whole limb in view), from the ground (2 m up,
@@ -273,7 +356,7 @@ static void test_gl_render__space_and_ground(void **state) {
     oc_camera_t cam;
     make_scene(&sc, &st, &cam, &views[i].pose, NULL);
     oc_render_desc_t d = base_desc(&sc, cam);
-    compare(views[i].name, &st, &d, 2.0, 32);
+    compare(views[i].name, &st, &d, CMP_RMSE, CMP_MAX);
     oc_state_free(&st);
     oc_scene_free(&sc);
   }
@@ -293,7 +376,7 @@ static void test_gl_render__jitter(void **state) {
   d.background_radiance = 0.02f;
   d.flags = OC_RF_JITTER;
   d.frame = 7;
-  compare("jitter", &st, &d, 1.0, 16);
+  compare("jitter", &st, &d, CMP_RMSE, CMP_MAX);
   oc_image_t a = {0}, b = {0};
   assert_int_equal(oc_image_alloc(&a, W, H), 0);
   assert_int_equal(oc_image_alloc(&b, W, H), 0);
@@ -422,6 +505,7 @@ int main(void) {
       cmocka_unit_test(test_gl_render__camera_inside),
       cmocka_unit_test(test_gl_render__low_sun),
       cmocka_unit_test(test_gl_render__jitter),
+      cmocka_unit_test(test_gl_render__step_factor_sensitivity),
       cmocka_unit_test(test_gl_render__space_and_ground),
       cmocka_unit_test(test_gl_render__debug_views),
       cmocka_unit_test(test_gl_render__errors_name_file_and_line),

