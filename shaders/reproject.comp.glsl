@@ -30,14 +30,14 @@ layout(location = 10) uniform vec2 u_ptan;
 layout(location = 11) uniform vec3 u_peye; /* previous eye − current eye, m */
 layout(location = 12) uniform float u_alpha; /* < 1: the traced pixel blends into its history (jitter
                                                 averages out, Ford's temporal accumulation) */
+layout(location = 13) uniform int u_moved;   /* the camera moved since the history was made */
 
 /* The history pixel this pixel's ray came from last frame, or -1 (off screen, behind, or its depth
  * disagrees with the reprojected point's). */
-int ocv_history_of(ivec2 px, int i) {
+int ocv_history_at(ivec2 px, float d) {
   float x = (2.0 * (float(px.x) + 0.5) / float(u_size.x) - 1.0) * u_tan.x;
   float y = (1.0 - 2.0 * (float(px.y) + 0.5) / float(u_size.y)) * u_tan.y;
   vec3 dir = normalize(u_fwd + u_right * x + u_up * y);
-  float d = hist_depth[i];
   vec3 q = dir * d - u_peye; /* the point seen from the previous eye */
   float z = dot(q, u_pfwd);
   if (z <= 0.0) return -1;
@@ -48,6 +48,21 @@ int ocv_history_of(ivec2 px, int i) {
   int ji = j.y * u_size.x + j.x;
   float dq = length(q);
   return abs(hist_depth[ji] - dq) <= 0.02 * dq + 1.0 ? ji : -1;
+}
+
+/* This pixel's ray at the depth it had last frame. */
+int ocv_history_of(ivec2 px, int i) { return ocv_history_at(px, hist_depth[i]); }
+
+/* A nearer surface beside this pixel last frame (3×3) that this pixel's ray now meets where the
+ * history saw it: the surface moved over the pixel (parallax), so its far history is stale. */
+bool ocv_covered(ivec2 px, float d) {
+  float near = d;
+  for (int y = -1; y <= 1; y++)
+    for (int x = -1; x <= 1; x++) {
+      ivec2 n = clamp(px + ivec2(x, y), ivec2(0), u_size - 1);
+      near = min(near, hist_depth[n.y * u_size.x + n.x]);
+    }
+  return near < d * 0.98 - 1.0 && ocv_history_at(px, near) >= 0;
 }
 
 /* The traced pixels of the 3×3 blocks around px bound what its history may hold (neighbourhood
@@ -63,6 +78,22 @@ void ocv_neighbourhood(ivec2 px, out vec4 lo, out vec4 hi) {
       lo = min(lo, c);
       hi = max(hi, c);
     }
+}
+
+/* Where the camera moved, history is also stale when it saw farther than every pixel traced this
+ * frame around this one (the 2×2 traced pixels that bracket it): a cloud moved over what the
+ * history saw as far, and a far depth reprojects onto far history and passes ocv_history_of. A still
+ * camera's history is exact and is kept (a thin feature between traced pixels would be lost). */
+bool ocv_behind_fresh(ivec2 px, float d) {
+  ivec2 t = (px & ~3) + ivec2(u_phase & 3, u_phase >> 2); /* this block's traced pixel */
+  ivec2 side = ivec2(px.x >= t.x ? 4 : -4, px.y >= t.y ? 4 : -4);
+  float hi = -1e30;
+  for (int k = 0; k < 4; k++) {
+    ivec2 b = t + ivec2(k & 1, k >> 1) * side;
+    if (any(lessThan(b, ivec2(0))) || any(greaterThanEqual(b, u_size))) continue;
+    hi = max(hi, cur_depth[b.y * u_size.x + b.x]);
+  }
+  return d > hi * 1.02 + 1.0;
 }
 
 void main() {
@@ -90,6 +121,7 @@ void main() {
   int bi = b.y * u_size.x + b.x;
   if (u_have_hist != 0) {
     int ji = ocv_history_of(px, i);
+    if (ji >= 0 && u_moved != 0 && (ocv_behind_fresh(px, hist_depth[ji]) || ocv_covered(px, hist_depth[ji]))) ji = -1;
     if (ji >= 0) {
       out_color[i] = hist[ji];
       out_depth[i] = hist_depth[i];

@@ -394,6 +394,9 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
       glProgramUniform3f(p, 11, (float)dc.x, (float)dc.y, (float)dc.z);
       /* with jittered ray starts each traced pixel joins its history: the jitter averages out */
       glProgramUniform1f(p, 12, (desc->flags & OC_RF_JITTER) ? OCV__ACCUMULATE : 1.0f);
+      int moved = hs->newest >= 0 && (memcmp(&c->pos, &pc->pos, sizeof c->pos) || memcmp(&c->forward, &pc->forward, sizeof c->forward) ||
+                                      memcmp(&c->up, &pc->up, sizeof c->up) || c->vfov_deg != pc->vfov_deg);
+      glProgramUniform1i(p, 13, moved);
       uint32_t zero[2] = {0, 0};
       glNamedBufferSubData(hs->stats, 0, sizeof zero, zero);
       glUseProgram(p);
