@@ -220,7 +220,10 @@ void ocv_gl_renderer_set_prev(ocv_gl_renderer_t *r, const ocv_gl_prev_t *gp, flo
  * 4×4 block (Bayer order) and fills the others from the previous frame, reprojected through the
  * depth it stored (where the cloud transmittance first fell below ½, else the ground, else far);
  * history whose depth disagrees with the reprojected point's is rejected and the block's freshly
- * traced pixel is used instead. With a still camera every pixel is fresh after 16 frames. */
+ * traced pixel is used instead. While the camera moves, far history is also rejected where a nearer
+ * surface now covers it: farther than all four traced pixels bracketing it, or beside nearer history
+ * that, reprojected at its depth, lands on itself (parallax at a cloud's leading edge). With a still
+ * camera every pixel is fresh after 16 frames. */
 typedef struct ocv_gl_history_s ocv_gl_history_t;
 
 typedef struct {
