@@ -6,6 +6,7 @@
  *   - W flies forward (the next screenshot's camera moved) and --record saved the flight;
  *   - V changes the picture (the LOD view), and after cycling back, = (exposure up) brightens it;
  *   - a resized window renders at its new size;
+ *   - dragging with the left mouse button turns the view;
  *   - Esc quits with status 0.
  * Programs from $OC_BIN_DIR (else ../bin beside this test), scenes from $OC_SOURCE_DIR. */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
@@ -54,7 +55,7 @@ typedef struct {
   char camera[256];
 } png_t;
 
-static png_t shot[5], head;
+static png_t shot[6], head;
 
 static int setup(void **state) {
   (void)state;
@@ -65,7 +66,7 @@ static int setup(void **state) {
 
 static int teardown(void **state) {
   (void)state;
-  for (int i = 0; i < 5; i++) free(shot[i].rgb);
+  for (int i = 0; i < 6; i++) free(shot[i].rgb);
   free(head.rgb);
   char cmd[1024];
   snprintf(cmd, sizeof cmd, "[ -f '%s/xvfb.pid' ] && kill $(cat '%s/xvfb.pid') 2>/dev/null; rm -rf '%s'", tmp, tmp, tmp);
@@ -116,6 +117,9 @@ static void test_window__keys_screenshots_record(void **state) {
            "k v; k p; "                                                    /* 2: LOD view */
            "k v; k v; k v; k equal; k equal; k equal; k p; "              /* 3: normal, brighter */
            "xdotool windowsize --sync $w 200 100; sleep 1; k p; "         /* 4: resized */
+           "xdotool mousemove --window $w 100 50 mousedown 1; sleep 0.3; "  /* mouse look: drag 60 px right */
+           "for i in 1 2 3 4 5 6; do xdotool mousemove_relative 10 0; sleep 0.1; done; "
+           "xdotool mouseup 1; sleep 0.7; k p; "                              /* 5: looked right */
            "k Escape; wait $pid",
            tmp, src, bin, tmp, tmp, tmp);
   int rc = run(cmd);
@@ -124,7 +128,7 @@ static void test_window__keys_screenshots_record(void **state) {
   assert_int_equal(rc, 0);
 
   char path[512];
-  for (int i = 0; i < 5; i++) {
+  for (int i = 0; i < 6; i++) {
     snprintf(path, sizeof path, "%s/out/screenshot_%04d.png", tmp, i);
     load(path, &shot[i]);
     printf("screenshot %d: %dx%d, camera %s, mean %.1f\n", i, shot[i].w, shot[i].h, shot[i].camera, mean(&shot[i]));
@@ -166,6 +170,13 @@ static void test_window__keys_screenshots_record(void **state) {
   assert_int_equal(shot[4].w, 200);
   assert_int_equal(shot[4].h, 100);
   assert_true(mean(&shot[4]) > 20.0);
+
+  /* dragging with the left button turned the view to the right (heading up), level as before */
+  oc_camera_pose_t p5;
+  assert_int_equal(oc_camera_parse(shot[5].camera, &p5, why, sizeof why), 0);
+  printf("mouse look: heading %.2f → %.2f, pitch %.2f → %.2f\n", p1.heading, p5.heading, p1.pitch, p5.pitch);
+  assert_true(p5.heading > p1.heading + 1.0 && p5.heading < p1.heading + 30.0);
+  assert_true(fabs(p5.pitch - p1.pitch) < 0.5);
 }
 
 int main(void) {
