@@ -133,41 +133,49 @@ typedef struct {
   ocv_interp_t *ip;
   const oc_state_t *p;
   oc__leaf_t *leaf;     /* decode cache (one P leaf) */
-  double (*sum)[OC_BRICK_VOXELS]; /* CHILDREN accumulators [2][512] */
-  uint8_t *cnt;         /* [512] */
+  double (*sum)[OC_BRICK_VOXELS]; /* CHILDREN accumulators [8 octants · 2 channels][512] */
+  uint8_t *cnt;         /* [8 octants · 512] */
   uint32_t *kids;       /* CHILDREN: P records inside the current N leaf */
   uint32_t kids_cap;
   int count_only;       /* first pass: only count the pool entries that may be needed */
   uint32_t need;        /* what the first pass counted */
 } oc__ctx_t;
 
-/* A new pool entry (the last one); the first pass sized the pool, so NULL means a bug. */
-static float *oc__pool_take(ocv_interp_t *ip) {
-  if (ip->pool_count >= ip->pool_cap) return NULL;
-  return ip->pool + (size_t)ip->pool_count++ * OCV_INTERP_ENTRY_FLOATS;
+/* n new pool entries (the last ones); the first pass sized the pool, so NULL means a bug. */
+static float *oc__pool_take(ocv_interp_t *ip, uint32_t n) {
+  if (n > ip->pool_cap - ip->pool_count) return NULL;
+  float *dst = ip->pool + (size_t)ip->pool_count * OCV_INTERP_ENTRY_FLOATS;
+  ip->pool_count += n;
+  return dst;
 }
 
-/* Files the entry just filled (the last pool entry) under e, or turns it into a uniform value
- * when both channels are constant (the entry is then given back). */
-static void oc__pool_commit(ocv_interp_t *ip, ocv_interp_prev_t *e) {
-  uint32_t idx = ip->pool_count - 1;
+/* Files the n entries just filled (the last ones in the pool; n = 1, or OCV_INTERP_FINE_ENTRIES
+ * for a fine value) under e, or turns them into a uniform value when both channels are constant
+ * over all of them (the entries are then given back). */
+static void oc__pool_commit(ocv_interp_t *ip, ocv_interp_prev_t *e, uint32_t n) {
+  uint32_t idx = ip->pool_count - n;
   const float *v = ip->pool + (size_t)idx * OCV_INTERP_ENTRY_FLOATS;
   int constant = 1;
-  for (int c = 0; c < OC_CHANNELS && constant; c++)
-    for (int q = 1; q < OC_BRICK_VOXELS; q++)
-      if (v[c * OC_BRICK_VOXELS + q] != v[c * OC_BRICK_VOXELS]) {
-        constant = 0;
-        break;
-      }
+  for (uint32_t k = 0; k < n && constant; k++)
+    for (int c = 0; c < OC_CHANNELS && constant; c++) {
+      const float *w = v + (size_t)k * OCV_INTERP_ENTRY_FLOATS + c * OC_BRICK_VOXELS;
+      for (int q = 0; q < OC_BRICK_VOXELS; q++)
+        if (w[q] != v[c * OC_BRICK_VOXELS]) {
+          constant = 0;
+          break;
+        }
+    }
   if (constant) {
     e->uniform = 1;
+    e->fine = 0;
     e->value[0] = v[0];
     e->value[1] = v[OC_BRICK_VOXELS];
     e->prev_index = OCV_INTERP_NO_POOL;
-    ip->pool_count--;
+    ip->pool_count = idx;
     return;
   }
   e->uniform = 0;
+  e->fine = n > 1;
   e->prev_index = idx;
 }
 
@@ -194,10 +202,10 @@ static int oc__fill_own(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi) {
     oc__set_uniform(e, cx->leaf->value);
     return 0;
   }
-  float *dst = oc__pool_take(cx->ip);
+  float *dst = oc__pool_take(cx->ip, 1);
   if (!dst) return OC_ECORRUPT;
   memcpy(dst, cx->leaf->v, sizeof cx->leaf->v);
-  oc__pool_commit(cx->ip, e);
+  oc__pool_commit(cx->ip, e, 1);
   return 0;
 }
 
@@ -208,7 +216,7 @@ static int oc__fill_parent(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi, int
     oc__set_uniform(e, cx->leaf->value);
     return 0;
   }
-  float *dst = oc__pool_take(cx->ip);
+  float *dst = oc__pool_take(cx->ip, 1);
   if (!dst) return OC_ECORRUPT;
   int D = ln - la;
   uint32_t n[3], a[3];
@@ -226,60 +234,65 @@ static int oc__fill_parent(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi, int
       for (int j = 0; j < OC_BRICK_EDGE; j++)
         for (int i = 0; i < OC_BRICK_EDGE; i++)
           dst[ch * OC_BRICK_VOXELS + i + 8 * j + 64 * k] = oc__leaf_eval(cx->leaf, ch, u[0][i], u[1][j], u[2][k]);
-  oc__pool_commit(cx->ip, e);
+  oc__pool_commit(cx->ip, e, 1);
   return 0;
 }
 
-/* CHILDREN: the kid_count P descendants in cx->kids sampled at the samples of N leaf nkey (level
- * ln): per sample, the mean over the descendants whose closed box holds it (interp.h: always one). */
+/* CHILDREN: the kid_count P descendants in cx->kids sampled on the lattices of the 8 octants of N
+ * leaf nkey (level ln), one sub-brick each: per sample, the mean over the descendants inside the
+ * octant whose closed box holds it (interp.h: always one). */
 static int oc__fill_children(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t kid_count, oc_key_t nkey, int ln) {
   uint32_t n[3];
   oc_key_coords(nkey, &n[0], &n[1], &n[2]);
-  memset(cx->sum, 0, sizeof(double) * OC_CHANNELS * OC_BRICK_VOXELS);
-  memset(cx->cnt, 0, OC_BRICK_VOXELS);
+  memset(cx->sum, 0, sizeof(double) * OCV_INTERP_FINE_ENTRIES * OC_CHANNELS * OC_BRICK_VOXELS);
+  memset(cx->cnt, 0, OCV_INTERP_FINE_ENTRIES * OC_BRICK_VOXELS);
   for (uint32_t t = 0; t < kid_count; t++) {
     uint32_t di = cx->kids[t];
     oc_key_t dkey = cx->p->nodes[di].key;
-    int D = oc_key_level(dkey) - ln;
+    int D = oc_key_level(dkey) - ln - 1; /* depth below its octant, ≥ 0 */
+    if (D < 0) return OC_ECORRUPT;
     uint32_t d[3];
     oc_key_coords(dkey, &d[0], &d[1], &d[2]);
-    /* Per axis, samples i with c/2^D ≤ i/7 ≤ (c+1)/2^D, i.e. 7c ≤ i·2^D ≤ 7c + 7; local u = (i·2^D − 7c)/7. */
-    int lo[3], hi[3];
+    /* Its octant o, and per axis the samples i of o's lattice with c/2^D ≤ i/7 ≤ (c+1)/2^D (c its
+     * cell offset inside o), i.e. 7c ≤ i·2^D ≤ 7c + 7; local u = (i·2^D − 7c)/7. */
+    int lo[3], hi[3], o = 0;
     oc__axis_t u[3][OC_BRICK_EDGE];
-    int touched = 1;
     for (int ax = 0; ax < 3; ax++) {
-      int64_t c = (int64_t)d[ax] - ((int64_t)n[ax] << D), step = (int64_t)1 << D;
+      int64_t off = (int64_t)d[ax] - ((int64_t)n[ax] << (D + 1)), step = (int64_t)1 << D;
+      if (off < 0 || off >= 2 * step) return OC_ECORRUPT; /* not inside the N leaf */
+      int oa = (int)(off >> D);
+      int64_t c = off - ((int64_t)oa << D);
+      o |= oa << ax;
       int64_t l = (7 * c + step - 1) >> D, h = (7 * c + 7) >> D;
-      if (h > 7) h = 7;
-      if (l < 0) l = 0;
-      lo[ax] = (int)l;
-      hi[ax] = (int)h;
-      if (l > h) {
-        touched = 0;
-        break;
-      }
+      lo[ax] = (int)(l < 0 ? 0 : l);
+      hi[ax] = (int)(h > 7 ? 7 : h);
       for (int i = lo[ax]; i <= hi[ax]; i++) u[ax][i] = oc__axis((float)((double)((int64_t)i * step - 7 * c) / 7.0));
     }
-    if (!touched) continue;
     oc__leaf_decode(cx->leaf, cx->p, di);
+    double (*sum)[OC_BRICK_VOXELS] = cx->sum + (size_t)o * OC_CHANNELS;
+    uint8_t *cnt = cx->cnt + (size_t)o * OC_BRICK_VOXELS;
     for (int k = lo[2]; k <= hi[2]; k++)
       for (int j = lo[1]; j <= hi[1]; j++)
         for (int i = lo[0]; i <= hi[0]; i++) {
           int q = i + 8 * j + 64 * k;
-          for (int ch = 0; ch < OC_CHANNELS; ch++) cx->sum[ch][q] += oc__leaf_eval(cx->leaf, ch, u[0][i], u[1][j], u[2][k]);
-          cx->cnt[q]++;
+          for (int ch = 0; ch < OC_CHANNELS; ch++) sum[ch][q] += oc__leaf_eval(cx->leaf, ch, u[0][i], u[1][j], u[2][k]);
+          cnt[q]++;
         }
   }
-  float *dst = oc__pool_take(cx->ip);
+  float *dst = oc__pool_take(cx->ip, OCV_INTERP_FINE_ENTRIES);
   if (!dst) return OC_ECORRUPT;
-  for (int q = 0; q < OC_BRICK_VOXELS; q++) {
-    if (!cx->cnt[q]) { /* descendants that do not tile the node: not a partition */
-      cx->ip->pool_count--;
-      return OC_ECORRUPT;
+  for (int o = 0; o < OCV_INTERP_FINE_ENTRIES; o++)
+    for (int q = 0; q < OC_BRICK_VOXELS; q++) {
+      uint8_t cnt = cx->cnt[o * OC_BRICK_VOXELS + q];
+      if (!cnt) { /* descendants that do not tile the node: not a partition */
+        cx->ip->pool_count -= OCV_INTERP_FINE_ENTRIES;
+        return OC_ECORRUPT;
+      }
+      for (int c = 0; c < OC_CHANNELS; c++)
+        dst[(size_t)o * OCV_INTERP_ENTRY_FLOATS + c * OC_BRICK_VOXELS + q] =
+            (float)(cx->sum[o * OC_CHANNELS + c][q] / cnt);
     }
-    for (int c = 0; c < OC_CHANNELS; c++) dst[c * OC_BRICK_VOXELS + q] = (float)(cx->sum[c][q] / cx->cnt[q]);
-  }
-  oc__pool_commit(cx->ip, e);
+  oc__pool_commit(cx->ip, e, OCV_INTERP_FINE_ENTRIES);
   return 0;
 }
 
@@ -351,7 +364,7 @@ static int oc__build(oc__ctx_t *cx, const oc_state_t *P, const oc_state_t *N) {
       }
       if (p_end != wn.b) return OC_ECORRUPT; /* a P leaf straddles the N leaf's end */
       e->source = OCV_INTERP_CHILDREN;
-      if (cx->count_only) cx->need++;
+      if (cx->count_only) cx->need += OCV_INTERP_FINE_ENTRIES;
       else OC_TRY(oc__fill_children(cx, e, count, nn->key, wn.lv));
     } else {
       return OC_ECORRUPT;
@@ -410,8 +423,8 @@ int ocv_interp_build(ocv_interp_t *ip, const oc_state_t *prev, const oc_state_t 
   if (!err && prev) {
     cx.count_only = 0;
     cx.leaf = malloc(sizeof *cx.leaf);
-    cx.sum = malloc(sizeof(double) * OC_CHANNELS * OC_BRICK_VOXELS);
-    cx.cnt = malloc(OC_BRICK_VOXELS);
+    cx.sum = malloc(sizeof(double) * OCV_INTERP_FINE_ENTRIES * OC_CHANNELS * OC_BRICK_VOXELS);
+    cx.cnt = malloc(OCV_INTERP_FINE_ENTRIES * OC_BRICK_VOXELS);
     if (!cx.leaf || !cx.sum || !cx.cnt) err = OC_ENOMEM;
     else cx.leaf->idx = -1;
     if (!err) err = oc__build(&cx, prev, next);
@@ -440,11 +453,18 @@ int ocv_interp_build(ocv_interp_t *ip, const oc_state_t *prev, const oc_state_t 
   return 0;
 }
 
-const float *ocv_interp_samples(const ocv_interp_t *ip, uint32_t i, int ch) {
+const float *ocv_interp_sub_samples(const ocv_interp_t *ip, uint32_t i, int sub, int ch) {
   if (!ip || i >= ip->node_count || ch < 0 || ch >= OC_CHANNELS) return NULL;
-  uint32_t pi = ip->prev[i].prev_index;
-  if (pi == OCV_INTERP_NO_POOL || pi >= ip->pool_count) return NULL;
-  return ip->pool + (size_t)pi * OCV_INTERP_ENTRY_FLOATS + (size_t)ch * OC_BRICK_VOXELS;
+  const ocv_interp_prev_t *e = &ip->prev[i];
+  int subs = e->fine ? OCV_INTERP_FINE_ENTRIES : 1;
+  if (sub < 0 || sub >= subs || e->prev_index == OCV_INTERP_NO_POOL || (uint64_t)e->prev_index + (uint64_t)subs > ip->pool_count)
+    return NULL;
+  return ip->pool + ((size_t)e->prev_index + (size_t)sub) * OCV_INTERP_ENTRY_FLOATS + (size_t)ch * OC_BRICK_VOXELS;
+}
+
+const float *ocv_interp_samples(const ocv_interp_t *ip, uint32_t i, int ch) {
+  if (!ip || i >= ip->node_count || ip->prev[i].fine) return NULL;
+  return ocv_interp_sub_samples(ip, i, 0, ch);
 }
 
 void ocv_interp_stats(const ocv_interp_t *ip, ocv_interp_stats_t *out) {
@@ -455,7 +475,8 @@ void ocv_interp_stats(const ocv_interp_t *ip, ocv_interp_stats_t *out) {
     const ocv_interp_prev_t *e = &ip->prev[i];
     if (e->source < OCV_INTERP_SOURCES) out->count[e->source]++;
     if (e->uniform) out->uniform++;
-    if (e->prev_index != OCV_INTERP_NO_POOL) out->pooled++;
+    if (e->fine) out->fine++;
+    if (e->prev_index != OCV_INTERP_NO_POOL) out->pooled += e->fine ? OCV_INTERP_FINE_ENTRIES : 1;
   }
 }
 

@@ -21,40 +21,48 @@
  *             rounded once to float (float(m/7)·7 rounds back to m exactly, so samples that fall on
  *             A's lattice pick exactly A's sample). A uniform or empty A gives a uniform value.
  *   CHILDREN  a merge: the leaf is a strict ancestor of P leaves (its P descendants, of any depth).
- *             Definition: sample (i, j, k) is the mean, over the P descendants whose CLOSED box
- *             contains the sample position, of each one's renderer reconstruction at that position
- *             (local u = (i·2^D − 7c) / 7 per axis in the descendant, D its depth below the leaf,
- *             c its cell offset). Only descendants count, never P leaves outside the merged node.
- *             In practice this set has exactly one member: descendant faces lie at dyadic
- *             fractions c/2^D of the node and samples at i/7, and 7·c = i·2^D has no solution
- *             with 0 < i < 7 (7 is odd), so an interior sample never sits on a face between
- *             descendants, and a sample on the node's own boundary (i = 0 or 7) is met by one
- *             descendant on that axis. The "average of the touching leaves" therefore never has
- *             to average: the merged node's samples are point samples of the children's previous
- *             field, each taken inside exactly one child. This is the "average of its children's
- *             previous bricks" in the sense that matters for popping: the node's reconstruction
- *             integrates (trapezoid weights ½,1,…,1,½ per axis — the exact integral of the
- *             renderer's trilinear reconstruction) to the children's mean whenever the children
- *             are uniform, since each axis puts samples 0..3 (weight 3.5) in the lower child and
- *             4..7 (weight 3.5) in the upper. For non-uniform children it is a point-sampled
- *             (not box-filtered) restriction of their field; box filtering would match the
- *             server's coarse samples more closely but not what the renderer showed, and the
- *             blend only has to start from what was on screen. The code still sums and counts,
- *             so the definition holds as written even if the sampling convention ever changes.
+ *             Its previous value is kept at the children's resolution ("fine"): 8 sub-bricks, one
+ *             per octant c = x | y<<1 | z<<2 (the key's child order), sub-brick c's sample
+ *             (i, j, k) lying at leaf-local u = (c_axis + i/7) / 2 per axis, i.e. exactly on the
+ *             8³ sample lattice of child c. Definition: that sample is the mean, over the P
+ *             descendants inside octant c whose CLOSED box contains it, of each one's renderer
+ *             reconstruction there (local u = (i·2^D − 7e) / 7 per axis in the descendant, D ≥ 0
+ *             its depth below the octant, e its cell offset inside the octant, computed in double
+ *             and rounded once to float). This set has exactly one member: descendant faces lie at
+ *             dyadic fractions e/2^D of the octant and samples at i/7, and 7·e = i·2^D has no
+ *             solution with 0 < i < 7 (7 is odd), so an interior sample never sits on a face
+ *             between descendants, and one on the octant's own boundary (i = 0 or 7) is met by one
+ *             descendant per axis (the code still sums and counts, so the definition holds as
+ *             written). Consequences: for a one-level merge (the P leaves are the 8 children)
+ *             sub-brick c is child c's own decoded samples, exactly (D = 0: u = i/7 picks sample i);
+ *             for a deeper merge it is the descendants' field point-sampled one level finer than
+ *             the merged leaf. The renderer reconstructs a fine previous value at leaf-local u from
+ *             sub-brick c (c_axis = u ≥ ½) at u' = 2u − c_axis, clamped to [0,1], with the same
+ *             trilinear code (shaders/raymarch.comp.glsl, ocv_prev_sample). Why not the merged
+ *             leaf's own lattice: for a static field the children's field point-sampled there is
+ *             almost exactly the server's new coarse content, so the cross-fade would start from
+ *             an already-coarse picture and the detail the children resolved between the coarse
+ *             samples would vanish in one frame (the merge would pop; tests/gl/test_gl_view.c,
+ *             no_popping). At the children's resolution the blend starts from what was on screen
+ *             (exactly, for a one-level merge) and the coarse content fades in over the period.
  *
- * Every previous value whose 2×512 samples are all equal per channel (a uniform or empty source,
- * or a brick that happens to be constant) is stored as uniform = 1 with value[], not in the pool.
- * Others get one pool entry: 2×512 floats, σt then τ, each x fastest (i + 8j + 64k), as bricks.
+ * Every previous value whose samples are all equal per channel (a uniform or empty source, a brick
+ * that happens to be constant, or 8 sub-bricks that are all the same constant) is stored as
+ * uniform = 1 with value[], not in the pool. Others take pool entries of 2×512 floats, σt then τ,
+ * each x fastest (i + 8j + 64k), as bricks: one entry for OWN and PARENT (fine = 0), eight
+ * consecutive ones for CHILDREN (fine = 1: sub-brick c is entry prev_index + c).
  * Memory: the prev array has one 16-byte entry per leaf of N; the pool holds exactly one 4 KiB
- * entry per non-uniform OWN/PARENT/CHILDREN leaf (a first pass classifies and sizes it, a second
- * fills it; nothing for SAME, NONE or uniform leaves).
+ * entry per non-uniform OWN/PARENT leaf and eight (32 KiB) per non-uniform CHILDREN leaf (merges
+ * are few per epoch; a first pass classifies and sizes the pool, a second fills it; nothing for
+ * SAME, NONE or uniform leaves).
  *
  * Algorithm: one merge pass over both states in spatial (Morton pre-order) order. Ascending key
  * order puts each level in one contiguous, Morton-sorted run (a level-L key lies in
  * [8^L, 2·8^L)); a ≤ 22-way merge of the level runs by first level-21 cell yields the leaves in
  * space-filling order without sorting, and the leaves of two partitions then nest or coincide as
  * two interval lists. Cost O((|P| + |N|)·levels) plus 2×512 trilinear evaluations per non-SAME
- * leaf; a P brick is decoded once (1024 decodes) however many new leaves use it.
+ * leaf (8× that per CHILDREN leaf); a P brick is decoded once (1024 decodes) however many new
+ * leaves use it.
  *
  * Pure C, no GL, no allocation besides the result's arrays and small scratch buffers; thread-compatible
  * (distinct ocv_interp_t may be built concurrently). Both states must be valid
@@ -81,11 +89,16 @@ typedef enum {
 #define OCV_INTERP_NO_POOL UINT32_MAX
 /*! Floats per pool entry: σt[512] then τ[512]. */
 #define OCV_INTERP_ENTRY_FLOATS (OC_CHANNELS * OC_BRICK_VOXELS)
+/*! Pool entries of a fine (CHILDREN) previous value: one sub-brick per octant. */
+#define OCV_INTERP_FINE_ENTRIES 8
 
 typedef struct {
   uint8_t source;      /**< ocv_interp_source_t */
   uint8_t uniform;     /**< 1: the previous value is value[] everywhere in the node (OWN, PARENT,
                             CHILDREN only); 0: see prev_index (NONE and SAME are always 0) */
+  uint8_t fine;        /**< 1: prev_index is the first of OCV_INTERP_FINE_ENTRIES consecutive
+                            entries, sub-brick c (octant c) at prev_index + c (non-uniform
+                            CHILDREN only); 0: prev_index is one entry over the whole node */
   float value[OC_CHANNELS]; /**< uniform previous σt, τ; 0 otherwise */
   uint32_t prev_index; /**< pool entry (pool + prev_index·OCV_INTERP_ENTRY_FLOATS), or
                             OCV_INTERP_NO_POOL when uniform or NONE/SAME */
@@ -102,7 +115,10 @@ typedef struct {
 typedef struct {
   uint32_t count[OCV_INTERP_SOURCES]; /**< leaves per source */
   uint32_t uniform;                   /**< of the OWN/PARENT/CHILDREN ones, stored as uniform */
-  uint32_t pooled;                    /**< pool entries in use (== the non-uniform OWN/PARENT/CHILDREN) */
+  uint32_t fine;                      /**< leaves with a fine (8-entry) previous value (the
+                                           non-uniform CHILDREN) */
+  uint32_t pooled;                    /**< pool entries in use: one per non-uniform OWN/PARENT
+                                           leaf, OCV_INTERP_FINE_ENTRIES per fine leaf */
 } ocv_interp_stats_t;
 
 /*! ocv_interp_init() : an empty result. ocv_interp_free() releases it (NULL is fine) and leaves it
@@ -119,8 +135,15 @@ void ocv_interp_free(ocv_interp_t *ip);
 int ocv_interp_build(ocv_interp_t *ip, const oc_state_t *prev, const oc_state_t *next);
 
 /*! ocv_interp_samples() : the 512 previous samples of channel ch (OC_CH_SIGMA, OC_CH_TAU) of leaf
- *  i, x fastest; NULL when leaf i has no pool entry (uniform, SAME, NONE) or i/ch is out of range. */
+ *  i, x fastest; NULL when leaf i has no single pool entry (uniform, SAME, NONE, or fine: see
+ *  ocv_interp_sub_samples) or i/ch is out of range. */
 const float *ocv_interp_samples(const ocv_interp_t *ip, uint32_t i, int ch);
+
+/*! ocv_interp_sub_samples() : the 512 samples of channel ch of sub-brick `sub` of leaf i: for a fine
+ *  leaf (CHILDREN) octant sub's lattice (0..7, u = (sub_axis + i/7)/2 per axis), else sub 0 is
+ *  the one entry over the whole node (as ocv_interp_samples); NULL when leaf i has no pool entry
+ *  or sub/i/ch is out of range. */
+const float *ocv_interp_sub_samples(const ocv_interp_t *ip, uint32_t i, int sub, int ch);
 
 /*! ocv_interp_stats() : counts per source over ip (zeros for NULL). */
 void ocv_interp_stats(const ocv_interp_t *ip, ocv_interp_stats_t *out);

@@ -23,7 +23,7 @@ layout(std430, binding = 2) writeonly buffer OcOut { vec4 oc_out[]; };
 layout(std430, binding = 3) writeonly buffer OcDepth { float oc_depth[]; };
 struct OcPrev {
   vec4 value; /* uniform previous σt, τ */
-  uvec4 info; /* blends, uniform, pool entry, 0 */
+  uvec4 info; /* blends, uniform, pool entry (the first of 8 when fine), fine */
 };
 layout(std430, binding = 4) readonly buffer OcPrevs { OcPrev oc_prev[]; };
 layout(binding = 5) uniform sampler3D u_prev_pool; /* RG32F: resampled previous bricks */
@@ -176,11 +176,17 @@ vec2 ocv_leaf_sample(OcvLeaf lf, vec3 u) {
 vec3 ocv_local(OcvLeaf lf, vec3 rel) { return (rel - lf.origin) / lf.size; }
 
 /* The leaf's previous σt, τ at u (client/interp.h): uniform, or the same reconstruction over the
- * pool's decoded samples. */
+ * pool's decoded samples: one entry over the whole leaf, or for a fine (merged) leaf the sub-brick
+ * of u's octant c (entry + c, c_axis = u ≥ ½) at u' = 2u − c_axis, the children's resolution. */
 vec2 ocv_prev_sample(int idx, vec3 u) {
   OcPrev P = oc_prev[idx];
   if (P.info.y != 0u) return P.value.xy;
   uint e = P.info.z, bx = uint(u_pool_bricks.x), by = uint(u_pool_bricks.y);
+  if (P.info.w != 0u) {
+    uvec3 c = uvec3(greaterThanEqual(u, vec3(0.5)));
+    e += c.x | (c.y << 1) | (c.z << 2);
+    u = clamp(2.0 * u - vec3(c), 0.0, 1.0);
+  }
   vec3 base = ocg_brick_base(u), f = ocg_brick_frac(u, base);
   ivec3 at = ivec3(int(e % bx), int((e / bx) % by), int(e / (bx * by))) * 8 + ivec3(base);
   vec2 v[8];
@@ -349,9 +355,19 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     uint kind = has ? oc_leaf[lf.idx].info.x : 0u;
     bool blend = OCV_BLEND && has && oc_prev[lf.idx].info.x != 0u;
     bool cloudy = has && (range.y > 0.0 || blend); /* a leaf empty now may have been cloudy */
+    /* A merged leaf blending from its fine previous value (its children's resolution) is stepped
+     * as its children were: octant by octant, at the children's step, so the picture at t = 0 is
+     * the one they showed. */
+    OcvLeaf box = lf;
+    if (blend && oc_prev[lf.idx].info.w != 0u) {
+      box.cells = lf.cells >> 1;
+      box.lo = lf.lo + ivec3(greaterThanEqual(ic - lf.lo, ivec3(box.cells))) * box.cells;
+      box.origin = vec3(box.lo - u_cam_cell) * u_cell;
+      box.size = 0.5 * lf.size;
+    }
     float te = t1;
-    if (has) te = min(te, t + max(ocv_node_exit(lf, p, dir), eps));
-    if (cloudy) te = min(te, t + u_step_factor * lf.size / 7.0);
+    if (has) te = min(te, t + max(ocv_node_exit(box, p, dir), eps));
+    if (cloudy) te = min(te, t + u_step_factor * box.size / 7.0);
     if (OCV_ATMO) te = min(te, t + ocv_air_step(b, t, air_step));
     te = max(te, t + eps);
     float seg = te - t;

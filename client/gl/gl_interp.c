@@ -1,5 +1,7 @@
 /* gl_interp.c — the previous values of the newest state's leaves on the GPU (ocv_gl.h,
- * "Interpolation between states"): per-leaf records and the pool of resampled bricks. */
+ * "Interpolation between states"): per-leaf records and the pool of resampled bricks. The pool
+ * holds ip->pool's entries in order, entry k at brick position (k % X, k / X % Y, k / (X·Y)), so a
+ * fine (merged) leaf's 8 sub-bricks are the consecutive entries base + c, c = x | y<<1 | z<<2. */
 #include <epoxy/gl.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,7 +13,7 @@
 
 typedef struct {
   float value[4];   /* uniform previous σt, τ; 0, 0 */
-  uint32_t info[4]; /* blends (weight t, else 1), uniform, pool entry, 0 */
+  uint32_t info[4]; /* blends (weight t, else 1), uniform, pool entry (the first of 8 when fine), fine */
 } ocv__prev_rec_t;
 _Static_assert(sizeof(ocv__prev_rec_t) == 32, "std430 record of vec4 + uvec4");
 
@@ -38,6 +40,7 @@ int ocv_gl_prev_upload(ocv_gl_prev_t *gp, const ocv_interp_t *ip, int animated, 
     rec[i].info[0] = ocv_interp_weight(p->source, animated, 0.0, 0.0, 1.0) < 1.0f;
     rec[i].info[1] = p->uniform;
     rec[i].info[2] = p->prev_index;
+    rec[i].info[3] = p->fine;
     rec[i].value[0] = p->value[OC_CH_SIGMA];
     rec[i].value[1] = p->value[OC_CH_TAU];
   }

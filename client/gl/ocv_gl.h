@@ -195,9 +195,10 @@ void ocv_gl_renderer_timings(const ocv_gl_renderer_t *r, double *trace_ms, doubl
 /* ---- Interpolation between states (gl_interp.c) -------------------------------------------------------- */
 
 /* The previous value of every leaf of the newest state (client/interp.h) on the GPU: per-leaf records
- * (SSBO binding 4: vec4 uniform σt, τ; uvec4 blend, uniform, pool entry, 0) and the pool of resampled
- * bricks as an RG32F 3D texture (unit 5). The kernel shows mix(previous, newest, t) where a leaf
- * blends (design.md, Conventions: interpolation). */
+ * (SSBO binding 4: vec4 uniform σt, τ; uvec4 blend, uniform, pool entry, fine) and the pool of
+ * resampled bricks as an RG32F 3D texture (unit 5; a fine, merged leaf has 8 consecutive entries, one
+ * per octant). The kernel shows mix(previous, newest, t) where a leaf blends (design.md, Conventions:
+ * interpolation). */
 typedef struct {
   GLuint records, pool;
   int pool_bricks[3];

@@ -1,7 +1,8 @@
 /* test_interp.c — previous values of the newest state's leaves (client/interp.c): identity, splits
- * (one and several levels, empty/uniform/brick parents), merges, refreshes, no previous state,
- * corrupt input, blend weights, and a randomised consistency check against brute-force look-ups
- * and an independent copy of the renderer's reconstruction. */
+ * (one and several levels, empty/uniform/brick parents), merges (fine previous values: 8 sub-bricks
+ * on the children's lattices), refreshes, no previous state, corrupt input, blend weights, and a
+ * randomised consistency check against brute-force look-ups and an independent copy of the
+ * renderer's reconstruction. */
 #include <math.h>
 #include <setjmp.h> /* cmocka */
 #include <stdarg.h>
@@ -94,16 +95,25 @@ static void expect_close(float a, float b, float scale, const char *what, uint32
   if (!(fabs((double)a - (double)b) <= tol)) fail_msg("%s: leaf %u sample %d: %.9g vs %.9g", what, leaf, q, (double)a, (double)b);
 }
 
-/* The previous value of leaf i at sample q of channel ch (uniform or pooled). */
-static float prev_sample(const ocv_interp_t *ip, uint32_t i, int ch, int q) {
+/* The previous value of leaf i at sample q of sub-brick sub (0 unless fine) of channel ch (uniform
+ * or pooled). */
+static float prev_sub_sample(const ocv_interp_t *ip, uint32_t i, int sub, int ch, int q) {
   const ocv_interp_prev_t *e = &ip->prev[i];
   if (e->uniform) {
+    assert_int_equal(e->fine, 0);
     assert_null(ocv_interp_samples(ip, i, ch));
+    assert_null(ocv_interp_sub_samples(ip, i, 0, ch));
     return e->value[ch];
   }
-  const float *v = ocv_interp_samples(ip, i, ch);
+  const float *v = ocv_interp_sub_samples(ip, i, sub, ch);
   assert_non_null(v);
+  if (!e->fine) assert_ptr_equal(ocv_interp_samples(ip, i, ch), v);
   return v[q];
+}
+
+static float prev_sample(const ocv_interp_t *ip, uint32_t i, int ch, int q) {
+  assert_int_equal(ip->prev[i].fine, 0);
+  return prev_sub_sample(ip, i, 0, ch, q);
 }
 
 /* PARENT leaf i of N against the reference reconstruction of P's ancestor. */
@@ -120,21 +130,53 @@ static void check_parent(const ocv_interp_t *ip, const oc_state_t *P, const oc_s
   }
 }
 
-/* CHILDREN leaf i of N: each sample against the reference of the one P descendant holding it
- * (found by nudging the sample towards the node's centre, far less than any descendant's face
- * is from a sample: ≥ size/56 for three levels). */
+/* Position of sample q of sub-brick c of a merged leaf: sample q of child c (the lattice of octant
+ * c, u = (c_axis + i/7)/2 of the leaf). */
+static oc_dvec3 sub_pos(oc_key_t key, int c, int q) { return oc_brick_sample_pos(child(key, c), q & 7, (q >> 3) & 7, q >> 6); }
+
+/* CHILDREN leaf i of N: a fine value unless uniform (then all 8 sub-bricks the same constant);
+ * each sample of each sub-brick against the reference of the one P descendant inside that octant
+ * holding it (found by nudging the sample towards the octant's centre, far less than any
+ * descendant's face is from a sample: ≥ size/56 for three levels); and where the octant is a P
+ * leaf itself (a one-level merge), its decoded samples exactly. */
 static void check_children(const ocv_interp_t *ip, const oc_state_t *P, const oc_state_t *N, uint32_t i) {
-  assert_int_equal(ip->prev[i].source, OCV_INTERP_CHILDREN);
+  const ocv_interp_prev_t *e = &ip->prev[i];
+  assert_int_equal(e->source, OCV_INTERP_CHILDREN);
+  assert_int_equal(e->fine, !e->uniform);
   oc_key_t key = N->nodes[i].key;
-  oc_dvec3 c = oc_key_center(key);
-  for (int q = 0; q < 512; q++) {
-    oc_dvec3 p = oc_brick_sample_pos(key, q & 7, (q >> 3) & 7, q >> 6);
-    oc_dvec3 pin = oc_dv3(p.x + (c.x - p.x) * 1e-6, p.y + (c.y - p.y) * 1e-6, p.z + (c.z - p.z) * 1e-6);
-    int64_t d = oc_state_find_leaf(P, oc_key_from_point(OC_KEY_MAX_LEVEL, pin));
-    assert_true(d >= 0);
-    assert_true(oc_key_is_ancestor(key, P->nodes[d].key));
+  if (e->fine) {
+    assert_null(ocv_interp_samples(ip, i, OC_CH_SIGMA));
+    assert_null(ocv_interp_sub_samples(ip, i, 8, OC_CH_SIGMA));
+    assert_null(ocv_interp_sub_samples(ip, i, -1, OC_CH_SIGMA));
+  }
+  for (int c = 0; c < 8; c++) {
+    oc_key_t ok = child(key, c);
+    oc_dvec3 oc = oc_key_center(ok);
+    for (int q = 0; q < 512; q++) {
+      oc_dvec3 p = sub_pos(key, c, q);
+      oc_dvec3 pin = oc_dv3(p.x + (oc.x - p.x) * 1e-6, p.y + (oc.y - p.y) * 1e-6, p.z + (oc.z - p.z) * 1e-6);
+      int64_t d = oc_state_find_leaf(P, oc_key_from_point(OC_KEY_MAX_LEVEL, pin));
+      assert_true(d >= 0);
+      assert_true(P->nodes[d].key == ok || oc_key_is_ancestor(ok, P->nodes[d].key));
+      for (int ch = 0; ch < 2; ch++)
+        expect_close(prev_sub_sample(ip, i, c, ch, q), ref_channel(P, d, p, ch), P->nodes[d].range[ch].hi, "children", i, q);
+    }
+    int64_t own = oc_state_find_node(P, ok); /* one level: child c's own samples, bit for bit */
+    if (own < 0) continue;
+    const oc_node_t *n = &P->nodes[own];
+    const oc_brick_t *b = n->kind == OC_NODE_BRICK ? oc_state_find_brick(P, n->brick_id) : NULL;
+    float dec[2][512];
+    if (b) {
+      oc_brick_decode(&b->codes, n->range, dec[0], dec[1]);
+    } else {
+      for (int ch = 0; ch < 2; ch++)
+        for (int q = 0; q < 512; q++) dec[ch][q] = n->kind == OC_NODE_EMPTY ? 0.0f : n->range[ch].lo;
+    }
     for (int ch = 0; ch < 2; ch++)
-      expect_close(prev_sample(ip, i, ch, q), ref_channel(P, d, p, ch), P->nodes[d].range[ch].hi, "children", i, q);
+      for (int q = 0; q < 512; q++)
+        if (prev_sub_sample(ip, i, c, ch, q) != dec[ch][q])
+          fail_msg("children: leaf %u octant %d ch %d sample %d: %.9g, child's own %.9g", i, c, ch, q,
+                   (double)prev_sub_sample(ip, i, c, ch, q), (double)dec[ch][q]);
   }
 }
 
@@ -348,59 +390,88 @@ static void test_interp__split_empty_uniform_brick(void **state) {
 
 /*-*** Merges ***/
 
-/* 8 uniform children with different values merged into the root. Samples 0..3 of each axis lie in
- * the lower child, 4..7 in the upper (none sits on the midplane 3.5/7), so every sample is its
- * octant's value exactly; the plain and the trapezoid-weighted (oc_test_node_mean: the exact
- * integral of the trilinear reconstruction) means both equal the children's mean. */
+/* 8 uniform children with different values merged into the root: a fine value whose sub-brick c
+ * is child c's value everywhere (8 pool entries); its mean (each sub-brick's plain and trapezoid
+ * mean, oc_test_node_mean: the exact integral of the trilinear reconstruction) is the children's
+ * mean. With all 8 children the same constant, the value collapses to uniform (no pool entry). */
 static void test_interp__merge_uniform_children(void **state) {
   (void)state;
-  oc_state_t P, N;
-  oc_state_init(&P);
-  P.sun_dir = oc_dv3(0, 0, 1);
-  float cs[8], ct[8];
-  double ms = 0, mt = 0;
-  for (int c = 0; c < 8; c++) {
-    cs[c] = 0.01f * (float)(c + 1) * (float)(c + 1);
-    ct[c] = 0.5f * (float)(8 - c);
-    ms += cs[c] / 8.0;
-    mt += ct[c] / 8.0;
-    add_uniform(&P, child(OC_KEY_ROOT, c), cs[c], ct[c]);
+  for (int same = 0; same < 2; same++) {
+    oc_state_t P, N;
+    oc_state_init(&P);
+    P.sun_dir = oc_dv3(0, 0, 1);
+    float cs[8], ct[8];
+    double ms = 0, mt = 0;
+    for (int c = 0; c < 8; c++) {
+      cs[c] = same ? 0.04f : 0.01f * (float)(c + 1) * (float)(c + 1);
+      ct[c] = same ? 1.5f : 0.5f * (float)(8 - c);
+      ms += cs[c] / 8.0;
+      mt += ct[c] / 8.0;
+      add_uniform(&P, child(OC_KEY_ROOT, c), cs[c], ct[c]);
+    }
+    expect_valid(&P);
+    oc_state_init(&N);
+    N.sun_dir = oc_dv3(0, 0, 1);
+    add_uniform(&N, OC_KEY_ROOT, 0.3f, 0.3f);
+    ocv_interp_t ip;
+    ocv_interp_init(&ip);
+    build_ok(&ip, &P, &N);
+    ocv_interp_stats_t st;
+    ocv_interp_stats(&ip, &st);
+    assert_int_equal(ip.prev[0].source, OCV_INTERP_CHILDREN);
+    assert_int_equal(st.count[OCV_INTERP_CHILDREN], 1);
+    if (same) {
+      assert_int_equal(ip.prev[0].uniform, 1);
+      assert_int_equal(ip.prev[0].fine, 0);
+      assert_true(ip.prev[0].value[0] == 0.04f && ip.prev[0].value[1] == 1.5f);
+      assert_int_equal(ip.pool_count, 0);
+      assert_int_equal(st.pooled, 0);
+      assert_int_equal(st.fine, 0);
+      assert_null(ocv_interp_sub_samples(&ip, 0, 0, OC_CH_SIGMA));
+    } else {
+      assert_int_equal(ip.prev[0].uniform, 0);
+      assert_int_equal(ip.prev[0].fine, 1);
+      assert_int_equal(ip.prev[0].prev_index, 0);
+      assert_int_equal(ip.pool_count, OCV_INTERP_FINE_ENTRIES);
+      assert_int_equal(st.pooled, OCV_INTERP_FINE_ENTRIES);
+      assert_int_equal(st.fine, 1);
+      assert_null(ocv_interp_samples(&ip, 0, OC_CH_SIGMA));
+      double plain_s = 0, plain_t = 0, trap_s = 0, trap_t = 0;
+      for (int c = 0; c < 8; c++) {
+        const float *s = ocv_interp_sub_samples(&ip, 0, c, OC_CH_SIGMA), *t = ocv_interp_sub_samples(&ip, 0, c, OC_CH_TAU);
+        assert_non_null(s);
+        assert_non_null(t);
+        assert_ptr_equal(s, ip.pool + (size_t)c * OCV_INTERP_ENTRY_FLOATS);
+        for (int q = 0; q < 512; q++) {
+          assert_true(s[q] == cs[c]);
+          assert_true(t[q] == ct[c]);
+          plain_s += s[q] / 4096.0;
+          plain_t += t[q] / 4096.0;
+        }
+        trap_s += oc_test_node_mean(s) / 8.0;
+        trap_t += oc_test_node_mean(t) / 8.0;
+      }
+      assert_true(fabs(plain_s - ms) <= 1e-6 * ms);
+      assert_true(fabs(plain_t - mt) <= 1e-6 * mt);
+      assert_true(fabs(trap_s - ms) <= 1e-6 * ms);
+      assert_true(fabs(trap_t - mt) <= 1e-6 * mt);
+    }
+    check_children(&ip, &P, &N, 0);
+    ocv_interp_free(&ip);
+    oc_state_free(&P);
+    oc_state_free(&N);
   }
-  expect_valid(&P);
-  oc_state_init(&N);
-  N.sun_dir = oc_dv3(0, 0, 1);
-  add_uniform(&N, OC_KEY_ROOT, 0.3f, 0.3f);
-  ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, &P, &N);
-  assert_int_equal(ip.prev[0].source, OCV_INTERP_CHILDREN);
-  assert_int_equal(ip.prev[0].uniform, 0);
-  assert_int_equal(ip.pool_count, 1);
-  const float *s = ocv_interp_samples(&ip, 0, OC_CH_SIGMA), *t = ocv_interp_samples(&ip, 0, OC_CH_TAU);
-  assert_non_null(s);
-  assert_non_null(t);
-  double plain_s = 0, plain_t = 0;
-  for (int q = 0; q < 512; q++) {
-    int oct = ((q & 7) >= 4) | (((q >> 3) & 7) >= 4) << 1 | ((q >> 6) >= 4) << 2;
-    assert_true(s[q] == cs[oct]);
-    assert_true(t[q] == ct[oct]);
-    plain_s += s[q] / 512.0;
-    plain_t += t[q] / 512.0;
-  }
-  assert_true(fabs(plain_s - ms) <= 1e-6 * ms);
-  assert_true(fabs(plain_t - mt) <= 1e-6 * mt);
-  assert_true(fabs(oc_test_node_mean(s) - ms) <= 1e-6 * ms);
-  assert_true(fabs(oc_test_node_mean(t) - mt) <= 1e-6 * mt);
-  check_children(&ip, &P, &N, 0);
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
 }
 
 /* Merges over bricks and two levels: the golden state's child 7 merged (level-2 bricks and empties
- * below it), then the whole golden state merged into the root. Every sample against the renderer
- * itself (its locator gives a lower-face sample to the merged node's own side, and the upper faces
- * here are the root's), and against the one descendant holding it. */
+ * below it: a one-level merge, so each sub-brick is that child's decoded samples bit for bit), then
+ * the whole golden state merged into the root (octant 7 two levels deep: its sub-brick is the
+ * level-2 descendants sampled on the level-1 lattice). Every sample against the one descendant
+ * holding it, and against the renderer itself, except on an octant's upper internal faces (a
+ * sub-brick's sample 7 where the octant is the lower one on that axis: the renderer's locator gives
+ * face points to the upper cell, the sub-brick to its own octant; there the two octants' values
+ * may differ). Lower faces of the merged node go to its own side, and the upper faces here are the
+ * root's. */
 static void test_interp__merge_bricks(void **state) {
   (void)state;
   oc_state_t P, N;
@@ -423,15 +494,34 @@ static void test_interp__merge_bricks(void **state) {
     ocv_interp_stats(&ip, &st);
     assert_int_equal(st.count[OCV_INTERP_CHILDREN], 1);
     assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 1);
+    assert_int_equal(st.fine, 1);
+    assert_int_equal(ip.pool_count, OCV_INTERP_FINE_ENTRIES);
     int64_t m = oc_state_find_node(&N, merged);
     assert_true(m >= 0);
+    assert_int_equal(ip.prev[m].fine, 1);
     check_children(&ip, &P, &N, (uint32_t)m);
-    for (int q = 0; q < 512; q++) {
-      float rs, rt;
-      oc_render_sample_state(&P, oc_brick_sample_pos(merged, q & 7, (q >> 3) & 7, q >> 6), &rs, &rt);
-      expect_close(prev_sample(&ip, (uint32_t)m, 0, q), rs, 10.0f, "renderer sigma", (uint32_t)m, q);
-      expect_close(prev_sample(&ip, (uint32_t)m, 1, q), rt, 30.0f, "renderer tau", (uint32_t)m, q);
-    }
+    if (pass == 0) /* octants 0 and 7: the level-2 bricks 3 and 42, decoded; the others empty */
+      for (int c = 0; c < 8; c++) {
+        const oc_node_t *n = &P.nodes[oc_state_find_node(&P, child(merged, c))];
+        float ds[512] = {0}, dt[512] = {0};
+        assert_int_equal(n->kind, c == 0 || c == 7 ? OC_NODE_BRICK : OC_NODE_EMPTY);
+        if (n->kind == OC_NODE_BRICK) oc_brick_decode(&oc_state_find_brick(&P, n->brick_id)->codes, n->range, ds, dt);
+        assert_memory_equal(ocv_interp_sub_samples(&ip, (uint32_t)m, c, OC_CH_SIGMA), ds, sizeof ds);
+        assert_memory_equal(ocv_interp_sub_samples(&ip, (uint32_t)m, c, OC_CH_TAU), dt, sizeof dt);
+      }
+    int checked = 0;
+    for (int c = 0; c < 8; c++)
+      for (int q = 0; q < 512; q++) {
+        int I[3] = {q & 7, (q >> 3) & 7, q >> 6}, internal = 0;
+        for (int ax = 0; ax < 3; ax++) internal |= I[ax] == 7 && !((c >> ax) & 1);
+        if (internal) continue;
+        float rs, rt;
+        oc_render_sample_state(&P, sub_pos(merged, c, q), &rs, &rt);
+        expect_close(prev_sub_sample(&ip, (uint32_t)m, c, 0, q), rs, 10.0f, "renderer sigma", (uint32_t)m, q);
+        expect_close(prev_sub_sample(&ip, (uint32_t)m, c, 1, q), rt, 30.0f, "renderer tau", (uint32_t)m, q);
+        checked++;
+      }
+    assert_int_equal(checked, 15 * 15 * 15); /* Σ_c 7^(lower axes) · 8^(upper axes) = (7 + 8)³ */
     ocv_interp_free(&ip);
     oc_state_free(&N);
   }
@@ -665,7 +755,7 @@ static void random_state(oc_state_t *s, uint64_t seed, int is_n) {
 
 static void test_interp__random_consistency(void **state) {
   (void)state;
-  uint64_t total[OCV_INTERP_SOURCES] = {0};
+  uint64_t total[OCV_INTERP_SOURCES] = {0}, fine_total = 0, one_level_total = 0;
   ocv_interp_t ip;
   ocv_interp_init(&ip); /* reused across rounds */
   for (uint64_t seed = 1; seed <= 60; seed++) {
@@ -681,7 +771,10 @@ static void test_interp__random_consistency(void **state) {
     for (int k = 0; k < OCV_INTERP_SOURCES; k++) sum += st.count[k];
     assert_int_equal(sum, N.node_count);
     assert_int_equal(st.pooled, ip.pool_count);
-    assert_true(ip.pool_count <= N.node_count - st.count[OCV_INTERP_SAME]);
+    assert_true(st.fine <= st.count[OCV_INTERP_CHILDREN]);
+    assert_int_equal(ip.pool_count, st.pooled);
+    assert_true(ip.pool_count <= N.node_count - st.count[OCV_INTERP_SAME] +
+                                     (OCV_INTERP_FINE_ENTRIES - 1) * st.count[OCV_INTERP_CHILDREN]);
     for (uint32_t i = 0; i < N.node_count; i++) {
       const ocv_interp_prev_t *e = &ip.prev[i];
       oc_key_t key = N.nodes[i].key;
@@ -699,20 +792,27 @@ static void test_interp__random_consistency(void **state) {
       total[want]++;
       if (want == OCV_INTERP_SAME) {
         assert_int_equal(e->uniform, 0);
+        assert_int_equal(e->fine, 0);
         assert_int_equal(e->prev_index, OCV_INTERP_NO_POOL);
         continue;
       }
+      assert_int_equal(e->fine, want == OCV_INTERP_CHILDREN && !e->uniform);
       if (e->uniform) {
         assert_int_equal(e->prev_index, OCV_INTERP_NO_POOL);
       } else {
-        assert_true(e->prev_index < ip.pool_count);
-        assert_int_equal(used[e->prev_index], 0);
-        used[e->prev_index] = 1;
+        uint32_t entries = e->fine ? OCV_INTERP_FINE_ENTRIES : 1;
+        assert_true(e->prev_index + entries <= ip.pool_count);
+        for (uint32_t k = 0; k < entries; k++) {
+          assert_int_equal(used[e->prev_index + k], 0);
+          used[e->prev_index + k] = 1;
+        }
       }
       if (want == OCV_INTERP_PARENT) {
         check_parent(&ip, &P, &N, i);
       } else if (want == OCV_INTERP_CHILDREN) {
         check_children(&ip, &P, &N, i);
+        fine_total += e->fine;
+        for (int c = 0; c < 8; c++) one_level_total += oc_state_find_node(&P, child(key, c)) >= 0;
       } else { /* OWN: P's record, sampled at its own sample positions */
         for (int q = 0; q < 512; q++) {
           oc_dvec3 p = oc_brick_sample_pos(key, q & 7, (q >> 3) & 7, q >> 6);
@@ -729,8 +829,10 @@ static void test_interp__random_consistency(void **state) {
   ocv_interp_free(&ip);
   for (int k = OCV_INTERP_SAME; k < OCV_INTERP_SOURCES; k++)
     if (!total[k]) fail_msg("source %d never produced: the generator needs tuning", k);
-  print_message("random: %llu same, %llu own, %llu parent, %llu children\n", (unsigned long long)total[1],
-                (unsigned long long)total[2], (unsigned long long)total[3], (unsigned long long)total[4]);
+  if (!fine_total || !one_level_total) fail_msg("no fine or no one-level merge: the generator needs tuning");
+  print_message("random: %llu same, %llu own, %llu parent, %llu children (%llu fine, %llu octants one level deep)\n",
+                (unsigned long long)total[1], (unsigned long long)total[2], (unsigned long long)total[3],
+                (unsigned long long)total[4], (unsigned long long)fine_total, (unsigned long long)one_level_total);
 }
 
 int main(void) {

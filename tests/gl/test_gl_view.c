@@ -140,23 +140,22 @@ static void test_gl_view__epochs(void **state) {
  * must be at least SMOOTH_RATIO times the interpolated one — the negative control. Frames are
  * 64×36, rendered from states planned for 54 rows.
  *
- * Known gap, measured and reported rather than hidden: at a merge the new coarse leaf's previous
- * value is its children's field point-sampled on its own lattice (client/interp.h, CHILDREN). For
- * a static field that is nearly what the planner put in the merged leaf (here all but 0–108 of a
- * merged brick's 512 σt samples agree, ≤ 2 % mean difference), so the cross-fade has almost
- * nothing to do: the coarse leaf replaces its children's finer field at t = 0 and the detail they
- * resolved between its samples vanishes in one frame. The boundary frames of epochs whose
- * transition merges leaves are therefore held only to MERGE_BOUND (measured 0.9–3.5 there, while
- * snapping jumps 4–4.9); bringing them under SMOOTH_BOUND needs the blend to keep the finer
- * topology (the children) until t = 1. Measured on llvmpipe: split and in-epoch jumps ≤ 1.12,
- * snapping 4.91. */
+ * Merges: a merged leaf's previous value is kept at its children's resolution (client/interp.h,
+ * CHILDREN: 8 sub-bricks, stepped octant by octant while it blends), so the cross-fade starts from
+ * the picture the children showed and the coarse content fades in over the period. (With the
+ * previous value point-sampled on the merged leaf's own coarse lattice, as before, the children's
+ * finer detail vanished at t = 0: boundary jumps of 0.9–3.5 at epochs that merge leaves, which needed
+ * a looser bound of their own.) The boundary frames of merging epochs are still reported apart.
+ * Measured on llvmpipe: boundaries with merges ≤ 1.38 (previously 3.53), split boundaries and
+ * in-epoch jumps ≤ 1.49 (the largest now the first frame after a merge boundary: mixing σt linearly
+ * from the children's field, which is empty where the coarse leaf smears density, changes the
+ * picture fastest at small t), snapping 4.91. */
 #define PATH_E 7
 #define PATH_W 64 /* rendered smaller than planned for (H = 54): cheaper */
 #define PATH_H 36
 #define PATH_F 8
-#define SMOOTH_BOUND 1.5
+#define SMOOTH_BOUND 2.0 /* measured 1.49: margin for other Mesa versions; snapping is 2.5× this */
 #define SMOOTH_RATIO 2.5
-#define MERGE_BOUND 4.5
 
 static oc_camera_t path_camera(double now) { /* now in [0, PATH_E) s */
   double s = now / PATH_E;
@@ -164,7 +163,7 @@ static oc_camera_t path_camera(double now) { /* now in [0, PATH_E) s */
 }
 
 typedef struct {
-  double max_smooth;   /**< largest held-camera jump outside merge boundaries */
+  double max_smooth;   /**< largest held-camera jump outside merge boundaries (reported apart) */
   double max_merge;    /**< largest at the boundary of an epoch whose transition merged leaves */
   double max_all;      /**< largest of all */
   double max_raw;      /**< largest RMSE between consecutive frames as shown (camera motion included) */
@@ -251,14 +250,14 @@ static void test_gl_view__no_popping(void **state) {
   fly(states, merges, 1.0, &lerp);
   fly(states, merges, 0.0, &snap);
   printf("no popping: %d epochs, %d frames each; %u leaves from splits, %u merged leaves | held-camera jump, "
-         "interpolated: max %.3f (merge boundaries %.3f), snapping: max %.3f (frame %d) | as shown (camera "
-         "motion included): %.2f / %.2f\n",
-         PATH_E, PATH_F, split_leaves, merged_leaves, lerp.max_smooth, lerp.max_merge, snap.max_all, snap.at,
-         lerp.max_raw, snap.max_raw);
+         "interpolated: max %.3f (frame %d; merge boundaries %.3f, elsewhere %.3f), snapping: max %.3f (frame %d) | "
+         "as shown (camera motion included): %.2f / %.2f\n",
+         PATH_E, PATH_F, split_leaves, merged_leaves, lerp.max_all, lerp.at, lerp.max_merge, lerp.max_smooth,
+         snap.max_all, snap.at, lerp.max_raw, snap.max_raw);
   assert_true(split_leaves >= 100 && merged_leaves >= 10); /* many splits (8 leaves each) and merges */
-  assert_true(lerp.max_smooth <= SMOOTH_BOUND);
-  assert_true(snap.max_all >= SMOOTH_RATIO * lerp.max_smooth); /* the control: snapping pops */
-  assert_true(lerp.max_merge <= MERGE_BOUND);                  /* the known gap, see above */
+  assert_true(lerp.max_all <= SMOOTH_BOUND);                /* merge boundaries included */
+  assert_true(snap.max_all >= SMOOTH_RATIO * lerp.max_all); /* the control: snapping pops */
+  assert_true(snap.max_all >= 2.0 * SMOOTH_BOUND);          /* and the bound itself tells them apart */
   for (int k = 0; k < PATH_E; k++) oc_state_free(&states[k]);
 }
 
