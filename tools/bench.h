@@ -21,5 +21,16 @@ int oct_bench_field(const char *prog, int argc, char **argv);
 int oct_bench_tau(const char *prog, int argc, char **argv);
 int oct_bench_plan(const char *prog, int argc, char **argv);
 int oct_bench_world(const char *prog, int argc, char **argv);
+/* bench_sweep.c: error against run time; bench_truth.c: Monte Carlo ground truth. Each prints its
+ * own options section of --help. */
+int oct_bench_sweep(const char *prog, int argc, char **argv);
+void oct_bench_sweep_usage(FILE *f);
+int oct_bench_truth(const char *prog, int argc, char **argv);
+void oct_bench_truth_usage(FILE *f);
+int oct_bench_stability(const char *prog, int argc, char **argv);
+void oct_bench_stability_usage(FILE *f);
+/* bench_features.c: each feature a scene uses, turned off alone: memory and time saved. */
+int oct_bench_features(const char *prog, int argc, char **argv);
+void oct_bench_features_usage(FILE *f);
 
 #endif /* OC_TOOLS_BENCH_H */

@@ -21,6 +21,10 @@ void oct_bench_usage(FILE *f) {
           "  plan       LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core\n"
           "  world      the server core stepped for some epochs: plans, production, cache, refresh savings\n"
           "  wire       epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary\n"
+          "  sweep      error against run time: quality knobs swept, RMSE/PSNR against the best setting\n"
+          "  truth      Monte Carlo ground truth (delta tracking, every scattering order) for small views\n"
+          "  stability  stiff and extreme cases end to end (server, protocol, renderers): finite, bounded, known answers\n"
+          "  features   each feature a scene uses turned off alone: server time, bricks, wire, memory, tables, render\n"
           "\n"
           "render options:\n"
           "  --scene FILE        analytic scene (default scenes/analytic_sphere.json)\n"
@@ -78,6 +82,13 @@ void oct_bench_usage(FILE *f) {
           "  --level N           zstd level of every variant, 1..19 (default 3)\n"
           "  --threads N         producer threads (default: all cores)\n"
           "  --csv FILE          also write one row per epoch and variant\n"
+          "\n"
+          "\n");
+  oct_bench_sweep_usage(f);
+  oct_bench_truth_usage(f);
+  oct_bench_stability_usage(f);
+  oct_bench_features_usage(f);
+  fprintf(f,
           "\n"
           "  --help, --version\n"
           "\n"
@@ -147,5 +158,9 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "plan")) return oct_bench_plan(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "world")) return oct_bench_world(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "wire")) return oct_bench_wire(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "sweep")) return oct_bench_sweep(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "truth")) return oct_bench_truth(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "stability")) return oct_bench_stability(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "features")) return oct_bench_features(prog, argc - 1, argv + 1);
   return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown command \"%s\" (see --help)", argv[1]);
 }

@@ -1,0 +1,548 @@
+/* bench_features.c — `overcast-bench features`: what a scene does not use costs nothing
+ * (design.md, "Leave out what a scene does not need"), measured side by side in one run.
+ *
+ * Configurations: the scene with all its features, then, for each feature the scene has on, a copy
+ * of the scene with that feature alone turned off (its bit cleared in oc_scene_t.features). For
+ * each one, from scratch:
+ *   server  ocs_world_create() time; ocs_world_step() in process CPU time (the producer threads
+ *           included) for --epochs epochs with one viewer at the camera, still, acknowledging each
+ *           epoch; bricks produced per epoch (ocs_world_stats), τ volumes; the kept states K
+ *           (ocs_world_kept_states) and the resident bytes of the K newest states (oc_resident_bytes:
+ *           distinct bricks × 2048 + records × 32, the Conventions' budget measure);
+ *   wire    every epoch encoded by the epoch encoder with deltas (bench_wire.c's "delta" variant:
+ *           proto/ocp_epoch.h, zstd level 3, the previous state as the base), decoded again by a
+ *           viewer holding the K−1 previous states and checked against the server's checksum; the
+ *           bricks re-sent (a lacking brick whose node was already a brick in the previous state);
+ *   client  the atmosphere tables the configuration needs (oc_scene_atmo: bytes of the four RGBA32F
+ *           tables, build time) and the final state rendered with its render description
+ *           (oc_scene_render_desc) by the CPU reference renderer (configurations alternated round by
+ *           round so each sees the same machine load; best of --repeat) or the GL compute renderer
+ *           (its shader variants on; one warm-up render per configuration, then best of --repeat).
+ * Times vary with the machine; bricks, bytes, K, resident bytes and checksums are deterministic. */
+#include <getopt.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "bench.h"
+#include "oc_atmo.h"
+#include "oc_camera.h"
+#include "oc_cli.h"
+#include "oc_err.h"
+#include "oc_image.h"
+#include "oc_render.h"
+#include "oc_scene.h"
+#include "oc_scene_render.h"
+#include "oc_state.h"
+#include "ocp_epoch.h"
+#include "ocp_wire.h"
+#include "world.h"
+#ifdef OC_HAVE_GL
+#include "ocv_gl.h"
+#endif
+
+#define F_SLOT_BYTES 2048u
+#define F_RECORD_BYTES 32u
+#define F_VERSION OCP_VERSION_MAX
+
+void oct_bench_features_usage(FILE *f) {
+  fprintf(f,
+          "features options (all of the scene's features, then each one it uses turned off alone):\n"
+          "  --scene FILE        scene (default: the built-in procedural planet)\n"
+          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera; held still)\n"
+          "  --epochs N          epochs to step per configuration (default 6)\n"
+          "  --budget MIB        the viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
+          "  --viewport WxH      the viewport the server plans for (default 1280x720)\n"
+          "  --size WxH          rendered image size (default 160x90)\n"
+          "  --renderer cpu|gl   renderer of the final state (default cpu; gl: headless EGL)\n"
+          "  --repeat N          table builds and renders per configuration; the fastest counts (default 3)\n"
+          "  --threads N         producer, table and CPU render threads (default: all cores)\n");
+}
+
+typedef struct {
+  char label[64];
+  int off;        /* the feature turned off, or -1: all the scene's features */
+  oc_scene_t *sc; /* the configuration's scene */
+  /* server */
+  double create_ms, cpu0_ms, cpu_after_ms, cpu_last_ms; /* epoch 0; epochs 1.. summed; the last epoch */
+  uint64_t bricks0, bricks_after, bricks_last, tau_volumes;
+  uint64_t resent_after, resent_last;
+  int K;
+  uint64_t resident;
+  uint32_t nodes, state_bricks, kinds[3]; /* newest state: leaves; bricks; empty, uniform, brick leaves */
+  uint64_t checksum;
+  /* wire */
+  uint64_t wire0, wire_after, wire_last;
+  /* client */
+  oc_atmo_t *atmo;
+  uint64_t table_bytes;
+  double table_ms, table_cpu_ms; /* best of --repeat builds: wall, process CPU */
+  double render_s, render_cpu_s;  /* best of --repeat renders: wall, process CPU */
+  uint64_t samples;
+  oc_state_t final; /* the viewer's newest state after the last epoch */
+} fcfg_t;
+
+static double cpu_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+/* The viewer's decoder looks bricks up in the states it holds: the server's held states 1..K−1
+ * (what it has acknowledged). */
+typedef struct {
+  const ocs_viewer_t *v;
+  int K;
+} fheld_t;
+
+static const oc_brick_codes_t *held_lookup(void *ctx, uint32_t id) {
+  const fheld_t *h = ctx;
+  for (int i = 1; i < h->K; i++) {
+    const oc_state_t *s = ocs_viewer_held(h->v, i);
+    const oc_brick_t *b = s ? oc_state_find_brick(s, id) : NULL;
+    if (b) return &b->codes;
+  }
+  return NULL;
+}
+
+/* Decodes the epoch's frames as a viewer would. @return 0 or a negative OC_E* with a reason. */
+static int decode_epoch(ocp_epoch_dec_t *d, const oc_buf_t *in, fheld_t *held, oc_state_t *out, char *why, size_t why_len) {
+  int r = OC_ECORRUPT;
+  snprintf(why, why_len, "no epoch end");
+  for (size_t at = 0; at + OCP_HEADER_BYTES <= in->len;) {
+    ocp_header_t h;
+    if ((r = ocp_header_parse(in->data + at, OCP_MAX_PAYLOAD, &h)) < 0) return r;
+    const uint8_t *p = in->data + at + OCP_HEADER_BYTES;
+    at += OCP_HEADER_BYTES + h.length;
+    switch (h.type) {
+      case OCP_MSG_EPOCH_BEGIN: {
+        ocp_epoch_begin_t m;
+        if ((r = ocp_get_epoch_begin(p, h.length, &m, why, why_len)) < 0) return r;
+        const oc_state_t *base = NULL;
+        for (int i = 1; i < held->K && m.base_epoch != OCP_NO_BASE && !base; i++) {
+          const oc_state_t *s = ocs_viewer_held(held->v, i);
+          if (s && s->epoch == m.base_epoch) base = s;
+        }
+        r = ocp_epoch_dec_begin(d, &m, base, held_lookup, held, why, why_len);
+        break;
+      }
+      case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, p, h.length, why, why_len); break;
+      case OCP_MSG_BRICKS: r = ocp_epoch_dec_bricks(d, p, h.length, why, why_len); break;
+      case OCP_MSG_EPOCH_END: {
+        ocp_epoch_end_t m;
+        if ((r = ocp_get_epoch_end(p, h.length, &m, why, why_len)) < 0) return r;
+        return ocp_epoch_dec_end(d, &m, out, why, why_len);
+      }
+      default: snprintf(why, why_len, "unexpected frame type 0x%02x", h.type); return OC_ECORRUPT;
+    }
+    if (r < 0) return r;
+  }
+  return r < 0 ? r : OC_ECORRUPT;
+}
+
+static int cmp_u32(const void *a, const void *b) {
+  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return (x > y) - (x < y);
+}
+
+/* Bricks the viewer is sent again: lacking bricks whose node was a brick in the previous state. */
+static uint32_t count_resent(const oc_state_t *s, const oc_state_t *prev, const uint32_t *lacking, uint32_t n) {
+  if (!prev || !n) return 0;
+  uint32_t k = 0;
+  for (uint32_t i = 0; i < s->node_count; i++) {
+    const oc_node_t *nd = &s->nodes[i];
+    if (nd->kind != OC_NODE_BRICK || !bsearch(&nd->brick_id, lacking, n, sizeof *lacking, cmp_u32)) continue;
+    int64_t j = oc_state_find_node(prev, nd->key);
+    if (j >= 0 && prev->nodes[j].kind == OC_NODE_BRICK) k++;
+  }
+  return k;
+}
+
+/* The server and the wire for one configuration. @return OC_EXIT_* after printing any error. */
+static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long epochs, long budget_mib, int threads) {
+  char why[1024];
+  ocs_world_desc_t wd = {.threads = threads, .cache_bytes = 1ull << 30};
+  ocs_world_t *w = NULL;
+  ocs_viewer_t *v = NULL;
+  ocp_epoch_enc_t *enc = NULL;
+  ocp_epoch_dec_t *dec = NULL;
+  oc_buf_t buf = {0};
+  oc_state_t got;
+  oc_state_init(&got);
+  int rc = OC_EXIT_OK, r;
+  double t0 = oct_now();
+  if ((r = ocs_world_create(&w, c->sc, &wd, why, sizeof why)) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: %s", c->label, why);
+    goto out;
+  }
+  c->create_ms = 1e3 * (oct_now() - t0);
+  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = F_SLOT_BYTES, .record_bytes = F_RECORD_BYTES,
+                         .max_depth = 21};
+  if (ocs_world_add_viewer(w, &req, &v, NULL, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: %s", c->label, why);
+    goto out;
+  }
+  if (ocs_viewer_set_view(v, view) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: the view is not valid");
+    goto out;
+  }
+  c->K = ocs_world_kept_states(w);
+  ocp_enc_desc_t ed = {.level = OCP_LEVEL_DEFAULT, .deltas = 1};
+  if (ocp_epoch_enc_create(&enc, &ed) < 0 || ocp_epoch_dec_create(&dec) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+    goto out;
+  }
+  fheld_t held = {v, c->K};
+  uint64_t produced = 0;
+  for (long e = 0; e < epochs; e++) {
+    fprintf(stderr, "\r\033[K%s: features: %s: epoch %ld/%ld", prog, c->label, e + 1, epochs);
+    double c0 = cpu_now();
+    r = ocs_world_step(w);
+    double cpu_ms = 1e3 * (cpu_now() - c0);
+    ocs_epoch_out_t o;
+    if (r < 0 || (r = ocs_viewer_output(v, &o)) < 0) {
+      fprintf(stderr, "\n");
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: %s", c->label, e, oc_strerror(r));
+      goto out;
+    }
+    ocs_world_stats_t ws;
+    ocs_world_stats(w, &ws);
+    uint64_t made = ws.bricks_produced - produced;
+    produced = ws.bricks_produced;
+    const oc_state_t *s = o.state, *prev = ocs_viewer_held(v, 1);
+    /* the wire: encode against the previous state, decode as the viewer, compare */
+    buf.len = 0;
+    if (ocp_epoch_enc_begin(enc, s, prev, o.lacking, o.nlacking) < 0) r = OC_ENOMEM;
+    while (r >= 0 && (r = ocp_epoch_enc_next(enc, F_VERSION, &buf)) > 0) {
+    }
+    if (r < 0) {
+      fprintf(stderr, "\n");
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: encoding failed: %s", c->label, e, oc_strerror(r));
+      goto out;
+    }
+    why[0] = '\0';
+    if ((r = decode_epoch(dec, &buf, &held, &got, why, sizeof why)) < 0 || oc_state_checksum(&got) != oc_state_checksum(s)) {
+      fprintf(stderr, "\n");
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: DECODE %s: %s", c->label, e, r < 0 ? "FAILED" : "MISMATCH",
+                       r < 0 ? why : "the decoded state's checksum differs from the server's");
+      goto out;
+    }
+    oc_state_free(&got);
+    uint32_t resent = count_resent(s, prev, o.lacking, o.nlacking);
+    if (e == 0) {
+      c->cpu0_ms = cpu_ms, c->bricks0 = made, c->wire0 = buf.len;
+    } else {
+      c->cpu_after_ms += cpu_ms, c->bricks_after += made, c->wire_after += buf.len, c->resent_after += resent;
+    }
+    if (e == epochs - 1) {
+      c->cpu_last_ms = cpu_ms, c->bricks_last = made, c->resent_last = resent, c->wire_last = buf.len;
+      const oc_state_t *kept[OCS_PLAN_MAX_KEPT];
+      int n = 0;
+      for (int i = 0; i < c->K && i < OCS_PLAN_MAX_KEPT; i++)
+        if ((kept[n] = ocs_viewer_held(v, i))) n++;
+      c->resident = oc_resident_bytes(kept, n, F_SLOT_BYTES, F_RECORD_BYTES);
+      c->nodes = s->node_count, c->state_bricks = s->brick_count, c->checksum = oc_state_checksum(s);
+      for (uint32_t i = 0; i < s->node_count; i++)
+        if (s->nodes[i].kind <= OC_NODE_BRICK) c->kinds[s->nodes[i].kind]++;
+      c->tau_volumes = ws.tau_volumes;
+      if (oc_state_copy(&c->final, s) < 0) {
+        fprintf(stderr, "\n");
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+        goto out;
+      }
+    }
+    ocs_viewer_ack(v, s->epoch);
+  }
+  fprintf(stderr, "\r\033[K");
+out:
+  oc_state_free(&got);
+  oc_buf_free(&buf);
+  ocp_epoch_enc_free(enc);
+  ocp_epoch_dec_free(dec);
+  ocs_world_free(w);
+  return rc;
+}
+
+/* The atmosphere tables the configuration needs (built again: the previous build is freed), their
+ * bytes and the best build times so far. */
+static int build_tables(const char *prog, fcfg_t *c, int threads) {
+  oc_atmo_free(c->atmo);
+  c->atmo = NULL;
+  double t0 = oct_now(), c0 = cpu_now();
+  if (oc_scene_atmo(c->sc, threads, &c->atmo) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: could not build the atmosphere tables", c->label);
+  double ms = 1e3 * (oct_now() - t0), cpu_ms = 1e3 * (cpu_now() - c0);
+  if (!c->atmo) ms = cpu_ms = 0.0; /* nothing built */
+  if (ms < c->table_ms) c->table_ms = ms;
+  if (cpu_ms < c->table_cpu_ms) c->table_cpu_ms = cpu_ms;
+  c->table_bytes = 0;
+  for (int k = 0; c->atmo && k < OC_ATMO_TABLE_COUNT; k++) {
+    int tw = 0, th = 0;
+    const float *px = NULL;
+    if (oc_atmo_table(c->atmo, k, &tw, &th, &px) == 0) c->table_bytes += (uint64_t)tw * (uint64_t)th * 4u * sizeof(float);
+  }
+  return OC_EXIT_OK;
+}
+
+static oc_render_desc_t render_desc(const fcfg_t *c, oc_camera_t cam, int w, int h, int threads) {
+  oc_render_desc_t d = oc_scene_render_desc(c->sc, c->atmo);
+  d.width = w, d.height = h, d.camera = cam, d.threads = threads;
+  return d;
+}
+
+/* CPU reference renders, configurations alternated round by round. */
+static int render_cpu(const char *prog, fcfg_t *cf, int n, oc_camera_t cam, int w, int h, long repeat, int threads) {
+  oc_image_t img = {0};
+  if (oc_image_alloc(&img, w, h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+  for (int i = 0; i < n; i++) cf[i].render_s = cf[i].render_cpu_s = 1e30;
+  for (long k = 0; k < repeat; k++)
+    for (int i = 0; i < n; i++) {
+      fprintf(stderr, "\r\033[K%s: features: render %ld/%ld: %s", prog, k + 1, repeat, cf[i].label);
+      oc_render_desc_t d = render_desc(&cf[i], cam, w, h, threads);
+      oc_render_stats_t rs = {0};
+      double t0 = oct_now(), c0 = cpu_now();
+      if (oc_render_state(&cf[i].final, &d, &img, &rs) < 0) {
+        oc_image_free(&img);
+        fprintf(stderr, "\n");
+        return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: render failed", cf[i].label);
+      }
+      double t = oct_now() - t0, tc = cpu_now() - c0;
+      if (t < cf[i].render_s) cf[i].render_s = t;
+      if (tc < cf[i].render_cpu_s) cf[i].render_cpu_s = tc;
+      cf[i].samples = rs.samples;
+    }
+  fprintf(stderr, "\r\033[K");
+  oc_image_free(&img);
+  return OC_EXIT_OK;
+}
+
+#ifdef OC_HAVE_GL
+/* GL compute renders (shader variants on): per configuration, an upload, one warm-up render
+ * (compiles the variant, uploads the tables), then the best of `repeat`. */
+static int render_gl(const char *prog, fcfg_t *cf, int n, oc_camera_t cam, int w, int h, long repeat, char *info, size_t info_len) {
+  char why[1024];
+  ocv_gl_context_t *ctx = ocv_gl_context_init(why, sizeof why);
+  if (!ctx) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: %s", why);
+  ocv_gl_context_describe(ctx, info, info_len);
+  ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
+  oc_image_t img = {0};
+  int rc = OC_EXIT_OK;
+  if (!r) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: %s", why);
+    goto out;
+  }
+  ocv_gl_renderer_set_variants(r, 1);
+  if (oc_image_alloc(&img, w, h) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+    goto out;
+  }
+  for (int i = 0; i < n && rc == OC_EXIT_OK; i++) {
+    ocv_gl_state_t gs;
+    memset(&gs, 0, sizeof gs);
+    if (ocv_gl_state_upload(&gs, &cf[i].final, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: %s: %s", cf[i].label, why);
+      break;
+    }
+    oc_render_desc_t d = render_desc(&cf[i], cam, w, h, 1);
+    cf[i].render_s = cf[i].render_cpu_s = 1e30;
+    for (long k = 0; k <= repeat; k++) {
+      fprintf(stderr, "\r\033[K%s: features: gl render %ld/%ld: %s", prog, k, repeat, cf[i].label);
+      double t0 = oct_now(), c0 = cpu_now();
+      if (ocv_gl_render_state(r, &gs, &d, &img, why, sizeof why) < 0) {
+        fprintf(stderr, "\n");
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: %s: %s", cf[i].label, why);
+        break;
+      }
+      double t = oct_now() - t0, tc = cpu_now() - c0;
+      if (k > 0 && t < cf[i].render_s) cf[i].render_s = t;
+      if (k > 0 && tc < cf[i].render_cpu_s) cf[i].render_cpu_s = tc;
+    }
+    cf[i].samples = 0;
+    ocv_gl_state_free(&gs);
+  }
+  fprintf(stderr, "\r\033[K");
+out:
+  oc_image_free(&img);
+  ocv_gl_renderer_free(r);
+  ocv_gl_context_free(ctx);
+  return rc;
+}
+#endif
+
+/* "12.3 %" of the all-features figure saved; "—" when there is nothing to compare. */
+static const char *saved(char *buf, size_t cap, double all, double x) {
+  if (!(all > 0.0)) snprintf(buf, cap, "—");
+  else snprintf(buf, cap, "%.1f %%", 100.0 * (1.0 - x / all));
+  return buf;
+}
+
+int oct_bench_features(const char *prog, int argc, char **argv) {
+  enum { O_SCENE = 256, O_CAMERA, O_EPOCHS, O_BUDGET, O_VIEWPORT, O_SIZE, O_RENDERER, O_REPEAT, O_THREADS, O_HELP };
+  static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},       {"camera", required_argument, 0, O_CAMERA},
+                                       {"epochs", required_argument, 0, O_EPOCHS},     {"budget", required_argument, 0, O_BUDGET},
+                                       {"viewport", required_argument, 0, O_VIEWPORT}, {"size", required_argument, 0, O_SIZE},
+                                       {"renderer", required_argument, 0, O_RENDERER}, {"repeat", required_argument, 0, O_REPEAT},
+                                       {"threads", required_argument, 0, O_THREADS},   {"help", no_argument, 0, O_HELP},
+                                       {0, 0, 0, 0}};
+  const char *scene_path = NULL, *camera_text = NULL;
+  long epochs = 6, budget_mib = 64, repeat = 3, threads = 0;
+  int w = 160, h = 90, vw = 1280, vh = 720, gl = 0;
+  int c;
+  opterr = 0;
+  optind = 1;
+  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+    switch (c) {
+      case O_SCENE: scene_path = optarg; break;
+      case O_CAMERA: camera_text = optarg; break;
+      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &epochs)) return OC_EXIT_USAGE; break;
+      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
+      case O_VIEWPORT: if (oc_cli_size(prog, "--viewport", optarg, &vw, &vh)) return OC_EXIT_USAGE; break;
+      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
+      case O_RENDERER:
+        if (!strcmp(optarg, "cpu")) gl = 0;
+        else if (!strcmp(optarg, "gl")) {
+#ifdef OC_HAVE_GL
+          gl = 1;
+#else
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer gl: this build has no GL renderer");
+#endif
+        } else
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer: expected cpu or gl, got \"%s\"", optarg);
+        break;
+      case O_REPEAT: if (oc_cli_int(prog, "--repeat", optarg, 1, 1000, &repeat)) return OC_EXIT_USAGE; break;
+      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 0, 64, &threads)) return OC_EXIT_USAGE; break;
+      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
+      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "features: unknown or incomplete option \"%s\"", argv[optind - 1]);
+    }
+  }
+  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "features: unexpected argument \"%s\"", argv[optind]);
+  if (threads == 0) {
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    threads = n < 1 ? 1 : n > 64 ? 64 : n;
+  }
+
+  char why[1024];
+  static oc_scene_t base;
+  if (oct_load_scene(prog, scene_path, &base)) return OC_EXIT_RUNTIME;
+  oc_camera_pose_t pose = {base.camera.pos, base.camera.heading, base.camera.pitch, base.camera.fov};
+  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
+    oc_scene_free(&base);
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+  }
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, vw, vh};
+
+  /* the configurations: all the scene's features, then each one it uses turned off alone */
+  fcfg_t *cf = calloc(OC_FEATURE_COUNT + 1, sizeof *cf);
+  int n = 0, rc = OC_EXIT_OK;
+  if (!cf) {
+    oc_scene_free(&base);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+  }
+  for (int f = -1; f < OC_FEATURE_COUNT; f++) {
+    if (f >= 0 && !oc_scene_has(&base, (oc_scene_feature_t)f)) continue;
+    fcfg_t *x = &cf[n++];
+    x->off = f;
+    oc_state_init(&x->final);
+    if (f < 0) snprintf(x->label, sizeof x->label, "all the scene's features");
+    else snprintf(x->label, sizeof x->label, "no %s", oc_scene_feature_name(f));
+    if (!(x->sc = calloc(1, sizeof *x->sc)) || oc_scene_copy(x->sc, &base) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+      goto out;
+    }
+    if (f >= 0) x->sc->features &= ~(1u << f);
+  }
+
+  char feat[256] = "";
+  for (int f = 0; f < OC_FEATURE_COUNT; f++)
+    if (oc_scene_has(&base, (oc_scene_feature_t)f))
+      snprintf(feat + strlen(feat), sizeof feat - strlen(feat), "%s%s", feat[0] ? ", " : "", oc_scene_feature_name(f));
+  char cam_text[256];
+  oc_camera_format(pose, cam_text, sizeof cam_text);
+
+  for (int i = 0; i < n && rc == OC_EXIT_OK; i++) rc = run_server(prog, &cf[i], &view, epochs, budget_mib, (int)threads);
+  /* the tables, configurations alternated round by round */
+  for (int i = 0; i < n; i++) cf[i].table_ms = cf[i].table_cpu_ms = 1e30;
+  for (long k = 0; k < repeat && rc == OC_EXIT_OK; k++)
+    for (int i = 0; i < n && rc == OC_EXIT_OK; i++) {
+      fprintf(stderr, "\r\033[K%s: features: tables %ld/%ld: %s", prog, k + 1, repeat, cf[i].label);
+      rc = build_tables(prog, &cf[i], (int)threads);
+    }
+  fprintf(stderr, "\r\033[K");
+  char info[512] = "CPU reference";
+  if (rc == OC_EXIT_OK) {
+#ifdef OC_HAVE_GL
+    if (gl)
+      rc = render_gl(prog, cf, n, cam, w, h, repeat, info, sizeof info);
+    else
+#endif
+      rc = render_cpu(prog, cf, n, cam, w, h, repeat, (int)threads);
+  }
+  if (rc != OC_EXIT_OK) goto out;
+
+  printf("# overcast-bench features: %s\n\n", scene_path ? scene_path : "the built-in procedural planet");
+  printf("scene features on: %s; camera %s (still); %ld epochs, budget %ld MiB, viewport %dx%d; %ld threads;\n"
+         "renderer %s at %dx%d, best of %ld; wire: epoch encoder with deltas, zstd level %d (every decode checked)\n\n",
+         feat[0] ? feat : "none", cam_text, epochs, budget_mib, vw, vh, threads, gl ? info : "CPU reference", w, h, repeat,
+         OCP_LEVEL_DEFAULT);
+  long after = epochs - 1;
+  /* "a / b / c": epoch 0, the mean of epochs 1.., the last epoch ("a" alone with one epoch) */
+  printf("| configuration | kept states | server CPU ms: epoch 0 / mean 1.. / last | bricks produced: 0 / mean 1.. / last "
+         "| bricks re-sent: mean 1.. / last | wire KiB: 0 / mean 1.. / last | resident MiB | tables KiB | tables ms (CPU ms) "
+         "| render ms (CPU ms) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (int i = 0; i < n; i++) {
+    const fcfg_t *x = &cf[i];
+    printf("| %s | %d | %.0f", x->label, x->K, x->cpu0_ms);
+    if (after > 0) printf(" / %.0f / %.0f", x->cpu_after_ms / after, x->cpu_last_ms);
+    printf(" | %" PRIu64, x->bricks0);
+    if (after > 0) printf(" / %.0f / %" PRIu64, (double)x->bricks_after / after, x->bricks_last);
+    if (after > 0) printf(" | %.0f / %" PRIu64, (double)x->resent_after / after, x->resent_last);
+    else printf(" | —");
+    printf(" | %.1f", x->wire0 / 1024.0);
+    if (after > 0) printf(" / %.1f / %.1f", x->wire_after / 1024.0 / after, x->wire_last / 1024.0);
+    printf(" | %.2f | %.0f | %.0f (%.0f) | %.1f (%.1f) |\n", x->resident / 1048576.0, x->table_bytes / 1024.0, x->table_ms,
+           x->table_cpu_ms, 1e3 * x->render_s, 1e3 * x->render_cpu_s);
+  }
+  printf("\n| configuration | world create ms | bricks produced, epoch 0 | τ volumes | state leaves: empty / uniform / brick "
+         "| state bricks | state checksum | render samples |\n|---|---:|---:|---:|---:|---:|---|---:|\n");
+  for (int i = 0; i < n; i++) {
+    const fcfg_t *x = &cf[i];
+    printf("| %s | %.1f | %" PRIu64 " | %" PRIu64 " | %u: %u / %u / %u | %u | %016" PRIx64 " | ", x->label, x->create_ms, x->bricks0,
+           x->tau_volumes, x->nodes, x->kinds[OC_NODE_EMPTY], x->kinds[OC_NODE_UNIFORM], x->kinds[OC_NODE_BRICK], x->state_bricks,
+           x->checksum);
+    if (gl) printf("— |\n");
+    else printf("%" PRIu64 " |\n", x->samples);
+  }
+  if (n > 1) {
+    const fcfg_t *a = &cf[0];
+    printf("\nsaved against all the scene's features (share of its figure; negative: costs more):\n\n"
+           "| turned off | server CPU, all epochs | bricks produced | wire, all epochs | wire, epochs 1.. | resident "
+           "| tables bytes | tables CPU | render | render CPU |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (int i = 1; i < n; i++) {
+      const fcfg_t *x = &cf[i];
+      char s[9][32];
+      printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", oc_scene_feature_name(x->off),
+             saved(s[0], 32, a->cpu0_ms + a->cpu_after_ms, x->cpu0_ms + x->cpu_after_ms),
+             saved(s[1], 32, (double)(a->bricks0 + a->bricks_after), (double)(x->bricks0 + x->bricks_after)),
+             saved(s[2], 32, (double)(a->wire0 + a->wire_after), (double)(x->wire0 + x->wire_after)),
+             saved(s[3], 32, (double)a->wire_after, (double)x->wire_after), saved(s[4], 32, (double)a->resident, (double)x->resident),
+             saved(s[5], 32, (double)a->table_bytes, (double)x->table_bytes), saved(s[6], 32, a->table_cpu_ms, x->table_cpu_ms),
+             saved(s[7], 32, a->render_s, x->render_s), saved(s[8], 32, a->render_cpu_s, x->render_cpu_s));
+    }
+  }
+  fflush(stdout);
+
+out:
+  for (int i = 0; i < n; i++) {
+    oc_state_free(&cf[i].final);
+    oc_atmo_free(cf[i].atmo);
+    if (cf[i].sc) oc_scene_free(cf[i].sc);
+    free(cf[i].sc);
+  }
+  free(cf);
+  oc_scene_free(&base);
+  return rc;
+}
