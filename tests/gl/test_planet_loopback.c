@@ -76,6 +76,14 @@ static void load(const char *dir, uint8_t **rgb) {
 
 static void test_planet__loopback_cloudy_sky(void **state) {
   (void)state;
+#if defined(__SANITIZE_ADDRESS__)
+  /* The planet's first epochs box-filter the procedural field for τ at every coarse level: about
+   * 5 s of CPU in the optimised build, many minutes under ASan. The gcc stage runs this test; the
+   * sanitizer stage covers the same server, protocol and renderer code through tests/net (which
+   * serves the procedural planet too) and the other GL tests. */
+  printf("built with AddressSanitizer: skipped (the gcc stage runs it)\n");
+  skip();
+#endif
   char cmd[8192];
   snprintf(cmd, sizeof cmd,
            "'%s/overcast-server' --listen 127.0.0.1:0 --epoch-period 0 --threads 2 >'%s/addr' 2>'%s/server.log' & "
@@ -84,7 +92,7 @@ static void test_planet__loopback_cloudy_sky(void **state) {
            bin, tmp, tmp, tmp, tmp, tmp);
   assert_int_equal(run(cmd), 0);
   snprintf(cmd, sizeof cmd,
-           "'%s/overcast-view' --connect $(sed -n 's/^listening on //p' '%s/addr') --step --wait-epochs 3 --budget 16 "
+           "'%s/overcast-view' --connect $(sed -n 's/^listening on //p' '%s/addr') --step --wait-epochs 3 --budget 4 "
            "--timeout 600 --headless --renderer gl --camera " CAMERA " --size %dx%d --out '%s/gl' --save-state '%s/s.ocst' -q",
            bin, tmp, W, H, tmp, tmp);
   int r = run(cmd);
