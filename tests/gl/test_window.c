@@ -102,11 +102,19 @@ static void test_window__keys_screenshots_record(void **state) {
            "[ -s '%s/display' ]",
            tmp, tmp, tmp, tmp, tmp, tmp);
   assert_int_equal(run(cmd), 0);
+#if defined(__SANITIZE_ADDRESS__)
+  /* Mesa's GLX driver, unloaded by glfwTerminate() before LeakSanitizer runs, leaks a few blocks
+   * that cannot be symbolised (so tests/lsan.supp cannot name them); the viewer's own code is
+   * leak-checked headless by the other tests. */
+  const char *asan_env = "ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 ";
+#else
+  const char *asan_env = "";
+#endif
   /* One script: start the viewer, wait until it has drawn (the title shows the frame time), press
    * the keys a user would, and give back the viewer's exit status. */
   snprintf(cmd, sizeof cmd,
            "export DISPLAY=:$(cat '%s/display'); cd '%s'; "
-           "'%s/overcast-view' --window --scene scenes/analytic_sphere.json --size 160x90 --out '%s/out' "
+           "%s'%s/overcast-view' --window --scene scenes/analytic_sphere.json --size 160x90 --out '%s/out' "
            "--record '%s/flight.txt' > '%s/view.log' 2>&1 & pid=$!; "
            "w=''; for i in $(seq 300); do w=$(xdotool search --name 'overcast-view' 2>/dev/null | head -1); "
            "[ -n \"$w\" ] && xdotool getwindowname $w | grep -q ' ms ' && break; sleep 0.1; done; "
@@ -121,7 +129,7 @@ static void test_window__keys_screenshots_record(void **state) {
            "for i in 1 2 3 4 5 6; do xdotool mousemove_relative 10 0; sleep 0.1; done; "
            "xdotool mouseup 1; sleep 0.7; k p; "                              /* 5: looked right */
            "k Escape; wait $pid",
-           tmp, src, bin, tmp, tmp, tmp);
+           tmp, src, asan_env, bin, tmp, tmp, tmp);
   int rc = run(cmd);
   snprintf(cmd, sizeof cmd, "cat '%s/view.log'; ls '%s/out'; cat '%s/flight.txt' | head -5", tmp, tmp, tmp);
   (void)run(cmd);
