@@ -29,6 +29,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "bench_epoch.h"
 #include "oc_atmo.h"
 #include "oc_camera.h"
 #include "oc_cli.h"
@@ -92,58 +93,6 @@ static double cpu_now(void) {
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
-/* The viewer's decoder looks bricks up in the states it holds: the server's held states 1..K−1
- * (what it has acknowledged). */
-typedef struct {
-  const ocs_viewer_t *v;
-  int K;
-} fheld_t;
-
-static const oc_brick_codes_t *held_lookup(void *ctx, uint32_t id) {
-  const fheld_t *h = ctx;
-  for (int i = 1; i < h->K; i++) {
-    const oc_state_t *s = ocs_viewer_held(h->v, i);
-    const oc_brick_t *b = s ? oc_state_find_brick(s, id) : NULL;
-    if (b) return &b->codes;
-  }
-  return NULL;
-}
-
-/* Decodes the epoch's frames as a viewer would. @return 0 or a negative OC_E* with a reason. */
-static int decode_epoch(ocp_epoch_dec_t *d, const oc_buf_t *in, fheld_t *held, oc_state_t *out, char *why, size_t why_len) {
-  int r = OC_ECORRUPT;
-  snprintf(why, why_len, "no epoch end");
-  for (size_t at = 0; at + OCP_HEADER_BYTES <= in->len;) {
-    ocp_header_t h;
-    if ((r = ocp_header_parse(in->data + at, OCP_MAX_PAYLOAD, &h)) < 0) return r;
-    const uint8_t *p = in->data + at + OCP_HEADER_BYTES;
-    at += OCP_HEADER_BYTES + h.length;
-    switch (h.type) {
-      case OCP_MSG_EPOCH_BEGIN: {
-        ocp_epoch_begin_t m;
-        if ((r = ocp_get_epoch_begin(p, h.length, &m, why, why_len)) < 0) return r;
-        const oc_state_t *base = NULL;
-        for (int i = 1; i < held->K && m.base_epoch != OCP_NO_BASE && !base; i++) {
-          const oc_state_t *s = ocs_viewer_held(held->v, i);
-          if (s && s->epoch == m.base_epoch) base = s;
-        }
-        r = ocp_epoch_dec_begin(d, &m, base, held_lookup, held, why, why_len);
-        break;
-      }
-      case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, p, h.length, why, why_len); break;
-      case OCP_MSG_BRICKS: r = ocp_epoch_dec_bricks(d, p, h.length, why, why_len); break;
-      case OCP_MSG_EPOCH_END: {
-        ocp_epoch_end_t m;
-        if ((r = ocp_get_epoch_end(p, h.length, &m, why, why_len)) < 0) return r;
-        return ocp_epoch_dec_end(d, &m, out, why, why_len);
-      }
-      default: snprintf(why, why_len, "unexpected frame type 0x%02x", h.type); return OC_ECORRUPT;
-    }
-    if (r < 0) return r;
-  }
-  return r < 0 ? r : OC_ECORRUPT;
-}
-
 static int cmp_u32(const void *a, const void *b) {
   uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
   return (x > y) - (x < y);
@@ -196,7 +145,6 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
     goto out;
   }
-  fheld_t held = {v, c->K};
   uint64_t produced = 0;
   for (long e = 0; e < epochs; e++) {
     fprintf(stderr, "\r\033[K%s: features: %s: epoch %ld/%ld", prog, c->label, e + 1, epochs);
@@ -225,7 +173,11 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
       goto out;
     }
     why[0] = '\0';
-    if ((r = decode_epoch(dec, &buf, &held, &got, why, sizeof why)) < 0 || oc_state_checksum(&got) != oc_state_checksum(s)) {
+    /* the viewer holds what the server has seen acknowledged: its held states 1..K−1 */
+    const oc_state_t *held[OCS_PLAN_MAX_KEPT];
+    int nheld = 0;
+    for (int i = 1; i < c->K && nheld < OCS_PLAN_MAX_KEPT; i++) held[nheld++] = ocs_viewer_held(v, i);
+    if ((r = oct_epoch_decode(dec, &buf, held, nheld, &got, why, sizeof why)) < 0 || oc_state_checksum(&got) != oc_state_checksum(s)) {
       fprintf(stderr, "\n");
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: DECODE %s: %s", c->label, e, r < 0 ? "FAILED" : "MISMATCH",
                        r < 0 ? why : "the decoded state's checksum differs from the server's");

@@ -22,6 +22,7 @@
 #include <zstd.h> /* the plain baseline only */
 
 #include "bench.h"
+#include "bench_epoch.h"
 #include "oc_camera.h"
 #include "oc_cli.h"
 #include "oc_err.h"
@@ -214,39 +215,6 @@ static int epoch_encode(ocp_epoch_enc_t *e, const oc_state_t *s, const oc_state_
   }
 }
 
-static int epoch_decode(ocp_epoch_dec_t *d, const oc_buf_t *in, held_t *held, oc_state_t *out, char *why, size_t why_len) {
-  int r = OC_ECORRUPT;
-  snprintf(why, why_len, "no epoch end");
-  for (size_t at = 0; at + OCP_HEADER_BYTES <= in->len;) {
-    ocp_header_t h;
-    if ((r = ocp_header_parse(in->data + at, OCP_MAX_PAYLOAD, &h)) < 0) return r;
-    const uint8_t *p = in->data + at + OCP_HEADER_BYTES;
-    at += OCP_HEADER_BYTES + h.length;
-    switch (h.type) {
-      case OCP_MSG_EPOCH_BEGIN: {
-        ocp_epoch_begin_t m;
-        if ((r = ocp_get_epoch_begin(p, h.length, &m, why, why_len)) < 0) return r;
-        const oc_state_t *base = NULL;
-        for (int i = 0; i < held->n && m.base_epoch != OCP_NO_BASE && !base; i++)
-          if (held->s[i].epoch == m.base_epoch) base = &held->s[i];
-        r = ocp_epoch_dec_begin(d, &m, base, held_lookup, held, why, why_len);
-        break;
-      }
-      case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, p, h.length, why, why_len); break;
-      case OCP_MSG_BRICKS: r = ocp_epoch_dec_bricks(d, p, h.length, why, why_len); break;
-      case OCP_MSG_DICT: r = ocp_epoch_dec_dict(d, p, h.length, why, why_len); break;
-      case OCP_MSG_EPOCH_END: {
-        ocp_epoch_end_t m;
-        if ((r = ocp_get_epoch_end(p, h.length, &m, why, why_len)) < 0) return r;
-        return ocp_epoch_dec_end(d, &m, out, why, why_len);
-      }
-      default: snprintf(why, why_len, "unexpected frame type 0x%02x", h.type); return OC_ECORRUPT;
-    }
-    if (r < 0) return r;
-  }
-  return r < 0 ? r : OC_ECORRUPT;
-}
-
 /*-*** The subcommand ***/
 
 int oct_bench_wire(const char *prog, int argc, char **argv) {
@@ -391,9 +359,11 @@ int oct_bench_wire(const char *prog, int argc, char **argv) {
         x->delta_ch = st.delta_channels, x->full_ch = st.full_channels;
       }
       why[0] = '\0';
+      const oc_state_t *held_ptr[W_HELD_MAX];
+      for (int k = 0; k < held.n; k++) held_ptr[k] = &held.s[k];
       t0 = oct_now();
       r = i == W_PLAIN ? plain_decode(dc, &x->buf, &held, &x->out, scratch, scratch_cap, why, sizeof why)
-                       : epoch_decode(x->dec, &x->buf, &held, &x->out, why, sizeof why);
+                       : oct_epoch_decode(x->dec, &x->buf, held_ptr, held.n, &x->out, why, sizeof why);
       x->dec_s = oct_now() - t0;
       if (r < 0) {
         rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: DECODE FAILED: %s", e, wname[i], why);

@@ -4,6 +4,8 @@
 #ifndef OC_TESTS_GL_FIXTURE_H
 #define OC_TESTS_GL_FIXTURE_H
 
+#include <string.h> /* memset */
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,6 +57,19 @@ static inline void sphere_state(oc_state_t *st, oc_camera_t cam, int h, uint32_t
     if (st->nodes[i].kind == OC_NODE_BRICK) st->nodes[i].brick_id += id_base;
   for (uint32_t b = 0; b < st->brick_count; b++) st->bricks[b].id += id_base;
   oc_scene_free(&sc);
+}
+
+/* A w×h view from cam against a constant background (no atmosphere, no planet): the analytic
+ * tests' lighting, every other knob at its default. */
+static inline oc_render_desc_t const_bg_desc(oc_camera_t cam, int w, int h) {
+  oc_render_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.width = w;
+  d.height = h;
+  d.camera = cam;
+  d.background = OC_BG_CONSTANT;
+  d.background_radiance = 0.02f;
+  return d;
 }
 
 /* RMSE on the 0–255 scale after tone mapping at exposure 10. */

@@ -33,13 +33,7 @@
 static void make_state(oc_state_t *st, oc_camera_t cam, uint32_t id_base) { sphere_state(st, cam, H, id_base); }
 
 static oc_render_desc_t view_desc(oc_camera_t cam) {
-  oc_render_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.width = W;
-  d.height = H;
-  d.camera = cam;
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
   d.threads = 2;
   return d;
 }

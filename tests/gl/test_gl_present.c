@@ -46,13 +46,7 @@ static void test_gl_present__matches_cpu(void **state) {
   sphere_state(&st, cam, H, 0);
   ocv_gl_state_t gs;
   assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
-  oc_render_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.width = W;
-  d.height = H;
-  d.camera = cam;
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
   oc_image_t img = {0};
   assert_int_equal(oc_image_alloc(&img, W, H), 0);
   assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &img, why, sizeof why), 0);

@@ -36,13 +36,7 @@ static void test_gl_reproject__frames(void **state) {
   sphere_state(&st, cam, H, 0);
   ocv_gl_state_t gs;
   assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
-  oc_render_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.width = W;
-  d.height = H;
-  d.camera = cam;
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
   oc_image_t full = {0}, img = {0};
   assert_int_equal(oc_image_alloc(&full, W, H), 0);
   assert_int_equal(oc_image_alloc(&img, W, H), 0);

@@ -57,13 +57,7 @@ static void refresh(oc_state_t *dst, const oc_state_t *s, uint32_t n) {
 }
 
 static void render(const ocv_gl_state_t *gs, oc_camera_t cam, oc_image_t *img) {
-  oc_render_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.width = W;
-  d.height = H;
-  d.camera = cam;
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
   char why[512];
   assert_int_equal(oc_image_alloc(img, W, H), 0);
   if (ocv_gl_render_state(ren, gs, &d, img, why, sizeof why) < 0) fail_msg("render: %s", why);

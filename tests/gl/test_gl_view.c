@@ -51,13 +51,7 @@ static void test_gl_view__epochs(void **state) {
   oc_state_t s1, s2;
   make_state(&s1, cf, 0, 1);
   make_state(&s2, oc_camera_from_pose(near), 1000000, 2);
-  oc_render_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.width = W;
-  d.height = H;
-  d.camera = cf;
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  oc_render_desc_t d = const_bg_desc(cf, W, H);
   oc_image_t r1, r2, img = {0};
   render_direct(&s1, &d, &r1);
   render_direct(&s2, &d, &r2);

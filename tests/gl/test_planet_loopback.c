@@ -23,6 +23,7 @@
 #include <unistd.h>
 
 #include "oc_image.h"
+#include "programs.h" /* oc_test_dirs, oc_test_run */
 
 #define W 96
 #define H 54
@@ -31,26 +32,9 @@
 static char bin[2048], tmp[256];
 static uint8_t *gl_rgb, *cpu_rgb;
 
-static int run(const char *cmd) {
-  printf("$ %s\n", cmd);
-  fflush(stdout);
-  int r = system(cmd);
-  return r == -1 ? -1 : WIFEXITED(r) ? WEXITSTATUS(r) : 128;
-}
-
 static int setup(void **state) {
   (void)state;
-  const char *b = getenv("OC_BIN_DIR");
-  if (b && *b) {
-    snprintf(bin, sizeof bin, "%s", b);
-  } else {
-    char exe[1800];
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    exe[n > 0 ? n : 0] = '\0';
-    char *slash = strrchr(exe, '/');
-    if (slash) *slash = '\0';
-    snprintf(bin, sizeof bin, "%s/../bin", n > 0 ? exe : ".");
-  }
+  oc_test_dirs(bin, sizeof bin, NULL, 0);
   snprintf(tmp, sizeof tmp, "/tmp/oc_test_planet_XXXXXX");
   return mkdtemp(tmp) ? 0 : -1;
 }
@@ -61,7 +45,7 @@ static int teardown(void **state) {
   free(cpu_rgb);
   char cmd[1024];
   snprintf(cmd, sizeof cmd, "[ -f '%s/server.pid' ] && kill $(cat '%s/server.pid') 2>/dev/null; rm -rf '%s'", tmp, tmp, tmp);
-  (void)run(cmd);
+  (void)oc_test_run(cmd);
   return 0;
 }
 
@@ -90,16 +74,16 @@ static void test_planet__loopback_cloudy_sky(void **state) {
            "echo $! >'%s/server.pid'; for i in $(seq 300); do grep -q 'listening on' '%s/addr' && break; sleep 0.1; done; "
            "grep -q 'listening on' '%s/addr'",
            bin, tmp, tmp, tmp, tmp, tmp);
-  assert_int_equal(run(cmd), 0);
+  assert_int_equal(oc_test_run(cmd), 0);
   snprintf(cmd, sizeof cmd,
            "'%s/overcast-view' --connect $(sed -n 's/^listening on //p' '%s/addr') --step --wait-epochs 3 --budget 4 "
            "--timeout 600 --headless --renderer gl --camera " CAMERA " --size %dx%d --out '%s/gl' --save-state '%s/s.ocst' -q",
            bin, tmp, W, H, tmp, tmp);
-  int r = run(cmd);
+  int r = oc_test_run(cmd);
   if (r != 0) {
     const char *req = getenv("OC_GL_REQUIRE");
     snprintf(cmd, sizeof cmd, "cat '%s/server.log'", tmp);
-    (void)run(cmd);
+    (void)oc_test_run(cmd);
     if (req && req[0] == '1') fail_msg("overcast-view --connect --renderer gl exited %d", r);
     printf("no GL: skipped\n");
     skip();
@@ -107,7 +91,7 @@ static void test_planet__loopback_cloudy_sky(void **state) {
   snprintf(cmd, sizeof cmd,
            "'%s/overcast-view' --state '%s/s.ocst' --headless --renderer cpu --camera " CAMERA " --size %dx%d --out '%s/cpu' -q",
            bin, tmp, W, H, tmp);
-  assert_int_equal(run(cmd), 0);
+  assert_int_equal(oc_test_run(cmd), 0);
   load("gl", &gl_rgb);
   load("cpu", &cpu_rgb);
   double rmse = oc_rgb8_rmse(gl_rgb, cpu_rgb, W, H);

@@ -22,37 +22,16 @@
 
 #include "oc_camera.h"
 #include "oc_image.h"
+#include "programs.h" /* oc_test_dirs, oc_test_run */
 
 #define SIZE "160x90"
 #define CAMERA "0,-0.09,3000,90,0,40" /* scenes/analytic_sphere.json's camera */
 
 static char bin[2048], src[2048], tmp[256];
 
-static void find_dirs(void) {
-  const char *b = getenv("OC_BIN_DIR"), *s = getenv("OC_SOURCE_DIR");
-  if (b && *b) {
-    snprintf(bin, sizeof bin, "%s", b);
-  } else { /* the test lives in BUILD/tests, the programs in BUILD/bin */
-    char exe[1800];
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    exe[n > 0 ? n : 0] = '\0';
-    char *slash = strrchr(exe, '/');
-    if (slash) *slash = '\0';
-    snprintf(bin, sizeof bin, "%s/../bin", n > 0 ? exe : ".");
-  }
-  snprintf(src, sizeof src, "%s", s && *s ? s : ".");
-}
-
-static int run(const char *cmd) {
-  printf("$ %s\n", cmd);
-  fflush(stdout);
-  int r = system(cmd);
-  return r == -1 ? -1 : WIFEXITED(r) ? WEXITSTATUS(r) : 128;
-}
-
 static int setup(void **state) {
   (void)state;
-  find_dirs();
+  oc_test_dirs(bin, sizeof bin, src, sizeof src);
   snprintf(tmp, sizeof tmp, "/tmp/oc_test_view_gl_XXXXXX");
   if (!mkdtemp(tmp)) return -1;
   char cmd[8192];
@@ -60,7 +39,7 @@ static int setup(void **state) {
            "'%s/overcast-server' --scene '%s/scenes/analytic_sphere.json' --save-state '%s/p.ocst' --epochs 3 "
            "--budget 4 --viewport 160x90 -q >/dev/null",
            bin, src, tmp);
-  return run(cmd) == 0 ? 0 : -1;
+  return oc_test_run(cmd) == 0 ? 0 : -1;
 }
 
 typedef struct {
@@ -78,7 +57,7 @@ static int teardown(void **state) {
   free(g2.rgb);
   char cmd[512];
   snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
-  return run(cmd) == 0 ? 0 : -1;
+  return oc_test_run(cmd) == 0 ? 0 : -1;
 }
 
 static int view(const char *renderer, const char *camera_opt, const char *out) {
@@ -87,7 +66,7 @@ static int view(const char *renderer, const char *camera_opt, const char *out) {
            "cd '%s' && '%s/overcast-view' --headless --renderer %s --state '%s/p.ocst' %s --size " SIZE
            " --out '%s/%s' -q >/dev/null",
            src, bin, renderer, tmp, camera_opt, tmp, out);
-  return run(cmd);
+  return oc_test_run(cmd);
 }
 
 static void load(const char *out, png_t *p) {

@@ -24,30 +24,9 @@
 
 #include "oc_camera.h"
 #include "oc_image.h"
+#include "programs.h" /* oc_test_dirs, oc_test_run */
 
 static char bin[2048], src[2048], tmp[256];
-
-static void find_dirs(void) {
-  const char *b = getenv("OC_BIN_DIR"), *s = getenv("OC_SOURCE_DIR");
-  if (b && *b) {
-    snprintf(bin, sizeof bin, "%s", b);
-  } else {
-    char exe[1800];
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    exe[n > 0 ? n : 0] = '\0';
-    char *slash = strrchr(exe, '/');
-    if (slash) *slash = '\0';
-    snprintf(bin, sizeof bin, "%s/../bin", n > 0 ? exe : ".");
-  }
-  snprintf(src, sizeof src, "%s", s && *s ? s : ".");
-}
-
-static int run(const char *cmd) {
-  printf("$ %s\n", cmd);
-  fflush(stdout);
-  int r = system(cmd);
-  return r == -1 ? -1 : WIFEXITED(r) ? WEXITSTATUS(r) : 128;
-}
 
 typedef struct {
   int w, h;
@@ -59,7 +38,7 @@ static png_t shot[6], head;
 
 static int setup(void **state) {
   (void)state;
-  find_dirs();
+  oc_test_dirs(bin, sizeof bin, src, sizeof src);
   snprintf(tmp, sizeof tmp, "/tmp/oc_test_window_XXXXXX");
   return mkdtemp(tmp) ? 0 : -1;
 }
@@ -70,7 +49,7 @@ static int teardown(void **state) {
   free(head.rgb);
   char cmd[1024];
   snprintf(cmd, sizeof cmd, "[ -f '%s/xvfb.pid' ] && kill $(cat '%s/xvfb.pid') 2>/dev/null; rm -rf '%s'", tmp, tmp, tmp);
-  (void)run(cmd);
+  (void)oc_test_run(cmd);
   return 0;
 }
 
@@ -90,7 +69,7 @@ static double mean(const png_t *p) {
 
 static void test_window__keys_screenshots_record(void **state) {
   (void)state;
-  if (run("command -v Xvfb >/dev/null && command -v xdotool >/dev/null") != 0) {
+  if (oc_test_run("command -v Xvfb >/dev/null && command -v xdotool >/dev/null") != 0) {
     printf("Xvfb or xdotool not installed: skipped\n");
     skip();
   }
@@ -101,7 +80,7 @@ static void test_window__keys_screenshots_record(void **state) {
            "echo $! > '%s/xvfb.pid') && for i in $(seq 50); do [ -s '%s/display' ] && break; sleep 0.1; done; "
            "[ -s '%s/display' ]",
            tmp, tmp, tmp, tmp, tmp, tmp);
-  assert_int_equal(run(cmd), 0);
+  assert_int_equal(oc_test_run(cmd), 0);
 #if defined(__SANITIZE_ADDRESS__)
   /* Mesa's GLX driver, unloaded by glfwTerminate() before LeakSanitizer runs, leaks a few blocks
    * that cannot be symbolised (so tests/lsan.supp cannot name them); the viewer's own code is
@@ -130,9 +109,9 @@ static void test_window__keys_screenshots_record(void **state) {
            "xdotool mouseup 1; sleep 0.7; k p; "                              /* 5: looked right */
            "k Escape; wait $pid",
            tmp, src, asan_env, bin, tmp, tmp, tmp);
-  int rc = run(cmd);
+  int rc = oc_test_run(cmd);
   snprintf(cmd, sizeof cmd, "cat '%s/view.log'; ls '%s/out'; cat '%s/flight.txt' | head -5", tmp, tmp, tmp);
-  (void)run(cmd);
+  (void)oc_test_run(cmd);
   assert_int_equal(rc, 0);
 
   char path[512];
@@ -146,7 +125,7 @@ static void test_window__keys_screenshots_record(void **state) {
            "cd '%s' && '%s/overcast-view' --headless --scene scenes/analytic_sphere.json --size 160x90 "
            "--camera-from '%s/out/screenshot_0000.png' --out '%s/head' -q",
            src, bin, tmp, tmp);
-  assert_int_equal(run(cmd), 0);
+  assert_int_equal(oc_test_run(cmd), 0);
   snprintf(path, sizeof path, "%s/head/frame_0000.png", tmp);
   load(path, &head);
   assert_int_equal(shot[0].w, 160);
@@ -166,7 +145,7 @@ static void test_window__keys_screenshots_record(void **state) {
   printf("flew %.1f m\n", moved);
   assert_true(moved > 100.0); /* speed = altitude (3 km) per second, for about a second */
   snprintf(cmd, sizeof cmd, "[ $(grep -c . '%s/flight.txt') -ge 3 ]", tmp);
-  assert_int_equal(run(cmd), 0);
+  assert_int_equal(oc_test_run(cmd), 0);
 
   /* V: the LOD view differs; cycled back and three exposure steps up: brighter than before */
   double dv = oc_rgb8_rmse(shot[1].rgb, shot[2].rgb, 160, 90);
