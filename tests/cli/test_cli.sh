@@ -115,6 +115,26 @@ check "ctl: sun without a place" 2 "sun: give" -- "$C" sun --lat 10
 check "ctl: raw non-object" 2 "raw: not a JSON object" -- "$C" raw '[1]'
 check "ctl: stray argument" 2 "unexpected argument \"x\"" -- "$C" stats x
 check "ctl: connection refused" 1 "^overcast-ctl: 127\.0\.0\.1:1: cannot connect" -- "$C" --connect 127.0.0.1:1 --timeout 5 stats
+
+X=$BIN/overcast-stress
+if [ -x "$X" ]; then
+  check "stress: --help" 0 "" -- "$X" --help
+  grep -q "teleport" "$tmp/out" || { echo "FAIL stress --help: paths not listed"; fail=$((fail + 1)); }
+  check "stress: unknown option" 2 "unknown or incomplete option \"--frobnicate\"" -- "$X" --frobnicate
+  check "stress: stray argument" 2 "unexpected argument \"x\"" -- "$X" x
+  check "stress: bad viewers" 2 "--viewers: 0 is outside" -- "$X" --viewers 0
+  check "stress: bad path" 2 "--paths: unknown path \"spin\"" -- "$X" --paths orbit,spin
+  check "stress: bad budget list" 2 "--budget: expected an integer" -- "$X" --budget 4,x
+  check "stress: bad depth" 2 "--max-depth: 30 is outside" -- "$X" --max-depth 8,30
+  check "stress: bad size" 2 "--size: expected WxH" -- "$X" --size 160
+  check "stress: bad period" 2 "--epoch-period: -1 is outside" -- "$X" --epoch-period -1
+  check "stress: --scene with --connect" 2 "--scene goes with --spawn" -- "$X" --connect 127.0.0.1:1 --scene x.json
+  check "stress: --spawn and --connect" 2 "exclude each other" -- "$X" --spawn --connect 127.0.0.1:1
+  check "stress: --server-pid alone" 2 "--server-pid goes with --connect" -- "$X" --server-pid 1
+  check "stress: bad --connect" 2 "--connect: expected HOST:PORT" -- "$X" --connect localhost
+  check "stress: no such server program" 1 "^overcast-stress: /nonexistent: not an executable" -- "$X" --server /nonexistent
+  check "stress: connection refused" 1 "^overcast-stress: 127\.0\.0\.1:1: cannot connect" -- "$X" --connect 127.0.0.1:1 --timeout 5
+fi
 check "view: --connect with --state" 2 "--connect excludes --state and --scene" -- "$V" --connect 127.0.0.1:1 --state "$tmp/s.ocst"
 check "view: --step without --connect" 2 "go with --connect" -- "$V" --step
 check "view: bad --connect" 2 "--connect: expected HOST:PORT" -- "$V" --connect "[::1"

@@ -1,0 +1,210 @@
+/* stress.h — overcast-stress internals shared by its files: options, the run, one viewer, the
+ * server process, and the report.
+ *
+ *   stress_main.c    command line, the coordinator (stepping, stopping, the final stats request)
+ *   stress_viewer.c  one viewer: a thread with its own connection (client/net.h), its camera path,
+ *                    and the live checks (resident bytes counted here, checksums, skipped epochs)
+ *   stress_proc.c    overcast-server as a child process; RSS and CPU from /proc
+ *   stress_report.c  aggregates, the table on stdout and the JSON file
+ *   stress_path.c    camera paths */
+#ifndef OC_TOOLS_STRESS_H
+#define OC_TOOLS_STRESS_H
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <sys/types.h>
+
+#include "net.h"
+#include "stress_path.h"
+
+#define STRESS_MAX_VIEWERS 1024
+#define STRESS_MAX_STEPS 100000
+#define STRESS_SKIPS_LISTED 64 /* skipped epochs listed per viewer (all are counted) */
+
+/*-*** Options ***/
+
+typedef struct {
+  int spawn;                /* start overcast-server (else --connect) */
+  const char *server_path;  /* NULL: next to this program */
+  const char *scene;        /* spawn: NULL → built-in planet */
+  double epoch_period;      /* spawn: < 0 → the scene's */
+  long server_threads;      /* spawn: 0 → the server's default */
+  char host[OCV_HOST_MAX];
+  int port;
+  long server_pid;          /* connect: a local pid to read /proc of; 0: none */
+  const char *token;
+  int viewers;
+  int npaths, paths[STRESS_PATH_COUNT * 4];
+  int nbudgets;
+  long budgets_mib[64];
+  int ndepths;
+  long depths[64];
+  int width, height;
+  uint64_t seed;
+  double tick_hz, step_seconds, teleport_every, dive_seconds;
+  long epochs;              /* 0: not given */
+  double duration;          /* 0: not given */
+  double timeout;
+  const char *json;
+  int verbose;
+} stress_opts_t;
+
+/*-*** Samples ***/
+
+typedef struct {
+  double *v;
+  size_t n, cap;
+} stress_samples_t;
+
+int stress_samples_add(stress_samples_t *s, double x);
+void stress_samples_free(stress_samples_t *s);
+/*! stress_quantile() : nearest-rank quantile q in [0, 1] of the values (sorted in place); NAN if none. */
+double stress_quantile(double *v, size_t n, double q);
+
+/*-*** One viewer ***/
+
+typedef struct stress_run_s stress_run_t;
+
+/* Brick ids referenced by one state's records (sorted) and its record count. */
+typedef struct {
+  uint32_t *ids;
+  uint32_t n, cap, records;
+} stress_footprint_t;
+
+typedef struct {
+  /* set before the thread starts */
+  int index;
+  stress_path_kind_t path;
+  uint64_t budget; /* bytes asked for */
+  int max_depth;
+  stress_run_t *run;
+  pthread_t thread;
+  int started;
+
+  /* shared with the coordinator, under run->mu */
+  int ready;            /* WELCOME arrived and the first camera went out */
+  int done;             /* the thread's loop ended (error or stop) */
+  uint64_t have_epoch;  /* newest complete state, acknowledged, next camera sent */
+  uint64_t have_states; /* complete states so far */
+  double last_input;    /* when bytes last arrived */
+
+  /* the thread's own; read by the coordinator after the join */
+  ocv_conn_t *conn;
+  stress_path_t p;
+  ocp_welcome_t welcome;
+  int have_welcome;
+  double t_welcome, t_end;
+  uint64_t states, first_epoch, last_epoch, skipped;
+  uint64_t skipped_list[STRESS_SKIPS_LISTED];
+  int nskipped_list;
+  ocp_stats_t last_stats;
+  uint64_t stats_msgs;
+  uint64_t resident_last, resident_max, server_resident_max;
+  uint64_t violations;        /* states after which resident > granted budget */
+  uint64_t resident_mismatch; /* our count differs from the session's */
+  uint64_t checksum_failures, protocol_errors;
+  uint64_t nodes_last, bricks_last, bricks_in;
+  int failed;
+  char error[512];
+  stress_samples_t latency;  /* s: stepped from the step request, else from the first byte of EPOCH_BEGIN */
+  stress_samples_t transfer; /* s: first byte of EPOCH_BEGIN to the complete state */
+  stress_samples_t interval; /* s: between consecutive complete states */
+  stress_samples_t detail;   /* s: time to full detail after a teleport */
+  stress_samples_t detail_epochs;
+  uint64_t teleports, detail_unreached;
+  ocp_viewer_stats_t session; /* the session's counters at the end */
+  stress_footprint_t fp[2]; /* the K−1 previous states', newest first */
+  int nfp;
+  stress_footprint_t fp_new; /* the arriving state's (its memory is recycled) */
+  /* the thread's bookkeeping */
+  int between;         /* no byte of the next epoch seen yet */
+  double epoch_first_byte, state_at;
+  int new_state;
+  long jump;
+  int detail_phase;    /* 0 idle, 1 waiting for the plan to react, 2 waiting for it to settle */
+  double teleport_at;     /* period: when the camera jumped */
+  uint64_t teleport_step; /* stepped: the first step planned for the new place */
+  uint64_t teleport_epoch;
+} stress_viewer_t;
+
+/*-*** The run ***/
+
+struct stress_run_s {
+  const stress_opts_t *o;
+  char host[OCV_HOST_MAX];
+  int port;
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+  atomic_int stop;    /* set once at the end; the viewer threads poll it */
+  /* stepped mode: step k (1-based) was requested at step_at[k] and makes epoch epoch0 + k */
+  uint64_t epoch0;
+  uint64_t steps_sent;
+  double *step_at;
+  double t0;
+  stress_viewer_t *v;
+  int nv;
+};
+
+double stress_now(void);
+/*! stress_viewer_main() : the thread body (arg: stress_viewer_t *). */
+void *stress_viewer_main(void *arg);
+void stress_viewer_free(stress_viewer_t *v);
+
+/*-*** The server process ***/
+
+typedef struct {
+  pid_t pid;
+  int out_fd; /* its stdout (kept open, never read after the address) */
+  char host[OCV_HOST_MAX];
+  int port;
+} stress_child_t;
+
+typedef struct {
+  int ok;
+  double rss_mib, hwm_mib; /* VmRSS, VmHWM */
+  double cpu_s;            /* user + system */
+} stress_proc_t;
+
+/*! stress_server_spawn() : runs argv[0] with argv (its stdout to a pipe, stderr shared, killed if we
+ *  die) and reads its "listening on HOST:PORT" within timeout_s. @return 0 or OC_EIO with a reason. */
+int stress_server_spawn(char *const argv[], double timeout_s, stress_child_t *c, char *why, size_t why_len);
+/*! stress_server_stop() : SIGTERM, waits up to timeout_s (then SIGKILL). @return its exit status,
+ *  128 + signal when killed by one, or -1. */
+int stress_server_stop(stress_child_t *c, double timeout_s);
+/*! stress_proc_sample() : VmRSS, VmHWM and CPU seconds of a process (ok = 0 when unreadable). */
+void stress_proc_sample(long pid, stress_proc_t *out);
+/*! stress_self_cpu() : this process's user + system CPU seconds (getrusage). */
+double stress_self_cpu(void);
+/*! stress_exe_dir() : the folder of this program (/proc/self/exe). @return 0 or -1. */
+int stress_exe_dir(char *buf, size_t cap);
+
+/*-*** The report ***/
+
+typedef struct {
+  int spawned, stepped;
+  char scene[OCP_NAME_MAX + 1];
+  int kept_states;
+  double epoch_period;
+  double wall_s;
+  uint64_t steps, steps_incomplete;
+  stress_proc_t server_start, server_end;
+  int server_exit;      /* -1: not ours or unknown */
+  double server_cpu_s;  /* during the run; NAN when unknown */
+  double tool_cpu_s;
+  double cpu_span_s;     /* wall time over which both CPU figures were taken */
+  stress_proc_t tool;    /* this process at the end: its RSS and peak RSS */
+  double cache_hit_rate; /* NAN when unknown */
+  double bricks_produced, brick_requests;
+  double cache_bytes;    /* the server's brick cache at the end; NAN unknown */
+  double late_ticks;     /* epoch ticks the server skipped because a step still ran; NAN unknown */
+  char error[512];      /* a run-level failure, "" if none */
+} stress_summary_t;
+
+/*! stress_report() : prints the table on stdout and (o->json) writes the JSON file.
+ *  @return 1 when every check passed, 0 otherwise (-1: the JSON file could not be written, with
+ *  a message on stderr). */
+int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s);
+
+#endif /* OC_TOOLS_STRESS_H */

@@ -1,0 +1,568 @@
+/* overcast-stress — many headless viewers against one overcast-server, over the real protocol, in
+ * one process (docs/performance.md, "Many viewers"). Each viewer is a thread with its own
+ * connection, camera path, budget and depth (stress_viewer.c); this file parses the command line,
+ * starts the server (a child process, so that its RSS and CPU are its own) or connects to one,
+ * steps the epochs when the server is stepped by command, and stops everything and reports
+ * (stress_report.c). */
+#include <cjson/cJSON.h>
+#include <getopt.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "oc_cli.h"
+#include "oc_err.h"
+#include "oc_log.h"
+#include "stress.h"
+
+static const char *prog = "overcast-stress";
+static volatile sig_atomic_t g_interrupted = 0;
+
+static void on_signal(int sig) {
+  (void)sig;
+  g_interrupted = 1;
+}
+
+static void usage(FILE *f) {
+  fprintf(f,
+          "usage: overcast-stress [options]\n"
+          "Runs N headless viewers over the real protocol against one overcast-server, each flying its\n"
+          "own camera path with its own budget and depth, and checks every state live: resident bytes\n"
+          "(counted here from the states each viewer keeps) never above the granted budget, every\n"
+          "checksum verified, every skipped epoch reported. Measures bytes/s per viewer, epoch latency,\n"
+          "time to full detail after a teleport, server RSS and CPU, the tool's own CPU and the brick\n"
+          "cache hit rate; prints a table, and JSON with --json. No GPU memory is allocated.\n"
+          "Definitions and measured runs: docs/performance.md, \"Many viewers\".\n"
+          "\n"
+          "The server:\n"
+          "  --spawn               start overcast-server on 127.0.0.1:0 as a child process (default)\n"
+          "  --server PATH         the overcast-server to start (default: the one next to this program)\n"
+          "  --scene FILE          its scene (default: the built-in procedural planet)\n"
+          "  --epoch-period S      its epoch period (default: the scene's); 0: stepped by this tool, one\n"
+          "                        step once every viewer has the last one's state (or gave up on it)\n"
+          "  --server-threads N    its producer threads (default: all cores)\n"
+          "  --connect HOST:PORT   use a running server instead\n"
+          "  --server-pid PID      with --connect: a local server process to read RSS and CPU from\n"
+          "  --token TEXT          the server's token (passed on with --spawn)\n"
+          "The viewers:\n"
+          "  --viewers N           how many (default 5; 1..%d)\n"
+          "  --paths LIST          camera paths, assigned round-robin: orbit, dive, cruise, teleport,\n"
+          "                        random (default: all five)\n"
+          "  --budget LIST         budgets in MiB, round-robin (default 16)\n"
+          "  --max-depth LIST      deepest octree levels 0..21, round-robin (default 21)\n"
+          "  --size WxH            each viewer's viewport (default 320x180)\n"
+          "  --seed N              camera paths' seed (default 1)\n"
+          "  --tick-hz F           camera updates per second, with a period (default 10)\n"
+          "  --step-seconds S      stepped: path seconds per epoch (default 1)\n"
+          "  --teleport-every S    path seconds between teleports (default 10)\n"
+          "  --dive-seconds S      path seconds from 1000 km down to 10 m (default 30)\n"
+          "The run:\n"
+          "  --epochs E            stepped: E steps; with a period: until every viewer has E states\n"
+          "                        (default 8 unless --duration is given)\n"
+          "  --duration S          run this long (stepped: keep stepping until then)\n"
+          "  --timeout S           for connecting, each step, and each wait (default 120)\n"
+          "  --json FILE           write everything measured\n"
+          "  -v, --verbose         a line per state on stderr, and the server's log\n"
+          "  --help, --version\n"
+          "\n"
+          "exit status: 0 every check passed; 1 a check failed (budget, checksum, protocol, a viewer\n"
+          "lost its connection or got no state) or a runtime error; 2 usage error\n",
+          STRESS_MAX_VIEWERS);
+}
+
+/* "a,b,c" → integers in [lo, hi]. @return count, or -1 after a message naming the option. */
+static int parse_int_list(const char *opt, const char *text, long lo, long hi, long *out, int cap) {
+  int n = 0;
+  const char *s = text;
+  for (;;) {
+    const char *comma = strchr(s, ',');
+    size_t len = comma ? (size_t)(comma - s) : strlen(s);
+    char item[64];
+    if (len == 0 || len >= sizeof item || n >= cap) {
+      oc_cli_fail(prog, 0, "%s: expected a comma-separated list of at most %d integers, got \"%s\"", opt, cap, text);
+      return -1;
+    }
+    memcpy(item, s, len);
+    item[len] = '\0';
+    if (oc_cli_int(prog, opt, item, lo, hi, &out[n]) < 0) return -1;
+    n++;
+    if (!comma) return n;
+    s = comma + 1;
+  }
+}
+
+static int parse_paths(const char *text, int *out, int cap) {
+  int n = 0;
+  const char *s = text;
+  for (;;) {
+    const char *comma = strchr(s, ',');
+    size_t len = comma ? (size_t)(comma - s) : strlen(s);
+    int k = stress_path_parse(s, len);
+    if (k < 0 || n >= cap) {
+      if (k < 0)
+        oc_cli_fail(prog, 0, "--paths: unknown path \"%.*s\" (orbit, dive, cruise, teleport, random)", (int)len, s);
+      else
+        oc_cli_fail(prog, 0, "--paths: at most %d entries", cap);
+      return -1;
+    }
+    out[n++] = k;
+    if (!comma) return n;
+    s = comma + 1;
+  }
+}
+
+/* One control request; the reply parsed. @return 0 or -1 with a reason in why. */
+static int control(ocv_conn_t *ctl, const char *json, double timeout, cJSON **reply, char *why, size_t why_len) {
+  char *text = NULL, reason[1024];
+  int32_t status = 0;
+  *reply = NULL;
+  if (ocv_control_request(ctl, json, timeout, &text, &status, reason, sizeof reason) < 0) {
+    snprintf(why, why_len, "%s", reason);
+    return -1;
+  }
+  cJSON *r = cJSON_Parse(text);
+  if (status != OCP_CODE_OK || !cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(r, "ok"))) {
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(r, "error");
+    snprintf(why, why_len, "%s: %s refused: %s", ocv_conn_address(ctl), json,
+             cJSON_IsString(e) ? e->valuestring : ocp_code_text((uint32_t)status));
+    cJSON_Delete(r);
+    free(text);
+    return -1;
+  }
+  free(text);
+  if (!r) {
+    snprintf(why, why_len, "%s: the reply to %s is not JSON", ocv_conn_address(ctl), json);
+    return -1;
+  }
+  *reply = r;
+  return 0;
+}
+
+static double world_num(const cJSON *reply, const char *key) {
+  const cJSON *w = cJSON_GetObjectItemCaseSensitive(reply, "world");
+  const cJSON *x = cJSON_GetObjectItemCaseSensitive(w, key);
+  return cJSON_IsNumber(x) ? x->valuedouble : NAN;
+}
+
+/* Waits on run->cv (mu held) for at most s seconds. */
+static void cv_wait(stress_run_t *run, double s) {
+  struct timespec t;
+  clock_gettime(CLOCK_REALTIME, &t);
+  double ns = (double)t.tv_nsec + s * 1e9;
+  t.tv_sec += (time_t)(ns / 1e9);
+  t.tv_nsec = (long)fmod(ns, 1e9);
+  pthread_cond_timedwait(&run->cv, &run->mu, &t);
+}
+
+/* Keeps the idle control connection alive (the server closes silent ones) and reads what came. */
+static void ctl_tend(ocv_conn_t *ctl) {
+  char why[256];
+  if (ocv_conn_silence(ctl) >= OCV_KEEPALIVE_S) ocv_conn_keepalive(ctl);
+  (void)ocv_conn_poll(ctl, 0, why, sizeof why); /* a lost connection shows at the next request */
+}
+
+static int all_done(const stress_run_t *run) {
+  for (int i = 0; i < run->nv; i++)
+    if (!run->v[i].done) return 0;
+  return 1;
+}
+
+/* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
+ * once the server has gone quiet for 2 s after the step's reply (a viewer skipped by this step
+ * gets nothing more), or after the timeout. */
+static void run_stepped(stress_run_t *run, ocv_conn_t *ctl, stress_summary_t *sum) {
+  const stress_opts_t *o = run->o;
+  char why[1024];
+  for (uint64_t k = 1; k <= STRESS_MAX_STEPS && !g_interrupted; k++) {
+    double now = stress_now();
+    if (o->epochs && k > (uint64_t)o->epochs) break;
+    if (o->duration > 0 && now - run->t0 >= o->duration) break;
+    pthread_mutex_lock(&run->mu);
+    int done = all_done(run);
+    if (!done) {
+      run->steps_sent = k;
+      run->step_at[k] = now;
+    }
+    pthread_mutex_unlock(&run->mu);
+    if (done) break;
+    cJSON *reply = NULL;
+    if (control(ctl, "{\"op\":\"step\",\"epochs\":1}", o->timeout, &reply, why, sizeof why) < 0) {
+      snprintf(sum->error, sizeof sum->error, "step %llu: %.400s", (unsigned long long)k, why);
+      break;
+    }
+    cJSON_Delete(reply);
+    sum->steps = k;
+    double replied = stress_now();
+    uint64_t target = run->epoch0 + k;
+    pthread_mutex_lock(&run->mu);
+    for (;;) {
+      int missing = 0;
+      double last_in = 0;
+      for (int i = 0; i < run->nv; i++) {
+        stress_viewer_t *v = &run->v[i];
+        if (!v->done && v->have_epoch < target) missing++;
+        if (v->last_input > last_in) last_in = v->last_input;
+      }
+      if (!missing) break;
+      now = stress_now();
+      if ((now - replied >= 2.0 && now - last_in >= 2.0) || now - run->step_at[k] > o->timeout || g_interrupted) {
+        sum->steps_incomplete++;
+        if (o->verbose)
+          fprintf(stderr, "overcast-stress: step %llu: %d viewer%s without its state\n", (unsigned long long)k, missing,
+                  missing == 1 ? "" : "s");
+        break;
+      }
+      cv_wait(run, 0.05);
+      pthread_mutex_unlock(&run->mu);
+      ctl_tend(ctl);
+      pthread_mutex_lock(&run->mu);
+    }
+    pthread_mutex_unlock(&run->mu);
+  }
+}
+
+/* With a period: until the duration is over, or every live viewer has o->epochs states. */
+static void run_period(stress_run_t *run, ocv_conn_t *ctl, double period, stress_summary_t *sum) {
+  const stress_opts_t *o = run->o;
+  double limit = o->duration > 0 ? o->duration : o->timeout + 3.0 * (double)o->epochs * period;
+  pthread_mutex_lock(&run->mu);
+  while (!g_interrupted && !all_done(run)) {
+    pthread_mutex_unlock(&run->mu);
+    ctl_tend(ctl);
+    pthread_mutex_lock(&run->mu);
+    double el = stress_now() - run->t0;
+    if (o->epochs) {
+      int all = 1;
+      for (int i = 0; i < run->nv; i++)
+        if (!run->v[i].done && run->v[i].have_states < (uint64_t)o->epochs) all = 0;
+      if (all) break;
+    }
+    if (el >= limit) {
+      if (o->duration <= 0)
+        snprintf(sum->error, sizeof sum->error, "not every viewer had %ld states within %.0f s", o->epochs, limit);
+      break;
+    }
+    cv_wait(run, 0.2);
+  }
+  pthread_mutex_unlock(&run->mu);
+}
+
+/* Stops and joins every viewer thread (each says GOODBYE); a second call does nothing. */
+static void stop_viewers(stress_run_t *run) {
+  pthread_mutex_lock(&run->mu);
+  atomic_store(&run->stop, 1);
+  pthread_cond_broadcast(&run->cv);
+  pthread_mutex_unlock(&run->mu);
+  for (int i = 0; run->v && i < run->nv; i++)
+    if (run->v[i].started) {
+      pthread_join(run->v[i].thread, NULL);
+      run->v[i].started = 0;
+    }
+}
+
+int main(int argc, char **argv) {
+  enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
+         O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
+         O_JSON, O_HELP, O_VERSION };
+  static const struct option opts[] = {
+      {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
+      {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
+      {"server-threads", required_argument, 0, O_SRV_THREADS}, {"connect", required_argument, 0, O_CONNECT},
+      {"server-pid", required_argument, 0, O_PID},  {"token", required_argument, 0, O_TOKEN},
+      {"viewers", required_argument, 0, O_VIEWERS}, {"paths", required_argument, 0, O_PATHS},
+      {"budget", required_argument, 0, O_BUDGET},   {"max-depth", required_argument, 0, O_DEPTH},
+      {"size", required_argument, 0, O_SIZE},       {"seed", required_argument, 0, O_SEED},
+      {"tick-hz", required_argument, 0, O_TICK},    {"step-seconds", required_argument, 0, O_STEP_S},
+      {"teleport-every", required_argument, 0, O_TELEPORT}, {"dive-seconds", required_argument, 0, O_DIVE},
+      {"epochs", required_argument, 0, O_EPOCHS},   {"duration", required_argument, 0, O_DURATION},
+      {"timeout", required_argument, 0, O_TIMEOUT}, {"json", required_argument, 0, O_JSON},
+      {"verbose", no_argument, 0, 'v'},             {"help", no_argument, 0, O_HELP},
+      {"version", no_argument, 0, O_VERSION},       {0, 0, 0, 0}};
+  static stress_opts_t o;
+  memset(&o, 0, sizeof o);
+  o.epoch_period = -1;
+  o.viewers = 5;
+  o.width = 320;
+  o.height = 180;
+  o.seed = 1;
+  o.tick_hz = 10;
+  o.step_seconds = 1;
+  o.teleport_every = 10;
+  o.dive_seconds = 30;
+  o.timeout = 120;
+  int spawn_given = 0, connect_given = 0, spawn_only = 0;
+  const char *spawn_only_name = NULL;
+  long l;
+  int c;
+  opterr = 0;
+  while ((c = getopt_long(argc, argv, "v", opts, NULL)) != -1) {
+    switch (c) {
+      case O_SPAWN: spawn_given = 1; break;
+      case O_SERVER: o.server_path = optarg; spawn_only = 1; spawn_only_name = "--server"; break;
+      case O_SCENE: o.scene = optarg; spawn_only = 1; spawn_only_name = "--scene"; break;
+      case O_PERIOD:
+        if (oc_cli_double(prog, "--epoch-period", optarg, 0, 60, &o.epoch_period)) return OC_EXIT_USAGE;
+        spawn_only = 1;
+        spawn_only_name = "--epoch-period";
+        break;
+      case O_SRV_THREADS:
+        if (oc_cli_int(prog, "--server-threads", optarg, 1, 64, &o.server_threads)) return OC_EXIT_USAGE;
+        spawn_only = 1;
+        spawn_only_name = "--server-threads";
+        break;
+      case O_CONNECT:
+        if (ocv_parse_address(optarg, o.host, sizeof o.host, &o.port) < 0)
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect: expected HOST:PORT (port 1..65535), got \"%s\"", optarg);
+        connect_given = 1;
+        break;
+      case O_PID: if (oc_cli_int(prog, "--server-pid", optarg, 1, 1L << 30, &o.server_pid)) return OC_EXIT_USAGE; break;
+      case O_TOKEN:
+        if (!*optarg || strlen(optarg) > OCP_TOKEN_MAX)
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--token: 1..%d bytes", OCP_TOKEN_MAX);
+        o.token = optarg;
+        break;
+      case O_VIEWERS:
+        if (oc_cli_int(prog, "--viewers", optarg, 1, STRESS_MAX_VIEWERS, &l)) return OC_EXIT_USAGE;
+        o.viewers = (int)l;
+        break;
+      case O_PATHS:
+        if ((o.npaths = parse_paths(optarg, o.paths, (int)(sizeof o.paths / sizeof o.paths[0]))) < 0) return OC_EXIT_USAGE;
+        break;
+      case O_BUDGET:
+        if ((o.nbudgets = parse_int_list("--budget", optarg, 1, 65536, o.budgets_mib, 64)) < 0) return OC_EXIT_USAGE;
+        break;
+      case O_DEPTH:
+        if ((o.ndepths = parse_int_list("--max-depth", optarg, 0, 21, o.depths, 64)) < 0) return OC_EXIT_USAGE;
+        break;
+      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &o.width, &o.height)) return OC_EXIT_USAGE; break;
+      case O_SEED:
+        if (oc_cli_int(prog, "--seed", optarg, 0, 2147483647L, &l)) return OC_EXIT_USAGE;
+        o.seed = (uint64_t)l;
+        break;
+      case O_TICK: if (oc_cli_double(prog, "--tick-hz", optarg, 0.1, 1000, &o.tick_hz)) return OC_EXIT_USAGE; break;
+      case O_STEP_S: if (oc_cli_double(prog, "--step-seconds", optarg, 0.001, 3600, &o.step_seconds)) return OC_EXIT_USAGE; break;
+      case O_TELEPORT: if (oc_cli_double(prog, "--teleport-every", optarg, 0.1, 1e6, &o.teleport_every)) return OC_EXIT_USAGE; break;
+      case O_DIVE: if (oc_cli_double(prog, "--dive-seconds", optarg, 0.1, 1e6, &o.dive_seconds)) return OC_EXIT_USAGE; break;
+      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, STRESS_MAX_STEPS, &o.epochs)) return OC_EXIT_USAGE; break;
+      case O_DURATION: if (oc_cli_double(prog, "--duration", optarg, 0.1, 1e6, &o.duration)) return OC_EXIT_USAGE; break;
+      case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.1, 86400, &o.timeout)) return OC_EXIT_USAGE; break;
+      case O_JSON: o.json = optarg; break;
+      case 'v': o.verbose = 1; break;
+      case O_HELP: usage(stdout); return OC_EXIT_OK;
+      case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
+      default:
+        return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown or incomplete option \"%s\" (see --help)", argv[optind - 1]);
+    }
+  }
+  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "unexpected argument \"%s\" (see --help)", argv[optind]);
+  if (spawn_given && connect_given) return oc_cli_fail(prog, OC_EXIT_USAGE, "--spawn and --connect exclude each other");
+  if (connect_given && spawn_only)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "%s goes with --spawn, not --connect", spawn_only_name);
+  if (o.server_pid && !connect_given) return oc_cli_fail(prog, OC_EXIT_USAGE, "--server-pid goes with --connect");
+  o.spawn = !connect_given;
+  if (!o.npaths) {
+    for (int k = 0; k < STRESS_PATH_COUNT; k++) o.paths[k] = k;
+    o.npaths = STRESS_PATH_COUNT;
+  }
+  if (!o.nbudgets) o.budgets_mib[o.nbudgets++] = 16;
+  if (!o.ndepths) o.depths[o.ndepths++] = 21;
+  if (!o.epochs && o.duration <= 0) o.epochs = 8;
+
+  signal(SIGPIPE, SIG_IGN);
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  oc_log_set_level(o.verbose ? OC_LOG_INFO : OC_LOG_WARN);
+
+  stress_summary_t sum;
+  memset(&sum, 0, sizeof sum);
+  sum.server_exit = -1;
+  sum.server_cpu_s = NAN;
+  sum.cache_hit_rate = NAN;
+  sum.bricks_produced = sum.brick_requests = sum.late_ticks = sum.cache_bytes = NAN;
+  sum.spawned = o.spawn;
+  char why[1024];
+  stress_child_t child = {.pid = -1, .out_fd = -1};
+
+  /* The server. */
+  if (o.spawn) {
+    char exe[4096], dir[4000];
+    if (o.server_path) {
+      snprintf(exe, sizeof exe, "%s", o.server_path);
+    } else {
+      if (stress_exe_dir(dir, sizeof dir) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot read /proc/self/exe");
+      snprintf(exe, sizeof exe, "%s/overcast-server", dir);
+    }
+    if (access(exe, X_OK) != 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", exe);
+    long total_mib = 0;
+    for (int i = 0; i < o.viewers; i++) total_mib += o.budgets_mib[i % o.nbudgets];
+    char a_period[32], a_threads[32], a_total[32], a_maxv[32];
+    char *sargv[24];
+    int n = 0;
+    sargv[n++] = exe;
+    sargv[n++] = "--listen";
+    sargv[n++] = "127.0.0.1:0";
+    if (o.scene) {
+      sargv[n++] = "--scene";
+      sargv[n++] = (char *)o.scene;
+    }
+    if (o.epoch_period >= 0) {
+      snprintf(a_period, sizeof a_period, "%.17g", o.epoch_period);
+      sargv[n++] = "--epoch-period";
+      sargv[n++] = a_period;
+    }
+    if (o.server_threads) {
+      snprintf(a_threads, sizeof a_threads, "%ld", o.server_threads);
+      sargv[n++] = "--threads";
+      sargv[n++] = a_threads;
+    }
+    if (o.token) {
+      sargv[n++] = "--token";
+      sargv[n++] = (char *)o.token;
+    }
+    /* room for every viewer and its whole budget: the server's defaults are 64 viewers, 4 GiB */
+    if (total_mib > (1L << 24)) total_mib = 1L << 24; /* the server's largest --total-budget */
+    snprintf(a_total, sizeof a_total, "%ld", total_mib > 4096 ? total_mib : 4096);
+    snprintf(a_maxv, sizeof a_maxv, "%d", o.viewers > 64 ? o.viewers : 64);
+    sargv[n++] = "--total-budget";
+    sargv[n++] = a_total;
+    sargv[n++] = "--max-viewers";
+    sargv[n++] = a_maxv;
+    if (!o.verbose) sargv[n++] = "-q";
+    sargv[n] = NULL;
+    if (stress_server_spawn(sargv, o.timeout, &child, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    snprintf(o.host, sizeof o.host, "%s", child.host);
+    o.port = child.port;
+  }
+  long pid = o.spawn ? (long)child.pid : o.server_pid;
+  stress_proc_sample(pid, &sum.server_start);
+  double cpu0 = stress_self_cpu(), wall0 = stress_now();
+
+  /* The control connection: steps and statistics. */
+  int rc = OC_EXIT_OK;
+  ocv_conn_t *ctl = NULL;
+  cJSON *reply = NULL;
+  stress_run_t run;
+  memset(&run, 0, sizeof run);
+  pthread_mutex_init(&run.mu, NULL);
+  pthread_cond_init(&run.cv, NULL);
+  run.o = &o;
+  snprintf(run.host, sizeof run.host, "%s", o.host);
+  run.port = o.port;
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL, .token = o.token};
+  if (ocv_conn_open(&ctl, o.host, o.port, &cd, NULL, o.timeout, why, sizeof why) < 0 ||
+      control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    goto out;
+  }
+  double period = world_num(reply, "epoch_period"), e0 = world_num(reply, "epoch");
+  cJSON_Delete(reply);
+  reply = NULL;
+  run.epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
+  sum.stepped = period == 0;
+  sum.epoch_period = period;
+  size_t nsteps = (size_t)(o.epochs && !(o.duration > 0) ? o.epochs : STRESS_MAX_STEPS) + 2;
+  run.step_at = calloc(nsteps, sizeof *run.step_at);
+  run.v = calloc((size_t)o.viewers, sizeof *run.v);
+  if (!run.step_at || !run.v) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+    goto out;
+  }
+
+  /* The viewers: each connects, gets its WELCOME, sends its first camera. */
+  run.nv = o.viewers;
+  for (int i = 0; i < o.viewers; i++) {
+    stress_viewer_t *v = &run.v[i];
+    v->index = i;
+    v->run = &run;
+    v->path = (stress_path_kind_t)o.paths[i % o.npaths];
+    v->budget = (uint64_t)o.budgets_mib[i % o.nbudgets] << 20;
+    v->max_depth = (int)o.depths[i % o.ndepths];
+    if (pthread_create(&v->thread, NULL, stress_viewer_main, v) != 0) {
+      pthread_mutex_lock(&run.mu);
+      v->done = 1;
+      snprintf(v->error, sizeof v->error, "viewer %d: cannot start a thread", i);
+      v->failed = 1;
+      pthread_mutex_unlock(&run.mu);
+      continue;
+    }
+    v->started = 1;
+  }
+  pthread_mutex_lock(&run.mu);
+  for (;;) {
+    int waiting = 0;
+    for (int i = 0; i < run.nv; i++)
+      if (!run.v[i].ready && !run.v[i].done) waiting++;
+    if (!waiting || g_interrupted) break;
+    cv_wait(&run, 0.1); /* each viewer's own connect and handshake are bounded by --timeout */
+    pthread_mutex_unlock(&run.mu);
+    ctl_tend(ctl);
+    pthread_mutex_lock(&run.mu);
+  }
+  pthread_mutex_unlock(&run.mu);
+  run.t0 = stress_now();
+
+  if (sum.stepped) run_stepped(&run, ctl, &sum);
+  else run_period(&run, ctl, period, &sum);
+  if (g_interrupted && !sum.error[0]) snprintf(sum.error, sizeof sum.error, "interrupted");
+
+  /* The run ends here: the viewers stop (their bytes/s end now), then the server's CPU and RSS are
+   * read, then its statistics (a request waits for a step in progress, which must not count). */
+  sum.wall_s = stress_now() - run.t0;
+  stop_viewers(&run);
+  stress_proc_sample(pid, &sum.server_end);
+  sum.tool_cpu_s = stress_self_cpu() - cpu0;
+  sum.cpu_span_s = stress_now() - wall0;
+  if (control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) == 0) {
+    sum.cache_hit_rate = world_num(reply, "cache_hit_rate");
+    sum.bricks_produced = world_num(reply, "bricks_produced");
+    sum.brick_requests = world_num(reply, "brick_requests");
+    sum.late_ticks = world_num(reply, "late_ticks");
+    sum.cache_bytes = world_num(reply, "cache_bytes");
+    cJSON_Delete(reply);
+    reply = NULL;
+  } else if (!sum.error[0]) {
+    snprintf(sum.error, sizeof sum.error, "final stats: %.400s", why);
+  }
+
+out:
+  stop_viewers(&run);
+  if (!sum.server_end.ok) {
+    stress_proc_sample(pid, &sum.server_end);
+    sum.tool_cpu_s = stress_self_cpu() - cpu0;
+    sum.cpu_span_s = stress_now() - wall0;
+  }
+  if (sum.server_start.ok && sum.server_end.ok) sum.server_cpu_s = sum.server_end.cpu_s - sum.server_start.cpu_s;
+  stress_proc_sample((long)getpid(), &sum.tool);
+  if (sum.wall_s <= 0) sum.wall_s = stress_now() - wall0;
+  for (int i = 0; run.v && i < run.nv; i++)
+    if (run.v[i].have_welcome) {
+      snprintf(sum.scene, sizeof sum.scene, "%s", run.v[i].welcome.name);
+      sum.kept_states = run.v[i].welcome.kept_states;
+      break;
+    }
+  ocv_conn_close(ctl);
+  if (o.spawn && child.pid > 0) {
+    sum.server_exit = stress_server_stop(&child, 10);
+    if (sum.server_exit != 0 && rc == OC_EXIT_OK && !sum.error[0])
+      snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
+  }
+  if (rc == OC_EXIT_OK) {
+    int pass = stress_report(&o, &run, &sum);
+    rc = pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
+  }
+  for (int i = 0; run.v && i < run.nv; i++) stress_viewer_free(&run.v[i]);
+  free(run.v);
+  free(run.step_at);
+  pthread_cond_destroy(&run.cv);
+  pthread_mutex_destroy(&run.mu);
+  return rc;
+}

@@ -1,0 +1,330 @@
+/* stress_report.c — overcast-stress's results: per-viewer rows and aggregates as a table on stdout
+ * (Markdown, to paste into docs/performance.md), everything as JSON with --json, and the verdict.
+ *
+ * Aggregates: bytes/s is each viewer's bytes received from its WELCOME to the end of the run over
+ * that time, median and p99 over the viewers; latency, transfer and time to full detail are pooled
+ * over every viewer's samples. Quantiles are nearest-rank. */
+#include <cjson/cJSON.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stress.h"
+
+#define SR_MIB (1024.0 * 1024.0)
+
+typedef struct {
+  double p50, p99, max;
+  size_t n;
+} sr_q_t;
+
+static const stress_samples_t *sr_which(const stress_viewer_t *v, int which) {
+  switch (which) {
+    case 0: return &v->latency;
+    case 1: return &v->transfer;
+    case 2: return &v->detail;
+    case 3: return &v->detail_epochs;
+    default: return &v->interval;
+  }
+}
+
+/* Quantiles of a copy of the pooled samples of every viewer (which = 0 latency, 1 transfer,
+ * 2 detail, 3 detail epochs, 4 interval) or of one viewer (only >= 0). */
+static sr_q_t sr_pool(const stress_run_t *run, int which, int only) {
+  sr_q_t q = {NAN, NAN, NAN, 0};
+  size_t n = 0;
+  for (int i = 0; i < run->nv; i++) {
+    if (only >= 0 && i != only) continue;
+    const stress_viewer_t *v = &run->v[i];
+    const stress_samples_t *s = sr_which(v, which);
+    n += s->n;
+  }
+  if (!n) return q;
+  double *a = malloc(n * sizeof *a);
+  if (!a) return q;
+  size_t k = 0;
+  for (int i = 0; i < run->nv; i++) {
+    if (only >= 0 && i != only) continue;
+    const stress_viewer_t *v = &run->v[i];
+    const stress_samples_t *s = sr_which(v, which);
+    if (s->n) memcpy(a + k, s->v, s->n * sizeof *a);
+    k += s->n;
+  }
+  q.p50 = stress_quantile(a, n, 0.5);
+  q.p99 = stress_quantile(a, n, 0.99);
+  q.max = a[n - 1];
+  q.n = n;
+  free(a);
+  return q;
+}
+
+static double sr_rate(const stress_viewer_t *v) {
+  double t = v->t_end - v->t_welcome;
+  return v->have_welcome && t > 0 ? (double)v->session.bytes_in / t : NAN;
+}
+
+/* "12.3" or "—" */
+static const char *sr_num(char *buf, size_t cap, double x, const char *fmt) {
+  if (!isfinite(x)) snprintf(buf, cap, "—");
+  else snprintf(buf, cap, fmt, x);
+  return buf;
+}
+
+static void sr_add_num(cJSON *o, const char *k, double x) {
+  if (isfinite(x)) cJSON_AddNumberToObject(o, k, x);
+  else cJSON_AddNullToObject(o, k);
+}
+
+static cJSON *sr_q_json(sr_q_t q) {
+  cJSON *o = cJSON_CreateObject();
+  sr_add_num(o, "p50", q.p50);
+  sr_add_num(o, "p99", q.p99);
+  sr_add_num(o, "max", q.max);
+  cJSON_AddNumberToObject(o, "count", (double)q.n);
+  return o;
+}
+
+static cJSON *sr_proc_json(const stress_proc_t *p) {
+  if (!p->ok) return cJSON_CreateNull();
+  cJSON *o = cJSON_CreateObject();
+  cJSON_AddNumberToObject(o, "rss_mib", p->rss_mib);
+  cJSON_AddNumberToObject(o, "peak_rss_mib", p->hwm_mib);
+  cJSON_AddNumberToObject(o, "cpu_s", p->cpu_s);
+  return o;
+}
+
+int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s) {
+  char b1[32], b2[32], b3[32], b4[32], b5[32], b6[32], b7[32];
+  uint64_t violations = 0, checksum = 0, protocol = 0, mismatch = 0, failed = 0, empty = 0, skipped = 0, coalesced = 0,
+           teleports = 0, unreached = 0, states = 0;
+  double *rates = calloc((size_t)run->nv + 1, sizeof *rates);
+  size_t nrates = 0;
+  for (int i = 0; i < run->nv; i++) {
+    const stress_viewer_t *v = &run->v[i];
+    violations += v->violations;
+    checksum += v->checksum_failures;
+    protocol += v->protocol_errors;
+    mismatch += v->resident_mismatch;
+    failed += v->failed != 0;
+    empty += v->states == 0;
+    skipped += v->skipped;
+    coalesced += v->last_stats.coalesced;
+    teleports += v->teleports;
+    unreached += v->detail_unreached;
+    states += v->states;
+    double r = sr_rate(v);
+    if (rates && isfinite(r)) rates[nrates++] = r;
+  }
+  double rate_p50 = rates ? stress_quantile(rates, nrates, 0.5) : NAN, rate_p99 = rates ? stress_quantile(rates, nrates, 0.99) : NAN;
+  free(rates);
+  sr_q_t lat = sr_pool(run, 0, -1), tra = sr_pool(run, 1, -1), det = sr_pool(run, 2, -1), dep = sr_pool(run, 3, -1),
+         itv = sr_pool(run, 4, -1);
+  int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !s->error[0];
+
+  /* The table. */
+  const char *lat_from = s->stepped ? "from the step request" : "from the first byte of EPOCH_BEGIN";
+  printf("overcast-stress: %d viewer%s, scene %s (%s, K = %d), %s, %.1f s\n", run->nv, run->nv == 1 ? "" : "s",
+         s->scene[0] ? s->scene : "?", s->kept_states == 3 ? "animated" : "static", s->kept_states,
+         s->stepped ? "stepped by this tool" : "epochs by the server's clock", s->wall_s);
+  if (s->stepped)
+    printf("steps: %" PRIu64 " (%" PRIu64 " with a viewer left without its state)\n", s->steps, s->steps_incomplete);
+  else
+    printf("epoch period: %g s\n", s->epoch_period);
+  printf("\n| viewer | path | budget MiB | depth | states | skipped | coalesced | resident max MiB | of budget | MB/s "
+         "| latency p50 ms | p99 ms | full detail s |\n");
+  printf("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (int i = 0; i < run->nv; i++) {
+    const stress_viewer_t *v = &run->v[i];
+    sr_q_t vl = sr_pool(run, 0, i), vd = sr_pool(run, 2, i);
+    double granted = v->have_welcome ? (double)v->welcome.budget / SR_MIB : NAN;
+    printf("| %d | %s | %s | %d | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %s | %s | %s | %s | %s | %s |\n", v->index,
+           stress_path_name(v->path), sr_num(b1, sizeof b1, granted, "%.1f"), v->max_depth, v->states, v->skipped,
+           v->last_stats.coalesced, sr_num(b2, sizeof b2, (double)v->resident_max / SR_MIB, "%.2f"),
+           sr_num(b3, sizeof b3, v->have_welcome ? 100.0 * (double)v->resident_max / (double)v->welcome.budget : NAN, "%.1f %%"),
+           sr_num(b4, sizeof b4, sr_rate(v) / 1e6, "%.3f"), sr_num(b5, sizeof b5, 1e3 * vl.p50, "%.0f"),
+           sr_num(b6, sizeof b6, 1e3 * vl.p99, "%.0f"),
+           v->path == STRESS_TELEPORT ? sr_num(b7, sizeof b7, vd.p50, "%.2f") : "");
+  }
+  printf("\nbytes/s per viewer: median %s MB/s, p99 %s MB/s\n", sr_num(b1, sizeof b1, rate_p50 / 1e6, "%.3f"),
+         sr_num(b2, sizeof b2, rate_p99 / 1e6, "%.3f"));
+  printf("epoch latency (%s to the complete state): p50 %s ms, p99 %s ms over %zu states\n", lat_from,
+         sr_num(b1, sizeof b1, 1e3 * lat.p50, "%.0f"), sr_num(b2, sizeof b2, 1e3 * lat.p99, "%.0f"), lat.n);
+  printf("transfer (first byte of EPOCH_BEGIN to the complete state): p50 %s ms, p99 %s ms\n",
+         sr_num(b1, sizeof b1, 1e3 * tra.p50, "%.0f"), sr_num(b2, sizeof b2, 1e3 * tra.p99, "%.0f"));
+  printf("interval between a viewer's states: p50 %s ms, p99 %s ms", sr_num(b1, sizeof b1, 1e3 * itv.p50, "%.0f"),
+         sr_num(b2, sizeof b2, 1e3 * itv.p99, "%.0f"));
+  if (!s->stepped) printf("; ticks the server skipped (a step still ran): %s", sr_num(b3, sizeof b3, s->late_ticks, "%.0f"));
+  printf("\n");
+  printf("time to full detail after a teleport: p50 %s s, p99 %s s, p50 %s epochs (%zu of %" PRIu64
+         " teleports settled; %" PRIu64 " did not before the next one or the end)\n",
+         sr_num(b1, sizeof b1, det.p50, "%.2f"), sr_num(b2, sizeof b2, det.p99, "%.2f"), sr_num(b3, sizeof b3, dep.p50, "%.0f"),
+         det.n, teleports, unreached);
+  if (s->server_end.ok)
+    printf("server: RSS %.1f MiB at the end, peak %.1f MiB; CPU %.2f s (%.0f %% of one core)\n", s->server_end.rss_mib,
+           s->server_end.hwm_mib, s->server_cpu_s, s->cpu_span_s > 0 ? 100.0 * s->server_cpu_s / s->cpu_span_s : 0.0);
+  else
+    printf("server: RSS and CPU unknown (not a local process of ours: --server-pid)\n");
+  printf("overcast-stress itself: CPU %.2f s (%.0f %% of one core), peak RSS %s MiB\n", s->tool_cpu_s,
+         s->cpu_span_s > 0 ? 100.0 * s->tool_cpu_s / s->cpu_span_s : 0.0,
+         sr_num(b1, sizeof b1, s->tool.ok ? s->tool.hwm_mib : NAN, "%.1f"));
+  printf("brick cache: hit rate %s (%s requests, %s bricks produced), %s MiB held\n",
+         sr_num(b1, sizeof b1, 100.0 * s->cache_hit_rate, "%.1f %%"), sr_num(b2, sizeof b2, s->brick_requests, "%.0f"),
+         sr_num(b3, sizeof b3, s->bricks_produced, "%.0f"), sr_num(b4, sizeof b4, s->cache_bytes / SR_MIB, "%.1f"));
+  printf("checks: %" PRIu64 " states; budget violations %" PRIu64 ", checksum failures %" PRIu64 ", protocol errors %" PRIu64
+         ", resident counts differing from the session's %" PRIu64 ", viewers failed %" PRIu64 ", without a state %" PRIu64
+         "; skipped epochs %" PRIu64 " (server: %" PRIu64 " coalesced)\n",
+         states, violations, checksum, protocol, mismatch, failed, empty, skipped, coalesced);
+  for (int i = 0; i < run->nv; i++) {
+    const stress_viewer_t *v = &run->v[i];
+    if (v->skipped) {
+      printf("skipped: viewer %d:", v->index);
+      for (int k = 0; k < v->nskipped_list; k++) printf(" %" PRIu64, v->skipped_list[k]);
+      printf("%s\n", v->skipped > (uint64_t)v->nskipped_list ? " ..." : "");
+    }
+    if (v->failed) printf("FAIL: %s\n", v->error);
+    else if (!v->states) printf("FAIL: viewer %d (%s): no state\n", v->index, stress_path_name(v->path));
+  }
+  if (s->error[0]) printf("FAIL: %s\n", s->error);
+  printf("%s\n", pass ? "PASS" : "FAIL");
+  fflush(stdout);
+
+  /* The JSON. */
+  int rc = pass;
+  if (o->json) {
+    cJSON *j = cJSON_CreateObject();
+    cJSON *cfg = cJSON_AddObjectToObject(j, "config");
+    cJSON_AddStringToObject(cfg, "server", s->spawned ? "spawned" : "connected");
+    cJSON_AddStringToObject(cfg, "address", run->host);
+    cJSON_AddNumberToObject(cfg, "port", run->port);
+    cJSON_AddStringToObject(cfg, "scene", s->scene);
+    cJSON_AddNumberToObject(cfg, "kept_states", s->kept_states);
+    cJSON_AddBoolToObject(cfg, "stepped", s->stepped);
+    sr_add_num(cfg, "epoch_period", s->epoch_period);
+    cJSON_AddNumberToObject(cfg, "viewers", run->nv);
+    cJSON_AddNumberToObject(cfg, "width", o->width);
+    cJSON_AddNumberToObject(cfg, "height", o->height);
+    cJSON_AddNumberToObject(cfg, "seed", (double)o->seed);
+    cJSON_AddNumberToObject(cfg, "epochs", (double)o->epochs);
+    cJSON_AddNumberToObject(cfg, "duration", o->duration);
+    cJSON_AddNumberToObject(cfg, "tick_hz", o->tick_hz);
+    cJSON_AddNumberToObject(cfg, "step_seconds", o->step_seconds);
+    cJSON_AddNumberToObject(cfg, "teleport_every", o->teleport_every);
+    cJSON_AddNumberToObject(cfg, "dive_seconds", o->dive_seconds);
+    cJSON_AddNumberToObject(cfg, "slot_bytes", 2048);
+    cJSON_AddNumberToObject(cfg, "record_bytes", 32);
+    cJSON *vs = cJSON_AddArrayToObject(j, "viewers");
+    for (int i = 0; i < run->nv; i++) {
+      const stress_viewer_t *v = &run->v[i];
+      cJSON *x = cJSON_CreateObject();
+      cJSON_AddItemToArray(vs, x);
+      cJSON_AddNumberToObject(x, "index", v->index);
+      cJSON_AddStringToObject(x, "path", stress_path_name(v->path));
+      cJSON_AddNumberToObject(x, "budget_asked", (double)v->budget);
+      if (v->have_welcome) {
+        cJSON_AddNumberToObject(x, "budget_granted", (double)v->welcome.budget);
+        cJSON_AddNumberToObject(x, "session", v->welcome.session);
+      }
+      cJSON_AddNumberToObject(x, "max_depth", v->max_depth);
+      cJSON_AddNumberToObject(x, "states", (double)v->states);
+      cJSON_AddNumberToObject(x, "first_epoch", (double)v->first_epoch);
+      cJSON_AddNumberToObject(x, "last_epoch", (double)v->last_epoch);
+      cJSON_AddNumberToObject(x, "skipped", (double)v->skipped);
+      cJSON *sk = cJSON_AddArrayToObject(x, "skipped_epochs");
+      for (int k = 0; k < v->nskipped_list; k++) cJSON_AddItemToArray(sk, cJSON_CreateNumber((double)v->skipped_list[k]));
+      cJSON_AddNumberToObject(x, "coalesced_server", (double)v->last_stats.coalesced);
+      cJSON_AddNumberToObject(x, "resident_max", (double)v->resident_max);
+      cJSON_AddNumberToObject(x, "resident_last", (double)v->resident_last);
+      cJSON_AddNumberToObject(x, "server_resident_max", (double)v->server_resident_max);
+      cJSON_AddNumberToObject(x, "budget_violations", (double)v->violations);
+      cJSON_AddNumberToObject(x, "resident_mismatch", (double)v->resident_mismatch);
+      cJSON_AddNumberToObject(x, "checksum_failures", (double)v->checksum_failures);
+      cJSON_AddNumberToObject(x, "protocol_errors", (double)v->protocol_errors);
+      cJSON_AddNumberToObject(x, "bytes_in", (double)v->session.bytes_in);
+      cJSON_AddNumberToObject(x, "bricks_in", (double)v->bricks_in);
+      cJSON_AddNumberToObject(x, "nodes_last", (double)v->nodes_last);
+      cJSON_AddNumberToObject(x, "bricks_last", (double)v->bricks_last);
+      sr_add_num(x, "seconds", v->have_welcome ? v->t_end - v->t_welcome : NAN);
+      sr_add_num(x, "bytes_per_s", sr_rate(v));
+      cJSON_AddItemToObject(x, "latency_s", sr_q_json(sr_pool(run, 0, i)));
+      cJSON_AddItemToObject(x, "transfer_s", sr_q_json(sr_pool(run, 1, i)));
+      cJSON_AddItemToObject(x, "interval_s", sr_q_json(sr_pool(run, 4, i)));
+      if (v->path == STRESS_TELEPORT) {
+        cJSON_AddItemToObject(x, "full_detail_s", sr_q_json(sr_pool(run, 2, i)));
+        cJSON_AddItemToObject(x, "full_detail_epochs", sr_q_json(sr_pool(run, 3, i)));
+        cJSON_AddNumberToObject(x, "teleports", (double)v->teleports);
+        cJSON_AddNumberToObject(x, "full_detail_unreached", (double)v->detail_unreached);
+      }
+      if (v->failed) cJSON_AddStringToObject(x, "error", v->error);
+    }
+    cJSON *ag = cJSON_AddObjectToObject(j, "aggregate");
+    sr_add_num(ag, "bytes_per_s_median", rate_p50);
+    sr_add_num(ag, "bytes_per_s_p99", rate_p99);
+    cJSON_AddStringToObject(ag, "latency_from", s->stepped ? "step request" : "first byte of EPOCH_BEGIN");
+    cJSON_AddItemToObject(ag, "latency_s", sr_q_json(lat));
+    cJSON_AddItemToObject(ag, "transfer_s", sr_q_json(tra));
+    cJSON_AddItemToObject(ag, "interval_s", sr_q_json(itv));
+    cJSON_AddItemToObject(ag, "full_detail_s", sr_q_json(det));
+    cJSON_AddItemToObject(ag, "full_detail_epochs", sr_q_json(dep));
+    cJSON_AddNumberToObject(ag, "teleports", (double)teleports);
+    cJSON_AddNumberToObject(ag, "full_detail_unreached", (double)unreached);
+    cJSON *sv = cJSON_AddObjectToObject(j, "server");
+    cJSON_AddItemToObject(sv, "start", sr_proc_json(&s->server_start));
+    cJSON_AddItemToObject(sv, "end", sr_proc_json(&s->server_end));
+    sr_add_num(sv, "cpu_s", s->server_cpu_s);
+    if (s->spawned) cJSON_AddNumberToObject(sv, "exit_status", s->server_exit);
+    sr_add_num(sv, "cache_hit_rate", s->cache_hit_rate);
+    sr_add_num(sv, "brick_requests", s->brick_requests);
+    sr_add_num(sv, "bricks_produced", s->bricks_produced);
+    sr_add_num(sv, "late_ticks", s->late_ticks);
+    sr_add_num(sv, "cache_bytes", s->cache_bytes);
+    cJSON *tl = cJSON_AddObjectToObject(j, "tool");
+    cJSON_AddNumberToObject(tl, "cpu_s", s->tool_cpu_s);
+    cJSON_AddNumberToObject(tl, "wall_s", s->wall_s);
+    cJSON_AddNumberToObject(tl, "cpu_span_s", s->cpu_span_s);
+    sr_add_num(tl, "peak_rss_mib", s->tool.ok ? s->tool.hwm_mib : NAN);
+    cJSON *run_j = cJSON_AddObjectToObject(j, "run");
+    cJSON_AddNumberToObject(run_j, "steps", (double)s->steps);
+    cJSON_AddNumberToObject(run_j, "steps_incomplete", (double)s->steps_incomplete);
+    cJSON *ck = cJSON_AddObjectToObject(j, "checks");
+    cJSON_AddNumberToObject(ck, "states", (double)states);
+    cJSON_AddNumberToObject(ck, "budget_violations", (double)violations);
+    cJSON_AddNumberToObject(ck, "checksum_failures", (double)checksum);
+    cJSON_AddNumberToObject(ck, "protocol_errors", (double)protocol);
+    cJSON_AddNumberToObject(ck, "resident_mismatch", (double)mismatch);
+    cJSON_AddNumberToObject(ck, "viewers_failed", (double)failed);
+    cJSON_AddNumberToObject(ck, "viewers_without_state", (double)empty);
+    cJSON_AddNumberToObject(ck, "skipped_epochs", (double)skipped);
+    cJSON_AddNumberToObject(ck, "coalesced_server", (double)coalesced);
+    if (s->error[0]) cJSON_AddStringToObject(ck, "error", s->error);
+    cJSON_AddBoolToObject(j, "pass", pass);
+    char *text = cJSON_Print(j);
+    cJSON_Delete(j);
+    FILE *f = text ? fopen(o->json, "w") : NULL;
+    int ok = f != NULL;
+    if (f) {
+      ok = fputs(text, f) >= 0 && fputc('\n', f) != EOF;
+      if (fclose(f) != 0) ok = 0;
+    }
+    if (!ok) {
+      fprintf(stderr, "overcast-stress: %s: cannot write the JSON\n", o->json);
+      rc = -1;
+    }
+    cJSON_free(text);
+  }
+  if (!pass) {
+    /* one line on stderr naming the first cause (the table has them all) */
+    const char *cause = s->error[0] ? s->error : "";
+    for (int i = 0; !cause[0] && i < run->nv; i++)
+      if (run->v[i].failed) cause = run->v[i].error;
+    if (cause[0]) fprintf(stderr, "overcast-stress: FAIL: %s\n", cause);
+    else if (violations || mismatch)
+      fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " budget violations, %" PRIu64 " resident counts differing from the session's\n",
+              violations, mismatch);
+    else
+      fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " of %d viewers got no state within the run (%.1f s)\n", empty,
+              run->nv, s->wall_s);
+  }
+  return rc;
+}

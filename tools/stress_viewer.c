@@ -1,0 +1,423 @@
+/* stress_viewer.c — one overcast-stress viewer: a thread with its own connection (client/net.h,
+ * driving the sans-IO session of proto/ocp_viewer.h, which decodes each epoch, verifies its
+ * checksum against EPOCH_END's and acknowledges it), flying its camera path, and checking every
+ * complete state live:
+ *
+ *   resident bytes  counted here, independently of the session, from the records of the states the
+ *                   viewer keeps (design.md, Conventions: budget): when state N completes, the window
+ *                   is N and the K−1 states before it; resident = distinct brick ids referenced by
+ *                   their records × the slot bytes we declared + their records × the record bytes
+ *                   we declared. It must never exceed the budget granted in WELCOME, and must equal
+ *                   the session's own count;
+ *   checksums       a mismatch fails the session (OC_ECHECKSUM): counted and reported;
+ *   skipped epochs  gaps in the epoch numbers of complete states (each one listed), next to the
+ *                   server's own count of coalesced epochs from STATS.
+ *
+ * Nothing is allocated for a GPU: besides what the session keeps (K−1 states), a viewer keeps the
+ * sorted brick ids of the K−1 previous states (4 bytes a brick) and its samples. */
+#include <inttypes.h>
+#include <math.h>
+#include <poll.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "oc_err.h"
+#include "oc_state.h"
+#include "stress.h"
+
+#define SV_SLOT_BYTES 2048u  /* 8³ × 2 channels × 2 bytes: what overcast-view's atlas spends per brick */
+#define SV_RECORD_BYTES 32u  /* one node record */
+#define SV_MIB (1024.0 * 1024.0)
+
+double stress_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+int stress_samples_add(stress_samples_t *s, double x) {
+  if (s->n == s->cap) {
+    size_t cap = s->cap ? 2 * s->cap : 64;
+    double *nv = realloc(s->v, cap * sizeof *nv);
+    if (!nv) return OC_ENOMEM;
+    s->v = nv;
+    s->cap = cap;
+  }
+  s->v[s->n++] = x;
+  return 0;
+}
+
+void stress_samples_free(stress_samples_t *s) {
+  free(s->v);
+  memset(s, 0, sizeof *s);
+}
+
+static int sv_cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+double stress_quantile(double *v, size_t n, double q) {
+  if (!n) return NAN;
+  qsort(v, n, sizeof *v, sv_cmp_double);
+  size_t k = (size_t)ceil(q * (double)n);
+  if (k < 1) k = 1;
+  if (k > n) k = n;
+  return v[k - 1];
+}
+
+/*-*** Footprints: the bricks a state's records reference ***/
+
+static int sv_cmp_u32(const void *a, const void *b) {
+  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return (x > y) - (x < y);
+}
+
+static int sv_footprint(stress_footprint_t *f, const oc_state_t *s) {
+  f->n = 0;
+  f->records = s->node_count;
+  for (uint32_t i = 0; i < s->node_count; i++) {
+    if (s->nodes[i].kind != OC_NODE_BRICK) continue;
+    if (f->n == f->cap) {
+      uint32_t cap = f->cap ? 2 * f->cap : 1024;
+      uint32_t *ni = realloc(f->ids, (size_t)cap * sizeof *ni);
+      if (!ni) return OC_ENOMEM;
+      f->ids = ni;
+      f->cap = cap;
+    }
+    f->ids[f->n++] = s->nodes[i].brick_id;
+  }
+  qsort(f->ids, f->n, sizeof *f->ids, sv_cmp_u32);
+  return 0;
+}
+
+/* Distinct ids over up to 3 sorted lists (a k-way merge), and the records summed. */
+static uint64_t sv_resident(const stress_footprint_t *const *f, int n, uint64_t slot, uint64_t record) {
+  uint32_t head[3] = {0, 0, 0};
+  uint64_t distinct = 0, records = 0;
+  for (int i = 0; i < n; i++) records += f[i]->records;
+  for (;;) {
+    int any = 0;
+    uint32_t min = 0;
+    for (int i = 0; i < n; i++)
+      if (head[i] < f[i]->n && (!any || f[i]->ids[head[i]] < min)) {
+        min = f[i]->ids[head[i]];
+        any = 1;
+      }
+    if (!any) break;
+    distinct++;
+    for (int i = 0; i < n; i++)
+      while (head[i] < f[i]->n && f[i]->ids[head[i]] == min) head[i]++;
+  }
+  return distinct * slot + records * record;
+}
+
+/*-*** Events (called from inside ocv_conn_poll) ***/
+
+static void sv_fail(stress_viewer_t *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void sv_fail(stress_viewer_t *v, const char *fmt, ...) {
+  if (v->failed) return; /* the first cause is the one worth reading */
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(v->error, sizeof v->error, fmt, ap);
+  va_end(ap);
+  v->failed = 1;
+}
+
+static const char *sv_name(const stress_viewer_t *v) { return stress_path_name(v->path); }
+
+/* When step `step` (1-based) was requested, or NAN. With epoch != 0, the step that made that epoch. */
+static double sv_step_time(stress_run_t *run, uint64_t step, uint64_t epoch) {
+  double t = NAN;
+  pthread_mutex_lock(&run->mu);
+  if (epoch) step = epoch > run->epoch0 ? epoch - run->epoch0 : 0;
+  if (step >= 1 && step <= run->steps_sent) t = run->step_at[step];
+  pthread_mutex_unlock(&run->mu);
+  return t;
+}
+
+static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
+  stress_viewer_t *v = ctx;
+  stress_run_t *run = v->run;
+  double t = stress_now();
+  int stepped = v->welcome.epoch_period == 0;
+  v->states++;
+  v->new_state = 1;
+  if (v->states > 1) stress_samples_add(&v->interval, t - v->state_at);
+  v->state_at = t;
+  v->bricks_in += bricks;
+  v->nodes_last = s->node_count;
+  v->bricks_last = s->brick_count;
+  if (v->states == 1) {
+    v->first_epoch = s->epoch;
+  } else if (s->epoch <= v->last_epoch) {
+    v->protocol_errors++;
+    sv_fail(v, "viewer %d (%s): epoch %" PRIu64 " after epoch %" PRIu64 ": epochs must increase", v->index, sv_name(v),
+            s->epoch, v->last_epoch);
+  } else if (s->epoch > v->last_epoch + 1) {
+    for (uint64_t e = v->last_epoch + 1; e < s->epoch; e++) {
+      v->skipped++;
+      if (v->nskipped_list < STRESS_SKIPS_LISTED) v->skipped_list[v->nskipped_list++] = e;
+    }
+    if (run->o->verbose)
+      fprintf(stderr, "overcast-stress: viewer %d (%s): skipped epoch%s %" PRIu64 "..%" PRIu64 "\n", v->index, sv_name(v),
+              s->epoch - v->last_epoch > 2 ? "s" : "", v->last_epoch + 1, s->epoch - 1);
+  }
+  v->last_epoch = s->epoch;
+  if (v->detail_phase && v->teleport_epoch == UINT64_MAX) v->teleport_epoch = s->epoch - 1;
+
+  /* The budget measure, counted here: this state and the K−1 before it. */
+  int keep = v->welcome.kept_states > 1 ? v->welcome.kept_states - 1 : 1;
+  if (keep > 2) keep = 2;
+  if (sv_footprint(&v->fp_new, s) < 0) {
+    sv_fail(v, "viewer %d: out of memory", v->index);
+    return;
+  }
+  const stress_footprint_t *win[3] = {&v->fp_new, &v->fp[0], &v->fp[1]};
+  uint64_t resident = sv_resident(win, 1 + v->nfp, SV_SLOT_BYTES, SV_RECORD_BYTES);
+  stress_footprint_t spare = {0};
+  if (v->nfp == keep) spare = v->fp[keep - 1];
+  else v->nfp++;
+  for (int i = v->nfp - 1; i > 0; i--) v->fp[i] = v->fp[i - 1];
+  v->fp[0] = v->fp_new;
+  v->fp_new = spare;
+  v->resident_last = resident;
+  if (resident > v->resident_max) v->resident_max = resident;
+  if (resident > v->welcome.budget) {
+    v->violations++;
+    fprintf(stderr,
+            "overcast-stress: BUDGET VIOLATION: viewer %d (%s), epoch %" PRIu64 ": resident %" PRIu64
+            " bytes (%.3f MiB) > granted %" PRIu64 " bytes (%.3f MiB)\n",
+            v->index, sv_name(v), s->epoch, resident, resident / SV_MIB, v->welcome.budget, v->welcome.budget / SV_MIB);
+  }
+  ocp_viewer_stats_t ss;
+  ocp_viewer_stats(ocv_conn_session(v->conn), &ss);
+  if (ss.resident_bytes != resident) {
+    if (!v->resident_mismatch)
+      fprintf(stderr,
+              "overcast-stress: viewer %d (%s), epoch %" PRIu64 ": resident %" PRIu64 " bytes counted here, %" PRIu64
+              " by the session\n",
+              v->index, sv_name(v), s->epoch, resident, ss.resident_bytes);
+    v->resident_mismatch++;
+  }
+
+  /* Latencies. The first byte of this epoch was seen unless it came in one read with the last one. */
+  double transfer = !v->between && v->epoch_first_byte > 0 ? t - v->epoch_first_byte : NAN;
+  if (isfinite(transfer)) stress_samples_add(&v->transfer, transfer);
+  double latency = transfer;
+  if (stepped) latency = t - sv_step_time(run, 0, s->epoch);
+  if (isfinite(latency)) stress_samples_add(&v->latency, latency);
+  if (run->o->verbose)
+    fprintf(stderr,
+            "overcast-stress: viewer %d (%s): epoch %" PRIu64 ", %" PRIu32 " nodes, %" PRIu32 " bricks (%" PRIu32
+            " sent), resident %.2f of %.2f MiB, latency %.0f ms\n",
+            v->index, sv_name(v), s->epoch, s->node_count, s->brick_count, bricks, resident / SV_MIB,
+            v->welcome.budget / SV_MIB, 1e3 * latency);
+}
+
+static void sv_on_stats(void *ctx, const ocp_stats_t *st) {
+  stress_viewer_t *v = ctx;
+  v->last_stats = *st;
+  v->stats_msgs++;
+  v->between = 1; /* STATS ends an epoch: the next byte begins the next one */
+  if (st->resident_bytes > v->server_resident_max) v->server_resident_max = st->resident_bytes;
+  if (v->run->o->verbose)
+    fprintf(stderr,
+            "overcast-stress: viewer %d (%s): epoch %" PRIu64 " plan: %" PRIu32 " leaves, %" PRIu32 " splits, %" PRIu32
+            " merges, %" PRIu32 " deferred, %" PRIu64 " coalesced\n",
+            v->index, sv_name(v), st->epoch, st->leaves, st->splits, st->merges, st->deferred, st->coalesced);
+  /* Time to full detail after a teleport: the plan first reacts to the new place (a state with
+   * splits or merges planned after the jump), then settles (the first later state whose plan split
+   * nothing: the tree stopped growing toward the camera). */
+  if (!v->detail_phase || st->epoch != v->last_epoch || st->epoch <= v->teleport_epoch) return;
+  if (v->detail_phase == 1) {
+    if (st->splits || st->merges) v->detail_phase = 2;
+  } else if (st->splits == 0) {
+    double from = v->welcome.epoch_period == 0 ? sv_step_time(v->run, v->teleport_step, 0) : v->teleport_at;
+    if (isfinite(from)) stress_samples_add(&v->detail, v->state_at - from);
+    stress_samples_add(&v->detail_epochs, (double)(st->epoch - v->teleport_epoch));
+    v->detail_phase = 0;
+  }
+}
+
+static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
+  stress_viewer_t *v = ctx;
+  (void)resumed;
+  v->welcome = *w;
+  v->have_welcome = 1;
+}
+
+/*-*** The thread ***/
+
+static int sv_camera(stress_viewer_t *v, double path_t, double now) {
+  const stress_opts_t *o = v->run->o;
+  long jump = 0;
+  oc_camera_pose_t pose = stress_path_at(&v->p, path_t, &jump);
+  if (v->path == STRESS_TELEPORT && jump != v->jump) {
+    if (v->detail_phase) v->detail_unreached++; /* the previous place never settled */
+    v->teleports++;
+    v->detail_phase = 1;
+    v->teleport_at = now;
+    v->teleport_epoch = v->states ? v->last_epoch : UINT64_MAX; /* UINT64_MAX: before the first state */
+    pthread_mutex_lock(&v->run->mu);
+    v->teleport_step = v->run->steps_sent + 1;
+    pthread_mutex_unlock(&v->run->mu);
+  }
+  v->jump = jump;
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocp_camera_t c = {cam.pos, cam.forward, cam.up, pose.fov, (uint32_t)o->width, (uint32_t)o->height};
+  int r = ocv_conn_camera(v->conn, &c);
+  if (r == OC_EINVAL) sv_fail(v, "viewer %d (%s): the camera at path time %.1f s was refused", v->index, sv_name(v), path_t);
+  return r;
+}
+
+static uint64_t sv_bytes_in(stress_viewer_t *v) {
+  ocp_viewer_stats_t s;
+  ocp_viewer_stats(ocv_conn_session(v->conn), &s);
+  return s.bytes_in;
+}
+
+/* A failed poll or flush: r is 1 (closed by the server) or a negative OC_E*. */
+static void sv_poll_failed(stress_viewer_t *v, int r, const char *why) {
+  if (r == OC_ECHECKSUM) {
+    v->checksum_failures++;
+    sv_fail(v, "viewer %d (%s): CHECKSUM MISMATCH: %s", v->index, sv_name(v), why);
+  } else if (r == OC_ECORRUPT || r == OC_EVERSION || r == OC_ETOOBIG) {
+    v->protocol_errors++;
+    sv_fail(v, "viewer %d (%s): protocol error: %s", v->index, sv_name(v), why);
+  } else if (r == 1) {
+    sv_fail(v, "viewer %d (%s): %s", v->index, sv_name(v), why[0] ? why : "closed by the server");
+  } else {
+    sv_fail(v, "viewer %d (%s): %s", v->index, sv_name(v), why[0] ? why : oc_strerror(r));
+  }
+}
+
+static void sv_publish(stress_viewer_t *v, double input_at) {
+  stress_run_t *run = v->run;
+  pthread_mutex_lock(&run->mu);
+  if (input_at > 0) v->last_input = input_at;
+  if (v->new_state) {
+    v->have_epoch = v->last_epoch;
+    v->have_states = v->states;
+  }
+  pthread_cond_broadcast(&run->cv);
+  pthread_mutex_unlock(&run->mu);
+  v->new_state = 0;
+}
+
+void *stress_viewer_main(void *arg) {
+  stress_viewer_t *v = arg;
+  stress_run_t *run = v->run;
+  const stress_opts_t *o = run->o;
+  char why[1024] = "";
+  ocp_viewer_desc_t vd = {.role = OCP_ROLE_VIEWER, .budget = v->budget, .slot_bytes = SV_SLOT_BYTES,
+                          .record_bytes = SV_RECORD_BYTES, .max_depth = (uint8_t)v->max_depth,
+                          .width = (uint32_t)o->width, .height = (uint32_t)o->height, .caps = OCP_CAP_ALL,
+                          .token = o->token};
+  ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats};
+  int r = ocv_conn_open(&v->conn, run->host, run->port, &vd, &ev, o->timeout, why, sizeof why);
+  if (r < 0) {
+    sv_fail(v, "viewer %d: %s", v->index, why);
+    goto out;
+  }
+  r = ocv_conn_wait_ready(v->conn, o->timeout, why, sizeof why);
+  if (r) {
+    sv_poll_failed(v, r, why);
+    goto out;
+  }
+  v->t_welcome = stress_now();
+  if (v->welcome.slot_bytes != SV_SLOT_BYTES || v->welcome.record_bytes != SV_RECORD_BYTES) {
+    v->protocol_errors++;
+    sv_fail(v, "viewer %d: welcome grants %" PRIu32 "-byte slots and %" PRIu32 "-byte records; we declared %u and %u",
+            v->index, v->welcome.slot_bytes, v->welcome.record_bytes, SV_SLOT_BYTES, SV_RECORD_BYTES);
+    goto out;
+  }
+  oc_camera_pose_t home = {{v->welcome.cam_lat, v->welcome.cam_lon, v->welcome.cam_alt}, v->welcome.cam_heading,
+                           v->welcome.cam_pitch, v->welcome.cam_fov};
+  stress_path_init(&v->p, v->path, home, o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)v->index + 1, o->teleport_every,
+                   o->dive_seconds);
+  int stepped = v->welcome.epoch_period == 0;
+  double t_start = stress_now();
+  v->between = 1;
+  if (sv_camera(v, 0, t_start) < 0) goto out;
+  /* the first camera must be at the server before the first step */
+  if ((r = ocv_conn_flush(v->conn, o->timeout, why, sizeof why))) {
+    sv_poll_failed(v, r, why);
+    goto out;
+  }
+  pthread_mutex_lock(&run->mu);
+  v->ready = 1;
+  pthread_cond_broadcast(&run->cv);
+  pthread_mutex_unlock(&run->mu);
+
+  double tick = 1.0 / o->tick_hz, next_tick = t_start + tick;
+  while (!atomic_load(&run->stop)) {
+    double now = stress_now();
+    if (!stepped && now >= next_tick) {
+      if (sv_camera(v, now - t_start, now) < 0) break;
+      next_tick += tick;
+      if (next_tick < now) next_tick = now + tick; /* fell behind: no burst of cameras */
+    }
+    if (ocv_conn_silence(v->conn) >= OCV_KEEPALIVE_S) ocv_conn_keepalive(v->conn);
+    /* Wait for input here rather than inside ocv_conn_poll, so that the first byte of an epoch is
+     * timed when it becomes readable, before the read that may complete the whole epoch. */
+    double wait = stepped ? 0.1 : fmin(fmax(next_tick - now, 0.0), 0.1);
+    struct pollfd pf = {ocv_conn_fd(v->conn), (short)(POLLIN | (ocv_conn_pending(v->conn) ? POLLOUT : 0)), 0};
+    int k = poll(&pf, 1, (int)ceil(wait * 1e3));
+    double t_in = stress_now();
+    int readable = k > 0 && (pf.revents & (POLLIN | POLLHUP | POLLERR));
+    int marked = 0;
+    if (readable && v->between) {
+      v->epoch_first_byte = t_in;
+      v->between = 0;
+      marked = 1;
+    }
+    uint64_t before = sv_bytes_in(v);
+    r = ocv_conn_poll(v->conn, 0, why, sizeof why);
+    uint64_t got = sv_bytes_in(v) - before;
+    if (marked && got == OCP_HEADER_BYTES && !v->new_state) v->between = 1; /* a lone KEEPALIVE */
+    if (r) {
+      if (!atomic_load(&run->stop) || r < 0) sv_poll_failed(v, r, why);
+      break;
+    }
+    if (v->new_state && stepped) {
+      /* the camera for the next step goes out with the ACK, before we say we have this epoch */
+      pthread_mutex_lock(&run->mu);
+      uint64_t sent = run->steps_sent;
+      pthread_mutex_unlock(&run->mu);
+      if (sv_camera(v, (double)sent * o->step_seconds, t_in) < 0) break;
+      if ((r = ocv_conn_flush(v->conn, o->timeout, why, sizeof why))) {
+        sv_poll_failed(v, r, why);
+        break;
+      }
+    }
+    if (got || v->new_state) sv_publish(v, got ? t_in : 0);
+  }
+out:
+  v->t_end = stress_now();
+  if (v->detail_phase) v->detail_unreached++;
+  v->detail_phase = 0;
+  if (v->conn) ocp_viewer_stats(ocv_conn_session(v->conn), &v->session);
+  pthread_mutex_lock(&run->mu);
+  v->done = 1;
+  pthread_cond_broadcast(&run->cv);
+  pthread_mutex_unlock(&run->mu);
+  ocv_conn_close(v->conn);
+  v->conn = NULL;
+  return NULL;
+}
+
+void stress_viewer_free(stress_viewer_t *v) {
+  stress_samples_free(&v->latency);
+  stress_samples_free(&v->transfer);
+  stress_samples_free(&v->interval);
+  stress_samples_free(&v->detail);
+  stress_samples_free(&v->detail_epochs);
+  for (int i = 0; i < 2; i++) free(v->fp[i].ids);
+  free(v->fp_new.ids);
+  memset(v->fp, 0, sizeof v->fp);
+  memset(&v->fp_new, 0, sizeof v->fp_new);
+}
