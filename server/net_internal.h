@@ -61,6 +61,8 @@ struct ocs_server_s {
   uv_tcp_t listener;
   uv_timer_t epoch_timer, house_timer;
   uv_async_t stop_async;     /* ocs_server_stop_async(): a stop asked from another thread */
+  uv_idle_t tick_idle;       /* a due tick: keeps the next poll from blocking ... */
+  uv_check_t tick_check;     /* ... and starts the step after it, once pending ACKs are read */
   uv_signal_t sig_int, sig_term;
   uv_work_t work;
   int signals;

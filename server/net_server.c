@@ -689,13 +689,28 @@ void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n) {
   start_step(srv);
 }
 
+static void on_tick_idle(uv_idle_t *h) { (void)h; }
+
+/* After the poll that followed the tick: the acknowledgements that had arrived are applied by
+ * now, so a viewer that has its epoch is not skipped for want of reading its ACK. */
+static void on_tick_check(uv_check_t *h) {
+  ocs_server_t *srv = h->data;
+  uv_idle_stop(&srv->tick_idle);
+  uv_check_stop(&srv->tick_check);
+  if (!srv->stepping && !srv->stopping) start_step(srv);
+}
+
+/* libuv runs timers before it polls sockets: a step started here would not yet see ACKs that
+ * arrived since the last poll. The step starts right after the next poll instead (which the idle
+ * handle keeps from blocking). */
 static void on_epoch_timer(uv_timer_t *t) {
   ocs_server_t *srv = t->data;
   if (srv->stepping) {
     srv->late_ticks++; /* the previous step is still running: this tick is skipped */
     return;
   }
-  start_step(srv);
+  uv_idle_start(&srv->tick_idle, on_tick_idle);
+  uv_check_start(&srv->tick_check, on_tick_check);
 }
 
 /*-*** Housekeeping: timeouts, limits, lingering sessions ***/
@@ -782,6 +797,8 @@ void ocs_server_stop(ocs_server_t *srv) {
   close_quiet((uv_handle_t *)&srv->listener);
   close_quiet((uv_handle_t *)&srv->epoch_timer);
   close_quiet((uv_handle_t *)&srv->stop_async);
+  close_quiet((uv_handle_t *)&srv->tick_idle);
+  close_quiet((uv_handle_t *)&srv->tick_check);
   if (srv->signals) {
     close_quiet((uv_handle_t *)&srv->sig_int);
     close_quiet((uv_handle_t *)&srv->sig_term);
@@ -881,6 +898,9 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
   snprintf(srv->address, sizeof srv->address, strchr(srv->host, ':') ? "[%s]:%d" : "%s:%d", srv->host, port);
   uv_async_init(&srv->loop, &srv->stop_async, on_stop_async);
   srv->stop_async.data = srv;
+  uv_idle_init(&srv->loop, &srv->tick_idle);
+  uv_check_init(&srv->loop, &srv->tick_check);
+  srv->tick_idle.data = srv->tick_check.data = srv;
   uv_timer_init(&srv->loop, &srv->epoch_timer);
   uv_timer_init(&srv->loop, &srv->house_timer);
   srv->epoch_timer.data = srv->house_timer.data = srv;
