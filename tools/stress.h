@@ -49,7 +49,22 @@ typedef struct {
   double timeout;
   const char *json;
   int verbose;
+  /* --ramp: phases of N viewers (ramp_from, ×2, .. ramp_max) on one spawned server */
+  int ramp;
+  long ramp_from, ramp_max;
+  double ramp_seconds, ramp_warmup;
+  /* --sweep-budgets × --sweep-depths: one viewer per combination (budget 0: 1 byte) */
+  int sweep;
+  int nsweep_budgets, nsweep_depths;
+  long sweep_budgets_mib[32];
+  long sweep_depths[32];
 } stress_opts_t;
+
+/* The ramp's rule: a phase is sustained when every viewer's median interval between states is at
+ * most STRESS_RAMP_INTERVAL × the period and at most STRESS_RAMP_SKIPPED of the epochs due in the
+ * measured window were skipped (skipped / (states + skipped), over all viewers). */
+#define STRESS_RAMP_INTERVAL 1.2
+#define STRESS_RAMP_SKIPPED 0.05
 
 /*-*** Samples ***/
 
@@ -106,6 +121,11 @@ typedef struct {
   uint64_t resident_mismatch; /* our count differs from the session's */
   uint64_t checksum_failures, protocol_errors;
   uint64_t nodes_last, bricks_last, bricks_in;
+  int depth_last, depth_max; /* deepest octree level among the leaves: the last state's, the most */
+  /* --ramp: counted only for states completed at or after run->measure_from */
+  uint64_t m_states, m_skipped, m_bytes0;
+  double m_t0;
+  stress_samples_t m_interval;
   int failed;
   char error[512];
   stress_samples_t latency;  /* s: stepped from the step request, else from the first byte of EPOCH_BEGIN */
@@ -143,6 +163,7 @@ struct stress_run_s {
   uint64_t steps_sent;
   double *step_at;
   double t0;
+  double measure_from; /* --ramp: the warm-up ends (under mu; 0: no ramp) */
   stress_viewer_t *v;
   int nv;
 };
@@ -206,5 +227,25 @@ typedef struct {
  *  @return 1 when every check passed, 0 otherwise (-1: the JSON file could not be written, with
  *  a message on stderr). */
 int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s);
+
+/* One --ramp phase. */
+typedef struct {
+  int n;
+  double seconds;               /* measured */
+  double itv_p50, itv_p99;      /* pooled over the viewers' measured intervals, s */
+  double worst_median;          /* the largest of the viewers' median intervals, s */
+  uint64_t states, skipped;
+  double skipped_frac;
+  double cpu_pct, rss_mib, hwm_mib; /* the server over the measured window; at its end */
+  double mbps_p50, mbps_p99;    /* per viewer over the measured window */
+  uint64_t violations, checksum, protocol, mismatch, failed;
+  int sustained;
+  char why[160];                /* why not sustained, or a failure */
+} stress_ramp_phase_t;
+
+/*! stress_ramp_report() : the ramp's table on stdout and (o->json) its JSON. @return 1 when no check
+ *  failed in any phase, 0 otherwise, -1 when the JSON could not be written. */
+int stress_ramp_report(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
+                       int largest, const stress_summary_t *s);
 
 #endif /* OC_TOOLS_STRESS_H */

@@ -66,12 +66,25 @@ static void usage(FILE *f) {
           "  --duration S          run this long (stepped: keep stepping until then)\n"
           "  --timeout S           for connecting, each step, and each wait (default 120)\n"
           "  --json FILE           write everything measured\n"
+          "Modes:\n"
+          "  --ramp                N = --ramp-from, ×2, .. --ramp-max viewers, one phase each on the same\n"
+          "                        spawned server (needs a period); stops at the first phase not sustained\n"
+          "                        (a viewer's median interval > %.1f × the period, or > %.0f %% of epochs\n"
+          "                        skipped) and reports the largest N sustained\n"
+          "  --ramp-from N         the first phase's viewers (default 1)\n"
+          "  --ramp-max N          the last phase's at most (default %d)\n"
+          "  --ramp-seconds S      each phase's measured time, after its warm-up (default 10)\n"
+          "  --ramp-warmup S       each phase's warm-up (default 5)\n"
+          "  --sweep-budgets LIST  MiB (0: 1 byte, the smallest the server accepts), with --sweep-depths:\n"
+          "  --sweep-depths LIST   one viewer per (budget, depth), all on one path (default orbit) and the\n"
+          "                        same seed, stepped unless --epoch-period is given; checks that detail\n"
+          "                        (deepest level) never drops with a bigger budget or a deeper limit\n"
           "  -v, --verbose         a line per state on stderr, and the server's log\n"
           "  --help, --version\n"
           "\n"
           "exit status: 0 every check passed; 1 a check failed (budget, checksum, protocol, a viewer\n"
           "lost its connection or got no state) or a runtime error; 2 usage error\n",
-          STRESS_MAX_VIEWERS);
+          STRESS_MAX_VIEWERS, STRESS_RAMP_INTERVAL, 100.0 * STRESS_RAMP_SKIPPED, STRESS_MAX_VIEWERS);
 }
 
 /* "a,b,c" → integers in [lo, hi]. @return count, or -1 after a message naming the option. */
@@ -264,10 +277,162 @@ static void stop_viewers(stress_run_t *run) {
     }
 }
 
+
+static uint64_t viewer_budget(const stress_opts_t *o, int i) {
+  if (o->sweep) {
+    long mib = o->sweep_budgets_mib[i / o->nsweep_depths];
+    return mib ? (uint64_t)mib << 20 : 1; /* 0: one byte, the server grants its smallest */
+  }
+  return (uint64_t)o->budgets_mib[i % o->nbudgets] << 20;
+}
+
+static int viewer_depth(const stress_opts_t *o, int i) {
+  return (int)(o->sweep ? o->sweep_depths[i % o->nsweep_depths] : o->depths[i % o->ndepths]);
+}
+
+/* Starts run->nv viewer threads (run->v zeroed) and waits until each has its WELCOME or gave up. */
+static void start_viewers(stress_run_t *run, ocv_conn_t *ctl) {
+  const stress_opts_t *o = run->o;
+  for (int i = 0; i < run->nv; i++) {
+    stress_viewer_t *v = &run->v[i];
+    v->index = i;
+    v->run = run;
+    v->path = (stress_path_kind_t)o->paths[i % o->npaths];
+    v->budget = viewer_budget(o, i);
+    v->max_depth = viewer_depth(o, i);
+    if (pthread_create(&v->thread, NULL, stress_viewer_main, v) != 0) {
+      pthread_mutex_lock(&run->mu);
+      v->done = 1;
+      snprintf(v->error, sizeof v->error, "viewer %d: cannot start a thread", i);
+      v->failed = 1;
+      pthread_mutex_unlock(&run->mu);
+      continue;
+    }
+    v->started = 1;
+  }
+  pthread_mutex_lock(&run->mu);
+  for (;;) {
+    int waiting = 0;
+    for (int i = 0; i < run->nv; i++)
+      if (!run->v[i].ready && !run->v[i].done) waiting++;
+    if (!waiting || g_interrupted) break;
+    cv_wait(run, 0.1); /* each viewer's own connect and handshake are bounded by --timeout */
+    pthread_mutex_unlock(&run->mu);
+    ctl_tend(ctl);
+    pthread_mutex_lock(&run->mu);
+  }
+  pthread_mutex_unlock(&run->mu);
+}
+
+/* Tends the control connection until `until` (or every viewer is done, or an interrupt). */
+static void idle_until(stress_run_t *run, ocv_conn_t *ctl, double until) {
+  pthread_mutex_lock(&run->mu);
+  while (!g_interrupted && !all_done(run) && stress_now() < until) {
+    cv_wait(run, 0.2);
+    pthread_mutex_unlock(&run->mu);
+    ctl_tend(ctl);
+    pthread_mutex_lock(&run->mu);
+  }
+  pthread_mutex_unlock(&run->mu);
+}
+
+/* One ramp phase of n viewers on the running server: warm-up, measured window, stop, figures. */
+static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double period, int n, stress_ramp_phase_t *ph) {
+  const stress_opts_t *o = run->o;
+  memset(ph, 0, sizeof *ph);
+  ph->n = n;
+  ph->itv_p50 = ph->itv_p99 = ph->worst_median = ph->cpu_pct = ph->rss_mib = ph->hwm_mib = NAN;
+  ph->mbps_p50 = ph->mbps_p99 = NAN;
+  run->v = calloc((size_t)n, sizeof *run->v);
+  if (!run->v) {
+    snprintf(ph->why, sizeof ph->why, "out of memory");
+    ph->failed = 1;
+    return;
+  }
+  run->nv = n;
+  atomic_store(&run->stop, 0);
+  pthread_mutex_lock(&run->mu);
+  run->measure_from = 0;
+  pthread_mutex_unlock(&run->mu);
+  start_viewers(run, ctl);
+  double t = stress_now();
+  run->t0 = t;
+  pthread_mutex_lock(&run->mu);
+  run->measure_from = t + o->ramp_warmup;
+  pthread_mutex_unlock(&run->mu);
+  idle_until(run, ctl, t + o->ramp_warmup);
+  stress_proc_t p0, p1;
+  stress_proc_sample(pid, &p0);
+  double m0 = stress_now();
+  idle_until(run, ctl, m0 + o->ramp_seconds);
+  stress_proc_sample(pid, &p1);
+  ph->seconds = stress_now() - m0;
+  stop_viewers(run);
+  if (p0.ok && p1.ok && ph->seconds > 0) {
+    ph->cpu_pct = 100.0 * (p1.cpu_s - p0.cpu_s) / ph->seconds;
+    ph->rss_mib = p1.rss_mib;
+    ph->hwm_mib = p1.hwm_mib;
+  }
+  size_t total = 0;
+  for (int i = 0; i < n; i++) total += run->v[i].m_interval.n;
+  double *all = malloc((total + 1) * sizeof *all), *rates = malloc(((size_t)n + 1) * sizeof *rates);
+  size_t k = 0, nr = 0;
+  int short_viewer = -1;
+  for (int i = 0; i < n; i++) {
+    stress_viewer_t *v = &run->v[i];
+    ph->states += v->m_states;
+    ph->skipped += v->m_skipped;
+    ph->violations += v->violations;
+    ph->checksum += v->checksum_failures;
+    ph->protocol += v->protocol_errors;
+    ph->mismatch += v->resident_mismatch;
+    ph->failed += v->failed != 0;
+    if (v->failed && !ph->why[0]) snprintf(ph->why, sizeof ph->why, "%.150s", v->error);
+    double med = stress_quantile(v->m_interval.v, v->m_interval.n, 0.5);
+    if (!isfinite(med)) {
+      if (short_viewer < 0) short_viewer = i;
+    } else if (!(med <= ph->worst_median)) {
+      ph->worst_median = med;
+    }
+    if (all && v->m_interval.n) memcpy(all + k, v->m_interval.v, v->m_interval.n * sizeof *all);
+    k += v->m_interval.n;
+    double span = v->t_end - v->m_t0;
+    if (rates && v->m_states && span > 0) rates[nr++] = (double)(v->session.bytes_in - v->m_bytes0) / span / 1e6;
+  }
+  if (all && total) {
+    ph->itv_p50 = stress_quantile(all, total, 0.5);
+    ph->itv_p99 = stress_quantile(all, total, 0.99);
+  }
+  if (rates && nr) {
+    ph->mbps_p50 = stress_quantile(rates, nr, 0.5);
+    ph->mbps_p99 = stress_quantile(rates, nr, 0.99);
+  }
+  free(all);
+  free(rates);
+  ph->skipped_frac = ph->states + ph->skipped ? (double)ph->skipped / (double)(ph->states + ph->skipped) : NAN;
+  if (ph->failed || ph->violations || ph->checksum || ph->protocol || ph->mismatch) {
+    if (!ph->why[0]) snprintf(ph->why, sizeof ph->why, "a check failed");
+  } else if (short_viewer >= 0) {
+    snprintf(ph->why, sizeof ph->why, "viewer %d: fewer than 2 states in the measured window", short_viewer);
+  } else if (ph->worst_median > STRESS_RAMP_INTERVAL * period) {
+    snprintf(ph->why, sizeof ph->why, "a viewer's median interval %.2f s > %.1f × %g s", ph->worst_median,
+             STRESS_RAMP_INTERVAL, period);
+  } else if (ph->skipped_frac > STRESS_RAMP_SKIPPED) {
+    snprintf(ph->why, sizeof ph->why, "%.1f %% of epochs skipped > %.0f %%", 100.0 * ph->skipped_frac,
+             100.0 * STRESS_RAMP_SKIPPED);
+  } else {
+    ph->sustained = 1;
+  }
+  for (int i = 0; i < n; i++) stress_viewer_free(&run->v[i]);
+  free(run->v);
+  run->v = NULL;
+  run->nv = 0;
+}
+
 int main(int argc, char **argv) {
   enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
-         O_JSON, O_HELP, O_VERSION };
+         O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -281,7 +446,11 @@ int main(int argc, char **argv) {
       {"epochs", required_argument, 0, O_EPOCHS},   {"duration", required_argument, 0, O_DURATION},
       {"timeout", required_argument, 0, O_TIMEOUT}, {"json", required_argument, 0, O_JSON},
       {"verbose", no_argument, 0, 'v'},             {"help", no_argument, 0, O_HELP},
-      {"version", no_argument, 0, O_VERSION},       {0, 0, 0, 0}};
+      {"version", no_argument, 0, O_VERSION},       {"ramp", no_argument, 0, O_RAMP},
+      {"ramp-from", required_argument, 0, O_RAMP_FROM}, {"ramp-max", required_argument, 0, O_RAMP_MAX},
+      {"ramp-seconds", required_argument, 0, O_RAMP_S}, {"ramp-warmup", required_argument, 0, O_RAMP_WARM},
+      {"sweep-budgets", required_argument, 0, O_SW_B}, {"sweep-depths", required_argument, 0, O_SW_D},
+      {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
   o.epoch_period = -1;
@@ -294,6 +463,10 @@ int main(int argc, char **argv) {
   o.teleport_every = 10;
   o.dive_seconds = 30;
   o.timeout = 120;
+  o.ramp_from = 1;
+  o.ramp_max = STRESS_MAX_VIEWERS;
+  o.ramp_seconds = 10;
+  o.ramp_warmup = 5;
   int spawn_given = 0, connect_given = 0, spawn_only = 0;
   const char *spawn_only_name = NULL;
   long l;
@@ -351,6 +524,18 @@ int main(int argc, char **argv) {
       case O_DURATION: if (oc_cli_double(prog, "--duration", optarg, 0.1, 1e6, &o.duration)) return OC_EXIT_USAGE; break;
       case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.1, 86400, &o.timeout)) return OC_EXIT_USAGE; break;
       case O_JSON: o.json = optarg; break;
+      case O_RAMP: o.ramp = 1; break;
+      case O_RAMP_FROM: if (oc_cli_int(prog, "--ramp-from", optarg, 1, STRESS_MAX_VIEWERS, &o.ramp_from)) return OC_EXIT_USAGE; break;
+      case O_RAMP_MAX: if (oc_cli_int(prog, "--ramp-max", optarg, 1, STRESS_MAX_VIEWERS, &o.ramp_max)) return OC_EXIT_USAGE; break;
+      case O_RAMP_S: if (oc_cli_double(prog, "--ramp-seconds", optarg, 0.5, 3600, &o.ramp_seconds)) return OC_EXIT_USAGE; break;
+      case O_RAMP_WARM: if (oc_cli_double(prog, "--ramp-warmup", optarg, 0, 3600, &o.ramp_warmup)) return OC_EXIT_USAGE; break;
+      case O_SW_B:
+        if ((o.nsweep_budgets = parse_int_list("--sweep-budgets", optarg, 0, 65536, o.sweep_budgets_mib, 32)) < 0)
+          return OC_EXIT_USAGE;
+        break;
+      case O_SW_D:
+        if ((o.nsweep_depths = parse_int_list("--sweep-depths", optarg, 0, 21, o.sweep_depths, 32)) < 0) return OC_EXIT_USAGE;
+        break;
       case 'v': o.verbose = 1; break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -364,6 +549,22 @@ int main(int argc, char **argv) {
     return oc_cli_fail(prog, OC_EXIT_USAGE, "%s goes with --spawn, not --connect", spawn_only_name);
   if (o.server_pid && !connect_given) return oc_cli_fail(prog, OC_EXIT_USAGE, "--server-pid goes with --connect");
   o.spawn = !connect_given;
+  if (!o.nsweep_budgets != !o.nsweep_depths)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--sweep-budgets and --sweep-depths go together");
+  o.sweep = o.nsweep_budgets > 0;
+  if (o.ramp && o.sweep) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp and --sweep-budgets exclude each other");
+  if (o.ramp && !o.spawn) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp goes with --spawn, not --connect");
+  if (o.ramp && o.epoch_period == 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp needs a period (--epoch-period > 0)");
+  if (o.ramp && o.ramp_from > o.ramp_max)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp-from %ld is above --ramp-max %ld", o.ramp_from, o.ramp_max);
+  if (o.sweep) {
+    if ((long)o.nsweep_budgets * o.nsweep_depths > STRESS_MAX_VIEWERS)
+      return oc_cli_fail(prog, OC_EXIT_USAGE, "--sweep-budgets × --sweep-depths: at most %d combinations", STRESS_MAX_VIEWERS);
+    o.viewers = o.nsweep_budgets * o.nsweep_depths;
+    if (o.spawn && o.epoch_period < 0) o.epoch_period = 0;
+    if (!o.npaths) o.paths[o.npaths++] = STRESS_ORBIT;
+  }
+  if (o.ramp) o.viewers = (int)o.ramp_max;
   if (!o.npaths) {
     for (int k = 0; k < STRESS_PATH_COUNT; k++) o.paths[k] = k;
     o.npaths = STRESS_PATH_COUNT;
@@ -402,7 +603,7 @@ int main(int argc, char **argv) {
     if (access(exe, X_OK) != 0)
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", exe);
     long total_mib = 0;
-    for (int i = 0; i < o.viewers; i++) total_mib += o.budgets_mib[i % o.nbudgets];
+    for (int i = 0; i < o.viewers; i++) total_mib += (long)((viewer_budget(&o, i) + (1u << 20) - 1) >> 20);
     char a_period[32], a_threads[32], a_total[32], a_maxv[32];
     char *sargv[24];
     int n = 0;
@@ -477,37 +678,47 @@ int main(int argc, char **argv) {
     goto out;
   }
 
+  if (o.ramp) {
+    if (!(period > 0)) {
+      rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp needs a period: the scene's is %g (give --epoch-period)", period);
+      goto out;
+    }
+    free(run.v); /* each phase has its own */
+    run.v = NULL;
+    stress_ramp_phase_t *ph = calloc(64, sizeof *ph);
+    int nph = 0, largest = 0;
+    if (!ph) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+      goto out;
+    }
+    for (long n = o.ramp_from; n <= o.ramp_max && nph < 64 && !g_interrupted; n *= 2) {
+      ramp_phase(&run, ctl, pid, period, (int)n, &ph[nph]);
+      const stress_ramp_phase_t *p = &ph[nph++];
+      fprintf(stderr, "overcast-stress: ramp: %d viewer%s: %s%s\n", p->n, p->n == 1 ? "" : "s",
+              p->sustained ? "sustained" : "not sustained: ", p->sustained ? "" : p->why);
+      if (!p->sustained) break;
+      largest = p->n;
+    }
+    if (g_interrupted) snprintf(sum.error, sizeof sum.error, "interrupted");
+    sum.wall_s = stress_now() - wall0;
+    ocv_conn_close(ctl);
+    ctl = NULL;
+    sum.server_exit = stress_server_stop(&child, 10);
+    child.pid = -1;
+    if (sum.server_exit != 0 && !sum.error[0])
+      snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
+    stress_proc_sample((long)getpid(), &sum.tool);
+    int pass = stress_ramp_report(&o, o.scene ? o.scene : "planet (built in)", period, ph, nph, largest, &sum);
+    free(ph);
+    free(run.step_at);
+    pthread_cond_destroy(&run.cv);
+    pthread_mutex_destroy(&run.mu);
+    return pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
+  }
+
   /* The viewers: each connects, gets its WELCOME, sends its first camera. */
   run.nv = o.viewers;
-  for (int i = 0; i < o.viewers; i++) {
-    stress_viewer_t *v = &run.v[i];
-    v->index = i;
-    v->run = &run;
-    v->path = (stress_path_kind_t)o.paths[i % o.npaths];
-    v->budget = (uint64_t)o.budgets_mib[i % o.nbudgets] << 20;
-    v->max_depth = (int)o.depths[i % o.ndepths];
-    if (pthread_create(&v->thread, NULL, stress_viewer_main, v) != 0) {
-      pthread_mutex_lock(&run.mu);
-      v->done = 1;
-      snprintf(v->error, sizeof v->error, "viewer %d: cannot start a thread", i);
-      v->failed = 1;
-      pthread_mutex_unlock(&run.mu);
-      continue;
-    }
-    v->started = 1;
-  }
-  pthread_mutex_lock(&run.mu);
-  for (;;) {
-    int waiting = 0;
-    for (int i = 0; i < run.nv; i++)
-      if (!run.v[i].ready && !run.v[i].done) waiting++;
-    if (!waiting || g_interrupted) break;
-    cv_wait(&run, 0.1); /* each viewer's own connect and handshake are bounded by --timeout */
-    pthread_mutex_unlock(&run.mu);
-    ctl_tend(ctl);
-    pthread_mutex_lock(&run.mu);
-  }
-  pthread_mutex_unlock(&run.mu);
+  start_viewers(&run, ctl);
   run.t0 = stress_now();
 
   if (sum.stepped) run_stepped(&run, ctl, &sum);

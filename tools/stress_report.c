@@ -121,7 +121,32 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
   free(rates);
   sr_q_t lat = sr_pool(run, 0, -1), tra = sr_pool(run, 1, -1), det = sr_pool(run, 2, -1), dep = sr_pool(run, 3, -1),
          itv = sr_pool(run, 4, -1);
-  int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !s->error[0];
+  /* --sweep: detail (the deepest level reached) must not drop with a bigger budget or a deeper
+   * limit; fewer leaves is only noted (a deeper tree can hold fewer, smaller leaves). */
+  uint64_t coarser = 0, fewer = 0;
+  if (o->sweep) {
+    int nd = o->nsweep_depths;
+    for (int i = 0; i < run->nv; i++) {
+      const stress_viewer_t *v = &run->v[i];
+      int bi = i / nd, di = i % nd;
+      const stress_viewer_t *prev[2] = {bi > 0 ? &run->v[i - nd] : NULL, di > 0 ? &run->v[i - 1] : NULL};
+      for (int k = 0; k < 2; k++) {
+        const stress_viewer_t *w = prev[k];
+        if (!w || !v->states || !w->states) continue;
+        int bigger = k == 0 ? v->budget >= w->budget : 1, deeper = k == 1 ? v->max_depth >= w->max_depth : 1;
+        if (!bigger || !deeper) continue;
+        if (v->depth_max < w->depth_max) {
+          coarser++;
+          printf("NOT GRACEFUL: viewer %d (budget %.3f MiB, depth %d) reached level %d, viewer %d (%.3f MiB, depth %d) "
+                 "level %d\n",
+                 v->index, (double)v->budget / SR_MIB, v->max_depth, v->depth_max, w->index, (double)w->budget / SR_MIB,
+                 w->max_depth, w->depth_max);
+        }
+        if (v->nodes_last < w->nodes_last) fewer++;
+      }
+    }
+  }
+  int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !coarser && !s->error[0];
 
   /* The table. */
   const char *lat_from = s->stepped ? "from the step request" : "from the first byte of EPOCH_BEGIN";
@@ -186,6 +211,24 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     if (v->failed) printf("FAIL: %s\n", v->error);
     else if (!v->states) printf("FAIL: viewer %d (%s): no state\n", v->index, stress_path_name(v->path));
   }
+  if (o->sweep) {
+    printf("\nsweep (one viewer per budget and depth, path %s, the same seed):\n\n", stress_path_name(run->v[0].path));
+    printf("| budget MiB asked | granted MiB | depth | states | resident max MiB | of granted | leaves | bricks | deepest level |\n");
+    printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (int i = 0; i < run->nv; i++) {
+      const stress_viewer_t *v = &run->v[i];
+      double granted = v->have_welcome ? (double)v->welcome.budget : NAN;
+      printf("| %s | %s | %d | %" PRIu64 " | %s | %s | %" PRIu64 " | %" PRIu64 " | %d |\n",
+             v->budget == 1 ? "1 byte" : sr_num(b1, sizeof b1, (double)v->budget / SR_MIB, "%.0f"),
+             sr_num(b2, sizeof b2, granted / SR_MIB, "%.3f"), v->max_depth, v->states,
+             sr_num(b3, sizeof b3, (double)v->resident_max / SR_MIB, "%.3f"),
+             sr_num(b4, sizeof b4, 100.0 * (double)v->resident_max / granted, "%.1f %%"), v->nodes_last, v->bricks_last,
+             v->depth_max);
+    }
+    printf("\nsweep: %" PRIu64 " combinations coarser than a smaller or shallower one (deepest level), %" PRIu64
+           " with fewer leaves than one (noted, not a failure)\n",
+           coarser, fewer);
+  }
   if (s->error[0]) printf("FAIL: %s\n", s->error);
   printf("%s\n", pass ? "PASS" : "FAIL");
   fflush(stdout);
@@ -245,6 +288,8 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
       cJSON_AddNumberToObject(x, "bricks_in", (double)v->bricks_in);
       cJSON_AddNumberToObject(x, "nodes_last", (double)v->nodes_last);
       cJSON_AddNumberToObject(x, "bricks_last", (double)v->bricks_last);
+      cJSON_AddNumberToObject(x, "depth_last", v->depth_last);
+      cJSON_AddNumberToObject(x, "depth_max", v->depth_max);
       sr_add_num(x, "seconds", v->have_welcome ? v->t_end - v->t_welcome : NAN);
       sr_add_num(x, "bytes_per_s", sr_rate(v));
       cJSON_AddItemToObject(x, "latency_s", sr_q_json(sr_pool(run, 0, i)));
@@ -297,6 +342,10 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     cJSON_AddNumberToObject(ck, "viewers_without_state", (double)empty);
     cJSON_AddNumberToObject(ck, "skipped_epochs", (double)skipped);
     cJSON_AddNumberToObject(ck, "coalesced_server", (double)coalesced);
+    if (o->sweep) {
+      cJSON_AddNumberToObject(ck, "sweep_coarser", (double)coarser);
+      cJSON_AddNumberToObject(ck, "sweep_fewer_leaves", (double)fewer);
+    }
     if (s->error[0]) cJSON_AddStringToObject(ck, "error", s->error);
     cJSON_AddBoolToObject(j, "pass", pass);
     char *text = cJSON_Print(j);
@@ -319,6 +368,8 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     for (int i = 0; !cause[0] && i < run->nv; i++)
       if (run->v[i].failed) cause = run->v[i].error;
     if (cause[0]) fprintf(stderr, "overcast-stress: FAIL: %s\n", cause);
+    else if (coarser)
+      fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " sweep combinations coarser than a smaller or shallower one\n", coarser);
     else if (violations || mismatch)
       fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " budget violations, %" PRIu64 " resident counts differing from the session's\n",
               violations, mismatch);
@@ -326,5 +377,91 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
       fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " of %d viewers got no state within the run (%.1f s)\n", empty,
               run->nv, s->wall_s);
   }
+  return rc;
+}
+
+int stress_ramp_report(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
+                       int largest, const stress_summary_t *s) {
+  char b1[32], b2[32], b3[32], b4[32], b5[32], b6[32], b7[32], b8[32];
+  int pass = !s->error[0];
+  printf("overcast-stress --ramp: scene %s, epoch period %g s, %.0f s warm-up + %.0f s measured per phase, one server\n",
+         scene, period, o->ramp_warmup, o->ramp_seconds);
+  printf("sustained: every viewer's median interval <= %.1f x the period and <= %.0f %% of epochs skipped\n\n",
+         STRESS_RAMP_INTERVAL, 100.0 * STRESS_RAMP_SKIPPED);
+  printf("| N | interval p50 s | p99 s | worst viewer median s | states | skipped | server CPU | server RSS MiB | "
+         "MB/s per viewer p50 | p99 | sustained |\n");
+  printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  for (int i = 0; i < nph; i++) {
+    const stress_ramp_phase_t *p = &ph[i];
+    if (p->failed || p->violations || p->checksum || p->protocol || p->mismatch) pass = 0;
+    printf("| %d | %s | %s | %s | %" PRIu64 " | %" PRIu64 " (%s) | %s | %s | %s | %s | %s%s |\n", p->n,
+           sr_num(b1, sizeof b1, p->itv_p50, "%.2f"), sr_num(b2, sizeof b2, p->itv_p99, "%.2f"),
+           sr_num(b3, sizeof b3, p->worst_median, "%.2f"), p->states, p->skipped,
+           sr_num(b4, sizeof b4, 100.0 * p->skipped_frac, "%.1f %%"), sr_num(b5, sizeof b5, p->cpu_pct, "%.0f %%"),
+           sr_num(b6, sizeof b6, p->rss_mib, "%.0f"), sr_num(b7, sizeof b7, p->mbps_p50, "%.3f"),
+           sr_num(b8, sizeof b8, p->mbps_p99, "%.3f"), p->sustained ? "yes" : "no: ", p->sustained ? "" : p->why);
+  }
+  int all = nph > 0 && ph[nph - 1].sustained; /* the ramp ended at --ramp-max, not at a failure */
+  printf("\nlargest N sustained at the epoch rate: %d%s\n", largest, all ? " (every phase was: at least this; raise --ramp-max)" : "");
+  if (s->server_end.ok || s->tool.ok)
+    printf("overcast-stress itself: peak RSS %s MiB\n", sr_num(b1, sizeof b1, s->tool.ok ? s->tool.hwm_mib : NAN, "%.1f"));
+  if (s->error[0]) printf("FAIL: %s\n", s->error);
+  printf("%s\n", pass ? "PASS" : "FAIL");
+  fflush(stdout);
+  int rc = pass;
+  if (o->json) {
+    cJSON *j = cJSON_CreateObject();
+    cJSON *r = cJSON_AddObjectToObject(j, "ramp");
+    cJSON_AddStringToObject(r, "scene", scene);
+    cJSON_AddNumberToObject(r, "epoch_period", period);
+    cJSON_AddNumberToObject(r, "warmup_s", o->ramp_warmup);
+    cJSON_AddNumberToObject(r, "measured_s", o->ramp_seconds);
+    cJSON_AddNumberToObject(r, "rule_interval_factor", STRESS_RAMP_INTERVAL);
+    cJSON_AddNumberToObject(r, "rule_skipped_fraction", STRESS_RAMP_SKIPPED);
+    cJSON *a = cJSON_AddArrayToObject(r, "phases");
+    for (int i = 0; i < nph; i++) {
+      const stress_ramp_phase_t *p = &ph[i];
+      cJSON *x = cJSON_CreateObject();
+      cJSON_AddItemToArray(a, x);
+      cJSON_AddNumberToObject(x, "viewers", p->n);
+      sr_add_num(x, "seconds", p->seconds);
+      sr_add_num(x, "interval_p50_s", p->itv_p50);
+      sr_add_num(x, "interval_p99_s", p->itv_p99);
+      sr_add_num(x, "worst_viewer_median_s", p->worst_median);
+      cJSON_AddNumberToObject(x, "states", (double)p->states);
+      cJSON_AddNumberToObject(x, "skipped", (double)p->skipped);
+      sr_add_num(x, "skipped_fraction", p->skipped_frac);
+      sr_add_num(x, "server_cpu_percent", p->cpu_pct);
+      sr_add_num(x, "server_rss_mib", p->rss_mib);
+      sr_add_num(x, "server_peak_rss_mib", p->hwm_mib);
+      sr_add_num(x, "mb_per_s_per_viewer_p50", p->mbps_p50);
+      sr_add_num(x, "mb_per_s_per_viewer_p99", p->mbps_p99);
+      cJSON_AddNumberToObject(x, "budget_violations", (double)p->violations);
+      cJSON_AddNumberToObject(x, "checksum_failures", (double)p->checksum);
+      cJSON_AddNumberToObject(x, "protocol_errors", (double)p->protocol);
+      cJSON_AddNumberToObject(x, "resident_mismatch", (double)p->mismatch);
+      cJSON_AddNumberToObject(x, "viewers_failed", (double)p->failed);
+      cJSON_AddBoolToObject(x, "sustained", p->sustained);
+      if (p->why[0]) cJSON_AddStringToObject(x, "why", p->why);
+    }
+    cJSON_AddNumberToObject(r, "largest_sustained", largest);
+    sr_add_num(r, "tool_peak_rss_mib", s->tool.ok ? s->tool.hwm_mib : NAN);
+    if (s->error[0]) cJSON_AddStringToObject(r, "error", s->error);
+    cJSON_AddBoolToObject(j, "pass", pass);
+    char *text = cJSON_Print(j);
+    cJSON_Delete(j);
+    FILE *f = text ? fopen(o->json, "w") : NULL;
+    int ok = f != NULL;
+    if (f) {
+      ok = fputs(text, f) >= 0 && fputc('\n', f) != EOF;
+      if (fclose(f) != 0) ok = 0;
+    }
+    if (!ok) {
+      fprintf(stderr, "overcast-stress: %s: cannot write the JSON\n", o->json);
+      rc = -1;
+    }
+    cJSON_free(text);
+  }
+  if (!pass) fprintf(stderr, "overcast-stress: FAIL: %s\n", s->error[0] ? s->error : "a check failed in a ramp phase");
   return rc;
 }

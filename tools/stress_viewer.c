@@ -139,6 +139,8 @@ static double sv_step_time(stress_run_t *run, uint64_t step, uint64_t epoch) {
   return t;
 }
 
+static uint64_t sv_bytes_in(stress_viewer_t *v);
+
 static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   stress_viewer_t *v = ctx;
   stress_run_t *run = v->run;
@@ -146,11 +148,32 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   int stepped = v->welcome.epoch_period == 0;
   v->states++;
   v->new_state = 1;
-  if (v->states > 1) stress_samples_add(&v->interval, t - v->state_at);
+  double prev_at = v->state_at;
+  if (v->states > 1) stress_samples_add(&v->interval, t - prev_at);
   v->state_at = t;
   v->bricks_in += bricks;
   v->nodes_last = s->node_count;
   v->bricks_last = s->brick_count;
+  int deepest = -1;
+  for (uint32_t i = 0; i < s->node_count; i++) {
+    int l = oc_key_level(s->nodes[i].key);
+    if (l > deepest) deepest = l;
+  }
+  v->depth_last = deepest;
+  if (deepest > v->depth_max) v->depth_max = deepest;
+  pthread_mutex_lock(&run->mu);
+  int measured = run->measure_from > 0 && t >= run->measure_from;
+  pthread_mutex_unlock(&run->mu);
+  if (measured) {
+    if (v->m_states) {
+      stress_samples_add(&v->m_interval, t - prev_at);
+      if (s->epoch > v->last_epoch + 1) v->m_skipped += s->epoch - v->last_epoch - 1;
+    } else {
+      v->m_t0 = t;
+      v->m_bytes0 = sv_bytes_in(v);
+    }
+    v->m_states++;
+  }
   if (v->states == 1) {
     v->first_epoch = s->epoch;
   } else if (s->epoch <= v->last_epoch) {
@@ -337,7 +360,7 @@ void *stress_viewer_main(void *arg) {
   }
   oc_camera_pose_t home = {{v->welcome.cam_lat, v->welcome.cam_lon, v->welcome.cam_alt}, v->welcome.cam_heading,
                            v->welcome.cam_pitch, v->welcome.cam_fov};
-  stress_path_init(&v->p, v->path, home, o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)v->index + 1, o->teleport_every,
+  stress_path_init(&v->p, v->path, home, o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)(o->sweep ? 0 : v->index) + 1, o->teleport_every,
                    o->dive_seconds);
   int stepped = v->welcome.epoch_period == 0;
   double t_start = stress_now();
@@ -416,6 +439,7 @@ void stress_viewer_free(stress_viewer_t *v) {
   stress_samples_free(&v->interval);
   stress_samples_free(&v->detail);
   stress_samples_free(&v->detail_epochs);
+  stress_samples_free(&v->m_interval);
   for (int i = 0; i < 2; i++) free(v->fp[i].ids);
   free(v->fp_new.ids);
   memset(v->fp, 0, sizeof v->fp);

@@ -128,6 +128,9 @@ if [ -x "$X" ]; then
   check "stress: bad depth" 2 "--max-depth: 30 is outside" -- "$X" --max-depth 8,30
   check "stress: bad size" 2 "--size: expected WxH" -- "$X" --size 160
   check "stress: bad period" 2 "--epoch-period: -1 is outside" -- "$X" --epoch-period -1
+  check "stress: sweep budgets alone" 2 "--sweep-budgets and --sweep-depths go together" -- "$X" --sweep-budgets 0,16
+  check "stress: bad sweep depth" 2 "--sweep-depths: 22 is outside" -- "$X" --sweep-budgets 1 --sweep-depths 1,22
+  check "stress: ramp stepped" 2 "--ramp needs a period" -- "$X" --ramp --epoch-period 0
   check "stress: --scene with --connect" 2 "--scene goes with --spawn" -- "$X" --connect 127.0.0.1:1 --scene x.json
   check "stress: --spawn and --connect" 2 "exclude each other" -- "$X" --spawn --connect 127.0.0.1:1
   check "stress: --server-pid alone" 2 "--server-pid goes with --connect" -- "$X" --server-pid 1
