@@ -20,6 +20,22 @@ typedef struct {
   size_t n;
 } sr_q_t;
 
+
+/* Writes j (consumed) to path, pretty-printed. @return 0, or -1 after saying why on stderr. */
+static int sr_write_json(cJSON *j, const char *path) {
+  char *text = cJSON_Print(j);
+  cJSON_Delete(j);
+  FILE *f = text ? fopen(path, "w") : NULL;
+  int ok = f != NULL;
+  if (f) {
+    ok = fputs(text, f) >= 0 && fputc('\n', f) != EOF;
+    if (fclose(f) != 0) ok = 0;
+  }
+  cJSON_free(text);
+  if (!ok) fprintf(stderr, "overcast-stress: %s: cannot write the JSON\n", path);
+  return ok ? 0 : -1;
+}
+
 static const stress_samples_t *sr_which(const stress_viewer_t *v, int which) {
   switch (which) {
     case 0: return &v->latency;
@@ -348,19 +364,7 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     }
     if (s->error[0]) cJSON_AddStringToObject(ck, "error", s->error);
     cJSON_AddBoolToObject(j, "pass", pass);
-    char *text = cJSON_Print(j);
-    cJSON_Delete(j);
-    FILE *f = text ? fopen(o->json, "w") : NULL;
-    int ok = f != NULL;
-    if (f) {
-      ok = fputs(text, f) >= 0 && fputc('\n', f) != EOF;
-      if (fclose(f) != 0) ok = 0;
-    }
-    if (!ok) {
-      fprintf(stderr, "overcast-stress: %s: cannot write the JSON\n", o->json);
-      rc = -1;
-    }
-    cJSON_free(text);
+    if (sr_write_json(j, o->json) < 0) rc = -1;
   }
   if (!pass) {
     /* one line on stderr naming the first cause (the table has them all) */
@@ -448,19 +452,7 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
     sr_add_num(r, "tool_peak_rss_mib", s->tool.ok ? s->tool.hwm_mib : NAN);
     if (s->error[0]) cJSON_AddStringToObject(r, "error", s->error);
     cJSON_AddBoolToObject(j, "pass", pass);
-    char *text = cJSON_Print(j);
-    cJSON_Delete(j);
-    FILE *f = text ? fopen(o->json, "w") : NULL;
-    int ok = f != NULL;
-    if (f) {
-      ok = fputs(text, f) >= 0 && fputc('\n', f) != EOF;
-      if (fclose(f) != 0) ok = 0;
-    }
-    if (!ok) {
-      fprintf(stderr, "overcast-stress: %s: cannot write the JSON\n", o->json);
-      rc = -1;
-    }
-    cJSON_free(text);
+    if (sr_write_json(j, o->json) < 0) rc = -1;
   }
   if (!pass) fprintf(stderr, "overcast-stress: FAIL: %s\n", s->error[0] ? s->error : "a check failed in a ramp phase");
   return rc;
