@@ -99,6 +99,15 @@ check "bench: wire, unknown option" 2 "wire: unknown or incomplete option" -- "$
 check "bench: tau, bad level" 2 "--level: 30 is outside" -- "$B" tau --level 30
 check "bench: tau, bad place" 2 "--at: expected LAT,LON" -- "$B" tau --at 100,0
 check "bench: steps the world" 0 "" -- "$B" world --scene scenes/analytic_sphere.json --epochs 2 --budget 2 --threads 2
+check "bench: sweep, unknown option" 2 "sweep: unknown or incomplete option \"--frobnicate\"" -- "$B" sweep --frobnicate
+check "bench: sweep, bad budget list" 2 "--budgets: expected a finite number, got \"x\"" -- "$B" sweep --budgets 4,x
+check "bench: sweep, hardware filtering" 2 "--reconstruction hardware: not available" -- "$B" sweep --reconstruction hardware
+check "bench: truth, bad tau" 2 "--tau: 0 is outside" -- "$B" truth --tau 0
+check "bench: truth, bad size" 2 "--size: expected WxH" -- "$B" truth --size 12
+check "bench: stability, odd size" 2 "--size: expected WxH with even sides" -- "$B" stability --size 33x18
+check "bench: stability, bad renderer" 2 "--renderer: expected cpu, gl or cpu,gl" -- "$B" stability --renderer vulkan
+check "bench: features, bad epochs" 2 "--epochs: 0 is outside" -- "$B" features --epochs 0
+check "bench: features, bad renderer" 2 "--renderer: expected cpu or gl" -- "$B" features --renderer vulkan
 
 C=$BIN/overcast-ctl
 check "ctl: --help" 0 "" -- "$C" --help
