@@ -59,6 +59,17 @@ static cJSON *world_stats_json(ocs_server_t *srv) {
   cJSON_AddNumberToObject(o, "refused", (double)srv->refused);
   cJSON_AddNumberToObject(o, "closed_errors", (double)srv->closed_errors);
   cJSON_AddNumberToObject(o, "resumes", (double)srv->resumes);
+  /* the connection limits in force, so that a client (overcast-stress) can check it is held to them */
+  const ocs_server_desc_t *d = &srv->desc;
+  cJSON *l = cJSON_AddObjectToObject(o, "limits");
+  cJSON_AddNumberToObject(l, "handshake_s", d->handshake_s);
+  cJSON_AddNumberToObject(l, "idle_s", d->idle_s);
+  cJSON_AddNumberToObject(l, "stall_s", d->stall_s);
+  cJSON_AddNumberToObject(l, "soft_s", d->soft_s);
+  cJSON_AddNumberToObject(l, "linger_s", d->linger_s);
+  cJSON_AddNumberToObject(l, "queue_soft", (double)d->queue_soft);
+  cJSON_AddNumberToObject(l, "queue_hard", (double)d->queue_hard);
+  cJSON_AddNumberToObject(l, "max_connections", d->max_connections);
   return o;
 }
 

@@ -58,6 +58,14 @@ typedef struct {
   int nsweep_budgets, nsweep_depths;
   long sweep_budgets_mib[32];
   long sweep_depths[32];
+  /* --faults */
+  int faults;               /* 1 << STRESS_FK_* | STRESS_FAULT_RESTART */
+  long fault_every;         /* steps between rounds */
+  uint64_t fault_budget_mib;/* budget of the misbehaving viewers */
+  long restart_at;          /* the step after which the server is killed (0: the middle) */
+  double fault_rss_slack;   /* MiB */
+  int nserver_args;
+  char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;
 
 /* The ramp's rule: a phase is sustained when every viewer's median interval between states is at
@@ -65,6 +73,41 @@ typedef struct {
  * measured window were skipped (skipped / (states + skipped), over all viewers). */
 #define STRESS_RAMP_INTERVAL 1.2
 #define STRESS_RAMP_SKIPPED 0.05
+
+/*-*** Fault injection (stress_fault.c) ***/
+
+/* --faults: bits 1 << STRESS_FK_* for the connection kinds, and a restart of the server */
+enum { STRESS_FK_STALL, STRESS_FK_DROP, STRESS_FK_GARBAGE, STRESS_FK_COUNT };
+#define STRESS_FAULT_RESTART (1 << STRESS_FK_COUNT)
+/* seconds past the server's handshake timeout by which garbage must have been closed */
+#define STRESS_FAULT_GRACE 10.0
+/* RSS growth allowed beyond the server's own accounting (--fault-rss-slack default), MiB */
+#define STRESS_FAULT_SLACK_MIB 64
+
+typedef struct {
+  double handshake_s;
+  uint64_t opened[STRESS_FK_COUNT], refused[STRESS_FK_COUNT]; /* refused: connect failed (server full, restarting) */
+  uint64_t closed[STRESS_FK_COUNT];                           /* closed by the server */
+  uint64_t errors[STRESS_FK_COUNT];                           /* of those, after an ERROR or GOODBYE frame */
+  double close_s_max[STRESS_FK_COUNT];
+  uint64_t late;               /* garbage still open past its deadline (a failure) */
+  uint64_t unanswered;         /* garbage closed without ERROR, or served (a failure) */
+  uint64_t states_before_drop; /* drop 3: complete states before the reset */
+  uint64_t open_at_end;        /* stalled viewers the server still held at the end */
+  char failure[256];           /* the first failure, "" if none */
+} stress_fault_conns_t;
+
+/* The coordinator's side of --faults: the server's memory, sampled after every step. */
+typedef struct {
+  int samples;
+  double rss_base_mib, rss_peak_mib; /* of the incarnation with the largest growth */
+  double accounted_base, accounted_peak; /* bytes the server accounts for: its brick cache, the
+                                            states it holds for sessions, unsent queues */
+  double growth_mib, allow_mib;      /* RSS growth beyond the accounted growth, and the slack */
+  uint64_t queued_max, queue_hard;   /* largest unsent bytes of one connection; the server's limit */
+  int restarts;
+  double restart_s;                  /* the kill to every viewer's WELCOME from the new server (largest) */
+} stress_fault_mem_t;
 
 /*-*** Samples ***/
 
@@ -81,6 +124,7 @@ double stress_quantile(double *v, size_t n, double q);
 /*-*** One viewer ***/
 
 typedef struct stress_run_s stress_run_t;
+typedef struct stress_faults_s stress_faults_t;
 
 /* Brick ids referenced by one state's records (sorted) and its record count. */
 typedef struct {
@@ -135,6 +179,13 @@ typedef struct {
   stress_samples_t detail_epochs;
   uint64_t teleports, detail_unreached;
   ocp_viewer_stats_t session; /* the session's counters at the end */
+  /* --faults restart: reconnections after the server went away, and the time from the loss to the
+   * first state from the server that came back */
+  int gen;             /* the server incarnation of the current WELCOME (under run->mu) */
+  int fresh;           /* a new session began: the next state starts a new epoch sequence */
+  double lost_at;
+  uint64_t reconnects;
+  stress_samples_t resync;
   stress_footprint_t fp[2]; /* the K−1 previous states', newest first */
   int nfp;
   stress_footprint_t fp_new; /* the arriving state's (its memory is recycled) */
@@ -164,6 +215,10 @@ struct stress_run_s {
   double *step_at;
   double t0;
   double measure_from; /* --ramp: the warm-up ends (under mu; 0: no ramp) */
+  /* --faults restart: the server's incarnation (under mu); steps before it began */
+  int restart_gen;
+  uint64_t step0;
+  stress_faults_t *faults;
   stress_viewer_t *v;
   int nv;
 };
@@ -172,6 +227,19 @@ double stress_now(void);
 /*! stress_viewer_main() : the thread body (arg: stress_viewer_t *). */
 void *stress_viewer_main(void *arg);
 void stress_viewer_free(stress_viewer_t *v);
+
+/*! stress_faults_start() : the thread of misbehaving connections (o->faults), idle until asked.
+ *  handshake_s: the server's handshake timeout (garbage deadlines). @return 0 or a negative OC_E*. */
+int stress_faults_start(stress_run_t *run, double handshake_s);
+/*! stress_faults_round() : one connection of each kind asked for, opened now (before a step). */
+void stress_faults_round(stress_run_t *run);
+/*! stress_faults_restarted() : the server is about to be killed: the thread forgets the connections
+ *  it had (their end is not the server's doing) before this returns. */
+void stress_faults_restarted(stress_run_t *run);
+/*! stress_faults_stop() : waits until every garbage connection is settled (closed or late), closes
+ *  the rest, joins, and copies the counts (out may be NULL). */
+void stress_faults_stop(stress_run_t *run, stress_fault_conns_t *out);
+const char *stress_fault_kind_name(int kind);
 
 /*-*** The server process ***/
 
@@ -194,6 +262,8 @@ int stress_server_spawn(char *const argv[], double timeout_s, stress_child_t *c,
 /*! stress_server_stop() : SIGTERM, waits up to timeout_s (then SIGKILL). @return its exit status,
  *  128 + signal when killed by one, or -1. */
 int stress_server_stop(stress_child_t *c, double timeout_s);
+/*! stress_server_kill() : SIGKILL (a crash, as far as its clients can tell) and wait. @return as above. */
+int stress_server_kill(stress_child_t *c);
 /*! stress_proc_sample() : VmRSS, VmHWM and CPU seconds of a process (ok = 0 when unreadable). */
 void stress_proc_sample(long pid, stress_proc_t *out);
 /*! stress_self_cpu() : this process's user + system CPU seconds (getrusage). */
@@ -221,6 +291,8 @@ typedef struct {
   double cache_bytes;    /* the server's brick cache at the end; NAN unknown */
   double late_ticks;     /* epoch ticks the server skipped because a step still ran; NAN unknown */
   char error[512];      /* a run-level failure, "" if none */
+  stress_fault_conns_t fault_conns; /* --faults */
+  stress_fault_mem_t fault_mem;
 } stress_summary_t;
 
 /*! stress_report() : prints the table on stdout and (o->json) writes the JSON file.

@@ -79,12 +79,30 @@ static void usage(FILE *f) {
           "  --sweep-depths LIST   one viewer per (budget, depth), all on one path (default orbit) and the\n"
           "                        same seed, stepped unless --epoch-period is given; checks that detail\n"
           "                        (deepest level) never drops with a bigger budget or a deeper limit\n"
+          "  --faults LIST         misbehaving clients beside the measured viewers, stepped (see below):\n"
+          "                        stall, drop, garbage, restart, or all\n"
+          "  --fault-every N       steps between rounds of misbehaving connections (default 1)\n"
+          "  --fault-budget MIB    their budget (default 16)\n"
+          "  --restart-at STEP     restart: kill the server (SIGKILL) right after this step's reply and\n"
+          "                        start it again on the same port (default: the middle of the run)\n"
+          "  --fault-rss-slack MIB the server's RSS may grow this much beyond its own accounting of\n"
+          "                        brick cache, held states and send queues (default %d)\n"
+          "  --server-arg ARG      passed on to the spawned server (repeatable), e.g. --stall-timeout\n"
           "  -v, --verbose         a line per state on stderr, and the server's log\n"
           "  --help, --version\n"
           "\n"
+          "\n"
+          "Faults (--faults), from step 2 on, one round every --fault-every steps: stall opens a viewer\n"
+          "that stops reading; drop one that vanishes (at once, mid-HELLO, mid-epoch or after a state);\n"
+          "garbage a connection sending junk (no magic, a 4 GiB frame, a short HELLO, an unknown type, a\n"
+          "NaN camera, a stalled header), which must get an ERROR and be closed; restart kills the server\n"
+          "once and the viewers must reconnect and resynchronise. Checked: no measured viewer misses an\n"
+          "epoch (restart aside), the server's RSS stays within its accounting plus the slack, no\n"
+          "connection's send queue passes the server's hard limit.\n"
+          "\n"
           "exit status: 0 every check passed; 1 a check failed (budget, checksum, protocol, a viewer\n"
-          "lost its connection or got no state) or a runtime error; 2 usage error\n",
-          STRESS_MAX_VIEWERS, STRESS_RAMP_INTERVAL, 100.0 * STRESS_RAMP_SKIPPED, STRESS_MAX_VIEWERS);
+          "lost its connection or got no state, a fault check) or a runtime error; 2 usage error\n",
+          STRESS_MAX_VIEWERS, STRESS_RAMP_INTERVAL, 100.0 * STRESS_RAMP_SKIPPED, STRESS_MAX_VIEWERS, STRESS_FAULT_SLACK_MIB);
 }
 
 /* "a,b,c" → integers in [lo, hi]. @return count, or -1 after a message naming the option. */
@@ -126,6 +144,32 @@ static int parse_paths(const char *text, int *out, int cap) {
     if (!comma) return n;
     s = comma + 1;
   }
+}
+
+static int parse_faults(const char *text, int *out) {
+  static const char *const names[] = {"stall", "drop", "garbage", "restart"};
+  int f = 0;
+  const char *s = text;
+  for (;;) {
+    const char *comma = strchr(s, ',');
+    size_t len = comma ? (size_t)(comma - s) : strlen(s);
+    int k = -1;
+    if (len == 3 && !strncmp(s, "all", 3)) {
+      f |= (1 << STRESS_FK_COUNT) | ((1 << STRESS_FK_COUNT) - 1);
+      k = 4;
+    }
+    for (int i = 0; i < 4 && k < 0; i++)
+      if (strlen(names[i]) == len && !strncmp(s, names[i], len)) k = i;
+    if (k < 0) {
+      oc_cli_fail(prog, 0, "--faults: unknown fault \"%.*s\" (stall, drop, garbage, restart, all)", (int)len, s);
+      return -1;
+    }
+    if (k < 4) f |= 1 << k;
+    if (!comma) break;
+    s = comma + 1;
+  }
+  *out = f;
+  return 0;
 }
 
 /* One control request; the reply parsed. @return 0 or -1 with a reason in why. */
@@ -184,16 +228,160 @@ static int all_done(const stress_run_t *run) {
   return 1;
 }
 
+/*-*** Faults: the coordinator's part (the misbehaving connections are stress_fault.c's) ***/
+
+typedef struct {
+  stress_child_t *child;   /* spawned: the server, restarted in place */
+  char **argv;             /* its command line; argv[listen] is rewritten to keep the port */
+  int listen;
+  char listen_addr[OCV_HOST_MAX + 16];
+  int have_base;           /* the current incarnation's baseline was taken */
+  double rss_base, acc_base;
+} fault_ctx_t;
+
+static double num_at(const cJSON *o, const char *key) {
+  const cJSON *x = cJSON_GetObjectItemCaseSensitive(o, key);
+  return cJSON_IsNumber(x) ? x->valuedouble : NAN;
+}
+
+/* After a step: the server's RSS against what it accounts for (brick cache, held states, unsent
+ * bytes of every connection). The first sample of an incarnation is its baseline. */
+static void fault_sample(stress_run_t *run, ocv_conn_t *ctl, fault_ctx_t *fx, stress_summary_t *sum) {
+  const stress_opts_t *o = run->o;
+  stress_fault_mem_t *m = &sum->fault_mem;
+  char why[1024];
+  cJSON *st = NULL, *ss = NULL;
+  stress_proc_t p;
+  stress_proc_sample(fx->child && fx->child->pid > 0 ? (long)fx->child->pid : o->server_pid, &p);
+  if (control(ctl, "{\"op\":\"stats\"}", o->timeout, &st, why, sizeof why) < 0 ||
+      control(ctl, "{\"op\":\"sessions\"}", o->timeout, &ss, why, sizeof why) < 0) {
+    if (!sum->error[0]) snprintf(sum->error, sizeof sum->error, "faults: %.400s", why);
+    cJSON_Delete(st);
+    return;
+  }
+  const cJSON *w = cJSON_GetObjectItemCaseSensitive(st, "world");
+  double queued = 0;
+  const cJSON *x;
+  cJSON_ArrayForEach(x, cJSON_GetObjectItemCaseSensitive(ss, "sessions")) {
+    double q = num_at(x, "queued");
+    if (isfinite(q)) {
+      queued += q;
+      if ((uint64_t)q > m->queued_max) m->queued_max = (uint64_t)q;
+    }
+  }
+  double qh = num_at(cJSON_GetObjectItemCaseSensitive(w, "limits"), "queue_hard");
+  if (isfinite(qh)) m->queue_hard = (uint64_t)qh;
+  double acc = num_at(w, "cache_bytes") + num_at(w, "held_bytes") + queued;
+  cJSON_Delete(st);
+  cJSON_Delete(ss);
+  if (!p.ok || !isfinite(acc)) return;
+  m->samples++;
+  if (!fx->have_base) {
+    fx->have_base = 1;
+    fx->rss_base = p.rss_mib;
+    fx->acc_base = acc;
+    if (m->samples == 1) {
+      m->rss_base_mib = m->rss_peak_mib = p.rss_mib;
+      m->accounted_base = m->accounted_peak = acc;
+    }
+    return;
+  }
+  double growth = (p.rss_mib - fx->rss_base) - fmax(0.0, acc - fx->acc_base) / (1024.0 * 1024.0);
+  if (growth > m->growth_mib || m->samples == 2) {
+    m->growth_mib = growth;
+    m->rss_base_mib = fx->rss_base;
+    m->rss_peak_mib = p.rss_mib;
+    m->accounted_base = fx->acc_base;
+    m->accounted_peak = acc;
+  }
+}
+
+/* --faults restart, right after step k's reply (its epoch is on the wire): SIGKILL, the same
+ * command on the same port, a new control connection, and every viewer back with a WELCOME. */
+static int restart_server(stress_run_t *run, ocv_conn_t **ctl, fault_ctx_t *fx, uint64_t k, stress_summary_t *sum) {
+  const stress_opts_t *o = run->o;
+  char why[1024];
+  stress_faults_restarted(run);
+  pthread_mutex_lock(&run->mu);
+  run->restart_gen++;
+  pthread_mutex_unlock(&run->mu);
+  stress_proc_t dead;
+  stress_proc_sample((long)fx->child->pid, &dead);
+  double t_kill = stress_now();
+  stress_server_kill(fx->child);
+  fprintf(stderr, "overcast-stress: faults: killed the server after step %llu; starting it again on %s\n",
+          (unsigned long long)k, fx->listen_addr);
+  fx->argv[fx->listen] = fx->listen_addr;
+  int r = -1;
+  for (int attempt = 0; attempt < 50 && r < 0; attempt++) { /* the port may take a moment to be free */
+    r = stress_server_spawn(fx->argv, o->timeout, fx->child, why, sizeof why);
+    if (r < 0) {
+      struct timespec ts = {0, 100000000};
+      nanosleep(&ts, NULL);
+    }
+  }
+  if (r < 0) {
+    snprintf(sum->error, sizeof sum->error, "faults: restarting the server: %.400s", why);
+    return -1;
+  }
+  /* the CPU of the killed incarnation is kept: start' = new start − (dead − old start) */
+  stress_proc_t born;
+  stress_proc_sample((long)fx->child->pid, &born);
+  if (dead.ok && born.ok && sum->server_start.ok) sum->server_start.cpu_s = born.cpu_s - (dead.cpu_s - sum->server_start.cpu_s);
+  ocv_conn_close(*ctl);
+  *ctl = NULL;
+  cJSON *reply = NULL;
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL, .token = o->token};
+  if (ocv_conn_open(ctl, run->host, run->port, &cd, NULL, o->timeout, why, sizeof why) < 0 ||
+      control(*ctl, "{\"op\":\"stats\"}", o->timeout, &reply, why, sizeof why) < 0) {
+    snprintf(sum->error, sizeof sum->error, "faults: after the restart: %.400s", why);
+    return -1;
+  }
+  double e0 = world_num(reply, "epoch");
+  cJSON_Delete(reply);
+  pthread_mutex_lock(&run->mu);
+  run->epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
+  run->step0 = k;
+  for (;;) {
+    int waiting = 0;
+    for (int i = 0; i < run->nv; i++)
+      if (!run->v[i].done && (run->v[i].gen != run->restart_gen || !run->v[i].ready)) waiting++;
+    if (!waiting || g_interrupted) break;
+    if (stress_now() - t_kill > o->timeout) {
+      snprintf(sum->error, sizeof sum->error, "faults: %d viewer%s not back %.0f s after the restart", waiting,
+               waiting == 1 ? "" : "s", o->timeout);
+      pthread_mutex_unlock(&run->mu);
+      return -1;
+    }
+    cv_wait(run, 0.1);
+    pthread_mutex_unlock(&run->mu);
+    ctl_tend(*ctl);
+    pthread_mutex_lock(&run->mu);
+  }
+  pthread_mutex_unlock(&run->mu);
+  double took = stress_now() - t_kill;
+  sum->fault_mem.restarts++;
+  if (took > sum->fault_mem.restart_s) sum->fault_mem.restart_s = took;
+  fx->have_base = 0;
+  return 0;
+}
+
 /* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
  * once the server has gone quiet for 2 s after the step's reply (a viewer skipped by this step
  * gets nothing more), or after the timeout. */
-static void run_stepped(stress_run_t *run, ocv_conn_t *ctl, stress_summary_t *sum) {
+static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, stress_summary_t *sum) {
   const stress_opts_t *o = run->o;
   char why[1024];
+  int conn_faults = o->faults & ((1 << STRESS_FK_COUNT) - 1);
   for (uint64_t k = 1; k <= STRESS_MAX_STEPS && !g_interrupted; k++) {
+    ocv_conn_t *ctl = *ctlp;
     double now = stress_now();
     if (o->epochs && k > (uint64_t)o->epochs) break;
     if (o->duration > 0 && now - run->t0 >= o->duration) break;
+    /* misbehaving connections from step 2 on (step 1 gives the baseline), never at the last step */
+    if (o->faults && k == 2) fault_sample(run, ctl, fx, sum);
+    if (conn_faults && k >= 2 && (!o->epochs || k < (uint64_t)o->epochs) && (k - 2) % (uint64_t)o->fault_every == 0)
+      stress_faults_round(run);
     pthread_mutex_lock(&run->mu);
     int done = all_done(run);
     if (!done) {
@@ -209,8 +397,12 @@ static void run_stepped(stress_run_t *run, ocv_conn_t *ctl, stress_summary_t *su
     }
     cJSON_Delete(reply);
     sum->steps = k;
+    if ((o->faults & STRESS_FAULT_RESTART) && k == (uint64_t)o->restart_at) {
+      if (restart_server(run, ctlp, fx, k, sum) < 0) break;
+      continue; /* this step's epoch died with the server */
+    }
     double replied = stress_now();
-    uint64_t target = run->epoch0 + k;
+    uint64_t target = run->epoch0 + (k - run->step0);
     pthread_mutex_lock(&run->mu);
     for (;;) {
       int missing = 0;
@@ -235,6 +427,7 @@ static void run_stepped(stress_run_t *run, ocv_conn_t *ctl, stress_summary_t *su
       pthread_mutex_lock(&run->mu);
     }
     pthread_mutex_unlock(&run->mu);
+    if (o->faults && k >= 2) fault_sample(run, ctl, fx, sum);
   }
 }
 
@@ -432,7 +625,8 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
 int main(int argc, char **argv) {
   enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
-         O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D };
+         O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
+         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -450,6 +644,9 @@ int main(int argc, char **argv) {
       {"ramp-from", required_argument, 0, O_RAMP_FROM}, {"ramp-max", required_argument, 0, O_RAMP_MAX},
       {"ramp-seconds", required_argument, 0, O_RAMP_S}, {"ramp-warmup", required_argument, 0, O_RAMP_WARM},
       {"sweep-budgets", required_argument, 0, O_SW_B}, {"sweep-depths", required_argument, 0, O_SW_D},
+      {"faults", required_argument, 0, O_FAULTS},   {"fault-every", required_argument, 0, O_FAULT_EVERY},
+      {"fault-budget", required_argument, 0, O_FAULT_BUDGET}, {"restart-at", required_argument, 0, O_RESTART_AT},
+      {"fault-rss-slack", required_argument, 0, O_FAULT_SLACK}, {"server-arg", required_argument, 0, O_SERVER_ARG},
       {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
@@ -467,6 +664,9 @@ int main(int argc, char **argv) {
   o.ramp_max = STRESS_MAX_VIEWERS;
   o.ramp_seconds = 10;
   o.ramp_warmup = 5;
+  o.fault_every = 1;
+  o.fault_budget_mib = 16;
+  o.fault_rss_slack = STRESS_FAULT_SLACK_MIB;
   int spawn_given = 0, connect_given = 0, spawn_only = 0;
   const char *spawn_only_name = NULL;
   long l;
@@ -536,6 +736,21 @@ int main(int argc, char **argv) {
       case O_SW_D:
         if ((o.nsweep_depths = parse_int_list("--sweep-depths", optarg, 0, 21, o.sweep_depths, 32)) < 0) return OC_EXIT_USAGE;
         break;
+      case O_FAULTS: if (parse_faults(optarg, &o.faults) < 0) return OC_EXIT_USAGE; break;
+      case O_FAULT_EVERY: if (oc_cli_int(prog, "--fault-every", optarg, 1, STRESS_MAX_STEPS, &o.fault_every)) return OC_EXIT_USAGE; break;
+      case O_FAULT_BUDGET:
+        if (oc_cli_int(prog, "--fault-budget", optarg, 1, 65536, &l)) return OC_EXIT_USAGE;
+        o.fault_budget_mib = (uint64_t)l;
+        break;
+      case O_RESTART_AT: if (oc_cli_int(prog, "--restart-at", optarg, 1, STRESS_MAX_STEPS, &o.restart_at)) return OC_EXIT_USAGE; break;
+      case O_FAULT_SLACK: if (oc_cli_double(prog, "--fault-rss-slack", optarg, 0, 1 << 20, &o.fault_rss_slack)) return OC_EXIT_USAGE; break;
+      case O_SERVER_ARG:
+        if (o.nserver_args >= (int)(sizeof o.server_args / sizeof o.server_args[0]))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--server-arg: at most %d", (int)(sizeof o.server_args / sizeof o.server_args[0]));
+        o.server_args[o.nserver_args++] = optarg;
+        spawn_only = 1;
+        spawn_only_name = "--server-arg";
+        break;
       case 'v': o.verbose = 1; break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -564,6 +779,21 @@ int main(int argc, char **argv) {
     if (o.spawn && o.epoch_period < 0) o.epoch_period = 0;
     if (!o.npaths) o.paths[o.npaths++] = STRESS_ORBIT;
   }
+  if (o.faults) {
+    if (o.ramp || o.sweep) return oc_cli_fail(prog, OC_EXIT_USAGE, "--faults goes with neither --ramp nor --sweep-budgets");
+    if (o.epoch_period > 0)
+      return oc_cli_fail(prog, OC_EXIT_USAGE, "--faults needs a stepped server (--epoch-period 0, the default with --faults)");
+    if ((o.faults & STRESS_FAULT_RESTART) && !o.spawn)
+      return oc_cli_fail(prog, OC_EXIT_USAGE, "--faults restart needs a spawned server, not --connect");
+    if (o.spawn) o.epoch_period = 0;
+    if (!o.epochs && o.duration <= 0) o.epochs = 12;
+    if ((o.faults & STRESS_FAULT_RESTART) && !o.restart_at) o.restart_at = o.epochs ? (o.epochs + 1) / 2 : 6;
+    if ((o.faults & STRESS_FAULT_RESTART) && o.epochs && o.restart_at >= o.epochs)
+      return oc_cli_fail(prog, OC_EXIT_USAGE, "--restart-at %ld: must come before the last step (--epochs %ld)", o.restart_at,
+                         o.epochs);
+  } else if (o.fault_every != 1 || o.restart_at || o.fault_budget_mib != 16 || o.fault_rss_slack != STRESS_FAULT_SLACK_MIB) {
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--fault-every, --fault-budget, --restart-at and --fault-rss-slack go with --faults");
+  }
   if (o.ramp) o.viewers = (int)o.ramp_max;
   if (!o.npaths) {
     for (int k = 0; k < STRESS_PATH_COUNT; k++) o.paths[k] = k;
@@ -589,11 +819,12 @@ int main(int argc, char **argv) {
   sum.bricks_produced = sum.brick_requests = sum.late_ticks = sum.cache_bytes = NAN;
   sum.spawned = o.spawn;
   char why[1024];
-  stress_child_t child = {.pid = -1, .out_fd = -1};
+  static stress_child_t child = {.pid = -1, .out_fd = -1};
+  static fault_ctx_t fx;
 
   /* The server. */
   if (o.spawn) {
-    char exe[4096], dir[4000];
+    static char exe[4096], dir[4000]; /* kept: a restart runs the same command */
     if (o.server_path) {
       snprintf(exe, sizeof exe, "%s", o.server_path);
     } else {
@@ -604,11 +835,12 @@ int main(int argc, char **argv) {
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", exe);
     long total_mib = 0;
     for (int i = 0; i < o.viewers; i++) total_mib += (long)((viewer_budget(&o, i) + (1u << 20) - 1) >> 20);
-    char a_period[32], a_threads[32], a_total[32], a_maxv[32];
-    char *sargv[24];
+    static char a_period[32], a_threads[32], a_total[32], a_maxv[32];
+    static char *sargv[24 + 32];
     int n = 0;
     sargv[n++] = exe;
     sargv[n++] = "--listen";
+    fx.listen = n;
     sargv[n++] = "127.0.0.1:0";
     if (o.scene) {
       sargv[n++] = "--scene";
@@ -637,12 +869,16 @@ int main(int argc, char **argv) {
     sargv[n++] = "--max-viewers";
     sargv[n++] = a_maxv;
     if (!o.verbose) sargv[n++] = "-q";
+    for (int i = 0; i < o.nserver_args; i++) sargv[n++] = o.server_args[i];
     sargv[n] = NULL;
     if (stress_server_spawn(sargv, o.timeout, &child, why, sizeof why) < 0)
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
     snprintf(o.host, sizeof o.host, "%s", child.host);
     o.port = child.port;
+    fx.argv = sargv;
+    snprintf(fx.listen_addr, sizeof fx.listen_addr, "%s:%d", child.host, child.port);
   }
+  fx.child = &child;
   long pid = o.spawn ? (long)child.pid : o.server_pid;
   stress_proc_sample(pid, &sum.server_start);
   double cpu0 = stress_self_cpu(), wall0 = stress_now();
@@ -716,12 +952,30 @@ int main(int argc, char **argv) {
     return pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
   }
 
+  if (o.faults) {
+    if (!sum.stepped) {
+      rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--faults needs a stepped server: %s:%d has a period of %g s", o.host, o.port, period);
+      goto out;
+    }
+    if (control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
+    double hs = num_at(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(reply, "world"), "limits"), "handshake_s");
+    cJSON_Delete(reply);
+    reply = NULL;
+    if (stress_faults_start(&run, isfinite(hs) ? hs : 10.0) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot start the faults thread");
+      goto out;
+    }
+  }
+
   /* The viewers: each connects, gets its WELCOME, sends its first camera. */
   run.nv = o.viewers;
   start_viewers(&run, ctl);
   run.t0 = stress_now();
 
-  if (sum.stepped) run_stepped(&run, ctl, &sum);
+  if (sum.stepped) run_stepped(&run, &ctl, &fx, &sum);
   else run_period(&run, ctl, period, &sum);
   if (g_interrupted && !sum.error[0]) snprintf(sum.error, sizeof sum.error, "interrupted");
 
@@ -729,10 +983,15 @@ int main(int argc, char **argv) {
    * read, then its statistics (a request waits for a step in progress, which must not count). */
   sum.wall_s = stress_now() - run.t0;
   stop_viewers(&run);
+  if (o.faults) { /* the last garbage must still be answered; then the memory once more */
+    stress_faults_stop(&run, &sum.fault_conns);
+    if (ctl) fault_sample(&run, ctl, &fx, &sum);
+  }
+  if (o.spawn) pid = (long)child.pid; /* a restart made a new one */
   stress_proc_sample(pid, &sum.server_end);
   sum.tool_cpu_s = stress_self_cpu() - cpu0;
   sum.cpu_span_s = stress_now() - wall0;
-  if (control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) == 0) {
+  if (ctl && control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) == 0) {
     sum.cache_hit_rate = world_num(reply, "cache_hit_rate");
     sum.bricks_produced = world_num(reply, "bricks_produced");
     sum.brick_requests = world_num(reply, "brick_requests");
@@ -746,6 +1005,7 @@ int main(int argc, char **argv) {
 
 out:
   stop_viewers(&run);
+  stress_faults_stop(&run, &sum.fault_conns);
   if (!sum.server_end.ok) {
     stress_proc_sample(pid, &sum.server_end);
     sum.tool_cpu_s = stress_self_cpu() - cpu0;

@@ -105,6 +105,19 @@ int stress_server_stop(stress_child_t *c, double timeout_s) {
   return status;
 }
 
+int stress_server_kill(stress_child_t *c) {
+  int status = -1, st = 0;
+  if (c->pid > 0) {
+    kill(c->pid, SIGKILL);
+    if (waitpid(c->pid, &st, 0) == c->pid)
+      status = WIFEXITED(st) ? WEXITSTATUS(st) : WIFSIGNALED(st) ? 128 + WTERMSIG(st) : -1;
+    c->pid = -1;
+  }
+  if (c->out_fd >= 0) close(c->out_fd);
+  c->out_fd = -1;
+  return status;
+}
+
 void stress_proc_sample(long pid, stress_proc_t *out) {
   memset(out, 0, sizeof *out);
   if (pid <= 0) return;

@@ -111,6 +111,99 @@ static cJSON *sr_proc_json(const stress_proc_t *p) {
   return o;
 }
 
+/* --faults: the table and the checks. @return the number of failed checks; *cause names the first. */
+static int sr_faults(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s, char *cause, size_t cap) {
+  const stress_fault_conns_t *c = &s->fault_conns;
+  const stress_fault_mem_t *m = &s->fault_mem;
+  int failed = 0;
+  cause[0] = '\0';
+#define SR_FAULT(...)                                       \
+  do {                                                      \
+    if (!failed++) snprintf(cause, cap, __VA_ARGS__);       \
+    printf("FAIL: faults: ");                               \
+    printf(__VA_ARGS__);                                    \
+    printf("\n");                                           \
+  } while (0)
+  printf("\nfaults (one round every %ld step%s from step 2; the server's handshake timeout %.0f s):\n\n", o->fault_every,
+         o->fault_every == 1 ? "" : "s", c->handshake_s);
+  printf("| kind | opened | refused at connect | closed by the server | after ERROR/GOODBYE | slowest close s |\n");
+  printf("|---|---:|---:|---:|---:|---:|\n");
+  for (int k = 0; k < STRESS_FK_COUNT; k++)
+    if (o->faults & (1 << k))
+      printf("| %s | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %.2f |\n", stress_fault_kind_name(k), c->opened[k],
+             c->refused[k], c->closed[k], c->errors[k], c->close_s_max[k]);
+  if (o->faults & (1 << STRESS_FK_STALL))
+    printf("stalled viewers still held by the server at the end: %" PRIu64 "\n", c->open_at_end);
+  printf("largest send queue of one connection: %.2f MiB (the server's hard limit %.0f MiB)\n", (double)m->queued_max / SR_MIB,
+         (double)m->queue_hard / SR_MIB);
+  printf("server RSS: %.1f → %.1f MiB while what it accounts for went %.1f → %.1f MiB: %.1f MiB unaccounted (slack %.0f MiB)\n",
+         m->rss_base_mib, m->rss_peak_mib, m->accounted_base / SR_MIB, m->accounted_peak / SR_MIB, m->growth_mib,
+         o->fault_rss_slack);
+  if (c->failure[0]) SR_FAULT("%s", c->failure);
+  if (m->samples < 2) SR_FAULT("fewer than 2 memory samples (the run needs at least 3 steps)");
+  if (m->growth_mib > o->fault_rss_slack)
+    SR_FAULT("the server's RSS grew %.1f MiB beyond its own accounting (slack %.0f MiB)", m->growth_mib, o->fault_rss_slack);
+  if (m->queue_hard && m->queued_max > m->queue_hard + OCP_MAX_PAYLOAD + OCP_HEADER_BYTES)
+    SR_FAULT("a connection had %" PRIu64 " bytes unsent, past the hard limit %" PRIu64, m->queued_max, m->queue_hard);
+  if (s->steps_incomplete) SR_FAULT("%" PRIu64 " steps left a viewer without its state", s->steps_incomplete);
+  for (int i = 0; i < run->nv; i++) {
+    const stress_viewer_t *v = &run->v[i];
+    if (v->skipped) SR_FAULT("viewer %d (%s) missed %" PRIu64 " epoch%s", i, stress_path_name(v->path), v->skipped, v->skipped == 1 ? "" : "s");
+  }
+  if (o->faults & STRESS_FAULT_RESTART) {
+    size_t n = 0;
+    double worst = 0;
+    for (int i = 0; i < run->nv; i++) {
+      const stress_viewer_t *v = &run->v[i];
+      if (!v->resync.n) SR_FAULT("viewer %d (%s): no state from the restarted server", i, stress_path_name(v->path));
+      for (size_t k = 0; k < v->resync.n; k++) worst = fmax(worst, v->resync.v[k]);
+      n += v->resync.n;
+    }
+    printf("restart: %d (kill to every viewer's WELCOME: %.2f s); %zu resynchronisations, the slowest %.2f s from the lost "
+           "connection to the first verified state\n",
+           m->restarts, m->restart_s, n, worst);
+    if (m->restarts < 1) SR_FAULT("the server was not restarted (--restart-at %ld after the last step?)", o->restart_at);
+  }
+#undef SR_FAULT
+  return failed;
+}
+
+static cJSON *sr_faults_json(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s) {
+  const stress_fault_conns_t *c = &s->fault_conns;
+  const stress_fault_mem_t *m = &s->fault_mem;
+  cJSON *f = cJSON_CreateObject();
+  cJSON_AddNumberToObject(f, "every", (double)o->fault_every);
+  cJSON_AddNumberToObject(f, "handshake_s", c->handshake_s);
+  for (int k = 0; k < STRESS_FK_COUNT; k++) {
+    if (!(o->faults & (1 << k))) continue;
+    cJSON *x = cJSON_AddObjectToObject(f, stress_fault_kind_name(k));
+    cJSON_AddNumberToObject(x, "opened", (double)c->opened[k]);
+    cJSON_AddNumberToObject(x, "refused", (double)c->refused[k]);
+    cJSON_AddNumberToObject(x, "closed_by_server", (double)c->closed[k]);
+    cJSON_AddNumberToObject(x, "after_error", (double)c->errors[k]);
+    cJSON_AddNumberToObject(x, "slowest_close_s", c->close_s_max[k]);
+  }
+  cJSON_AddNumberToObject(f, "garbage_late", (double)c->late);
+  cJSON_AddNumberToObject(f, "garbage_unanswered", (double)c->unanswered);
+  cJSON_AddNumberToObject(f, "stalled_open_at_end", (double)c->open_at_end);
+  cJSON_AddNumberToObject(f, "states_before_drop", (double)c->states_before_drop);
+  cJSON_AddNumberToObject(f, "queued_max", (double)m->queued_max);
+  cJSON_AddNumberToObject(f, "queue_hard", (double)m->queue_hard);
+  cJSON_AddNumberToObject(f, "rss_base_mib", m->rss_base_mib);
+  cJSON_AddNumberToObject(f, "rss_peak_mib", m->rss_peak_mib);
+  cJSON_AddNumberToObject(f, "accounted_base", m->accounted_base);
+  cJSON_AddNumberToObject(f, "accounted_peak", m->accounted_peak);
+  cJSON_AddNumberToObject(f, "unaccounted_growth_mib", m->growth_mib);
+  cJSON_AddNumberToObject(f, "rss_slack_mib", o->fault_rss_slack);
+  cJSON_AddNumberToObject(f, "restarts", m->restarts);
+  cJSON_AddNumberToObject(f, "restart_s", m->restart_s);
+  cJSON *rs = cJSON_AddArrayToObject(f, "resync_s");
+  for (int i = 0; i < run->nv; i++)
+    for (size_t k = 0; k < run->v[i].resync.n; k++) cJSON_AddItemToArray(rs, cJSON_CreateNumber(run->v[i].resync.v[k]));
+  if (c->failure[0]) cJSON_AddStringToObject(f, "failure", c->failure);
+  return f;
+}
+
 int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s) {
   char b1[32], b2[32], b3[32], b4[32], b5[32], b6[32], b7[32];
   uint64_t violations = 0, checksum = 0, protocol = 0, mismatch = 0, failed = 0, empty = 0, skipped = 0, coalesced = 0,
@@ -245,6 +338,8 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
            " with fewer leaves than one (noted, not a failure)\n",
            coarser, fewer);
   }
+  char fault_cause[512] = "";
+  if (o->faults && sr_faults(o, run, s, fault_cause, sizeof fault_cause)) pass = 0;
   if (s->error[0]) printf("FAIL: %s\n", s->error);
   printf("%s\n", pass ? "PASS" : "FAIL");
   fflush(stdout);
@@ -363,12 +458,13 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
       cJSON_AddNumberToObject(ck, "sweep_fewer_leaves", (double)fewer);
     }
     if (s->error[0]) cJSON_AddStringToObject(ck, "error", s->error);
+    if (o->faults) cJSON_AddItemToObject(j, "faults", sr_faults_json(o, run, s));
     cJSON_AddBoolToObject(j, "pass", pass);
     if (sr_write_json(j, o->json) < 0) rc = -1;
   }
   if (!pass) {
     /* one line on stderr naming the first cause (the table has them all) */
-    const char *cause = s->error[0] ? s->error : "";
+    const char *cause = s->error[0] ? s->error : fault_cause;
     for (int i = 0; !cause[0] && i < run->nv; i++)
       if (run->v[i].failed) cause = run->v[i].error;
     if (cause[0]) fprintf(stderr, "overcast-stress: FAIL: %s\n", cause);

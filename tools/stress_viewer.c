@@ -133,7 +133,7 @@ static const char *sv_name(const stress_viewer_t *v) { return stress_path_name(v
 static double sv_step_time(stress_run_t *run, uint64_t step, uint64_t epoch) {
   double t = NAN;
   pthread_mutex_lock(&run->mu);
-  if (epoch) step = epoch > run->epoch0 ? epoch - run->epoch0 : 0;
+  if (epoch) step = epoch > run->epoch0 ? run->step0 + epoch - run->epoch0 : 0;
   if (step >= 1 && step <= run->steps_sent) t = run->step_at[step];
   pthread_mutex_unlock(&run->mu);
   return t;
@@ -174,7 +174,10 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
     }
     v->m_states++;
   }
-  if (v->states == 1) {
+  if (v->fresh) { /* the first state from a server that came back: its epochs start anew */
+    v->fresh = 0;
+    stress_samples_add(&v->resync, t - v->lost_at);
+  } else if (v->states == 1) {
     v->first_epoch = s->epoch;
   } else if (s->epoch <= v->last_epoch) {
     v->protocol_errors++;
@@ -268,7 +271,12 @@ static void sv_on_stats(void *ctx, const ocp_stats_t *st) {
 
 static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
   stress_viewer_t *v = ctx;
-  (void)resumed;
+  if (v->have_welcome && !resumed) {
+    /* a new session (the server restarted): the session dropped its states, so does our count */
+    v->fresh = 1;
+    v->nfp = 0;
+    v->detail_phase = 0;
+  }
   v->welcome = *w;
   v->have_welcome = 1;
 }
@@ -329,6 +337,43 @@ static void sv_publish(stress_viewer_t *v, double input_at) {
   pthread_cond_broadcast(&run->cv);
   pthread_mutex_unlock(&run->mu);
   v->new_state = 0;
+}
+
+/* The connection was lost while the server may be restarting (--faults restart): reconnects with
+ * backoff until a WELCOME (resumed, or a new session after a restart) and sends the camera again.
+ * @return 0, or -1 after o->timeout without a server (a failure) or when the run stops. */
+static int sv_reconnect(stress_viewer_t *v, const char *cause) {
+  stress_run_t *run = v->run;
+  const stress_opts_t *o = run->o;
+  char why[1024] = "";
+  double backoff = 0.05;
+  v->lost_at = stress_now();
+  v->reconnects++;
+  pthread_mutex_lock(&run->mu);
+  v->ready = 0;
+  pthread_mutex_unlock(&run->mu);
+  if (o->verbose) fprintf(stderr, "overcast-stress: viewer %d (%s): %s; reconnecting\n", v->index, sv_name(v), cause);
+  while (!atomic_load(&run->stop)) {
+    if (stress_now() - v->lost_at > o->timeout) {
+      sv_fail(v, "viewer %d (%s): no server for %.0f s after: %s (last try: %s)", v->index, sv_name(v), o->timeout, cause, why);
+      return -1;
+    }
+    if (ocv_conn_reconnect(v->conn, 2.0, why, sizeof why) == 0 && ocv_conn_wait_ready(v->conn, 5.0, why, sizeof why) == 0 &&
+        ocv_conn_flush(v->conn, o->timeout, why, sizeof why) == 0) {
+      pthread_mutex_lock(&run->mu);
+      if (v->fresh) v->have_epoch = 0; /* the new server's epochs begin again */
+      v->gen = run->restart_gen;
+      v->ready = 1;
+      pthread_cond_broadcast(&run->cv);
+      pthread_mutex_unlock(&run->mu);
+      v->between = 1;
+      return 0;
+    }
+    struct timespec ts = {0, (long)(backoff * 1e9)};
+    nanosleep(&ts, NULL);
+    backoff = fmin(2 * backoff, 0.5);
+  }
+  return -1;
 }
 
 void *stress_viewer_main(void *arg) {
@@ -403,6 +448,11 @@ void *stress_viewer_main(void *arg) {
     uint64_t got = sv_bytes_in(v) - before;
     if (marked && got == OCP_HEADER_BYTES && !v->new_state) v->between = 1; /* a lone KEEPALIVE */
     if (r) {
+      int lost = r == 1 || r == OC_EIO; /* closed, reset or refused: not a protocol failure */
+      if ((o->faults & STRESS_FAULT_RESTART) && lost && !atomic_load(&run->stop)) {
+        if (sv_reconnect(v, why[0] ? why : "connection lost") < 0) break;
+        continue;
+      }
       if (!atomic_load(&run->stop) || r < 0) sv_poll_failed(v, r, why);
       break;
     }
@@ -413,6 +463,11 @@ void *stress_viewer_main(void *arg) {
       pthread_mutex_unlock(&run->mu);
       if (sv_camera(v, (double)sent * o->step_seconds, t_in) < 0) break;
       if ((r = ocv_conn_flush(v->conn, o->timeout, why, sizeof why))) {
+        if ((o->faults & STRESS_FAULT_RESTART) && (r == 1 || r == OC_EIO) && !atomic_load(&run->stop)) {
+          sv_publish(v, t_in);
+          if (sv_reconnect(v, why[0] ? why : "connection lost") < 0) break;
+          continue;
+        }
         sv_poll_failed(v, r, why);
         break;
       }
@@ -440,6 +495,7 @@ void stress_viewer_free(stress_viewer_t *v) {
   stress_samples_free(&v->detail);
   stress_samples_free(&v->detail_epochs);
   stress_samples_free(&v->m_interval);
+  stress_samples_free(&v->resync);
   for (int i = 0; i < 2; i++) free(v->fp[i].ids);
   free(v->fp_new.ids);
   memset(v->fp, 0, sizeof v->fp);
