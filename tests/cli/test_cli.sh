@@ -145,6 +145,12 @@ if [ -x "$X" ]; then
   check "stress: --server-pid alone" 2 "--server-pid goes with --connect" -- "$X" --server-pid 1
   check "stress: bad --connect" 2 "--connect: expected HOST:PORT" -- "$X" --connect localhost
   check "stress: no such server program" 1 "^overcast-stress: /nonexistent: not an executable" -- "$X" --server /nonexistent
+  check "stress: unknown fault" 2 "--faults: unknown fault \"crash\"" -- "$X" --faults stall,crash
+  check "stress: faults with a period" 2 "--faults needs a stepped server" -- "$X" --faults drop --epoch-period 1
+  check "stress: restart with --connect" 2 "--faults restart needs a spawned server" -- "$X" --faults restart --connect 127.0.0.1:1
+  check "stress: restart after the end" 2 "--restart-at 8: must come before the last step" -- "$X" --faults restart --epochs 8 --restart-at 8
+  check "stress: fault option alone" 2 "go with --faults" -- "$X" --fault-every 2
+  check "stress: faults with ramp" 2 "--faults goes with neither" -- "$X" --faults garbage --ramp
   check "stress: connection refused" 1 "^overcast-stress: 127\.0\.0\.1:1: cannot connect" -- "$X" --connect 127.0.0.1:1 --timeout 5
 fi
 check "view: --connect with --state" 2 "--connect excludes --state and --scene" -- "$V" --connect 127.0.0.1:1 --state "$tmp/s.ocst"
