@@ -203,63 +203,99 @@ static int oc__check_partition(const oc_state_t *s, char *why, size_t why_len) {
   return 0;
 }
 
-/* Every brick node's id resolves, and every brick is referenced exactly once. */
-static int oc__check_bricks(const oc_state_t *s, char *why, size_t why_len) {
+/* Brick ids as a strided array: the id field of oc_brick_t (full states) or a plain uint32_t
+ * list (lean states), so one check and one merge serve both. */
+typedef struct {
+  const uint8_t *p;
+  size_t stride;
+  uint32_t n;
+} oc__ids_t;
+
+static uint32_t oc__id_at(const oc__ids_t *v, uint32_t k) { return *(const uint32_t *)(const void *)(v->p + (size_t)k * v->stride); }
+
+static oc__ids_t oc__ids_full(const oc_state_t *s) {
+  oc__ids_t v = {NULL, sizeof(oc_brick_t), s->brick_count};
+  if (s->bricks) v.p = (const uint8_t *)s->bricks + offsetof(oc_brick_t, id);
+  return v;
+}
+
+static oc__ids_t oc__ids_lean(const oc_brick_digests_t *b) {
+  return (oc__ids_t){(const uint8_t *)b->ids, sizeof *b->ids, b->count};
+}
+
+/* Index of id in the ascending list, or -1. */
+static int64_t oc__ids_find(const oc__ids_t *v, uint32_t id) {
+  uint32_t a = 0, b = v->n;
+  while (a < b) {
+    uint32_t m = a + (b - a) / 2;
+    if (oc__id_at(v, m) < id)
+      a = m + 1;
+    else
+      b = m;
+  }
+  return a < v->n && oc__id_at(v, a) == id ? (int64_t)a : -1;
+}
+
+/* Every brick node's id resolves, and every brick is referenced exactly once. With `codes` (the
+ * full state's bricks, in the order of ids), zero channels also have all-zero codes. */
+static int oc__check_bricks(const oc_state_t *s, const oc__ids_t *ids, const oc_brick_t *codes, char *why, size_t why_len) {
   static const char *ch_name[OC_CHANNELS] = {"sigma", "tau"};
-  for (uint32_t b = 1; b < s->brick_count; b++)
-    if (s->bricks[b].id <= s->bricks[b - 1].id)
-      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": id %" PRIu32 " %s", b, s->bricks[b].id,
-                      s->bricks[b].id == s->bricks[b - 1].id ? "is duplicated" : "is out of order");
+  for (uint32_t b = 1; b < ids->n; b++) {
+    uint32_t id = oc__id_at(ids, b), prev = oc__id_at(ids, b - 1);
+    if (id <= prev)
+      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": id %" PRIu32 " %s", b, id,
+                      id == prev ? "is duplicated" : "is out of order");
+  }
   uint8_t *seen = NULL;
-  if (s->brick_count) {
-    seen = calloc(((size_t)s->brick_count + 7) / 8, 1);
+  if (ids->n) {
+    seen = calloc(((size_t)ids->n + 7) / 8, 1);
     if (!seen) return OC_ENOMEM;
   }
   int err = 0;
   for (uint32_t i = 0; i < s->node_count && !err; i++) {
     const oc_node_t *n = &s->nodes[i];
     if (n->kind != OC_NODE_BRICK) continue;
-    const oc_brick_t *b = oc_state_find_brick(s, n->brick_id);
-    if (!b) {
+    int64_t found = oc__ids_find(ids, n->brick_id);
+    if (found < 0) {
       err = oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 " (key 0x%" PRIx64 ") references missing brick %" PRIu32, i, n->key, n->brick_id);
       break;
     }
-    size_t bi = (size_t)(b - s->bricks);
+    size_t bi = (size_t)found;
     if (seen[bi / 8] & (1u << (bi % 8))) {
       err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 " is referenced by more than one node (again by node %" PRIu32 ")",
                      n->brick_id, i);
       break;
     }
     seen[bi / 8] |= (uint8_t)(1u << (bi % 8));
+    if (!codes) continue;
     /* A zero channel decodes to 0 whatever its codes; requiring zeros keeps one byte form per
      * content, so checksums compare content. */
     for (int c = 0; c < OC_CHANNELS && !err; c++) {
       if (n->range[c].hi != 0.0f) continue;
       for (int v = 0; v < OC_BRICK_VOXELS; v++)
-        if (b->codes.code[c][v] != OC_CODE_ZERO) {
+        if (codes[bi].codes.code[c][v] != OC_CODE_ZERO) {
           err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": non-zero %s code in a zero channel", n->brick_id, ch_name[c]);
           break;
         }
     }
   }
-  for (uint32_t bi = 0; bi < s->brick_count && !err; bi++)
+  for (uint32_t bi = 0; bi < ids->n && !err; bi++)
     if (!(seen[bi / 8] & (1u << (bi % 8))))
-      err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 " is not referenced by any node", s->bricks[bi].id);
+      err = oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 " is not referenced by any node", oc__id_at(ids, bi));
   free(seen);
   return err;
 }
 
-int oc_state_validate(const oc_state_t *s, char *why, size_t why_len) {
-  if (why && why_len) why[0] = '\0';
-  if (!s) return OC_EINVAL;
+/* Everything but the bricks: header fields, keys, records, the partition. */
+static int oc__validate_records(const oc_state_t *s, uint32_t brick_count, char *why, size_t why_len) {
   if (!isfinite(s->time)) return oc_errorf(OC_ECORRUPT, why, why_len, "world time is not finite");
   double sl = oc_dlen(s->sun_dir);
   if (!isfinite(sl) || fabs(sl - 1.0) > 1e-6)
     return oc_errorf(OC_ECORRUPT, why, why_len, "sun direction (%g, %g, %g) is not a unit vector", s->sun_dir.x, s->sun_dir.y, s->sun_dir.z);
   if (s->node_count == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "no nodes: the leaves must cover the root cube");
   if (s->node_count > OC_STATE_MAX_NODES) return oc_errorf(OC_ECORRUPT, why, why_len, "%" PRIu32 " nodes exceed the limit", s->node_count);
-  if (s->brick_count > OC_STATE_MAX_BRICKS) return oc_errorf(OC_ECORRUPT, why, why_len, "%" PRIu32 " bricks exceed the limit", s->brick_count);
-  if (!s->nodes || (s->brick_count && !s->bricks)) return OC_EINVAL;
+  if (brick_count > OC_STATE_MAX_BRICKS) return oc_errorf(OC_ECORRUPT, why, why_len, "%" PRIu32 " bricks exceed the limit", brick_count);
+  if (!s->nodes) return OC_EINVAL;
   for (uint32_t i = 0; i < s->node_count; i++) {
     const oc_node_t *n = &s->nodes[i];
     if (!oc__key_ok(n->key)) return oc_errorf(OC_ECORRUPT, why, why_len, "node %" PRIu32 ": invalid key 0x%" PRIx64, i, n->key);
@@ -268,8 +304,25 @@ int oc_state_validate(const oc_state_t *s, char *why, size_t why_len) {
                       n->key == s->nodes[i - 1].key ? "duplicate key" : "keys not in ascending order");
     OC_TRY(oc__check_node(n, i, why, why_len));
   }
-  OC_TRY(oc__check_partition(s, why, why_len));
-  return oc__check_bricks(s, why, why_len);
+  return oc__check_partition(s, why, why_len);
+}
+
+int oc_state_validate(const oc_state_t *s, char *why, size_t why_len) {
+  if (why && why_len) why[0] = '\0';
+  if (!s) return OC_EINVAL;
+  OC_TRY(oc__validate_records(s, s->brick_count, why, why_len));
+  if (s->brick_count && !s->bricks) return OC_EINVAL;
+  oc__ids_t ids = oc__ids_full(s);
+  return oc__check_bricks(s, &ids, s->bricks, why, why_len);
+}
+
+int oc_state_validate_lean(const oc_state_t *s, const oc_brick_digests_t *b, char *why, size_t why_len) {
+  if (why && why_len) why[0] = '\0';
+  if (!s || !b) return OC_EINVAL;
+  OC_TRY(oc__validate_records(s, b->count, why, why_len));
+  if (b->count && (!b->ids || !b->digests)) return OC_EINVAL;
+  oc__ids_t ids = oc__ids_lean(b);
+  return oc__check_bricks(s, &ids, NULL, why, why_len);
 }
 
 /*-*** Look-ups ***/
@@ -312,34 +365,96 @@ const oc_brick_t *oc_state_find_brick(const oc_state_t *s, uint32_t id) {
 
 /*-*** Budget ***/
 
-/* Distinct ids by an n-way merge of the (canonical, ascending) brick arrays: no allocation for
- * the 2–3 states a viewer keeps, and O(total · n). */
-uint64_t oc_resident_bytes(const oc_state_t *const *states, int n, uint32_t slot_bytes, uint32_t record_bytes) {
+/* Distinct ids by an n-way merge of the (canonical, ascending) id lists: no allocation for the 2–3
+ * states a viewer keeps, and O(total · n). */
+static uint64_t oc__resident(const oc__ids_t *ids, int n, uint64_t records, uint32_t slot_bytes, uint32_t record_bytes) {
   uint32_t head_small[8], *head = head_small;
-  uint64_t records = 0, distinct = 0;
-  if (!states || n <= 0) return 0;
+  uint64_t distinct = 0;
   if (n > 8) {
     head = calloc((size_t)n, sizeof *head);
     if (!head) return UINT64_MAX; /* unknown: report "over any budget" rather than too little */
   }
-  for (int i = 0; i < n; i++) {
-    head[i] = 0;
-    if (states[i]) records += states[i]->node_count;
-  }
+  for (int i = 0; i < n; i++) head[i] = 0;
   for (;;) {
     bool any = false;
     uint32_t min = 0;
     for (int i = 0; i < n; i++) {
-      if (!states[i] || head[i] >= states[i]->brick_count) continue;
-      uint32_t id = states[i]->bricks[head[i]].id;
+      if (head[i] >= ids[i].n) continue;
+      uint32_t id = oc__id_at(&ids[i], head[i]);
       if (!any || id < min) min = id;
       any = true;
     }
     if (!any) break;
     distinct++;
     for (int i = 0; i < n; i++)
-      while (states[i] && head[i] < states[i]->brick_count && states[i]->bricks[head[i]].id == min) head[i]++;
+      while (head[i] < ids[i].n && oc__id_at(&ids[i], head[i]) == min) head[i]++;
   }
   if (head != head_small) free(head);
   return distinct * slot_bytes + records * record_bytes;
+}
+
+/* The id lists of n states (full: their bricks; lean: bricks[i]), then the merge. */
+static uint64_t oc__resident_of(const oc_state_t *const *states, const oc_brick_digests_t *const *bricks, int n,
+                                uint32_t slot_bytes, uint32_t record_bytes) {
+  oc__ids_t small[8], *ids = small;
+  uint64_t records = 0;
+  if (!states || n <= 0) return 0;
+  if (n > 8) {
+    ids = calloc((size_t)n, sizeof *ids);
+    if (!ids) return UINT64_MAX;
+  }
+  for (int i = 0; i < n; i++) {
+    ids[i] = (oc__ids_t){NULL, sizeof(uint32_t), 0};
+    if (bricks && bricks[i])
+      ids[i] = oc__ids_lean(bricks[i]);
+    else if (!bricks && states[i])
+      ids[i] = oc__ids_full(states[i]);
+    if (states[i]) records += states[i]->node_count;
+  }
+  uint64_t r = oc__resident(ids, n, records, slot_bytes, record_bytes);
+  if (ids != small) free(ids);
+  return r;
+}
+
+uint64_t oc_resident_bytes(const oc_state_t *const *states, int n, uint32_t slot_bytes, uint32_t record_bytes) {
+  return oc__resident_of(states, NULL, n, slot_bytes, record_bytes);
+}
+
+uint64_t oc_resident_bytes_lean(const oc_state_t *const *states, const oc_brick_digests_t *const *bricks, int n,
+                                uint32_t slot_bytes, uint32_t record_bytes) {
+  if (!bricks) return 0;
+  return oc__resident_of(states, bricks, n, slot_bytes, record_bytes);
+}
+
+/*-*** Lean states ***/
+
+void oc_brick_digests_free(oc_brick_digests_t *b) {
+  if (!b) return;
+  free(b->ids);
+  free(b->digests);
+  memset(b, 0, sizeof *b);
+}
+
+int oc_brick_digests_of(oc_brick_digests_t *out, const oc_state_t *s) {
+  if (!out || !s) return OC_EINVAL;
+  oc_brick_digests_free(out);
+  if (!s->brick_count) return 0;
+  out->ids = malloc((size_t)s->brick_count * sizeof *out->ids);
+  out->digests = malloc((size_t)s->brick_count * sizeof *out->digests);
+  if (!out->ids || !out->digests) {
+    oc_brick_digests_free(out);
+    return OC_ENOMEM;
+  }
+  for (uint32_t i = 0; i < s->brick_count; i++) {
+    out->ids[i] = s->bricks[i].id;
+    out->digests[i] = oc_brick_digest(&s->bricks[i].codes);
+  }
+  out->count = s->brick_count;
+  return 0;
+}
+
+int64_t oc_brick_digests_find(const oc_brick_digests_t *b, uint32_t id) {
+  if (!b || !b->count) return -1;
+  oc__ids_t v = oc__ids_lean(b);
+  return oc__ids_find(&v, id);
 }

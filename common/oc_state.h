@@ -6,7 +6,12 @@
  * held once per brick id, ascending; a brick id is referenced by exactly one record of a state, and
  * across states the same id always means the same content (ids are assigned by the server). The
  * serialisation is byte-exact and little-endian (docs/protocol.md, "State"); the checksum is
- * XXH3-64 of that serialisation. */
+ * XXH3-64 of that serialisation.
+ *
+ * A lean state (a viewer that verifies but keeps no codes, OCP_CAP_DIGEST) holds the records and,
+ * per brick, only its id and a 64-bit digest of its codes (oc_brick_digests_t). Its digest
+ * checksum hashes the same byte stream with each 2052-byte brick replaced by 12 bytes (u32 id, u64
+ * digest), so it can be computed both from a full state and from records + digests alone. */
 #ifndef OC_COMMON_STATE_H
 #define OC_COMMON_STATE_H
 
@@ -96,5 +101,41 @@ int oc_state_load(oc_state_t *out, const char *path, char *why, size_t why_len);
 /*! oc_resident_bytes() : the budget measure of the Conventions: distinct brick ids referenced by
  *  the n kept states × slot_bytes + their node records × record_bytes. */
 uint64_t oc_resident_bytes(const oc_state_t *const *states, int n, uint32_t slot_bytes, uint32_t record_bytes);
+
+/*-*** Lean states: brick digests instead of codes (docs/protocol.md, "Digest checksum") ***/
+
+/*! The bricks of a lean state: `count` ascending ids, digests[k] = oc_brick_digest() of brick ids[k].
+ *  12 bytes a brick instead of 2052. */
+typedef struct {
+  uint32_t count;
+  uint32_t *ids;
+  uint64_t *digests;
+} oc_brick_digests_t;
+
+/*! oc_brick_digests_free() : releases both arrays and zeroes b; NULL is fine. */
+void oc_brick_digests_free(oc_brick_digests_t *b);
+/*! oc_brick_digests_of() : the digests of s's bricks (s canonical), replacing out's content.
+ *  @return 0 or OC_ENOMEM (out left empty). */
+int oc_brick_digests_of(oc_brick_digests_t *out, const oc_state_t *s);
+/*! oc_brick_digests_find() : index of brick `id` in b, or -1. O(log n). */
+int64_t oc_brick_digests_find(const oc_brick_digests_t *b, uint32_t id);
+/*! oc_brick_digest() : XXH3-64 (seed 0) of the brick's 2048 code bytes as serialised (σt then τ,
+ *  little-endian u16, x fastest). */
+uint64_t oc_brick_digest(const oc_brick_codes_t *c);
+/*! oc_state_digest_checksum() : the digest checksum from s's header fields and records and the
+ *  bricks given as digests in b (s's own bricks and brick_count are ignored; the header's brick
+ *  count is b->count). What a lean viewer computes. */
+uint64_t oc_state_digest_checksum(const oc_state_t *s, const oc_brick_digests_t *b);
+/*! oc_state_digest() : the same value for a full state, hashing each brick's codes on the fly
+ *  (no allocation). What the server sends a lean viewer. */
+uint64_t oc_state_digest(const oc_state_t *s);
+/*! oc_state_validate_lean() : oc_state_validate() for s's records with the bricks given by the
+ *  ascending ids of b instead of s's payloads (s->bricks is ignored). Everything but the zero-code
+ *  check of zero channels, which needs the codes (the lean decoder does it as each brick arrives). */
+int oc_state_validate_lean(const oc_state_t *s, const oc_brick_digests_t *b, char *why, size_t why_len);
+/*! oc_resident_bytes_lean() : oc_resident_bytes() for lean states: records from states[i], brick
+ *  ids from bricks[i] (states' own bricks are ignored). */
+uint64_t oc_resident_bytes_lean(const oc_state_t *const *states, const oc_brick_digests_t *const *bricks, int n,
+                                uint32_t slot_bytes, uint32_t record_bytes);
 
 #endif /* OC_COMMON_STATE_H */

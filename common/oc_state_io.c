@@ -10,7 +10,8 @@
  *
  * One emitter produces the bytes in chunks for three sinks (a buffer, a hash state, a file), so the
  * checksum and the file can never disagree with oc_state_serialize(), and neither needs the whole
- * serialisation in memory. */
+ * serialisation in memory. The digest checksum (lean viewers) shares its header and records and
+ * replaces each brick by u32 id + u64 XXH3-64 of its 2048 code bytes. */
 #include "oc_state.h"
 
 #include <errno.h>
@@ -35,7 +36,8 @@ typedef int (*oc__sink_fn)(void *ctx, const uint8_t *p, size_t n);
 
 #define OC__REC_CHUNK 128 /* records per sink call: 4 KiB */
 
-static void oc__pack_header(const oc_state_t *s, uint8_t h[OC_STATE_HEADER_BYTES]) {
+/* brick_count: the header's brick count (a lean state's bricks are not in s). */
+static void oc__pack_header(const oc_state_t *s, uint32_t brick_count, uint8_t h[OC_STATE_HEADER_BYTES]) {
   memset(h, 0, OC_STATE_HEADER_BYTES);
   memcpy(h, OC_STATE_MAGIC, 4);
   oc_put_u32(h + 4, OC_STATE_VERSION);
@@ -45,7 +47,7 @@ static void oc__pack_header(const oc_state_t *s, uint8_t h[OC_STATE_HEADER_BYTES
   oc_put_f64(h + 32, s->sun_dir.y);
   oc_put_f64(h + 40, s->sun_dir.z);
   oc_put_u32(h + 48, s->node_count);
-  oc_put_u32(h + 52, s->brick_count);
+  oc_put_u32(h + 52, brick_count);
   /* 56..63 reserved, zero */
 }
 
@@ -79,20 +81,47 @@ static void oc__pack_brick(const oc_brick_t *b, uint8_t p[OC_STATE_BRICK_BYTES])
     for (int v = 0; v < OC_BRICK_VOXELS; v++, p += 2) oc_put_u16(p, b->codes.code[c][v]);
 }
 
-/* Everything but the trailing checksum, in order, through `sink`. */
-static int oc__emit(const oc_state_t *s, oc__sink_fn sink, void *ctx) {
-  uint8_t buf[OC__REC_CHUNK * OC_STATE_RECORD_BYTES];
-  _Static_assert(sizeof buf >= OC_STATE_BRICK_BYTES && sizeof buf >= OC_STATE_HEADER_BYTES, "chunk too small");
-  oc__pack_header(s, buf);
+/* Header and records, in order, through `sink`, from buf (room for a chunk of records). */
+static int oc__emit_head(const oc_state_t *s, uint32_t brick_count, uint8_t *buf, oc__sink_fn sink, void *ctx) {
+  oc__pack_header(s, brick_count, buf);
   OC_TRY(sink(ctx, buf, OC_STATE_HEADER_BYTES));
   for (uint32_t i = 0; i < s->node_count;) {
     uint32_t k = 0;
     for (; k < OC__REC_CHUNK && i < s->node_count; k++, i++) oc_state_pack_record(&s->nodes[i], buf + k * OC_STATE_RECORD_BYTES);
     OC_TRY(sink(ctx, buf, (size_t)k * OC_STATE_RECORD_BYTES));
   }
+  return 0;
+}
+
+/* Everything but the trailing checksum, in order, through `sink`. */
+static int oc__emit(const oc_state_t *s, oc__sink_fn sink, void *ctx) {
+  uint8_t buf[OC__REC_CHUNK * OC_STATE_RECORD_BYTES];
+  _Static_assert(sizeof buf >= OC_STATE_BRICK_BYTES && sizeof buf >= OC_STATE_HEADER_BYTES, "chunk too small");
+  OC_TRY(oc__emit_head(s, s->brick_count, buf, sink, ctx));
   for (uint32_t i = 0; i < s->brick_count; i++) {
     oc__pack_brick(&s->bricks[i], buf);
     OC_TRY(sink(ctx, buf, OC_STATE_BRICK_BYTES));
+  }
+  return 0;
+}
+
+#define OC__DIGEST_ENTRY 12 /* u32 id, u64 digest: a brick in the digest form */
+
+/* The digest form of the same stream: header and records as oc__emit, then each brick as its id
+ * and digest, from b, or (b NULL) from s's bricks, digested on the fly. */
+static int oc__emit_digests(const oc_state_t *s, const oc_brick_digests_t *b, oc__sink_fn sink, void *ctx) {
+  uint8_t buf[OC__REC_CHUNK * OC_STATE_RECORD_BYTES];
+  enum { per_chunk = sizeof buf / OC__DIGEST_ENTRY };
+  uint32_t m = b ? b->count : s->brick_count;
+  OC_TRY(oc__emit_head(s, m, buf, sink, ctx));
+  for (uint32_t i = 0; i < m;) {
+    uint32_t k = 0;
+    for (; k < per_chunk && i < m; k++, i++) {
+      uint8_t *e = buf + (size_t)k * OC__DIGEST_ENTRY;
+      oc_put_u32(e, b ? b->ids[i] : s->bricks[i].id);
+      oc_put_u64(e + 4, b ? b->digests[i] : oc_brick_digest(&s->bricks[i].codes));
+    }
+    OC_TRY(sink(ctx, buf, (size_t)k * OC__DIGEST_ENTRY));
   }
   return 0;
 }
@@ -140,6 +169,34 @@ uint64_t oc_state_checksum(const oc_state_t *s) {
   if (oc__emit(s, oc__sink_hash, &st) < 0) return 0; /* cannot happen: the hash sink does not fail */
   return XXH3_64bits_digest(&st);
 }
+
+uint64_t oc_brick_digest(const oc_brick_codes_t *c) {
+  if (!c) return 0;
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  /* The codes in memory are already their serialised bytes: no packing. */
+  _Static_assert(sizeof c->code == OC_BRICK_CODE_BYTES, "codes are one packed array");
+  return XXH3_64bits(c->code, OC_BRICK_CODE_BYTES);
+#else
+  uint8_t p[OC_BRICK_CODE_BYTES], *q = p;
+  for (int ch = 0; ch < OC_CHANNELS; ch++)
+    for (int v = 0; v < OC_BRICK_VOXELS; v++, q += 2) oc_put_u16(q, c->code[ch][v]);
+  return XXH3_64bits(p, sizeof p);
+#endif
+}
+
+static uint64_t oc__digest_checksum(const oc_state_t *s, const oc_brick_digests_t *b) {
+  XXH3_state_t st;
+  XXH3_64bits_reset(&st);
+  if (oc__emit_digests(s, b, oc__sink_hash, &st) < 0) return 0; /* cannot happen: the hash sink does not fail */
+  return XXH3_64bits_digest(&st);
+}
+
+uint64_t oc_state_digest_checksum(const oc_state_t *s, const oc_brick_digests_t *b) {
+  if (!s || !b || (b->count && (!b->ids || !b->digests))) return 0;
+  return oc__digest_checksum(s, b);
+}
+
+uint64_t oc_state_digest(const oc_state_t *s) { return s ? oc__digest_checksum(s, NULL) : 0; }
 
 /*-*** Deserialise ***/
 

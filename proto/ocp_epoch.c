@@ -140,6 +140,7 @@ struct ocp_epoch_enc_s {
   uint32_t nsend, send_cap, send_i;
   uint8_t *raw; /* one chunk or batch, OCP_CHUNK_RAW_MAX */
   int phase;
+  uint64_t checksum; /* of the epoch begun, in the desc's form */
   ocp_enc_stats_t st;
 };
 
@@ -152,6 +153,7 @@ int ocp_epoch_enc_create(ocp_epoch_enc_t **out, const ocp_enc_desc_t *desc) {
   if (d.batch_max == 0) d.batch_max = OCP_BATCH_MAX;
   if (d.batch_max > OCP_BATCH_MAX) return OC_EINVAL;
   if (d.dict_id && (!d.dict || d.dict_len == 0 || d.dict_len > OCP_DICT_MAX)) return OC_EINVAL;
+  if (d.digest && d.deltas) return OC_EINVAL; /* a lean viewer holds no base codes */
   ocp_epoch_enc_t *e = calloc(1, sizeof *e);
   if (!e) return OC_ENOMEM;
   e->cctx = ZSTD_createCCtx();
@@ -281,6 +283,8 @@ int ocp_epoch_enc_begin(ocp_epoch_enc_t *e, const oc_state_t *state, const oc_st
     e->state = e->base = NULL;
     return r;
   }
+  /* Hashed once here, for EPOCH_END and for the caller's ACK check (ocp_epoch_enc_checksum). */
+  e->checksum = e->desc.digest ? oc_state_digest(state) : oc_state_checksum(state);
   e->nsend = nlacking;
   e->phase = OCP__PH_BEGIN;
   return 0;
@@ -394,7 +398,7 @@ int ocp_epoch_enc_next(ocp_epoch_enc_t *e, uint8_t version, oc_buf_t *out) {
       if (e->send_i == e->nsend) e->phase = OCP__PH_END;
       return 1;
     case OCP__PH_END: {
-      ocp_epoch_end_t m = {e->state->epoch, oc_state_checksum(e->state)};
+      ocp_epoch_end_t m = {e->state->epoch, e->checksum};
       ocp_put_epoch_end(out, version, &m);
       if (out->err) return OC_ENOMEM;
       e->phase = OCP__PH_IDLE;
@@ -409,6 +413,8 @@ int ocp_epoch_enc_next(ocp_epoch_enc_t *e, uint8_t version, oc_buf_t *out) {
   return 1;
 }
 
+uint64_t ocp_epoch_enc_checksum(const ocp_epoch_enc_t *e) { return e && e->state ? e->checksum : 0; }
+
 void ocp_epoch_enc_stats(const ocp_epoch_enc_t *e, ocp_enc_stats_t *out) {
   if (!out) return;
   if (!e) {
@@ -422,8 +428,8 @@ void ocp_epoch_enc_stats(const ocp_epoch_enc_t *e, ocp_enc_stats_t *out) {
 
 typedef struct {
   uint32_t id;
-  uint32_t slot; /* index of the received brick in st.bricks, or OCP__NONE */
-  const oc_brick_codes_t *held; /* not sent: the viewer's copy (found in ocp_epoch_dec_end) */
+  uint32_t slot; /* received: index in st.bricks (full) or 0 (lean: digest in dig); else OCP__NONE */
+  uint32_t node; /* index of its record in st.nodes */
 } ocp__ref_t;
 
 struct ocp_epoch_dec_s {
@@ -431,14 +437,18 @@ struct ocp_epoch_dec_s {
   ZSTD_DDict *ddict;
   uint32_t dict_id; /* of ddict; 0: none installed */
   int active, bricks_started;
+  int lean; /* this epoch keeps digests, not codes (ocp_epoch_dec_begin_lean) */
   ocp_epoch_begin_t m;
   const oc_state_t *base;
   ocp_brick_lookup_fn lookup;
+  ocp_digest_lookup_fn dlookup;
   void *ctx;
+  uint32_t received; /* bricks received this epoch */
   uint32_t base_pos; /* base records consumed by KEEP and SKIP */
   oc_state_t st;     /* nodes so far; bricks as received (arrival order) */
   ocp__ref_t *refs;  /* ids of the state's brick records, ascending (once records are complete) */
   uint32_t nrefs;
+  oc_brick_digests_t dig; /* lean: the state's ids (as refs) and digests, filled as bricks arrive */
   uint8_t *raw; /* one decompressed chunk */
   size_t raw_cap;
 };
@@ -465,11 +475,14 @@ static void ocp__dec_reset(ocp_epoch_dec_t *d) {
   free(d->refs);
   d->refs = NULL;
   d->nrefs = 0;
-  d->active = d->bricks_started = 0;
+  oc_brick_digests_free(&d->dig);
+  d->active = d->bricks_started = d->lean = 0;
   d->base = NULL;
   d->lookup = NULL;
+  d->dlookup = NULL;
   d->ctx = NULL;
   d->base_pos = 0;
+  d->received = 0;
 }
 
 void ocp_epoch_dec_free(ocp_epoch_dec_t *d) {
@@ -504,10 +517,7 @@ int ocp_epoch_dec_dict(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, cha
   return 0;
 }
 
-int ocp_epoch_dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, ocp_brick_lookup_fn lookup,
-                        void *ctx, char *why, size_t why_len) {
-  if (why && why_len) why[0] = '\0';
-  if (!d || !m || !lookup) return OC_EINVAL;
+static int ocp__dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, char *why, size_t why_len) {
   ocp__dec_reset(d);
   if (m->node_count == 0 || m->node_count > OC_STATE_MAX_NODES || m->brick_count > OC_STATE_MAX_BRICKS ||
       m->bricks_sent > m->brick_count) {
@@ -524,12 +534,31 @@ int ocp_epoch_dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc
   }
   d->m = *m;
   d->base = base;
-  d->lookup = lookup;
-  d->ctx = ctx;
   d->st.epoch = m->epoch;
   d->st.time = m->time;
   d->st.sun_dir = m->sun_dir;
   d->active = 1;
+  return 0;
+}
+
+int ocp_epoch_dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, ocp_brick_lookup_fn lookup,
+                        void *ctx, char *why, size_t why_len) {
+  if (why && why_len) why[0] = '\0';
+  if (!d || !m || !lookup) return OC_EINVAL;
+  OC_TRY(ocp__dec_begin(d, m, base, why, why_len));
+  d->lookup = lookup;
+  d->ctx = ctx;
+  return 0;
+}
+
+int ocp_epoch_dec_begin_lean(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, ocp_digest_lookup_fn lookup,
+                             void *ctx, char *why, size_t why_len) {
+  if (why && why_len) why[0] = '\0';
+  if (!d || !m || !lookup) return OC_EINVAL;
+  OC_TRY(ocp__dec_begin(d, m, base, why, why_len));
+  d->lean = 1;
+  d->dlookup = lookup;
+  d->ctx = ctx;
   return 0;
 }
 
@@ -660,11 +689,18 @@ static int ocp__records_done(ocp_epoch_dec_t *d, char *why, size_t why_len) {
     if (!d->refs) return OC_ENOMEM;
   }
   for (uint32_t i = 0; i < s->node_count; i++)
-    if (s->nodes[i].kind == OC_NODE_BRICK) d->refs[d->nrefs++] = (ocp__ref_t){s->nodes[i].brick_id, OCP__NONE, NULL};
+    if (s->nodes[i].kind == OC_NODE_BRICK) d->refs[d->nrefs++] = (ocp__ref_t){s->nodes[i].brick_id, OCP__NONE, i};
   if (d->nrefs > 1) qsort(d->refs, d->nrefs, sizeof *d->refs, ocp__cmp_ref);
   for (uint32_t k = 1; k < d->nrefs; k++)
     if (d->refs[k].id == d->refs[k - 1].id)
       return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " is named by two records", d->m.epoch, d->refs[k].id);
+  if (d->lean && nb) { /* the lean state's bricks: exactly the refs, digests filled in as they come */
+    d->dig.ids = malloc((size_t)nb * sizeof *d->dig.ids);
+    d->dig.digests = malloc((size_t)nb * sizeof *d->dig.digests);
+    if (!d->dig.ids || !d->dig.digests) return OC_ENOMEM;
+    for (uint32_t k = 0; k < nb; k++) d->dig.ids[k] = d->refs[k].id;
+    d->dig.count = nb;
+  }
   d->bricks_started = 1;
   return 0;
 }
@@ -681,6 +717,19 @@ static ocp__ref_t *ocp__find_ref(ocp_epoch_dec_t *d, uint32_t id) {
   return a < d->nrefs && d->refs[a].id == id ? &d->refs[a] : NULL;
 }
 
+/* A zero channel's codes are all zero (one byte form per content; oc_state_validate's rule, for a
+ * lean viewer that cannot check them once the codes are gone). */
+static int ocp__zero_channels_ok(const oc_node_t *n, const oc_brick_codes_t *c, uint32_t id, char *why, size_t why_len) {
+  static const char *ch_name[OC_CHANNELS] = {"sigma", "tau"};
+  for (int ch = 0; ch < OC_CHANNELS; ch++) {
+    if (n->range[ch].hi != 0.0f) continue;
+    for (int v = 0; v < OC_BRICK_VOXELS; v++)
+      if (c->code[ch][v] != OC_CODE_ZERO)
+        return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": non-zero %s code in a zero channel", id, ch_name[ch]);
+  }
+  return 0;
+}
+
 static int ocp__dec_batch(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *why, size_t why_len) {
   if (n < 4) return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %zu raw bytes, no brick count", n);
   uint32_t count = oc_get_u32(p);
@@ -689,9 +738,9 @@ static int ocp__dec_batch(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *
   if (n != 4 + (size_t)count * OCP__BRICK_WIRE)
     return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %zu raw bytes for %" PRIu32 " bricks (%zu expected)", n, count,
                      4 + (size_t)count * OCP__BRICK_WIRE);
-  if (count > d->m.bricks_sent - d->st.brick_count)
+  if (count > d->m.bricks_sent - d->received)
     return oc_errorf(OC_ECORRUPT, why, why_len, "bricks: %" PRIu32 " more bricks than the %" PRIu32 " announced", count,
-                     d->m.bricks_sent - d->st.brick_count);
+                     d->m.bricks_sent - d->received);
   const uint8_t *planes = p + 4 + (size_t)count * OCP__BRICK_HEAD;
   for (uint32_t k = 0; k < count; k++) {
     const uint8_t *h = p + 4 + (size_t)k * OCP__BRICK_HEAD;
@@ -704,11 +753,21 @@ static int ocp__dec_batch(ocp_epoch_dec_t *d, const uint8_t *p, size_t n, char *
       return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": bad flags 0x%02x or reserved bytes", id, flags);
     if ((base_id != 0) != (flags != 0))
       return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": base id %" PRIu32 " with flags 0x%02x", id, base_id, flags);
+    if (flags && d->lean)
+      return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": a delta of %" PRIu32 " to a lean viewer, which holds no codes", id,
+                       base_id);
     const oc_brick_codes_t *base = NULL;
     if (flags && !(base = d->lookup(d->ctx, base_id)))
       return oc_errorf(OC_ECORRUPT, why, why_len, "brick %" PRIu32 ": delta base %" PRIu32 " not held", id, base_id);
     oc_brick_codes_t c;
     ocp__planes_get(planes + (size_t)k * OCP__BRICK_PLANES, base, flags, &c);
+    d->received++;
+    if (d->lean) { /* the codes end here: checked and digested now, as oc_state_validate would */
+      OC_TRY(ocp__zero_channels_ok(&d->st.nodes[ref->node], &c, id, why, why_len));
+      d->dig.digests[ref - d->refs] = oc_brick_digest(&c);
+      ref->slot = 0;
+      continue;
+    }
     ref->slot = d->st.brick_count;
     OC_TRY(oc_state_add_brick(&d->st, id, &c));
   }
@@ -739,38 +798,53 @@ int ocp_epoch_dec_bricks(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, c
   return r;
 }
 
+/* What both ends check first: the epoch, every record, every announced brick. */
+static int ocp__end_common(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, char *why, size_t why_len) {
+  if (m->epoch != d->m.epoch)
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch end for epoch %" PRIu64 " during epoch %" PRIu64, m->epoch, d->m.epoch);
+  if (!d->bricks_started) OC_TRY(ocp__records_done(d, why, why_len));
+  if (d->received != d->m.bricks_sent)
+    return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": %" PRIu32 " of %" PRIu32 " bricks arrived", d->m.epoch, d->received,
+                     d->m.bricks_sent);
+  return 0;
+}
+
+static int ocp__not_held(const ocp_epoch_dec_t *d, uint32_t id, char *why, size_t why_len) {
+  return oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " was neither sent nor held", d->m.epoch, id);
+}
+
+static int ocp__checksum_mismatch(const ocp_epoch_dec_t *d, uint64_t sent, uint64_t rebuilt, const char *what, char *why,
+                                  size_t why_len) {
+  oc_errorf(OC_ECORRUPT, why, why_len, "state epoch %" PRIu64 ": %s mismatch: sent %016" PRIx64 ", rebuilt %016" PRIx64, d->m.epoch, what,
+            sent, rebuilt);
+  return OC_ECHECKSUM;
+}
+
 int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *out, char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
   if (!d || !m || !out) return OC_EINVAL;
   if (!d->active) return oc_errorf(OC_ECORRUPT, why, why_len, "epoch end outside an epoch");
   int r = 0;
   oc_brick_t *bricks = NULL;
-  if (m->epoch != d->m.epoch) {
-    r = oc_errorf(OC_ECORRUPT, why, why_len, "epoch end for epoch %" PRIu64 " during epoch %" PRIu64, m->epoch, d->m.epoch);
+  if (d->lean) {
+    r = OC_EINVAL; /* begun with ocp_epoch_dec_begin_lean: ended by ocp_epoch_dec_end_lean */
     goto done;
   }
-  if (!d->bricks_started && (r = ocp__records_done(d, why, why_len)) < 0) goto done;
-  if (d->st.brick_count != d->m.bricks_sent) {
-    r = oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": %" PRIu32 " of %" PRIu32 " bricks arrived", d->m.epoch, d->st.brick_count,
-                  d->m.bricks_sent);
-    goto done;
-  }
-  /* Every brick not sent must be held; look them all up before allocating the state's bricks. */
-  for (uint32_t k = 0; k < d->nrefs; k++) {
-    ocp__ref_t *ref = &d->refs[k];
-    if (ref->slot == OCP__NONE && !(ref->held = d->lookup(d->ctx, ref->id))) {
-      r = oc_errorf(OC_ECORRUPT, why, why_len, "epoch %" PRIu64 ": brick %" PRIu32 " was neither sent nor held", d->m.epoch, ref->id);
-      goto done;
-    }
-  }
+  if ((r = ocp__end_common(d, m, why, why_len)) < 0) goto done;
   if (d->nrefs && !(bricks = malloc((size_t)d->nrefs * sizeof *bricks))) {
     r = OC_ENOMEM;
     goto done;
   }
-  for (uint32_t k = 0; k < d->nrefs; k++) { /* ascending id, as refs */
+  /* Ascending id, as refs: received bricks, and every other one from what the viewer holds. */
+  for (uint32_t k = 0; k < d->nrefs; k++) {
     const ocp__ref_t *ref = &d->refs[k];
+    const oc_brick_codes_t *held = NULL;
+    if (ref->slot == OCP__NONE && !(held = d->lookup(d->ctx, ref->id))) {
+      r = ocp__not_held(d, ref->id, why, why_len);
+      goto done;
+    }
     bricks[k].id = ref->id;
-    bricks[k].codes = ref->slot != OCP__NONE ? d->st.bricks[ref->slot].codes : *ref->held;
+    bricks[k].codes = held ? *held : d->st.bricks[ref->slot].codes;
   }
   free(d->st.bricks);
   d->st.bricks = bricks;
@@ -783,9 +857,7 @@ int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *
   }
   uint64_t h = oc_state_checksum(&d->st);
   if (h != m->checksum) {
-    oc_errorf(OC_ECORRUPT, why, why_len, "state epoch %" PRIu64 ": checksum mismatch: sent %016" PRIx64 ", rebuilt %016" PRIx64, d->m.epoch,
-              m->checksum, h);
-    r = OC_ECHECKSUM;
+    r = ocp__checksum_mismatch(d, m->checksum, h, "checksum", why, why_len);
     goto done;
   }
   oc_state_free(out);
@@ -793,6 +865,43 @@ int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *
   oc_state_init(&d->st);
 done:
   free(bricks);
+  ocp__dec_reset(d);
+  return r;
+}
+
+int ocp_epoch_dec_end_lean(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *out, oc_brick_digests_t *digests, char *why,
+                           size_t why_len) {
+  if (why && why_len) why[0] = '\0';
+  if (!d || !m || !out || !digests) return OC_EINVAL;
+  if (!d->active) return oc_errorf(OC_ECORRUPT, why, why_len, "epoch end outside an epoch");
+  int r = 0;
+  if (!d->lean) {
+    r = OC_EINVAL; /* begun with ocp_epoch_dec_begin */
+    goto done;
+  }
+  if ((r = ocp__end_common(d, m, why, why_len)) < 0) goto done;
+  for (uint32_t k = 0; k < d->nrefs; k++) /* held: the digest the viewer kept for that id */
+    if (d->refs[k].slot == OCP__NONE && !d->dlookup(d->ctx, d->refs[k].id, &d->dig.digests[k])) {
+      r = ocp__not_held(d, d->refs[k].id, why, why_len);
+      goto done;
+    }
+  char tmp[256];
+  if ((r = oc_state_validate_lean(&d->st, &d->dig, tmp, sizeof tmp)) < 0) {
+    if (r == OC_ECORRUPT) r = oc_errorf(OC_ECORRUPT, why, why_len, "state epoch %" PRIu64 ": %s", d->m.epoch, tmp);
+    goto done;
+  }
+  uint64_t h = oc_state_digest_checksum(&d->st, &d->dig);
+  if (h != m->checksum) {
+    r = ocp__checksum_mismatch(d, m->checksum, h, "digest checksum", why, why_len);
+    goto done;
+  }
+  oc_state_free(out);
+  oc_brick_digests_free(digests);
+  *out = d->st; /* records only: brick_count 0, bricks NULL */
+  oc_state_init(&d->st);
+  *digests = d->dig;
+  memset(&d->dig, 0, sizeof d->dig);
+done:
   ocp__dec_reset(d);
   return r;
 }

@@ -8,6 +8,8 @@
  * Viewer side, a decoder rebuilds the complete oc_state_t from those frames, the base state and the
  * bricks the viewer already holds, then checks the state (oc_state_validate) and its XXH3-64
  * checksum against EPOCH_END: a wrong base, a wrong delta base or a lost frame cannot go unnoticed.
+ * A lean decoder (OCP_CAP_DIGEST) does the same with a 64-bit digest per brick instead of its
+ * codes, and the digest checksum (oc_state_digest_checksum).
  *
  * Records: an op stream (KEEP n / SKIP n base records, ADD n literal 32-byte records), cut into
  * chunks of at most OCP_CHUNK_RAW_MAX bytes that never split an op, each chunk one zstd frame.
@@ -53,6 +55,8 @@ typedef struct ocp_epoch_enc_s ocp_epoch_enc_t;
 typedef struct {
   int level;           /**< zstd level; 0 → OCP_LEVEL_DEFAULT */
   int deltas;          /**< send refreshed bricks as deltas when allowed (viewer has OCP_CAP_DELTA) */
+  int digest;          /**< EPOCH_END carries the digest checksum (oc_state_digest; viewer has
+                            OCP_CAP_DIGEST); excludes deltas (OC_EINVAL) */
   uint32_t dict_id;    /**< 0: no dictionary */
   const void *dict;    /**< the dictionary bytes sent under dict_id (copied by ocp_epoch_enc_create) */
   size_t dict_len;
@@ -77,6 +81,10 @@ int ocp_epoch_enc_begin(ocp_epoch_enc_t *e, const oc_state_t *state, const oc_st
 /*! ocp_epoch_enc_next() : appends the next whole frame to out. @return 1 (a frame appended), 0
  *  (the epoch is done: EPOCH_END was the last frame), or OC_ENOMEM / OC_EIO (zstd failed). */
 int ocp_epoch_enc_next(ocp_epoch_enc_t *e, uint8_t version, oc_buf_t *out);
+/*! ocp_epoch_enc_checksum() : the checksum EPOCH_END carries for the epoch begun last (the digest
+ *  checksum when desc.digest), computed once by ocp_epoch_enc_begin(); what the viewer's ACK must
+ *  echo. 0 before any epoch. */
+uint64_t ocp_epoch_enc_checksum(const ocp_epoch_enc_t *e);
 void ocp_epoch_enc_stats(const ocp_epoch_enc_t *e, ocp_enc_stats_t *out);
 
 /*-*** Decoder (viewer) ***/
@@ -86,6 +94,9 @@ typedef struct ocp_epoch_dec_s ocp_epoch_dec_t;
 /*! Where the decoder finds bricks the viewer already holds (the base of a delta, and unchanged
  *  bricks): @return the codes of brick `id`, or NULL when the viewer does not hold it. */
 typedef const oc_brick_codes_t *(*ocp_brick_lookup_fn)(void *ctx, uint32_t id);
+/*! The same for a lean decoder: @return 1 with the digest (oc_brick_digest) of held brick `id` in
+ *  *digest, or 0 when the viewer does not hold it. */
+typedef int (*ocp_digest_lookup_fn)(void *ctx, uint32_t id, uint64_t *digest);
 
 int ocp_epoch_dec_create(ocp_epoch_dec_t **out);
 void ocp_epoch_dec_free(ocp_epoch_dec_t *d);
@@ -108,6 +119,18 @@ int ocp_epoch_dec_bricks(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, c
  *  @return 0 with the state moved into *out (initialised; previous content freed), or
  *  OC_ECORRUPT / OC_ECHECKSUM with a reason. The decoder is ready for the next epoch either way. */
 int ocp_epoch_dec_end(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *out, char *why, size_t why_len);
+/*! ocp_epoch_dec_begin_lean() / ocp_epoch_dec_end_lean() : the same epoch decoded by a lean
+ *  viewer (OCP_CAP_DIGEST), which keeps no codes: each brick is checked (zero channels) and reduced
+ *  to its digest as it arrives, the bricks not sent are found as digests by `lookup`, the records
+ *  are validated with the ids (oc_state_validate_lean) and the digest checksum compared with m's.
+ *  A delta brick is malformed here. `base` needs only its records. End moves the records into *out
+ *  (brick_count 0, bricks NULL) and the ascending (id, digest) pairs into *digests (previous
+ *  content of both freed). An epoch begun one way must end the same way (else OC_EINVAL). Records
+ *  and bricks go through ocp_epoch_dec_records() / ocp_epoch_dec_bricks() as for a full epoch. */
+int ocp_epoch_dec_begin_lean(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, ocp_digest_lookup_fn lookup,
+                             void *ctx, char *why, size_t why_len);
+int ocp_epoch_dec_end_lean(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_state_t *out, oc_brick_digests_t *digests, char *why,
+                           size_t why_len);
 /*! ocp_epoch_dec_active() : 1 between begin and end. */
 int ocp_epoch_dec_active(const ocp_epoch_dec_t *d);
 

@@ -43,7 +43,8 @@ struct ocp_viewer_s {
   int have_welcome;
   ocp_welcome_t welcome;
   uint32_t asked_session; /* resume session named in this connection's HELLO */
-  oc_state_t *held[OCP__HELD_MAX]; /* newest first */
+  oc_state_t *held[OCP__HELD_MAX]; /* newest first; lean: records only */
+  oc_brick_digests_t hdig[OCP__HELD_MAX]; /* lean: held[i]'s bricks as (id, digest) */
   int nheld;
   int have_camera;
   ocp_camera_t camera; /* the latest: sent after every WELCOME */
@@ -61,7 +62,13 @@ static void ocp__drop_held(ocp_viewer_t *v, int keep) {
     oc_state_free(s);
     free(s);
     v->held[v->nheld] = NULL;
+    oc_brick_digests_free(&v->hdig[v->nheld]);
   }
+}
+
+/* The held state's checksum in the session's form (resume). */
+static uint64_t ocp__held_checksum(const ocp_viewer_t *v, int i) {
+  return v->desc.lean ? oc_state_digest_checksum(v->held[i], &v->hdig[i]) : oc_state_checksum(v->held[i]);
 }
 
 static int ocp__keep(const ocp_viewer_t *v) {
@@ -110,6 +117,18 @@ static const oc_brick_codes_t *ocp__lookup(void *ctx, uint32_t id) {
   return NULL;
 }
 
+static int ocp__dlookup(void *ctx, uint32_t id, uint64_t *digest) {
+  const ocp_viewer_t *v = ctx;
+  for (int i = 0; i < v->nheld; i++) {
+    int64_t k = oc_brick_digests_find(&v->hdig[i], id);
+    if (k >= 0) {
+      *digest = v->hdig[i].digests[k];
+      return 1;
+    }
+  }
+  return 0;
+}
+
 /*-*** Life cycle ***/
 
 int ocp_viewer_create(ocp_viewer_t **out, const ocp_viewer_desc_t *desc, const ocp_viewer_events_t *ev) {
@@ -126,7 +145,13 @@ int ocp_viewer_create(ocp_viewer_t **out, const ocp_viewer_desc_t *desc, const o
     if (!d.record_bytes) d.record_bytes = OCP__RECORD_DEFAULT;
     if (d.budget == 0 || d.slot_bytes > OCP__GPU_BYTES_MAX || d.record_bytes > OCP__GPU_BYTES_MAX) return OC_EINVAL;
     if (d.width < 1 || d.width > OCP__VIEWPORT_MAX || d.height < 1 || d.height > OCP__VIEWPORT_MAX) return OC_EINVAL;
-    if (d.caps & ~OCP_CAP_ALL) return OC_EINVAL;
+    if (d.caps & ~OCP_CAP_KNOWN) return OC_EINVAL;
+    /* lean and the DIGEST bit say the same; a viewer without codes cannot apply deltas */
+    d.lean = d.lean || (d.caps & OCP_CAP_DIGEST);
+    if (d.lean) d.caps |= OCP_CAP_DIGEST;
+    if (d.lean && (d.caps & OCP_CAP_DELTA)) return OC_EINVAL;
+  } else {
+    d.lean = 0;
   }
   ocp_viewer_t *v = calloc(1, sizeof *v);
   if (!v) return OC_ENOMEM;
@@ -178,7 +203,7 @@ void ocp_viewer_connected(ocp_viewer_t *v, oc_buf_t *out) {
       h.resume_secret = v->welcome.secret;
       if (v->nheld) {
         h.held_epoch = v->held[0]->epoch;
-        h.held_checksum = oc_state_checksum(v->held[0]);
+        h.held_checksum = ocp__held_checksum(v, 0);
       }
     }
   }
@@ -236,7 +261,8 @@ static int ocp__on_epoch_begin(ocp_viewer_t *v, const ocp_header_t *h, const uin
                         "epoch-begin: base_epoch %" PRIu64 " is not a state this viewer holds", m.base_epoch);
   }
   reason[0] = '\0';
-  e = ocp_epoch_dec_begin(v->dec, &m, base, ocp__lookup, v, reason, sizeof reason);
+  e = v->desc.lean ? ocp_epoch_dec_begin_lean(v->dec, &m, base, ocp__dlookup, v, reason, sizeof reason)
+                   : ocp_epoch_dec_begin(v->dec, &m, base, ocp__lookup, v, reason, sizeof reason);
   if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
   v->begin = m;
   v->phase = OCP__EP_BEGUN;
@@ -256,24 +282,32 @@ static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8
   oc_state_t *s = malloc(sizeof *s);
   if (!s) return ocp__abort(v, out, OC_ENOMEM, OCP_CODE_INTERNAL, why, why_len, "epoch-end: out of memory");
   oc_state_init(s);
+  oc_brick_digests_t dig = {0};
   reason[0] = '\0';
-  e = ocp_epoch_dec_end(v->dec, &m, s, reason, sizeof reason);
+  e = v->desc.lean ? ocp_epoch_dec_end_lean(v->dec, &m, s, &dig, reason, sizeof reason)
+                   : ocp_epoch_dec_end(v->dec, &m, s, reason, sizeof reason);
   if (e) {
     oc_state_free(s);
     free(s);
     return ocp__abort_err(v, out, e, reason, why, why_len);
   }
-  /* The budget bounds the window of K states: the new one and the K − 1 held (nheld ≤ K − 1). */
+  /* The budget bounds the window of K states: the new one and the K − 1 held (nheld ≤ K − 1).
+   * A lean session counts the same ids, from its digests. */
   const oc_state_t *window[OCP__HELD_MAX + 1] = {s};
-  for (int i = 0; i < v->nheld; i++) window[i + 1] = v->held[i];
-  uint64_t resident = oc_resident_bytes(window, v->nheld + 1, v->welcome.slot_bytes, v->welcome.record_bytes);
+  const oc_brick_digests_t *dwindow[OCP__HELD_MAX + 1] = {&dig};
+  for (int i = 0; i < v->nheld; i++) window[i + 1] = v->held[i], dwindow[i + 1] = &v->hdig[i];
+  uint64_t resident = v->desc.lean
+                          ? oc_resident_bytes_lean(window, dwindow, v->nheld + 1, v->welcome.slot_bytes, v->welcome.record_bytes)
+                          : oc_resident_bytes(window, v->nheld + 1, v->welcome.slot_bytes, v->welcome.record_bytes);
   v->st.resident_bytes = resident;
   if (resident > v->st.resident_peak) v->st.resident_peak = resident;
   if (resident > v->welcome.budget) v->st.over_budget++;
   /* push as newest; the oldest of the window goes */
   ocp__drop_held(v, ocp__keep(v) - 1);
   memmove(&v->held[1], &v->held[0], (size_t)v->nheld * sizeof v->held[0]);
+  memmove(&v->hdig[1], &v->hdig[0], (size_t)v->nheld * sizeof v->hdig[0]);
   v->held[0] = s;
+  v->hdig[0] = dig;
   v->nheld++;
   v->st.states++;
   v->st.bricks_in += v->begin.bricks_sent;
@@ -445,4 +479,17 @@ const oc_state_t *ocp_viewer_state(const ocp_viewer_t *v, int i) {
   return i >= 0 && i < v->nheld ? v->held[i] : NULL;
 }
 
-void ocp_viewer_stats(const ocp_viewer_t *v, ocp_viewer_stats_t *out) { *out = v->st; }
+const oc_brick_digests_t *ocp_viewer_digests(const ocp_viewer_t *v, int i) {
+  return v->desc.lean && i >= 0 && i < v->nheld ? &v->hdig[i] : NULL;
+}
+
+void ocp_viewer_stats(const ocp_viewer_t *v, ocp_viewer_stats_t *out) {
+  *out = v->st;
+  /* What the kept states' arrays take in this process (capacities: what is allocated). */
+  uint64_t held = 0;
+  for (int i = 0; i < v->nheld; i++) {
+    held += (uint64_t)v->held[i]->node_cap * sizeof(oc_node_t) + (uint64_t)v->held[i]->brick_cap * sizeof(oc_brick_t);
+    held += (uint64_t)v->hdig[i].count * (sizeof *v->hdig[i].ids + sizeof *v->hdig[i].digests);
+  }
+  out->held_bytes = held;
+}

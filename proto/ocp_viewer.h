@@ -8,7 +8,15 @@
  * drive this same code, each with its own I/O.
  *
  * Resident bytes (the Conventions' budget measure) are counted here from what the session holds:
- * the K−1 complete states plus the records and bricks of the state being received. */
+ * the K−1 complete states plus the records and bricks of the state being received.
+ *
+ * A lean session (desc.lean, sent as OCP_CAP_DIGEST) verifies every state exactly as a full one,
+ * by the digest checksum (docs/protocol.md, "Digest checksum"), but keeps only the records and one
+ * (id, 64-bit digest) pair per brick: 12 bytes a brick instead of 2052, so a process can run many
+ * viewers with budgets far above its memory (overcast-stress). Its states, as given to the `state`
+ * callback and by ocp_viewer_state(), have brick_count 0 and bricks NULL; ocp_viewer_digests()
+ * gives their bricks. Its resident bytes are counted from the same ids, so they equal a full
+ * session's on the same stream. */
 #ifndef OC_PROTO_VIEWER_H
 #define OC_PROTO_VIEWER_H
 
@@ -28,15 +36,18 @@ typedef struct {
   uint32_t record_bytes;  /**< GPU bytes per node record; 0 → 32 */
   uint8_t max_depth;      /**< 0..21 */
   uint32_t width, height; /**< viewport */
-  uint32_t caps;          /**< OCP_CAP_*; OCP_CAP_ALL normally */
+  uint32_t caps;          /**< OCP_CAP_*; OCP_CAP_ALL normally (OCP_CAP_DICT for a lean viewer) */
   const char *token;      /**< NULL: none */
+  int lean;               /**< keep digests, not codes: adds OCP_CAP_DIGEST (either one selects
+                               it); with OCP_CAP_DELTA in caps, ocp_viewer_create() is OC_EINVAL */
 } ocp_viewer_desc_t;
 
 typedef struct {
   void *ctx;
   /*! The handshake completed (resumed: the held states were kept). */
   void (*welcome)(void *ctx, const ocp_welcome_t *w, int resumed);
-  /*! A new complete, verified state (now ocp_viewer_state(v, 0)); it has been acknowledged. */
+  /*! A new complete, verified state (now ocp_viewer_state(v, 0)); it has been acknowledged. In a
+   *  lean session it has no bricks (ocp_viewer_digests(v, 0) has them). */
   void (*state)(void *ctx, const oc_state_t *s, uint32_t bricks_received);
   void (*stats)(void *ctx, const ocp_stats_t *s);
   void (*control_reply)(void *ctx, const ocp_control_t *c);
@@ -49,6 +60,8 @@ typedef struct {
   uint64_t resident_bytes, resident_peak; /**< counted by the session itself */
   uint64_t over_budget;                   /**< states after which resident > granted budget (never) */
   uint64_t reconnects, resumed;
+  uint64_t held_bytes; /**< bytes of the arrays of the kept states in this process (records, and
+                            bricks or digests): not the budget measure, what the session costs */
 } ocp_viewer_stats_t;
 
 /*! ocp_viewer_create() : @return 0, OC_EINVAL (bad desc) or OC_ENOMEM. */
@@ -73,8 +86,12 @@ void ocp_viewer_goodbye(ocp_viewer_t *v, oc_buf_t *out);
 int ocp_viewer_ready(const ocp_viewer_t *v);
 /*! ocp_viewer_welcome() : the last WELCOME, or NULL before the first. */
 const ocp_welcome_t *ocp_viewer_welcome(const ocp_viewer_t *v);
-/*! ocp_viewer_state() : the i-th newest complete state (0: newest), or NULL. */
+/*! ocp_viewer_state() : the i-th newest complete state (0: newest), or NULL. A lean session's
+ *  states hold their records only (brick_count 0, bricks NULL). */
 const oc_state_t *ocp_viewer_state(const ocp_viewer_t *v, int i);
+/*! ocp_viewer_digests() : a lean session's bricks of state i, ascending (id, digest) pairs, or NULL
+ *  (no such state, or a full session). oc_state_digest_checksum(state, digests) is what it ACKed. */
+const oc_brick_digests_t *ocp_viewer_digests(const ocp_viewer_t *v, int i);
 void ocp_viewer_stats(const ocp_viewer_t *v, ocp_viewer_stats_t *out);
 
 #endif /* OC_PROTO_VIEWER_H */

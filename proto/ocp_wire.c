@@ -395,7 +395,11 @@ int ocp_get_hello(const uint8_t *p, size_t n, ocp_hello_t *m, char *why, size_t 
     return oc_errorf(OC_ECORRUPT, why, why_len, "hello: role %u is neither viewer (0) nor control (1)", (unsigned)m->role);
   if (m->max_depth > OCP__MAX_DEPTH)
     return oc_errorf(OC_ECORRUPT, why, why_len, "hello: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
-  if (m->caps & ~OCP_CAP_ALL) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: caps 0x%" PRIx32 " has unknown bits", m->caps);
+  if (m->caps & ~OCP_CAP_KNOWN) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: caps 0x%" PRIx32 " has unknown bits", m->caps);
+  if ((m->caps & OCP_CAP_DIGEST) && (m->caps & OCP_CAP_DELTA))
+    return oc_errorf(OC_ECORRUPT, why, why_len,
+                     "hello: caps 0x%" PRIx32 " combine digest (0x4) with delta (0x1): a viewer without codes cannot apply deltas",
+                     m->caps);
   if (m->role == OCP_ROLE_VIEWER) {
     if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: budget is zero");
     OC_TRY(ocp__check_range_u32(msg, "slot_bytes", m->slot_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));

@@ -129,9 +129,14 @@ void ocp_frame_end(oc_buf_t *b, size_t header_offset);
 
 #define OCP_ROLE_VIEWER 0
 #define OCP_ROLE_CONTROL 1
-#define OCP_CAP_DELTA 0x1u /**< the viewer applies brick deltas */
-#define OCP_CAP_DICT 0x2u  /**< the viewer takes zstd dictionaries */
+#define OCP_CAP_DELTA 0x1u  /**< the viewer applies brick deltas */
+#define OCP_CAP_DICT 0x2u   /**< the viewer takes zstd dictionaries */
+#define OCP_CAP_DIGEST 0x4u /**< the viewer verifies states by their digest checksum and keeps no codes
+                                 (a lean viewer); excludes OCP_CAP_DELTA, which needs the base codes */
+/*! What a full viewer sends. */
 #define OCP_CAP_ALL (OCP_CAP_DELTA | OCP_CAP_DICT)
+/*! Every bit this build knows: HELLO refuses others (and DIGEST together with DELTA). */
+#define OCP_CAP_KNOWN (OCP_CAP_DELTA | OCP_CAP_DICT | OCP_CAP_DIGEST)
 
 typedef struct {
   uint16_t min_version, max_version;
@@ -144,7 +149,7 @@ typedef struct {
   uint32_t resume_session; /**< 0: a new session */
   uint64_t resume_secret;
   uint64_t held_epoch;     /**< newest complete state the viewer holds (resume only) */
-  uint64_t held_checksum;
+  uint64_t held_checksum;  /**< its checksum; its digest checksum when caps has OCP_CAP_DIGEST */
   uint16_t token_len;
   uint8_t token[OCP_TOKEN_MAX];
 } ocp_hello_t;
@@ -200,7 +205,8 @@ typedef struct {
 } ocp_epoch_begin_t;
 
 typedef struct {
-  uint64_t epoch, checksum; /**< XXH3-64 of the state's serialisation (oc_state_checksum) */
+  uint64_t epoch, checksum; /**< XXH3-64 of the state's serialisation (oc_state_checksum), or for a
+                                 viewer with OCP_CAP_DIGEST its digest checksum (oc_state_digest) */
 } ocp_epoch_end_t;
 
 typedef struct {

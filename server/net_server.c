@@ -242,7 +242,7 @@ static void stream_state(ocs_session_t *s, const oc_state_t *base) {
   s->streaming = 1;
   s->awaiting_ack = 0;
   s->stream_epoch = o.state->epoch;
-  s->stream_checksum = oc_state_checksum(o.state);
+  s->stream_checksum = ocp_epoch_enc_checksum(s->enc); /* what EPOCH_END carries, in the session's form */
   s->last_out_epoch = o.state->epoch;
   s->stream_started = ocs_net_now();
   s->epochs++;
@@ -305,8 +305,10 @@ static int try_resume(ocs_session_t *s, ocs_session_t *old, const ocp_hello_t *h
   if (old->state != OCS_SS_LINGER && old->state != OCS_SS_READY) return 0;
   const oc_state_t *h0 = ocs_viewer_held(old->viewer, 0), *h1 = ocs_viewer_held(old->viewer, 1);
   int in_flight = ocs_viewer_in_flight(old->viewer);
-  int have0 = h0 && h0->epoch == h->held_epoch && oc_state_checksum(h0) == h->held_checksum;
-  int have1 = !have0 && in_flight && h1 && h1->epoch == h->held_epoch && oc_state_checksum(h1) == h->held_checksum;
+  /* the viewer names its state by the checksum it verified: the digest form for a lean viewer */
+  uint64_t (*sum)(const oc_state_t *) = (h->caps & OCP_CAP_DIGEST) ? oc_state_digest : oc_state_checksum;
+  int have0 = h0 && h0->epoch == h->held_epoch && sum(h0) == h->held_checksum;
+  int have1 = !have0 && in_flight && h1 && h1->epoch == h->held_epoch && sum(h1) == h->held_checksum;
   if (!have0 && !have1) return 0;
   /* Take over: the old connection (if still open) is closed without dropping the viewer. */
   s->viewer = old->viewer;
@@ -366,7 +368,10 @@ static void handle_hello(ocs_session_t *s, const uint8_t *p, size_t n) {
   }
   ocp_epoch_enc_free(s->enc);
   s->enc = NULL;
-  ocp_enc_desc_t ed = {.level = srv->desc.zstd_level, .deltas = srv->desc.deltas >= 0 && (h.caps & OCP_CAP_DELTA)};
+  /* HELLO never has DIGEST with DELTA (ocp_get_hello), so a lean viewer never gets a delta */
+  ocp_enc_desc_t ed = {.level = srv->desc.zstd_level,
+                       .deltas = srv->desc.deltas >= 0 && (h.caps & OCP_CAP_DELTA),
+                       .digest = (h.caps & OCP_CAP_DIGEST) != 0};
   int r = ocp_epoch_enc_create(&s->enc, &ed);
   if (r < 0) {
     ocs_session_close(s, OCP_CODE_INTERNAL, oc_strerror(r));

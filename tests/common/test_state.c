@@ -24,6 +24,9 @@
  * the byte format changed: bump OC_STATE_VERSION and document it, never just update the number. */
 #define GOLDEN_SIZE 6708u
 #define GOLDEN_CHECKSUM 0xc9d949fa8e9ec21bull
+/* Its digest checksum (lean viewers; docs/protocol.md, "Digest checksum"): the same stream with each
+ * brick as u32 id + u64 XXH3-64 of its 2048 code bytes. */
+#define GOLDEN_DIGEST 0x778e2c0f5a869deeull
 
 static void expect_valid(const oc_state_t *s) {
   char why[256];
@@ -423,6 +426,121 @@ static void test_state__golden(void **state) {
   oc_state_free(&s);
 }
 
+/*-*** Digest checksum (lean states) ***/
+
+/* The digest stream built by hand from the serialisation: header and records verbatim (brick count
+ * included), then per brick its 4 id bytes and the little-endian XXH3-64 of its 2048 code bytes. */
+static uint64_t digest_by_hand(const oc_state_t *s) {
+  size_t len;
+  uint8_t *buf = serialize(s, &len);
+  size_t head = OC_STATE_HEADER_BYTES + (size_t)s->node_count * OC_STATE_RECORD_BYTES;
+  size_t n = head + (size_t)s->brick_count * 12;
+  uint8_t *sub = malloc(n);
+  assert_non_null(sub);
+  memcpy(sub, buf, head);
+  for (uint32_t i = 0; i < s->brick_count; i++) {
+    const uint8_t *b = buf + head + (size_t)i * OC_STATE_BRICK_BYTES;
+    uint8_t *e = sub + head + (size_t)i * 12;
+    memcpy(e, b, 4);
+    uint64_t d = XXH3_64bits(b + 4, OC_BRICK_CODE_BYTES);
+    for (int k = 0; k < 8; k++) e[4 + k] = (uint8_t)(d >> (8 * k));
+  }
+  assert_true(len == head + (size_t)s->brick_count * OC_STATE_BRICK_BYTES + 8);
+  uint64_t h = XXH3_64bits(sub, n);
+  free(sub);
+  free(buf);
+  return h;
+}
+
+static void test_state__digest_golden(void **state) {
+  (void)state;
+  oc_state_t s, lean;
+  golden_state(&s);
+  uint64_t h = oc_state_digest(&s);
+  printf("  golden state: digest checksum 0x%016llx\n", (unsigned long long)h);
+  assert_true(h == digest_by_hand(&s));
+  assert_true(h == GOLDEN_DIGEST);
+  assert_true(h != oc_state_checksum(&s));
+  /* each brick's digest is XXH3-64 of its serialised codes */
+  size_t len;
+  uint8_t *buf = serialize(&s, &len);
+  for (uint32_t i = 0; i < s.brick_count; i++) {
+    const uint8_t *b = buf + OC_STATE_HEADER_BYTES + s.node_count * OC_STATE_RECORD_BYTES + i * OC_STATE_BRICK_BYTES;
+    assert_true(oc_brick_digest(&s.bricks[i].codes) == XXH3_64bits(b + 4, OC_BRICK_CODE_BYTES));
+  }
+  free(buf);
+  /* what a lean viewer holds: the records without bricks, and the (id, digest) pairs */
+  oc_brick_digests_t d = {0};
+  assert_int_equal(oc_brick_digests_of(&d, &s), 0);
+  assert_int_equal(d.count, 3);
+  assert_int_equal(d.ids[0], 3), assert_int_equal(d.ids[1], 7), assert_int_equal(d.ids[2], 42);
+  assert_int_equal(oc_brick_digests_find(&d, 7), 1);
+  assert_int_equal(oc_brick_digests_find(&d, 8), -1);
+  oc_state_init(&lean);
+  assert_int_equal(oc_state_copy(&lean, &s), 0);
+  free(lean.bricks);
+  lean.bricks = NULL, lean.brick_count = lean.brick_cap = 0;
+  assert_true(oc_state_digest_checksum(&lean, &d) == h); /* the header's brick count is d's */
+  assert_true(oc_state_digest_checksum(&s, &d) == h);    /* s's own bricks are ignored */
+  /* every code bit, id and digest is seen */
+  s.bricks[1].codes.code[1][300] ^= 0x0100;
+  assert_true(oc_state_digest(&s) != h);
+  s.bricks[1].codes.code[1][300] ^= 0x0100;
+  d.digests[2] ^= 1u << 20;
+  assert_true(oc_state_digest_checksum(&lean, &d) != h);
+  d.digests[2] ^= 1u << 20;
+  lean.nodes[4].range[0].hi = lean.nodes[4].range[0].lo = 0.5f;
+  assert_true(oc_state_digest_checksum(&lean, &d) != h);
+  oc_state_free(&lean);
+  oc_brick_digests_free(&d);
+  oc_brick_digests_free(&d); /* idempotent */
+  assert_null(d.ids);
+  /* a state without bricks, and a larger one, against the hand-built stream */
+  oc_state_t r;
+  oc_state_init(&r);
+  oc_node_t n = node(OC_KEY_ROOT, OC_NODE_EMPTY, 0, 0, 0, 0, 0);
+  oc_state_add_node(&r, &n);
+  assert_true(oc_state_digest(&r) == digest_by_hand(&r));
+  oc_state_free(&r);
+  oc_state_free(&s);
+}
+
+/* oc_state_validate_lean() applies oc_state_validate()'s brick rules to an id list. */
+static void expect_lean_invalid(const oc_state_t *s, const oc_brick_digests_t *d, const char *needle) {
+  char why[256];
+  int e = oc_state_validate_lean(s, d, why, sizeof why);
+  if (e != OC_ECORRUPT) fail_msg("expected ECORRUPT (%s), got %d", needle, e);
+  if (!strstr(why, needle)) fail_msg("reason '%s' lacks '%s'", why, needle);
+}
+
+static void test_state__validate_lean(void **state) {
+  (void)state;
+  oc_state_t s;
+  oc_brick_digests_t d = {0};
+  char why[256];
+  golden_state(&s);
+  assert_int_equal(oc_brick_digests_of(&d, &s), 0);
+  if (oc_state_validate_lean(&s, &d, why, sizeof why)) fail_msg("%s", why);
+  uint32_t id1 = d.ids[1];
+  d.ids[1] = 3;
+  expect_lean_invalid(&s, &d, "is duplicated");
+  d.ids[1] = 50;
+  expect_lean_invalid(&s, &d, "is out of order");
+  d.ids[1] = 5;
+  expect_lean_invalid(&s, &d, "references missing brick 7");
+  d.ids[1] = id1;
+  d.count = 2;
+  expect_lean_invalid(&s, &d, "references missing brick 42");
+  d.count = 3;
+  s.nodes[14].brick_id = 7; /* brick 42 is then unreferenced, 7 twice */
+  expect_lean_invalid(&s, &d, "referenced by more than one node");
+  s.nodes[14].brick_id = 42;
+  s.nodes[0].key = 0x10;
+  expect_lean_invalid(&s, &d, "invalid key"); /* the records' rules are the same code */
+  oc_state_free(&s);
+  oc_brick_digests_free(&d);
+}
+
 /*-*** Files ***/
 
 static char tmpdir[64];
@@ -517,6 +635,16 @@ static void test_state__resident_bytes(void **state) {
   const oc_state_t *many[10] = {&a, &b, &a, &b, &a, &b, &a, &b, &a, NULL};
   assert_int_equal(oc_resident_bytes(many, 10, 1, 0), 4u);
   assert_int_equal(oc_resident_bytes(NULL, 0, 1, 1), 0u);
+  /* lean: the same count from the id lists */
+  oc_brick_digests_t da = {0}, db = {0};
+  assert_int_equal(oc_brick_digests_of(&da, &a), 0);
+  assert_int_equal(oc_brick_digests_of(&db, &b), 0);
+  const oc_brick_digests_t *dtwo[] = {&da, &db}, *done[] = {&da}, *dmany[10] = {&da, &db, &da, &db, &da, &db, &da, &db, &da, NULL};
+  assert_int_equal(oc_resident_bytes_lean(two, dtwo, 2, 4096, 64), oc_resident_bytes(two, 2, 4096, 64));
+  assert_int_equal(oc_resident_bytes_lean(one, done, 1, 4096, 64), 3u * 4096u + 15u * 64u);
+  assert_int_equal(oc_resident_bytes_lean(many, dmany, 10, 1, 0), 4u);
+  oc_brick_digests_free(&da);
+  oc_brick_digests_free(&db);
   oc_state_free(&a);
   oc_state_free(&b);
 }
@@ -616,6 +744,8 @@ int main(void) {
       cmocka_unit_test(test_state__bit_flips),
       cmocka_unit_test(test_state__sealed_corruption),
       cmocka_unit_test(test_state__golden),
+      cmocka_unit_test(test_state__digest_golden),
+      cmocka_unit_test(test_state__validate_lean),
       cmocka_unit_test_setup_teardown(test_state__save_load, setup_tmp, teardown_tmp),
       cmocka_unit_test(test_state__resident_bytes),
       cmocka_unit_test(test_state__fuzz_seeds),

@@ -9,7 +9,8 @@
  * Mode bit 0 clear: payloads go in as they are (zstd frames). Set: RECORDS and BRICKS carry their
  * raw content after the head, and the harness wraps it in a zstd frame of raw blocks (written by
  * hand, RFC 8878) with the raw length patched in, so mutations reach the op-stream and batch parsers
- * instead of dying in zstd.
+ * instead of dying in zstd. Mode bit 1: the viewer is lean (ocp_epoch_dec_*_lean: digests instead
+ * of codes; what completes must validate with its ids and match its digest checksum).
  *
  * Seeds (tests/fuzz/corpus/epoch) come from this file's generator, built by hand once:
  *   cc -std=c17 -DFUZZ_EPOCH_SEEDS -D_POSIX_C_SOURCE=200809L -Icommon -Ishaders -Iproto -Itests \
@@ -61,7 +62,20 @@ static void base_state(oc_state_t *s) {
 
 typedef struct {
   const oc_state_t *held[2]; /* the fixed base and the newest decoded state */
+  const oc_brick_digests_t *dig[2]; /* lean: the base's digests and the newest state's */
 } held_t;
+
+static int lean_lookup(void *ctx, uint32_t id, uint64_t *digest) {
+  const held_t *h = ctx;
+  for (int i = 0; i < 2; i++) {
+    int64_t k = oc_brick_digests_find(h->dig[i], id);
+    if (k >= 0) {
+      *digest = h->dig[i]->digests[k];
+      return 1;
+    }
+  }
+  return 0;
+}
 
 static const oc_brick_codes_t *lookup(void *ctx, uint32_t id) {
   const held_t *h = ctx;
@@ -96,7 +110,7 @@ static void wrap_raw(oc_buf_t *out, const uint8_t *head, size_t head_len, const 
 /* Routes the frames of data[0..size) to a fresh decoder as a viewer holding `base` would (raw:
  * RECORDS and BRICKS content is wrapped first). @return the epochs completed (each checked: valid,
  * and hashing to its EPOCH_END). */
-static int feed(const uint8_t *data, size_t size, const oc_state_t *base, int raw) {
+static int feed(const uint8_t *data, size_t size, const oc_state_t *base, int raw, int lean) {
   ocp_epoch_dec_t *d = NULL;
   if (ocp_epoch_dec_create(&d) < 0) return 0;
   ocp_reader_t r;
@@ -104,7 +118,9 @@ static int feed(const uint8_t *data, size_t size, const oc_state_t *base, int ra
   oc_state_t newest, out;
   oc_state_init(&newest);
   oc_state_init(&out);
-  held_t h = {{base, NULL}};
+  oc_brick_digests_t base_dig = {0}, newest_dig = {0}, out_dig = {0};
+  if (lean && oc_brick_digests_of(&base_dig, base) < 0) abort();
+  held_t h = {{base, NULL}, {&base_dig, NULL}};
   oc_buf_t wrapped = {0};
   char why[512];
   int done = 0;
@@ -126,7 +142,10 @@ static int feed(const uint8_t *data, size_t size, const oc_state_t *base, int ra
           const oc_state_t *b = m.base_epoch == OCP_NO_BASE                       ? NULL
                                 : newest.node_count && m.base_epoch == newest.epoch ? &newest
                                                                                     : base;
-          ocp_epoch_dec_begin(d, &m, b, lookup, &h, why, sizeof why);
+          if (lean)
+            ocp_epoch_dec_begin_lean(d, &m, b, lean_lookup, &h, why, sizeof why);
+          else
+            ocp_epoch_dec_begin(d, &m, b, lookup, &h, why, sizeof why);
           break;
         }
         case OCP_MSG_RECORDS: ocp_epoch_dec_records(d, p, n, why, sizeof why); break;
@@ -135,9 +154,21 @@ static int feed(const uint8_t *data, size_t size, const oc_state_t *base, int ra
         case OCP_MSG_EPOCH_END: {
           ocp_epoch_end_t m;
           if (ocp_get_epoch_end(p, n, &m, why, sizeof why) < 0) break;
-          if (ocp_epoch_dec_end(d, &m, &out, why, sizeof why) < 0) break;
-          /* accepted: a valid state that hashes to what EPOCH_END said */
-          if (oc_state_validate(&out, NULL, 0) != 0 || oc_state_checksum(&out) != m.checksum || out.epoch != m.epoch) abort();
+          if (lean) {
+            if (ocp_epoch_dec_end_lean(d, &m, &out, &out_dig, why, sizeof why) < 0) break;
+            /* accepted: valid records with those ids, hashing to what EPOCH_END said */
+            if (out.brick_count || oc_state_validate_lean(&out, &out_dig, NULL, 0) != 0 ||
+                oc_state_digest_checksum(&out, &out_dig) != m.checksum || out.epoch != m.epoch)
+              abort();
+            oc_brick_digests_free(&newest_dig);
+            newest_dig = out_dig;
+            memset(&out_dig, 0, sizeof out_dig);
+            h.dig[1] = &newest_dig;
+          } else {
+            if (ocp_epoch_dec_end(d, &m, &out, why, sizeof why) < 0) break;
+            /* accepted: a valid state that hashes to what EPOCH_END said */
+            if (oc_state_validate(&out, NULL, 0) != 0 || oc_state_checksum(&out) != m.checksum || out.epoch != m.epoch) abort();
+          }
           oc_state_free(&newest);
           newest = out; /* the decoder is idle: nothing refers to the old newest any more */
           oc_state_init(&out);
@@ -154,6 +185,9 @@ static int feed(const uint8_t *data, size_t size, const oc_state_t *base, int ra
   ocp_epoch_dec_free(d);
   oc_state_free(&newest);
   oc_state_free(&out);
+  oc_brick_digests_free(&base_dig);
+  oc_brick_digests_free(&newest_dig);
+  oc_brick_digests_free(&out_dig);
   return done;
 }
 
@@ -166,7 +200,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     base_state(&base);
     ready = 1;
   }
-  if (size >= 1) feed(data + 1, size - 1, &base, data[0] & 1);
+  if (size >= 1) feed(data + 1, size - 1, &base, data[0] & 1, (data[0] >> 1) & 1);
   return 0;
 }
 
@@ -190,7 +224,7 @@ static void encode(oc_buf_t *b, const ocp_enc_desc_t *desc, const oc_state_t *s,
 /* Writes one seed (mode byte, then the frames) after checking that it decodes to `epochs`
  * complete states. */
 static void save(const char *dir, const char *name, uint8_t mode, const oc_buf_t *b, const oc_state_t *base, int epochs) {
-  if (feed(b->data, b->len, base, mode & 1) != epochs) {
+  if (feed(b->data, b->len, base, mode & 1, (mode >> 1) & 1) != epochs) {
     fprintf(stderr, "%s: does not decode\n", name);
     abort();
   }
@@ -378,6 +412,12 @@ int main(int argc, char **argv) {
   raw_epoch(&b, &s6, &base);
   raw_epoch(&b, &s7, &s6);
   save(argv[1], "raw_chain.bin", 1, &b, &base, 2);
+  /* a lean viewer: digest checksums, no deltas, two epochs chained */
+  ocp_enc_desc_t lean = {.digest = 1};
+  b.len = 0;
+  encode(&b, &lean, &s6, &base);
+  encode(&b, &lean, &s7, &s6);
+  save(argv[1], "lean_chain.bin", 2, &b, &base, 2);
   oc_buf_free(&b);
   oc_state_free(&base);
   oc_state_free(&s6);

@@ -5,9 +5,9 @@
  *  - as a stream of frames: every frame is decoded by its type from an exact-size copy (so ASan
  *    sees any over-read), and whatever a decoder accepts must encode back to the same bytes (each
  *    message has one byte form);
- *  - as what a server sends a viewer (and a control client) after a synthetic WELCOME, fed in
- *    chunks: the session must fail cleanly (an ERROR frame last in its output) or keep only valid
- *    states, never more than K − 1, and survive a reconnect with resume.
+ *  - as what a server sends a viewer (full and lean) and a control client after a synthetic WELCOME,
+ *    fed in chunks: the session must fail cleanly (an ERROR frame last in its output) or keep only
+ *    valid states, never more than K − 1, and survive a reconnect with resume.
  * Seeds: tests/fuzz/corpus/wire/ (written by tests/proto/test_viewer.c with
  * OC_FUZZ_WIRE_CORPUS_OUT=<dir>). */
 #include <stdint.h>
@@ -137,9 +137,15 @@ static void fuzz_frames(const uint8_t *data, size_t size) {
 
 /*-*** Viewer ***/
 
+/* ctx: points to the session when it is lean (its states hold records only; its bricks are digests). */
 static void on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
-  (void)ctx;
-  if (bricks > s->brick_count || oc_state_validate(s, NULL, 0) != 0) abort();
+  ocp_viewer_t *lean = *(ocp_viewer_t **)ctx;
+  const oc_brick_digests_t *d = lean ? ocp_viewer_digests(lean, 0) : NULL;
+  if (lean) {
+    if (!d || bricks > d->count || s->brick_count || oc_state_validate_lean(s, d, NULL, 0) != 0) abort();
+  } else if (bricks > s->brick_count || oc_state_validate(s, NULL, 0) != 0) {
+    abort();
+  }
 }
 
 /* out ends with an ERROR frame. */
@@ -187,16 +193,18 @@ static int feed_chunks(ocp_viewer_t *v, const uint8_t *data, size_t size, size_t
   return 0;
 }
 
-static void fuzz_viewer(const uint8_t *data, size_t size, int role, int kept, size_t chunk) {
+static void fuzz_viewer(const uint8_t *data, size_t size, int role, int kept, size_t chunk, int lean) {
   ocp_viewer_desc_t d;
   memset(&d, 0, sizeof d);
   d.role = (uint8_t)role;
   d.budget = 1u << 20;
   d.width = d.height = 64;
-  d.caps = OCP_CAP_ALL;
-  ocp_viewer_events_t ev = {NULL, NULL, on_state, NULL, NULL, NULL};
-  ocp_viewer_t *v;
+  d.caps = lean ? OCP_CAP_DICT : OCP_CAP_ALL;
+  d.lean = lean;
+  ocp_viewer_t *v, *lean_v = NULL;
+  ocp_viewer_events_t ev = {&lean_v, NULL, on_state, NULL, NULL, NULL};
   if (ocp_viewer_create(&v, &d, &ev) != 0) return;
+  if (lean && role == OCP_ROLE_VIEWER) lean_v = v;
   oc_buf_t out = {0}, w = {0};
   char why[256];
   for (int conn = 0; conn < 2; conn++) { /* a viewer's second connection resumes */
@@ -209,9 +217,10 @@ static void fuzz_viewer(const uint8_t *data, size_t size, int role, int kept, si
     /* what is held: at most K − 1 states, all valid, newest first */
     for (int i = 0; i < 3; i++) {
       const oc_state_t *s = ocp_viewer_state(v, i);
+      const oc_brick_digests_t *dg = ocp_viewer_digests(v, i);
       if (role != OCP_ROLE_VIEWER || i >= kept - 1) {
-        if (s) abort();
-      } else if (s && oc_state_validate(s, NULL, 0) != 0) {
+        if (s || dg) abort();
+      } else if (s && (lean ? !dg || oc_state_validate_lean(s, dg, NULL, 0) != 0 : dg || oc_state_validate(s, NULL, 0) != 0)) {
         abort();
       }
     }
@@ -228,8 +237,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   fuzz_frames(data, size);
   /* the chunk size comes from the input's length, so every byte stays part of the stream */
   size_t chunk = 1 + size % 509;
-  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 2 + (int)(size & 1), size);
-  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 3, chunk);
-  fuzz_viewer(data, size, OCP_ROLE_CONTROL, 0, chunk);
+  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 2 + (int)(size & 1), size, 0);
+  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 3, chunk, 0);
+  fuzz_viewer(data, size, OCP_ROLE_VIEWER, 3, chunk, 1); /* lean: digests, no codes */
+  fuzz_viewer(data, size, OCP_ROLE_CONTROL, 0, chunk, 0);
   return 0;
 }

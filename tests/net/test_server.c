@@ -29,6 +29,7 @@
 #include "oc_state.h"
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
+#include "state_fixture.h" /* records_equal */
 
 static void sleep_us(long us) {
   struct timespec t = {us / 1000000, (us % 1000000) * 1000};
@@ -134,10 +135,11 @@ static ocp_camera_t sphere_camera(int w, int h) {
   return (ocp_camera_t){cam.pos, cam.forward, cam.up, 40.0, (uint32_t)w, (uint32_t)h};
 }
 
-static void viewer_open(viewer_t *v, int port, uint64_t budget, const char *token) {
+/* lean: a viewer that keeps digests, not codes (OCP_CAP_DIGEST). */
+static void viewer_open_as(viewer_t *v, int port, uint64_t budget, const char *token, int lean) {
   memset(v, 0, sizeof *v);
   ocp_viewer_desc_t d = {.role = OCP_ROLE_VIEWER, .budget = budget, .max_depth = 21, .width = 160, .height = 90,
-                         .caps = OCP_CAP_ALL, .token = token};
+                         .caps = lean ? OCP_CAP_DICT : OCP_CAP_ALL, .token = token, .lean = lean};
   ocp_viewer_events_t ev = {.ctx = v, .welcome = ev_welcome, .state = ev_state, .stats = ev_stats, .closed = ev_closed};
   char why[512];
   int r = ocv_conn_open(&v->c, "127.0.0.1", port, &d, &ev, 5.0, why, sizeof why);
@@ -145,6 +147,8 @@ static void viewer_open(viewer_t *v, int port, uint64_t budget, const char *toke
   ocp_camera_t cam = sphere_camera(160, 90);
   assert_int_equal(ocv_conn_camera(v->c, &cam), 0);
 }
+
+static void viewer_open(viewer_t *v, int port, uint64_t budget, const char *token) { viewer_open_as(v, port, budget, token, 0); }
 
 /* Polls until the viewer has `n` states, or is closed (returns its poll result). */
 static int viewer_wait(viewer_t *v, int n, double timeout_s) {
@@ -483,6 +487,114 @@ static void test_server__resume(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
+/* A lean viewer (digest checksum, no codes kept) beside a full one with the same camera: both get
+ * and acknowledge every epoch, the lean one holds the full one's records and the digests of its
+ * bricks, both count the same resident bytes, and the lean one resumes (after an acknowledged
+ * epoch and after losing one in flight). A HELLO asking for digests and deltas is refused. */
+static void test_server__lean_viewer(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(&s, extra);
+  viewer_t full, lean;
+  char why[256], text[1100];
+  viewer_open_as(&full, s.port, 8u << 20, NULL, 0);
+  viewer_open_as(&lean, s.port, 8u << 20, NULL, 1);
+  int e = 0;
+  for (e = 1; e <= 3; e++) {
+    assert_int_equal(ocv_conn_wait_ready(full.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_wait_ready(lean.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_flush(full.c, 5, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_flush(lean.c, 5, why, sizeof why), 0);
+    sleep_us(50000);
+    step(s.port, 1); /* waits for the previous ACKs: a refused one would have closed the viewer */
+    assert_int_equal(viewer_wait(&full, e, 60), 0);
+    assert_int_equal(viewer_wait(&lean, e, 60), 0);
+  }
+  ocp_viewer_t *fv = ocv_conn_session(full.c), *lv = ocv_conn_session(lean.c);
+  const oc_state_t *fs = ocp_viewer_state(fv, 0), *ls = ocp_viewer_state(lv, 0);
+  const oc_brick_digests_t *ld = ocp_viewer_digests(lv, 0);
+  assert_non_null(fs);
+  assert_non_null(ls);
+  assert_non_null(ld);
+  assert_null(ocp_viewer_digests(fv, 0));
+  assert_true(fs->brick_count > 10);
+  assert_int_equal(ls->brick_count, 0);
+  records_equal(ls, fs); /* same camera, same plan, same ids */
+  oc_brick_digests_t want = {0};
+  assert_int_equal(oc_brick_digests_of(&want, fs), 0);
+  assert_int_equal(ld->count, want.count);
+  assert_memory_equal(ld->ids, want.ids, want.count * sizeof *want.ids);
+  assert_memory_equal(ld->digests, want.digests, want.count * sizeof *want.digests);
+  assert_true(oc_state_digest_checksum(ls, ld) == oc_state_digest(fs));
+  oc_brick_digests_free(&want);
+  ocp_viewer_stats_t fst, lst;
+  ocp_viewer_stats(fv, &fst);
+  ocp_viewer_stats(lv, &lst);
+  print_message("lean viewer: %llu bricks in, resident %llu (full %llu), held %llu bytes (full %llu)\n",
+                (unsigned long long)lst.bricks_in, (unsigned long long)lst.resident_bytes, (unsigned long long)fst.resident_bytes,
+                (unsigned long long)lst.held_bytes, (unsigned long long)fst.held_bytes);
+  assert_int_equal(lst.resident_bytes, fst.resident_bytes);
+  assert_int_equal(lst.bricks_in, fst.bricks_in);
+  assert_true(lst.held_bytes * 10 < fst.held_bytes); /* records dominate here: few bricks a record */
+  assert_int_equal(lean.closed_code, 0);
+
+  /* resume after an acknowledged epoch: the next one is a difference, its kept bricks digests */
+  assert_int_equal(ocv_conn_flush(lean.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(full.c, 5, why, sizeof why), 0);
+  sleep_us(100000);
+  assert_int_equal(ocv_conn_reconnect(lean.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_wait_ready(lean.c, 5, why, sizeof why), 0);
+  assert_int_equal(lean.resumed, 1);
+  assert_int_equal(ocv_conn_flush(lean.c, 5, why, sizeof why), 0);
+  sleep_us(50000);
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&lean, 4, 60), 0);
+  assert_int_equal(viewer_wait(&full, 4, 60), 0);
+  assert_int_equal(lean.epoch, 4);
+  /* the epoch in flight lost with the connection: sent again, verified by digests */
+  assert_int_equal(ocv_conn_flush(lean.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(full.c, 5, why, sizeof why), 0);
+  sleep_us(100000);
+  step(s.port, 1);
+  sleep_us(300000);
+  assert_int_equal(ocv_conn_reconnect(lean.c, 5, why, sizeof why), 0);
+  assert_int_equal(viewer_wait(&lean, 5, 60), 0);
+  assert_int_equal(viewer_wait(&full, 5, 60), 0);
+  assert_int_equal(lean.resumed, 2);
+  assert_int_equal(lean.epoch, 5);
+  lv = ocv_conn_session(lean.c);
+  fv = ocv_conn_session(full.c);
+  records_equal(ocp_viewer_state(lv, 0), ocp_viewer_state(fv, 0));
+  assert_true(oc_state_digest_checksum(ocp_viewer_state(lv, 0), ocp_viewer_digests(lv, 0)) ==
+              oc_state_digest(ocp_viewer_state(fv, 0)));
+  ocp_viewer_stats(lv, &lst);
+  ocp_viewer_stats(fv, &fst);
+  assert_int_equal(lst.resumed, 2);
+  assert_int_equal(lst.resident_bytes, fst.resident_bytes);
+  /* and one more epoch after the resume: its ACK was accepted */
+  assert_int_equal(ocv_conn_flush(lean.c, 5, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(full.c, 5, why, sizeof why), 0);
+  sleep_us(50000);
+  step(s.port, 1);
+  assert_int_equal(viewer_wait(&lean, 6, 60), 0);
+  assert_int_equal(lean.closed_code, 0);
+
+  /* digests with deltas: refused, naming both */
+  int fd = raw_connect(s.port);
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
+                   .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16, .caps = OCP_CAP_DIGEST | OCP_CAP_DELTA};
+  ocp_put_hello(&b, &h);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_MALFORMED);
+  if (!strstr(text, "digest") || !strstr(text, "delta")) fail_msg("'%s' does not name the conflict", text);
+  ocv_conn_close(full.c);
+  ocv_conn_close(lean.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
 /* A viewer that never reads does not hold up the others: they get every epoch, it is coalesced,
  * the server keeps its unsent bytes bounded (an epoch is produced only as the socket drains), and
  * the stall timeout closes it. Small socket buffers make its backlog visible to the server. */
@@ -653,6 +765,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_server__hostile_peers, teardown),
       cmocka_unit_test_teardown(test_server__token, teardown),
       cmocka_unit_test_teardown(test_server__resume, teardown),
+      cmocka_unit_test_teardown(test_server__lean_viewer, teardown),
       cmocka_unit_test_teardown(test_server__slow_viewer, teardown),
       cmocka_unit_test_teardown(test_server__idle_timeout, teardown),
       cmocka_unit_test_teardown(test_server__control, teardown),

@@ -490,6 +490,256 @@ static void test_epoch__wrong_delta_base(void **state) {
   free_pair(&p);
 }
 
+/*-*** Lean decoding (OCP_CAP_DIGEST) ***/
+
+/* Digests a lean viewer holds: those of up to two states, optionally one id answered wrongly. */
+typedef struct {
+  const oc_brick_digests_t *held[2];
+  uint32_t bad_id;      /* 0: none */
+  int bad_missing;      /* bad_id is not held */
+  uint64_t bad_digest;  /* else what bad_id returns */
+} lean_held_t;
+
+static int lean_lookup(void *ctx, uint32_t id, uint64_t *digest) {
+  const lean_held_t *h = ctx;
+  if (h->bad_id && id == h->bad_id) {
+    *digest = h->bad_digest;
+    return !h->bad_missing;
+  }
+  for (int i = 0; i < 2; i++) {
+    int64_t k = oc_brick_digests_find(h->held[i], id);
+    if (k >= 0) {
+      *digest = h->held[i]->digests[k];
+      return 1;
+    }
+  }
+  return 0;
+}
+
+/* decode_frames() for a lean viewer: records into *out, bricks as digests into *dig. */
+static int decode_lean(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t *base, lean_held_t *h, oc_state_t *out,
+                       oc_brick_digests_t *dig, char *why, size_t why_len) {
+  int r = OC_ECORRUPT;
+  snprintf(why, why_len, "no epoch end");
+  for (int i = 0; i < fs->n; i++) {
+    const frame_t *f = &fs->f[i];
+    switch (f->type) {
+      case OCP_MSG_EPOCH_BEGIN: {
+        ocp_epoch_begin_t m;
+        if ((r = ocp_get_epoch_begin(f->p, f->n, &m, why, why_len)) < 0) return r;
+        r = ocp_epoch_dec_begin_lean(d, &m, m.base_epoch == OCP_NO_BASE ? NULL : base, lean_lookup, h, why, why_len);
+        break;
+      }
+      case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, f->p, f->n, why, why_len); break;
+      case OCP_MSG_BRICKS: r = ocp_epoch_dec_bricks(d, f->p, f->n, why, why_len); break;
+      case OCP_MSG_DICT: r = ocp_epoch_dec_dict(d, f->p, f->n, why, why_len); break;
+      case OCP_MSG_EPOCH_END: {
+        ocp_epoch_end_t m;
+        if ((r = ocp_get_epoch_end(f->p, f->n, &m, why, why_len)) < 0) return r;
+        r = ocp_epoch_dec_end_lean(d, &m, out, dig, why, why_len);
+        if (r == 0) return 0;
+        break;
+      }
+      default: fail_msg("unexpected frame type 0x%02x", f->type);
+    }
+    if (r < 0) return r;
+  }
+  return OC_ECORRUPT;
+}
+
+/* A lean decode equals the full state's records and the digests of its bricks. */
+static void expect_lean_equal(const oc_state_t *full, const oc_state_t *lean, const oc_brick_digests_t *dig) {
+  records_equal(lean, full);
+  assert_int_equal(lean->brick_count, 0);
+  assert_null(lean->bricks);
+  oc_brick_digests_t want = {0};
+  assert_int_equal(oc_brick_digests_of(&want, full), 0);
+  assert_int_equal(dig->count, want.count);
+  assert_memory_equal(dig->ids, want.ids, (size_t)want.count * sizeof *want.ids);
+  assert_memory_equal(dig->digests, want.digests, (size_t)want.count * sizeof *want.digests);
+  oc_brick_digests_free(&want);
+  assert_true(oc_state_digest_checksum(lean, dig) == oc_state_digest(full));
+}
+
+/* Decodes fs lean with frame `at` replaced by (p, n) (at < 0: as is); expects `err` with `needle`. */
+static void expect_lean_bad(const frames_t *fs, int at, const uint8_t *p, uint32_t n, const oc_state_t *base, lean_held_t *h,
+                            int err, const char *needle) {
+  frames_t g = {malloc(sizeof *g.f * (size_t)fs->n), fs->n};
+  assert_non_null(g.f);
+  memcpy(g.f, fs->f, sizeof *g.f * (size_t)fs->n);
+  if (at >= 0) g.f[at].p = p, g.f[at].n = n;
+  ocp_epoch_dec_t *d = NULL;
+  assert_int_equal(ocp_epoch_dec_create(&d), 0);
+  oc_state_t t;
+  oc_brick_digests_t dig = {0};
+  oc_state_init(&t);
+  char why[512] = "";
+  int r = decode_lean(d, &g, base, h, &t, &dig, why, sizeof why);
+  if (r != err) fail_msg("expected %s (%s), got %d: %s", oc_err_name(err), needle, r, why);
+  if (needle && !strstr(why, needle)) fail_msg("reason '%s' lacks '%s'", why, needle);
+  assert_int_equal(t.node_count, 0);
+  assert_int_equal(dig.count, 0);
+  assert_false(ocp_epoch_dec_active(d));
+  ocp_epoch_dec_free(d);
+  free(g.f);
+}
+
+static void test_epoch__lean(void **state) {
+  (void)state;
+  pair_t p;
+  make_pair(&p, 300);
+  ocp_enc_desc_t lean = {.digest = 1};
+  char why[512];
+  /* the first state whole, then the second as a difference (kept bricks found as digests) */
+  uint32_t na;
+  uint32_t *all_a = lacking_ids(&p.a, NULL, &na);
+  oc_buf_t ba = {0}, bb = {0};
+  encode(&lean, &p.a, NULL, all_a, na, &ba, NULL);
+  ocp_enc_stats_t st;
+  encode(&lean, &p.b, &p.a, p.lacking, p.nlacking, &bb, &st);
+  assert_int_equal(st.delta_channels, 0); /* never a delta to a lean viewer */
+  frames_t fa, fb;
+  split_frames(&ba, &fa);
+  split_frames(&bb, &fb);
+  ocp_epoch_end_t end;
+  assert_int_equal(ocp_get_epoch_end(fb.f[fb.n - 1].p, fb.f[fb.n - 1].n, &end, why, sizeof why), 0);
+  assert_true(end.checksum == oc_state_digest(&p.b));
+  ocp_epoch_dec_t *d = NULL;
+  assert_int_equal(ocp_epoch_dec_create(&d), 0);
+  oc_state_t la, lb;
+  oc_brick_digests_t da = {0}, db = {0};
+  oc_state_init(&la);
+  oc_state_init(&lb);
+  lean_held_t h = {{NULL, NULL}, 0, 0, 0};
+  if (decode_lean(d, &fa, NULL, &h, &la, &da, why, sizeof why)) fail_msg("lean decode a: %s", why);
+  expect_lean_equal(&p.a, &la, &da);
+  h.held[0] = &da;
+  if (decode_lean(d, &fb, &la, &h, &lb, &db, why, sizeof why)) fail_msg("lean decode b: %s", why);
+  expect_lean_equal(&p.b, &lb, &db);
+  assert_true(p.nlacking < p.b.brick_count); /* some digests did come from what was held */
+
+  /* a held digest that differs from the server's brick: the digest checksum catches it */
+  uint32_t kept = 0;
+  for (uint32_t i = 0; i < p.b.brick_count && !kept; i++)
+    if (oc_state_find_brick(&p.a, p.b.bricks[i].id)) kept = p.b.bricks[i].id;
+  assert_true(kept != 0);
+  h.bad_id = kept, h.bad_digest = da.digests[oc_brick_digests_find(&da, kept)] ^ 0x80;
+  expect_lean_bad(&fb, -1, NULL, 0, &la, &h, OC_ECHECKSUM, "digest checksum mismatch");
+  h.bad_missing = 1;
+  expect_lean_bad(&fb, -1, NULL, 0, &la, &h, OC_ECORRUPT, "neither sent nor held");
+  h.bad_id = 0, h.bad_missing = 0;
+
+  /* one bit of one sent brick flipped (its record unchanged): caught by the digest checksum */
+  oc_state_t flipped;
+  oc_state_init(&flipped);
+  assert_int_equal(oc_state_copy(&flipped, &p.b), 0);
+  oc_brick_t *fbk = (oc_brick_t *)oc_state_find_brick(&flipped, p.lacking[0]);
+  const oc_node_t *fn = NULL;
+  for (uint32_t i = 0; i < flipped.node_count; i++)
+    if (flipped.nodes[i].brick_id == fbk->id) fn = &flipped.nodes[i];
+  assert_non_null(fn);
+  fbk->codes.code[fn->range[0].hi != 0.0f ? 0 : 1][77] ^= 0x0004;
+  oc_buf_t bf = {0};
+  encode(&lean, &flipped, &p.a, p.lacking, p.nlacking, &bf, NULL);
+  frames_t ff;
+  split_frames(&bf, &ff);
+  assert_int_equal(ff.n, fb.n);
+  /* the server's EPOCH_END for the honest state after the flipped bricks */
+  expect_lean_bad(&ff, ff.n - 1, fb.f[fb.n - 1].p, fb.f[fb.n - 1].n, &la, &h, OC_ECHECKSUM, "digest checksum mismatch");
+  /* a byte of a compressed batch flipped: zstd or the digest checksum refuses it */
+  int at = find_type(&fb, OCP_MSG_BRICKS, 0);
+  uint8_t *bad = malloc(fb.f[at].n);
+  assert_non_null(bad);
+  memcpy(bad, fb.f[at].p, fb.f[at].n);
+  bad[fb.f[at].n / 2] ^= 0x10;
+  {
+    frames_t g = {malloc(sizeof *g.f * (size_t)fb.n), fb.n};
+    memcpy(g.f, fb.f, sizeof *g.f * (size_t)fb.n);
+    g.f[at].p = bad;
+    ocp_epoch_dec_t *d2 = NULL;
+    assert_int_equal(ocp_epoch_dec_create(&d2), 0);
+    oc_state_t t;
+    oc_brick_digests_t dt = {0};
+    oc_state_init(&t);
+    int r = decode_lean(d2, &g, &la, &h, &t, &dt, why, sizeof why);
+    assert_true(r == OC_ECORRUPT || r == OC_ECHECKSUM);
+    assert_int_equal(dt.count, 0);
+    ocp_epoch_dec_free(d2);
+    free(g.f);
+  }
+  free(bad);
+
+  /* a non-zero code in a zero channel: refused as it arrives (the codes are not kept to check later) */
+  oc_state_t z;
+  oc_state_init(&z);
+  assert_int_equal(oc_state_copy(&z, &p.a), 0);
+  uint32_t zid = 0;
+  for (uint32_t i = 0; i < z.node_count && !zid; i++)
+    if (z.nodes[i].kind == OC_NODE_BRICK && z.nodes[i].range[1].hi == 0.0f) zid = z.nodes[i].brick_id;
+  assert_true(zid != 0);
+  ((oc_brick_t *)oc_state_find_brick(&z, zid))->codes.code[1][5] = 9;
+  oc_buf_t bz = {0};
+  encode(&lean, &z, NULL, all_a, na, &bz, NULL);
+  frames_t fz;
+  split_frames(&bz, &fz);
+  h = (lean_held_t){{NULL, NULL}, 0, 0, 0};
+  char needle[64];
+  snprintf(needle, sizeof needle, "brick %u: non-zero tau code in a zero channel", zid);
+  expect_lean_bad(&fz, -1, NULL, 0, NULL, &h, OC_ECORRUPT, needle);
+
+  /* a delta is malformed for a lean viewer; and an epoch ends the way it began */
+  ocp_enc_desc_t full = {.deltas = 1};
+  oc_buf_t bd = {0};
+  encode(&full, &p.b, &p.a, p.lacking, p.nlacking, &bd, NULL);
+  frames_t fd;
+  split_frames(&bd, &fd);
+  h.held[0] = &da;
+  expect_lean_bad(&fd, -1, NULL, 0, &la, &h, OC_ECORRUPT, "to a lean viewer");
+  ocp_epoch_begin_t m;
+  assert_int_equal(ocp_get_epoch_begin(fa.f[0].p, fa.f[0].n, &m, why, sizeof why), 0);
+  assert_int_equal(ocp_epoch_dec_begin_lean(d, &m, NULL, lean_lookup, &h, why, sizeof why), 0);
+  for (int i = 1; i < fa.n - 1; i++)
+    assert_int_equal(fa.f[i].type == OCP_MSG_RECORDS ? ocp_epoch_dec_records(d, fa.f[i].p, fa.f[i].n, why, sizeof why)
+                                                     : ocp_epoch_dec_bricks(d, fa.f[i].p, fa.f[i].n, why, sizeof why),
+                     0);
+  assert_int_equal(ocp_get_epoch_end(fa.f[fa.n - 1].p, fa.f[fa.n - 1].n, &end, why, sizeof why), 0);
+  oc_state_t t;
+  oc_state_init(&t);
+  assert_int_equal(ocp_epoch_dec_end(d, &end, &t, why, sizeof why), OC_EINVAL);
+  assert_false(ocp_epoch_dec_active(d));
+  /* a full viewer refuses the digest form: its checksum is another */
+  held_t fh = {{NULL, NULL}, 0, NULL, 0};
+  assert_int_equal(decode_frames(d, &fa, NULL, &fh, &t, why, sizeof why), OC_ECHECKSUM);
+  /* digest and deltas together: refused by the encoder */
+  ocp_epoch_enc_t *e = NULL;
+  ocp_enc_desc_t both = {.digest = 1, .deltas = 1};
+  assert_int_equal(ocp_epoch_enc_create(&e, &both), OC_EINVAL);
+  assert_null(e);
+  /* the encoder's checksum is EPOCH_END's, in its form */
+  assert_int_equal(ocp_epoch_enc_create(&e, &lean), 0);
+  assert_int_equal(ocp_epoch_enc_checksum(e), 0);
+  assert_int_equal(ocp_epoch_enc_begin(e, &p.a, NULL, all_a, na), 0);
+  assert_true(ocp_epoch_enc_checksum(e) == oc_state_digest(&p.a));
+  ocp_epoch_enc_free(e);
+  assert_int_equal(ocp_epoch_enc_create(&e, &full), 0);
+  assert_int_equal(ocp_epoch_enc_begin(e, &p.a, NULL, all_a, na), 0);
+  assert_true(ocp_epoch_enc_checksum(e) == oc_state_checksum(&p.a));
+  ocp_epoch_enc_free(e);
+
+  oc_state_free(&t);
+  oc_state_free(&z);
+  oc_state_free(&flipped);
+  oc_state_free(&la);
+  oc_state_free(&lb);
+  oc_brick_digests_free(&da);
+  oc_brick_digests_free(&db);
+  ocp_epoch_dec_free(d);
+  free(all_a);
+  free(fa.f), free(fb.f), free(ff.f), free(fz.f), free(fd.f);
+  oc_buf_free(&ba), oc_buf_free(&bb), oc_buf_free(&bf), oc_buf_free(&bz), oc_buf_free(&bd);
+  free_pair(&p);
+}
+
 /*-*** Hostile input ***/
 
 /* Decodes fs with frame `at` replaced by (p, n); expects `err` with `needle` in the reason. */
@@ -892,6 +1142,7 @@ int main(void) {
       cmocka_unit_test(test_epoch__wrong_delta_base), cmocka_unit_test(test_epoch__bad_zstd),
       cmocka_unit_test(test_epoch__bad_order),       cmocka_unit_test(test_epoch__dictionary),
       cmocka_unit_test(test_epoch__chunks),          cmocka_unit_test(test_epoch__batch_one),
+      cmocka_unit_test(test_epoch__lean),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

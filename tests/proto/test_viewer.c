@@ -816,6 +816,328 @@ static void test_viewer__create_rejects(void **state) {
   ocp_viewer_free(NULL);
 }
 
+/*-*** Lean sessions (OCP_CAP_DIGEST) ***/
+
+/* 8³ leaves at level 3: three in four are bricks (ids 1..), the rest uniform. */
+static void big_state(oc_state_t *s) {
+  oc_state_init(s);
+  s->epoch = 100;
+  s->time = 5.0;
+  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
+  uint32_t id = 1;
+  for (int i = 0; i < 512; i++) {
+    oc_key_t k = child(child(child(OC_KEY_ROOT, i / 64), (i / 8) % 8), i % 8);
+    oc_node_t n = i % 4 == 3 ? node(k, OC_NODE_UNIFORM, 0, 0.02f, 0.02f, 1.0f, 1.0f)
+                             : node(k, OC_NODE_BRICK, id++, 0.01f, 0.5f, i % 4 == 2 ? 0.0f : 0.25f, i % 4 == 2 ? 0.0f : 2.0f);
+    oc_state_add_node(s, &n);
+    if (n.kind == OC_NODE_BRICK) {
+      oc_brick_codes_t c;
+      golden_codes(n.brick_id, &c);
+      if (n.range[1].hi == 0.0f) memset(c.code[1], 0, sizeof c.code[1]);
+      oc_state_add_brick(s, n.brick_id, &c);
+    }
+  }
+  oc_state_canonicalize(s);
+}
+
+/* The next epoch of big_state: one brick in eight refreshed as a new id (same ranges: a delta for a
+ * full viewer); record 0's brick leaves on odd steps and comes back, with its old id, on even ones
+ * (the viewer still holds it in its older state, so it is not sent). */
+static void big_next(const oc_state_t *prev, const oc_state_t *first, oc_state_t *next, int step) {
+  oc_state_init(next);
+  assert_int_equal(oc_state_copy(next, prev), 0);
+  next->epoch = prev->epoch + 1;
+  next->time = prev->time + 1.0;
+  oc_state_t tmp;
+  oc_state_init(&tmp);
+  tmp.epoch = next->epoch, tmp.time = next->time, tmp.sun_dir = next->sun_dir;
+  for (uint32_t i = 0; i < next->node_count; i++) {
+    oc_node_t n = next->nodes[i];
+    const oc_brick_t *b = n.kind == OC_NODE_BRICK ? oc_state_find_brick(prev, n.brick_id) : NULL;
+    if (i == 0) {
+      n = first->nodes[0];
+      if (step % 2) n = node(n.key, OC_NODE_UNIFORM, 0, 0.03f, 0.03f, 1.0f, 1.0f);
+      b = n.kind == OC_NODE_BRICK ? oc_state_find_brick(first, n.brick_id) : NULL;
+    } else if (b && i % 8 == (uint32_t)step % 8) {
+      oc_brick_codes_t c = b->codes;
+      for (int ch = 0; ch < OC_CHANNELS; ch++)
+        if (n.range[ch].hi != 0.0f)
+          for (int v = 0; v < OC_BRICK_VOXELS; v += 5) c.code[ch][v] = (uint16_t)(c.code[ch][v] + 7u * (uint32_t)step);
+      n.brick_id = 10000u * (uint32_t)step + i;
+      assert_int_equal(oc_state_add_brick(&tmp, n.brick_id, &c), 0);
+      b = NULL;
+    }
+    assert_int_equal(oc_state_add_node(&tmp, &n), 0);
+    if (b) assert_int_equal(oc_state_add_brick(&tmp, b->id, &b->codes), 0);
+  }
+  oc_state_free(next);
+  *next = tmp;
+  oc_state_canonicalize(next);
+  char why[256];
+  if (oc_state_validate(next, why, sizeof why)) fail_msg("big_next: %s", why);
+}
+
+/* One epoch as the server sends it to a full (deltas) or lean (digest checksum) session. */
+static void put_epoch_as(oc_buf_t *b, int lean, const oc_state_t *s, const oc_state_t *base, const uint32_t *lacking, uint32_t n) {
+  ocp_epoch_enc_t *e;
+  ocp_enc_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.deltas = !lean;
+  d.digest = lean;
+  assert_int_equal(ocp_epoch_enc_create(&e, &d), 0);
+  assert_int_equal(ocp_epoch_enc_begin(e, s, base, lacking, n), 0);
+  while (ocp_epoch_enc_next(e, 1, b) == 1) {
+  }
+  ocp_epoch_enc_free(e);
+  ocp_put_stats(b, 1, &(ocp_stats_t){.epoch = s->epoch});
+}
+
+/* Ids of s not in held[0..n) (what the server sends), ascending; *m of them. */
+static uint32_t *lacking_of(const oc_state_t *s, const oc_state_t *const *held, int n, uint32_t *m) {
+  uint32_t *ids = malloc(sizeof *ids * (s->brick_count + 1));
+  assert_non_null(ids);
+  *m = 0;
+  for (uint32_t i = 0; i < s->brick_count; i++) {
+    int have = 0;
+    for (int k = 0; k < n && !have; k++) have = held[k] && oc_state_find_brick(held[k], s->bricks[i].id) != NULL;
+    if (!have) ids[(*m)++] = s->bricks[i].id;
+  }
+  return ids;
+}
+
+static ocp_viewer_t *make_lean_viewer(events_t *ev) {
+  memset(ev, 0, sizeof *ev);
+  ocp_viewer_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.role = OCP_ROLE_VIEWER;
+  d.budget = 1u << 20;
+  d.max_depth = 12;
+  d.width = 640, d.height = 480;
+  d.caps = OCP_CAP_DICT;
+  d.lean = 1;
+  ocp_viewer_events_t cb = {ev, on_welcome, on_state, on_stats, on_reply, on_closed};
+  ocp_viewer_t *v = NULL;
+  assert_int_equal(ocp_viewer_create(&v, &d, &cb), 0);
+  return v;
+}
+
+/* The one ACK in out. */
+static ocp_ack_t ack_of(const oc_buf_t *out) {
+  frames_t f = parse_out(out);
+  ocp_ack_t a;
+  char why[256];
+  assert_int_equal(f.n, 1);
+  assert_int_equal(f.h[0].type, OCP_MSG_ACK);
+  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &a, why, sizeof why), 0);
+  return a;
+}
+
+/* A lean session holds state i as s's records and the digests of s's bricks. */
+static void expect_lean_state(ocp_viewer_t *v, int i, const oc_state_t *s) {
+  const oc_state_t *h = ocp_viewer_state(v, i);
+  const oc_brick_digests_t *d = ocp_viewer_digests(v, i);
+  assert_non_null(h);
+  assert_non_null(d);
+  records_equal(h, s);
+  assert_int_equal(h->brick_count, 0);
+  assert_null(h->bricks);
+  oc_brick_digests_t want = {0};
+  assert_int_equal(oc_brick_digests_of(&want, s), 0);
+  assert_int_equal(d->count, want.count);
+  assert_memory_equal(d->ids, want.ids, (size_t)want.count * sizeof *want.ids);
+  assert_memory_equal(d->digests, want.digests, (size_t)want.count * sizeof *want.digests);
+  oc_brick_digests_free(&want);
+  assert_true(oc_state_digest_checksum(h, d) == oc_state_digest(s));
+}
+
+/* A lean and a full session take the same states (kept, refreshed and returning bricks, a resume in
+ * the middle of an epoch): both verify and acknowledge every one, count the same resident bytes,
+ * and the lean one holds a small fraction of the full one's memory. */
+static void test_viewer__lean_matches_full(void **state) {
+  (void)state;
+  enum { EPOCHS = 6, CUT = 4 };
+  events_t ev[2];
+  ocp_viewer_t *v[2] = {make_viewer(&ev[0], OCP_ROLE_VIEWER), make_lean_viewer(&ev[1])};
+  oc_buf_t out = {0}, in = {0};
+  char why[256];
+  oc_state_t s[EPOCHS];
+  big_state(&s[0]);
+  for (int i = 1; i < EPOCHS; i++) big_next(&s[i - 1], &s[0], &s[i], i);
+  assert_true(s[0].brick_count >= 384);
+  for (int k = 0; k < 2; k++) { /* a grant the three kept states fit in */
+    out.len = 0;
+    ocp_viewer_connected(v[k], &out);
+    put_welcome(&in, 3, 0, SESSION, 8u << 20);
+    if (feed(v[k], &in, &out, why, sizeof why)) fail_msg("%s", why);
+    in.len = 0;
+  }
+  uint64_t sent_total = 0;
+  for (int i = 0; i < EPOCHS; i++) {
+    /* the server knows the viewer holds the two states before this one (K = 3) */
+    const oc_state_t *held[2] = {i >= 1 ? &s[i - 1] : NULL, i >= 2 ? &s[i - 2] : NULL};
+    uint32_t n, *lack = lacking_of(&s[i], held, 2, &n);
+    if (i % 2 == 0 && i > 0) { /* record 0's brick is back: held in the older state only, so not sent */
+      uint32_t back = s[i].nodes[0].brick_id;
+      assert_null(oc_state_find_brick(&s[i - 1], back));
+      assert_non_null(oc_state_find_brick(&s[i - 2], back));
+      for (uint32_t k = 0; k < n; k++) assert_int_not_equal(lack[k], back);
+    }
+    sent_total += n;
+    uint64_t resident[2];
+    for (int k = 0; k < 2; k++) {
+      in.len = 0;
+      put_epoch_as(&in, k, &s[i], held[0], lack, n);
+      if (i == CUT) { /* the connection drops halfway through this epoch; the session resumes */
+        oc_buf_t half = {0};
+        oc_buf_append(&half, in.data, in.len / 2);
+        if (feed(v[k], &half, &out, why, sizeof why)) fail_msg("%s", why);
+        oc_buf_free(&half);
+        out.len = 0;
+        ocp_viewer_connected(v[k], &out);
+        ocp_hello_t h = hello_of(&out);
+        assert_int_equal(h.caps, k ? (OCP_CAP_DIGEST | OCP_CAP_DICT) : OCP_CAP_ALL);
+        assert_int_equal(h.resume_session, SESSION);
+        assert_int_equal(h.held_epoch, s[i - 1].epoch);
+        assert_true(h.held_checksum == (k ? oc_state_digest(&s[i - 1]) : oc_state_checksum(&s[i - 1])));
+        oc_buf_t w = {0};
+        put_welcome(&w, 3, 1, SESSION, 8u << 20);
+        if (feed(v[k], &w, &out, why, sizeof why)) fail_msg("%s", why);
+        assert_int_equal(ev[k].last_resumed, 1);
+        oc_buf_free(&w);
+      }
+      if (feed(v[k], &in, &out, why, sizeof why)) fail_msg("%s session, epoch %d: %s", k ? "lean" : "full", i, why);
+      assert_int_equal(ev[k].states, i + 1);
+      ocp_ack_t a = ack_of(&out);
+      assert_int_equal(a.epoch, s[i].epoch);
+      assert_true(a.checksum == (k ? oc_state_digest(&s[i]) : oc_state_checksum(&s[i])));
+      for (int j = 0; j <= i && j < 2; j++) {
+        if (k)
+          expect_lean_state(v[k], j, &s[i - j]);
+        else
+          states_equal(ocp_viewer_state(v[k], j), &s[i - j]);
+      }
+      assert_null(ocp_viewer_digests(v[0], 0));
+      ocp_viewer_stats_t st;
+      ocp_viewer_stats(v[k], &st);
+      resident[k] = st.resident_bytes;
+      assert_int_equal(st.over_budget, 0);
+    }
+    const oc_state_t *window[3] = {&s[i], held[0], held[1]};
+    assert_int_equal(resident[0], oc_resident_bytes(window, i < 2 ? i + 1 : 3, 2048, 32));
+    assert_int_equal(resident[1], resident[0]);
+    free(lack);
+  }
+  ocp_viewer_stats_t fs, ls;
+  ocp_viewer_stats(v[0], &fs);
+  ocp_viewer_stats(v[1], &ls);
+  assert_int_equal(fs.states, EPOCHS);
+  assert_int_equal(ls.states, EPOCHS);
+  assert_int_equal(ls.bricks_in, sent_total);
+  assert_int_equal(ls.bricks_in, fs.bricks_in);
+  assert_int_equal(ls.resident_peak, fs.resident_peak);
+  assert_int_equal(ls.resumed, 1);
+  /* held bytes: exactly the kept arrays; 12 bytes a brick instead of a whole oc_brick_t */
+  const oc_state_t *last = &s[EPOCHS - 1], *prev = &s[EPOCHS - 2];
+  uint64_t recs = ((uint64_t)last->node_count + prev->node_count) * sizeof(oc_node_t);
+  uint64_t bricks = (uint64_t)last->brick_count + prev->brick_count;
+  assert_int_equal(fs.held_bytes, recs + bricks * sizeof(oc_brick_t));
+  assert_int_equal(ls.held_bytes, recs + bricks * 12u);
+  print_message("held bytes for %llu kept bricks and %u + %u records: full %llu, lean %llu (%.1fx less); resident %llu both\n",
+                (unsigned long long)bricks, last->node_count, prev->node_count, (unsigned long long)fs.held_bytes,
+                (unsigned long long)ls.held_bytes, (double)fs.held_bytes / (double)ls.held_bytes,
+                (unsigned long long)ls.resident_bytes);
+  assert_true(ls.held_bytes * 20 < fs.held_bytes);
+  for (int i = 0; i < EPOCHS; i++) oc_state_free(&s[i]);
+  oc_buf_free(&in);
+  oc_buf_free(&out);
+  for (int k = 0; k < 2; k++) ocp_viewer_free(v[k]);
+}
+
+/* A lean session still catches what a full one does: a flipped bit in a brick it received, a held
+ * brick the server has otherwise (a wrong held digest), and a delta it cannot apply. */
+static void test_viewer__lean_detects(void **state) {
+  (void)state;
+  events_t ev;
+  oc_buf_t out = {0}, in = {0}, first = {0};
+  char why[256];
+  oc_state_t s0, s1;
+  golden_state(&s0);
+  evolve(&s0, &s1, 43);
+  uint32_t ids[8], lack[] = {43};
+  put_epoch_as(&first, 1, &s0, NULL, ids, all_bricks(&s0, ids));
+  for (int c = 0; c < 3; c++) {
+    ocp_viewer_t *v = make_lean_viewer(&ev);
+    handshake(v, 3, &out);
+    if (feed(v, &first, &out, why, sizeof why)) fail_msg("%s", why);
+    assert_int_equal(ack_of(&out).checksum, oc_state_digest(&s0));
+    oc_state_t bad;
+    oc_state_init(&bad);
+    assert_int_equal(oc_state_copy(&bad, &s1), 0);
+    in.len = 0;
+    if (c == 0) { /* brick 43 as sent has one bit flipped; EPOCH_END is the honest state's */
+      ((oc_brick_t *)oc_state_find_brick(&bad, 43))->codes.code[0][200] ^= 0x0020;
+      put_epoch_as(&in, 1, &bad, &s0, lack, 1);
+      size_t at = find_frame(&in, OCP_MSG_EPOCH_END, 0);
+      oc_put_u64(in.data + at + OCP_HEADER_BYTES + 8, oc_state_digest(&s1));
+    } else if (c == 1) { /* the server's brick 7 differs from the one the viewer holds */
+      ((oc_brick_t *)oc_state_find_brick(&bad, 7))->codes.code[1][3] ^= 0x0001;
+      put_epoch_as(&in, 1, &bad, &s0, lack, 1);
+    } else { /* a delta, as for a full viewer */
+      put_epoch_as(&in, 0, &s1, &s0, lack, 1);
+    }
+    int e = feed(v, &in, &out, why, sizeof why);
+    if (c < 2) {
+      assert_int_equal(e, OC_ECHECKSUM);
+      assert_non_null(strstr(why, "digest checksum mismatch"));
+      expect_error_frame(&out, OCP_CODE_CHECKSUM);
+    } else {
+      assert_int_equal(e, OC_ECORRUPT);
+      assert_non_null(strstr(why, "to a lean viewer"));
+      expect_error_frame(&out, OCP_CODE_MALFORMED);
+    }
+    assert_int_equal(ev.states, 1);
+    expect_lean_state(v, 0, &s0); /* what it held is untouched */
+    oc_state_free(&bad);
+    ocp_viewer_free(v);
+  }
+  /* the honest epoch is accepted */
+  ocp_viewer_t *v = make_lean_viewer(&ev);
+  handshake(v, 3, &out);
+  in.len = 0;
+  oc_buf_append(&in, first.data, first.len);
+  put_epoch_as(&in, 1, &s1, &s0, lack, 1);
+  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
+  assert_int_equal(ev.states, 2);
+  expect_lean_state(v, 0, &s1);
+  expect_lean_state(v, 1, &s0);
+  ocp_viewer_free(v);
+  /* lean and DIGEST are one choice, and exclude DELTA */
+  ocp_viewer_desc_t d;
+  memset(&d, 0, sizeof d);
+  d.budget = 1000, d.width = 1, d.height = 1;
+  d.lean = 1, d.caps = OCP_CAP_ALL;
+  assert_int_equal(ocp_viewer_create(&v, &d, NULL), OC_EINVAL);
+  d.lean = 0, d.caps = OCP_CAP_DIGEST | OCP_CAP_DELTA;
+  assert_int_equal(ocp_viewer_create(&v, &d, NULL), OC_EINVAL);
+  d.caps = OCP_CAP_DIGEST;
+  assert_int_equal(ocp_viewer_create(&v, &d, NULL), 0);
+  out.len = 0;
+  ocp_viewer_connected(v, &out);
+  assert_int_equal(hello_of(&out).caps, OCP_CAP_DIGEST);
+  ocp_viewer_free(v);
+  d.caps = 0, d.lean = 1;
+  assert_int_equal(ocp_viewer_create(&v, &d, NULL), 0);
+  out.len = 0;
+  ocp_viewer_connected(v, &out);
+  assert_int_equal(hello_of(&out).caps, OCP_CAP_DIGEST);
+  ocp_viewer_free(v);
+  oc_state_free(&s0);
+  oc_state_free(&s1);
+  oc_buf_free(&in);
+  oc_buf_free(&out);
+  oc_buf_free(&first);
+}
+
 /*-*** Fuzz seeds ***/
 
 /* 64 brick leaves (root split twice), enough samples to train a dictionary. */
@@ -839,10 +1161,10 @@ static void many_bricks_state(oc_state_t *s) {
 
 /* Seeds for tests/fuzz/fuzz_wire.c: what a server sends after WELCOME (the target supplies that),
  * plus the clients' messages for the decoders. */
-static void build_seed(int i, oc_buf_t *b, int *viewer_ok, int *control_ok) {
+static void build_seed(int i, oc_buf_t *b, int *viewer_ok, int *control_ok, int *lean_ok) {
   oc_state_t s1, s2;
   uint32_t ids[64];
-  *viewer_ok = *control_ok = 0;
+  *viewer_ok = *control_ok = *lean_ok = 0;
   switch (i) {
     case 0: /* two epochs: all records and bricks, then a difference with a delta brick */
       golden_state(&s1);
@@ -899,6 +1221,17 @@ static void build_seed(int i, oc_buf_t *b, int *viewer_ok, int *control_ok) {
       ocp_put_text(b, 1, OCP_MSG_ERROR, OCP_CODE_CHECKSUM, "state epoch 42: checksum mismatch");
       break;
     }
+    case 5: { /* two epochs for a lean viewer: digest checksums, the refreshed brick whole */
+      golden_state(&s1);
+      evolve(&s1, &s2, 43);
+      put_epoch_as(b, 1, &s1, NULL, ids, all_bricks(&s1, ids));
+      uint32_t lack[] = {43};
+      put_epoch_as(b, 1, &s2, &s1, lack, 1);
+      oc_state_free(&s1);
+      oc_state_free(&s2);
+      *lean_ok = 1;
+      break;
+    }
     case 4: { /* a WELCOME and STATS, then the server's error */
       put_welcome(b, 3, 0, SESSION, 1u << 20);
       ocp_stats_t st;
@@ -911,10 +1244,10 @@ static void build_seed(int i, oc_buf_t *b, int *viewer_ok, int *control_ok) {
   }
 }
 
-/* A viewer (or control client) after WELCOME takes the whole seed without error. */
-static int seed_accepted(const uint8_t *p, size_t n, int role) {
+/* A viewer (lean or not) or control client after WELCOME takes the whole seed without error. */
+static int seed_accepted(const uint8_t *p, size_t n, int role, int lean) {
   events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, role);
+  ocp_viewer_t *v = lean ? make_lean_viewer(&ev) : make_viewer(&ev, role);
   oc_buf_t out = {0}, in = {0};
   char why[256];
   ocp_viewer_connected(v, &out);
@@ -929,17 +1262,19 @@ static int seed_accepted(const uint8_t *p, size_t n, int role) {
 
 static void test_viewer__fuzz_seeds(void **state) {
   (void)state;
-  static const char *names[] = {"epochs.bin", "dict_epoch.bin", "control.bin", "client_msgs.bin", "welcome_error.bin"};
+  static const char *names[] = {"epochs.bin",  "dict_epoch.bin",    "control.bin",
+                                "client_msgs.bin", "welcome_error.bin", "lean_epochs.bin"};
   const char *out = getenv("OC_FUZZ_WIRE_CORPUS_OUT"), *src = getenv("OC_SOURCE_DIR");
   char path[1024];
-  for (int i = 0; i < 5; i++) {
+  for (int i = 0; i < 6; i++) {
     oc_buf_t b = {0};
-    int viewer_ok, control_ok;
-    build_seed(i, &b, &viewer_ok, &control_ok);
+    int viewer_ok, control_ok, lean_ok;
+    build_seed(i, &b, &viewer_ok, &control_ok, &lean_ok);
     assert_false(b.err);
     assert_true(b.len < 16384); /* seeds stay small */
-    assert_int_equal(seed_accepted(b.data, b.len, OCP_ROLE_VIEWER), viewer_ok);
-    assert_int_equal(seed_accepted(b.data, b.len, OCP_ROLE_CONTROL), control_ok);
+    assert_int_equal(seed_accepted(b.data, b.len, OCP_ROLE_VIEWER, 0), viewer_ok);
+    assert_int_equal(seed_accepted(b.data, b.len, OCP_ROLE_CONTROL, 0), control_ok);
+    assert_int_equal(seed_accepted(b.data, b.len, OCP_ROLE_VIEWER, 1), lean_ok);
     if (out) {
       snprintf(path, sizeof path, "%s/%s", out, names[i]);
       FILE *f = fopen(path, "wb");
@@ -954,8 +1289,9 @@ static void test_viewer__fuzz_seeds(void **state) {
       uint8_t *buf = malloc(65536);
       size_t n = fread(buf, 1, 65536, f);
       fclose(f);
-      assert_int_equal(seed_accepted(buf, n, OCP_ROLE_VIEWER), viewer_ok);
-      assert_int_equal(seed_accepted(buf, n, OCP_ROLE_CONTROL), control_ok);
+      assert_int_equal(seed_accepted(buf, n, OCP_ROLE_VIEWER, 0), viewer_ok);
+      assert_int_equal(seed_accepted(buf, n, OCP_ROLE_CONTROL, 0), control_ok);
+      assert_int_equal(seed_accepted(buf, n, OCP_ROLE_VIEWER, 1), lean_ok);
       free(buf);
     }
     oc_buf_free(&b);
@@ -974,6 +1310,8 @@ int main(void) {
       cmocka_unit_test(test_viewer__over_budget_and_close),
       cmocka_unit_test(test_viewer__control),
       cmocka_unit_test(test_viewer__create_rejects),
+      cmocka_unit_test(test_viewer__lean_matches_full),
+      cmocka_unit_test(test_viewer__lean_detects),
       cmocka_unit_test(test_viewer__fuzz_seeds),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

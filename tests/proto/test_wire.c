@@ -573,7 +573,12 @@ static void test_wire__hello_fields(void **state) {
   m = sample_hello();
   expect_reject(hello_with(&m, 0, (const uint8_t[]){2, 0, 1, 0}, 4, why, sizeof why), why, "min_version 2 is above max_version 1");
   expect_reject(hello_with(&m, 4, (const uint8_t[]){2}, 1, why, sizeof why), why, "role 2");
-  expect_reject(hello_with(&m, 32, (const uint8_t[]){4}, 1, why, sizeof why), why, "caps 0x4 has unknown bits");
+  expect_reject(hello_with(&m, 32, (const uint8_t[]){8}, 1, why, sizeof why), why, "caps 0x8 has unknown bits");
+  /* a lean viewer (digest) cannot take deltas: the pair is refused, naming both */
+  expect_reject(hello_with(&m, 32, (const uint8_t[]){OCP_CAP_DIGEST | OCP_CAP_DELTA}, 1, why, sizeof why), why,
+                "caps 0x5 combine digest (0x4) with delta (0x1)");
+  assert_int_equal(hello_with(&m, 32, (const uint8_t[]){OCP_CAP_DIGEST | OCP_CAP_DICT}, 1, why, sizeof why), 0);
+  assert_int_equal(hello_with(&m, 32, (const uint8_t[]){OCP_CAP_DIGEST}, 1, why, sizeof why), 0);
   expect_reject(hello_with(&m, 8, (const uint8_t[8]){0}, 8, why, sizeof why), why, "budget is zero");
   expect_reject(hello_with(&m, 16, (const uint8_t[4]){0}, 4, why, sizeof why), why, "slot_bytes 0 is outside 1..1048576");
   expect_reject(hello_with(&m, 20, (const uint8_t[4]){1, 0, 0x10, 0}, 4, why, sizeof why), why, "record_bytes 1048577");
