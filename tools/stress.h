@@ -64,6 +64,7 @@ typedef struct {
   uint64_t fault_budget_mib;/* budget of the misbehaving viewers */
   long restart_at;          /* the step after which the server is killed (0: the middle) */
   double fault_rss_slack;   /* MiB */
+  int full_sessions;        /* keep brick codes (a full session) instead of digests */
   int nserver_args;
   char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;

@@ -55,6 +55,9 @@ static void usage(FILE *f) {
           "  --budget LIST         budgets in MiB, round-robin (default 16)\n"
           "  --max-depth LIST      deepest octree levels 0..21, round-robin (default 21)\n"
           "  --size WxH            each viewer's viewport (default 320x180)\n"
+          "  --full-sessions       keep every brick's codes as overcast-view does (default: lean sessions\n"
+          "                        that verify each state by its digest checksum and keep 12 bytes a\n"
+          "                        brick, so N x budget may exceed this machine's memory)\n"
           "  --seed N              camera paths' seed (default 1)\n"
           "  --tick-hz F           camera updates per second, with a period (default 10)\n"
           "  --step-seconds S      stepped: path seconds per epoch (default 1)\n"
@@ -626,7 +629,7 @@ int main(int argc, char **argv) {
   enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
-         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG };
+         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -647,6 +650,7 @@ int main(int argc, char **argv) {
       {"faults", required_argument, 0, O_FAULTS},   {"fault-every", required_argument, 0, O_FAULT_EVERY},
       {"fault-budget", required_argument, 0, O_FAULT_BUDGET}, {"restart-at", required_argument, 0, O_RESTART_AT},
       {"fault-rss-slack", required_argument, 0, O_FAULT_SLACK}, {"server-arg", required_argument, 0, O_SERVER_ARG},
+      {"full-sessions", no_argument, 0, O_FULL},
       {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
@@ -751,6 +755,7 @@ int main(int argc, char **argv) {
         spawn_only = 1;
         spawn_only_name = "--server-arg";
         break;
+      case O_FULL: o.full_sessions = 1; break;
       case 'v': o.verbose = 1; break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;

@@ -300,9 +300,16 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
            s->server_end.hwm_mib, s->server_cpu_s, s->cpu_span_s > 0 ? 100.0 * s->server_cpu_s / s->cpu_span_s : 0.0);
   else
     printf("server: RSS and CPU unknown (not a local process of ours: --server-pid)\n");
-  printf("overcast-stress itself: CPU %.2f s (%.0f %% of one core), peak RSS %s MiB\n", s->tool_cpu_s,
-         s->cpu_span_s > 0 ? 100.0 * s->tool_cpu_s / s->cpu_span_s : 0.0,
-         sr_num(b1, sizeof b1, s->tool.ok ? s->tool.hwm_mib : NAN, "%.1f"));
+  uint64_t held = 0, resident = 0;
+  for (int i = 0; i < run->nv; i++) {
+    held += run->v[i].session.held_bytes;
+    resident += run->v[i].resident_last;
+  }
+  printf("overcast-stress itself: CPU %.2f s (%.0f %% of one core), peak RSS %s MiB; its %s sessions held %.1f MiB at the "
+         "end for %.1f MiB resident\n",
+         s->tool_cpu_s, s->cpu_span_s > 0 ? 100.0 * s->tool_cpu_s / s->cpu_span_s : 0.0,
+         sr_num(b1, sizeof b1, s->tool.ok ? s->tool.hwm_mib : NAN, "%.1f"), o->full_sessions ? "full" : "lean",
+         (double)held / SR_MIB, (double)resident / SR_MIB);
   printf("brick cache: hit rate %s (%s requests, %s bricks produced), %s MiB held\n",
          sr_num(b1, sizeof b1, 100.0 * s->cache_hit_rate, "%.1f %%"), sr_num(b2, sizeof b2, s->brick_requests, "%.0f"),
          sr_num(b3, sizeof b3, s->bricks_produced, "%.0f"), sr_num(b4, sizeof b4, s->cache_bytes / SR_MIB, "%.1f"));
@@ -437,6 +444,9 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     sr_add_num(sv, "cache_bytes", s->cache_bytes);
     cJSON *tl = cJSON_AddObjectToObject(j, "tool");
     cJSON_AddNumberToObject(tl, "cpu_s", s->tool_cpu_s);
+    cJSON_AddStringToObject(tl, "sessions", o->full_sessions ? "full" : "lean");
+    cJSON_AddNumberToObject(tl, "sessions_held_bytes", (double)held);
+    cJSON_AddNumberToObject(tl, "sessions_resident_bytes", (double)resident);
     cJSON_AddNumberToObject(tl, "wall_s", s->wall_s);
     cJSON_AddNumberToObject(tl, "cpu_span_s", s->cpu_span_s);
     sr_add_num(tl, "peak_rss_mib", s->tool.ok ? s->tool.hwm_mib : NAN);

@@ -13,7 +13,8 @@
  *   skipped epochs  gaps in the epoch numbers of complete states (each one listed), next to the
  *                   server's own count of coalesced epochs from STATS.
  *
- * Nothing is allocated for a GPU: besides what the session keeps (K−1 states), a viewer keeps the
+ * Nothing is allocated for a GPU: besides what the session keeps (K−1 states: records and, in a lean
+ * session, the default, a 12-byte digest a brick instead of its 2052 bytes), a viewer keeps the
  * sorted brick ids of the K−1 previous states (4 bytes a brick) and its samples. */
 #include <inttypes.h>
 #include <math.h>
@@ -153,7 +154,6 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   v->state_at = t;
   v->bricks_in += bricks;
   v->nodes_last = s->node_count;
-  v->bricks_last = s->brick_count;
   int deepest = -1;
   for (uint32_t i = 0; i < s->node_count; i++) {
     int l = oc_key_level(s->nodes[i].key);
@@ -202,6 +202,7 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
     sv_fail(v, "viewer %d: out of memory", v->index);
     return;
   }
+  v->bricks_last = v->fp_new.n; /* brick records: a lean state carries no brick payloads */
   const stress_footprint_t *win[3] = {&v->fp_new, &v->fp[0], &v->fp[1]};
   uint64_t resident = sv_resident(win, 1 + v->nfp, SV_SLOT_BYTES, SV_RECORD_BYTES);
   stress_footprint_t spare = {0};
@@ -381,10 +382,13 @@ void *stress_viewer_main(void *arg) {
   stress_run_t *run = v->run;
   const stress_opts_t *o = run->o;
   char why[1024] = "";
+  /* lean (the default): the session verifies each state by its digest checksum and keeps 12 bytes
+   * a brick, not 2052, so N × budget may exceed this machine's memory */
   ocp_viewer_desc_t vd = {.role = OCP_ROLE_VIEWER, .budget = v->budget, .slot_bytes = SV_SLOT_BYTES,
                           .record_bytes = SV_RECORD_BYTES, .max_depth = (uint8_t)v->max_depth,
-                          .width = (uint32_t)o->width, .height = (uint32_t)o->height, .caps = OCP_CAP_ALL,
-                          .token = o->token};
+                          .width = (uint32_t)o->width, .height = (uint32_t)o->height,
+                          .caps = o->full_sessions ? OCP_CAP_ALL : OCP_CAP_DICT, .token = o->token,
+                          .lean = !o->full_sessions};
   ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats};
   int r = ocv_conn_open(&v->conn, run->host, run->port, &vd, &ev, o->timeout, why, sizeof why);
   if (r < 0) {
