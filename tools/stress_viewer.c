@@ -275,7 +275,7 @@ static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
   if (v->have_welcome && !resumed) {
     /* a new session (the server restarted): the session dropped its states, so does our count */
     v->fresh = 1;
-    v->nfp = 0;
+    for (int i = 0; i < v->nfp; i++) v->fp[i].n = v->fp[i].records = 0; /* emptied, arrays kept */
     v->detail_phase = 0;
   }
   v->welcome = *w;
