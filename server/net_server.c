@@ -734,7 +734,8 @@ static void on_house_timer(uv_timer_t *t) {
     nx = s->next;
     switch (s->state) {
       case OCS_SS_HANDSHAKE:
-        if (now - s->created > d->handshake_s) {
+        /* a HELLO held back by a running step has arrived: it is answered when the step ends */
+        if (!s->blocked && now - s->created > d->handshake_s) {
           snprintf(why, sizeof why, "no hello within %.1f s", d->handshake_s);
           ocs_session_close(s, OCP_CODE_TIMEOUT, why);
         }

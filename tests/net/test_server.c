@@ -684,6 +684,84 @@ static void test_server__idle_timeout(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
+static void ev_reply(void *ctx, const ocp_control_t *c) {
+  (void)c;
+  *(int *)ctx = 1;
+}
+
+/* A HELLO that arrives while a step runs waits for the step's end, however long: the handshake
+ * timeout is for peers that send nothing, not for a busy server (overcast-stress --faults found
+ * viewers timed out behind planet steps longer than 10 s). */
+static void test_server__hello_during_step(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--idle-timeout", "1", NULL}; /* the built-in planet; handshake ≤ idle: 1 s */
+  start_server(&s, extra);
+  char why[512];
+  viewer_t a;
+  memset(&a, 0, sizeof a);
+  ocp_viewer_desc_t d = {.role = OCP_ROLE_VIEWER, .budget = 16u << 20, .max_depth = 21, .width = 160, .height = 90,
+                         .caps = OCP_CAP_ALL};
+  ocp_viewer_events_t ev = {.ctx = &a, .welcome = ev_welcome, .state = ev_state, .closed = ev_closed};
+  if (ocv_conn_open(&a.c, "127.0.0.1", s.port, &d, &ev, 5.0, why, sizeof why) < 0) fail_msg("viewer: %s", why);
+  assert_int_equal(ocv_conn_wait_ready(a.c, 5.0, why, sizeof why), 0);
+  const ocp_welcome_t *w = ocp_viewer_welcome(ocv_conn_session(a.c));
+  oc_camera_pose_t pose = {{w->cam_lat, w->cam_lon, w->cam_alt}, w->cam_heading, w->cam_pitch, w->cam_fov};
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocp_camera_t c = {cam.pos, cam.forward, cam.up, pose.fov, 160, 90};
+  assert_int_equal(ocv_conn_camera(a.c, &c), 0);
+  assert_int_equal(ocv_conn_flush(a.c, 5.0, why, sizeof why), 0);
+  int replied = 0;
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL};
+  ocp_viewer_events_t cev = {.ctx = &replied, .control_reply = ev_reply};
+  ocv_conn_t *ctl = NULL;
+  if (ocv_conn_open(&ctl, "127.0.0.1", s.port, &cd, &cev, 5.0, why, sizeof why) < 0) fail_msg("control: %s", why);
+  assert_int_equal(ocv_conn_wait_ready(ctl, 5.0, why, sizeof why), 0);
+  struct timespec t0, t;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  assert_int_equal(ocv_conn_control(ctl, 1, "{\"op\":\"step\",\"epochs\":1}"), 0); /* the viewer's first planet step */
+  sleep_us(100000);
+  int fd = raw_connect(s.port);
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
+                   .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16};
+  ocp_put_hello(&b, &h);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  double took = 0;
+  while (!replied) { /* both connections stay alive through the step (idle timeout 1 s) */
+    ocv_conn_keepalive(a.c);
+    ocv_conn_keepalive(ctl);
+    assert_int_equal(ocv_conn_poll(a.c, 0.1, why, sizeof why), 0);
+    assert_int_equal(ocv_conn_poll(ctl, 0.1, why, sizeof why), 0);
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    took = (double)(t.tv_sec - t0.tv_sec) + 1e-9 * (double)(t.tv_nsec - t0.tv_nsec);
+    if (took > 300) fail_msg("the step took more than 300 s");
+  }
+  if (took < 1.5) fail_msg("the step took %.2f s: this test needs one longer than the 1 s handshake timeout", took);
+  /* the first frame the raw peer gets is WELCOME, not ERROR TIMEOUT */
+  ocp_reader_t rd;
+  ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
+  uint8_t buf[4096];
+  int type = -1;
+  for (int i = 0; i < 100 && type < 0; i++) {
+    struct pollfd p = {fd, POLLIN, 0};
+    if (poll(&p, 1, 50) <= 0) continue;
+    ssize_t n = read(fd, buf, sizeof buf);
+    if (n <= 0) break;
+    ocp_reader_feed(&rd, buf, (size_t)n);
+    ocp_header_t hd;
+    const uint8_t *pl;
+    if (ocp_reader_next(&rd, &hd, &pl) == 1) type = hd.type;
+  }
+  ocp_reader_free(&rd);
+  close(fd);
+  assert_int_equal(type, OCP_MSG_WELCOME);
+  ocv_conn_close(ctl);
+  ocv_conn_close(a.c);
+  assert_int_equal(stop_server(&s), 0);
+}
+
 /* The control channel: every op answers; bad requests are refused with a reason; reload sends
  * viewers away; the viewer limit gives FULL; SIGTERM says goodbye and exits 0. */
 static void test_server__control(void **state) {
@@ -768,6 +846,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_server__lean_viewer, teardown),
       cmocka_unit_test_teardown(test_server__slow_viewer, teardown),
       cmocka_unit_test_teardown(test_server__idle_timeout, teardown),
+      cmocka_unit_test_teardown(test_server__hello_during_step, teardown),
       cmocka_unit_test_teardown(test_server__control, teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
