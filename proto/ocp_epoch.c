@@ -415,6 +415,12 @@ int ocp_epoch_enc_next(ocp_epoch_enc_t *e, uint8_t version, oc_buf_t *out) {
 
 uint64_t ocp_epoch_enc_checksum(const ocp_epoch_enc_t *e) { return e && e->state ? e->checksum : 0; }
 
+size_t ocp_epoch_enc_memory(const ocp_epoch_enc_t *e) {
+  if (!e) return 0;
+  return sizeof *e + ZSTD_sizeof_CCtx(e->cctx) + ZSTD_sizeof_CDict(e->cdict) + (e->raw ? OCP_CHUNK_RAW_MAX : 0) +
+         e->ops_cap * sizeof *e->ops + e->send_cap * sizeof *e->send;
+}
+
 void ocp_epoch_enc_stats(const ocp_epoch_enc_t *e, ocp_enc_stats_t *out) {
   if (!out) return;
   if (!e) {

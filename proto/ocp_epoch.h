@@ -86,6 +86,9 @@ int ocp_epoch_enc_next(ocp_epoch_enc_t *e, uint8_t version, oc_buf_t *out);
  *  echo. 0 before any epoch. */
 uint64_t ocp_epoch_enc_checksum(const ocp_epoch_enc_t *e);
 void ocp_epoch_enc_stats(const ocp_epoch_enc_t *e, ocp_enc_stats_t *out);
+/*! ocp_epoch_enc_memory() : bytes the encoder holds (zstd context and dictionary, its buffers), so
+ *  a server can account for what each session costs beyond the states it holds. */
+size_t ocp_epoch_enc_memory(const ocp_epoch_enc_t *e);
 
 /*-*** Decoder (viewer) ***/
 

@@ -84,6 +84,9 @@ static cJSON *sessions_json(ocs_server_t *srv) {
     cJSON_AddStringToObject(o, "address", t->addr);
     cJSON_AddBoolToObject(o, "lingering", t->state == OCS_SS_LINGER);
     cJSON_AddNumberToObject(o, "queued", (double)t->queued);
+    /* what the connection itself costs: its frame reader, a held-back frame, its encoder */
+    cJSON_AddNumberToObject(o, "memory", (double)(sizeof *t + t->rd.buf.cap + (t->deferred ? t->deferred_hdr.length : 0) +
+                                                  ocp_epoch_enc_memory(t->enc)));
     cJSON_AddNumberToObject(o, "bytes_out", (double)t->bytes_out);
     cJSON_AddNumberToObject(o, "bytes_in", (double)t->bytes_in);
     if (t->viewer) {

@@ -247,8 +247,8 @@ static double num_at(const cJSON *o, const char *key) {
   return cJSON_IsNumber(x) ? x->valuedouble : NAN;
 }
 
-/* After a step: the server's RSS against what it accounts for (brick cache, held states, unsent
- * bytes of every connection). The first sample of an incarnation is its baseline. */
+/* After a step: the server's RSS against what it accounts for (brick cache, held states, and each
+ * connection's unsent bytes and own memory). The first sample of an incarnation is its baseline. */
 static void fault_sample(stress_run_t *run, ocv_conn_t *ctl, fault_ctx_t *fx, stress_summary_t *sum) {
   const stress_opts_t *o = run->o;
   stress_fault_mem_t *m = &sum->fault_mem;
@@ -263,18 +263,19 @@ static void fault_sample(stress_run_t *run, ocv_conn_t *ctl, fault_ctx_t *fx, st
     return;
   }
   const cJSON *w = cJSON_GetObjectItemCaseSensitive(st, "world");
-  double queued = 0;
+  double queued = 0, conn = 0;
   const cJSON *x;
   cJSON_ArrayForEach(x, cJSON_GetObjectItemCaseSensitive(ss, "sessions")) {
-    double q = num_at(x, "queued");
+    double q = num_at(x, "queued"), mem = num_at(x, "memory");
     if (isfinite(q)) {
       queued += q;
       if ((uint64_t)q > m->queued_max) m->queued_max = (uint64_t)q;
     }
+    if (isfinite(mem)) conn += mem;
   }
   double qh = num_at(cJSON_GetObjectItemCaseSensitive(w, "limits"), "queue_hard");
   if (isfinite(qh)) m->queue_hard = (uint64_t)qh;
-  double acc = num_at(w, "cache_bytes") + num_at(w, "held_bytes") + queued;
+  double acc = num_at(w, "cache_bytes") + num_at(w, "held_bytes") + queued + conn;
   cJSON_Delete(st);
   cJSON_Delete(ss);
   if (!p.ok || !isfinite(acc)) return;
