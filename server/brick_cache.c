@@ -202,10 +202,10 @@ void ocs_cache_free(ocs_cache_t *c) {
 }
 
 
-/* Lookup, then one of: hit; new reservation; sleep until the producer publishes (hit) or abandons
+/* Lookup, then one of: hit; new reservation; busy (!wait); sleep until the producer publishes (hit) or abandons
  * with this waiter first to wake (it inherits the reservation and its own pin becomes the
  * producer's). Waiting pins the entry, so it is neither evicted nor freed while we sleep. */
-int ocs_cache_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entry_t **e) {
+static int ocs__acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entry_t **e, int wait) {
   OC_RETURN_IF(!e, OC_EINVAL);
   *e = NULL;
   OC_RETURN_IF(!c || !key, OC_EINVAL);
@@ -236,6 +236,9 @@ int ocs_cache_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entr
     ocs__pin(c, x);
     c->st.hits++;
     r = OCS_CACHE_HIT;
+  } else if (!wait) {
+    pthread_mutex_unlock(&c->mu);
+    return OCS_CACHE_BUSY;
   } else {
     pthread_cond_t *cv = &c->cv[h & (OCS__CACHE_CONDS - 1)];
     x->pins++;
@@ -255,6 +258,15 @@ int ocs_cache_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entr
   pthread_mutex_unlock(&c->mu);
   *e = x;
   return r;
+}
+
+
+int ocs_cache_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entry_t **e) {
+  return ocs__acquire(c, key, e, 1);
+}
+
+int ocs_cache_try_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entry_t **e) {
+  return ocs__acquire(c, key, e, 0);
 }
 
 

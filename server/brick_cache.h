@@ -33,6 +33,7 @@
 /*! ocs_cache_acquire() / ocs_cache_peek() results. */
 #define OCS_CACHE_MISS 0
 #define OCS_CACHE_HIT 1
+#define OCS_CACHE_BUSY 2 /**< ocs_cache_try_acquire(): another thread is producing it */
 
 typedef struct {
   uint64_t w[4];
@@ -67,6 +68,10 @@ void ocs_cache_free(ocs_cache_t *c);
  *          A negative OC_E* (OC_EINVAL, OC_ENOMEM), *e NULL.
  *  note : a waiter gets the hit when the producer publishes, or the reservation when it abandons. */
 int ocs_cache_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entry_t **e);
+/*! ocs_cache_try_acquire() : as ocs_cache_acquire(), but instead of waiting for another thread's
+ *  production returns OCS_CACHE_BUSY with *e NULL (nothing pinned, not counted as a wait), so the
+ *  caller can do other work first and acquire later. */
+int ocs_cache_try_acquire(ocs_cache_t *c, const ocs_cache_key_t *key, ocs_cache_entry_t **e);
 /*! ocs_cache_peek() : non-blocking lookup for callers that can do without the brick now.
  *  @return 1 and a pinned ready entry, or 0 with *e NULL (absent or being produced; nothing is
  *  reserved and hits/misses are not counted). */

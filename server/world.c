@@ -29,6 +29,7 @@ typedef struct {
   oc_key_t key;
   uint64_t stamp;
   ocs_cache_entry_t *entry; /* pinned until the states are built */
+  float *sigma;             /* σt kept while the request waits for a τ volume (produce_one) */
 } req_t;
 
 struct ocs_viewer_s {
@@ -76,6 +77,8 @@ struct ocs_world_s {
   uint64_t granted;
   req_t *req;
   size_t nreq, req_cap;
+  size_t *deferred; /* requests whose τ volume another thread was building */
+  size_t ndeferred, deferred_cap;
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes;
   uint64_t brick_requests;
@@ -137,14 +140,15 @@ static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
   ocs_field_bound(w->field, key, w->time, smin, smax);
 }
 
-/* τ of a node from its group's volume, through the cache. */
-static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+/* τ of a node from its group's volume, through the cache. !wait: OCS_CACHE_BUSY, and nothing
+ * done, when another thread is building that volume. */
+static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS], int wait) {
   int level = oc_key_level(key);
   oc_key_t group = ocs_tau_group_of(&w->tau, key);
   ocs_cache_key_t k = ckey(w, T_TAUVOL, group, w->light[level], ((uint64_t)level) | (w->sun_version << 8));
   ocs_cache_entry_t *e;
-  int r = ocs_cache_acquire(w->cache, &k, &e);
-  if (r < 0) return r;
+  int r = wait ? ocs_cache_acquire(w->cache, &k, &e) : ocs_cache_try_acquire(w->cache, &k, &e);
+  if (r < 0 || r == OCS_CACHE_BUSY) return r;
   if (r == OCS_CACHE_MISS) {
     void *vol = NULL;
     size_t bytes = 0;
@@ -163,30 +167,17 @@ static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
   return r == OC_ENOENT ? ocs_tau_direct(&w->tau, key, out) : r;
 }
 
-static int produce_one(void *ctx, size_t i, int worker) {
-  (void)worker;
-  ocs_world_t *w = ctx;
-  req_t *q = &w->req[i];
-  ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
-  int r = ocs_cache_acquire(w->cache, &k, &q->entry);
-  if (r < 0) {
-    q->entry = NULL;
-    return r;
-  }
-  if (r == OCS_CACHE_HIT) return 0;
-  float sigma[OC_BRICK_VOXELS], tau[OC_BRICK_VOXELS];
+/* A request's end: τ where it is needed, the codes, published. !wait: OCS_CACHE_BUSY, with the
+ * reservation kept, when another thread is building the τ volume. */
+static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_VOXELS], int wait) {
+  float tau[OC_BRICK_VOXELS];
   memset(tau, 0, sizeof tau);
-  float lo, hi;
-  ocs_field_bound(w->field, q->key, w->time, &lo, &hi);
-  if (!(hi > 0.0f)) /* known empty: no sampling */
-    memset(sigma, 0, sizeof sigma);
-  else
-    r = sigma_get(w, q->key, sigma);
-  int any = 0;
-  for (int j = 0; r >= 0 && j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
+  int any = 0, r = 0;
+  for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
   /* nothing scatters where σt is all zero: such a node needs no τ and stays empty, unless it holds
    * the ground, which the renderer lights through τ (cloud shadows on the ground) */
-  if (r >= 0 && w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(w, q->key, tau);
+  if (w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(w, q->key, tau, wait);
+  if (r == OCS_CACHE_BUSY) return r;
   payload_t *p = r >= 0 ? malloc(sizeof *p) : NULL;
   if (!p) {
     ocs_cache_abandon(w->cache, q->entry);
@@ -198,6 +189,49 @@ static int produce_one(void *ctx, size_t i, int worker) {
   ocs_cache_publish(w->cache, q->entry, p, p->kind == OC_NODE_BRICK ? sizeof *p : PAYLOAD_HEAD);
   w->bricks_produced++;
   return 0;
+}
+
+/* Requests are sorted by key, so neighbours share a τ volume (one per group and level, built by
+ * the first thread that needs it, in tens of ms). Waiting for another thread's volume cost about a
+ * third of two producer threads' time on the planet; a request that would wait keeps its σt and is
+ * finished in a second pass (produce_deferred) while the thread goes on to other requests. */
+static int produce_one(void *ctx, size_t i, int worker) {
+  (void)worker;
+  ocs_world_t *w = ctx;
+  req_t *q = &w->req[i];
+  ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
+  int r = ocs_cache_acquire(w->cache, &k, &q->entry);
+  if (r < 0) {
+    q->entry = NULL;
+    return r;
+  }
+  if (r == OCS_CACHE_HIT) return 0;
+  float sigma[OC_BRICK_VOXELS];
+  float lo, hi;
+  ocs_field_bound(w->field, q->key, w->time, &lo, &hi);
+  if (!(hi > 0.0f)) { /* known empty: no sampling */
+    memset(sigma, 0, sizeof sigma);
+  } else if ((r = sigma_get(w, q->key, sigma)) < 0) {
+    ocs_cache_abandon(w->cache, q->entry);
+    q->entry = NULL;
+    return r;
+  }
+  r = produce_finish(w, q, sigma, 0);
+  if (r != OCS_CACHE_BUSY) return r;
+  q->sigma = malloc(sizeof sigma);
+  if (!q->sigma) return produce_finish(w, q, sigma, 1); /* no room to set it aside: wait */
+  memcpy(q->sigma, sigma, sizeof sigma);
+  return 0;
+}
+
+static int produce_deferred(void *ctx, size_t i, int worker) {
+  (void)worker;
+  ocs_world_t *w = ctx;
+  req_t *q = &w->req[w->deferred[i]];
+  int r = produce_finish(w, q, q->sigma, 1);
+  free(q->sigma);
+  q->sigma = NULL;
+  return r;
 }
 
 /*-*** Clock ***/
@@ -272,6 +306,7 @@ void ocs_world_free(ocs_world_t *w) {
   while (w->nviewers) ocs_world_remove_viewer(w, w->viewers[w->nviewers - 1]);
   free(w->viewers);
   free(w->req);
+  free(w->deferred);
   ocs_pool_free(w->pool);
   ocs_cache_free(w->cache);
   ocs_field_free(w->field);
@@ -571,13 +606,36 @@ int ocs_world_step(ocs_world_t *w) {
           w->req = a;
           w->req_cap = nc;
         }
-        w->req[w->nreq++] = (req_t){want[i].key, want[i].stamp, NULL};
+        w->req[w->nreq++] = (req_t){want[i].key, want[i].stamp, NULL, NULL};
       }
       w->viewers[want[i].viewer]->req_of[want[i].leaf] = (uint32_t)(w->nreq - 1);
     }
   }
   free(want);
-  if (rc >= 0) rc = ocs_pool_run(w->pool, w->nreq, produce_one, w);
+  if (rc >= 0) {
+    rc = ocs_pool_run(w->pool, w->nreq, produce_one, w);
+    /* the set-aside requests hold reservations: they are finished even after an error */
+    w->ndeferred = 0;
+    for (size_t i = 0; i < w->nreq; i++) {
+      if (!w->req[i].sigma) continue;
+      if (w->ndeferred == w->deferred_cap) {
+        size_t nc = w->deferred_cap ? 2 * w->deferred_cap : 256;
+        size_t *a = realloc(w->deferred, nc * sizeof *a);
+        if (!a) { /* finish it here, waiting */
+          int r = produce_finish(w, &w->req[i], w->req[i].sigma, 1);
+          free(w->req[i].sigma);
+          w->req[i].sigma = NULL;
+          if (r < 0 && rc >= 0) rc = r;
+          continue;
+        }
+        w->deferred = a;
+        w->deferred_cap = nc;
+      }
+      w->deferred[w->ndeferred++] = i;
+    }
+    int r = w->ndeferred ? ocs_pool_run(w->pool, w->ndeferred, produce_deferred, w) : 0;
+    if (r < 0 && rc >= 0) rc = r;
+  }
   w->produce_seconds = now_s() - t1;
 
   /* Emit. */

@@ -156,6 +156,33 @@ static void test_brick_cache__miss_publish_then_hit(void **st) {
 }
 
 /* Cap fits exactly 3 entries: touching A then inserting D evicts B (the least recent), not A. */
+/* try_acquire: a miss reserves, a reservation in progress is BUSY without a wait or a pin, a ready
+ * entry is a pinned hit. */
+static void test_brick_cache__try_acquire_never_waits(void **st) {
+  (void)st;
+  ocs_cache_t *c = NULL;
+  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_key_t k = key_of(7);
+  ocs_cache_entry_t *e = NULL, *e2 = (ocs_cache_entry_t *)&k;
+  assert_int_equal(ocs_cache_try_acquire(c, &k, &e), OCS_CACHE_MISS);
+  assert_non_null(e);
+  assert_int_equal(ocs_cache_try_acquire(c, &k, &e2), OCS_CACHE_BUSY); /* would wait: returns at once */
+  assert_null(e2);
+  ocs_cache_stats_t s;
+  ocs_cache_stats(c, &s);
+  assert_int_equal(s.waits, 0);
+  assert_int_equal(s.misses, 1);
+  ocs_cache_publish(c, e, make_payload(7, PAYLOAD), PAYLOAD);
+  ocs_cache_release(c, e);
+  assert_int_equal(ocs_cache_try_acquire(c, &k, &e2), OCS_CACHE_HIT);
+  assert_true(payload_ok(e2, 7, PAYLOAD));
+  ocs_cache_release(c, e2);
+  ocs_cache_set_cap(c, 1); /* unpinned: evicted, so BUSY left no pin behind */
+  ocs_cache_stats(c, &s);
+  assert_int_equal(s.entries, 0);
+  ocs_cache_free(c);
+}
+
 static void test_brick_cache__lru_evicts_least_recent(void **st) {
   (void)st;
   ocs_cache_t *c = NULL;
@@ -643,6 +670,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_brick_cache__create_rejects_zero_cap),
       cmocka_unit_test(test_brick_cache__miss_publish_then_hit),
+      cmocka_unit_test(test_brick_cache__try_acquire_never_waits),
       cmocka_unit_test(test_brick_cache__lru_evicts_least_recent),
       cmocka_unit_test(test_brick_cache__pinned_never_evicted),
       cmocka_unit_test(test_brick_cache__overhead_bounds_entries),
