@@ -33,6 +33,8 @@ struct ocs_session_s {
   uint8_t version; /* negotiated */
   double created, last_rx, last_progress, soft_since, closing_since;
   uint64_t queued; /* bytes handed to uv_write and not yet written */
+  int kq_last;      /* bytes in the kernel's send queue not acknowledged by the peer, last look */
+  double kq_since;  /* since when it has stayed kq_last */
   uint64_t bytes_out, bytes_in;
   /* Input held while a step runs (a frame that needs the world). */
   int blocked;

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <linux/sockios.h> /* SIOCOUTQ */
+#include <sys/ioctl.h>
 
 #include "net_internal.h"
 #include "oc_err.h"
@@ -437,6 +439,24 @@ static void handle_camera(ocs_session_t *s, const uint8_t *p, size_t n) {
   else ocs_viewer_set_view(s->viewer, &v);
 }
 
+/* A peer that stopped reading while everything fit in the kernel's send buffer leaves nothing
+ * unsent here, so `queued` cannot tell: the kernel's queue of bytes it has not acknowledged can.
+ * @return 1 when that queue is non-empty and has not moved for stall_s. */
+static int kernel_stalled(ocs_session_t *s, double now, double stall_s) {
+  uv_os_fd_t fd;
+  int outq = 0;
+  if (uv_fileno((const uv_handle_t *)&s->tcp, &fd) != 0 || ioctl(fd, SIOCOUTQ, &outq) != 0 || outq <= 0) {
+    s->kq_last = 0;
+    return 0;
+  }
+  if (outq != s->kq_last) {
+    s->kq_last = outq;
+    s->kq_since = now;
+    return 0;
+  }
+  return now - s->kq_since > stall_s;
+}
+
 /* @return 1 when the frame must wait for the running step to end. */
 static int handle_frame(ocs_session_t *s, const ocp_header_t *hd, const uint8_t *p) {
   ocs_server_t *srv = s->srv;
@@ -746,6 +766,9 @@ static void on_house_timer(uv_timer_t *t) {
           ocs_session_close(s, OCP_CODE_TIMEOUT, why);
         } else if (s->queued && now - s->last_progress > d->stall_s) {
           snprintf(why, sizeof why, "%" PRIu64 " bytes unsent and none written for %.1f s", s->queued, d->stall_s);
+          ocs_session_close(s, OCP_CODE_TIMEOUT, why);
+        } else if (!s->queued && s->connected && kernel_stalled(s, now, d->stall_s)) {
+          snprintf(why, sizeof why, "%d bytes sent and none read by the peer for %.1f s", s->kq_last, d->stall_s);
           ocs_session_close(s, OCP_CODE_TIMEOUT, why);
         } else if (s->queued > d->queue_soft) {
           if (!s->soft_since) s->soft_since = now;

@@ -82,19 +82,21 @@ enum { STRESS_FK_STALL, STRESS_FK_DROP, STRESS_FK_GARBAGE, STRESS_FK_COUNT };
 #define STRESS_FAULT_RESTART (1 << STRESS_FK_COUNT)
 /* seconds past the server's handshake timeout by which garbage must have been closed */
 #define STRESS_FAULT_GRACE 10.0
+/* seconds past the server's stall timeout by which a viewer that stopped reading must be let go */
+#define STRESS_FAULT_STALL_GRACE 5.0
 /* RSS growth allowed beyond the server's own accounting (--fault-rss-slack default), MiB */
 #define STRESS_FAULT_SLACK_MIB 64
 
 typedef struct {
-  double handshake_s;
+  double handshake_s, stall_s; /* the server's limits */
   uint64_t opened[STRESS_FK_COUNT], refused[STRESS_FK_COUNT]; /* refused: connect failed (server full, restarting) */
   uint64_t closed[STRESS_FK_COUNT];                           /* closed by the server */
   uint64_t errors[STRESS_FK_COUNT];                           /* of those, after an ERROR or GOODBYE frame */
   double close_s_max[STRESS_FK_COUNT];
-  uint64_t late;               /* garbage still open past its deadline (a failure) */
+  uint64_t late;               /* garbage or a stalled viewer still open past its deadline (a failure) */
   uint64_t unanswered;         /* garbage closed without ERROR, or served (a failure) */
   uint64_t states_before_drop; /* drop 3: complete states before the reset */
-  uint64_t open_at_end;        /* stalled viewers the server still held at the end */
+  uint64_t open_at_end;        /* stalled viewers the server still held at the end (not yet due) */
   char failure[256];           /* the first failure, "" if none */
 } stress_fault_conns_t;
 
@@ -230,8 +232,9 @@ void *stress_viewer_main(void *arg);
 void stress_viewer_free(stress_viewer_t *v);
 
 /*! stress_faults_start() : the thread of misbehaving connections (o->faults), idle until asked.
- *  handshake_s: the server's handshake timeout (garbage deadlines). @return 0 or a negative OC_E*. */
-int stress_faults_start(stress_run_t *run, double handshake_s);
+ *  handshake_s, stall_s: the server's timeouts (the deadlines of garbage and of stalled viewers).
+ *  @return 0 or a negative OC_E*. */
+int stress_faults_start(stress_run_t *run, double handshake_s, double stall_s);
 /*! stress_faults_round() : one connection of each kind asked for, opened now (before a step). */
 void stress_faults_round(stress_run_t *run);
 /*! stress_faults_restarted() : the server is about to be killed: the thread forgets the connections

@@ -21,8 +21,9 @@
  *
  * Garbage must be answered with an ERROR frame and closed by the server within its handshake
  * timeout plus STRESS_FAULT_GRACE seconds; anything else (no ERROR, still open, or served as if
- * valid) is a failure. Stalled viewers are the server's to bound: their unsent bytes are read
- * from the "sessions" request by the coordinator. Drops need no answer. */
+ * valid) is a failure. A stalled viewer must be let go within the server's stall timeout plus
+ * STRESS_FAULT_STALL_GRACE (seen at the end, by reading it to its EOF); meanwhile its unsent bytes are
+ * read from the "sessions" request by the coordinator. Drops need no answer. */
 #include <errno.h>
 #include <fcntl.h>
 #include <inttypes.h>
@@ -57,6 +58,7 @@ typedef struct {
   int welcomed, injected, got_error, states;
   uint32_t error_code;
   double last_keepalive;
+  double stalled_at; /* stall: when it stopped reading (after its WELCOME) */
 } sf_conn_t;
 
 struct stress_faults_s {
@@ -187,7 +189,7 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
     free(c);
     return;
   }
-  if (kind == STRESS_FK_STALL) { /* a small window fills at once: the server's queue is what holds the rest */
+  if (kind == STRESS_FK_STALL) { /* a small window: the server's socket stops draining at once */
     int sz = 4096;
     setsockopt(c->fd, SOL_SOCKET, SO_RCVBUF, &sz, sizeof sz);
   }
@@ -302,6 +304,7 @@ static int sf_read(stress_faults_t *f, sf_conn_t *c, double now) {
       }
       if (c->kind == STRESS_FK_STALL && c->welcomed) {
         sf_flush(c);
+        c->stalled_at = now;
         return 0; /* from now on it never reads */
       }
     } else {
@@ -322,6 +325,34 @@ static int sf_read(stress_faults_t *f, sf_conn_t *c, double now) {
       }
     }
   }
+}
+
+/* Reads a stalled connection to its end: frames scanned for ERROR/GOODBYE, at most `timeout_s`
+ * (and 64 MiB). @return 1 at EOF or a reset (the server closed it), 0 when it stays open. */
+static int sf_drain(sf_conn_t *c, double timeout_s) {
+  uint8_t buf[65536];
+  size_t total = 0;
+  double until = stress_now() + timeout_s;
+  ocp_reader_t rd;
+  ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
+  int eof = 0;
+  while (!eof && stress_now() < until && total < (64u << 20)) {
+    struct pollfd p = {c->fd, POLLIN, 0};
+    if (poll(&p, 1, 100) <= 0) continue;
+    ssize_t k = recv(c->fd, buf, sizeof buf, 0);
+    if (k <= 0) {
+      eof = k == 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
+      continue;
+    }
+    total += (size_t)k;
+    if (ocp_reader_feed(&rd, buf, (size_t)k) < 0) break;
+    ocp_header_t h;
+    const uint8_t *pl;
+    while (ocp_reader_next(&rd, &h, &pl) == 1)
+      if (h.type == OCP_MSG_ERROR || h.type == OCP_MSG_GOODBYE) c->got_error = 1;
+  }
+  ocp_reader_free(&rd);
+  return eof;
 }
 
 static void *sf_main(void *arg) {
@@ -404,18 +435,35 @@ static void *sf_main(void *arg) {
       }
     }
   }
-  /* stalled and unfinished drop viewers: still open at the end (the server's queue bound them) */
+  /* What is left: stalled viewers (and drops waiting for an epoch). Whether the server let a
+   * stalled one go shows only by reading what it could not deliver: EOF after it, or nothing more. */
+  double end = stress_now();
   for (int i = 0; i < f->n; i++) {
-    if (f->c[i]->kind == STRESS_FK_STALL) f->st.open_at_end++;
-    sf_conn_free(f->c[i], 0);
-    free(f->c[i]);
+    sf_conn_t *c = f->c[i];
+    if (c->kind == STRESS_FK_STALL && c->stalled_at > 0) {
+      int eof = sf_drain(c, 3.0);
+      double held = end - c->stalled_at;
+      if (eof) {
+        f->st.closed[STRESS_FK_STALL]++;
+        if (c->got_error) f->st.errors[STRESS_FK_STALL]++;
+      } else {
+        f->st.open_at_end++;
+        if (f->st.stall_s > 0 && held > f->st.stall_s + STRESS_FAULT_STALL_GRACE) {
+          f->st.late++;
+          sf_fail(f, "stall %d: a viewer that stopped reading is still held %.1f s later (the server's stall timeout is %.0f s)",
+                  c->variant, held, f->st.stall_s);
+        }
+      }
+    }
+    sf_conn_free(c, 0);
+    free(c);
   }
   f->n = 0;
   free(pf);
   return NULL;
 }
 
-int stress_faults_start(stress_run_t *run, double handshake_s) {
+int stress_faults_start(stress_run_t *run, double handshake_s, double stall_s) {
   stress_faults_t *f = calloc(1, sizeof *f);
   if (!f) return OC_ENOMEM;
   f->c = calloc(SF_MAX_CONNS, sizeof *f->c);
@@ -426,6 +474,7 @@ int stress_faults_start(stress_run_t *run, double handshake_s) {
   f->run = run;
   f->rng = run->o->seed * 0x2545F4914F6CDD1Dull + 7;
   f->st.handshake_s = handshake_s;
+  f->st.stall_s = stall_s;
   if (pthread_create(&f->thread, NULL, sf_main, f) != 0) {
     free(f->c);
     free(f);

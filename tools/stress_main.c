@@ -966,10 +966,11 @@ int main(int argc, char **argv) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       goto out;
     }
-    double hs = num_at(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(reply, "world"), "limits"), "handshake_s");
+    const cJSON *lim = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(reply, "world"), "limits");
+    double hs = num_at(lim, "handshake_s"), ss = num_at(lim, "stall_s");
     cJSON_Delete(reply);
     reply = NULL;
-    if (stress_faults_start(&run, isfinite(hs) ? hs : 10.0) < 0) {
+    if (stress_faults_start(&run, isfinite(hs) ? hs : 10.0, isfinite(ss) ? ss : 0.0) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot start the faults thread");
       goto out;
     }

@@ -133,7 +133,9 @@ static int sr_faults(const stress_opts_t *o, const stress_run_t *run, const stre
       printf("| %s | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %.2f |\n", stress_fault_kind_name(k), c->opened[k],
              c->refused[k], c->closed[k], c->errors[k], c->close_s_max[k]);
   if (o->faults & (1 << STRESS_FK_STALL))
-    printf("stalled viewers still held by the server at the end: %" PRIu64 "\n", c->open_at_end);
+    printf("stalled viewers let go by the server (stall timeout %.0f s): %" PRIu64 "; still held at the end, not yet due: %" PRIu64
+           "\n",
+           c->stall_s, c->closed[STRESS_FK_STALL], c->open_at_end);
   printf("largest send queue of one connection: %.2f MiB (the server's hard limit %.0f MiB)\n", (double)m->queued_max / SR_MIB,
          (double)m->queue_hard / SR_MIB);
   printf("server RSS: %.1f → %.1f MiB while what it accounts for went %.1f → %.1f MiB: %.1f MiB unaccounted (slack %.0f MiB)\n",
@@ -174,6 +176,7 @@ static cJSON *sr_faults_json(const stress_opts_t *o, const stress_run_t *run, co
   cJSON *f = cJSON_CreateObject();
   cJSON_AddNumberToObject(f, "every", (double)o->fault_every);
   cJSON_AddNumberToObject(f, "handshake_s", c->handshake_s);
+  cJSON_AddNumberToObject(f, "stall_s", c->stall_s);
   for (int k = 0; k < STRESS_FK_COUNT; k++) {
     if (!(o->faults & (1 << k))) continue;
     cJSON *x = cJSON_AddObjectToObject(f, stress_fault_kind_name(k));
@@ -183,7 +186,7 @@ static cJSON *sr_faults_json(const stress_opts_t *o, const stress_run_t *run, co
     cJSON_AddNumberToObject(x, "after_error", (double)c->errors[k]);
     cJSON_AddNumberToObject(x, "slowest_close_s", c->close_s_max[k]);
   }
-  cJSON_AddNumberToObject(f, "garbage_late", (double)c->late);
+  cJSON_AddNumberToObject(f, "late", (double)c->late);
   cJSON_AddNumberToObject(f, "garbage_unanswered", (double)c->unanswered);
   cJSON_AddNumberToObject(f, "stalled_open_at_end", (double)c->open_at_end);
   cJSON_AddNumberToObject(f, "states_before_drop", (double)c->states_before_drop);

@@ -663,6 +663,51 @@ static void test_server__slow_viewer(void **state) {
 }
 
 /* Silent connections time out with ERROR TIMEOUT: before HELLO and after WELCOME. */
+/* A viewer that stops reading while its epoch fits in the kernel's buffers leaves nothing unsent
+ * in the server's own queue; the kernel's unacknowledged bytes still show it: let go after the
+ * stall timeout. */
+static void test_server__stalled_in_kernel(void **state) {
+  (void)state;
+  server_t s;
+  char slab[4096];
+  const char *src = getenv("OC_SOURCE_DIR");
+  snprintf(slab, sizeof slab, "%s/scenes/analytic_slab.json", src ? src : ".");
+  const char *extra[] = {"--scene", slab, "--stall-timeout", "1", NULL};
+  start_server(&s, extra);
+  int fd = raw_connect(s.port);
+  int small = 4096;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 16u << 20,
+                   .slot_bytes = 2048, .record_bytes = 32, .width = 160, .height = 90, .caps = OCP_CAP_ALL};
+  ocp_put_hello(&b, &h);
+  ocp_camera_t cam = sphere_camera(160, 90);
+  ocp_put_camera(&b, 1, &cam);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  sleep_us(200000);
+  step(s.port, 1);
+  int viewers = 1;
+  double queued_max = 0;
+  for (int i = 0; i < 100 && viewers; i++) { /* up to 10 s */
+    sleep_us(100000);
+    int32_t st;
+    char *sess = control(s.port, NULL, "{\"op\":\"sessions\"}", &st);
+    assert_int_equal(st, 0);
+    viewers = 0;
+    for (const char *p = strstr(sess, "\"role\":\"viewer\""); p; p = strstr(p + 1, "\"role\":\"viewer\"")) viewers++;
+    for (const char *p = strstr(sess, "\"queued\":"); p; p = strstr(p + 1, "\"queued\":"))
+      if (strtod(p + 9, NULL) > queued_max) queued_max = strtod(p + 9, NULL);
+    free(sess);
+  }
+  print_message("stalled in the kernel: at most %g bytes unsent on the server; %s\n", queued_max,
+                viewers ? "still held" : "let go");
+  assert_true(queued_max == 0); /* the case `queued` cannot see */
+  assert_int_equal(viewers, 0);
+  close(fd);
+  assert_int_equal(stop_server(&s), 0);
+}
+
 static void test_server__idle_timeout(void **state) {
   (void)state;
   server_t s;
@@ -845,6 +890,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_server__resume, teardown),
       cmocka_unit_test_teardown(test_server__lean_viewer, teardown),
       cmocka_unit_test_teardown(test_server__slow_viewer, teardown),
+      cmocka_unit_test_teardown(test_server__stalled_in_kernel, teardown),
       cmocka_unit_test_teardown(test_server__idle_timeout, teardown),
       cmocka_unit_test_teardown(test_server__hello_during_step, teardown),
       cmocka_unit_test_teardown(test_server__control, teardown),
