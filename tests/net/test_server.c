@@ -241,6 +241,22 @@ static int raw_read_close_code(int fd, double timeout_s, char *text, size_t cap)
 
 static void raw_send(int fd, const void *p, size_t n) { assert_int_equal(write(fd, p, n), (ssize_t)n); }
 
+/* A viewer on a raw socket with a small receive window: HELLO and camera sent, then never read. */
+static int raw_stalled_viewer(int port, uint64_t budget, uint32_t w, uint32_t h) {
+  int fd = raw_connect(port);
+  int small = 4096;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  oc_buf_t b = {0};
+  ocp_hello_t hello = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = budget,
+                       .slot_bytes = 2048, .record_bytes = 32, .width = w, .height = h, .caps = OCP_CAP_ALL};
+  ocp_put_hello(&b, &hello);
+  ocp_camera_t cam = sphere_camera((int)w, (int)h);
+  ocp_put_camera(&b, 1, &cam);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  return fd;
+}
+
 /*-*** Tests ***/
 
 /* Two viewers share one world: both get every epoch, verified (checksums), within budget; a
@@ -606,17 +622,7 @@ static void test_server__slow_viewer(void **state) {
   viewer_t v;
   char why[256];
   viewer_open(&v, s.port, 8u << 20, NULL);
-  int slow = raw_connect(s.port);
-  int small = 4096;
-  setsockopt(slow, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
-  oc_buf_t b = {0};
-  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 64u << 20,
-                   .slot_bytes = 2048, .record_bytes = 32, .width = 1920, .height = 1080, .caps = OCP_CAP_ALL};
-  ocp_put_hello(&b, &h);
-  ocp_camera_t cam = sphere_camera(1920, 1080);
-  ocp_put_camera(&b, 1, &cam);
-  raw_send(slow, b.data, b.len);
-  oc_buf_free(&b);
+  int slow = raw_stalled_viewer(s.port, 64u << 20, 1920, 1080);
   assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
   assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
   sleep_us(100000);
@@ -674,17 +680,7 @@ static void test_server__stalled_in_kernel(void **state) {
   snprintf(slab, sizeof slab, "%s/scenes/analytic_slab.json", src ? src : ".");
   const char *extra[] = {"--scene", slab, "--stall-timeout", "1", NULL};
   start_server(&s, extra);
-  int fd = raw_connect(s.port);
-  int small = 4096;
-  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
-  oc_buf_t b = {0};
-  ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 16u << 20,
-                   .slot_bytes = 2048, .record_bytes = 32, .width = 160, .height = 90, .caps = OCP_CAP_ALL};
-  ocp_put_hello(&b, &h);
-  ocp_camera_t cam = sphere_camera(160, 90);
-  ocp_put_camera(&b, 1, &cam);
-  raw_send(fd, b.data, b.len);
-  oc_buf_free(&b);
+  int fd = raw_stalled_viewer(s.port, 16u << 20, 160, 90);
   sleep_us(200000);
   step(s.port, 1);
   int viewers = 1;
