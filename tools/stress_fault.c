@@ -266,6 +266,23 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
   }
 }
 
+/* Frames from the server on a connection without a session (garbage before HELLO, and what a
+ * stalled viewer never read): an ERROR is noted, a WELCOME counts as being served. */
+static void sf_scan(sf_conn_t *c, const uint8_t *buf, size_t n) {
+  if (ocp_reader_feed(&c->rd, buf, n) < 0) return;
+  ocp_header_t h;
+  const uint8_t *p;
+  while (ocp_reader_next(&c->rd, &h, &p) == 1) {
+    ocp_text_msg_t t;
+    if (h.type == OCP_MSG_ERROR && ocp_get_text(p, h.length, &t, NULL, 0) == 0) {
+      c->got_error = 1;
+      c->error_code = t.code;
+    } else if (h.type == OCP_MSG_WELCOME && !c->sess) {
+      c->states++; /* garbage accepted as a HELLO: counted as served */
+    }
+  }
+}
+
 /* Input on c. @return 1 when the server closed it (EOF, reset), 0 otherwise. */
 static int sf_read(stress_faults_t *f, sf_conn_t *c, double now) {
   uint8_t buf[65536];
@@ -308,21 +325,7 @@ static int sf_read(stress_faults_t *f, sf_conn_t *c, double now) {
         return 0; /* from now on it never reads */
       }
     } else {
-      ocp_reader_feed(&c->rd, buf, (size_t)k);
-      ocp_header_t h;
-      const uint8_t *p;
-      while (ocp_reader_next(&c->rd, &h, &p) == 1) {
-        if (h.type == OCP_MSG_ERROR || h.type == OCP_MSG_GOODBYE) {
-          ocp_text_msg_t t;
-          char why[256];
-          if (ocp_get_text(p, h.length, &t, why, sizeof why) == 0) {
-            c->got_error = h.type == OCP_MSG_ERROR;
-            c->error_code = t.code;
-          }
-        } else if (h.type == OCP_MSG_WELCOME) {
-          c->states++; /* garbage accepted as a HELLO: counted as served */
-        }
-      }
+      sf_scan(c, buf, (size_t)k);
     }
   }
 }
@@ -333,8 +336,6 @@ static int sf_drain(sf_conn_t *c, double timeout_s) {
   uint8_t buf[65536];
   size_t total = 0;
   double until = stress_now() + timeout_s;
-  ocp_reader_t rd;
-  ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
   int eof = 0;
   while (!eof && stress_now() < until && total < (64u << 20)) {
     struct pollfd p = {c->fd, POLLIN, 0};
@@ -345,13 +346,8 @@ static int sf_drain(sf_conn_t *c, double timeout_s) {
       continue;
     }
     total += (size_t)k;
-    if (ocp_reader_feed(&rd, buf, (size_t)k) < 0) break;
-    ocp_header_t h;
-    const uint8_t *pl;
-    while (ocp_reader_next(&rd, &h, &pl) == 1)
-      if (h.type == OCP_MSG_ERROR || h.type == OCP_MSG_GOODBYE) c->got_error = 1;
+    sf_scan(c, buf, (size_t)k);
   }
-  ocp_reader_free(&rd);
   return eof;
 }
 
