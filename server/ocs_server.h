@@ -34,6 +34,13 @@ typedef struct {
   uint64_t queue_soft;     /**< unsent bytes; 0 → 4 MiB */
   uint64_t queue_hard;     /**< unsent bytes; 0 → 16 MiB */
   int max_connections;     /**< viewers and control clients together; 0 → 256 */
+  int max_per_address;     /**< connections at once from one IP address; 0 → 32 */
+  double handshake_rate;   /**< connections accepted per second from one IP address (a token
+                                bucket of max_per_address); 0 → 10 */
+  int max_lingering;       /**< dropped viewers kept for resume at once (oldest let go first); 0 → 16 */
+  uint64_t linger_budget;  /**< sum of the lingering viewers' budgets; 0 → half the total */
+  int insecure;            /**< allow a non-loopback host without a token (ocs_server_create
+                                refuses it otherwise) */
   int send_buffer;         /**< SO_SNDBUF of each connection, bytes; 0 → the system's */
   int zstd_level;          /**< 0 → OCP_LEVEL_DEFAULT */
   int deltas;              /**< < 0 → off; otherwise on for viewers that accept them */

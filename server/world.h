@@ -33,7 +33,8 @@ typedef struct {
   int threads;               /**< producer threads incl. the caller; 0 → online CPUs (≤ 64) */
   uint64_t cache_bytes;      /**< shared brick cache cap; 0 → 256 MiB */
   uint64_t viewer_bytes;     /**< sum of granted viewer budgets allowed; 0 → 4 GiB */
-  uint64_t max_budget;       /**< largest budget one viewer is granted; 0 → viewer_bytes */
+  uint64_t max_budget;       /**< largest budget one viewer is granted; 0 → a fair share: a quarter
+                                  of viewer_bytes, at most 1 GiB (OCS_FAIR_SHARE_MAX) */
   int max_viewers;           /**< 0 → 64 */
   double time;               /**< world time at epoch 0, s; default 0 */
   int validate;              /**< check every produced state with oc_state_validate (tests) */
