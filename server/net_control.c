@@ -1,6 +1,6 @@
 /* net_control.c — control requests (docs/protocol.md, "CONTROL and CONTROL_REPLY"): weather,
- * world time, sun, stepping, reload, sessions. Requests and replies are JSON objects (cJSON);
- * they run on the loop thread and never while a step runs (net_server.c defers them). */
+ * world time, sun, stepping, reload, sessions, stats. Requests and replies are JSON objects
+ * (cJSON); they run on the loop thread and never while a step runs (net_input.c holds them). */
 #include <cjson/cJSON.h>
 #include <inttypes.h>
 #include <math.h>
@@ -11,6 +11,35 @@
 #include "oc_err.h"
 #include "oc_log.h"
 #include "oc_planet.h"
+
+int ocs_server_reload(ocs_server_t *srv, char *why, size_t why_len) {
+  oc_scene_t sc;
+  int r;
+  if (srv->scene_path) r = oc_scene_load(&sc, srv->scene_path, why, why_len);
+  else {
+    oc_scene_default(&sc);
+    r = 0;
+  }
+  if (r < 0) return r;
+  ocs_world_t *w = NULL;
+  r = ocs_world_create(&w, &sc, &srv->desc.world, why, why_len);
+  if (r < 0) {
+    oc_scene_free(&sc);
+    return r;
+  }
+  for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
+    nx = s->next;
+    if (s->role == OCP_ROLE_VIEWER && (s->viewer || s->state == OCS_SS_LINGER))
+      ocs_session_close(s, OCP_CODE_RELOAD, "the scene was reloaded");
+  }
+  ocs_world_free(srv->world);
+  srv->world = w;
+  oc_scene_free(&srv->scene);
+  srv->scene = sc;
+  if (srv->desc.epoch_period < 0) srv->period = sc.epoch_period;
+  oc_log_info("scene %s reloaded", sc.name);
+  return 0;
+}
 
 static void reply(ocs_session_t *s, uint32_t request, uint32_t code, cJSON *obj, oc_buf_t *out) {
   cJSON_AddBoolToObject(obj, "ok", code == OCP_CODE_OK);
@@ -70,6 +99,23 @@ static cJSON *world_stats_json(ocs_server_t *srv) {
   cJSON_AddNumberToObject(l, "queue_soft", (double)d->queue_soft);
   cJSON_AddNumberToObject(l, "queue_hard", (double)d->queue_hard);
   cJSON_AddNumberToObject(l, "max_connections", d->max_connections);
+  cJSON_AddNumberToObject(l, "max_per_address", d->max_per_address);
+  cJSON_AddNumberToObject(l, "handshake_rate", d->handshake_rate);
+  cJSON_AddNumberToObject(l, "max_lingering", d->max_lingering);
+  cJSON_AddNumberToObject(l, "linger_budget", (double)d->linger_budget);
+  ocs_plan_desc_t none = {0};
+  ocs_admission_t a;
+  ocs_world_admission(srv->world, &none, &a);
+  cJSON_AddNumberToObject(l, "max_budget", (double)a.max_budget);
+  cJSON_AddNumberToObject(l, "total_budget", (double)ocs_world_total_budget(srv->world));
+  cJSON *rf = cJSON_AddObjectToObject(o, "refusals"); /* by reason: connections and HELLOs refused */
+  for (int i = 0; i < OCS_REFUSE_COUNT; i++) cJSON_AddNumberToObject(rf, ocs_refusal_key((ocs_refusal_t)i), (double)srv->refusals[i]);
+  int nl;
+  uint64_t lb;
+  ocs_session_oldest_lingering(srv, &nl, &lb);
+  cJSON_AddNumberToObject(o, "lingering", nl);
+  cJSON_AddNumberToObject(o, "lingering_budget", (double)lb);
+  cJSON_AddNumberToObject(o, "admitted", srv->nadmitted);
   return o;
 }
 
@@ -103,13 +149,18 @@ static cJSON *sessions_json(ocs_server_t *srv) {
   return a;
 }
 
-void ocs_control_step_done(ocs_session_t *s) {
+static void step_done(ocs_session_t *s) {
   s->step_waiting = 0;
   cJSON *o = cJSON_CreateObject();
   cJSON_AddItemToObject(o, "world", world_stats_json(s->srv));
   oc_buf_t b = {0};
   reply(s, s->step_request, OCP_CODE_OK, o, &b);
   ocs_session_send(s, &b);
+}
+
+void ocs_control_steps_done(ocs_server_t *srv) {
+  for (ocs_session_t *s = srv->sessions; s; s = s->next)
+    if (s->step_waiting && srv->steps_done >= s->step_target && !srv->steps_queued) step_done(s);
 }
 
 void ocs_control_handle(ocs_session_t *s, const ocp_control_t *req, oc_buf_t *out) {
@@ -197,7 +248,7 @@ void ocs_control_handle(ocs_session_t *s, const ocp_control_t *req, oc_buf_t *ou
     ocs_server_queue_steps(srv, (uint64_t)n);
     cJSON_Delete(o);
     cJSON_Delete(j);
-    return; /* answered by ocs_control_step_done() */
+    return; /* answered by ocs_control_steps_done() */
   } else if (!strcmp(op, "reload")) {
     if ((r = ocs_server_reload(srv, why, sizeof why)) < 0) {
       fail(s, req->request, "reload: %s", why, out);

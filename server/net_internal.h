@@ -1,5 +1,20 @@
-/* net_internal.h — what net_server.c (loop, sessions, epochs) and net_control.c (control requests)
- * share. Not a public interface. */
+/* net_internal.h — what the files of the network server share (ocs_server.h is the public side).
+ * Not a public interface.
+ *
+ * One file per concern, each calling only the ones above it in this list (no loops; a step's end
+ * reaches the higher layers through the after_step hook that net_server.c installs):
+ *
+ *   net_peer.c       per-address connection counts and the handshake rate (token buckets)
+ *   net_session.c    a session's lifetime (close, lost, linger within caps) and output (send,
+ *                    pump, stream)
+ *   net_admit.c      fair admission: budgets, lingering sessions giving theirs back first
+ *   net_epoch.c      ticks on the epoch timer, steps on the thread pool, new states streamed
+ *   net_handshake.c  HELLO: version, token (constant time), resume, WELCOME
+ *   net_control.c    CONTROL requests (weather, time, sun, step, reload, sessions, stats)
+ *   net_input.c      reading, frames dispatched by type, input held while a step runs
+ *   net_listener.c   the listening socket and accepting connections (limits checked first)
+ *   net_house.c      housekeeping: handshake, idle and stall timeouts, lingering sessions
+ *   net_server.c     create, run, stop and free; signals */
 #ifndef OC_SERVER_NET_INTERNAL_H
 #define OC_SERVER_NET_INTERNAL_H
 
@@ -16,6 +31,31 @@ typedef enum {
   OCS_SS_CLOSING = 3    /* saying goodbye; freed in the close callback */
 } ocs_session_state_t;
 
+/* Why a connection or a HELLO was refused: counted per reason in the stats reply. */
+#define OCS_REFUSALS(XX)                                                 \
+  XX(CONNECTIONS, "connections") /* the server's connection limit */    \
+  XX(PER_ADDRESS, "per_address") /* that address's connection limit */ \
+  XX(RATE, "rate")               /* that address's handshake rate */   \
+  XX(VIEWERS, "viewers")         /* the viewer limit */                \
+  XX(BUDGET, "budget")           /* not even the minimum budget left */ \
+  XX(TOKEN, "token")                                                    \
+  XX(VERSION, "version")                                                \
+  XX(SHUTDOWN, "shutdown")
+typedef enum {
+#define OCS__REFUSAL_ENUM(name, key) OCS_REFUSE_##name,
+  OCS_REFUSALS(OCS__REFUSAL_ENUM)
+#undef OCS__REFUSAL_ENUM
+  OCS_REFUSE_COUNT
+} ocs_refusal_t;
+
+/* One remote IP address: its open connections and its handshake token bucket. */
+typedef struct ocs_peer_s {
+  char ip[48];
+  int conns;     /* connections open now (accepted, not refused) */
+  double tokens; /* handshakes it may start now; refilled at handshake_rate, up to max_per_address */
+  double refilled;
+} ocs_peer_t;
+
 typedef struct ocs_session_s ocs_session_t;
 
 struct ocs_session_s {
@@ -28,7 +68,8 @@ struct ocs_session_s {
   int role;  /* OCP_ROLE_* once welcomed */
   int state; /* ocs_session_state_t */
   int connected; /* tcp is open (not yet uv_close'd) */
-  char addr[64];
+  char addr[64]; /* "IP:PORT" of the peer */
+  ocs_peer_t *peer; /* its address's entry while it counts there (admitted, open); else NULL */
   ocp_reader_t rd;
   uint8_t version; /* negotiated */
   double created, last_rx, last_progress, soft_since, closing_since;
@@ -49,7 +90,7 @@ struct ocs_session_s {
   uint64_t stream_epoch, stream_checksum, last_out_epoch;
   ocs_view_t cam;
   ocp_stats_t stats_msg; /* the STATS sent after the epoch being streamed */
-  double linger_until, stream_started;
+  double linger_since, linger_until, stream_started;
   uint64_t epochs, acks;
   double ack_latency_sum, ack_latency_max;
   /* Control: a "step" request answered when its epochs are done. */
@@ -75,7 +116,8 @@ struct ocs_server_s {
   ocs_world_t *world;
   double period;
   ocs_session_t *sessions; /* every session, lingering ones too */
-  int nconnected;
+  int nconnected;          /* open connections, refused ones still closing included */
+  int nadmitted;           /* open connections that passed the connection limits */
   uint32_t next_id;
   int stepping, step_rc, stopping;
   uint64_t steps_queued, steps_done, late_ticks;
@@ -84,25 +126,103 @@ struct ocs_server_s {
   /* viewers to remove once the running step ends */
   ocs_viewer_t **doomed;
   int ndoomed, doomed_cap;
+  ocs_peer_t **peers; /* addresses with open connections or a bucket still refilling */
+  int npeers, peers_cap;
+  void (*after_step)(ocs_server_t *srv); /* net_server.c: held input, waiting "step" requests */
   uint64_t accepted, refused, closed_errors, resumes;
+  uint64_t refusals[OCS_REFUSE_COUNT];
   uint8_t readbuf[64 * 1024];
 };
 
+/*-*** net_peer.c ***/
+
+/*! ocs_peer_admit() : counts a new connection from `ip` against its address's limits.
+ *  @return the entry (the connection holds it until ocs_peer_release()), or NULL with the reason
+ *  in *refusal (PER_ADDRESS, RATE, or CONNECTIONS when the table itself is full). */
+ocs_peer_t *ocs_peer_admit(ocs_server_t *srv, const char *ip, double now, ocs_refusal_t *refusal);
+void ocs_peer_release(ocs_peer_t *p);
+/*! ocs_peer_sweep() : frees entries with no connection whose bucket is full again. */
+void ocs_peer_sweep(ocs_server_t *srv, double now);
+void ocs_peer_free_all(ocs_server_t *srv);
+const char *ocs_refusal_key(ocs_refusal_t r);
+
+/*-*** net_session.c ***/
+
 double ocs_net_now(void);
+const char *ocs_role_name(int role);
+void ocs_session_link(ocs_server_t *srv, ocs_session_t *s);
+void ocs_session_unlink(ocs_server_t *srv, ocs_session_t *s);
+void ocs_session_free(ocs_session_t *s);
+ocs_session_t *ocs_session_find(ocs_server_t *srv, uint32_t id);
+/*! ocs_session_drop_viewer() : removes the session's viewer from the world now, or after the
+ *  running step. */
+void ocs_session_drop_viewer(ocs_server_t *srv, ocs_session_t *s);
+void ocs_session_close_handle(ocs_session_t *s);
+void ocs_session_on_closed(uv_handle_t *h);
 /*! ocs_session_send() : queues one buffer of whole frames (takes ownership of b's bytes). */
 void ocs_session_send(ocs_session_t *s, oc_buf_t *b);
 /*! ocs_session_close() : sends ERROR (code ≠ OK) or GOODBYE (code OK, SHUTDOWN, RELOAD, KICKED)
  *  with text, logs it, and closes; the viewer is removed (not kept for resume). */
 void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text);
+/*! ocs_session_refuse() : ocs_session_close() with the code of a refusal, counted by reason. */
+void ocs_session_refuse(ocs_session_t *s, ocs_refusal_t why, const char *text);
+/*! ocs_session_lost() : the peer went away: a welcomed viewer lingers for resume (within the
+ *  lingering caps: the oldest lingering sessions are let go to make room), anything else is
+ *  dropped. */
+void ocs_session_lost(ocs_session_t *s, const char *cause);
+/*! ocs_session_let_go() : drops a lingering session, its viewer and budget, logging why. */
+void ocs_session_let_go(ocs_session_t *t, const char *why);
+/*! ocs_session_oldest_lingering() : the session lingering longest (NULL: none), and how many
+ *  linger with how much budget. */
+ocs_session_t *ocs_session_oldest_lingering(ocs_server_t *srv, int *count, uint64_t *budget);
+/*! ocs_session_stream() : starts streaming the viewer's newest state, as a difference from `base`
+ *  (what it holds). */
+void ocs_session_stream(ocs_session_t *s, const oc_state_t *base);
+
+/*-*** net_admit.c ***/
+
+/*! ocs_admit_viewer() : adds the HELLO's viewer to the world with a fair budget: at most the
+ *  per-viewer maximum; lingering sessions give their budget back first, oldest first; then the
+ *  largest budget that fits above the minimum. @return 0, or a negative OC_E* after the session
+ *  was refused (FULL, naming what was short). */
+int ocs_admit_viewer(ocs_session_t *s, const ocp_hello_t *h);
+
+/*-*** net_epoch.c ***/
+
 /*! ocs_server_queue_steps() : n more epochs to step as soon as possible. */
 void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n);
-/*! ocs_server_reload() : re-reads the scene; on success every viewer gets GOODBYE RELOAD. */
-int ocs_server_reload(ocs_server_t *srv, char *why, size_t why_len);
+void ocs_epoch_start_timer(ocs_server_t *srv);
+void ocs_epoch_init(ocs_server_t *srv);
+
+/*-*** net_handshake.c ***/
+
+/*! ocs_handshake_hello() : the HELLO of a session in handshake (never while a step runs). */
+void ocs_handshake_hello(ocs_session_t *s, const uint8_t *p, size_t n);
+
+/*-*** net_control.c ***/
 
 /*! ocs_control_handle() : one CONTROL request of a control session (never while a step runs).
  *  Appends the CONTROL_REPLY to out unless the reply waits (a "step" request: answered by
- *  ocs_control_step_done()). */
+ *  ocs_control_steps_done()). */
 void ocs_control_handle(ocs_session_t *s, const ocp_control_t *req, oc_buf_t *out);
-void ocs_control_step_done(ocs_session_t *s);
+/*! ocs_control_steps_done() : answers the "step" requests whose epochs are done. */
+void ocs_control_steps_done(ocs_server_t *srv);
+/*! ocs_server_reload() : re-reads the scene; on success every viewer gets GOODBYE RELOAD. */
+int ocs_server_reload(ocs_server_t *srv, char *why, size_t why_len);
+
+/*-*** net_input.c ***/
+
+void ocs_input_start(ocs_session_t *s);
+/*! ocs_input_drain() : handles buffered frames (the held one first) until one must wait for a
+ *  step; then reading pauses. */
+void ocs_input_drain(ocs_session_t *s);
+
+/*-*** net_listener.c ***/
+
+int ocs_listener_open(ocs_server_t *srv, char *why, size_t why_len);
+
+/*-*** net_house.c ***/
+
+void ocs_house_start(ocs_server_t *srv);
 
 #endif /* OC_SERVER_NET_INTERNAL_H */

@@ -273,7 +273,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   if (desc) w->d = *desc;
   if (!w->d.cache_bytes) w->d.cache_bytes = 256ull << 20;
   if (!w->d.viewer_bytes) w->d.viewer_bytes = 4ull << 30;
-  if (!w->d.max_budget || w->d.max_budget > w->d.viewer_bytes) w->d.max_budget = w->d.viewer_bytes;
+  if (!w->d.max_budget) w->d.max_budget = ocs_world_fair_share(w->d.viewer_bytes);
+  if (w->d.max_budget > w->d.viewer_bytes) w->d.max_budget = w->d.viewer_bytes;
   if (w->d.max_viewers <= 0) w->d.max_viewers = 64;
   int r = oc_scene_copy(&w->scene, scene);
   if (r < 0) {
@@ -351,6 +352,24 @@ int ocs_world_set_weather(ocs_world_t *w, oc_preset_t preset, double seconds) {
 }
 
 /*-*** Viewers ***/
+
+uint64_t ocs_world_total_budget(const ocs_world_t *w) { return w->d.viewer_bytes; }
+
+uint64_t ocs_world_fair_share(uint64_t total) {
+  uint64_t q = total / 4;
+  return q < OCS_FAIR_SHARE_MAX ? q : OCS_FAIR_SHARE_MAX;
+}
+
+void ocs_world_admission(const ocs_world_t *w, const ocs_plan_desc_t *req, ocs_admission_t *out) {
+  ocs_plan_desc_t d = *req;
+  d.kept_states = w->K;
+  memset(out, 0, sizeof *out);
+  out->max_budget = w->d.max_budget;
+  out->left = w->d.viewer_bytes - w->granted;
+  out->viewers_left = w->d.max_viewers - w->nviewers;
+  if (ocs_plan_clamp(&d, w->d.max_budget) == 0) out->wanted = d.budget;
+  out->minimum = ocs_plan_min_budget(&d);
+}
 
 int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_t **out, ocs_plan_desc_t *granted,
                          char *why, size_t why_len) {

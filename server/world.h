@@ -74,6 +74,22 @@ typedef struct {
 int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world_desc_t *desc, char *why, size_t why_len);
 void ocs_world_free(ocs_world_t *w);
 
+/*! The largest budget one viewer gets by default: a quarter of the total, at most this. */
+#define OCS_FAIR_SHARE_MAX (1ull << 30)
+uint64_t ocs_world_fair_share(uint64_t total);
+/*! ocs_world_total_budget() : the sum of viewer budgets allowed (viewer_bytes with its default). */
+uint64_t ocs_world_total_budget(const ocs_world_t *w);
+
+/* What a request would be granted, for admission (net_admit.c). */
+typedef struct {
+  uint64_t wanted;      /**< the request clamped to [minimum, max_budget] (0: max_budget < minimum) */
+  uint64_t minimum;     /**< the root in every kept state (ocs_plan_min_budget) */
+  uint64_t max_budget;  /**< the per-viewer maximum */
+  uint64_t left;        /**< of the total, not granted to any viewer */
+  int viewers_left;     /**< viewers that may still join */
+} ocs_admission_t;
+void ocs_world_admission(const ocs_world_t *w, const ocs_plan_desc_t *req, ocs_admission_t *out);
+
 /*! ocs_world_add_viewer() : admits a viewer with the request `req` (budget, slot and record bytes,
  *  max depth; optional planner knobs). kept_states is set by the world (3 animated, 2 static).
  *  The granted request (clamped) goes to *granted. @return 0; OC_ERANGE (budget cannot be met:

@@ -278,7 +278,7 @@ static void test_world__admission_and_bad_input(void **st) {
   (void)st;
   oc_scene_t sc;
   scene_from(&sc, SPHERE);
-  ocs_world_desc_t d = {.threads = 1, .viewer_bytes = 10u << 20};
+  ocs_world_desc_t d = {.threads = 1, .viewer_bytes = 10u << 20, .max_budget = 10u << 20};
   ocs_world_t *w = NULL;
   char why[256];
   assert_int_equal(ocs_world_create(&w, &sc, &d, why, sizeof why), 0);
@@ -306,8 +306,41 @@ static void test_world__admission_and_bad_input(void **st) {
   ocs_world_free(w);
 }
 
+/* The default per-viewer maximum is a fair share: a quarter of the total, at most 1 GiB; a huge
+ * request is clamped to it, and what admission is told matches what add_viewer grants. */
+static void test_world__fair_share(void **st) {
+  (void)st;
+  assert_true(ocs_world_fair_share(4ull << 30) == 1ull << 30);
+  assert_true(ocs_world_fair_share(16ull << 30) == OCS_FAIR_SHARE_MAX);
+  assert_true(ocs_world_fair_share(100ull << 20) == 25ull << 20);
+  oc_scene_t sc;
+  scene_from(&sc, SPHERE);
+  ocs_world_desc_t d = {.threads = 1, .viewer_bytes = 100u << 20};
+  ocs_world_t *w = NULL;
+  char why[256];
+  assert_int_equal(ocs_world_create(&w, &sc, &d, why, sizeof why), 0);
+  oc_scene_free(&sc);
+  ocs_plan_desc_t req = {.budget = UINT64_MAX, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21}, got;
+  ocs_admission_t a;
+  ocs_world_admission(w, &req, &a);
+  assert_true(a.wanted == 25u << 20 && a.max_budget == 25u << 20 && a.left == 100u << 20);
+  assert_true(a.minimum == 2 * (2048 + 32));
+  ocs_viewer_t *v[4];
+  for (int i = 0; i < 4; i++) {
+    assert_int_equal(ocs_world_add_viewer(w, &req, &v[i], &got, why, sizeof why), 0);
+    assert_true(got.budget == 25u << 20);
+  }
+  ocs_world_admission(w, &req, &a);
+  assert_true(a.left == 0 && a.wanted == 25u << 20);
+  ocs_viewer_t *x;
+  assert_int_equal(ocs_world_add_viewer(w, &req, &x, &got, why, sizeof why), OC_ERANGE);
+  ocs_world_remove_viewer(w, v[0]);
+  ocs_world_free(w);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_world__fair_share),
       cmocka_unit_test(test_world__states_valid_under_budget_and_static_converges),
       cmocka_unit_test(test_world__two_viewers_cost_one_generation),
       cmocka_unit_test(test_world__thread_count_does_not_change_states),

@@ -1,0 +1,106 @@
+/* net_epoch.c — epochs (net_internal.h): the epoch timer's ticks, a step of the world on libuv's
+ * thread pool, and the new states streamed when it ends. While a step runs the world's viewers
+ * are not touched: what viewers say meanwhile is kept in their sessions and applied before the
+ * next step. */
+#include <math.h>
+
+#include "net_internal.h"
+#include "oc_err.h"
+#include "oc_log.h"
+
+static void start_step(ocs_server_t *srv);
+
+/* What a viewer said while a step ran (its acknowledgement, its newest camera) reaches the world. */
+static void apply_pending(ocs_session_t *s) {
+  if (s->ack_pending) {
+    ocs_viewer_ack(s->viewer, s->stream_epoch);
+    s->ack_pending = 0;
+  }
+  if (s->cam_new) {
+    ocs_viewer_set_view(s->viewer, &s->cam);
+    s->cam_new = 0;
+  }
+}
+
+static void step_work(uv_work_t *req) {
+  ocs_server_t *srv = req->data;
+  srv->step_rc = ocs_world_step(srv->world);
+}
+
+static void step_done(uv_work_t *req, int status) {
+  ocs_server_t *srv = req->data;
+  (void)status;
+  srv->stepping = 0;
+  srv->steps_done++;
+  if (srv->step_rc < 0) oc_log_error("epoch step failed: %s (viewers keep their states)", oc_strerror(srv->step_rc));
+  ocs_world_stats_t ws; /* once per step, not once per viewer */
+  ocs_world_stats(srv->world, &ws);
+  srv->plan_ms = 1e3 * ws.plan_seconds;
+  srv->produce_ms = 1e3 * ws.produce_seconds;
+  for (int i = 0; i < srv->ndoomed; i++) ocs_world_remove_viewer(srv->world, srv->doomed[i]);
+  srv->ndoomed = 0;
+  /* New states go out, then the layers above see the step's end (held input, waiting "step"
+   * requests). The list may change under these calls (sessions close), so walk it with care. */
+  for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
+    nx = s->next;
+    if (s->state != OCS_SS_READY || !s->viewer) continue;
+    apply_pending(s);
+    const oc_state_t *h0 = ocs_viewer_held(s->viewer, 0);
+    if (h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack)
+      ocs_session_stream(s, ocs_viewer_held(s->viewer, 1));
+  }
+  if (srv->after_step) srv->after_step(srv);
+  if (srv->steps_queued && !srv->stopping) start_step(srv);
+}
+
+static void start_step(ocs_server_t *srv) {
+  if (srv->stepping || srv->stopping) return;
+  if (srv->steps_queued) srv->steps_queued--;
+  for (ocs_session_t *s = srv->sessions; s; s = s->next)
+    if (s->viewer) apply_pending(s);
+  srv->stepping = 1;
+  srv->work.data = srv;
+  uv_queue_work(&srv->loop, &srv->work, step_work, step_done);
+}
+
+void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n) {
+  srv->steps_queued += n;
+  start_step(srv);
+}
+
+static void on_tick_idle(uv_idle_t *h) { (void)h; }
+
+/* After the poll that followed the tick: the acknowledgements that had arrived are applied by
+ * now, so a viewer that has its epoch is not skipped for want of reading its ACK. */
+static void on_tick_check(uv_check_t *h) {
+  ocs_server_t *srv = h->data;
+  uv_idle_stop(&srv->tick_idle);
+  uv_check_stop(&srv->tick_check);
+  if (!srv->stepping && !srv->stopping) start_step(srv);
+}
+
+/* libuv runs timers before it polls sockets: a step started here would not yet see ACKs that
+ * arrived since the last poll. The step starts right after the next poll instead (which the idle
+ * handle keeps from blocking). */
+static void on_epoch_timer(uv_timer_t *t) {
+  ocs_server_t *srv = t->data;
+  if (srv->stepping) {
+    srv->late_ticks++; /* the previous step is still running: this tick is skipped */
+    return;
+  }
+  uv_idle_start(&srv->tick_idle, on_tick_idle);
+  uv_check_start(&srv->tick_check, on_tick_check);
+}
+
+void ocs_epoch_init(ocs_server_t *srv) {
+  uv_idle_init(&srv->loop, &srv->tick_idle);
+  uv_check_init(&srv->loop, &srv->tick_check);
+  uv_timer_init(&srv->loop, &srv->epoch_timer);
+  srv->tick_idle.data = srv->tick_check.data = srv->epoch_timer.data = srv;
+}
+
+void ocs_epoch_start_timer(ocs_server_t *srv) {
+  if (!(srv->period > 0)) return;
+  uint64_t ms = (uint64_t)llround(srv->period * 1e3);
+  uv_timer_start(&srv->epoch_timer, on_epoch_timer, ms, ms ? ms : 1);
+}

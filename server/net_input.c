@@ -1,0 +1,180 @@
+/* net_input.c — what peers send (net_internal.h): reading, frames dispatched by message type and
+ * the connection's state, and a frame that needs the world held until the running step ends
+ * (reading pauses meanwhile, so a peer cannot queue more behind it). */
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "net_internal.h"
+#include "oc_err.h"
+#include "oc_log.h"
+
+static void handle_ack(ocs_session_t *s, const uint8_t *p, size_t n) {
+  char why[256];
+  ocp_ack_t a;
+  if (ocp_get_ack(p, n, &a, why, sizeof why) < 0) {
+    ocs_session_close(s, OCP_CODE_MALFORMED, why);
+    return;
+  }
+  if (!s->awaiting_ack || a.epoch != s->stream_epoch || a.checksum != s->stream_checksum) {
+    snprintf(why, sizeof why, "ack of epoch %" PRIu64 " (checksum %016" PRIx64 ") but epoch %" PRIu64 " is %s", a.epoch,
+             a.checksum, s->stream_epoch, s->awaiting_ack ? "in flight with another checksum" : "not complete");
+    ocs_session_close(s, OCP_CODE_UNEXPECTED, why);
+    return;
+  }
+  s->awaiting_ack = 0;
+  s->acks++;
+  double lat = ocs_net_now() - s->stream_started;
+  s->ack_latency_sum += lat;
+  if (lat > s->ack_latency_max) s->ack_latency_max = lat;
+  if (s->srv->stepping) s->ack_pending = 1;
+  else ocs_viewer_ack(s->viewer, a.epoch);
+}
+
+static void handle_camera(ocs_session_t *s, const uint8_t *p, size_t n) {
+  char why[256];
+  ocp_camera_t c;
+  if (ocp_get_camera(p, n, &c, why, sizeof why) < 0) {
+    ocs_session_close(s, OCP_CODE_MALFORMED, why);
+    return;
+  }
+  ocs_view_t v = {c.pos, c.forward, c.up, c.vfov_deg, (int)c.width, (int)c.height};
+  if (!ocs_view_valid(&v)) {
+    ocs_session_close(s, OCP_CODE_MALFORMED, "camera: not a valid view");
+    return;
+  }
+  s->cam = v;
+  if (s->srv->stepping) s->cam_new = 1;
+  else ocs_viewer_set_view(s->viewer, &v);
+}
+
+/* @return 1 when the frame must wait for the running step to end. */
+static int handle_frame(ocs_session_t *s, const ocp_header_t *hd, const uint8_t *p) {
+  ocs_server_t *srv = s->srv;
+  char why[256];
+  const char *name = ocp_msg_name(hd->type);
+  if (!name) {
+    snprintf(why, sizeof why, "unknown message type 0x%02x", hd->type);
+    ocs_session_close(s, OCP_CODE_MALFORMED, why);
+    return 0;
+  }
+  if (s->state == OCS_SS_HANDSHAKE) {
+    if (hd->type != OCP_MSG_HELLO) {
+      snprintf(why, sizeof why, "%s before hello", name);
+      ocs_session_close(s, OCP_CODE_UNEXPECTED, why);
+      return 0;
+    }
+    if (srv->stepping) return 1;
+    ocs_handshake_hello(s, p, hd->length);
+    return 0;
+  }
+  if (hd->version != s->version) {
+    snprintf(why, sizeof why, "%s frame of version %u on a version %u connection", name, hd->version, s->version);
+    ocs_session_close(s, OCP_CODE_VERSION, why);
+    return 0;
+  }
+  switch (hd->type) {
+    case OCP_MSG_KEEPALIVE:
+      if (ocp_get_empty(p, hd->length, why, sizeof why) < 0) ocs_session_close(s, OCP_CODE_MALFORMED, why);
+      return 0;
+    case OCP_MSG_GOODBYE:
+    case OCP_MSG_ERROR: {
+      ocp_text_msg_t t;
+      if (ocp_get_text(p, hd->length, &t, why, sizeof why) < 0) {
+        ocs_session_close(s, OCP_CODE_MALFORMED, why);
+        return 0;
+      }
+      if (hd->type == OCP_MSG_ERROR) oc_log_warn("session %" PRIu32 " (%s): peer error: %s: %s", s->id, s->addr, ocp_code_text(t.code), t.text);
+      ocs_session_close(s, OCP_CODE_OK, hd->type == OCP_MSG_GOODBYE ? "goodbye from the peer" : "after the peer's error");
+      return 0;
+    }
+    case OCP_MSG_CAMERA:
+      if (s->role != OCP_ROLE_VIEWER) break;
+      handle_camera(s, p, hd->length);
+      return 0;
+    case OCP_MSG_ACK:
+      if (s->role != OCP_ROLE_VIEWER) break;
+      handle_ack(s, p, hd->length);
+      return 0;
+    case OCP_MSG_CONTROL: {
+      if (s->role != OCP_ROLE_CONTROL) break;
+      if (srv->stepping) return 1;
+      ocp_control_t c;
+      if (ocp_get_control(p, hd->length, &c, why, sizeof why) < 0) {
+        ocs_session_close(s, OCP_CODE_MALFORMED, why);
+        return 0;
+      }
+      oc_buf_t b = {0};
+      ocs_control_handle(s, &c, &b);
+      ocs_session_send(s, &b);
+      return 0;
+    }
+    default: break;
+  }
+  snprintf(why, sizeof why, "%s is not valid from a %s", name, ocs_role_name(s->role));
+  ocs_session_close(s, OCP_CODE_UNEXPECTED, why);
+  return 0;
+}
+
+static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf);
+
+static void on_alloc(uv_handle_t *h, size_t suggested, uv_buf_t *buf) {
+  (void)suggested;
+  ocs_session_t *s = h->data;
+  *buf = uv_buf_init((char *)s->srv->readbuf, sizeof s->srv->readbuf);
+}
+
+void ocs_input_drain(ocs_session_t *s) {
+  if (s->blocked) {
+    s->blocked = 0;
+    int wait = handle_frame(s, &s->deferred_hdr, s->deferred);
+    free(s->deferred);
+    s->deferred = NULL;
+    if (wait) abort(); /* only called when no step runs */
+    if (s->state == OCS_SS_CLOSING || s->state == OCS_SS_LINGER) return;
+    uv_read_start((uv_stream_t *)&s->tcp, on_alloc, on_read);
+  }
+  ocp_header_t hd;
+  const uint8_t *p;
+  int r;
+  while (s->state == OCS_SS_HANDSHAKE || s->state == OCS_SS_READY) {
+    r = ocp_reader_next(&s->rd, &hd, &p);
+    if (r == 0) return;
+    if (r < 0) {
+      ocs_session_close(s, r == OC_ETOOBIG ? OCP_CODE_TOO_BIG : OCP_CODE_MALFORMED,
+                        r == OC_ETOOBIG ? "frame over the 64 KiB limit" : "bad frame magic");
+      return;
+    }
+    if (handle_frame(s, &hd, p)) {
+      s->deferred = malloc(hd.length ? hd.length : 1);
+      if (!s->deferred) {
+        ocs_session_close(s, OCP_CODE_INTERNAL, "out of memory");
+        return;
+      }
+      memcpy(s->deferred, p, hd.length);
+      s->deferred_hdr = hd;
+      s->blocked = 1;
+      uv_read_stop((uv_stream_t *)&s->tcp);
+      return;
+    }
+  }
+}
+
+static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
+  ocs_session_t *s = st->data;
+  if (nread < 0) {
+    ocs_session_lost(s, nread == UV_EOF ? "closed by the peer" : uv_strerror((int)nread));
+    return;
+  }
+  if (nread == 0 || s->state == OCS_SS_CLOSING) return;
+  s->last_rx = ocs_net_now();
+  s->bytes_in += (uint64_t)nread;
+  if (ocp_reader_feed(&s->rd, buf->base, (size_t)nread) < 0) {
+    ocs_session_close(s, OCP_CODE_INTERNAL, "out of memory");
+    return;
+  }
+  ocs_input_drain(s);
+}
+
+void ocs_input_start(ocs_session_t *s) { uv_read_start((uv_stream_t *)&s->tcp, on_alloc, on_read); }

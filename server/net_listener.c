@@ -1,0 +1,125 @@
+/* net_listener.c — the listening socket and new connections (net_internal.h). A connection is
+ * checked against the limits before it costs more than its session struct: the server's
+ * connection limit, then its address's (net_peer.c). A refused one gets ERROR naming the limit;
+ * past a hard ceiling it is closed without a word, so a storm costs bounded memory. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "net_internal.h"
+#include "oc_err.h"
+#include "oc_log.h"
+
+/* Refused connections still closing beyond max_connections + this are closed unanswered. */
+#define OCS_REFUSING_MAX 256
+
+static uint64_t random_u64(void) {
+  uint64_t v = 0;
+  if (uv_random(NULL, NULL, &v, sizeof v, 0, NULL) < 0) v = (uint64_t)(ocs_net_now() * 1e9) ^ 0x9E3779B97F4A7C15ull;
+  return v ? v : 1;
+}
+
+/* "IP" into ip and "IP:PORT" into s->addr. */
+static void peer_name(ocs_session_t *s, char *ip, size_t cap) {
+  struct sockaddr_storage sa;
+  int len = sizeof sa, port = 0;
+  snprintf(ip, cap, "?");
+  if (uv_tcp_getpeername(&s->tcp, (struct sockaddr *)&sa, &len) == 0) {
+    if (sa.ss_family == AF_INET) {
+      uv_ip4_name((struct sockaddr_in *)&sa, ip, cap);
+      port = ntohs(((struct sockaddr_in *)&sa)->sin_port);
+    } else if (sa.ss_family == AF_INET6) {
+      uv_ip6_name((struct sockaddr_in6 *)&sa, ip, cap);
+      port = ntohs(((struct sockaddr_in6 *)&sa)->sin6_port);
+    }
+  }
+  snprintf(s->addr, sizeof s->addr, strchr(ip, ':') ? "[%s]:%d" : "%s:%d", ip, port);
+}
+
+/* @return 1 if the connection may go on to its handshake; else it was refused. */
+static int admit_connection(ocs_server_t *srv, ocs_session_t *s, const char *ip) {
+  const ocs_server_desc_t *d = &srv->desc;
+  char why[160];
+  ocs_refusal_t r;
+  s->version = OCP_VERSION_MAX; /* a refusal is sent before any HELLO was read */
+  if (srv->stopping) {
+    ocs_session_refuse(s, OCS_REFUSE_SHUTDOWN, "shutting down");
+    return 0;
+  }
+  if (srv->nadmitted >= d->max_connections) {
+    snprintf(why, sizeof why, "too many connections (limit %d)", d->max_connections);
+    ocs_session_refuse(s, OCS_REFUSE_CONNECTIONS, why);
+    return 0;
+  }
+  if (!(s->peer = ocs_peer_admit(srv, ip, ocs_net_now(), &r))) {
+    if (r == OCS_REFUSE_PER_ADDRESS)
+      snprintf(why, sizeof why, "too many connections from %s (limit %d per address)", ip, d->max_per_address);
+    else if (r == OCS_REFUSE_RATE)
+      snprintf(why, sizeof why, "too many new connections from %s (limit %g per second per address)", ip, d->handshake_rate);
+    else
+      snprintf(why, sizeof why, "too many client addresses at once");
+    ocs_session_refuse(s, r, why);
+    return 0;
+  }
+  srv->nadmitted++;
+  return 1;
+}
+
+static void on_connection(uv_stream_t *ls, int status) {
+  ocs_server_t *srv = ls->data;
+  if (status < 0) {
+    oc_log_warn("accept: %s", uv_strerror(status));
+    return;
+  }
+  ocs_session_t *s = calloc(1, sizeof *s);
+  if (!s) return;
+  uv_tcp_init(&srv->loop, &s->tcp);
+  s->tcp.data = s;
+  s->srv = srv;
+  s->connected = 1;
+  srv->nconnected++;
+  ocs_session_link(srv, s);
+  if (uv_accept(ls, (uv_stream_t *)&s->tcp) < 0 || srv->nconnected - srv->nadmitted > srv->desc.max_connections + OCS_REFUSING_MAX) {
+    s->state = OCS_SS_CLOSING;
+    ocs_session_close_handle(s);
+    return;
+  }
+  do s->id = ++srv->next_id;
+  while (!s->id);
+  s->secret = random_u64();
+  s->created = s->last_rx = s->last_progress = ocs_net_now();
+  ocp_reader_init(&s->rd, OCP_MAX_CLIENT_PAYLOAD);
+  char ip[48];
+  peer_name(s, ip, sizeof ip);
+  srv->accepted++;
+  if (!admit_connection(srv, s, ip)) return;
+  uv_tcp_nodelay(&s->tcp, 1);
+  if (srv->desc.send_buffer > 0) {
+    int v = srv->desc.send_buffer;
+    uv_send_buffer_size((uv_handle_t *)&s->tcp, &v);
+  }
+  ocs_input_start(s);
+}
+
+int ocs_listener_open(ocs_server_t *srv, char *why, size_t why_len) {
+  const ocs_server_desc_t *d = &srv->desc;
+  struct sockaddr_storage sa;
+  int r;
+  uv_tcp_init(&srv->loop, &srv->listener);
+  srv->listener.data = srv;
+  if (uv_ip4_addr(srv->host, d->port, (struct sockaddr_in *)&sa) < 0 &&
+      uv_ip6_addr(srv->host, d->port, (struct sockaddr_in6 *)&sa) < 0) {
+    snprintf(why, why_len, "--listen: \"%s\" is not an IPv4 or IPv6 address", srv->host);
+    return OC_EINVAL;
+  }
+  if ((r = uv_tcp_bind(&srv->listener, (struct sockaddr *)&sa, 0)) < 0 ||
+      (r = uv_listen((uv_stream_t *)&srv->listener, 128, on_connection)) < 0) {
+    snprintf(why, why_len, "cannot listen on %s:%d: %s", srv->host, d->port, uv_strerror(r));
+    return OC_EIO;
+  }
+  int len = sizeof sa;
+  uv_tcp_getsockname(&srv->listener, (struct sockaddr *)&sa, &len);
+  int port = sa.ss_family == AF_INET6 ? ntohs(((struct sockaddr_in6 *)&sa)->sin6_port) : ntohs(((struct sockaddr_in *)&sa)->sin_port);
+  snprintf(srv->address, sizeof srv->address, strchr(srv->host, ':') ? "[%s]:%d" : "%s:%d", srv->host, port);
+  return 0;
+}
