@@ -1,17 +1,21 @@
 /* test_planet.c — geodetic conversion, ENU frames, view angles and camera-relative precision
- * (common/oc_planet.c). */
+ * (common/oc_planet.c); the camera and key worked examples of docs/protocol.md ("Conventions"),
+ * recomputed with oc_camera_from_pose() and oc_key.h and compared with the numbers as printed there. */
 #include <math.h>
 #include <setjmp.h> /* cmocka */
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h> /* strtod, getenv, malloc */
+#include <string.h> /* strchr, strlen, strstr */
 
 #include <cmocka.h>
 
 #include "test_util.h"
 #include "report.h"
 
+#include "oc_camera.h"
 #include "oc_key.h"
 #include "oc_planet.h"
 
@@ -364,6 +368,115 @@ static void test_camrel__far_and_outside(void **state) {
   }
 }
 
+/*-*** The worked examples of docs/protocol.md ("Conventions") ***/
+
+/* docs/protocol.md, read once when OC_SOURCE_DIR is set (ctest sets it): every number below must
+ * appear there as written, so the page and this test cannot part silently. NULL when run by hand
+ * without it (the numbers are still checked against the code). */
+static char *g_doc;
+
+static char *read_doc(void) {
+  const char *src = getenv("OC_SOURCE_DIR");
+  if (!src) return NULL;
+  char path[1024];
+  snprintf(path, sizeof path, "%s/docs/protocol.md", src);
+  FILE *f = fopen(path, "rb");
+  assert_non_null(f);
+  char *buf = malloc(1u << 20);
+  assert_non_null(buf);
+  size_t n = fread(buf, 1, (1u << 20) - 1, f);
+  fclose(f);
+  buf[n] = '\0';
+  return buf;
+}
+
+/* `got` equals the decimal `text` to its printed precision: within half a unit of its last
+ * digit (and a hair more for the rounding of the comparison itself). */
+static void assert_printed(double got, const char *text) {
+  const char *dot = strchr(text, '.');
+  int decimals = dot ? (int)strlen(dot + 1) : 0;
+  double want = strtod(text, NULL), tol = 0.5 * pow(10.0, -decimals) * (1.0 + 1e-9);
+  if (!(fabs(got - want) <= tol)) fail_msg("computed %.17g, the doc says %s", got, text);
+}
+
+/* A vector as the doc prints it, "(x, y, z)": each component to its precision, and the text on
+ * the page. */
+static void assert_vec(oc_dvec3 got, const char *x, const char *y, const char *z) {
+  assert_printed(got.x, x);
+  assert_printed(got.y, y);
+  assert_printed(got.z, z);
+  char line[160];
+  snprintf(line, sizeof line, "(%s, %s, %s)", x, y, z);
+  if (g_doc && !strstr(g_doc, line)) fail_msg("docs/protocol.md no longer shows %s", line);
+}
+
+static void assert_doc_has(const char *text) {
+  if (g_doc && !strstr(g_doc, text)) fail_msg("docs/protocol.md no longer shows \"%s\"", text);
+}
+
+static void test_doc__camera_examples(void **state) {
+  (void)state;
+  g_doc = read_doc();
+  /* lat 46.5, lon 8, alt 2000 m, heading 30, pitch 10, fov 60 */
+  assert_doc_has("lat 46.5, lon 8.0, alt 2000 m, heading 30, pitch 10, fov 60");
+  oc_camera_t c = oc_camera_from_pose((oc_camera_pose_t){{46.5, 8.0, 2000.0}, 30.0, 10.0, 60.0});
+  oc_enu_t f = oc_enu_at(c.pos);
+  assert_vec(c.pos, "4344190.860", "610536.210", "4622810.866");
+  assert_vec(f.east, "-0.139173101", "0.990268069", "0");
+  assert_vec(f.north, "-0.718315077", "-0.100952601", "0.688354576");
+  assert_vec(f.up, "0.681655556", "0.0958004409", "0.725374371");
+  assert_vec(c.forward, "-0.562789455", "0.418148112", "0.713035894");
+  assert_vec(c.right, "0.238630098", "0.908073604", "-0.344177288");
+  assert_vec(c.up, "0.791406157", "0.0235475231", "0.610836974");
+  assert_true(c.vfov_deg == 60.0);
+  /* The closed forms the doc gives agree with the cross products the code takes. */
+  double sh = sin(30 * OC_DEG), ch = cos(30 * OC_DEG), sp = sin(10 * OC_DEG), cp = cos(10 * OC_DEG);
+  oc_dvec3 fw = oc_dmad(oc_dmad(oc_dscale(f.east, cp * sh), f.north, cp * ch), f.up, sp);
+  oc_dvec3 rt = oc_dmad(oc_dscale(f.east, ch), f.north, -sh);
+  oc_dvec3 up = oc_dmad(oc_dmad(oc_dscale(f.east, -sp * sh), f.north, -sp * ch), f.up, cp);
+  assert_true(dist(fw, c.forward) < 1e-15 && dist(rt, c.right) < 1e-15 && dist(up, c.up) < 1e-15);
+  /* The default camera of scenes/planet.json (and the built-in planet): 45, 0, 2000, 260, -5, 60. */
+  assert_doc_has("lat 45, lon 0, alt 2000 m, heading 260, pitch -5, fov 60");
+  c = oc_camera_from_pose((oc_camera_pose_t){{45.0, 0.0, 2000.0}, 260.0, -5.0, 60.0});
+  assert_vec(c.pos, "4506391.517", "0.000", "4506391.517");
+  assert_vec(c.forward, "0.0606921426", "-0.981060262", "-0.183948976");
+  assert_vec(c.up, "0.715117689", "-0.0858316512", "0.693714364");
+  /* Straight up the heading is lost: right = forward × north, the camera's up is local north. */
+  c = oc_camera_from_pose((oc_camera_pose_t){{46.5, 8.0, 2000.0}, 30.0, 90.0, 60.0});
+  assert_true(dist(c.forward, f.up) < 1e-15 && dist(c.up, f.north) < 1e-15);
+  assert_true(dist(c.right, oc_dscale(f.east, -1.0)) < 1e-15);
+  free(g_doc);
+  g_doc = NULL;
+}
+
+static void test_doc__key_examples(void **state) {
+  (void)state;
+  g_doc = read_doc();
+  /* Level 2, cell (1, 2, 3): sentinel 1 << 6, then the (z y x) bit triples 101 (bit 0 of each)
+   * and 110 (bit 1 of each). */
+  assert_true(oc_key_make(2, 1, 2, 3) == 0x75);
+  assert_doc_has("0x75");
+  assert_true(oc_key_parent(0x75) == 0xE && oc_key_child(0xE, 5) == 0x75);
+  /* The level-10 node holding the first camera's eye. */
+  oc_dvec3 eye = oc_geo_to_xyz((oc_geo_t){46.5, 8.0, 2000.0});
+  oc_key_t k = oc_key_from_point(10, eye);
+  assert_true(k == 0x7D17394Dull);
+  assert_doc_has("0x7d17394d");
+  uint32_t ix, iy, iz;
+  oc_key_coords(k, &ix, &iy, &iz);
+  assert_true(ix == 855 && iy == 560 && iz == 877);
+  assert_doc_has("(855, 560, 877)");
+  oc_dvec3 o;
+  double s;
+  oc_key_bounds(k, &o, &s);
+  assert_true(s == 12638.671875 && o.x == 4335064.453125 && o.y == 606656.25 && o.z == 4613115.234375);
+  assert_doc_has("12638.671875");
+  assert_doc_has("(4335064.453125, 606656.25, 4613115.234375)");
+  assert_true(OC_ROOT_HALF == 6471000.0 && OC_PLANET_RADIUS == 6371000.0);
+  free(g_doc);
+  g_doc = NULL;
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_geo__known_points),
@@ -375,6 +488,8 @@ int main(void) {
       cmocka_unit_test(test_camrel__precision),
       cmocka_unit_test(test_camrel__node_exact_offsets),
       cmocka_unit_test(test_camrel__far_and_outside),
+      cmocka_unit_test(test_doc__camera_examples),
+      cmocka_unit_test(test_doc__key_examples),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
