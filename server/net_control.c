@@ -242,6 +242,11 @@ void ocs_control_handle(ocs_session_t *s, const ocp_control_t *req, oc_buf_t *ou
       fail(s, req->request, "%s", "step: \"epochs\" must be an integer in 1..1000", out);
       goto done;
     }
+    if (s->step_waiting) { /* one waiting reply per connection: a second would lose the first */
+      snprintf(why, sizeof why, "%" PRIu32, s->step_request);
+      fail(s, req->request, "step: request %s is still stepping on this connection; wait for its reply", why, out);
+      goto done;
+    }
     s->step_waiting = 1;
     s->step_request = req->request;
     s->step_target = srv->steps_done + srv->steps_queued + (uint64_t)n;

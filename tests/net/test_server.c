@@ -636,6 +636,34 @@ static void test_server__control(void **state) {
   ocv_conn_close(a.c);
 }
 
+/* Replies by request id: status + 1 (0: none yet). */
+static void ev_reply_status(void *ctx, const ocp_control_t *c) {
+  if (c->request < 4) ((int *)ctx)[c->request] = c->status + 1;
+}
+
+/* A second "step" on a connection whose first is still stepping is refused, naming the first;
+ * the first is still answered (before, the second overwrote it and it was never answered). */
+static void test_server__step_while_stepping(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(&s, extra);
+  int got[4] = {0};
+  char why[512];
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL};
+  ocp_viewer_events_t cev = {.ctx = got, .control_reply = ev_reply_status};
+  ocv_conn_t *ctl = NULL;
+  if (ocv_conn_open(&ctl, "127.0.0.1", s.port, &cd, &cev, 5.0, why, sizeof why) < 0) fail_msg("control: %s", why);
+  assert_int_equal(ocv_conn_wait_ready(ctl, 5.0, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_control(ctl, 1, "{\"op\":\"step\",\"epochs\":3}"), 0);
+  assert_int_equal(ocv_conn_control(ctl, 2, "{\"op\":\"step\",\"epochs\":1}"), 0);
+  for (int i = 0; i < 1200 && !(got[1] && got[2]); i++) assert_int_equal(ocv_conn_poll(ctl, 0.1, why, sizeof why), 0);
+  assert_int_equal(got[1], OCP_CODE_OK + 1);
+  assert_int_equal(got[2], OCP_CODE_REQUEST + 1);
+  ocv_conn_close(ctl);
+  assert_int_equal(stop_server(&s), 0);
+}
+
 static int teardown(void **state) {
   (void)state;
   if (running > 0) {
@@ -662,6 +690,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_server__idle_timeout, teardown),
       cmocka_unit_test_teardown(test_server__hello_during_step, teardown),
       cmocka_unit_test_teardown(test_server__control, teardown),
+      cmocka_unit_test_teardown(test_server__step_while_stepping, teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
