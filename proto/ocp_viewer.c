@@ -76,7 +76,9 @@ static int ocp__keep(const ocp_viewer_t *v) {
   return k < 0 ? 0 : k > OCP__HELD_MAX ? OCP__HELD_MAX : k;
 }
 
-static uint8_t ocp__out_version(const ocp_viewer_t *v) { return v->ready ? v->version : (uint8_t)OCP_VERSION_MAX; }
+/* The version byte of what we send: the negotiated version after WELCOME; before it (an ERROR
+ * about the WELCOME itself, a GOODBYE) the highest one our HELLO offered, which HELLO carried. */
+static uint8_t ocp__out_version(const ocp_viewer_t *v) { return v->ready ? v->version : (uint8_t)v->desc.max_version; }
 
 /* Fails the connection: the reason goes to why and, as an ERROR frame with `code`, to out. */
 static int ocp__abort(ocp_viewer_t *v, oc_buf_t *out, int err, uint32_t code, char *why, size_t why_len, const char *fmt,
@@ -140,6 +142,8 @@ int ocp_viewer_create(ocp_viewer_t **out, const ocp_viewer_desc_t *desc, const o
   size_t tl = desc->token ? strlen(desc->token) : 0;
   if (tl > OCP_TOKEN_MAX) return OC_EINVAL;
   ocp_viewer_desc_t d = *desc;
+  if (!d.max_version) d.max_version = OCP_VERSION_MAX;
+  if (d.max_version < OCP_VERSION_MIN || d.max_version > OCP_VERSION_MAX) return OC_EINVAL;
   if (d.role == OCP_ROLE_VIEWER) {
     if (!d.slot_bytes) d.slot_bytes = OCP__SLOT_DEFAULT;
     if (!d.record_bytes) d.record_bytes = OCP__RECORD_DEFAULT;
@@ -186,7 +190,7 @@ void ocp_viewer_connected(ocp_viewer_t *v, oc_buf_t *out) {
   ocp_hello_t h;
   memset(&h, 0, sizeof h);
   h.min_version = OCP_VERSION_MIN;
-  h.max_version = OCP_VERSION_MAX;
+  h.max_version = v->desc.max_version;
   h.role = v->desc.role;
   h.max_depth = v->desc.max_depth;
   h.token_len = v->token_len;
@@ -219,9 +223,9 @@ static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t
   ocp_welcome_t w;
   int e = ocp_get_welcome(p, h->length, &w, reason, sizeof reason);
   if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
-  if (w.version < OCP_VERSION_MIN || w.version > OCP_VERSION_MAX)
-    return ocp__abort(v, out, OC_EVERSION, OCP_CODE_VERSION, why, why_len, "welcome: version %u is outside %d..%d",
-                      (unsigned)w.version, OCP_VERSION_MIN, OCP_VERSION_MAX);
+  if (w.version < OCP_VERSION_MIN || w.version > v->desc.max_version)
+    return ocp__abort(v, out, OC_EVERSION, OCP_CODE_VERSION, why, why_len, "welcome: version %u is outside %d..%u",
+                      (unsigned)w.version, OCP_VERSION_MIN, (unsigned)v->desc.max_version);
   if (h->version != w.version)
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
                       "welcome: frame version %u differs from the chosen version %u", (unsigned)h->version,
@@ -441,7 +445,7 @@ int ocp_viewer_camera(ocp_viewer_t *v, const ocp_camera_t *c, oc_buf_t *out) {
   /* check with the server's own decoder, so a bad camera fails here and not as an ERROR later */
   oc_buf_t tmp = {0};
   ocp_camera_t back;
-  ocp_put_camera(&tmp, OCP_VERSION_MAX, c);
+  ocp_put_camera(&tmp, ocp__out_version(v), c);
   int e = tmp.err ? OC_ENOMEM : ocp_get_camera(tmp.data + OCP_HEADER_BYTES, tmp.len - OCP_HEADER_BYTES, &back, NULL, 0);
   oc_buf_free(&tmp);
   if (e) return e == OC_ENOMEM ? e : OC_EINVAL;

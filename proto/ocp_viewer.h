@@ -40,6 +40,11 @@ typedef struct {
   const char *token;      /**< NULL: none */
   int lean;               /**< keep digests, not codes: adds OCP_CAP_DIGEST (either one selects
                                it); with OCP_CAP_DELTA in caps, ocp_viewer_create() is OC_EINVAL */
+  uint16_t max_version;   /**< the highest protocol version offered: HELLO offers
+                               [OCP_VERSION_MIN, max_version] and a WELCOME choosing another is
+                               refused; 0 → OCP_VERSION_MAX; outside [OCP_VERSION_MIN,
+                               OCP_VERSION_MAX], ocp_viewer_create() is OC_EINVAL (a test can be a
+                               version-N viewer) */
 } ocp_viewer_desc_t;
 
 typedef struct {
