@@ -5,6 +5,7 @@
  * ACKs or a control request can never deadlock us. */
 #include "net.h"
 
+#include <arpa/inet.h> /* inet_pton */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -32,6 +33,7 @@
 struct ocv_conn_s {
   char host[OCV_HOST_MAX];
   int port;
+  char source[OCV_HOST_MAX]; /* local IP to bind before connecting; "": the system's choice */
   char addr[OCV_HOST_MAX + 16]; /* "HOST:PORT" for messages */
   int fd, wake_fd, cancel_fd;
   ocp_viewer_t *v;
@@ -239,9 +241,49 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
   return 0;
 }
 
-/* Connects one address within the deadline (-ECANCELED once `cancel` is readable).
- * @return the socket or -errno. */
-static int ocv__connect_one(const struct addrinfo *ai, double deadline, int cancel) {
+int ocv_conn_set_source(ocv_conn_t *c, const char *addr) {
+  if (!c) return OC_EINVAL;
+  if (!addr || !*addr) {
+    c->source[0] = '\0';
+    return 0;
+  }
+  struct in6_addr tmp;
+  if (strlen(addr) >= sizeof c->source || (inet_pton(AF_INET, addr, &tmp) != 1 && inet_pton(AF_INET6, addr, &tmp) != 1))
+    return OC_EINVAL;
+  snprintf(c->source, sizeof c->source, "%s", addr);
+  return 0;
+}
+
+/* Binds fd (of `family`) to the source address, port 0. @return 0 or -errno (-EAFNOSUPPORT: the
+ * source is not of that family). */
+static int ocv__bind_source(int fd, int family, const char *source) {
+  struct sockaddr_storage ss;
+  socklen_t len;
+  memset(&ss, 0, sizeof ss);
+  if (family == AF_INET) {
+    struct sockaddr_in *a = (struct sockaddr_in *)&ss;
+    a->sin_family = AF_INET;
+    if (inet_pton(AF_INET, source, &a->sin_addr) != 1) return -EAFNOSUPPORT;
+    len = sizeof *a;
+  } else if (family == AF_INET6) {
+    struct sockaddr_in6 *a = (struct sockaddr_in6 *)&ss;
+    a->sin6_family = AF_INET6;
+    if (inet_pton(AF_INET6, source, &a->sin6_addr) != 1) return -EAFNOSUPPORT;
+    len = sizeof *a;
+  } else {
+    return -EAFNOSUPPORT;
+  }
+#ifdef IP_BIND_ADDRESS_NO_PORT /* the port is picked at connect(), per destination: no early exhaustion */
+  int one = 1;
+  setsockopt(fd, IPPROTO_IP, IP_BIND_ADDRESS_NO_PORT, &one, sizeof one);
+#endif
+  return bind(fd, (struct sockaddr *)&ss, len) < 0 ? -errno : 0;
+}
+
+/* Connects one address within the deadline (-ECANCELED once `cancel` is readable), from `source`
+ * when it is not "" (a failed bind sets *bind_failed). @return the socket or -errno. */
+static int ocv__connect_one(const struct addrinfo *ai, double deadline, int cancel, const char *source, int *bind_failed) {
+  *bind_failed = 0;
   int fd = socket(ai->ai_family, ai->ai_socktype, ai->ai_protocol);
   if (fd < 0) return -errno;
   int fl = fcntl(fd, F_GETFL);
@@ -249,6 +291,14 @@ static int ocv__connect_one(const struct addrinfo *ai, double deadline, int canc
     int e = errno;
     close(fd);
     return -e;
+  }
+  if (source[0]) {
+    int b = ocv__bind_source(fd, ai->ai_family, source);
+    if (b < 0) {
+      close(fd);
+      *bind_failed = 1;
+      return b;
+    }
   }
   int r = connect(fd, ai->ai_addr, ai->ai_addrlen);
   if (r < 0 && errno != EINPROGRESS && errno != EINTR) {
@@ -301,14 +351,23 @@ int ocv_conn_reconnect(ocv_conn_t *c, double timeout_s, char *why, size_t why_le
     (void)oc_errorf(0, why, why_len, "%s: cannot resolve \"%s\": %s", c->addr, c->host, gai_strerror(g));
     return OC_EIO;
   }
-  int fd = -ECONNREFUSED;
+  int fd = -ECONNREFUSED, bind_err = 0;
   for (const struct addrinfo *ai = res; ai; ai = ai->ai_next) {
-    fd = ocv__connect_one(ai, deadline, c->cancel_fd);
+    int bind_failed;
+    fd = ocv__connect_one(ai, deadline, c->cancel_fd, c->source, &bind_failed);
+    bind_err = bind_failed ? -fd : 0; /* the last try's reason; another address may suit the source */
     if (fd >= 0 || fd == -ETIMEDOUT || fd == -ECANCELED) break;
   }
   freeaddrinfo(res);
   if (fd < 0) {
-    if (fd == -ETIMEDOUT) {
+    if (bind_err == EAFNOSUPPORT) {
+      (void)oc_errorf(0, why, why_len, "%s: cannot bind to the source address %s: not of the server's address family",
+                      c->addr, c->source);
+    } else if (bind_err) {
+      char e[128];
+      ocv__errstr(bind_err, e, sizeof e);
+      (void)oc_errorf(0, why, why_len, "%s: cannot bind to the source address %s: %s", c->addr, c->source, e);
+    } else if (fd == -ETIMEDOUT) {
       (void)oc_errorf(0, why, why_len, "%s: cannot connect: timed out after %g s", c->addr, timeout_s);
     } else if (fd == -ECANCELED) {
       (void)oc_errorf(0, why, why_len, "%s: connect cancelled", c->addr);

@@ -51,6 +51,12 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
  *  On failure *out is NULL. */
 int ocv_conn_open(ocv_conn_t **out, const char *host, int port, const ocp_viewer_desc_t *vd,
                   const ocp_viewer_events_t *ev, double timeout_s, char *why, size_t why_len);
+/*! ocv_conn_set_source() : later connects (ocv_conn_reconnect()) bind the socket to this local IP
+ *  address ("127.0.0.2", "::1"; port 0) before connecting, so a client can choose the address it
+ *  comes from (Linux routes all of 127.0.0.0/8 to the loopback). NULL or "": the system's choice
+ *  (the default). A failed bind fails the connect with a reason naming the source address.
+ *  @return 0, or OC_EINVAL when addr is not a numeric IPv4 or IPv6 address (nothing changed). */
+int ocv_conn_set_source(ocv_conn_t *c, const char *addr);
 /*! ocv_conn_reconnect() : closes the socket if any (without GOODBYE: the server keeps the session
  *  for resume), discards unsent output, connects anew and sends HELLO (resume fields when the
  *  session had a WELCOME). @return 0 or a negative OC_E* (the connection stays closed). */
