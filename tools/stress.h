@@ -35,6 +35,8 @@ typedef struct {
   int port;
   long server_pid;          /* connect: a local pid to read /proc of; 0: none */
   const char *token;
+  const char *source;       /* --source-address: local IP the viewers and fault connections bind
+                               to (port 0) before connecting; NULL: the system's choice */
   int viewers;
   int npaths, paths[STRESS_PATH_COUNT * 4];
   int nbudgets;
@@ -84,6 +86,8 @@ enum { STRESS_FK_STALL, STRESS_FK_DROP, STRESS_FK_GARBAGE, STRESS_FK_COUNT };
 #define STRESS_FAULT_GRACE 10.0
 /* seconds past the server's stall timeout by which a viewer that stopped reading must be let go */
 #define STRESS_FAULT_STALL_GRACE 5.0
+/* misbehaving connections open at once, at most (stress_fault.c) */
+#define STRESS_FAULT_MAX_CONNS 4096
 /* RSS growth allowed beyond the server's own accounting (--fault-rss-slack default), MiB */
 #define STRESS_FAULT_SLACK_MIB 64
 

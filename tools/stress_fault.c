@@ -44,7 +44,7 @@
 #include "ocp_viewer.h"
 #include "stress.h"
 
-#define SF_MAX_CONNS 4096
+#define SF_MAX_CONNS STRESS_FAULT_MAX_CONNS
 static const int sf_variants[STRESS_FK_COUNT] = {2, 4, 6};
 static const char *const sf_kind_names[STRESS_FK_COUNT] = {"stall", "drop", "garbage"};
 
@@ -192,6 +192,18 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
   if (kind == STRESS_FK_STALL) { /* a small window: the server's socket stops draining at once */
     int sz = 4096;
     setsockopt(c->fd, SOL_SOCKET, SO_RCVBUF, &sz, sizeof sz);
+  }
+  if (run->o->source) { /* --source-address: from that local address, port 0 */
+    struct sockaddr_in src = {.sin_family = AF_INET};
+    const char *err = NULL;
+    if (inet_pton(AF_INET, run->o->source, &src.sin_addr) != 1) err = "not an IPv4 address, as the fault connections need";
+    else if (bind(c->fd, (struct sockaddr *)&src, sizeof src) < 0) err = strerror(errno);
+    if (err) {
+      sf_fail(f, "%s %d: cannot bind to the source address %s: %s", sf_kind_names[kind], variant, run->o->source, err);
+      close(c->fd);
+      free(c);
+      return;
+    }
   }
   struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)run->port)};
   inet_pton(AF_INET, run->host, &a.sin_addr);

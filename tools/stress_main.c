@@ -4,6 +4,7 @@
  * starts the server (a child process, so that its RSS and CPU are its own) or connects to one,
  * steps the epochs when the server is stepped by command, and stops everything and reports
  * (stress_report.c). */
+#include <arpa/inet.h> /* inet_pton */
 #include <cjson/cJSON.h>
 #include <getopt.h>
 #include <math.h>
@@ -48,6 +49,10 @@ static void usage(FILE *f) {
           "  --connect HOST:PORT   use a running server instead\n"
           "  --server-pid PID      with --connect: a local server process to read RSS and CPU from\n"
           "  --token TEXT          the server's token (passed on with --spawn)\n"
+          "  --source-address IP   the viewers and the fault connections connect from this local\n"
+          "                        address (bound before connecting, port 0), e.g. 127.0.0.2: Linux\n"
+          "                        routes all of 127.0.0.0/8 to the loopback (the control connection\n"
+          "                        keeps the system's choice; fault connections need IPv4)\n"
           "The viewers:\n"
           "  --viewers N           how many (default 5; 1..%d)\n"
           "  --paths LIST          camera paths, assigned round-robin: orbit, dive, cruise, teleport,\n"
@@ -629,7 +634,7 @@ int main(int argc, char **argv) {
   enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
-         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL };
+         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -650,7 +655,7 @@ int main(int argc, char **argv) {
       {"faults", required_argument, 0, O_FAULTS},   {"fault-every", required_argument, 0, O_FAULT_EVERY},
       {"fault-budget", required_argument, 0, O_FAULT_BUDGET}, {"restart-at", required_argument, 0, O_RESTART_AT},
       {"fault-rss-slack", required_argument, 0, O_FAULT_SLACK}, {"server-arg", required_argument, 0, O_SERVER_ARG},
-      {"full-sessions", no_argument, 0, O_FULL},
+      {"full-sessions", no_argument, 0, O_FULL},    {"source-address", required_argument, 0, O_SOURCE},
       {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
@@ -756,6 +761,14 @@ int main(int argc, char **argv) {
         spawn_only_name = "--server-arg";
         break;
       case O_FULL: o.full_sessions = 1; break;
+      case O_SOURCE: {
+        struct in6_addr ip;
+        if (strlen(optarg) >= OCV_HOST_MAX || (inet_pton(AF_INET, optarg, &ip) != 1 && inet_pton(AF_INET6, optarg, &ip) != 1))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--source-address: expected a numeric IPv4 or IPv6 address (e.g. 127.0.0.2), got \"%s\"",
+                             optarg);
+        o.source = optarg;
+        break;
+      }
       case 'v': o.verbose = 1; break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -840,8 +853,8 @@ int main(int argc, char **argv) {
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", exe);
     long total_mib = 0;
     for (int i = 0; i < o.viewers; i++) total_mib += (long)((viewer_budget(&o, i) + (1u << 20) - 1) >> 20);
-    static char a_period[32], a_threads[32], a_total[32], a_maxv[32];
-    static char *sargv[24 + 32];
+    static char a_period[32], a_threads[32], a_total[32], a_maxv[32], a_maxb[32], a_peraddr[32];
+    static char *sargv[32 + 32 + 1]; /* ours, then up to 32 --server-arg, then NULL */
     int n = 0;
     sargv[n++] = exe;
     sargv[n++] = "--listen";
@@ -873,6 +886,26 @@ int main(int argc, char **argv) {
     sargv[n++] = a_total;
     sargv[n++] = "--max-viewers";
     sargv[n++] = a_maxv;
+    /* the server grants one viewer at most a fair share of the total by default: ask for the
+     * largest budget we request (the misbehaving viewers' included), so every budget is granted */
+    long max_mib = o.faults ? (long)o.fault_budget_mib : 1;
+    for (int i = 0; i < o.viewers; i++) {
+      long mib = (long)((viewer_budget(&o, i) + (1u << 20) - 1) >> 20);
+      if (mib > max_mib) max_mib = mib;
+    }
+    snprintf(a_maxb, sizeof a_maxb, "%ld", max_mib);
+    sargv[n++] = "--max-budget";
+    sargv[n++] = a_maxb;
+    /* the per-address limits must let all of ours through from one address (two with
+     * --source-address): the viewers, the control connection (and a restart's), the fault
+     * connections (up to STRESS_FAULT_MAX_CONNS at once), and the connect bursts of the ramp's
+     * phases and of a restart, which the handshake rate (a bucket of --max-per-address) allows */
+    long per_addr = (long)o.viewers + 64 + (o.faults ? STRESS_FAULT_MAX_CONNS : 0);
+    snprintf(a_peraddr, sizeof a_peraddr, "%ld", per_addr);
+    sargv[n++] = "--max-per-address";
+    sargv[n++] = a_peraddr;
+    sargv[n++] = "--handshake-rate";
+    sargv[n++] = "1000";
     if (!o.verbose) sargv[n++] = "-q";
     for (int i = 0; i < o.nserver_args; i++) sargv[n++] = o.server_args[i];
     sargv[n] = NULL;

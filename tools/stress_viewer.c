@@ -390,7 +390,13 @@ void *stress_viewer_main(void *arg) {
                           .caps = o->full_sessions ? OCP_CAP_ALL : OCP_CAP_DICT, .token = o->token,
                           .lean = !o->full_sessions};
   ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats};
-  int r = ocv_conn_open(&v->conn, run->host, run->port, &vd, &ev, o->timeout, why, sizeof why);
+  /* created, then connected: --source-address applies to the first connect and every reconnect */
+  int r = ocv_conn_create(&v->conn, run->host, run->port, &vd, &ev, why, sizeof why);
+  if (r == 0 && o->source && ocv_conn_set_source(v->conn, o->source) < 0) {
+    snprintf(why, sizeof why, "--source-address %s: not an IP address", o->source);
+    r = OC_EINVAL;
+  }
+  if (r == 0) r = ocv_conn_reconnect(v->conn, o->timeout, why, sizeof why);
   if (r < 0) {
     sv_fail(v, "viewer %d: %s", v->index, why);
     goto out;
