@@ -85,6 +85,52 @@ check "server: bad viewport" 2 "--viewport: expected WxH" -- "$S" --save-state "
 check "server: plans a state offline" 0 "" -- "$S" --scene scenes/analytic_sphere.json --save-state "$tmp/p.ocst" --epochs 3 --budget 4 --viewport 160x90 -q
 check "view: renders the server's state" 0 "" -- "$V" --state "$tmp/p.ocst" --size 32x18 --out "$tmp/c" -q
 
+# overcast-server's options are one table (server/server_config.c): --help is generated from it, one
+# row per option with its default and range; the serving limits are range-checked like the others;
+# a non-loopback --listen needs --token or --insecure.
+"$S" --help >"$tmp/help" 2>&1
+for o in listen token insecure epoch-period max-viewers max-budget total-budget cache linger max-lingering \
+  linger-budget max-per-address handshake-rate idle-timeout stall-timeout queue-limits zstd-level send-buffer \
+  no-deltas check inspect json export-vdb region level save-state camera epochs budget viewport scene time \
+  threads quiet help version; do
+  grep -Eq "^  (-q, )?--$o( |$)" "$tmp/help" || { echo "FAIL server --help: --$o not listed"; fail=$((fail + 1)); }
+done
+for o in max-per-address handshake-rate max-lingering linger-budget max-budget max-viewers queue-limits; do
+  # the row and its continuation lines
+  awk -v o="--$o" '$1 == o { p = 1; print; next } p && /^    / { print; next } { p = 0 }' "$tmp/help" | grep -q "(default:" ||
+    { echo "FAIL server --help: --$o shows no default"; fail=$((fail + 1)); }
+done
+grep -Eq "^  --max-per-address N .*\(default: 32; 1\.\.100000\)" "$tmp/help" || { echo "FAIL server --help: --max-per-address row: $(grep -e --max-per-address "$tmp/help")"; fail=$((fail + 1)); }
+LC_ALL=C tr -d '\200-\277' <"$tmp/help" | awk 'length($0) > 100 { exit 1 }' || { echo "FAIL server --help: a line over 100 columns"; fail=$((fail + 1)); }
+check "server: bad --max-per-address" 2 "^overcast-server: --max-per-address: 0 is outside \[1, 100000\]$" -- "$S" --max-per-address 0
+check "server: bad --handshake-rate" 2 "^overcast-server: --handshake-rate: 0.01 is outside \[0.1, 100000\]$" -- "$S" --handshake-rate 0.01
+check "server: --handshake-rate not a number" 2 "^overcast-server: --handshake-rate: expected a finite number, got \"x\"$" -- "$S" --handshake-rate x
+check "server: bad --max-lingering" 2 "^overcast-server: --max-lingering: -1 is outside \[0, 100000\]$" -- "$S" --max-lingering -1
+check "server: --max-lingering not an integer" 2 "^overcast-server: --max-lingering: expected an integer, got \"2.5\"$" -- "$S" --max-lingering 2.5
+check "server: bad --linger-budget" 2 "^overcast-server: --linger-budget: 0 is outside \[1, 16777216\]$" -- "$S" --linger-budget 0
+check "server: bad --max-budget" 2 "^overcast-server: --max-budget: 0 is outside \[1, 16777216\]$" -- "$S" --max-budget 0
+check "server: serving limits with --check" 2 "serving options go without" -- "$S" --check --max-per-address 4
+check "server: non-loopback without a token" 2 "^overcast-server: --listen 0\.0\.0\.0:0: refusing a non-loopback address without --token \(anyone who reaches it could take the whole budget\); add --token, or --insecure to allow it$" -- "$S" --listen 0.0.0.0:0 --epoch-period 0 -q
+check "server: IPv6 any without a token" 2 "^overcast-server: --listen \[::\]:0: refusing a non-loopback address.*--insecure" -- "$S" --listen "[::]:0" -q
+# --insecure starts it: wait (generously) for "listening on", then SIGTERM exits 0
+"$S" --listen 0.0.0.0:0 --insecure --epoch-period 0 -q >"$tmp/srv.out" 2>"$tmp/srv.err" &
+spid=$!
+for _ in $(seq 600); do
+  grep -q "^listening on " "$tmp/srv.out" && break
+  kill -0 "$spid" 2>/dev/null || break
+  sleep 0.1
+done
+if grep -Eq "^listening on 0\.0\.0\.0:[0-9]+$" "$tmp/srv.out"; then
+  pass=$((pass + 1))
+else
+  echo "FAIL server --insecure: no \"listening on\": $(head -c 300 "$tmp/srv.out") $(head -c 300 "$tmp/srv.err")"
+  fail=$((fail + 1))
+fi
+kill "$spid" 2>/dev/null
+wait "$spid"
+sst=$?
+[ "$sst" -eq 0 ] || { echo "FAIL server --insecure: exit $sst after SIGTERM, want 0"; fail=$((fail + 1)); }
+
 B=$BIN/overcast-bench
 check "bench: no command" 2 "usage" -- "$B"
 check "bench: unknown command" 2 "unknown command \"frob\"" -- "$B" frob
