@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "net_internal.h"
+#include "server_config.h" /* ocs_config_is_loopback */
 #include "oc_err.h"
 #include "oc_log.h"
 
@@ -84,6 +85,12 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
   if (!(d->handshake_rate > 0)) d->handshake_rate = 10;
   if (d->max_lingering <= 0) d->max_lingering = 16;
   snprintf(srv->host, sizeof srv->host, "%s", d->host ? d->host : "127.0.0.1");
+  if (!d->token && !d->insecure && ocs_config_is_loopback(srv->host) == 0) { /* the CLI says so first (exit 2) */
+    snprintf(why, why_len, "refusing to listen on %s without a token: anyone who reaches it could take the budget "
+             "(give a token, or insecure)", srv->host);
+    free(srv);
+    return OC_EINVAL;
+  }
   srv->token = d->token ? strdup(d->token) : NULL;
   srv->scene_path = d->scene_path ? strdup(d->scene_path) : NULL;
   d->host = d->token = d->scene_path = NULL; /* the copies above are what is used */
@@ -170,6 +177,7 @@ void ocs_server_free(ocs_server_t *srv) {
   }
   for (int i = 0; i < srv->ndoomed; i++) ocs_world_remove_viewer(srv->world, srv->doomed[i]);
   free(srv->doomed);
+  ocs_peer_free_all(srv);
   ocs_world_free(srv->world);
   oc_scene_free(&srv->scene);
   free(srv->token);
