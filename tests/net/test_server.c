@@ -220,6 +220,13 @@ static void test_server__token(void **state) {
   assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 1);
   assert_int_equal(v.closed_code, OCP_CODE_TOKEN);
   ocv_conn_close(v.c);
+  static const char *near[] = {"s3cre", "s3crets", "S3cret"}; /* a prefix, a longer one, one byte off */
+  for (int i = 0; i < 3; i++) {
+    viewer_open(&v, s.port, 8u << 20, near[i]);
+    assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 1);
+    assert_int_equal(v.closed_code, OCP_CODE_TOKEN);
+    ocv_conn_close(v.c);
+  }
   viewer_open(&v, s.port, 8u << 20, "s3cret");
   assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
   ocv_conn_close(v.c);
