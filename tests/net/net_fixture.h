@@ -285,4 +285,15 @@ static inline void ev_reply(void *ctx, const ocp_control_t *c) {
   *(int *)ctx = 1;
 }
 
+/* A test's teardown: the server it started is killed when the test failed before stopping it. */
+static inline int net_teardown(void **state) {
+  (void)state;
+  if (running > 0) {
+    kill(running, SIGKILL);
+    waitpid(running, NULL, 0);
+    running = 0;
+  }
+  return 0;
+}
+
 #endif /* OC_TESTS_NET_FIXTURE_H */

@@ -275,27 +275,17 @@ static void test_admission__handshake_rate(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-static int teardown(void **state) {
-  (void)state;
-  if (running > 0) {
-    kill(running, SIGKILL);
-    waitpid(running, NULL, 0);
-    running = 0;
-  }
-  return 0;
-}
-
 int main(void) {
   const char *src = getenv("OC_SOURCE_DIR");
   snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
   signal(SIGPIPE, SIG_IGN);
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_admission__greedy_then_vanish, teardown),
-      cmocka_unit_test_teardown(test_admission__lingering_give_back_then_largest_fit, teardown),
-      cmocka_unit_test_teardown(test_admission__greedy_connected, teardown),
-      cmocka_unit_test_teardown(test_admission__lingering_caps, teardown),
-      cmocka_unit_test_teardown(test_admission__connect_storm, teardown),
-      cmocka_unit_test_teardown(test_admission__handshake_rate, teardown),
+      cmocka_unit_test_teardown(test_admission__greedy_then_vanish, net_teardown),
+      cmocka_unit_test_teardown(test_admission__lingering_give_back_then_largest_fit, net_teardown),
+      cmocka_unit_test_teardown(test_admission__greedy_connected, net_teardown),
+      cmocka_unit_test_teardown(test_admission__lingering_caps, net_teardown),
+      cmocka_unit_test_teardown(test_admission__connect_storm, net_teardown),
+      cmocka_unit_test_teardown(test_admission__handshake_rate, net_teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -55,6 +55,8 @@
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
 
+#include "net_fixture.h"
+
 #define RP_TIMEOUT_S 60.0
 #define RP_EPOCHS 3
 #define RP_BUDGET (4u << 20)
@@ -68,14 +70,8 @@
 #define V1_EPOCH_END 16
 #define V1_STATS 88
 
-static char g_scene[4096], g_file[4096], g_build[4096];
+static char g_file[4096], g_build[4096];
 static int g_recording;
-static pid_t g_running = 0; /* killed by the teardown when a test failed before stopping it */
-
-static void sleep_us(long us) {
-  struct timespec t = {us / 1000000, (us % 1000000) * 1000};
-  nanosleep(&t, NULL);
-}
 
 static double now_s(void) {
   struct timespec t;
@@ -83,71 +79,11 @@ static double now_s(void) {
   return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-/*-*** The server and its control channel ***/
+/*-*** The server ***/
 
-typedef struct {
-  pid_t pid;
-  int port;
-  FILE *out;
-} server_t;
-
-static void start_server(server_t *s) {
-  char path[4200];
-  snprintf(path, sizeof path, "%s/overcast-server", getenv("OC_BIN_DIR"));
-  const char *argv[] = {path, "--scene", g_scene, "--listen", "127.0.0.1:0", "--epoch-period", "0", "--threads", "2", "-q", NULL};
-  int fd[2];
-  assert_int_equal(pipe(fd), 0);
-  s->pid = fork();
-  assert_true(s->pid >= 0);
-  if (s->pid == 0) {
-    dup2(fd[1], 1);
-    close(fd[0]);
-    close(fd[1]);
-    execv(path, (char *const *)argv);
-    _exit(127);
-  }
-  close(fd[1]);
-  g_running = s->pid;
-  s->out = fdopen(fd[0], "r");
-  char line[256] = "";
-  assert_non_null(fgets(line, sizeof line, s->out)); /* "listening on 127.0.0.1:PORT" */
-  const char *c = strrchr(line, ':');
-  if (!c || !strstr(line, "listening on 127.0.0.1:")) fail_msg("%s: unexpected first line \"%s\"", path, line);
-  s->port = atoi(c + 1);
-  assert_true(s->port > 0);
-}
-
-/* SIGTERM; @return the exit status (0 expected). */
-static int stop_server(server_t *s) {
-  g_running = 0;
-  kill(s->pid, SIGTERM);
-  int st = 0;
-  for (int i = 0; i < 300; i++) {
-    if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
-      fclose(s->out);
-      return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-    }
-    sleep_us(50000);
-  }
-  kill(s->pid, SIGKILL);
-  waitpid(s->pid, &st, 0);
-  fclose(s->out);
-  return -1;
-}
-
-static void step(int port, int n) {
-  ocp_viewer_desc_t d = {.role = OCP_ROLE_CONTROL};
-  ocv_conn_t *c = NULL;
-  char why[512], json[64];
-  if (ocv_conn_open(&c, "127.0.0.1", port, &d, NULL, 5.0, why, sizeof why) < 0) fail_msg("step: %s", why);
-  snprintf(json, sizeof json, "{\"op\":\"step\",\"epochs\":%d}", n);
-  char *reply = NULL;
-  int32_t st = -1;
-  int r = ocv_control_request(c, json, 120.0, &reply, &st, why, sizeof why);
-  ocv_conn_close(c);
-  if (r < 0) fail_msg("step: %s", why);
-  free(reply);
-  assert_int_equal(st, OCP_CODE_OK);
+static void start_rp_server(server_t *s) {
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  start_server(s, extra);
 }
 
 /*-*** A raw connection ***/
@@ -158,7 +94,7 @@ typedef struct {
   uint8_t buf[65536];
 } raw_t;
 
-static void raw_open(raw_t *x, int port) {
+static void rp_open(raw_t *x, int port) {
   x->fd = socket(AF_INET, SOCK_STREAM, 0);
   assert_true(x->fd >= 0);
   struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port), .sin_addr.s_addr = htonl(0x7f000001)};
@@ -166,13 +102,13 @@ static void raw_open(raw_t *x, int port) {
   ocp_reader_init(&x->rd, OCP_MAX_PAYLOAD);
 }
 
-static void raw_close(raw_t *x) {
+static void rp_close(raw_t *x) {
   if (x->fd >= 0) close(x->fd);
   x->fd = -1;
   ocp_reader_free(&x->rd);
 }
 
-static void raw_send(raw_t *x, const void *p, size_t n) {
+static void rp_send(raw_t *x, const void *p, size_t n) {
   const uint8_t *q = p;
   while (n) {
     ssize_t k = send(x->fd, q, n, MSG_NOSIGNAL);
@@ -240,7 +176,7 @@ static void rec_client(FILE *f, raw_t *x, oc_buf_t *b) {
     fputc('\n', f);
     at += n;
   }
-  raw_send(x, b->data, b->len);
+  rp_send(x, b->data, b->len);
   b->len = 0;
 }
 
@@ -292,9 +228,9 @@ static void rec_until(FILE *f, raw_t *x, ocp_viewer_t *v, oc_buf_t *out, int unt
 /* One section: a fresh server and a version-1 viewer through its whole session. */
 static void record_section(FILE *f, const char *name, int lean) {
   server_t s;
-  start_server(&s);
+  start_rp_server(&s);
   raw_t x;
-  raw_open(&x, s.port);
+  rp_open(&x, s.port);
   ocp_viewer_desc_t d = {.role = OCP_ROLE_VIEWER, .budget = RP_BUDGET, .max_depth = 21, .width = RP_W, .height = RP_H,
                          .caps = lean ? OCP_CAP_DICT : OCP_CAP_ALL, .lean = lean, .max_version = 1};
   ocp_viewer_t *v = NULL;
@@ -334,7 +270,7 @@ static void record_section(FILE *f, const char *name, int lean) {
     fprintf(f, "S %s %" PRIu32 "\n", msg_name(h.type), h.length);
   }
   fprintf(f, "S eof\n");
-  raw_close(&x);
+  rp_close(&x);
   ocp_viewer_free(v);
   oc_buf_free(&out);
   assert_int_equal(stop_server(&s), 0);
@@ -633,9 +569,9 @@ static void replay_section(const char *section, const lines_t *full) {
   replay_t r = {.section = section, .full = full, .kept = 2};
   assert_int_equal(ocp_epoch_dec_create(&r.dec), 0);
   server_t s;
-  start_server(&s);
+  start_rp_server(&s);
   raw_t x;
-  raw_open(&x, s.port);
+  rp_open(&x, s.port);
   static uint8_t frame[RP_LINE_MAX / 2];
   int epochs = 0, ended = 0;
   for (int i = 0; i < L.n; i++) {
@@ -666,7 +602,7 @@ static void replay_section(const char *section, const lines_t *full) {
         r.have_end = 0;
         epochs++;
       }
-      raw_send(&x, frame, n);
+      rp_send(&x, frame, n);
     } else if (!strncmp(line, "step ", 5)) {
       sleep_us(100000); /* our camera and ACK reach the server before the step */
       step(s.port, atoi(line + 5));
@@ -694,7 +630,7 @@ static void replay_section(const char *section, const lines_t *full) {
   assert_true(ended);
   assert_int_equal(epochs, RP_EPOCHS);
   print_message("section %s: %d epochs replayed, each rebuilt and matching the recording\n", section, epochs);
-  raw_close(&x);
+  rp_close(&x);
   for (int i = 0; i < r.nheld; i++) {
     oc_state_free(&r.held[i]);
     oc_brick_digests_free(&r.hdig[i]);
@@ -722,10 +658,10 @@ static void test_replay_v1__lean(void **state) {
 /* HELLO [lo, hi] on a raw socket: @return the WELCOME's chosen version, or -(ERROR code). */
 static int negotiate(int port, uint16_t lo, uint16_t hi, char *text, size_t cap) {
   raw_t x;
-  raw_open(&x, port);
+  rp_open(&x, port);
   oc_buf_t b = {0};
   hello_bytes(&b, lo, hi);
-  raw_send(&x, b.data, b.len);
+  rp_send(&x, b.data, b.len);
   oc_buf_free(&b);
   ocp_header_t h;
   const uint8_t *p;
@@ -744,17 +680,17 @@ static int negotiate(int port, uint16_t lo, uint16_t hi, char *text, size_t cap)
     res = w.version;
     b = (oc_buf_t){0};
     ocp_put_text(&b, (uint8_t)w.version, OCP_MSG_GOODBYE, OCP_CODE_OK, "");
-    raw_send(&x, b.data, b.len);
+    rp_send(&x, b.data, b.len);
     oc_buf_free(&b);
   }
-  raw_close(&x);
+  rp_close(&x);
   return res;
 }
 
 static void test_replay_v1__versions(void **state) {
   (void)state;
   server_t s;
-  start_server(&s);
+  start_rp_server(&s);
   char text[OCP_TEXT_MAX + 1];
   int v = negotiate(s.port, 2, 5, text, sizeof text); /* a viewer that no longer speaks 1 */
   if (OCP_VERSION_MAX < 2) {
@@ -812,23 +748,13 @@ static void test_replay_v1__pinned_viewer(void **state) {
   fclose(f);
 }
 
-static int teardown(void **state) {
-  (void)state;
-  if (g_running > 0) {
-    kill(g_running, SIGKILL);
-    waitpid(g_running, NULL, 0);
-    g_running = 0;
-  }
-  return 0;
-}
-
 int main(void) {
   const char *src = getenv("OC_SOURCE_DIR"), *bin = getenv("OC_BIN_DIR"), *rec = getenv("OC_REPLAY_RECORD");
   if (!src || !bin) {
     fprintf(stderr, "test_replay_v1: OC_SOURCE_DIR and OC_BIN_DIR must be set (ctest sets them)\n");
     return 1;
   }
-  snprintf(g_scene, sizeof g_scene, "%s/scenes/analytic_sphere.json", src);
+  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src);
   snprintf(g_build, sizeof g_build, "%s", bin);
   char *slash = strrchr(g_build, '/');
   if (slash && !strcmp(slash, "/bin")) *slash = '\0'; /* OC_BIN_DIR is BUILD/bin */
@@ -845,15 +771,15 @@ int main(void) {
   signal(SIGPIPE, SIG_IGN);
   int failed = 0;
   if (g_recording) {
-    const struct CMUnitTest rec_tests[] = {cmocka_unit_test_teardown(test_replay_v1__record, teardown)};
+    const struct CMUnitTest rec_tests[] = {cmocka_unit_test_teardown(test_replay_v1__record, net_teardown)};
     failed = cmocka_run_group_tests_name("record", rec_tests, NULL, NULL);
     if (failed) return failed;
   }
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_replay_v1__full, teardown),
-      cmocka_unit_test_teardown(test_replay_v1__lean, teardown),
-      cmocka_unit_test_teardown(test_replay_v1__versions, teardown),
-      cmocka_unit_test_teardown(test_replay_v1__pinned_viewer, teardown),
+      cmocka_unit_test_teardown(test_replay_v1__full, net_teardown),
+      cmocka_unit_test_teardown(test_replay_v1__lean, net_teardown),
+      cmocka_unit_test_teardown(test_replay_v1__versions, net_teardown),
+      cmocka_unit_test_teardown(test_replay_v1__pinned_viewer, net_teardown),
   };
   return cmocka_run_group_tests_name("replay_v1", tests, NULL, NULL);
 }

@@ -671,33 +671,23 @@ static void test_server__step_while_stepping(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-static int teardown(void **state) {
-  (void)state;
-  if (running > 0) {
-    kill(running, SIGKILL);
-    waitpid(running, NULL, 0);
-    running = 0;
-  }
-  return 0;
-}
-
 int main(void) {
   const char *src = getenv("OC_SOURCE_DIR");
   snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
   signal(SIGPIPE, SIG_IGN);
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_server__two_viewers, teardown),
-      cmocka_unit_test_teardown(test_server__matches_offline, teardown),
-      cmocka_unit_test_teardown(test_server__hostile_peers, teardown),
-      cmocka_unit_test_teardown(test_server__token, teardown),
-      cmocka_unit_test_teardown(test_server__resume, teardown),
-      cmocka_unit_test_teardown(test_server__lean_viewer, teardown),
-      cmocka_unit_test_teardown(test_server__slow_viewer, teardown),
-      cmocka_unit_test_teardown(test_server__stalled_in_kernel, teardown),
-      cmocka_unit_test_teardown(test_server__idle_timeout, teardown),
-      cmocka_unit_test_teardown(test_server__hello_during_step, teardown),
-      cmocka_unit_test_teardown(test_server__control, teardown),
-      cmocka_unit_test_teardown(test_server__step_while_stepping, teardown),
+      cmocka_unit_test_teardown(test_server__two_viewers, net_teardown),
+      cmocka_unit_test_teardown(test_server__matches_offline, net_teardown),
+      cmocka_unit_test_teardown(test_server__hostile_peers, net_teardown),
+      cmocka_unit_test_teardown(test_server__token, net_teardown),
+      cmocka_unit_test_teardown(test_server__resume, net_teardown),
+      cmocka_unit_test_teardown(test_server__lean_viewer, net_teardown),
+      cmocka_unit_test_teardown(test_server__slow_viewer, net_teardown),
+      cmocka_unit_test_teardown(test_server__stalled_in_kernel, net_teardown),
+      cmocka_unit_test_teardown(test_server__idle_timeout, net_teardown),
+      cmocka_unit_test_teardown(test_server__hello_during_step, net_teardown),
+      cmocka_unit_test_teardown(test_server__control, net_teardown),
+      cmocka_unit_test_teardown(test_server__step_while_stepping, net_teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
