@@ -27,6 +27,7 @@ int ocs_server_reload(ocs_server_t *srv, char *why, size_t why_len) {
     oc_scene_free(&sc);
     return r;
   }
+  ocs_world_carry_clock(w, srv->world); /* world time goes on through a reload */
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
     nx = s->next;
     if (s->role == OCP_ROLE_VIEWER && (s->viewer || s->state == OCS_SS_LINGER))
@@ -71,7 +72,9 @@ static cJSON *world_stats_json(ocs_server_t *srv) {
   ocs_world_stats(srv->world, &ws);
   cJSON *o = cJSON_CreateObject();
   cJSON_AddNumberToObject(o, "epoch", (double)ws.epoch);
-  cJSON_AddNumberToObject(o, "time", ws.time);
+  double utc = ocs_net_utc(srv);
+  cJSON_AddNumberToObject(o, "time", ocs_world_time_at(srv->world, utc)); /* now, not the last epoch's */
+  cJSON_AddNumberToObject(o, "utc", utc);
   cJSON_AddNumberToObject(o, "epoch_period", srv->period);
   cJSON_AddNumberToObject(o, "viewers", ws.viewers);
   cJSON_AddNumberToObject(o, "granted_bytes", (double)ws.granted_bytes);
@@ -194,7 +197,7 @@ void ocs_control_handle(ocs_session_t *s, const ocp_control_t *req, oc_buf_t *ou
       fail(s, req->request, "%s", "weather: \"seconds\" must be a number in [0, 1e7]", out);
       goto done;
     }
-    r = ocs_world_set_weather(srv->world, (oc_preset_t)preset, sec);
+    r = ocs_world_set_weather(srv->world, ocs_net_utc(srv), (oc_preset_t)preset, sec);
   } else if (!strcmp(op, "time")) {
     const cJSON *setv = cJSON_GetObjectItemCaseSensitive(j, "set"), *scv = cJSON_GetObjectItemCaseSensitive(j, "scale");
     double t = num(j, "set"), sc = num(j, "scale");
@@ -202,15 +205,12 @@ void ocs_control_handle(ocs_session_t *s, const ocp_control_t *req, oc_buf_t *ou
       fail(s, req->request, "%s", "time: give \"set\" (s, |t| ≤ 1e12) and/or \"scale\" (0..1e6)", out);
       goto done;
     }
-    if (setv) r = ocs_world_set_time(srv->world, t);
-    if (r >= 0 && scv) {
-      r = ocs_world_set_time_scale(srv->world, sc);
-      if (sc > 0) srv->last_scale = sc;
-    }
+    if (setv) r = ocs_world_set_time(srv->world, ocs_net_utc(srv), t);
+    if (r >= 0 && scv) r = ocs_world_set_time_scale(srv->world, ocs_net_utc(srv), sc);
   } else if (!strcmp(op, "pause")) {
-    r = ocs_world_set_time_scale(srv->world, 0.0);
+    r = ocs_world_pause(srv->world, ocs_net_utc(srv));
   } else if (!strcmp(op, "resume")) {
-    r = ocs_world_set_time_scale(srv->world, srv->last_scale);
+    r = ocs_world_resume(srv->world, ocs_net_utc(srv));
   } else if (!strcmp(op, "sun")) {
     const cJSON *dv = cJSON_GetObjectItemCaseSensitive(j, "dir");
     oc_dvec3 d;

@@ -1,14 +1,21 @@
-/* net_epoch.c — epochs (net_internal.h): the epoch timer's ticks, a step of the world on libuv's
+/* net_epoch.c — epochs (net_internal.h): ticks on the clock, a step of the world on libuv's
  * thread pool, and the new states streamed when it ends. While a step runs the world's viewers
  * are not touched: what viewers say meanwhile is kept in their sessions and applied before the
- * next step. */
+ * next step.
+ *
+ * Clocked (period P > 0): epoch n is due at n·P seconds after the Unix epoch and takes the world
+ * time of that instant (world_clock.h). The timer is armed for the next due instant; a tick that
+ * finds the previous step still running, or that the loop reached late, is skipped and counted
+ * (late_ticks), and the step takes the newest due epoch. Stepped (P = 0): the virtual clock of
+ * ocs_world_step(). */
 #include <math.h>
+#include <time.h>
 
 #include "net_internal.h"
 #include "oc_err.h"
 #include "oc_log.h"
 
-static void start_step(ocs_server_t *srv);
+static void start_step_at(ocs_server_t *srv, uint64_t n);
 
 /* What a viewer said while a step ran (its acknowledgement, its newest camera) reaches the world. */
 static void apply_pending(ocs_session_t *s) {
@@ -22,9 +29,20 @@ static void apply_pending(ocs_session_t *s) {
   }
 }
 
+double ocs_net_utc(const ocs_server_t *srv) {
+  if (!(srv->period > 0)) return ocs_world_utc(srv->world);
+  struct timespec t;
+  clock_gettime(CLOCK_REALTIME, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* The epoch whose due instant is the newest not after utc. */
+static uint64_t due_epoch(const ocs_server_t *srv, double utc) { return (uint64_t)floor(utc / srv->period); }
+
 static void step_work(uv_work_t *req) {
   ocs_server_t *srv = req->data;
-  srv->step_rc = ocs_world_step(srv->world);
+  uint64_t n = srv->step_epoch;
+  srv->step_rc = n ? ocs_world_step_at(srv->world, n, (double)n * srv->period) : ocs_world_step(srv->world);
 }
 
 static void step_done(uv_work_t *req, int status) {
@@ -50,11 +68,18 @@ static void step_done(uv_work_t *req, int status) {
       ocs_session_stream(s, ocs_viewer_held(s->viewer, 1));
   }
   if (srv->after_step) srv->after_step(srv);
-  if (srv->steps_queued && !srv->stopping) start_step(srv);
+  if (srv->steps_queued && !srv->stopping) start_step_at(srv, 0);
 }
 
-static void start_step(ocs_server_t *srv) {
+/* A step of epoch n (clocked), or of the next one (a "step" request: on the clock the newest due
+ * epoch, or the one after the last if that is not due yet; stepped: the virtual clock's next). */
+static void start_step_at(ocs_server_t *srv, uint64_t n) {
   if (srv->stepping || srv->stopping) return;
+  if (!n && srv->period > 0) {
+    uint64_t due = due_epoch(srv, ocs_net_utc(srv)), last = ocs_world_epoch(srv->world);
+    n = due > last ? due : last + 1;
+  }
+  srv->step_epoch = n;
   if (srv->steps_queued) srv->steps_queued--;
   for (ocs_session_t *s = srv->sessions; s; s = s->next)
     if (s->viewer) apply_pending(s);
@@ -65,7 +90,7 @@ static void start_step(ocs_server_t *srv) {
 
 void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n) {
   srv->steps_queued += n;
-  start_step(srv);
+  start_step_at(srv, 0);
 }
 
 static void on_tick_idle(uv_idle_t *h) { (void)h; }
@@ -76,20 +101,41 @@ static void on_tick_check(uv_check_t *h) {
   ocs_server_t *srv = h->data;
   uv_idle_stop(&srv->tick_idle);
   uv_check_stop(&srv->tick_check);
-  if (!srv->stepping && !srv->stopping) start_step(srv);
+  if (srv->stepping || srv->stopping) {
+    srv->late_ticks++;
+    return;
+  }
+  if (srv->tick_epoch > ocs_world_epoch(srv->world)) start_step_at(srv, srv->tick_epoch); /* else a "step" took it */
 }
+
+static void arm_timer(ocs_server_t *srv);
 
 /* libuv runs timers before it polls sockets: a step started here would not yet see ACKs that
  * arrived since the last poll. The step starts right after the next poll instead (which the idle
  * handle keeps from blocking). */
 static void on_epoch_timer(uv_timer_t *t) {
   ocs_server_t *srv = t->data;
+  uint64_t due = due_epoch(srv, ocs_net_utc(srv) + 1e-3); /* a timer may fire up to 1 ms early */
+  if (due < srv->armed_epoch) due = srv->armed_epoch;
+  srv->late_ticks += due - srv->armed_epoch; /* due instants the loop reached too late */
+  srv->tick_epoch = due;
+  arm_timer(srv);
   if (srv->stepping) {
     srv->late_ticks++; /* the previous step is still running: this tick is skipped */
     return;
   }
   uv_idle_start(&srv->tick_idle, on_tick_idle);
   uv_check_start(&srv->tick_check, on_tick_check);
+}
+
+/* One shot, for the due instant of the next epoch after tick_epoch. */
+static void arm_timer(ocs_server_t *srv) {
+  double now = ocs_net_utc(srv);
+  uint64_t next = due_epoch(srv, now) + 1;
+  if (next <= srv->tick_epoch) next = srv->tick_epoch + 1;
+  double wait = (double)next * srv->period - now;
+  srv->armed_epoch = next;
+  uv_timer_start(&srv->epoch_timer, on_epoch_timer, wait > 0 ? (uint64_t)ceil(wait * 1e3) : 0, 0);
 }
 
 void ocs_epoch_init(ocs_server_t *srv) {
@@ -101,6 +147,6 @@ void ocs_epoch_init(ocs_server_t *srv) {
 
 void ocs_epoch_start_timer(ocs_server_t *srv) {
   if (!(srv->period > 0)) return;
-  uint64_t ms = (uint64_t)llround(srv->period * 1e3);
-  uv_timer_start(&srv->epoch_timer, on_epoch_timer, ms, ms ? ms : 1);
+  srv->tick_epoch = srv->armed_epoch = 0;
+  arm_timer(srv);
 }

@@ -25,8 +25,6 @@ static int token_equal(const char *want, const uint8_t *got, size_t got_len) {
 static void send_welcome(ocs_session_t *s, int resumed) {
   ocs_server_t *srv = s->srv;
   const oc_scene_t *sc = ocs_world_scene(srv->world);
-  ocs_world_stats_t ws;
-  ocs_world_stats(srv->world, &ws);
   ocp_welcome_t m;
   memset(&m, 0, sizeof m);
   m.version = s->version;
@@ -43,7 +41,7 @@ static void send_welcome(ocs_session_t *s, int resumed) {
   m.features = sc->features;
   m.epoch_period = srv->period;
   m.planet_radius = OC_PLANET_RADIUS;
-  m.time = ws.time;
+  m.time = ocs_world_time_at(srv->world, ocs_net_utc(srv));
   m.sun_dir = ocs_world_sun(srv->world);
   m.albedo = sc->optics.albedo;
   m.ms_a = sc->optics.ms_a;

@@ -121,8 +121,10 @@ struct ocs_server_s {
   uint32_t next_id;
   int stepping, step_rc, stopping;
   uint64_t steps_queued, steps_done, late_ticks;
+  uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
+  uint64_t tick_epoch;  /* the due epoch the last tick asked for */
+  uint64_t armed_epoch; /* the epoch the timer waits for */
   double plan_ms, produce_ms; /* of the last step, for every viewer's STATS */
-  double last_scale;
   /* viewers to remove once the running step ends */
   ocs_viewer_t **doomed;
   int ndoomed, doomed_cap;
@@ -192,6 +194,9 @@ int ocs_admit_viewer(ocs_session_t *s, const ocp_hello_t *h);
 /*! ocs_server_queue_steps() : n more epochs to step as soon as possible. */
 void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n);
 void ocs_epoch_start_timer(ocs_server_t *srv);
+/*! ocs_net_utc() : now on the server's clock: the wall clock (UTC, s since the Unix epoch) when
+ *  epochs are clocked; the virtual instant of the last epoch when they are stepped. */
+double ocs_net_utc(const ocs_server_t *srv);
 void ocs_epoch_init(ocs_server_t *srv);
 
 /*-*** net_handshake.c ***/

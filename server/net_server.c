@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "net_internal.h"
 #include "server_config.h" /* ocs_config_is_loopback */
@@ -100,7 +101,11 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
     return OC_ENOMEM;
   }
   srv->period = d->epoch_period < 0 ? scene->epoch_period : d->epoch_period;
-  srv->last_scale = 1.0;
+  if (srv->period > 0 && !d->world.start_utc) { /* the clock starts now, at the world time asked */
+    struct timespec t;
+    clock_gettime(CLOCK_REALTIME, &t);
+    d->world.start_utc = (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+  }
   if ((r = ocs_world_create(&srv->world, &srv->scene, &d->world, why, why_len)) < 0) {
     ocs_server_free(srv);
     return r;

@@ -14,6 +14,7 @@
 #include "ocs_field.h"
 #include "pool.h"
 #include "sun_depth.h"
+#include "world_clock.h"
 
 enum { T_BRICK = 1, T_SIGMA = 2, T_TAUVOL = 3 };
 
@@ -66,7 +67,8 @@ struct ocs_world_s {
   int K, shadows, ground_tau;
   uint64_t field_gen;
   uint64_t epoch;
-  double time, scale;
+  ocs_clock_t clock; /* the control history: world time from the instant */
+  double utc, time;  /* the last epoch's instant and world time */
   oc_dvec3 sun;
   uint64_t sun_version;
   ocs_tau_desc_t tau;
@@ -248,7 +250,7 @@ static void clock_update(ocs_world_t *w) {
     w->stamp[l] = h;
   }
   /* refresh rate: how many of the next 8 epochs change each level's stamp */
-  double dt = w->scene.epoch_period * w->scale;
+  double dt = w->scene.epoch_period * ocs_clock_scale(&w->clock, w->utc);
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) w->rate[l] = 0.0;
   if (!ocs_field_animated(w->field) || !(dt > 0.0)) return;
   uint64_t prev[OC_KEY_MAX_LEVEL + 1];
@@ -292,8 +294,9 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
   w->ground_tau = w->shadows && oc_scene_has(&w->scene, OC_FEATURE_PLANET_SURFACE);
   w->field_gen = 1;
+  w->utc = isfinite(w->d.start_utc) ? w->d.start_utc : 0.0;
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;
-  w->scale = 1.0;
+  ocs_clock_init(&w->clock, w->utc, w->time);
   w->sun = w->scene.sun_dir;
   w->sun_version = 1;
   w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .ctx = w, .sun_dir = w->sun};
@@ -330,23 +333,41 @@ int ocs_world_set_sun(ocs_world_t *w, oc_dvec3 sun) {
   return 0;
 }
 
-int ocs_world_set_time(ocs_world_t *w, double t) {
-  if (!w || !isfinite(t) || fabs(t) > 1e12) return OC_EINVAL;
-  w->time = t;
+/* A control change took effect: the last epoch's world time is W(its instant) again (a change at
+ * that very instant, as stepped mode makes them, shows at once). */
+static int clock_changed(ocs_world_t *w, int r) {
+  if (r < 0) return r;
+  w->time = ocs_clock_world(&w->clock, w->utc);
   clock_update(w);
   return 0;
 }
 
-int ocs_world_set_time_scale(ocs_world_t *w, double scale) {
-  if (!w || !isfinite(scale) || fabs(scale) > 1e6) return OC_EINVAL;
-  w->scale = scale;
-  clock_update(w);
-  return 0;
+int ocs_world_set_time(ocs_world_t *w, double utc, double t) {
+  if (!w || !isfinite(t)) return OC_EINVAL;
+  return clock_changed(w, ocs_clock_set(&w->clock, utc, t, NAN));
 }
 
-int ocs_world_set_weather(ocs_world_t *w, oc_preset_t preset, double seconds) {
+int ocs_world_set_time_scale(ocs_world_t *w, double utc, double scale) {
+  if (!w || !isfinite(scale)) return OC_EINVAL;
+  return clock_changed(w, ocs_clock_set(&w->clock, utc, NAN, scale));
+}
+
+int ocs_world_pause(ocs_world_t *w, double utc) { return w ? clock_changed(w, ocs_clock_pause(&w->clock, utc)) : OC_EINVAL; }
+int ocs_world_resume(ocs_world_t *w, double utc) { return w ? clock_changed(w, ocs_clock_resume(&w->clock, utc)) : OC_EINVAL; }
+
+double ocs_world_utc(const ocs_world_t *w) { return w->utc; }
+uint64_t ocs_world_epoch(const ocs_world_t *w) { return w->epoch; }
+double ocs_world_time_at(const ocs_world_t *w, double utc) { return ocs_clock_world(&w->clock, utc); }
+void ocs_world_carry_clock(ocs_world_t *to, const ocs_world_t *from) {
+  to->clock = from->clock;
+  to->epoch = from->epoch;
+  to->utc = from->utc;
+  clock_changed(to, 0);
+}
+
+int ocs_world_set_weather(ocs_world_t *w, double utc, oc_preset_t preset, double seconds) {
   if (!w) return OC_EINVAL;
-  OC_TRY(ocs_field_set_weather(w->field, preset, w->time, seconds));
+  OC_TRY(ocs_field_set_weather(w->field, preset, ocs_clock_world(&w->clock, utc), seconds));
   clock_update(w);
   return 0;
 }
@@ -557,12 +578,25 @@ static void release_requests(ocs_world_t *w) {
   w->nreq = 0;
 }
 
+static int step(ocs_world_t *w);
+
 int ocs_world_step(ocs_world_t *w) {
   if (!w) return OC_EINVAL;
-  double t0 = now_s();
-  w->epoch++;
-  w->time += w->scene.epoch_period * w->scale;
+  return ocs_world_step_at(w, w->epoch + 1, (double)(w->epoch + 1) * w->scene.epoch_period);
+}
+
+int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc) {
+  if (!w || epoch <= w->epoch || !isfinite(utc)) return OC_EINVAL;
+  w->epoch = epoch;
+  w->utc = utc;
+  w->time = ocs_clock_world(&w->clock, utc);
   clock_update(w);
+  return step(w);
+}
+
+/* Plans every ready viewer, produces what the plans lack once, emits their states. */
+static int step(ocs_world_t *w) {
+  double t0 = now_s();
   ocs_plan_input_t in;
   memset(&in, 0, sizeof in);
   in.classify = classify_cb;

@@ -36,13 +36,15 @@ typedef struct {
   uint64_t max_budget;       /**< largest budget one viewer is granted; 0 → a fair share: a quarter
                                   of viewer_bytes, at most 1 GiB (OCS_FAIR_SHARE_MAX) */
   int max_viewers;           /**< 0 → 64 */
-  double time;               /**< world time at epoch 0, s; default 0 */
+  double time;               /**< world time at start_utc, s; default 0 */
+  double start_utc;          /**< the instant the clock starts (s since the Unix epoch, clocked
+                                  mode); 0: the virtual clock of ocs_world_step() */
   int validate;              /**< check every produced state with oc_state_validate (tests) */
 } ocs_world_desc_t;
 
 typedef struct {
   uint64_t epoch;            /**< epochs stepped */
-  double time;               /**< world time now, s */
+  double time;               /**< world time of the last epoch, s */
   uint64_t bricks_produced;  /**< final bricks made (cache misses): the generation counter */
   uint64_t sigma_produced;   /**< σt samplings of the field */
   uint64_t tau_volumes;      /**< τ volumes built */
@@ -112,18 +114,36 @@ const oc_state_t *ocs_viewer_held(const ocs_viewer_t *v, int i);
 /*! ocs_viewer_in_flight() : 1 while the newest state is unacknowledged. */
 int ocs_viewer_in_flight(const ocs_viewer_t *v);
 
-/*! ocs_world_step() : one epoch: advances the clock by the scene's epoch period (times the time
- *  scale), plans every ready viewer, produces, emits. @return 0 or a negative OC_E* (the
- *  viewers' previous states are kept). */
+/*! ocs_world_step() : the next epoch on the virtual clock (stepped mode, tests, benches, offline):
+ *  epoch e+1 at instant (e+1)·P, P the scene's epoch period, so its world time is
+ *  T0 + (e+1)·P·scale without control changes. Plans every ready viewer, produces, emits.
+ *  @return 0 or a negative OC_E* (the viewers' previous states are kept). */
 int ocs_world_step(ocs_world_t *w);
+/*! ocs_world_step_at() : epoch `epoch` (> the last one) at its due instant `utc` (clocked mode:
+ *  n·P since the Unix epoch); its world time is the clock's at `utc` (world_clock.h). */
+int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
+/*! ocs_world_utc() / ocs_world_epoch() : the instant and index of the last epoch stepped
+ *  (start_utc and 0 before the first). */
+double ocs_world_utc(const ocs_world_t *w);
+uint64_t ocs_world_epoch(const ocs_world_t *w);
+/*! ocs_world_time_at() : world time at instant utc (the control history's function). */
+double ocs_world_time_at(const ocs_world_t *w, double utc);
+/*! ocs_world_carry_clock() : `to` (a reloaded scene's new world) goes on from `from`'s clock: its
+ *  control history, last epoch and instant. */
+void ocs_world_carry_clock(ocs_world_t *to, const ocs_world_t *from);
 /*! ocs_world_set_sun() : the sun moves (unit vector toward it): every τ is recomputed. */
 int ocs_world_set_sun(ocs_world_t *w, oc_dvec3 sun_dir);
-/*! ocs_world_set_time() / ocs_world_set_time_scale() : world time now; seconds per second of
- *  epoch period (0 pauses). */
-int ocs_world_set_time(ocs_world_t *w, double t);
-int ocs_world_set_time_scale(ocs_world_t *w, double scale);
-/*! ocs_world_set_weather() : every procedural source moves to `preset` over `seconds` from now. */
-int ocs_world_set_weather(ocs_world_t *w, oc_preset_t preset, double seconds);
+/*! ocs_world_set_time() / ocs_world_set_time_scale() / ocs_world_pause() / ocs_world_resume() :
+ *  entries of the control history at instant utc (≥ the last epoch's): world time t from then on;
+ *  world seconds per wall second (0 pauses); scale 0; back to the last non-zero scale.
+ *  @return 0 or OC_EINVAL (|t| > 1e12, scale outside [0, 1e6]). */
+int ocs_world_set_time(ocs_world_t *w, double utc, double t);
+int ocs_world_set_time_scale(ocs_world_t *w, double utc, double scale);
+int ocs_world_pause(ocs_world_t *w, double utc);
+int ocs_world_resume(ocs_world_t *w, double utc);
+/*! ocs_world_set_weather() : every procedural source moves to `preset` over `seconds` from the
+ *  world time at instant utc. */
+int ocs_world_set_weather(ocs_world_t *w, double utc, oc_preset_t preset, double seconds);
 void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out);
 
 /*! ocs_world_plan_offline() : adds a viewer with `req` looking through `view`, steps `epochs`

@@ -261,7 +261,7 @@ static void test_world__weather_change_refreshes_every_viewer(void **st) {
   }
   ocs_world_stats_t a, b;
   ocs_world_stats(w, &a);
-  assert_int_equal(ocs_world_set_weather(w, OC_PRESET_OVERCAST, 10.0), 0);
+  assert_int_equal(ocs_world_set_weather(w, ocs_world_utc(w), OC_PRESET_OVERCAST, 10.0), 0);
   step_ack(w, v, 2);
   ocs_world_stats(w, &b);
   ocs_viewer_output(v[0], &o0);
