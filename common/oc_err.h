@@ -21,7 +21,8 @@
   XX(ETRUNC, -5003, "truncated data")                                     \
   XX(ETOOBIG, -5004, "data exceeds a size limit")                         \
   XX(ESCENE, -5005, "invalid scene description")                          \
-  XX(EOBUFLIMIT, -5006, "output buffer limit reached")
+  XX(EOBUFLIMIT, -5006, "output buffer limit reached")                    \
+  XX(EAGAIN, -EAGAIN, "not ready yet")
 
 typedef enum {
 #define OC__ERR_ENUM(name, val, msg) OC_##name = (val),

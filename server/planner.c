@@ -76,6 +76,7 @@ struct ocs_planner_s {
   int32_t *out_node;
   uint32_t out_n, out_cap;
   int pending; /* a plan awaits commit/abandon */
+  int gated;   /* the pending plan used only content that exists (in->ready) */
   /* per-epoch */
   const ocs_plan_input_t *in;
   double C[OCS_PLAN_MAX_KEPT], T, target;
@@ -379,6 +380,21 @@ static void content_for(ocs_planner_t *p, pn_t *n, int level, int look) {
   n->age = AGE_NEW;
 }
 
+/* Clocked epochs: new content (age AGE_NEW, stamp this epoch's) is usable only when it exists; the
+ * stamp may become an older one of the same level whose content exists (stale but complete: it is
+ * refreshed once newer content is ready). `held` is the stamp a leaf holds now (0: none), which an
+ * older stamp must differ from to be worth anything. @return 1 usable, 0 wanted at `prio`. */
+static int available(const ocs_planner_t *p, pn_t *n, int level, uint64_t held, double prio) {
+  if (n->age != AGE_NEW || !p->in->ready) return 1;
+  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp);
+  if (s && s != held) {
+    n->stamp = s;
+    return 1;
+  }
+  if (p->in->want) p->in->want(p->in->ctx, n->key, n->stamp, prio);
+  return 0;
+}
+
 /* contribution of a leaf to C_j (j = 0..K-1) and to T */
 static void leaf_cost(const ocs_planner_t *p, const pn_t *n, int level, double c[OCS_PLAN_MAX_KEPT], double *t) {
   const double R = p->d.record_bytes, S = p->d.slot_bytes;
@@ -548,6 +564,7 @@ static int try_merge(ocs_planner_t *p, double limit, int32_t keep, ocs_plan_stat
     int level = oc_key_level(m->key);
     pn_t pc = *m;
     content_for(p, &pc, level, recent(p, m->topo));
+    if (!available(p, &pc, level, 0, m->prio)) return -1; /* not until the parent's content exists */
     pc.topo = p->commits;
     double dc[OCS_PLAN_MAX_KEPT], dt;
     int dnew;
@@ -599,6 +616,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   if (p->pending) ocs_plan_abandon(p);
   if ((int64_t)p->placed * 8 > p->count / 16 && p->count > 4096) compact(p); /* best effort */
   p->in = in;
+  p->gated = in->ready != NULL;
   p->new_bricks = 0;
   const int K = p->K;
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
@@ -669,6 +687,14 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     int level = oc_key_level(n->key);
     pn_t nc = *n;
     content_for(p, &nc, level, 1);
+    if (!available(p, &nc, level, n->age == AGE_NEW ? 0 : n->stamp, n->prio)) {
+      if (n->age == AGE_NEW) { /* a leaf with nothing to show (the first root): no plan yet */
+        free(refresh);
+        return epoch_fail(p, OC_EAGAIN);
+      }
+      st.deferred++;
+      continue;
+    }
     double c0[OCS_PLAN_MAX_KEPT], c1[OCS_PLAN_MAX_KEPT], t0c, t1c;
     leaf_cost(p, n, level, c0, &t0c);
     leaf_cost(p, &nc, level, c1, &t1c);
@@ -730,6 +756,14 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
         kids[k].topo = n->topo; /* their children can be held only if n was internal lately */
       }
       kids_of = n->key;
+      int all = 1;
+      for (int k = 0; k < 8; k++) all &= available(p, &kids[k], level + 1, 0, s.prio);
+      if (!all) { /* a split comes with its 8 children or waits for them */
+        h_pop(&p->split_h);
+        st.split_backlog++;
+        kids_of = OC_KEY_INVALID;
+        continue;
+      }
     }
     for (int k = 0; k < 8; k++) {
       leaf_cost(p, &kids[k], level + 1, c, &t);
@@ -796,6 +830,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       o->produce = n->age == AGE_NEW;
       o->held = o->produce ? 0 : n->age;
       o->brick_id = o->produce ? 0 : n->brick_id;
+      o->prio = n->prio;
       p->out_node[k] = i;
       if ((uint32_t)level > st.max_level) st.max_level = (uint32_t)level;
     }
@@ -848,7 +883,10 @@ int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick
     pn_t *n = &p->nodes[p->out_node[i]];
     uint8_t k = kind[i] <= OC_NODE_BRICK ? kind[i] : OC_NODE_BRICK;
     uint32_t id = k == OC_NODE_BRICK ? brick_id[i] : 0;
-    if (k != OC_NODE_BRICK) n->skind = k;
+    /* Stepped, a leaf's content is made after the epoch's splits: an empty or uniform one is known
+     * so and stays a leaf. Clocked, content is shown first and split later: a coarse node's box
+     * average can round to empty while finer levels hold cloud, so the bound's class stays. */
+    if (k != OC_NODE_BRICK && !p->gated) n->skind = k;
     s.rec[i] = (snap_rec_t){n->key, n->stamp, id, k, n->skind};
     if (id) s.ids[s.nids++] = id;
     n->kind = k;

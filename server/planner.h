@@ -85,6 +85,13 @@ typedef struct {
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];    /**< content stamp per level at this epoch's time */
   double refresh_rate[OC_KEY_MAX_LEVEL + 1]; /**< fraction of epochs a level's content changes, [0,1] */
   uint32_t max_new_bricks; /**< throughput limit for this plan (slow viewer); 0 = none */
+  /*! Clocked epochs (production runs behind the ticks): new content is used only when it exists.
+   *  ready() returns the stamp of content of (key) that exists, `stamp` itself or an older stamp of
+   *  that level (stale but complete), or 0 when none does; NULL: everything is ready (stepped
+   *  epochs produce what their plan asks before it goes out). want() is told what was not ready,
+   *  with the pixels it would buy (the split's or the leaf's priority); NULL: not told. */
+  uint64_t (*ready)(void *ctx, oc_key_t key, int level, uint64_t stamp);
+  void (*want)(void *ctx, oc_key_t key, uint64_t stamp, double prio);
 } ocs_plan_input_t;
 
 /* One leaf of a plan, in canonical key order. */
@@ -95,11 +102,13 @@ typedef struct {
   uint8_t kind;      /**< predicted (or known) oc_node_kind_t */
   uint8_t produce;   /**< 1: content must be produced for (key, stamp) */
   uint8_t held;      /**< produce = 0: the i-th newest held state (1..K-1) has this content */
+  float prio;        /**< pixels a voxel spans (the split priority) */
 } ocs_plan_leaf_t;
 
 typedef struct {
   uint32_t splits, merges;       /**< applied this epoch */
   uint32_t refreshed, deferred;  /**< stamp changes served / left for a later epoch */
+  uint32_t split_backlog;        /**< splits that waited for their children's content (ready()) */
   uint32_t new_bricks;           /**< predicted new bricks (productions the viewer lacks) */
   uint32_t leaves, max_level;
   uint64_t predicted_bytes;      /**< C_0: the resident bytes once this plan is applied */
@@ -117,8 +126,11 @@ void ocs_planner_free(ocs_planner_t *p);
 const ocs_plan_desc_t *ocs_planner_desc(const ocs_planner_t *p);
 
 /*! ocs_plan_epoch() : re-plans for `view`. The result (leaves in key order) stays valid until the
- *  next call; it must be committed (ocs_plan_commit) before planning again.
- *  @return 0, OC_EINVAL (bad view) or OC_ENOMEM (the previous tree is kept). */
+ *  next call; it must be committed (ocs_plan_commit) before planning again. With in->ready, a
+ *  split is taken only with all 8 children's content, a merge only with its parent's, a refresh
+ *  only with newer content; the rest waits (in->want).
+ *  @return 0, OC_EINVAL (bad view), OC_EAGAIN (nothing to show yet: the viewer's first content is
+ *  not ready) or OC_ENOMEM (the previous tree is kept). */
 int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_input_t *in,
                    const ocs_plan_leaf_t **leaves, uint32_t *count, ocs_plan_stats_t *stats);
 

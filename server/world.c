@@ -18,6 +18,20 @@
 
 enum { T_BRICK = 1, T_SIGMA = 2, T_TAUVOL = 3 };
 
+/* Stamps of a level kept after they change: content of that age may still be shown (stale but
+ * complete) while the newer one waits in the queue. */
+#define OCS_STAMP_HISTORY 3
+/* The production queue's bound (entries of 24 bytes). */
+#define OCS_QUEUE_MAX (1u << 16)
+
+/* A brick some viewer's plan waited for (clocked epochs), with the pixels it buys that viewer. */
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;
+  double prio;
+  uint32_t viewer;
+} wish_t;
+
 /* A produced brick as the cache keeps it: codes only when kind is OC_NODE_BRICK. */
 typedef struct {
   uint8_t kind;
@@ -79,6 +93,14 @@ struct ocs_world_s {
   uint64_t granted;
   req_t *req;
   size_t nreq, req_cap;
+  /* clocked epochs */
+  uint64_t stamp_hist[OC_KEY_MAX_LEVEL + 1][OCS_STAMP_HISTORY]; /* each level's previous stamps */
+  ocs_cache_entry_t **pins; /* content found ready during a tick */
+  size_t npins, pins_cap;
+  wish_t *wish;             /* what the tick's plans waited for; then the queue, best first */
+  size_t nwish, wish_cap, nqueue;
+  uint32_t planning;        /* the viewer being planned */
+  double deadline;          /* production stops then (monotonic s); 0: none */
   size_t *deferred; /* requests whose τ volume another thread was building */
   size_t ndeferred, deferred_cap;
   /* counters (production runs on many threads) */
@@ -201,6 +223,7 @@ static int produce_one(void *ctx, size_t i, int worker) {
   (void)worker;
   ocs_world_t *w = ctx;
   req_t *q = &w->req[i];
+  if (w->deadline > 0 && now_s() >= w->deadline) return 0; /* the tick is due: the rest waits */
   ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
   int r = ocs_cache_acquire(w->cache, &k, &q->entry);
   if (r < 0) {
@@ -247,6 +270,10 @@ static void clock_update(ocs_world_t *w) {
     w->light[l] = lh; /* τ of level l marches through levels < l */
     h = mix(h, w->ts[l]);
     lh = h;
+    if (w->stamp[l] && w->stamp[l] != h) { /* the level's content moves on: remember the old */
+      memmove(&w->stamp_hist[l][1], &w->stamp_hist[l][0], (OCS_STAMP_HISTORY - 1) * sizeof w->stamp_hist[l][0]);
+      w->stamp_hist[l][0] = w->stamp[l];
+    }
     w->stamp[l] = h;
   }
   /* refresh rate: how many of the next 8 epochs change each level's stamp */
@@ -311,6 +338,8 @@ void ocs_world_free(ocs_world_t *w) {
   free(w->viewers);
   free(w->req);
   free(w->deferred);
+  free(w->pins);
+  free(w->wish);
   ocs_pool_free(w->pool);
   ocs_cache_free(w->cache);
   ocs_field_free(w->field);
@@ -505,19 +534,6 @@ static oc_node_kind_t classify_cb(void *ctx, oc_key_t key) {
   return OC_NODE_BRICK;
 }
 
-typedef struct {
-  oc_key_t key;
-  uint64_t stamp;
-  uint32_t viewer, leaf;
-} want_t;
-
-static int cmp_want(const void *a, const void *b) {
-  const want_t *x = a, *y = b;
-  if (x->key != y->key) return x->key < y->key ? -1 : 1;
-  if (x->stamp != y->stamp) return x->stamp < y->stamp ? -1 : 1;
-  return 0;
-}
-
 /* Builds viewer v's state from its plan: produced content from the requests, held content copied. */
 static int build_state(ocs_world_t *w, ocs_viewer_t *v, oc_state_t *st, uint8_t *kinds, uint32_t *ids) {
   st->epoch = w->epoch;
@@ -594,23 +610,147 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc) {
   return step(w);
 }
 
-/* Plans every ready viewer, produces what the plans lack once, emits their states. */
-static int step(ocs_world_t *w) {
-  double t0 = now_s();
-  ocs_plan_input_t in;
-  memset(&in, 0, sizeof in);
-  in.classify = classify_cb;
-  in.ctx = w;
-  in.uniform_is_brick = w->shadows;
-  in.ground_tau = w->ground_tau;
-  memcpy(in.stamp, w->stamp, sizeof in.stamp);
-  memcpy(in.refresh_rate, w->rate, sizeof in.refresh_rate);
+/*-*** Clocked epochs: content that exists, and what is wanted ***/
 
-  /* Plan. */
-  int rc = 0;
-  want_t *want = NULL;
-  size_t nwant = 0, want_cap = 0;
-  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
+/* The planner's ready(): the stamp of existing content of (key), this epoch's or one of the last
+ * OCS_STAMP_HISTORY of its level, pinned until the tick's states are built (nothing is produced
+ * during a tick, but pins keep that true whatever the cache does). */
+static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp) {
+  ocs_world_t *w = ctx;
+  for (int i = -1; i < OCS_STAMP_HISTORY; i++) {
+    uint64_t st = i < 0 ? stamp : w->stamp_hist[level][i];
+    if (!st || (i >= 0 && st == stamp)) continue;
+    ocs_cache_key_t k = ckey(w, T_BRICK, key, st, 0);
+    ocs_cache_entry_t *e;
+    if (!ocs_cache_peek(w->cache, &k, &e)) continue;
+    if (w->npins == w->pins_cap) {
+      size_t nc = w->pins_cap ? 2 * w->pins_cap : 1024;
+      ocs_cache_entry_t **a = realloc(w->pins, nc * sizeof *a);
+      if (!a) {
+        ocs_cache_release(w->cache, e);
+        return 0; /* treated as not ready */
+      }
+      w->pins = a;
+      w->pins_cap = nc;
+    }
+    w->pins[w->npins++] = e;
+    return st;
+  }
+  return 0;
+}
+
+/* The planner's want(): kept for the production queue, with the viewer being planned. */
+static void want_cb(void *ctx, oc_key_t key, uint64_t stamp, double prio) {
+  ocs_world_t *w = ctx;
+  if (w->nwish == w->wish_cap) {
+    size_t nc = w->wish_cap ? 2 * w->wish_cap : 1024;
+    wish_t *a = realloc(w->wish, nc * sizeof *a);
+    if (!a) return; /* asked again next tick */
+    w->wish = a;
+    w->wish_cap = nc;
+  }
+  w->wish[w->nwish++] = (wish_t){key, stamp, prio > 0 ? prio : 0.0, w->planning};
+}
+
+static void release_pins(ocs_world_t *w) {
+  for (size_t i = 0; i < w->npins; i++) ocs_cache_release(w->cache, w->pins[i]);
+  w->npins = 0;
+}
+
+static int cmp_wish_key(const void *a, const void *b) {
+  const wish_t *x = a, *y = b;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  return x->stamp < y->stamp ? -1 : (x->stamp > y->stamp);
+}
+
+static int cmp_wish_prio(const void *a, const void *b) {
+  const wish_t *x = a, *y = b;
+  if (x->prio != y->prio) return x->prio > y->prio ? -1 : 1;
+  return cmp_wish_key(a, b);
+}
+
+/* The tick's wishes become the production queue: each viewer's priorities normalised to sum 1 and
+ * cut to its share of the queue (its best ones), a brick's priority the sum over the viewers that
+ * want it, best first, at most OCS_QUEUE_MAX. What no viewer wants any more is gone. */
+static void queue_build(ocs_world_t *w) {
+  int nv = w->nviewers > 0 ? w->nviewers : 1;
+  size_t share = 2 * OCS_QUEUE_MAX / (size_t)nv;
+  if (w->nwish) qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_prio);
+  double *sum = calloc((size_t)nv, sizeof *sum);
+  size_t *taken = calloc((size_t)nv, sizeof *taken);
+  size_t k = 0;
+  if (sum && taken) {
+    for (size_t i = 0; i < w->nwish; i++) sum[w->wish[i].viewer] += w->wish[i].prio;
+    for (size_t i = 0; i < w->nwish; i++) {
+      wish_t x = w->wish[i];
+      if (taken[x.viewer]++ >= share) continue;
+      x.prio = sum[x.viewer] > 0 ? x.prio / sum[x.viewer] : 0.0;
+      w->wish[k++] = x;
+    }
+  }
+  free(sum);
+  free(taken);
+  w->nwish = k;
+  if (k) qsort(w->wish, k, sizeof *w->wish, cmp_wish_key);
+  size_t m = 0;
+  for (size_t i = 0; i < k; i++) {
+    if (m && w->wish[m - 1].key == w->wish[i].key && w->wish[m - 1].stamp == w->wish[i].stamp) w->wish[m - 1].prio += w->wish[i].prio;
+    else w->wish[m++] = w->wish[i];
+  }
+  if (m) qsort(w->wish, m, sizeof *w->wish, cmp_wish_prio);
+  w->nqueue = m < OCS_QUEUE_MAX ? m : OCS_QUEUE_MAX;
+  w->nwish = 0;
+}
+
+/*-*** A step ***/
+
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;
+  uint32_t viewer, leaf;
+} want_t;
+
+static int cmp_want(const void *a, const void *b) {
+  const want_t *x = a, *y = b;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  if (x->stamp != y->stamp) return x->stamp < y->stamp ? -1 : 1;
+  return 0;
+}
+
+static int push_want(want_t **want, size_t *n, size_t *cap, want_t x) {
+  if (*n == *cap) {
+    size_t nc = *cap ? 2 * *cap : 1024;
+    want_t *a = realloc(*want, nc * sizeof *a);
+    if (!a) return OC_ENOMEM;
+    *want = a;
+    *cap = nc;
+  }
+  (*want)[(*n)++] = x;
+  return 0;
+}
+
+/* Clocked: what the viewer's tree is heading for — the plan a stepped epoch would make, all its
+ * content assumed ready — is wished for, so that production works toward the whole target tree
+ * and not one level per tick; then that plan is dropped. */
+static int wish_target(ocs_world_t *w, ocs_viewer_t *v, ocs_plan_input_t *in) {
+  ocs_plan_input_t all = *in;
+  all.ready = NULL;
+  all.want = NULL;
+  const ocs_plan_leaf_t *leaves;
+  uint32_t n;
+  int rc = ocs_plan_epoch(v->planner, &v->view, &all, &leaves, &n, NULL);
+  if (rc < 0) return rc;
+  for (uint32_t i = 0; i < n; i++)
+    if (leaves[i].produce) want_cb(w, leaves[i].key, leaves[i].stamp, leaves[i].prio);
+  ocs_plan_abandon(v->planner);
+  return 0;
+}
+
+/* Plans every viewer that acknowledged its last state; the leaves to produce go to *want.
+ * A clocked viewer whose first content is not ready yet gets no plan (OC_EAGAIN). */
+static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, size_t *nwant) {
+  size_t cap = 0;
+  for (int vi = 0; vi < w->nviewers; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
     v->planned = 0;
     v->ticks++;
@@ -620,80 +760,82 @@ static int step(ocs_world_t *w) {
       continue;
     }
     /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
-    in.max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
-    rc = ocs_plan_epoch(v->planner, &v->view, &in, &v->leaves, &v->nleaves, &v->plan);
-    if (rc < 0) break;
+    in->max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
+    w->planning = (uint32_t)vi;
+    if (in->ready) OC_TRY(wish_target(w, v, in));
+    int rc = ocs_plan_epoch(v->planner, &v->view, in, &v->leaves, &v->nleaves, &v->plan);
+    if (rc == OC_EAGAIN) continue;
+    if (rc < 0) return rc;
     v->planned = 1;
     if (v->nleaves > v->req_cap) {
       uint32_t *a = realloc(v->req_of, v->nleaves * sizeof *a);
-      if (!a) { rc = OC_ENOMEM; break; }
+      if (!a) return OC_ENOMEM;
       v->req_of = a;
       v->req_cap = v->nleaves;
     }
-    for (uint32_t i = 0; i < v->nleaves; i++) {
-      if (!v->leaves[i].produce) continue;
-      if (nwant == want_cap) {
-        size_t nc = want_cap ? 2 * want_cap : 1024;
-        want_t *a = realloc(want, nc * sizeof *a);
-        if (!a) { rc = OC_ENOMEM; break; }
-        want = a;
-        want_cap = nc;
-      }
-      want[nwant++] = (want_t){v->leaves[i].key, v->leaves[i].stamp, (uint32_t)vi, i};
-    }
+    for (uint32_t i = 0; i < v->nleaves; i++)
+      if (v->leaves[i].produce) OC_TRY(push_want(want, nwant, &cap, (want_t){v->leaves[i].key, v->leaves[i].stamp, (uint32_t)vi, i}));
   }
-  double t1 = now_s();
-  w->plan_seconds = t1 - t0;
+  return 0;
+}
 
-  /* One request per distinct (key, stamp) over all viewers. */
-  if (rc >= 0) {
-    if (nwant) qsort(want, nwant, sizeof *want, cmp_want); /* qsort(NULL, 0) is undefined */
-    w->nreq = 0;
-    w->brick_requests += nwant;
-    for (size_t i = 0; i < nwant; i++) {
-      if (!w->nreq || cmp_want(&want[i], &(want_t){w->req[w->nreq - 1].key, w->req[w->nreq - 1].stamp, 0, 0}) != 0) {
-        if (w->nreq == w->req_cap) {
-          size_t nc = w->req_cap ? 2 * w->req_cap : 1024;
-          req_t *a = realloc(w->req, nc * sizeof *a);
-          if (!a) { rc = OC_ENOMEM; break; }
-          w->req = a;
-          w->req_cap = nc;
-        }
-        w->req[w->nreq++] = (req_t){want[i].key, want[i].stamp, NULL, NULL};
-      }
-      w->viewers[want[i].viewer]->req_of[want[i].leaf] = (uint32_t)(w->nreq - 1);
-    }
+static int push_req(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
+  if (w->nreq == w->req_cap) {
+    size_t nc = w->req_cap ? 2 * w->req_cap : 1024;
+    req_t *a = realloc(w->req, nc * sizeof *a);
+    if (!a) return OC_ENOMEM;
+    w->req = a;
+    w->req_cap = nc;
   }
-  free(want);
-  if (rc >= 0) {
-    rc = ocs_pool_run(w->pool, w->nreq, produce_one, w);
-    /* the set-aside requests hold reservations: they are finished even after an error */
-    w->ndeferred = 0;
-    for (size_t i = 0; i < w->nreq; i++) {
-      if (!w->req[i].sigma) continue;
-      if (w->ndeferred == w->deferred_cap) {
-        size_t nc = w->deferred_cap ? 2 * w->deferred_cap : 256;
-        size_t *a = realloc(w->deferred, nc * sizeof *a);
-        if (!a) { /* finish it here, waiting */
-          int r = produce_finish(w, &w->req[i], w->req[i].sigma, 1);
-          free(w->req[i].sigma);
-          w->req[i].sigma = NULL;
-          if (r < 0 && rc >= 0) rc = r;
-          continue;
-        }
-        w->deferred = a;
-        w->deferred_cap = nc;
-      }
-      w->deferred[w->ndeferred++] = i;
-    }
-    int r = w->ndeferred ? ocs_pool_run(w->pool, w->ndeferred, produce_deferred, w) : 0;
-    if (r < 0 && rc >= 0) rc = r;
-  }
-  w->produce_seconds = now_s() - t1;
+  w->req[w->nreq++] = (req_t){key, stamp, NULL, NULL};
+  return 0;
+}
 
-  /* Emit. */
+/* One request per distinct (key, stamp) over all viewers. */
+static int make_requests(ocs_world_t *w, want_t *want, size_t nwant) {
+  if (nwant) qsort(want, nwant, sizeof *want, cmp_want); /* qsort(NULL, 0) is undefined */
+  w->nreq = 0;
+  w->brick_requests += nwant;
+  for (size_t i = 0; i < nwant; i++) {
+    if (!w->nreq || w->req[w->nreq - 1].key != want[i].key || w->req[w->nreq - 1].stamp != want[i].stamp)
+      OC_TRY(push_req(w, want[i].key, want[i].stamp));
+    w->viewers[want[i].viewer]->req_of[want[i].leaf] = (uint32_t)(w->nreq - 1);
+  }
+  return 0;
+}
+
+/* Produces (or, for content that exists, pins) every request, in parallel; the ones set aside for
+ * a τ volume another thread was building are finished in a second pass. */
+static int produce_requests(ocs_world_t *w) {
+  int rc = ocs_pool_run(w->pool, w->nreq, produce_one, w);
+  /* the set-aside requests hold reservations: they are finished even after an error */
+  w->ndeferred = 0;
+  for (size_t i = 0; i < w->nreq; i++) {
+    if (!w->req[i].sigma) continue;
+    if (w->ndeferred == w->deferred_cap) {
+      size_t nc = w->deferred_cap ? 2 * w->deferred_cap : 256;
+      size_t *a = realloc(w->deferred, nc * sizeof *a);
+      if (!a) { /* finish it here, waiting */
+        int r = produce_finish(w, &w->req[i], w->req[i].sigma, 1);
+        free(w->req[i].sigma);
+        w->req[i].sigma = NULL;
+        if (r < 0 && rc >= 0) rc = r;
+        continue;
+      }
+      w->deferred = a;
+      w->deferred_cap = nc;
+    }
+    w->deferred[w->ndeferred++] = i;
+  }
+  int r = w->ndeferred ? ocs_pool_run(w->pool, w->ndeferred, produce_deferred, w) : 0;
+  return r < 0 && rc >= 0 ? r : rc;
+}
+
+/* Each planned viewer's state, built and committed; its previous ones shift down the window. */
+static int emit_states(ocs_world_t *w) {
   uint8_t *kinds = NULL;
   uint32_t *ids = NULL;
+  int rc = 0;
   for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
     if (!v->planned) continue;
@@ -724,6 +866,36 @@ static int step(ocs_world_t *w) {
   }
   free(kinds);
   free(ids);
+  return rc;
+}
+
+/* Plans every ready viewer, produces what the plans lack once (clocked: only what exists is
+ * planned, and what waits goes to the queue), emits their states. */
+static int step(ocs_world_t *w) {
+  double t0 = now_s();
+  ocs_plan_input_t in;
+  memset(&in, 0, sizeof in);
+  in.classify = classify_cb;
+  in.ctx = w;
+  in.uniform_is_brick = w->shadows;
+  in.ground_tau = w->ground_tau;
+  memcpy(in.stamp, w->stamp, sizeof in.stamp);
+  memcpy(in.refresh_rate, w->rate, sizeof in.refresh_rate);
+  if (w->d.clocked) {
+    in.ready = ready_cb;
+    in.want = want_cb;
+    w->nwish = 0;
+  }
+  want_t *want = NULL;
+  size_t nwant = 0;
+  int rc = plan_viewers(w, &in, &want, &nwant);
+  double t1 = now_s();
+  w->plan_seconds = t1 - t0;
+  if (rc >= 0) rc = make_requests(w, want, nwant);
+  free(want);
+  if (rc >= 0) rc = produce_requests(w); /* clocked: every request is a hit */
+  w->produce_seconds = now_s() - t1;
+  if (rc >= 0) rc = emit_states(w);
   if (rc < 0)
     for (int vi = 0; vi < w->nviewers; vi++)
       if (w->viewers[vi]->planned) {
@@ -731,8 +903,30 @@ static int step(ocs_world_t *w) {
         w->viewers[vi]->planned = 0;
       }
   release_requests(w);
+  release_pins(w);
+  if (w->d.clocked) queue_build(w);
   return rc;
 }
+
+int ocs_world_produce(ocs_world_t *w, double seconds) {
+  if (!w || !w->d.clocked) return 0;
+  double t0 = now_s();
+  w->deadline = t0 + (seconds > 0 ? seconds : 0.0);
+  w->nreq = 0;
+  int rc = 0;
+  for (size_t i = 0; i < w->nqueue && rc >= 0; i++) rc = push_req(w, w->wish[i].key, w->wish[i].stamp);
+  uint64_t before = w->bricks_produced;
+  if (rc >= 0) rc = produce_requests(w);
+  release_requests(w);
+  w->deadline = 0;
+  w->produce_seconds = now_s() - t0;
+  uint64_t made = w->bricks_produced - before;
+  /* what was made leaves the queue; the rest waits (the next tick rebuilds it anyway) */
+  w->nqueue = 0;
+  return rc < 0 ? rc : (int)(made < INT32_MAX ? made : INT32_MAX);
+}
+
+size_t ocs_world_queue_length(const ocs_world_t *w) { return w ? w->nqueue : 0; }
 
 void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   memset(out, 0, sizeof *out);

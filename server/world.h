@@ -40,6 +40,11 @@ typedef struct {
   double start_utc;          /**< the instant the clock starts (s since the Unix epoch, clocked
                                   mode); 0: the virtual clock of ocs_world_step() */
   int validate;              /**< check every produced state with oc_state_validate (tests) */
+  int clocked;               /**< production runs behind the ticks: a step builds states only from
+                                  content that exists (ocs_plan_input_t.ready), what the plans wait
+                                  for goes to one production queue for all viewers, and
+                                  ocs_world_produce() makes it between ticks; 0: a step produces
+                                  everything its plans ask before its states go out */
 } ocs_world_desc_t;
 
 typedef struct {
@@ -122,6 +127,13 @@ int ocs_world_step(ocs_world_t *w);
 /*! ocs_world_step_at() : epoch `epoch` (> the last one) at its due instant `utc` (clocked mode:
  *  n·P since the Unix epoch); its world time is the clock's at `utc` (world_clock.h). */
 int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
+/*! ocs_world_produce() : clocked worlds: produces the queue's bricks, best first, for at most
+ *  `seconds` (a brick started is finished); what is left is asked again at the next tick, if some
+ *  viewer still wants it. Nothing else may touch the world meanwhile. @return bricks made, or a
+ *  negative OC_E* (a brick that failed is asked again next tick). */
+int ocs_world_produce(ocs_world_t *w, double seconds);
+/*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). */
+size_t ocs_world_queue_length(const ocs_world_t *w);
 /*! ocs_world_utc() / ocs_world_epoch() : the instant and index of the last epoch stepped
  *  (start_utc and 0 before the first). */
 double ocs_world_utc(const ocs_world_t *w);
