@@ -6,8 +6,11 @@
  * Clocked (period P > 0): epoch n is due at n·P seconds after the Unix epoch and takes the world
  * time of that instant (world_clock.h). The timer is armed for the next due instant; a tick that
  * finds the previous step still running, or that the loop reached late, is skipped and counted
- * (late_ticks), and the step takes the newest due epoch. Stepped (P = 0): the virtual clock of
- * ocs_world_step(). */
+ * (late_ticks), and the step takes the newest due epoch. A tick builds its states from content
+ * that exists (world.h, clocked); between ticks the world's production queue is worked on until
+ * shortly before the next due instant, so production runs behind the clock instead of holding
+ * epochs back. Stepped (P = 0): the virtual clock of ocs_world_step(), each step producing all its
+ * plans ask. */
 #include <math.h>
 #include <time.h>
 
@@ -16,6 +19,11 @@
 #include "oc_log.h"
 
 static void start_step_at(ocs_server_t *srv, uint64_t n);
+static void start_production(ocs_server_t *srv);
+
+/* Production stops this long before the next due instant (or a tenth of the period), so the tick
+ * starts on time: a brick started is finished, and a planet brick takes a few ms. */
+#define OCS_PRODUCE_MARGIN_S 0.03
 
 /* What a viewer said while a step ran (its acknowledgement, its newest camera) reaches the world. */
 static void apply_pending(ocs_session_t *s) {
@@ -45,6 +53,12 @@ static void step_work(uv_work_t *req) {
   srv->step_rc = n ? ocs_world_step_at(srv->world, n, (double)n * srv->period) : ocs_world_step(srv->world);
 }
 
+/* Viewers dropped while the world was busy leave it now. */
+static void remove_doomed(ocs_server_t *srv) {
+  for (int i = 0; i < srv->ndoomed; i++) ocs_world_remove_viewer(srv->world, srv->doomed[i]);
+  srv->ndoomed = 0;
+}
+
 static void step_done(uv_work_t *req, int status) {
   ocs_server_t *srv = req->data;
   (void)status;
@@ -55,8 +69,7 @@ static void step_done(uv_work_t *req, int status) {
   ocs_world_stats(srv->world, &ws);
   srv->plan_ms = 1e3 * ws.plan_seconds;
   srv->produce_ms = 1e3 * ws.produce_seconds;
-  for (int i = 0; i < srv->ndoomed; i++) ocs_world_remove_viewer(srv->world, srv->doomed[i]);
-  srv->ndoomed = 0;
+  remove_doomed(srv);
   /* New states go out, then the layers above see the step's end (held input, waiting "step"
    * requests). The list may change under these calls (sessions close), so walk it with care. */
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
@@ -69,6 +82,40 @@ static void step_done(uv_work_t *req, int status) {
   }
   if (srv->after_step) srv->after_step(srv);
   if (srv->steps_queued && !srv->stopping) start_step_at(srv, 0);
+  else start_production(srv);
+}
+
+/*-*** Production between ticks (clocked) ***/
+
+static void produce_work(uv_work_t *req) {
+  ocs_server_t *srv = req->data;
+  srv->step_rc = ocs_world_produce(srv->world, srv->produce_s);
+}
+
+static void produce_done(uv_work_t *req, int status) {
+  ocs_server_t *srv = req->data;
+  (void)status;
+  srv->stepping = srv->producing = 0;
+  remove_doomed(srv);
+  if (srv->step_rc < 0) oc_log_warn("production: %s (asked again at the next tick)", oc_strerror(srv->step_rc));
+  else srv->bricks_made += (uint64_t)srv->step_rc;
+  if (srv->after_step) srv->after_step(srv); /* input held while producing: HELLOs, control requests */
+  if (srv->stopping) return;
+  if (srv->steps_queued) start_step_at(srv, 0);
+  else if (srv->tick_epoch > ocs_world_epoch(srv->world) && srv->tick_overrun) start_step_at(srv, srv->tick_epoch);
+  srv->tick_overrun = 0;
+}
+
+/* What the last tick's plans wait for is made until shortly before the next due instant, on the
+ * thread pool; the world is busy meanwhile (input that needs it waits, as during a step). */
+static void start_production(ocs_server_t *srv) {
+  if (!(srv->period > 0) || srv->stepping || srv->stopping || !ocs_world_queue_length(srv->world)) return;
+  double margin = srv->period * 0.1 < OCS_PRODUCE_MARGIN_S ? srv->period * 0.1 : OCS_PRODUCE_MARGIN_S;
+  srv->produce_s = (double)srv->armed_epoch * srv->period - ocs_net_utc(srv) - margin;
+  if (!(srv->produce_s > 0)) return;
+  srv->stepping = srv->producing = 1;
+  srv->work.data = srv;
+  uv_queue_work(&srv->loop, &srv->work, produce_work, produce_done);
 }
 
 /* A step of epoch n (clocked), or of the next one (a "step" request: on the clock the newest due
@@ -120,6 +167,10 @@ static void on_epoch_timer(uv_timer_t *t) {
   srv->late_ticks += due - srv->armed_epoch; /* due instants the loop reached too late */
   srv->tick_epoch = due;
   arm_timer(srv);
+  if (srv->producing) { /* production overran its deadline (a long brick): the tick follows it */
+    srv->tick_overrun = 1;
+    return;
+  }
   if (srv->stepping) {
     srv->late_ticks++; /* the previous step is still running: this tick is skipped */
     return;

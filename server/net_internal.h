@@ -124,6 +124,10 @@ struct ocs_server_s {
   uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
   uint64_t tick_epoch;  /* the due epoch the last tick asked for */
   uint64_t armed_epoch; /* the epoch the timer waits for */
+  int producing;        /* the world's production queue is being worked on (stepping is set too) */
+  int tick_overrun;     /* a tick came due while producing: it starts when production ends */
+  double produce_s;     /* this production's time limit */
+  uint64_t bricks_made; /* by production between ticks */
   double plan_ms, produce_ms; /* of the last step, for every viewer's STATS */
   /* viewers to remove once the running step ends */
   ocs_viewer_t **doomed;

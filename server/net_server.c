@@ -101,6 +101,7 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
     return OC_ENOMEM;
   }
   srv->period = d->epoch_period < 0 ? scene->epoch_period : d->epoch_period;
+  d->world.clocked = srv->period > 0; /* production runs behind the ticks */
   if (srv->period > 0 && !d->world.start_utc) { /* the clock starts now, at the world time asked */
     struct timespec t;
     clock_gettime(CLOCK_REALTIME, &t);

@@ -733,15 +733,13 @@ static int push_want(want_t **want, size_t *n, size_t *cap, want_t x) {
  * content assumed ready — is wished for, so that production works toward the whole target tree
  * and not one level per tick; then that plan is dropped. */
 static int wish_target(ocs_world_t *w, ocs_viewer_t *v, ocs_plan_input_t *in) {
-  ocs_plan_input_t all = *in;
-  all.ready = NULL;
-  all.want = NULL;
+  (void)w;
+  ocs_plan_input_t target = *in;
+  target.ready = NULL; /* want() stays: it hears of everything the target takes */
   const ocs_plan_leaf_t *leaves;
   uint32_t n;
-  int rc = ocs_plan_epoch(v->planner, &v->view, &all, &leaves, &n, NULL);
+  int rc = ocs_plan_epoch(v->planner, &v->view, &target, &leaves, &n, NULL);
   if (rc < 0) return rc;
-  for (uint32_t i = 0; i < n; i++)
-    if (leaves[i].produce) want_cb(w, leaves[i].key, leaves[i].stamp, leaves[i].prio);
   ocs_plan_abandon(v->planner);
   return 0;
 }
