@@ -381,7 +381,7 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
       if (!viewer) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
       if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
       ocp_stats_t s;
-      e = ocp_get_stats(p, h->length, &s, reason, sizeof reason);
+      e = ocp_get_stats(h->version, p, h->length, &s, reason, sizeof reason);
       if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
       if (v->ev.stats) v->ev.stats(v->ev.ctx, &s);
       return 0;

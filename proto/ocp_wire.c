@@ -23,7 +23,8 @@
 #define OCP__TEXT_BYTES 6
 #define OCP__EPOCH_BEGIN_BYTES 64
 #define OCP__EPOCH_END_BYTES 16
-#define OCP__STATS_BYTES 88
+#define OCP__STATS_BYTES 88     /* version 1 */
+#define OCP__STATS_V2_BYTES 148 /* version 2: + queue, produced, split backlog, reserved, ages */
 #define OCP__CONTROL_BYTES 8
 #define OCP__MAX_DEPTH 21
 #define OCP__GPU_BYTES_MAX (1u << 20) /* per brick slot and per node record */
@@ -303,6 +304,14 @@ void ocp_put_stats(oc_buf_t *b, uint8_t version, const ocp_stats_t *m) {
   oc_buf_f64(b, m->produce_ms);
   oc_buf_u64(b, 0); /* reserved 72..87: the listed fields fill 72 of the 88 bytes */
   oc_buf_u64(b, 0);
+  if (version >= 2) {
+    oc_buf_u32(b, m->queue);
+    oc_buf_u32(b, m->produced);
+    oc_buf_u32(b, m->split_backlog);
+    oc_buf_u32(b, 0); /* reserved 100..103 */
+    oc_buf_append(b, m->age_p50, OCP_STATS_LEVELS);
+    oc_buf_append(b, m->age_p99, OCP_STATS_LEVELS);
+  }
   ocp_frame_end(b, h);
 }
 
@@ -596,11 +605,11 @@ int ocp_get_epoch_end(const uint8_t *p, size_t n, ocp_epoch_end_t *m, char *why,
   return 0;
 }
 
-int ocp_get_stats(const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t why_len) {
+int ocp_get_stats(uint8_t version, const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t why_len) {
   static const char *msg = "stats";
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact(msg, n, OCP__STATS_BYTES, why, why_len));
+  OC_TRY(ocp__exact(msg, n, version >= 2 ? OCP__STATS_V2_BYTES : OCP__STATS_BYTES, why, why_len));
   oc_reader_t r = oc_reader(p, n);
   m->epoch = oc_read_u64(&r);
   m->leaves = oc_read_u32(&r);
@@ -616,6 +625,18 @@ int ocp_get_stats(const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t 
   uint64_t res = oc_read_u64(&r);
   res |= oc_read_u64(&r);
   if (res) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: reserved bytes 72..87 are not zero");
+  if (version >= 2) {
+    m->queue = oc_read_u32(&r);
+    m->produced = oc_read_u32(&r);
+    m->split_backlog = oc_read_u32(&r);
+    if (oc_read_u32(&r)) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: reserved bytes 100..103 are not zero");
+    memcpy(m->age_p50, p + 104, OCP_STATS_LEVELS);
+    memcpy(m->age_p99, p + 104 + OCP_STATS_LEVELS, OCP_STATS_LEVELS);
+    for (int l = 0; l < OCP_STATS_LEVELS; l++)
+      if (m->age_p50[l] > m->age_p99[l])
+        return oc_errorf(OC_ECORRUPT, why, why_len, "stats: level %d's age p50 %u is over its p99 %u", l, m->age_p50[l],
+                         m->age_p99[l]);
+  }
   OC_TRY(ocp__check_finite(msg, "plan_ms", m->plan_ms, why, why_len));
   OC_TRY(ocp__check_finite(msg, "produce_ms", m->produce_ms, why, why_len));
   if (m->plan_ms < 0 || m->produce_ms < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: negative plan_ms or produce_ms");

@@ -21,7 +21,7 @@
 #define OCP_MAGIC0 0x4F /* 'O' */
 #define OCP_MAGIC1 0x57 /* 'W' */
 #define OCP_VERSION_MIN 1 /**< versions this build speaks */
-#define OCP_VERSION_MAX 1
+#define OCP_VERSION_MAX 2
 #define OCP_HEADER_BYTES 8
 /*! Largest payload either side ever sends (epoch chunks are at most OCP_CHUNK_RAW_MAX raw). */
 #define OCP_MAX_PAYLOAD (4u << 20)
@@ -209,6 +209,8 @@ typedef struct {
                                  viewer with OCP_CAP_DIGEST its digest checksum (oc_state_digest) */
 } ocp_epoch_end_t;
 
+#define OCP_STATS_LEVELS 22 /**< octree levels 0..21 */
+
 typedef struct {
   uint64_t epoch;
   uint32_t leaves, splits, merges, deferred;
@@ -217,6 +219,13 @@ typedef struct {
   uint64_t wire_bytes;     /**< bytes of this epoch's frames */
   uint64_t raw_bytes;      /**< what they would be uncompressed */
   double plan_ms, produce_ms;
+  /* version 2 (zero in a version-1 STATS) */
+  uint32_t queue;          /**< bricks waiting in the server's production queue (all viewers) */
+  uint32_t produced;       /**< bricks the server made since the tick before this state's */
+  uint32_t split_backlog;  /**< splits of this plan that waited for their children's content */
+  uint8_t age_p50[OCP_STATS_LEVELS], age_p99[OCP_STATS_LEVELS]; /**< per level, the content age of the
+                                state's leaves in time steps behind current (p50, p99); 255: older
+                                than the server can tell, or no leaf of that level */
 } ocp_stats_t;
 
 typedef struct {
@@ -250,7 +259,7 @@ int ocp_get_text(const uint8_t *p, size_t n, ocp_text_msg_t *m, char *why, size_
 int ocp_get_empty(const uint8_t *p, size_t n, char *why, size_t why_len);
 int ocp_get_epoch_begin(const uint8_t *p, size_t n, ocp_epoch_begin_t *m, char *why, size_t why_len);
 int ocp_get_epoch_end(const uint8_t *p, size_t n, ocp_epoch_end_t *m, char *why, size_t why_len);
-int ocp_get_stats(const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t why_len);
+int ocp_get_stats(uint8_t version, const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t why_len);
 int ocp_get_control(const uint8_t *p, size_t n, ocp_control_t *m, char *why, size_t why_len);
 
 /*! ocp_version_pick() : the highest version in both [min, max] ranges, or 0 when none. */

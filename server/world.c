@@ -64,6 +64,7 @@ struct ocs_viewer_s {
   uint32_t next_id;
   uint32_t last_new;       /* bricks sent in the last state */
   uint32_t ticks;          /* epochs since the last plan */
+  uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /* of its newest state */
   /* during a step */
   const ocs_plan_leaf_t *leaves;
   uint32_t nleaves;
@@ -512,6 +513,8 @@ void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out) {
   out->coalesced = v->coalesced;
   out->acked = v->acked;
   out->budget = v->desc.budget;
+  memcpy(out->age_p50, v->age_p50, sizeof out->age_p50);
+  memcpy(out->age_p99, v->age_p99, sizeof out->age_p99);
   const oc_state_t *s[OCS_PLAN_MAX_KEPT];
   for (int i = 0; i < v->nheld; i++) s[i] = &v->held[i];
   out->resident_bytes = oc_resident_bytes(s, v->nheld, v->desc.slot_bytes, v->desc.record_bytes);
@@ -829,6 +832,36 @@ static int produce_requests(ocs_world_t *w) {
   return r < 0 && rc >= 0 ? r : rc;
 }
 
+/* Content age of the plan's leaves, per level: time steps behind current (0..OCS_STAMP_HISTORY,
+ * 255 older), p50 and p99. */
+static void content_age(const ocs_world_t *w, ocs_viewer_t *v) {
+  uint32_t hist[OC_KEY_MAX_LEVEL + 1][OCS_STAMP_HISTORY + 2];
+  memset(hist, 0, sizeof hist);
+  for (uint32_t i = 0; i < v->nleaves; i++) {
+    int l = oc_key_level(v->leaves[i].key), a = 0;
+    uint64_t st = v->leaves[i].stamp;
+    if (st != w->stamp[l]) {
+      a = OCS_STAMP_HISTORY + 1; /* older than remembered */
+      for (int k = 0; k < OCS_STAMP_HISTORY; k++)
+        if (w->stamp_hist[l][k] == st) {
+          a = k + 1;
+          break;
+        }
+    }
+    hist[l][a]++;
+  }
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    uint32_t n = 0, c = 0;
+    for (int a = 0; a <= OCS_STAMP_HISTORY + 1; a++) n += hist[l][a];
+    v->age_p50[l] = v->age_p99[l] = 255;
+    for (int a = 0; n && a <= OCS_STAMP_HISTORY; a++) {
+      c += hist[l][a];
+      if (v->age_p50[l] == 255 && 2 * (uint64_t)c >= n) v->age_p50[l] = (uint8_t)a;
+      if (v->age_p99[l] == 255 && 100 * (uint64_t)c >= 99 * (uint64_t)n) v->age_p99[l] = (uint8_t)a;
+    }
+  }
+}
+
 /* Each planned viewer's state, built and committed; its previous ones shift down the window. */
 static int emit_states(ocs_world_t *w) {
   uint8_t *kinds = NULL;
@@ -851,6 +884,7 @@ static int emit_states(ocs_world_t *w) {
       oc_state_free(&st);
       break;
     }
+    content_age(w, v);
     v->planned = 0;
     oc_state_free(&v->held[w->K - 1]);
     memmove(&v->held[1], &v->held[0], (size_t)(w->K - 1) * sizeof v->held[0]);

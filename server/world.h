@@ -74,6 +74,9 @@ typedef struct {
   uint64_t acked;                  /**< newest acknowledged epoch (UINT64_MAX: none) */
   uint64_t resident_bytes;         /**< of the states it keeps (the budget measure) */
   uint64_t budget;
+  uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /**< per level, the content age of
+                                      the newest state's leaves in time steps behind current;
+                                      255: older than the world remembers, or no leaf there */
 } ocs_viewer_stats_t;
 
 /*! ocs_world_create() : builds the field of `scene` (deep-copied), the cache and the pool.

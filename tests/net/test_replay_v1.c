@@ -542,7 +542,7 @@ static void check_server_frame(replay_t *r, const char *line, const ocp_header_t
     case OCP_MSG_STATS: {
       if (h->length != V1_STATS) protocol_broken(r, "STATS of %" PRIu32 " bytes, not %d", h->length, V1_STATS);
       ocp_stats_t m;
-      if (ocp_get_stats(p, h->length, &m, why, sizeof why) < 0) protocol_broken(r, "STATS: %s", why);
+      if (ocp_get_stats(1, p, h->length, &m, why, sizeof why) < 0) protocol_broken(r, "STATS: %s", why);
       if (m.epoch != oc_get_u64(p) || m.epoch != field(line, r->no, "epoch", 0))
         protocol_broken(r, "STATS of epoch %" PRIu64 ", not the recorded %" PRIu64, m.epoch, field(line, r->no, "epoch", 0));
       return;

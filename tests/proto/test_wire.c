@@ -59,7 +59,7 @@ static int decode_any(uint8_t type, const uint8_t *p, size_t n, char *why, size_
     case OCP_MSG_EPOCH_END:
       return ocp_get_epoch_end(p, n, &u.end, why, why_len);
     case OCP_MSG_STATS:
-      return ocp_get_stats(p, n, &u.stats, why, why_len);
+      return ocp_get_stats(1, p, n, &u.stats, why, why_len);
     case OCP_MSG_CONTROL:
     case OCP_MSG_CONTROL_REPLY:
       return ocp_get_control(p, n, &u.control, why, why_len);
@@ -400,8 +400,49 @@ static void test_wire__round_trip_small(void **state) {
   p = only_frame(&b, &h);
   assert_int_equal(h.type, OCP_MSG_STATS);
   assert_int_equal(h.length, 88);
-  if (ocp_get_stats(p, h.length, &sb, why, sizeof why)) fail_msg("%s", why);
+  if (ocp_get_stats(1, p, h.length, &sb, why, sizeof why)) fail_msg("%s", why);
   assert_memory_equal(&sb, &s, sizeof s);
+  oc_buf_free(&b);
+}
+
+/* STATS by version: version 1 keeps its 88 bytes (a v1 viewer never sees the new fields); version 2
+ * adds the production queue, bricks made, the split backlog and content age per level, at the
+ * offsets docs/protocol.md gives; each version refuses the other's length and bad v2 fields. */
+static void test_wire__stats_versions(void **state) {
+  (void)state;
+  ocp_stats_t s = sample_stats(), sb;
+  s.queue = 1234, s.produced = 567, s.split_backlog = 89;
+  for (int l = 0; l < OCP_STATS_LEVELS; l++) s.age_p50[l] = (uint8_t)(l % 3), s.age_p99[l] = (uint8_t)(l % 3 + 1);
+  s.age_p50[21] = s.age_p99[21] = 255;
+  oc_buf_t b = {0};
+  ocp_header_t h;
+  char why[256];
+  ocp_put_stats(&b, 1, &s);
+  const uint8_t *p = only_frame(&b, &h);
+  assert_int_equal(h.length, 88);
+  assert_int_equal(ocp_get_stats(1, p, h.length, &sb, why, sizeof why), 0);
+  assert_true(sb.queue == 0 && sb.produced == 0 && sb.age_p99[5] == 0); /* not on a v1 wire */
+  expect_reject(ocp_get_stats(2, p, h.length, &sb, why, sizeof why), why, "expected 148");
+  b.len = 0;
+  ocp_put_stats(&b, 2, &s);
+  p = only_frame(&b, &h);
+  assert_int_equal(h.version, 2);
+  assert_int_equal(h.length, 148);
+  assert_int_equal(oc_get_u32(p + 88), 1234);
+  assert_int_equal(oc_get_u32(p + 92), 567);
+  assert_int_equal(oc_get_u32(p + 96), 89);
+  assert_int_equal(p[104 + 4], 1);      /* level 4's p50 */
+  assert_int_equal(p[104 + 22 + 4], 2); /* its p99 */
+  assert_int_equal(ocp_get_stats(2, p, h.length, &sb, why, sizeof why), 0);
+  assert_memory_equal(&sb, &s, sizeof s);
+  expect_reject(ocp_get_stats(1, p, h.length, &sb, why, sizeof why), why, "expected 88");
+  uint8_t bad[148];
+  memcpy(bad, p, 148);
+  bad[101] = 1;
+  expect_reject(ocp_get_stats(2, bad, 148, &sb, why, sizeof why), why, "reserved bytes 100..103");
+  memcpy(bad, p, 148);
+  bad[104 + 3] = 9; /* p50 over p99 */
+  expect_reject(ocp_get_stats(2, bad, 148, &sb, why, sizeof why), why, "level 3's age p50 9 is over its p99");
   oc_buf_free(&b);
 }
 
@@ -544,7 +585,7 @@ static void test_wire__exact_lengths(void **state) {
   expect_reject(ocp_get_ack(z, 17, &a, why, sizeof why), why, "ack: payload is 17 bytes, expected 16");
   expect_reject(ocp_get_text(z, 5, &(ocp_text_msg_t){0}, why, sizeof why), why, "payload is 5 bytes");
   expect_reject(ocp_get_empty(z, 1, why, sizeof why), why, "keepalive: payload is 1 bytes, expected 0");
-  expect_reject(ocp_get_stats(z, 89, &s, why, sizeof why), why, "stats: payload is 89 bytes, expected 88");
+  expect_reject(ocp_get_stats(1, z, 89, &s, why, sizeof why), why, "stats: payload is 89 bytes, expected 88");
   oc_buf_free(&b);
 }
 
@@ -670,10 +711,10 @@ static void test_wire__reserved_bytes(void **state) {
   ocp_put_stats(&b, 1, &s);
   for (size_t off = 72; off < 88; off++) {
     b.data[8 + off] = 0x10;
-    expect_reject(ocp_get_stats(b.data + 8, 88, &sb, why, sizeof why), why, "stats: reserved bytes 72..87");
+    expect_reject(ocp_get_stats(1, b.data + 8, 88, &sb, why, sizeof why), why, "stats: reserved bytes 72..87");
     b.data[8 + off] = 0;
   }
-  assert_int_equal(ocp_get_stats(b.data + 8, 88, &sb, why, sizeof why), 0);
+  assert_int_equal(ocp_get_stats(1, b.data + 8, 88, &sb, why, sizeof why), 0);
   oc_buf_free(&b);
 }
 
@@ -915,6 +956,7 @@ int main(void) {
       cmocka_unit_test(test_wire__round_trip_welcome),
       cmocka_unit_test(test_wire__round_trip_small),
       cmocka_unit_test(test_wire__round_trip_text),
+      cmocka_unit_test(test_wire__stats_versions),
       cmocka_unit_test(test_wire__round_trip_control),
       cmocka_unit_test(test_wire__exact_lengths),
       cmocka_unit_test(test_wire__hello_fields),
