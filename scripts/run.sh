@@ -6,7 +6,8 @@
 # states for some epochs, renders the newest with the GL renderer through EGL (Mesa llvmpipe without
 # a GPU; the CPU reference where no GL context can be made) and writes PNG frames, printing their
 # paths. Extra arguments go to overcast-view (e.g. --size 1280x720 --camera 45,0,2000,250,0,60
-# --epochs 20). OC_OUT sets the output folder (default out); the server's log goes to
+# --epochs 20; by default 30 states: production runs behind the 1 s clock, so detail grows over the
+# first tens of seconds). OC_OUT sets the output folder (default out); the server's log goes to
 # $OC_OUT/server.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,6 +30,6 @@ CAMERA=45,0,2000,260,-5,60 # the built-in planet's camera (scenes/planet.json)
 if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
   build/bin/overcast-view --connect "$ADDR" --window --camera "$CAMERA" --size 1280x720 --out "$OUT" "$@"
 else
-  build/bin/overcast-view --connect "$ADDR" --headless --epochs 10 --timeout 900 --camera "$CAMERA" --out "$OUT" \
+  build/bin/overcast-view --connect "$ADDR" --headless --epochs 30 --timeout 900 --camera "$CAMERA" --out "$OUT" \
     --size 640x360 --threads "$(nproc)" "$@"
 fi
