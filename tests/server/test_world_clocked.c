@@ -26,7 +26,7 @@ static const char *SPHERE =
     "{\"type\":\"box\",\"lat\":0.05,\"lon\":0.02,\"alt\":1500,\"size\":[3000,2000,1500],\"sigma_t\":0.01}]}";
 
 #define BUDGET (4u << 20)
-#define TICKS 40 /* enough for the clocked tree to reach the stepped one */
+#define TICKS 16 /* enough for the clocked tree to reach the stepped one (it takes 8 here) */
 
 static ocs_world_t *world(int clocked) {
   oc_scene_t sc;
