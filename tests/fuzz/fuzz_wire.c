@@ -98,7 +98,7 @@ static void check_frame(const ocp_header_t *h, const uint8_t *payload) {
     }
     case OCP_MSG_STATS: {
       ocp_stats_t m;
-      if (ocp_get_stats(p, n, &m, why, sizeof why) == 0) {
+      if (ocp_get_stats(h->version, p, n, &m, why, sizeof why) == 0) {
         ocp_put_stats(&b, h->version, &m);
         check_same(&b, p, n);
       }
