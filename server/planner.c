@@ -840,7 +840,6 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       o->produce = n->age == AGE_NEW;
       o->held = o->produce ? 0 : n->age;
       o->brick_id = o->produce ? 0 : n->brick_id;
-      o->prio = n->prio;
       p->out_node[k] = i;
       if ((uint32_t)level > st.max_level) st.max_level = (uint32_t)level;
     }

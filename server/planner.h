@@ -104,7 +104,6 @@ typedef struct {
   uint8_t kind;      /**< predicted (or known) oc_node_kind_t */
   uint8_t produce;   /**< 1: content must be produced for (key, stamp) */
   uint8_t held;      /**< produce = 0: the i-th newest held state (1..K-1) has this content */
-  float prio;        /**< pixels a voxel spans (the split priority) */
 } ocs_plan_leaf_t;
 
 typedef struct {

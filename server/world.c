@@ -735,8 +735,7 @@ static int push_want(want_t **want, size_t *n, size_t *cap, want_t x) {
 /* Clocked: what the viewer's tree is heading for — the plan a stepped epoch would make, all its
  * content assumed ready — is wished for, so that production works toward the whole target tree
  * and not one level per tick; then that plan is dropped. */
-static int wish_target(ocs_world_t *w, ocs_viewer_t *v, ocs_plan_input_t *in) {
-  (void)w;
+static int wish_target(ocs_viewer_t *v, const ocs_plan_input_t *in) {
   ocs_plan_input_t target = *in;
   target.ready = NULL; /* want() stays: it hears of everything the target takes */
   const ocs_plan_leaf_t *leaves;
@@ -763,7 +762,7 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
     /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
     in->max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
     w->planning = (uint32_t)vi;
-    if (in->ready) OC_TRY(wish_target(w, v, in));
+    if (in->ready) OC_TRY(wish_target(v, in));
     int rc = ocs_plan_epoch(v->planner, &v->view, in, &v->leaves, &v->nleaves, &v->plan);
     if (rc == OC_EAGAIN) continue;
     if (rc < 0) return rc;
