@@ -95,7 +95,7 @@ static void step_done(uv_work_t *req, int status) {
 
 static void produce_work(uv_work_t *req) {
   ocs_server_t *srv = req->data;
-  srv->step_rc = ocs_world_produce(srv->world, srv->produce_s);
+  srv->step_rc = ocs_world_produce(srv->world, srv->produce_s, 0);
 }
 
 static void produce_done(uv_work_t *req, int status) {

@@ -2,6 +2,7 @@
 #include "world.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -29,8 +30,18 @@ typedef struct {
   oc_key_t key;
   uint64_t stamp;
   double prio;
-  uint32_t viewer;
+  uint32_t viewer;          /* index in the world's viewers; OCS_NO_VIEWER: it left */
 } wish_t;
+#define OCS_NO_VIEWER UINT32_MAX
+
+/* An item of the production queue: a distinct brick, its priority summed over the viewers that
+ * want it, and their wishes (wish[first .. first + count)). */
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;
+  double prio;
+  uint32_t first, count;
+} queued_t;
 
 /* A produced brick as the cache keeps it: codes only when kind is OC_NODE_BRICK. */
 typedef struct {
@@ -45,6 +56,7 @@ typedef struct {
   uint64_t stamp;
   ocs_cache_entry_t *entry; /* pinned until the states are built */
   float *sigma;             /* σt kept while the request waits for a τ volume (produce_one) */
+  int made;                 /* produced here (not found in the cache) */
 } req_t;
 
 struct ocs_viewer_s {
@@ -64,6 +76,7 @@ struct ocs_viewer_s {
   uint32_t next_id;
   uint32_t last_new;       /* bricks sent in the last state */
   uint32_t ticks;          /* epochs since the last plan */
+  uint32_t produced, produced_last; /* bricks made for it since its last state; before that state */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /* of its newest state */
   /* during a step */
   const ocs_plan_leaf_t *leaves;
@@ -98,14 +111,18 @@ struct ocs_world_s {
   uint64_t stamp_hist[OC_KEY_MAX_LEVEL + 1][OCS_STAMP_HISTORY]; /* each level's previous stamps */
   ocs_cache_entry_t **pins; /* content found ready during a tick */
   size_t npins, pins_cap;
-  wish_t *wish;             /* what the tick's plans waited for; then the queue, best first */
-  size_t nwish, wish_cap, nqueue;
+  wish_t *wish;             /* what the tick's plans waited for; then, sorted by brick, the queue's */
+  size_t nwish, wish_cap;
+  queued_t *queue;          /* what production makes between ticks, best first */
+  size_t nqueue, queue_cap;
   uint32_t planning;        /* the viewer being planned */
   double deadline;          /* production stops then (monotonic s); 0: none */
   size_t *deferred; /* requests whose τ volume another thread was building */
   size_t ndeferred, deferred_cap;
   /* counters (production runs on many threads) */
-  _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes;
+  _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
+  _Atomic int last_error;
+  _Atomic oc_key_t last_error_key;
   uint64_t brick_requests;
   double produce_seconds, plan_seconds;
 };
@@ -212,6 +229,7 @@ static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_V
   oc_sanitize(tau, OC_BRICK_VOXELS, NULL);
   p->kind = (uint8_t)oc_brick_encode(sigma, tau, &p->codes, p->range);
   ocs_cache_publish(w->cache, q->entry, p, p->kind == OC_NODE_BRICK ? sizeof *p : PAYLOAD_HEAD);
+  q->made = 1;
   w->bricks_produced++;
   return 0;
 }
@@ -220,10 +238,7 @@ static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_V
  * the first thread that needs it, in tens of ms). Waiting for another thread's volume cost about a
  * third of two producer threads' time on the planet; a request that would wait keeps its σt and is
  * finished in a second pass (produce_deferred) while the thread goes on to other requests. */
-static int produce_one(void *ctx, size_t i, int worker) {
-  (void)worker;
-  ocs_world_t *w = ctx;
-  req_t *q = &w->req[i];
+static int produce_brick(ocs_world_t *w, req_t *q) {
   if (w->deadline > 0 && now_s() >= w->deadline) return 0; /* the tick is due: the rest waits */
   ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
   int r = ocs_cache_acquire(w->cache, &k, &q->entry);
@@ -232,6 +247,11 @@ static int produce_one(void *ctx, size_t i, int worker) {
     return r;
   }
   if (r == OCS_CACHE_HIT) return 0;
+  if (w->d.fault && (r = w->d.fault(w->d.fault_ctx, q->key)) < 0) { /* the test hook */
+    ocs_cache_abandon(w->cache, q->entry);
+    q->entry = NULL;
+    return r;
+  }
   float sigma[OC_BRICK_VOXELS];
   float lo, hi;
   ocs_field_bound(w->field, q->key, w->time, &lo, &hi);
@@ -250,6 +270,18 @@ static int produce_one(void *ctx, size_t i, int worker) {
   return 0;
 }
 
+static int produce_one(void *ctx, size_t i, int worker) {
+  ocs_world_t *w = ctx;
+  (void)worker;
+  int r = produce_brick(w, &w->req[i]);
+  if (r < 0) {
+    atomic_fetch_add(&w->produce_errors, 1);
+    atomic_store(&w->last_error, r);
+    atomic_store(&w->last_error_key, w->req[i].key);
+  }
+  return r;
+}
+
 static int produce_deferred(void *ctx, size_t i, int worker) {
   (void)worker;
   ocs_world_t *w = ctx;
@@ -257,41 +289,56 @@ static int produce_deferred(void *ctx, size_t i, int worker) {
   int r = produce_finish(w, q, q->sigma, 1);
   free(q->sigma);
   q->sigma = NULL;
+  if (r < 0) {
+    atomic_fetch_add(&w->produce_errors, 1);
+    atomic_store(&w->last_error, r);
+    atomic_store(&w->last_error_key, q->key);
+  }
   return r;
 }
 
 /*-*** Clock ***/
 
 /* Time steps, stamps and refresh rates of every level at this epoch's time. */
-static void clock_update(ocs_world_t *w) {
+/* Every level's time step, stamp and light stamp (what its τ marches through: levels < l) at
+ * world time t. */
+static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t stamp[], uint64_t light[]) {
   uint64_t h = mix((uint64_t)w->shadows, w->shadows ? w->sun_version : 0);
-  uint64_t lh = h;
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
-    w->ts[l] = ocs_field_time_step(w->field, l, w->time);
-    w->light[l] = lh; /* τ of level l marches through levels < l */
-    h = mix(h, w->ts[l]);
-    lh = h;
-    if (w->stamp[l] && w->stamp[l] != h) { /* the level's content moves on: remember the old */
+    uint64_t s = ocs_field_time_step(w->field, l, t);
+    if (ts) ts[l] = s;
+    if (light) light[l] = h;
+    h = mix(h, s);
+    stamp[l] = h;
+  }
+}
+
+static void clock_update(ocs_world_t *w) {
+  uint64_t stamp[OC_KEY_MAX_LEVEL + 1];
+  stamps_at(w, w->time, w->ts, stamp, w->light);
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    if (w->stamp[l] && w->stamp[l] != stamp[l]) { /* the level's content moves on: remember the old */
       memmove(&w->stamp_hist[l][1], &w->stamp_hist[l][0], (OCS_STAMP_HISTORY - 1) * sizeof w->stamp_hist[l][0]);
       w->stamp_hist[l][0] = w->stamp[l];
     }
-    w->stamp[l] = h;
+    w->stamp[l] = stamp[l];
   }
   /* refresh rate: how many of the next 8 epochs change each level's stamp */
   double dt = w->scene.epoch_period * ocs_clock_scale(&w->clock, w->utc);
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) w->rate[l] = 0.0;
   if (!ocs_field_animated(w->field) || !(dt > 0.0)) return;
-  uint64_t prev[OC_KEY_MAX_LEVEL + 1];
+  uint64_t prev[OC_KEY_MAX_LEVEL + 1], next[OC_KEY_MAX_LEVEL + 1];
   memcpy(prev, w->stamp, sizeof prev);
   for (int k = 1; k <= 8; k++) {
-    uint64_t g = mix((uint64_t)w->shadows, w->shadows ? w->sun_version : 0);
+    stamps_at(w, w->time + k * dt, NULL, next, NULL);
     for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
-      g = mix(g, ocs_field_time_step(w->field, l, w->time + k * dt));
-      if (g != prev[l]) w->rate[l] += 1.0 / 8.0;
-      prev[l] = g;
+      if (next[l] != prev[l]) w->rate[l] += 1.0 / 8.0;
+      prev[l] = next[l];
     }
   }
 }
+
+static void queue_forget(ocs_world_t *w, uint32_t vi);
 
 /*-*** World ***/
 
@@ -341,6 +388,7 @@ void ocs_world_free(ocs_world_t *w) {
   free(w->deferred);
   free(w->pins);
   free(w->wish);
+  free(w->queue);
   ocs_pool_free(w->pool);
   ocs_cache_free(w->cache);
   ocs_field_free(w->field);
@@ -470,6 +518,7 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
   if (!w || !v) return;
   for (int i = 0; i < w->nviewers; i++)
     if (w->viewers[i] == v) {
+      queue_forget(w, (uint32_t)i);
       memmove(&w->viewers[i], &w->viewers[i + 1], (size_t)(w->nviewers - i - 1) * sizeof *w->viewers);
       w->nviewers--;
       w->granted -= v->desc.budget;
@@ -513,6 +562,7 @@ void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out) {
   out->coalesced = v->coalesced;
   out->acked = v->acked;
   out->budget = v->desc.budget;
+  out->produced = v->produced_last;
   memcpy(out->age_p50, v->age_p50, sizeof out->age_p50);
   memcpy(out->age_p99, v->age_p99, sizeof out->age_p99);
   const oc_state_t *s[OCS_PLAN_MAX_KEPT];
@@ -672,37 +722,105 @@ static int cmp_wish_prio(const void *a, const void *b) {
   return cmp_wish_key(a, b);
 }
 
-/* The tick's wishes become the production queue: each viewer's priorities normalised to sum 1 and
- * cut to its share of the queue (its best ones), a brick's priority the sum over the viewers that
- * want it, best first, at most OCS_QUEUE_MAX. What no viewer wants any more is gone. */
-static void queue_build(ocs_world_t *w) {
+static int cmp_wish_viewer(const void *a, const void *b) {
+  int c = cmp_wish_key(a, b);
+  if (c) return c;
+  const wish_t *x = a, *y = b;
+  return x->viewer < y->viewer ? -1 : (x->viewer > y->viewer);
+}
+
+static int cmp_queued_prio(const void *a, const void *b) {
+  const queued_t *x = a, *y = b;
+  if (x->prio != y->prio) return x->prio > y->prio ? -1 : 1;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  return x->stamp < y->stamp ? -1 : (x->stamp > y->stamp);
+}
+
+/* Sorts the wishes by (key, stamp, viewer) and keeps one per viewer and brick, the best. */
+static void wishes_dedup(ocs_world_t *w) {
+  if (!w->nwish) return;
+  qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_viewer);
+  size_t m = 0;
+  for (size_t i = 0; i < w->nwish; i++) {
+    wish_t *last = m ? &w->wish[m - 1] : NULL;
+    if (last && !cmp_wish_viewer(last, &w->wish[i])) {
+      if (w->wish[i].prio > last->prio) last->prio = w->wish[i].prio;
+    } else {
+      w->wish[m++] = w->wish[i];
+    }
+  }
+  w->nwish = m;
+}
+
+/* Each viewer's wishes cut to its share of the queue (its best ones) and normalised to sum 1. */
+static void wishes_share(ocs_world_t *w) {
   int nv = w->nviewers > 0 ? w->nviewers : 1;
-  size_t share = 2 * OCS_QUEUE_MAX / (size_t)nv;
-  if (w->nwish) qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_prio);
+  size_t share = 2 * OCS_QUEUE_MAX / (size_t)nv, k = 0;
   double *sum = calloc((size_t)nv, sizeof *sum);
   size_t *taken = calloc((size_t)nv, sizeof *taken);
-  size_t k = 0;
-  if (sum && taken) {
-    for (size_t i = 0; i < w->nwish; i++) sum[w->wish[i].viewer] += w->wish[i].prio;
-    for (size_t i = 0; i < w->nwish; i++) {
-      wish_t x = w->wish[i];
-      if (taken[x.viewer]++ >= share) continue;
-      x.prio = sum[x.viewer] > 0 ? x.prio / sum[x.viewer] : 0.0;
-      w->wish[k++] = x;
-    }
+  if (sum && taken && w->nwish) {
+    qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_prio);
+    for (size_t i = 0; i < w->nwish; i++)
+      if (taken[w->wish[i].viewer]++ < share) {
+        sum[w->wish[i].viewer] += w->wish[i].prio;
+        w->wish[k++] = w->wish[i];
+      }
+    for (size_t i = 0; i < k; i++) w->wish[i].prio = sum[w->wish[i].viewer] > 0 ? w->wish[i].prio / sum[w->wish[i].viewer] : 0.0;
   }
   free(sum);
   free(taken);
   w->nwish = k;
-  if (k) qsort(w->wish, k, sizeof *w->wish, cmp_wish_key);
-  size_t m = 0;
-  for (size_t i = 0; i < k; i++) {
-    if (m && w->wish[m - 1].key == w->wish[i].key && w->wish[m - 1].stamp == w->wish[i].stamp) w->wish[m - 1].prio += w->wish[i].prio;
-    else w->wish[m++] = w->wish[i];
+}
+
+/* The tick's wishes become the production queue: one item per brick, its priority the sum over
+ * the viewers that want it, best first, at most OCS_QUEUE_MAX. What no viewer wants any more is
+ * gone. The wishes stay, sorted by brick, so that what is made is counted for its viewers. */
+static void queue_build(ocs_world_t *w) {
+  w->nqueue = 0;
+  wishes_dedup(w);
+  wishes_share(w);
+  if (w->nwish) qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_viewer);
+  if (w->queue_cap < w->nwish) {
+    queued_t *a = realloc(w->queue, w->nwish * sizeof *a);
+    if (!a) return; /* asked again next tick */
+    w->queue = a;
+    w->queue_cap = w->nwish;
   }
-  if (m) qsort(w->wish, m, sizeof *w->wish, cmp_wish_prio);
+  size_t m = 0;
+  for (size_t i = 0; i < w->nwish; i++) {
+    const wish_t *x = &w->wish[i];
+    queued_t *last = m ? &w->queue[m - 1] : NULL;
+    if (last && last->key == x->key && last->stamp == x->stamp) {
+      last->prio += x->prio;
+      last->count++;
+    } else {
+      w->queue[m++] = (queued_t){x->key, x->stamp, x->prio, (uint32_t)i, 1};
+    }
+  }
+  if (m) qsort(w->queue, m, sizeof *w->queue, cmp_queued_prio);
   w->nqueue = m < OCS_QUEUE_MAX ? m : OCS_QUEUE_MAX;
-  w->nwish = 0;
+}
+
+/* A viewer leaves: its wishes are withdrawn, and what only it wanted leaves the queue. Viewers
+ * after it in the array move down by one. */
+static void queue_forget(ocs_world_t *w, uint32_t vi) {
+  for (size_t i = 0; i < w->nwish; i++) {
+    if (w->wish[i].viewer == vi) w->wish[i].viewer = OCS_NO_VIEWER;
+    else if (w->wish[i].viewer != OCS_NO_VIEWER && w->wish[i].viewer > vi) w->wish[i].viewer--;
+  }
+  size_t m = 0;
+  for (size_t i = 0; i < w->nqueue; i++) {
+    queued_t q = w->queue[i];
+    q.prio = 0;
+    int wanted = 0;
+    for (uint32_t j = q.first; j < q.first + q.count; j++)
+      if (w->wish[j].viewer != OCS_NO_VIEWER) {
+        wanted = 1;
+        q.prio += w->wish[j].prio;
+      }
+    if (wanted) w->queue[m++] = q;
+  }
+  w->nqueue = m;
 }
 
 /*-*** A step ***/
@@ -787,7 +905,7 @@ static int push_req(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
     w->req = a;
     w->req_cap = nc;
   }
-  w->req[w->nreq++] = (req_t){key, stamp, NULL, NULL};
+  w->req[w->nreq++] = (req_t){key, stamp, NULL, NULL, 0};
   return 0;
 }
 
@@ -894,6 +1012,8 @@ static int emit_states(ocs_world_t *w) {
     v->sent++;
     v->last_new = v->nlacking;
     v->ticks = 0;
+    v->produced_last = v->produced;
+    v->produced = 0;
   }
   free(kinds);
   free(ids);
@@ -915,7 +1035,7 @@ static int step(ocs_world_t *w) {
   if (w->d.clocked) {
     in.ready = ready_cb;
     in.want = want_cb;
-    w->nwish = 0;
+    w->nwish = w->nqueue = 0; /* the queue is made anew from this tick's wishes */
   }
   want_t *want = NULL;
   size_t nwant = 0;
@@ -939,21 +1059,39 @@ static int step(ocs_world_t *w) {
   return rc;
 }
 
-int ocs_world_produce(ocs_world_t *w, double seconds) {
+/* What was made is counted for the viewers that wanted it, and leaves the queue. */
+static void queue_made(ocs_world_t *w) {
+  size_t m = 0;
+  for (size_t i = 0; i < w->nqueue; i++) {
+    const queued_t *q = &w->queue[i];
+    if (i < w->nreq && w->req[i].made) {
+      for (uint32_t j = q->first; j < q->first + q->count; j++)
+        if (w->wish[j].viewer != OCS_NO_VIEWER) w->viewers[w->wish[j].viewer]->produced++;
+    } else {
+      w->queue[m++] = *q;
+    }
+  }
+  w->nqueue = m;
+}
+
+int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
   if (!w || !w->d.clocked) return 0;
   double t0 = now_s();
   w->deadline = t0 + (seconds > 0 ? seconds : 0.0);
   w->nreq = 0;
+  size_t n = limit && limit < w->nqueue ? limit : w->nqueue;
   int rc = 0;
-  for (size_t i = 0; i < w->nqueue && rc >= 0; i++) rc = push_req(w, w->wish[i].key, w->wish[i].stamp);
-  uint64_t before = w->bricks_produced;
+  for (size_t i = 0; i < n && rc >= 0; i++) rc = push_req(w, w->queue[i].key, w->queue[i].stamp);
+  uint64_t before = w->bricks_produced, errors = w->produce_errors;
   if (rc >= 0) rc = produce_requests(w);
+  queue_made(w);
   release_requests(w);
   w->deadline = 0;
   w->produce_seconds = now_s() - t0;
   uint64_t made = w->bricks_produced - before;
-  /* what was made leaves the queue; the rest waits (the next tick rebuilds it anyway) */
-  w->nqueue = 0;
+  /* a brick that failed stays queued and is asked again; only a failure of the whole (no memory
+   * for the requests) is returned */
+  if (rc < 0 && w->produce_errors > errors) rc = 0;
   return rc < 0 ? rc : (int)(made < INT32_MAX ? made : INT32_MAX);
 }
 
@@ -984,6 +1122,45 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
     }
   out->produce_seconds = w->produce_seconds;
   out->plan_seconds = w->plan_seconds;
+  out->produce_errors = w->produce_errors;
+  out->last_error = w->last_error;
+  out->last_error_key = w->last_error_key;
+}
+
+/*-*** Content at another time (overcast-stress --verify-content) ***/
+
+uint64_t ocs_world_stamp_at(const ocs_world_t *w, int level, double t) {
+  if (!w || level < 0 || level > OC_KEY_MAX_LEVEL) return 0;
+  uint64_t stamp[OC_KEY_MAX_LEVEL + 1];
+  stamps_at(w, t, NULL, stamp, NULL);
+  return stamp[level];
+}
+
+int ocs_world_reproduce(ocs_world_t *w, oc_key_t key, double t, ocs_brick_out_t *out) {
+  int level = oc_key_level(key);
+  if (!w || !out || level < 0 || !isfinite(t) || w->nviewers) return OC_EINVAL;
+  if (w->time != t) {
+    w->time = t;
+    clock_update(w);
+  }
+  w->nreq = 0;
+  OC_TRY(push_req(w, key, w->stamp[level]));
+  req_t *q = &w->req[0];
+  int r = produce_brick(w, q);
+  if (r >= 0 && q->sigma) { /* set aside for a τ volume: nobody else builds it here */
+    r = produce_finish(w, q, q->sigma, 1);
+    free(q->sigma);
+    q->sigma = NULL;
+  }
+  if (r >= 0) {
+    const payload_t *p = ocs_cache_data(q->entry);
+    out->kind = p->kind;
+    memcpy(out->range, p->range, sizeof out->range);
+    if (p->kind == OC_NODE_BRICK) out->codes = p->codes;
+    else memset(&out->codes, 0, sizeof out->codes);
+  }
+  release_requests(w);
+  return r;
 }
 
 int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs_view_t *view, int epochs, oc_state_t *out,

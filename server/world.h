@@ -40,6 +40,10 @@ typedef struct {
   double start_utc;          /**< the instant the clock starts (s since the Unix epoch, clocked
                                   mode); 0: the virtual clock of ocs_world_step() */
   int validate;              /**< check every produced state with oc_state_validate (tests) */
+  /** test hook: called before a brick is made; a negative return fails that brick (an error of
+   *  the producer), which is counted (ocs_world_stats_t.produce_errors) and asked again */
+  int (*fault)(void *ctx, oc_key_t key);
+  void *fault_ctx;
   int clocked;               /**< production runs behind the ticks: a step builds states only from
                                   content that exists (ocs_plan_input_t.ready), what the plans wait
                                   for goes to one production queue for all viewers, and
@@ -60,6 +64,9 @@ typedef struct {
   uint64_t granted_bytes;    /**< sum of viewers' budgets */
   uint64_t held_bytes;       /**< server-side memory of the states kept for viewers */
   double produce_seconds, plan_seconds; /**< wall time of the last step's phases */
+  uint64_t produce_errors;   /**< bricks whose production failed (clocked: asked again) */
+  int last_error;            /**< the last failure's OC_E* and brick */
+  oc_key_t last_error_key;
 } ocs_world_stats_t;
 
 typedef struct {
@@ -74,6 +81,8 @@ typedef struct {
   uint64_t acked;                  /**< newest acknowledged epoch (UINT64_MAX: none) */
   uint64_t resident_bytes;         /**< of the states it keeps (the budget measure) */
   uint64_t budget;
+  uint32_t produced;               /**< bricks made for it (clocked: that it wished for) between its
+                                        two newest states */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /**< per level, the content age of
                                       the newest state's leaves in time steps behind current;
                                       255: older than the world remembers, or no leaf there */
@@ -131,10 +140,11 @@ int ocs_world_step(ocs_world_t *w);
  *  n·P since the Unix epoch); its world time is the clock's at `utc` (world_clock.h). */
 int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
 /*! ocs_world_produce() : clocked worlds: produces the queue's bricks, best first, for at most
- *  `seconds` (a brick started is finished); what is left is asked again at the next tick, if some
- *  viewer still wants it. Nothing else may touch the world meanwhile. @return bricks made, or a
- *  negative OC_E* (a brick that failed is asked again next tick). */
-int ocs_world_produce(ocs_world_t *w, double seconds);
+ *  `seconds` (a brick started is finished) and at most `limit` of them (0: no limit); what is left
+ *  is asked again at the next tick, if some viewer still wants it. A brick that fails is counted
+ *  (ocs_world_stats_t.produce_errors), stays queued and does not stop the others. Nothing else may
+ *  touch the world meanwhile. @return bricks made, or a negative OC_E* (no memory to start). */
+int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
 /*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). */
 size_t ocs_world_queue_length(const ocs_world_t *w);
 /*! ocs_world_utc() / ocs_world_epoch() : the instant and index of the last epoch stepped
@@ -167,6 +177,18 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out);
  *  overcast-server --save-state and the benches. @return 0 or a negative OC_E* with a reason. */
 int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs_view_t *view, int epochs, oc_state_t *out,
                            char *why, size_t why_len);
+/*! ocs_world_stamp_at() : the content stamp of `level` at world time t: content of that level
+ *  made at t1 and at t2 is the same iff their stamps are. */
+uint64_t ocs_world_stamp_at(const ocs_world_t *w, int level, double t);
+typedef struct {
+  int kind;                      /**< oc_node_kind_t */
+  oc_range_t range[OC_CHANNELS];
+  oc_brick_codes_t codes;        /**< when kind is OC_NODE_BRICK, else zero */
+} ocs_brick_out_t;
+/*! ocs_world_reproduce() : the content of node `key` as it is made at world time t, by a world of
+ *  its own without viewers (overcast-stress --verify-content; it moves that world's clock).
+ *  @return 0 or a negative OC_E*. */
+int ocs_world_reproduce(ocs_world_t *w, oc_key_t key, double t, ocs_brick_out_t *out);
 const oc_scene_t *ocs_world_scene(const ocs_world_t *w);
 /*! ocs_world_kept_states() : K, the states every viewer keeps: 3 animated, 2 static. */
 int ocs_world_kept_states(const ocs_world_t *w);

@@ -89,7 +89,7 @@ static void test_clocked__held_then_released(void **st) {
   uint64_t n = 4;
   int states = 0;
   for (; n < 4 + TICKS; n++) {
-    assert_true(ocs_world_produce(w, 1e9) >= 0);
+    assert_true(ocs_world_produce(w, 1e9, 0) >= 0);
     states += tick(w, v, n);
     if (!ocs_world_queue_length(w)) break; /* nothing left to make: converged */
   }
@@ -97,7 +97,7 @@ static void test_clocked__held_then_released(void **st) {
   ocs_epoch_out_t last;
   assert_int_equal(ocs_viewer_output(v, &last), 0);
   uint32_t nodes = last.state->node_count, bricks = last.state->brick_count;
-  assert_int_equal(ocs_world_produce(w, 1e9), 0);
+  assert_int_equal(ocs_world_produce(w, 1e9, 0), 0);
   tick(w, v, ++n); /* converged: the next tick changes nothing and wants nothing */
   assert_int_equal(ocs_viewer_output(v, &last), 0);
   assert_true(last.state->node_count == nodes && last.state->brick_count == bricks && nodes > 1);
@@ -132,7 +132,7 @@ static void test_clocked__deadline(void **st) {
   tick(w, v, 1);
   size_t q = ocs_world_queue_length(w);
   assert_true(q > 0);
-  assert_int_equal(ocs_world_produce(w, 0.0), 0); /* already due: nothing is made */
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0); /* already due: nothing is made */
   assert_true(produced(w) == 0);
   tick(w, v, 2);
   assert_true(ocs_world_queue_length(w) == q); /* still wanted, asked again */
@@ -151,8 +151,8 @@ static void test_clocked__shared_and_dropped(void **st) {
     ocs_epoch_out_t o;
     if (ocs_viewer_in_flight(b) && ocs_viewer_output(b, &o) == 0) ocs_viewer_ack(b, o.state->epoch);
     if (ocs_viewer_in_flight(c) && ocs_viewer_output(c, &o) == 0) ocs_viewer_ack(c, o.state->epoch);
-    ocs_world_produce(one, 1e9);
-    ocs_world_produce(two, 1e9);
+    ocs_world_produce(one, 1e9, 0);
+    ocs_world_produce(two, 1e9, 0);
   }
   print_message("one viewer: %llu bricks produced; two with the same view: %llu\n", (unsigned long long)produced(one),
                 (unsigned long long)produced(two));
@@ -166,7 +166,7 @@ static void test_clocked__shared_and_dropped(void **st) {
   ocs_world_remove_viewer(w, v);
   ocs_world_step_at(w, 2, 2.0);
   assert_true(ocs_world_queue_length(w) == 0);
-  assert_int_equal(ocs_world_produce(w, 1e9), 0);
+  assert_int_equal(ocs_world_produce(w, 1e9, 0), 0);
   assert_true(produced(w) == 0);
   ocs_world_free(w);
   ocs_world_free(two);
