@@ -221,7 +221,7 @@ typedef struct {
   double plan_ms, produce_ms;
   /* version 2 (zero in a version-1 STATS) */
   uint32_t queue;          /**< bricks waiting in the server's production queue (all viewers) */
-  uint32_t produced;       /**< bricks the server made since the tick before this state's */
+  uint32_t produced;       /**< bricks made for this viewer between its previous state and this one */
   uint32_t split_backlog;  /**< splits of this plan that waited for their children's content */
   uint8_t age_p50[OCP_STATS_LEVELS], age_p99[OCP_STATS_LEVELS]; /**< per level, the content age of the
                                 state's leaves in time steps behind current (p50, p99); 255: older

@@ -85,7 +85,6 @@ static void step_done(uv_work_t *req, int status) {
     if (h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack)
       ocs_session_stream(s, ocs_viewer_held(s->viewer, 1));
   }
-  srv->produced_last = 0; /* reported with these states */
   if (srv->after_step) srv->after_step(srv);
   if (srv->steps_queued && !srv->stopping) start_step_at(srv, 0);
   else start_production(srv);
@@ -105,7 +104,13 @@ static void produce_done(uv_work_t *req, int status) {
   remove_doomed(srv);
   if (srv->step_rc < 0) oc_log_warn("production: %s (asked again at the next tick)", oc_strerror(srv->step_rc));
   else srv->bricks_made += (uint64_t)srv->step_rc;
-  srv->produced_last = srv->step_rc > 0 ? (uint64_t)srv->step_rc : 0;
+  ocs_world_stats_t ws;
+  ocs_world_stats(srv->world, &ws);
+  if (ws.produce_errors > srv->produce_errors) /* a failed brick: reported, and asked again */
+    oc_log_warn("production: %llu brick(s) failed, the last %016llx: %s (asked again at the next tick)",
+                (unsigned long long)(ws.produce_errors - srv->produce_errors), (unsigned long long)ws.last_error_key,
+                oc_strerror(ws.last_error));
+  srv->produce_errors = ws.produce_errors;
   if (srv->after_step) srv->after_step(srv); /* input held while producing: HELLOs, control requests */
   if (srv->stopping) return;
   if (srv->steps_queued) start_step_at(srv, 0);

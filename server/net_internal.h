@@ -128,7 +128,7 @@ struct ocs_server_s {
   int tick_overrun;     /* a tick came due while producing: it starts when production ends */
   double produce_s;     /* this production's time limit */
   uint64_t bricks_made; /* by production between ticks */
-  uint64_t produced_last; /* by the last production (STATS: since the tick before) */
+  uint64_t produce_errors; /* bricks whose production failed, as last reported */
   double plan_ms, produce_ms; /* of the last step, for every viewer's STATS */
   /* viewers to remove once the running step ends */
   ocs_viewer_t **doomed;

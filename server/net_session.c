@@ -305,7 +305,7 @@ void ocs_session_stream(ocs_session_t *s, const oc_state_t *base) {
                                .resident_bytes = vs.resident_bytes, .plan_ms = s->srv->plan_ms,
                                .produce_ms = s->srv->produce_ms,
                                .queue = (uint32_t)ocs_world_queue_length(s->srv->world),
-                               .produced = (uint32_t)s->srv->produced_last, .split_backlog = o.plan.split_backlog};
+                               .produced = vs.produced, .split_backlog = o.plan.split_backlog};
   memcpy(s->stats_msg.age_p50, vs.age_p50, OCP_STATS_LEVELS);
   memcpy(s->stats_msg.age_p99, vs.age_p99, OCP_STATS_LEVELS);
   s->streaming = 1;

@@ -1045,6 +1045,10 @@ static int step(ocs_world_t *w) {
   if (rc >= 0) rc = make_requests(w, want, nwant);
   free(want);
   if (rc >= 0) rc = produce_requests(w); /* clocked: every request is a hit */
+  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) { /* stepped: what was made for whom */
+    ocs_viewer_t *v = w->viewers[vi];
+    for (uint32_t i = 0; v->planned && i < v->nleaves; i++) v->produced += v->leaves[i].produce && w->req[v->req_of[i]].made;
+  }
   w->produce_seconds = now_s() - t1;
   if (rc >= 0) rc = emit_states(w);
   if (rc < 0)
