@@ -778,8 +778,9 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
       if (R.ints[a->ip] && n > 0 && n < (int)sizeof pts[i].label) snprintf(pts[i].label + n, sizeof pts[i].label - (size_t)n, " I");
     }
     char names[OCTS_PLOT_GROUPS][32], title[160], sub[256];
-    octs_plot_desc_t pd = {title, sub, gl ? "render ms per frame" : "render CPU ms per frame (all threads)", "RMSE (0-255)",
-                           NULL, {0}, R.nb < OCTS_PLOT_GROUPS ? R.nb : OCTS_PLOT_GROUPS};
+    octs_plot_desc_t pd = {.title = title, .subtitle = sub,
+                           .xlabel = gl ? "render ms per frame" : "render CPU ms per frame (all threads)",
+                           .ylabel = "RMSE (0-255)", .ngroups = R.nb < OCTS_PLOT_GROUPS ? R.nb : OCTS_PLOT_GROUPS};
     if (R.nr > 1 || R.ni > 1 || R.reps[0] || R.ints[0]) pd.note = "R: reprojection on\nI: interpolation on";
     for (int g = 0; g < pd.ngroups; g++) {
       snprintf(names[g], sizeof names[g], "%g MiB", R.budgets[g]);

@@ -2,7 +2,7 @@
  *   bench_sweep_server.c  the server core stepped for one viewer: its states, CPU time and wire bytes
  *   bench_sweep_render.c  the CPU reference or the GL renderer, timed, with reprojection and
  *                         interpolation frame sequences
- *   bench_sweep_plot.c    the error-against-time scatter plot (RGB8, written as PNG)
+ *   plot.c                the error-against-time scatter plot (tools/plot.h, shared with overcast-stress)
  * Not part of the project's API: tools/ only. */
 #ifndef OC_TOOLS_BENCH_SWEEP_INT_H
 #define OC_TOOLS_BENCH_SWEEP_INT_H
@@ -16,6 +16,7 @@
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "oc_state.h"
+#include "plot.h"
 
 /*-*** Server side (bench_sweep_server.c) ***/
 
@@ -96,27 +97,6 @@ typedef struct {
 int octs_render(octs_renderer_t *r, oc_camera_pose_t pose, const octs_render_knobs_t *k, oc_image_t *img, octs_times_t *tm,
                 char *why, size_t why_len);
 
-/*-*** Plot (bench_sweep_plot.c) ***/
-
-#define OCTS_PLOT_GROUPS 10
-
-typedef struct {
-  double x, y;           /**< render ms, RMSE */
-  int group;             /**< colour, 0..OCTS_PLOT_GROUPS-1 */
-  int pareto, reference;
-  char label[40];        /**< drawn next to Pareto points */
-} octs_plot_point_t;
-
-typedef struct {
-  const char *title, *subtitle, *xlabel, *ylabel;
-  const char *note;      /**< text under the legend (lines split at newlines), or NULL */
-  const char *group_name[OCTS_PLOT_GROUPS];
-  int ngroups;
-} octs_plot_desc_t;
-
-/*! octs_plot_png() : the scatter plot, the Pareto front joined in order of x, as an RGB PNG.
- *  Labels need stb_easy_font (libstb-dev); without it the plot has no text.
- *  @return 0 or OC_E* with why. */
-int octs_plot_png(const char *path, const octs_plot_point_t *p, int n, const octs_plot_desc_t *d, char *why, size_t why_len);
+/*-*** Plot: tools/plot.h (octs_plot_png, shared with overcast-stress) ***/
 
 #endif /* OC_TOOLS_BENCH_SWEEP_INT_H */

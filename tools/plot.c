@@ -1,7 +1,8 @@
-/* bench_sweep_plot.c — `overcast-bench sweep --plot`: error (RMSE) against render time as a scatter
- * plot drawn by hand into an RGB8 buffer and written with the project's PNG writer (oc_image.h):
- * axes with ticks and a grid, one colour per group (the budgets), the Pareto front joined in order
- * of time and ringed, the reference boxed. Text comes from stb_easy_font (libstb-dev, the font the
+/* plot.c — the tools' PNG plot (plot.h): `overcast-bench sweep --plot` draws error (RMSE) against
+ * render time, `overcast-stress --ramp --plot` figures against the number of viewers. Drawn by hand
+ * into an RGB8 buffer and written with the project's PNG writer (oc_image.h): axes with ticks and a
+ * grid, one colour per group (the budgets), optionally each group joined as a line, the Pareto
+ * front joined in order of x and ringed, the reference boxed, a dashed horizontal limit. Text comes from stb_easy_font (libstb-dev, the font the
  * viewer's HUD uses), included directly so the plot does not depend on the GL client; without the
  * header the plot is drawn without text. */
 #include <math.h>
@@ -9,9 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "bench_sweep_int.h"
 #include "oc_err.h"
 #include "oc_image.h"
+#include "plot.h"
 
 #if defined(__has_include)
 #if __has_include(<stb/stb_easy_font.h>)
@@ -157,6 +158,9 @@ int octs_plot_png(const char *path, const octs_plot_point_t *p, int n, const oct
     if (isfinite(p[i].x)) xmax = fmax(xmax, p[i].x);
     if (isfinite(p[i].y)) ymax = fmax(ymax, p[i].y);
   }
+  int has_hline = isfinite(d->hline) && d->hline != 0.0;
+  if (has_hline) ymax = fmax(ymax, d->hline);
+  if (d->ymin_top > 0.0) ymax = fmax(ymax, d->ymin_top / 1.08);
   if (!(xmax > 0.0)) xmax = 1.0;
   if (!(ymax > 0.0)) ymax = 1.0;
   double xs = nice_step(xmax * 1.05, 6), ys = nice_step(ymax * 1.08, 6);
@@ -185,6 +189,22 @@ int octs_plot_png(const char *path, const octs_plot_point_t *p, int n, const oct
   text(&c, 12, 8, 2, 0, d->title ? d->title : "", col_black);
   if (d->subtitle) text(&c, 12, 32, 2, 0, d->subtitle, col_dim);
 
+  if (has_hline) { /* dashed */
+    double y = SY(d->hline);
+    for (int x = PL; x < PR; x += 14) line(&c, x, y, fmin(x + 8, PR), y, 1.5, col_axis);
+    if (d->hline_label) text(&c, PR - 4 - text_width(d->hline_label, 2), (int)y - 18, 2, 0, d->hline_label, col_dim);
+  }
+  if (d->lines) { /* each group joined in order of x */
+    const octs_plot_point_t **g = front; /* borrowed: the front is built after this */
+    for (int grp = 0; grp < OCTS_PLOT_GROUPS; grp++) {
+      int ng = 0;
+      for (int i = 0; i < n; i++)
+        if ((p[i].group >= 0 && p[i].group < OCTS_PLOT_GROUPS ? p[i].group : 0) == grp && isfinite(p[i].x) && isfinite(p[i].y))
+          g[ng++] = &p[i];
+      qsort(g, (size_t)ng, sizeof *g, cmp_x);
+      for (int i = 0; i + 1 < ng; i++) line(&c, SX(g[i]->x), SY(g[i]->y), SX(g[i + 1]->x), SY(g[i + 1]->y), 2.0, palette[grp]);
+    }
+  }
   /* the Pareto front, in order of time */
   int nf = 0;
   for (int i = 0; i < n; i++)
@@ -239,13 +259,19 @@ int octs_plot_png(const char *path, const octs_plot_point_t *p, int n, const oct
     disc(&c, lx + 6, ly + 7, 5.0, palette[g]);
     text(&c, lx + 18, ly, 2, 0, d->group_name[g] ? d->group_name[g] : "", col_text);
   }
+  int any_ref = 0;
+  for (int i = 0; i < n; i++) any_ref |= p[i].reference;
   ly += 10;
-  line(&c, lx, ly + 7, lx + 12, ly + 7, 2.5, col_front);
-  ring(&c, lx + 6, ly + 7, 9.0, 2.0, col_front);
-  text(&c, lx + 22, ly, 2, 0, "Pareto front", col_text);
-  ly += 26;
-  box(&c, lx + 6, ly + 7, 7.0, col_black);
-  text(&c, lx + 22, ly, 2, 0, "reference", col_text);
+  if (nf) {
+    line(&c, lx, ly + 7, lx + 12, ly + 7, 2.5, col_front);
+    ring(&c, lx + 6, ly + 7, 9.0, 2.0, col_front);
+    text(&c, lx + 22, ly, 2, 0, "Pareto front", col_text);
+    ly += 26;
+  }
+  if (any_ref) {
+    box(&c, lx + 6, ly + 7, 7.0, col_black);
+    text(&c, lx + 22, ly, 2, 0, "reference", col_text);
+  }
   if (d->note) { /* lines of the note */
     char buf[256];
     snprintf(buf, sizeof buf, "%s", d->note);
