@@ -49,6 +49,8 @@ struct ocv_conn_s {
   int got_reply;
   int32_t reply_status;
   char *reply_json;
+  ocv_tap_fn tap; /* sees every byte read, before the session does (ocv_conn_set_tap) */
+  void *tap_ctx;
 };
 
 /*-*** Helpers ***/
@@ -419,6 +421,7 @@ static int ocv__read(ocv_conn_t *c, char *why, size_t why_len) {
       return 1;
     }
     total += (size_t)n;
+    if (c->tap) c->tap(c->tap_ctx, c->rbuf, (size_t)n);
     char reason[OCP_TEXT_MAX + 1];
     int e = ocp_viewer_feed(c->v, c->rbuf, (size_t)n, &c->out, reason, sizeof reason);
     if (e < 0) { /* the session appended ERROR naming the problem: send it, then close */
@@ -571,6 +574,12 @@ int ocv_control_request(ocv_conn_t *c, const char *json, double timeout_s, char 
   c->reply_json = NULL;
   if (status) *status = c->reply_status;
   return 0;
+}
+
+void ocv_conn_set_tap(ocv_conn_t *c, ocv_tap_fn tap, void *ctx) {
+  if (!c) return;
+  c->tap = tap;
+  c->tap_ctx = ctx;
 }
 
 ocp_viewer_t *ocv_conn_session(ocv_conn_t *c) { return c->v; }

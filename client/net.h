@@ -96,6 +96,12 @@ int ocv_conn_wait_ready(ocv_conn_t *c, double timeout_s, char *why, size_t why_l
 int ocv_control_request(ocv_conn_t *c, const char *json, double timeout_s, char **reply_json, int32_t *status, char *why,
                         size_t why_len);
 
+/*! ocv_conn_set_tap() : `tap` (NULL: none) sees every chunk of bytes read from the server, in
+ *  order, before the session is fed it (overcast-stress times each EPOCH_BEGIN by it). It is
+ *  called from inside ocv_conn_poll() and the calls that read, and must not call back into c. */
+typedef void (*ocv_tap_fn)(void *ctx, const uint8_t *p, size_t n);
+void ocv_conn_set_tap(ocv_conn_t *c, ocv_tap_fn tap, void *ctx);
+
 ocp_viewer_t *ocv_conn_session(ocv_conn_t *c);
 /*! ocv_conn_fd() : the socket, or -1 while not connected. */
 int ocv_conn_fd(const ocv_conn_t *c);

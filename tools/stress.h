@@ -6,7 +6,10 @@
  *                    and the live checks (resident bytes counted here, checksums, skipped epochs)
  *   stress_proc.c    overcast-server as a child process; RSS and CPU from /proc
  *   stress_report.c  aggregates, the table on stdout and the JSON file
- *   stress_path.c    camera paths */
+ *   stress_path.c    camera paths
+ *   stress_clock.c   epochs on the clock, pure parts: lateness and coalesced ticks, the frame scan
+ *                    that sees EPOCH_BEGIN arrive, the stamp scan back, matching a reproduced brick
+ *   stress_verify.c  --verify-content: a thread re-producing sampled bricks with a world of its own */
 #ifndef OC_TOOLS_STRESS_H
 #define OC_TOOLS_STRESS_H
 
@@ -18,6 +21,7 @@
 
 #include "net.h"
 #include "stress_path.h"
+#include "world.h" /* ocs_brick_out_t, for --verify-content */
 
 #define STRESS_MAX_VIEWERS 1024
 #define STRESS_MAX_STEPS 100000
@@ -67,15 +71,28 @@ typedef struct {
   long restart_at;          /* the step after which the server is killed (0: the middle) */
   double fault_rss_slack;   /* MiB */
   int full_sessions;        /* keep brick codes (a full session) instead of digests */
+  double verify_content;    /* --verify-content F: fraction of received bricks re-produced (0: off) */
+  int share_paths;          /* every viewer flies the same path with the same seed (a shared region) */
+  const char *plot;         /* --ramp: PNG files PREFIX-age.png, PREFIX-detail.png */
+  int reference;            /* --ramp: time to detail of a stepped server side by side (default on) */
+  long ref_teleports;       /* teleports the stepped reference measures (after its first) */
   int nserver_args;
   char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;
 
-/* The ramp's rule: a phase is sustained when every viewer's median interval between states is at
- * most STRESS_RAMP_INTERVAL × the period and at most STRESS_RAMP_SKIPPED of the epochs due in the
- * measured window were skipped (skipped / (states + skipped), over all viewers). */
+/* The ramp's rule (docs/performance.md, "Epochs on the clock"): a phase is sustained when every
+ * viewer, over the measured window, has
+ *   - lateness p99 ≤ STRESS_LATE_P99 (EPOCH_BEGIN readable minus n·P),
+ *   - at most STRESS_COALESCED_MAX of its due ticks coalesced,
+ *   - (--verify-content) verified content age p99 ≤ STRESS_AGE_ALLOWED time steps and no mismatch,
+ *   - (teleport path) time to full detail p50 ≤ STRESS_DETAIL_FACTOR × a stepped server's on the
+ *     same path and budget, measured side by side (--no-reference: not checked),
+ *   - and its median interval between states ≤ STRESS_RAMP_INTERVAL × the period (kept from the
+ *     first rule: a viewer whose states come rarely is not keeping up, however punctual). */
+#define STRESS_LATE_P99 0.050
+#define STRESS_COALESCED_MAX 0.01
+#define STRESS_DETAIL_FACTOR 1.25
 #define STRESS_RAMP_INTERVAL 1.2
-#define STRESS_RAMP_SKIPPED 0.05
 
 /*-*** Fault injection (stress_fault.c) ***/
 
@@ -128,6 +145,106 @@ void stress_samples_free(stress_samples_t *s);
 /*! stress_quantile() : nearest-rank quantile q in [0, 1] of the values (sorted in place); NAN if none. */
 double stress_quantile(double *v, size_t n, double q);
 
+/*-*** Epochs on the clock (stress_clock.c: pure, reads no clock) ***/
+
+/* A viewer's ticks: lateness is the instant EPOCH_BEGIN was readable (CLOCK_REALTIME) minus the
+ * instant its epoch n was due, n·P after the Unix epoch; coalesced ticks are the indices skipped
+ * between consecutive states (each one a due tick this viewer never got). */
+typedef struct {
+  double period;          /* P, s (> 0) */
+  int have;
+  uint64_t first, last;   /* epochs of the first and newest state */
+  uint64_t states, coalesced;
+  stress_samples_t lateness; /* s, one per state whose EPOCH_BEGIN was seen */
+} stress_ticks_t;
+
+/*! stress_ticks_add() : a complete state of epoch `epoch` whose EPOCH_BEGIN was readable at
+ *  `begin_utc` (NAN: not seen; no lateness sample). @return the ticks skipped since the previous
+ *  state (0 for the first), or -1 when the epoch does not increase (not counted). */
+long stress_ticks_add(stress_ticks_t *t, uint64_t epoch, double begin_utc);
+/*! stress_ticks_due() : ticks due after the first state up to the newest (last − first). */
+uint64_t stress_ticks_due(const stress_ticks_t *t);
+/*! stress_ticks_coalesced_frac() : coalesced / due, NAN when nothing was due. */
+double stress_ticks_coalesced_frac(const stress_ticks_t *t);
+void stress_ticks_free(stress_ticks_t *t);
+
+/* Frame headers seen in a viewer's byte stream (client/net.h's input tap), without keeping any
+ * payload: for each EPOCH_BEGIN, its epoch index and world time, and the instant of the read that
+ * completed those first 16 payload bytes. */
+typedef struct {
+  uint8_t hdr[OCP_HEADER_BYTES];
+  int nhdr;
+  uint8_t type;
+  uint64_t left;          /* payload bytes of the current frame still to pass */
+  uint8_t head[16];       /* EPOCH_BEGIN's first bytes: u64 epoch, f64 world time */
+  int nhead;
+  int bad;                /* a header without the magic: scanning stops (the session fails too) */
+} stress_scan_t;
+typedef void (*stress_begin_fn)(void *ctx, uint64_t epoch, double world_time, double utc);
+/*! stress_scan_feed() : n bytes read at instant `utc`; calls `begin` for each EPOCH_BEGIN whose
+ *  first 16 payload bytes are now complete. */
+void stress_scan_feed(stress_scan_t *s, const uint8_t *p, size_t n, double utc, stress_begin_fn begin, void *ctx);
+
+/* Content age: the stamps a level had at the epochs before world time t. */
+typedef uint64_t (*stress_stamp_fn)(void *ctx, int level, double t);
+/*! stress_stamp_scan() : the latest `want` distinct stamps of `level` at or before world time t,
+ *  newest first, scanning t, t − dt, t − 2·dt, .. (dt: world seconds per epoch; up to max_epochs
+ *  back). times[k] is the latest scanned time with stamps[k]: stamps[0] is the stamp at t (step s),
+ *  stamps[1] the one before (s − 1), and so on. dt ≤ 0 (a paused clock) finds one.
+ *  @return how many were found (1..want). */
+int stress_stamp_scan(stress_stamp_fn f, void *ctx, int level, double t, double dt, int max_epochs, int want, double *times,
+                      uint64_t *stamps);
+
+/* One received brick, sampled for verification. */
+typedef struct stress_age_s stress_age_t;
+typedef struct {
+  oc_key_t key;
+  double t, dt;           /* the state's world time, world seconds per epoch */
+  oc_range_t range[OC_CHANNELS];
+  uint64_t digest;        /* oc_brick_digest() of the codes received (after any delta) */
+  stress_age_t *into;     /* where the result is counted (the viewer's) */
+} stress_brick_sample_t;
+/*! stress_brick_matches() : 1 when `made` (reproduced) is the content received: a brick with the
+ *  same ranges, bit for bit, and codes of the same digest. */
+int stress_brick_matches(const stress_brick_sample_t *got, const ocs_brick_out_t *made);
+
+/* Verified content age, per level: ages 0..STRESS_AGE_MAX (time steps behind the state's), and
+ * those that matched none of them. A mismatch (a failure) is a brick matching none of s, s − 1,
+ * s − 2; older ones are still looked for (up to STRESS_AGE_MAX) to say how old. */
+#define STRESS_AGE_MAX 8
+#define STRESS_AGE_ALLOWED 2
+#define STRESS_AGE_SCAN_EPOCHS 64
+struct stress_age_s {
+  uint64_t n[OC_KEY_MAX_LEVEL + 1][STRESS_AGE_MAX + 2]; /* [level][age]; [STRESS_AGE_MAX + 1]: none */
+  uint64_t sampled, dropped, errors; /* queued; not queued (queue full); reproduction failed */
+};
+/*! stress_age_count() : verified bricks (every level, or one level ≥ 0), and those of them older
+ *  than STRESS_AGE_ALLOWED or matching nothing (mismatches). */
+uint64_t stress_age_count(const stress_age_t *a, int level);
+uint64_t stress_age_mismatches(const stress_age_t *a, int level);
+/*! stress_age_quantile() : nearest-rank quantile of the verified ages (a level ≥ 0, or all: -1);
+ *  STRESS_AGE_MAX + 1 stands for "none matched"; -1 when nothing was verified. */
+int stress_age_quantile(const stress_age_t *a, int level, double q);
+/*! stress_age_merge() : dst += src. */
+void stress_age_merge(stress_age_t *dst, const stress_age_t *src);
+
+/*-*** --verify-content (stress_verify.c) ***/
+
+typedef struct stress_verify_s stress_verify_t;
+/*! stress_verify_start() : the verifier's own world of `scene` (threads 1, stepped clock, no
+ *  viewers) and its thread (lowest priority), queue for `cap` samples.
+ *  @return 0 or a negative OC_E* with a reason. */
+int stress_verify_start(stress_verify_t **out, const oc_scene_t *scene, size_t cap, char *why, size_t why_len);
+/*! stress_verify_push() : queues a sample (thread-safe); a full queue drops it (counted in
+ *  s->into->dropped). */
+void stress_verify_push(stress_verify_t *v, const stress_brick_sample_t *s);
+/*! stress_verify_drain() : waits until every queued sample is verified, at most timeout_s.
+ *  @return samples still queued (0: all done). Results may be read after it. */
+size_t stress_verify_drain(stress_verify_t *v, double timeout_s);
+/*! stress_verify_seconds() : seconds the verifier spent reproducing so far, and bricks reproduced. */
+void stress_verify_work(stress_verify_t *v, double *seconds, uint64_t *reproduced);
+void stress_verify_stop(stress_verify_t *v);
+
 /*-*** One viewer ***/
 
 typedef struct stress_run_s stress_run_t;
@@ -177,6 +294,24 @@ typedef struct {
   uint64_t m_states, m_skipped, m_bytes0;
   double m_t0;
   stress_samples_t m_interval;
+  stress_samples_t m_detail; /* time to full detail of teleports made in the measured window */
+  uint64_t m_teleports, m_unreached; /* unreached: the next teleport came first */
+  double m_open_s;           /* a measured teleport still unsettled at the end: seconds it waited */
+  int teleport_measured;     /* the current teleport was made in the measured window */
+  /* epochs on the clock (with a period): the whole run's ticks and the measured window's */
+  stress_ticks_t ticks, m_ticks;
+  stress_scan_t scan;
+  double poll_utc;           /* CLOCK_REALTIME when the bytes being read became readable */
+  uint64_t begin_epoch;      /* the last EPOCH_BEGIN seen, and when */
+  double begin_utc;
+  int begin_seen;
+  /* --verify-content: bricks with ids above max_id are new (received in this state) */
+  stress_age_t age, m_age;
+  uint32_t max_id;
+  uint64_t rng;
+  double prev_time;          /* the previous state's world time and epoch: world seconds per epoch */
+  uint64_t prev_epoch;
+  int have_prev;
   int failed;
   char error[512];
   stress_samples_t latency;  /* s: stepped from the step request, else from the first byte of EPOCH_BEGIN */
@@ -185,6 +320,7 @@ typedef struct {
   stress_samples_t detail;   /* s: time to full detail after a teleport */
   stress_samples_t detail_epochs;
   uint64_t teleports, detail_unreached;
+  int detail_first;          /* detail.v[0] is the first teleport's (at path time 0, from no tree) */
   ocp_viewer_stats_t session; /* the session's counters at the end */
   /* --faults restart: reconnections after the server went away, and the time from the loss to the
    * first state from the server that came back */
@@ -228,9 +364,14 @@ struct stress_run_s {
   stress_faults_t *faults;
   stress_viewer_t *v;
   int nv;
+  int index0;              /* viewer i has index index0 + i (its path's seed) */
+  stress_verify_t *verify; /* --verify-content */
+  double world_dt;         /* world seconds per epoch (until a viewer has two states: P × 1) */
 };
 
 double stress_now(void);
+/*! stress_utc() : CLOCK_REALTIME, s since the Unix epoch (lateness: the server ticks on it). */
+double stress_utc(void);
 /*! stress_viewer_main() : the thread body (arg: stress_viewer_t *). */
 void *stress_viewer_main(void *arg);
 void stress_viewer_free(stress_viewer_t *v);
@@ -298,6 +439,9 @@ typedef struct {
   double bricks_produced, brick_requests;
   double cache_bytes;    /* the server's brick cache at the end; NAN unknown */
   double late_ticks;     /* epoch ticks the server skipped because a step still ran; NAN unknown */
+  size_t verify_left;    /* --verify-content: samples not verified by the end (drain timed out) */
+  double verify_s;       /* seconds the verifier spent reproducing, and bricks it reproduced */
+  uint64_t verify_reproduced;
   char error[512];      /* a run-level failure, "" if none */
   stress_fault_conns_t fault_conns; /* --faults */
   stress_fault_mem_t fault_mem;
@@ -308,24 +452,49 @@ typedef struct {
  *  a message on stderr). */
 int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_summary_t *s);
 
-/* One --ramp phase. */
+/* One --ramp phase: N viewers, all at one budget. */
 typedef struct {
   int n;
+  long budget_mib;
   double seconds;               /* measured */
   double itv_p50, itv_p99;      /* pooled over the viewers' measured intervals, s */
   double worst_median;          /* the largest of the viewers' median intervals, s */
   uint64_t states, skipped;
   double skipped_frac;
+  /* epochs on the clock, over the measured window */
+  double late_p50, late_p99, late_max; /* pooled lateness, s */
+  double late_worst_p99;        /* the largest of the viewers' lateness p99, s */
+  uint64_t due, coalesced;      /* ticks due after each viewer's first measured state; skipped */
+  double coalesced_frac, coalesced_worst; /* pooled; the largest of the viewers' fractions */
+  uint64_t coalesced_server;    /* STATS coalesced at the end, summed (the server's count, whole phase) */
+  stress_age_t age;             /* --verify-content: verified ages in the window, all viewers */
+  int age_p99, age_worst_p99;   /* pooled over levels and viewers; the largest viewer's (-1: none) */
+  uint64_t age_mismatch, verify_left;
+  double detail_p50, detail_p99, detail_ref; /* teleport viewers, s; the stepped server's p50 */
+  double detail_worst_ratio;    /* the largest of the viewers' p50 / detail_ref */
+  uint64_t teleports, detail_n, unreached;
   double cpu_pct, rss_mib, hwm_mib; /* the server over the measured window; at its end */
   double mbps_p50, mbps_p99;    /* per viewer over the measured window */
   uint64_t violations, checksum, protocol, mismatch, failed;
   int sustained;
-  char why[160];                /* why not sustained, or a failure */
+  char why[200];                /* why not sustained, or a failure */
 } stress_ramp_phase_t;
 
-/*! stress_ramp_report() : the ramp's table on stdout and (o->json) its JSON. @return 1 when no check
- *  failed in any phase, 0 otherwise, -1 when the JSON could not be written. */
+/* The stepped reference of one budget: time to full detail on the teleport path, one viewer,
+ * epochs stepped as fast as the server makes them (period 0), path seconds per epoch = P. */
+typedef struct {
+  long budget_mib;
+  int index;                    /* the viewer index whose path (seed) it flew */
+  double detail_p50, detail_p99, detail_epochs_p50;
+  uint64_t teleports, settled;
+  double seconds;
+  char error[200];
+} stress_ref_t;
+
+/*! stress_ramp_report() : the ramp's table on stdout and (o->json) its JSON; (o->plot) its PNGs.
+ *  largest[b]: the largest N sustained at o->budgets_mib[b]. @return 1 when no check failed in any
+ *  phase, 0 otherwise, -1 when the JSON or a plot could not be written. */
 int stress_ramp_report(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
-                       int largest, const stress_summary_t *s);
+                       const int *largest, const stress_ref_t *refs, int nrefs, const stress_summary_t *s);
 
 #endif /* OC_TOOLS_STRESS_H */

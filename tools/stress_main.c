@@ -7,6 +7,7 @@
 #include <arpa/inet.h> /* inet_pton */
 #include <cjson/cJSON.h>
 #include <getopt.h>
+#include <inttypes.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -63,6 +64,8 @@ static void usage(FILE *f) {
           "  --full-sessions       keep every brick's codes as overcast-view does (default: lean sessions\n"
           "                        that verify each state by its digest checksum and keep 12 bytes a\n"
           "                        brick, so N x budget may exceed this machine's memory)\n"
+          "  --share-paths         every viewer flies its path with the same seed: viewers on one path\n"
+          "                        share a region (default: each viewer its own seed, disjoint paths)\n"
           "  --seed N              camera paths' seed (default 1)\n"
           "  --tick-hz F           camera updates per second, with a period (default 10)\n"
           "  --step-seconds S      stepped: path seconds per epoch (default 1)\n"
@@ -74,11 +77,24 @@ static void usage(FILE *f) {
           "  --duration S          run this long (stepped: keep stepping until then)\n"
           "  --timeout S           for connecting, each step, and each wait (default 120)\n"
           "  --json FILE           write everything measured\n"
+          "  --verify-content F    re-produce a random fraction F (0..1; e.g. 0.01) of the bricks each viewer\n"
+          "                        receives, in this process with a world of the server's scene, at the\n"
+          "                        stamps s, s-1, s-2 of the state's world time, and count its content age;\n"
+          "                        a brick matching none of them is a MISMATCH (a failure). Off-thread, at\n"
+          "                        the lowest priority; what is left is verified after the run (default 0)\n"
           "Modes:\n"
-          "  --ramp                N = --ramp-from, ×2, .. --ramp-max viewers, one phase each on the same\n"
-          "                        spawned server (needs a period); stops at the first phase not sustained\n"
-          "                        (a viewer's median interval > %.1f × the period, or > %.0f %% of epochs\n"
-          "                        skipped) and reports the largest N sustained\n"
+          "  --ramp                for each --budget: N = --ramp-from, ×2, .. --ramp-max viewers, all at\n"
+          "                        that budget, one phase each on the same spawned server (needs a period);\n"
+          "                        stops at the first phase not sustained and reports the largest N\n"
+          "                        sustained per budget. Sustained: every viewer has lateness p99 <= %.0f ms,\n"
+          "                        <= %.0f %% of its ticks coalesced, verified content age p99 <= %d steps\n"
+          "                        (with --verify-content), time to full detail after a teleport <= %.2f x a\n"
+          "                        stepped server's on the same path and budget (measured first, side by\n"
+          "                        side), and a median interval <= %.1f x the period\n"
+          "  --plot PREFIX         with --ramp: PREFIX-age.png (content age p99 against N) and\n"
+          "                        PREFIX-detail.png (time to full detail against N, stepped beside it)\n"
+          "  --no-reference        with --ramp: no stepped reference (time to detail is not judged)\n"
+          "  --reference-teleports K  teleports the stepped reference measures (default 3)\n"
           "  --ramp-from N         the first phase's viewers (default 1)\n"
           "  --ramp-max N          the last phase's at most (default %d)\n"
           "  --ramp-seconds S      each phase's measured time, after its warm-up (default 10)\n"
@@ -109,7 +125,8 @@ static void usage(FILE *f) {
           "\n"
           "exit status: 0 every check passed; 1 a check failed (budget, checksum, protocol, a viewer\n"
           "lost its connection or got no state, a fault check) or a runtime error; 2 usage error\n",
-          STRESS_MAX_VIEWERS, STRESS_RAMP_INTERVAL, 100.0 * STRESS_RAMP_SKIPPED, STRESS_MAX_VIEWERS, STRESS_FAULT_SLACK_MIB);
+          STRESS_MAX_VIEWERS, 1e3 * STRESS_LATE_P99, 100.0 * STRESS_COALESCED_MAX, STRESS_AGE_ALLOWED, STRESS_DETAIL_FACTOR,
+          STRESS_RAMP_INTERVAL, STRESS_MAX_VIEWERS, STRESS_FAULT_SLACK_MIB);
 }
 
 /* "a,b,c" → integers in [lo, hi]. @return count, or -1 after a message naming the option. */
@@ -491,12 +508,79 @@ static int viewer_depth(const stress_opts_t *o, int i) {
   return (int)(o->sweep ? o->sweep_depths[i % o->nsweep_depths] : o->depths[i % o->ndepths]);
 }
 
+/* The command line of a spawned server (period < 0: the scene's). */
+typedef struct {
+  char period[32], threads[32], total[32], maxv[32], maxb[32], peraddr[32];
+  char *argv[32 + 32 + 1]; /* ours, then up to 32 --server-arg, then NULL */
+  int listen;              /* argv[listen] is the listen address (a restart rewrites it) */
+} server_argv_t;
+
+static void server_argv(const stress_opts_t *o, const char *exe, double period, server_argv_t *sa) {
+  long total_mib = 0, max_mib = o->faults ? (long)o->fault_budget_mib : 1;
+  for (int i = 0; i < o->viewers; i++) {
+    long mib = (long)((viewer_budget(o, i) + (1u << 20) - 1) >> 20);
+    total_mib += mib;
+    if (mib > max_mib) max_mib = mib;
+  }
+  if (o->ramp) total_mib = max_mib * (long)o->viewers; /* each budget's ramp has all its viewers at it */
+  char **argv = sa->argv;
+  int n = 0;
+  argv[n++] = (char *)exe;
+  argv[n++] = "--listen";
+  sa->listen = n;
+  argv[n++] = "127.0.0.1:0";
+  if (o->scene) {
+    argv[n++] = "--scene";
+    argv[n++] = (char *)o->scene;
+  }
+  if (period >= 0) {
+    snprintf(sa->period, sizeof sa->period, "%.17g", period);
+    argv[n++] = "--epoch-period";
+    argv[n++] = sa->period;
+  }
+  if (o->server_threads) {
+    snprintf(sa->threads, sizeof sa->threads, "%ld", o->server_threads);
+    argv[n++] = "--threads";
+    argv[n++] = sa->threads;
+  }
+  if (o->token) {
+    argv[n++] = "--token";
+    argv[n++] = (char *)o->token;
+  }
+  /* room for every viewer and its whole budget: the server's defaults are 64 viewers, 4 GiB */
+  if (total_mib > (1L << 24)) total_mib = 1L << 24; /* the server's largest --total-budget */
+  snprintf(sa->total, sizeof sa->total, "%ld", total_mib > 4096 ? total_mib : 4096);
+  snprintf(sa->maxv, sizeof sa->maxv, "%d", o->viewers > 64 ? o->viewers : 64);
+  argv[n++] = "--total-budget";
+  argv[n++] = sa->total;
+  argv[n++] = "--max-viewers";
+  argv[n++] = sa->maxv;
+  /* the server grants one viewer at most a fair share of the total by default: ask for the
+   * largest budget we request (the misbehaving viewers' included), so every budget is granted */
+  snprintf(sa->maxb, sizeof sa->maxb, "%ld", max_mib);
+  argv[n++] = "--max-budget";
+  argv[n++] = sa->maxb;
+  /* the per-address limits must let all of ours through from one address (two with
+   * --source-address): the viewers, the control connection (and a restart's), the fault
+   * connections (up to STRESS_FAULT_MAX_CONNS at once), and the connect bursts of the ramp's
+   * phases and of a restart, which the handshake rate (a bucket of --max-per-address) allows */
+  long per_addr = (long)o->viewers + 64 + (o->faults ? STRESS_FAULT_MAX_CONNS : 0);
+  snprintf(sa->peraddr, sizeof sa->peraddr, "%ld", per_addr);
+  argv[n++] = "--max-per-address";
+  argv[n++] = sa->peraddr;
+  argv[n++] = "--handshake-rate";
+  argv[n++] = "1000";
+  if (!o->verbose) argv[n++] = "-q";
+  for (int i = 0; i < o->nserver_args; i++) argv[n++] = o->server_args[i];
+  argv[n] = NULL;
+}
+
 /* Starts run->nv viewer threads (run->v zeroed) and waits until each has its WELCOME or gave up. */
 static void start_viewers(stress_run_t *run, ocv_conn_t *ctl) {
   const stress_opts_t *o = run->o;
   for (int i = 0; i < run->nv; i++) {
     stress_viewer_t *v = &run->v[i];
-    v->index = i;
+    v->index = run->index0 + i;
     v->run = run;
     v->path = (stress_path_kind_t)o->paths[i % o->npaths];
     v->budget = viewer_budget(o, i);
@@ -537,13 +621,112 @@ static void idle_until(stress_run_t *run, ocv_conn_t *ctl, double until) {
   pthread_mutex_unlock(&run->mu);
 }
 
-/* One ramp phase of n viewers on the running server: warm-up, measured window, stop, figures. */
-static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double period, int n, stress_ramp_phase_t *ph) {
+/* The stepped reference for --ramp: time to full detail on the teleport path at one budget, on a
+ * server of its own stepped as fast as it makes epochs (period 0), one viewer flying the path of
+ * viewer `index` (its seed) with P path seconds per epoch, for o->ref_teleports teleports after the
+ * first (the first builds a tree from nothing, which no measured teleport of the ramp does). */
+static void stepped_reference(const stress_opts_t *o, const char *exe, long budget_mib, int index, double period, stress_ref_t *out) {
+  memset(out, 0, sizeof *out);
+  out->budget_mib = budget_mib;
+  out->index = index;
+  out->detail_p50 = out->detail_p99 = out->detail_epochs_p50 = NAN;
+  static stress_opts_t ro;
+  ro = *o;
+  ro.ramp = 0;
+  ro.viewers = 1;
+  ro.npaths = 1;
+  ro.paths[0] = STRESS_TELEPORT;
+  ro.nbudgets = 1;
+  ro.budgets_mib[0] = budget_mib;
+  ro.epoch_period = 0;
+  ro.step_seconds = period;
+  ro.verify_content = 0;
+  ro.duration = 0;
+  ro.epochs = (long)ceil((double)(o->ref_teleports + 1) * o->teleport_every / period) + 1;
+  server_argv_t sa;
+  server_argv(&ro, exe, 0, &sa);
+  stress_child_t child = {.pid = -1, .out_fd = -1};
+  char why[1024];
+  double t0 = stress_now();
+  if (stress_server_spawn(sa.argv, o->timeout, &child, why, sizeof why) < 0) {
+    snprintf(out->error, sizeof out->error, "stepped reference: %.150s", why);
+    return;
+  }
+  stress_run_t run;
+  memset(&run, 0, sizeof run);
+  pthread_mutex_init(&run.mu, NULL);
+  pthread_cond_init(&run.cv, NULL);
+  run.o = &ro;
+  snprintf(run.host, sizeof run.host, "%s", child.host);
+  run.port = child.port;
+  run.index0 = index;
+  ocv_conn_t *ctl = NULL;
+  cJSON *reply = NULL;
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL, .token = o->token};
+  run.step_at = calloc((size_t)ro.epochs + 2, sizeof *run.step_at);
+  run.v = calloc(1, sizeof *run.v);
+  if (!run.step_at || !run.v) {
+    snprintf(out->error, sizeof out->error, "stepped reference: out of memory");
+  } else if (ocv_conn_open(&ctl, run.host, run.port, &cd, NULL, o->timeout, why, sizeof why) < 0 ||
+             control(ctl, "{\"op\":\"stats\"}", o->timeout, &reply, why, sizeof why) < 0) {
+    snprintf(out->error, sizeof out->error, "stepped reference: %.150s", why);
+  } else {
+    double e0 = world_num(reply, "epoch");
+    run.epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
+    run.nv = 1;
+    start_viewers(&run, ctl);
+    run.t0 = stress_now();
+    fault_ctx_t fx = {.child = &child};
+    stress_summary_t sum;
+    memset(&sum, 0, sizeof sum);
+    run_stepped(&run, &ctl, &fx, &sum);
+    stop_viewers(&run);
+    stress_viewer_t *v = &run.v[0];
+    size_t from = v->detail_first ? 1 : 0; /* the first teleport built from nothing */
+    if (v->detail.n > from) {
+      out->detail_p50 = stress_quantile(v->detail.v + from, v->detail.n - from, 0.5);
+      out->detail_p99 = stress_quantile(v->detail.v + from, v->detail.n - from, 0.99);
+    }
+    if (v->detail_epochs.n > from)
+      out->detail_epochs_p50 = stress_quantile(v->detail_epochs.v + from, v->detail_epochs.n - from, 0.5);
+    out->teleports = v->teleports > 0 ? v->teleports - 1 : 0;
+    out->settled = v->detail.n - from;
+    if (v->failed) snprintf(out->error, sizeof out->error, "stepped reference: %.150s", v->error);
+    else if (sum.error[0]) snprintf(out->error, sizeof out->error, "stepped reference: %.150s", sum.error);
+    stress_viewer_free(v);
+  }
+  cJSON_Delete(reply);
+  ocv_conn_close(ctl);
+  stress_server_stop(&child, 10);
+  free(run.v);
+  free(run.step_at);
+  pthread_cond_destroy(&run.cv);
+  pthread_mutex_destroy(&run.mu);
+  out->seconds = stress_now() - t0;
+}
+
+/* The largest of the viewers' value of f (NAN ignored), or NAN. */
+static double worst_of(const double *x, int n) {
+  double w = NAN;
+  for (int i = 0; i < n; i++)
+    if (isfinite(x[i]) && !(x[i] <= w)) w = x[i];
+  return w;
+}
+
+/* One ramp phase of n viewers, all at run->o's one budget, on the running server: warm-up,
+ * measured window, stop, the verifier drained, figures, and the sustained rule (stress.h). */
+static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double period, int n, const stress_ref_t *ref,
+                       stress_ramp_phase_t *ph) {
   const stress_opts_t *o = run->o;
   memset(ph, 0, sizeof *ph);
   ph->n = n;
+  ph->budget_mib = o->budgets_mib[0];
   ph->itv_p50 = ph->itv_p99 = ph->worst_median = ph->cpu_pct = ph->rss_mib = ph->hwm_mib = NAN;
   ph->mbps_p50 = ph->mbps_p99 = NAN;
+  ph->late_p50 = ph->late_p99 = ph->late_max = ph->late_worst_p99 = ph->coalesced_frac = ph->coalesced_worst = NAN;
+  ph->detail_p50 = ph->detail_p99 = ph->detail_worst_ratio = NAN;
+  ph->detail_ref = ref ? ref->detail_p50 : NAN;
+  ph->age_p99 = ph->age_worst_p99 = -1;
   run->v = calloc((size_t)n, sizeof *run->v);
   if (!run->v) {
     snprintf(ph->why, sizeof ph->why, "out of memory");
@@ -569,16 +752,30 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   stress_proc_sample(pid, &p1);
   ph->seconds = stress_now() - m0;
   stop_viewers(run);
+  ph->verify_left = stress_verify_drain(run->verify, o->timeout);
   if (p0.ok && p1.ok && ph->seconds > 0) {
     ph->cpu_pct = 100.0 * (p1.cpu_s - p0.cpu_s) / ph->seconds;
     ph->rss_mib = p1.rss_mib;
     ph->hwm_mib = p1.hwm_mib;
   }
-  size_t total = 0;
-  for (int i = 0; i < n; i++) total += run->v[i].m_interval.n;
+  size_t total = 0, total_late = 0, total_det = 0;
+  for (int i = 0; i < n; i++) {
+    total += run->v[i].m_interval.n;
+    total_late += run->v[i].m_ticks.lateness.n;
+    total_det += run->v[i].m_detail.n;
+  }
   double *all = malloc((total + 1) * sizeof *all), *rates = malloc(((size_t)n + 1) * sizeof *rates);
-  size_t k = 0, nr = 0;
-  int short_viewer = -1;
+  double *late = malloc((total_late + 1) * sizeof *late), *det = malloc((total_det + 1) * sizeof *det);
+  double *w_late = malloc(((size_t)n + 1) * sizeof *w_late), *w_coal = malloc(((size_t)n + 1) * sizeof *w_coal);
+  double *w_ratio = malloc(((size_t)n + 1) * sizeof *w_ratio);
+  if (!all || !rates || !late || !det || !w_late || !w_coal || !w_ratio) {
+    snprintf(ph->why, sizeof ph->why, "out of memory");
+    ph->failed = 1;
+    n = 0;
+  }
+  size_t k = 0, kl = 0, kd = 0, nr = 0;
+  int short_viewer = -1, why_viewer = -1;
+  char vwhy[200] = "";
   for (int i = 0; i < n; i++) {
     stress_viewer_t *v = &run->v[i];
     ph->states += v->m_states;
@@ -588,43 +785,105 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
     ph->protocol += v->protocol_errors;
     ph->mismatch += v->resident_mismatch;
     ph->failed += v->failed != 0;
+    ph->due += stress_ticks_due(&v->m_ticks);
+    ph->coalesced += v->m_ticks.coalesced;
+    ph->coalesced_server += v->last_stats.coalesced;
+    ph->teleports += v->m_teleports;
+    ph->unreached += v->m_unreached;
+    stress_age_merge(&ph->age, &v->m_age);
     if (v->failed && !ph->why[0]) snprintf(ph->why, sizeof ph->why, "%.150s", v->error);
     double med = stress_quantile(v->m_interval.v, v->m_interval.n, 0.5);
     if (!isfinite(med)) {
-      if (short_viewer < 0) short_viewer = i;
+      if (short_viewer < 0) short_viewer = v->index;
     } else if (!(med <= ph->worst_median)) {
       ph->worst_median = med;
     }
-    if (all && v->m_interval.n) memcpy(all + k, v->m_interval.v, v->m_interval.n * sizeof *all);
+    if (v->m_interval.n) memcpy(all + k, v->m_interval.v, v->m_interval.n * sizeof *all);
     k += v->m_interval.n;
+    if (v->m_ticks.lateness.n) memcpy(late + kl, v->m_ticks.lateness.v, v->m_ticks.lateness.n * sizeof *late);
+    kl += v->m_ticks.lateness.n;
+    if (v->m_detail.n) memcpy(det + kd, v->m_detail.v, v->m_detail.n * sizeof *det);
+    kd += v->m_detail.n;
     double span = v->t_end - v->m_t0;
-    if (rates && v->m_states && span > 0) rates[nr++] = (double)(v->session.bytes_in - v->m_bytes0) / span / 1e6;
+    if (v->m_states && span > 0) rates[nr++] = (double)(v->session.bytes_in - v->m_bytes0) / span / 1e6;
+    /* the viewer's own figures, against the rule */
+    w_late[i] = stress_quantile(v->m_ticks.lateness.v, v->m_ticks.lateness.n, 0.99);
+    w_coal[i] = stress_ticks_coalesced_frac(&v->m_ticks);
+    int age99 = stress_age_quantile(&v->m_age, -1, 0.99);
+    if (age99 > ph->age_worst_p99) ph->age_worst_p99 = age99;
+    double d50 = stress_quantile(v->m_detail.v, v->m_detail.n, 0.5);
+    w_ratio[i] = isfinite(d50) && ref && ref->detail_p50 > 0 ? d50 / ref->detail_p50 : NAN;
+    double limit = ref && ref->detail_p50 > 0 ? STRESS_DETAIL_FACTOR * ref->detail_p50 : NAN;
+    if (why_viewer >= 0) continue;
+    why_viewer = v->index;
+    if (w_late[i] > STRESS_LATE_P99)
+      snprintf(vwhy, sizeof vwhy, "viewer %d: lateness p99 %.0f ms > %.0f ms", v->index, 1e3 * w_late[i], 1e3 * STRESS_LATE_P99);
+    else if (w_coal[i] > STRESS_COALESCED_MAX)
+      snprintf(vwhy, sizeof vwhy, "viewer %d: %.1f %% of ticks coalesced > %.0f %%", v->index, 100.0 * w_coal[i],
+               100.0 * STRESS_COALESCED_MAX);
+    else if (age99 > STRESS_AGE_ALLOWED && age99 > STRESS_AGE_MAX)
+      snprintf(vwhy, sizeof vwhy, "viewer %d: verified content age p99 beyond every stamp tried (> %d steps)", v->index,
+               STRESS_AGE_MAX);
+    else if (age99 > STRESS_AGE_ALLOWED)
+      snprintf(vwhy, sizeof vwhy, "viewer %d: verified content age p99 %d > %d steps", v->index, age99, STRESS_AGE_ALLOWED);
+    else if (isfinite(w_ratio[i]) && w_ratio[i] > STRESS_DETAIL_FACTOR)
+      snprintf(vwhy, sizeof vwhy, "viewer %d: time to full detail %.2f s > %.2f x stepped %.2f s", v->index, d50,
+               STRESS_DETAIL_FACTOR, ref->detail_p50);
+    else if (isfinite(limit) && (v->m_unreached || v->m_open_s > limit))
+      snprintf(vwhy, sizeof vwhy, "viewer %d: a teleport did not reach full detail within %.2f x stepped %.2f s", v->index,
+               STRESS_DETAIL_FACTOR, ref->detail_p50);
+    else if (isfinite(med) && med > STRESS_RAMP_INTERVAL * period)
+      snprintf(vwhy, sizeof vwhy, "viewer %d: median interval %.2f s > %.1f x %g s", v->index, med, STRESS_RAMP_INTERVAL, period);
+    else
+      why_viewer = -1;
   }
-  if (all && total) {
-    ph->itv_p50 = stress_quantile(all, total, 0.5);
-    ph->itv_p99 = stress_quantile(all, total, 0.99);
+  if (k) {
+    ph->itv_p50 = stress_quantile(all, k, 0.5);
+    ph->itv_p99 = stress_quantile(all, k, 0.99);
   }
-  if (rates && nr) {
+  if (nr) {
     ph->mbps_p50 = stress_quantile(rates, nr, 0.5);
     ph->mbps_p99 = stress_quantile(rates, nr, 0.99);
   }
+  if (kl) {
+    ph->late_p50 = stress_quantile(late, kl, 0.5);
+    ph->late_p99 = stress_quantile(late, kl, 0.99);
+    ph->late_max = late[kl - 1];
+  }
+  if (kd) {
+    ph->detail_p50 = stress_quantile(det, kd, 0.5);
+    ph->detail_p99 = stress_quantile(det, kd, 0.99);
+  }
+  ph->detail_n = kd;
+  if (n) {
+    ph->late_worst_p99 = worst_of(w_late, n);
+    ph->coalesced_worst = worst_of(w_coal, n);
+    ph->detail_worst_ratio = worst_of(w_ratio, n);
+  }
+  ph->coalesced_frac = ph->due ? (double)ph->coalesced / (double)ph->due : NAN;
+  ph->age_p99 = stress_age_quantile(&ph->age, -1, 0.99);
+  ph->age_mismatch = stress_age_mismatches(&ph->age, -1);
   free(all);
   free(rates);
+  free(late);
+  free(det);
+  free(w_late);
+  free(w_coal);
+  free(w_ratio);
   ph->skipped_frac = ph->states + ph->skipped ? (double)ph->skipped / (double)(ph->states + ph->skipped) : NAN;
-  if (ph->failed || ph->violations || ph->checksum || ph->protocol || ph->mismatch) {
+  if (ph->failed || ph->violations || ph->checksum || ph->protocol || ph->mismatch || ph->age_mismatch) {
+    if (!ph->why[0] && ph->age_mismatch)
+      snprintf(ph->why, sizeof ph->why, "CONTENT MISMATCH: %" PRIu64 " verified bricks matched none of s, s-1, s-2",
+               ph->age_mismatch);
     if (!ph->why[0]) snprintf(ph->why, sizeof ph->why, "a check failed");
   } else if (short_viewer >= 0) {
     snprintf(ph->why, sizeof ph->why, "viewer %d: fewer than 2 states in the measured window", short_viewer);
-  } else if (ph->worst_median > STRESS_RAMP_INTERVAL * period) {
-    snprintf(ph->why, sizeof ph->why, "a viewer's median interval %.2f s > %.1f × %g s", ph->worst_median,
-             STRESS_RAMP_INTERVAL, period);
-  } else if (ph->skipped_frac > STRESS_RAMP_SKIPPED) {
-    snprintf(ph->why, sizeof ph->why, "%.1f %% of epochs skipped > %.0f %%", 100.0 * ph->skipped_frac,
-             100.0 * STRESS_RAMP_SKIPPED);
+  } else if (why_viewer >= 0) {
+    snprintf(ph->why, sizeof ph->why, "%s", vwhy);
   } else {
     ph->sustained = 1;
   }
-  for (int i = 0; i < n; i++) stress_viewer_free(&run->v[i]);
+  for (int i = 0; i < run->nv; i++) stress_viewer_free(&run->v[i]);
   free(run->v);
   run->v = NULL;
   run->nv = 0;
@@ -634,7 +893,8 @@ int main(int argc, char **argv) {
   enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
-         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE };
+         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE, O_VERIFY, O_SHARE,
+         O_PLOT, O_NO_REF, O_REF_TELE };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -656,6 +916,9 @@ int main(int argc, char **argv) {
       {"fault-budget", required_argument, 0, O_FAULT_BUDGET}, {"restart-at", required_argument, 0, O_RESTART_AT},
       {"fault-rss-slack", required_argument, 0, O_FAULT_SLACK}, {"server-arg", required_argument, 0, O_SERVER_ARG},
       {"full-sessions", no_argument, 0, O_FULL},    {"source-address", required_argument, 0, O_SOURCE},
+      {"verify-content", required_argument, 0, O_VERIFY}, {"share-paths", no_argument, 0, O_SHARE},
+      {"plot", required_argument, 0, O_PLOT},       {"no-reference", no_argument, 0, O_NO_REF},
+      {"reference-teleports", required_argument, 0, O_REF_TELE},
       {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
@@ -676,6 +939,9 @@ int main(int argc, char **argv) {
   o.fault_every = 1;
   o.fault_budget_mib = 16;
   o.fault_rss_slack = STRESS_FAULT_SLACK_MIB;
+  o.reference = 1;
+  o.ref_teleports = 3;
+  int ref_given = 0;
   int spawn_given = 0, connect_given = 0, spawn_only = 0;
   const char *spawn_only_name = NULL;
   long l;
@@ -761,6 +1027,17 @@ int main(int argc, char **argv) {
         spawn_only_name = "--server-arg";
         break;
       case O_FULL: o.full_sessions = 1; break;
+      case O_VERIFY: if (oc_cli_double(prog, "--verify-content", optarg, 0, 1, &o.verify_content)) return OC_EXIT_USAGE; break;
+      case O_SHARE: o.share_paths = 1; break;
+      case O_PLOT:
+        if (!*optarg) return oc_cli_fail(prog, OC_EXIT_USAGE, "--plot: expected a file prefix, e.g. docs/images/stress_ramp");
+        o.plot = optarg;
+        break;
+      case O_NO_REF: o.reference = 0; ref_given = 1; break;
+      case O_REF_TELE:
+        if (oc_cli_int(prog, "--reference-teleports", optarg, 1, 100, &o.ref_teleports)) return OC_EXIT_USAGE;
+        ref_given = 1;
+        break;
       case O_SOURCE: {
         struct in6_addr ip;
         if (strlen(optarg) >= OCV_HOST_MAX || (inet_pton(AF_INET, optarg, &ip) != 1 && inet_pton(AF_INET6, optarg, &ip) != 1))
@@ -788,6 +1065,11 @@ int main(int argc, char **argv) {
   if (o.ramp && o.sweep) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp and --sweep-budgets exclude each other");
   if (o.ramp && !o.spawn) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp goes with --spawn, not --connect");
   if (o.ramp && o.epoch_period == 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp needs a period (--epoch-period > 0)");
+  if (!o.ramp && (o.plot || ref_given))
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--plot, --no-reference and --reference-teleports go with --ramp");
+  if (o.verify_content > 0 && !o.spawn)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--verify-content needs --spawn: the tool re-produces bricks of the scene it gave the server");
+  if (o.ramp && o.nbudgets > 64) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp: at most 64 budgets");
   if (o.ramp && o.ramp_from > o.ramp_max)
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp-from %ld is above --ramp-max %ld", o.ramp_from, o.ramp_max);
   if (o.sweep) {
@@ -838,11 +1120,12 @@ int main(int argc, char **argv) {
   sum.spawned = o.spawn;
   char why[1024];
   static stress_child_t child = {.pid = -1, .out_fd = -1};
+  static char exe[4096]; /* kept: a restart (and the ramp's stepped reference) runs the same server */
   static fault_ctx_t fx;
 
   /* The server. */
   if (o.spawn) {
-    static char exe[4096], dir[4000]; /* kept: a restart runs the same command */
+    static char dir[4000];
     if (o.server_path) {
       snprintf(exe, sizeof exe, "%s", o.server_path);
     } else {
@@ -851,64 +1134,10 @@ int main(int argc, char **argv) {
     }
     if (access(exe, X_OK) != 0)
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", exe);
-    long total_mib = 0;
-    for (int i = 0; i < o.viewers; i++) total_mib += (long)((viewer_budget(&o, i) + (1u << 20) - 1) >> 20);
-    static char a_period[32], a_threads[32], a_total[32], a_maxv[32], a_maxb[32], a_peraddr[32];
-    static char *sargv[32 + 32 + 1]; /* ours, then up to 32 --server-arg, then NULL */
-    int n = 0;
-    sargv[n++] = exe;
-    sargv[n++] = "--listen";
-    fx.listen = n;
-    sargv[n++] = "127.0.0.1:0";
-    if (o.scene) {
-      sargv[n++] = "--scene";
-      sargv[n++] = (char *)o.scene;
-    }
-    if (o.epoch_period >= 0) {
-      snprintf(a_period, sizeof a_period, "%.17g", o.epoch_period);
-      sargv[n++] = "--epoch-period";
-      sargv[n++] = a_period;
-    }
-    if (o.server_threads) {
-      snprintf(a_threads, sizeof a_threads, "%ld", o.server_threads);
-      sargv[n++] = "--threads";
-      sargv[n++] = a_threads;
-    }
-    if (o.token) {
-      sargv[n++] = "--token";
-      sargv[n++] = (char *)o.token;
-    }
-    /* room for every viewer and its whole budget: the server's defaults are 64 viewers, 4 GiB */
-    if (total_mib > (1L << 24)) total_mib = 1L << 24; /* the server's largest --total-budget */
-    snprintf(a_total, sizeof a_total, "%ld", total_mib > 4096 ? total_mib : 4096);
-    snprintf(a_maxv, sizeof a_maxv, "%d", o.viewers > 64 ? o.viewers : 64);
-    sargv[n++] = "--total-budget";
-    sargv[n++] = a_total;
-    sargv[n++] = "--max-viewers";
-    sargv[n++] = a_maxv;
-    /* the server grants one viewer at most a fair share of the total by default: ask for the
-     * largest budget we request (the misbehaving viewers' included), so every budget is granted */
-    long max_mib = o.faults ? (long)o.fault_budget_mib : 1;
-    for (int i = 0; i < o.viewers; i++) {
-      long mib = (long)((viewer_budget(&o, i) + (1u << 20) - 1) >> 20);
-      if (mib > max_mib) max_mib = mib;
-    }
-    snprintf(a_maxb, sizeof a_maxb, "%ld", max_mib);
-    sargv[n++] = "--max-budget";
-    sargv[n++] = a_maxb;
-    /* the per-address limits must let all of ours through from one address (two with
-     * --source-address): the viewers, the control connection (and a restart's), the fault
-     * connections (up to STRESS_FAULT_MAX_CONNS at once), and the connect bursts of the ramp's
-     * phases and of a restart, which the handshake rate (a bucket of --max-per-address) allows */
-    long per_addr = (long)o.viewers + 64 + (o.faults ? STRESS_FAULT_MAX_CONNS : 0);
-    snprintf(a_peraddr, sizeof a_peraddr, "%ld", per_addr);
-    sargv[n++] = "--max-per-address";
-    sargv[n++] = a_peraddr;
-    sargv[n++] = "--handshake-rate";
-    sargv[n++] = "1000";
-    if (!o.verbose) sargv[n++] = "-q";
-    for (int i = 0; i < o.nserver_args; i++) sargv[n++] = o.server_args[i];
-    sargv[n] = NULL;
+    static server_argv_t sa; /* kept: a restart runs the same command */
+    server_argv(&o, exe, o.epoch_period, &sa);
+    char **sargv = sa.argv;
+    fx.listen = sa.listen;
     if (stress_server_spawn(sargv, o.timeout, &child, why, sizeof why) < 0)
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
     snprintf(o.host, sizeof o.host, "%s", child.host);
@@ -942,7 +1171,22 @@ int main(int argc, char **argv) {
   cJSON_Delete(reply);
   reply = NULL;
   run.epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
+  run.world_dt = period; /* a world second per second, until two states say otherwise */
   sum.stepped = period == 0;
+  if (o.verify_content > 0) { /* the verifier's world: the scene the server runs */
+    oc_scene_t *sc = calloc(1, sizeof *sc);
+    int r = sc ? 0 : OC_ENOMEM;
+    if (sc && o.scene) r = oc_scene_load(sc, o.scene, why, sizeof why);
+    else if (sc) oc_scene_default(sc);
+    if (r == 0) r = stress_verify_start(&run.verify, sc, 65536, why, sizeof why);
+    else if (r == OC_ENOMEM) snprintf(why, sizeof why, "out of memory");
+    if (sc) oc_scene_free(sc);
+    free(sc);
+    if (r < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      goto out;
+    }
+  }
   sum.epoch_period = period;
   size_t nsteps = (size_t)(o.epochs && !(o.duration > 0) ? o.epochs : STRESS_MAX_STEPS) + 2;
   run.step_at = calloc(nsteps, sizeof *run.step_at);
@@ -959,20 +1203,45 @@ int main(int argc, char **argv) {
     }
     free(run.v); /* each phase has its own */
     run.v = NULL;
-    stress_ramp_phase_t *ph = calloc(64, sizeof *ph);
-    int nph = 0, largest = 0;
+    int maxph = 64 * o.nbudgets;
+    stress_ramp_phase_t *ph = calloc((size_t)maxph, sizeof *ph);
+    stress_ref_t refs[64];
+    int nph = 0, nrefs = 0, largest[64] = {0};
     if (!ph) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
       goto out;
     }
-    for (long n = o.ramp_from; n <= o.ramp_max && nph < 64 && !g_interrupted; n *= 2) {
-      ramp_phase(&run, ctl, pid, period, (int)n, &ph[nph]);
-      const stress_ramp_phase_t *p = &ph[nph++];
-      fprintf(stderr, "overcast-stress: ramp: %d viewer%s: %s%s\n", p->n, p->n == 1 ? "" : "s",
-              p->sustained ? "sustained" : "not sustained: ", p->sustained ? "" : p->why);
-      if (!p->sustained) break;
-      largest = p->n;
+    /* the viewer whose path the stepped reference flies: the first on the teleport path */
+    int tele = -1;
+    for (int i = 0; i < o.npaths && tele < 0; i++)
+      if (o.paths[i] == STRESS_TELEPORT) tele = i;
+    static stress_opts_t ob; /* one budget's ramp: every viewer at it */
+    for (int b = 0; b < o.nbudgets && !g_interrupted; b++) {
+      ob = o;
+      ob.nbudgets = 1;
+      ob.budgets_mib[0] = o.budgets_mib[b];
+      run.o = &ob;
+      const stress_ref_t *ref = NULL;
+      if (o.reference && tele >= 0) {
+        fprintf(stderr, "overcast-stress: ramp: %ld MiB: time to full detail on a stepped server (reference)\n", o.budgets_mib[b]);
+        stepped_reference(&ob, exe, o.budgets_mib[b], o.share_paths ? 0 : tele, period, &refs[nrefs]);
+        ref = &refs[nrefs++];
+        if (ref->error[0]) fprintf(stderr, "overcast-stress: ramp: %s\n", ref->error);
+        else
+          fprintf(stderr, "overcast-stress: ramp: %ld MiB: stepped: full detail p50 %.2f s (%" PRIu64 " of %" PRIu64 " teleports)\n",
+                  o.budgets_mib[b], ref->detail_p50, ref->settled, ref->teleports);
+        if (!(ref->detail_p50 > 0)) ref = NULL;
+      }
+      for (long n = o.ramp_from; n <= o.ramp_max && nph < maxph && !g_interrupted; n *= 2) {
+        ramp_phase(&run, ctl, pid, period, (int)n, ref, &ph[nph]);
+        const stress_ramp_phase_t *p = &ph[nph++];
+        fprintf(stderr, "overcast-stress: ramp: %ld MiB, %d viewer%s: %s%s\n", p->budget_mib, p->n, p->n == 1 ? "" : "s",
+                p->sustained ? "sustained" : "not sustained: ", p->sustained ? "" : p->why);
+        if (!p->sustained) break;
+        largest[b] = p->n;
+      }
     }
+    run.o = &o;
     if (g_interrupted) snprintf(sum.error, sizeof sum.error, "interrupted");
     sum.wall_s = stress_now() - wall0;
     ocv_conn_close(ctl);
@@ -982,7 +1251,8 @@ int main(int argc, char **argv) {
     if (sum.server_exit != 0 && !sum.error[0])
       snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
     stress_proc_sample((long)getpid(), &sum.tool);
-    int pass = stress_ramp_report(&o, o.scene ? o.scene : "planet (built in)", period, ph, nph, largest, &sum);
+    int pass = stress_ramp_report(&o, o.scene ? o.scene : "planet (built in)", period, ph, nph, largest, refs, nrefs, &sum);
+    stress_verify_stop(run.verify);
     free(ph);
     free(run.step_at);
     pthread_cond_destroy(&run.cv);
@@ -1022,6 +1292,8 @@ int main(int argc, char **argv) {
    * read, then its statistics (a request waits for a step in progress, which must not count). */
   sum.wall_s = stress_now() - run.t0;
   stop_viewers(&run);
+  sum.verify_left = stress_verify_drain(run.verify, o.timeout);
+  if (run.verify) stress_verify_work(run.verify, &sum.verify_s, &sum.verify_reproduced);
   if (o.faults) { /* the last garbage must still be answered; then the memory once more */
     stress_faults_stop(&run, &sum.fault_conns);
     if (ctl) fault_sample(&run, ctl, &fx, &sum);
@@ -1069,6 +1341,7 @@ out:
     int pass = stress_report(&o, &run, &sum);
     rc = pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
   }
+  stress_verify_stop(run.verify); /* after the report: the viewers' ages are counted by it */
   for (int i = 0; run.v && i < run.nv; i++) stress_viewer_free(&run.v[i]);
   free(run.v);
   free(run.step_at);

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "plot.h"
 #include "stress.h"
 
 #define SR_MIB (1024.0 * 1024.0)
@@ -75,6 +76,10 @@ static sr_q_t sr_pool(const stress_run_t *run, int which, int only) {
   free(a);
   return q;
 }
+
+static const char *sr_age(char *buf, size_t cap, int age);
+static cJSON *sr_age_json(const stress_age_t *a);
+static void sr_age_levels(const stress_age_t *a);
 
 static double sr_rate(const stress_viewer_t *v) {
   double t = v->t_end - v->t_welcome;
@@ -258,7 +263,36 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
       }
     }
   }
-  int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !coarser && !s->error[0];
+  /* epochs on the clock: lateness pooled, coalesced ticks summed; verified content ages merged */
+  size_t nlate = 0;
+  uint64_t due = 0, coal_ticks = 0;
+  stress_age_t ages;
+  memset(&ages, 0, sizeof ages);
+  for (int i = 0; i < run->nv; i++) {
+    nlate += run->v[i].ticks.lateness.n;
+    due += stress_ticks_due(&run->v[i].ticks);
+    coal_ticks += run->v[i].ticks.coalesced;
+    stress_age_merge(&ages, &run->v[i].age);
+    stress_age_merge(&ages, &run->v[i].m_age);
+  }
+  sr_q_t late = {NAN, NAN, NAN, 0};
+  double *lv = malloc((nlate + 1) * sizeof *lv);
+  if (lv && nlate) {
+    size_t k = 0;
+    for (int i = 0; i < run->nv; i++) {
+      const stress_samples_t *x = &run->v[i].ticks.lateness;
+      if (x->n) memcpy(lv + k, x->v, x->n * sizeof *lv);
+      k += x->n;
+    }
+    late.p50 = stress_quantile(lv, nlate, 0.5);
+    late.p99 = stress_quantile(lv, nlate, 0.99);
+    late.max = lv[nlate - 1];
+    late.n = nlate;
+  }
+  free(lv);
+  uint64_t content_mismatch = stress_age_mismatches(&ages, -1);
+  int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !coarser && !content_mismatch &&
+             !s->error[0];
 
   /* The table. */
   const char *lat_from = s->stepped ? "from the step request" : "from the first byte of EPOCH_BEGIN";
@@ -270,19 +304,31 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
   else
     printf("epoch period: %g s\n", s->epoch_period);
   printf("\n| viewer | path | budget MiB | depth | states | skipped | coalesced | resident max MiB | of budget | MB/s "
-         "| latency p50 ms | p99 ms | full detail s |\n");
-  printf("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+         "| latency p50 ms | p99 ms | full detail s | lateness p50 ms | p99 ms | max ms | ticks coalesced | age p99 |\n");
+  printf("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (int i = 0; i < run->nv; i++) {
     const stress_viewer_t *v = &run->v[i];
     sr_q_t vl = sr_pool(run, 0, i), vd = sr_pool(run, 2, i);
     double granted = v->have_welcome ? (double)v->welcome.budget / SR_MIB : NAN;
-    printf("| %d | %s | %s | %d | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %s | %s | %s | %s | %s | %s |\n", v->index,
+    char extra[160];
+    {
+      stress_samples_t lt = v->ticks.lateness; /* quantiles sort in place: the viewer's own order does not matter */
+      stress_age_t va = v->age;
+      stress_age_merge(&va, &v->m_age);
+      char c1[32], c2[32], c3[32], c4[32], c5[16];
+      double l50 = stress_quantile(lt.v, lt.n, 0.5), l99 = stress_quantile(lt.v, lt.n, 0.99); /* sorted now */
+      snprintf(extra, sizeof extra, " %s | %s | %s | %s | %s |", sr_num(c1, sizeof c1, 1e3 * l50, "%.0f"),
+               sr_num(c2, sizeof c2, 1e3 * l99, "%.0f"), sr_num(c3, sizeof c3, lt.n ? 1e3 * lt.v[lt.n - 1] : NAN, "%.0f"),
+               sr_num(c4, sizeof c4, 100.0 * stress_ticks_coalesced_frac(&v->ticks), "%.1f %%"),
+               sr_age(c5, sizeof c5, stress_age_quantile(&va, -1, 0.99)));
+    }
+    printf("| %d | %s | %s | %d | %" PRIu64 " | %" PRIu64 " | %" PRIu64 " | %s | %s | %s | %s | %s | %s |%s\n", v->index,
            stress_path_name(v->path), sr_num(b1, sizeof b1, granted, "%.1f"), v->max_depth, v->states, v->skipped,
            v->last_stats.coalesced, sr_num(b2, sizeof b2, (double)v->resident_max / SR_MIB, "%.2f"),
            sr_num(b3, sizeof b3, v->have_welcome ? 100.0 * (double)v->resident_max / (double)v->welcome.budget : NAN, "%.1f %%"),
            sr_num(b4, sizeof b4, sr_rate(v) / 1e6, "%.3f"), sr_num(b5, sizeof b5, 1e3 * vl.p50, "%.0f"),
            sr_num(b6, sizeof b6, 1e3 * vl.p99, "%.0f"),
-           v->path == STRESS_TELEPORT ? sr_num(b7, sizeof b7, vd.p50, "%.2f") : "");
+           v->path == STRESS_TELEPORT ? sr_num(b7, sizeof b7, vd.p50, "%.2f") : "", extra);
   }
   printf("\nbytes/s per viewer: median %s MB/s, p99 %s MB/s\n", sr_num(b1, sizeof b1, rate_p50 / 1e6, "%.3f"),
          sr_num(b2, sizeof b2, rate_p99 / 1e6, "%.3f"));
@@ -294,6 +340,24 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
          sr_num(b2, sizeof b2, 1e3 * itv.p99, "%.0f"));
   if (!s->stepped) printf("; ticks the server skipped (a step still ran): %s", sr_num(b3, sizeof b3, s->late_ticks, "%.0f"));
   printf("\n");
+  if (!s->stepped)
+    printf("lateness (EPOCH_BEGIN readable minus its due instant n x P, UTC): p50 %s ms, p99 %s ms, max %s ms over %zu "
+           "states; ticks coalesced %" PRIu64 " of %" PRIu64 " due (%s)\n",
+           sr_num(b1, sizeof b1, 1e3 * late.p50, "%.1f"), sr_num(b2, sizeof b2, 1e3 * late.p99, "%.1f"),
+           sr_num(b3, sizeof b3, 1e3 * late.max, "%.1f"), late.n, coal_ticks, due,
+           sr_num(b4, sizeof b4, due ? 100.0 * (double)coal_ticks / (double)due : NAN, "%.2f %%"));
+  if (o->verify_content > 0) {
+    printf("content verified here (--verify-content %g): %" PRIu64 " bricks sampled, %" PRIu64 " verified, %" PRIu64
+           " dropped (queue full), %" PRIu64 " errors, %zu left unverified; age p99 %s; %.1f s reproducing %" PRIu64
+           " bricks; per level p99 (verified):",
+           o->verify_content, ages.sampled, stress_age_count(&ages, -1), ages.dropped, ages.errors, s->verify_left,
+           sr_age(b1, sizeof b1, stress_age_quantile(&ages, -1, 0.99)), s->verify_s, s->verify_reproduced);
+    sr_age_levels(&ages);
+    printf("\n");
+    if (content_mismatch)
+      printf("CONTENT MISMATCH: %" PRIu64 " verified bricks matched none of the stamps s, s-1, s-2 of their state's world time\n",
+             content_mismatch);
+  }
   printf("time to full detail after a teleport: p50 %s s, p99 %s s, p50 %s epochs (%zu of %" PRIu64
          " teleports settled; %" PRIu64 " did not before the next one or the end)\n",
          sr_num(b1, sizeof b1, det.p50, "%.2f"), sr_num(b2, sizeof b2, det.p99, "%.2f"), sr_num(b3, sizeof b3, dep.p50, "%.0f"),
@@ -422,6 +486,22 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
         cJSON_AddNumberToObject(x, "teleports", (double)v->teleports);
         cJSON_AddNumberToObject(x, "full_detail_unreached", (double)v->detail_unreached);
       }
+      if (!s->stepped) {
+        stress_samples_t lt = v->ticks.lateness;
+        sr_q_t q = {NAN, NAN, NAN, lt.n};
+        q.p50 = stress_quantile(lt.v, lt.n, 0.5); /* sorts: the max is the last one after it */
+        q.p99 = stress_quantile(lt.v, lt.n, 0.99);
+        q.max = lt.n ? lt.v[lt.n - 1] : NAN;
+        cJSON_AddItemToObject(x, "lateness_s", sr_q_json(q));
+        cJSON_AddNumberToObject(x, "ticks_due", (double)stress_ticks_due(&v->ticks));
+        cJSON_AddNumberToObject(x, "ticks_coalesced", (double)v->ticks.coalesced);
+        sr_add_num(x, "coalesced_fraction", stress_ticks_coalesced_frac(&v->ticks));
+      }
+      if (o->verify_content > 0) {
+        stress_age_t va = v->age;
+        stress_age_merge(&va, &v->m_age);
+        cJSON_AddItemToObject(x, "content_age", sr_age_json(&va));
+      }
       if (v->failed) cJSON_AddStringToObject(x, "error", v->error);
     }
     cJSON *ag = cJSON_AddObjectToObject(j, "aggregate");
@@ -434,6 +514,20 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     cJSON_AddItemToObject(ag, "full_detail_s", sr_q_json(det));
     cJSON_AddItemToObject(ag, "full_detail_epochs", sr_q_json(dep));
     cJSON_AddNumberToObject(ag, "teleports", (double)teleports);
+    if (!s->stepped) {
+      cJSON_AddItemToObject(ag, "lateness_s", sr_q_json(late));
+      cJSON_AddNumberToObject(ag, "ticks_due", (double)due);
+      cJSON_AddNumberToObject(ag, "ticks_coalesced", (double)coal_ticks);
+      sr_add_num(ag, "coalesced_fraction", due ? (double)coal_ticks / (double)due : NAN);
+    }
+    if (o->verify_content > 0) {
+      cJSON *va = sr_age_json(&ages);
+      cJSON_AddNumberToObject(va, "fraction", o->verify_content);
+      cJSON_AddNumberToObject(va, "left_unverified", (double)s->verify_left);
+      cJSON_AddNumberToObject(va, "reproduce_s", s->verify_s);
+      cJSON_AddNumberToObject(va, "reproduced", (double)s->verify_reproduced);
+      cJSON_AddItemToObject(ag, "content_age", va);
+    }
     cJSON_AddNumberToObject(ag, "full_detail_unreached", (double)unreached);
     cJSON *sv = cJSON_AddObjectToObject(j, "server");
     cJSON_AddItemToObject(sv, "start", sr_proc_json(&s->server_start));
@@ -466,6 +560,7 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     cJSON_AddNumberToObject(ck, "viewers_without_state", (double)empty);
     cJSON_AddNumberToObject(ck, "skipped_epochs", (double)skipped);
     cJSON_AddNumberToObject(ck, "coalesced_server", (double)coalesced);
+    cJSON_AddNumberToObject(ck, "content_mismatches", (double)content_mismatch);
     if (o->sweep) {
       cJSON_AddNumberToObject(ck, "sweep_coarser", (double)coarser);
       cJSON_AddNumberToObject(ck, "sweep_fewer_leaves", (double)fewer);
@@ -483,6 +578,9 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     if (cause[0]) fprintf(stderr, "overcast-stress: FAIL: %s\n", cause);
     else if (coarser)
       fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " sweep combinations coarser than a smaller or shallower one\n", coarser);
+    else if (content_mismatch)
+      fprintf(stderr, "overcast-stress: FAIL: CONTENT MISMATCH: %" PRIu64 " verified bricks matched none of s, s-1, s-2\n",
+              content_mismatch);
     else if (violations || mismatch)
       fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " budget violations, %" PRIu64 " resident counts differing from the session's\n",
               violations, mismatch);
@@ -493,35 +591,179 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
   return rc;
 }
 
+/* "0".."8", "none" (matched no stamp tried), "—" (nothing verified) */
+static const char *sr_age(char *buf, size_t cap, int age) {
+  if (age < 0) snprintf(buf, cap, "—");
+  else if (age > STRESS_AGE_MAX) snprintf(buf, cap, "none");
+  else snprintf(buf, cap, "%d", age);
+  return buf;
+}
+
+static cJSON *sr_age_json(const stress_age_t *a) {
+  cJSON *o = cJSON_CreateObject();
+  cJSON_AddNumberToObject(o, "sampled", (double)a->sampled);
+  cJSON_AddNumberToObject(o, "dropped", (double)a->dropped);
+  cJSON_AddNumberToObject(o, "errors", (double)a->errors);
+  cJSON_AddNumberToObject(o, "verified", (double)stress_age_count(a, -1));
+  cJSON_AddNumberToObject(o, "mismatches", (double)stress_age_mismatches(a, -1));
+  int p99 = stress_age_quantile(a, -1, 0.99);
+  if (p99 >= 0) cJSON_AddNumberToObject(o, "p99", p99);
+  else cJSON_AddNullToObject(o, "p99");
+  cJSON *lv = cJSON_AddArrayToObject(o, "levels");
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    if (!stress_age_count(a, l)) continue;
+    cJSON *x = cJSON_CreateObject();
+    cJSON_AddItemToArray(lv, x);
+    cJSON_AddNumberToObject(x, "level", l);
+    cJSON_AddNumberToObject(x, "verified", (double)stress_age_count(a, l));
+    cJSON_AddNumberToObject(x, "p50", stress_age_quantile(a, l, 0.5));
+    cJSON_AddNumberToObject(x, "p99", stress_age_quantile(a, l, 0.99));
+    cJSON_AddNumberToObject(x, "mismatches", (double)stress_age_mismatches(a, l));
+    cJSON *h = cJSON_AddArrayToObject(x, "histogram"); /* ages 0..STRESS_AGE_MAX, then "none" */
+    for (int k = 0; k <= STRESS_AGE_MAX + 1; k++) cJSON_AddItemToArray(h, cJSON_CreateNumber((double)a->n[l][k]));
+  }
+  return o;
+}
+
+/* The verified ages per level, one line: "L12 p99 1 (340), L13 ..." */
+static void sr_age_levels(const stress_age_t *a) {
+  char b[16];
+  int any = 0;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    uint64_t n = stress_age_count(a, l);
+    if (!n) continue;
+    printf("%s L%d %s (%" PRIu64 ")", any ? "," : "", l, sr_age(b, sizeof b, stress_age_quantile(a, l, 0.99)), n);
+    any = 1;
+  }
+  if (!any) printf(" —");
+}
+
+/* Plots of a ramp: content age p99 and time to full detail against N, one line per budget. */
+static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
+                         const stress_ref_t *refs, int nrefs) {
+  int nb = o->nbudgets < OCTS_PLOT_GROUPS / 2 ? o->nbudgets : OCTS_PLOT_GROUPS / 2;
+  octs_plot_point_t *pts = calloc((size_t)(2 * nph + 2 * nrefs * 16 + 1), sizeof *pts);
+  char names[OCTS_PLOT_GROUPS][48], path[4096], sub[256], why[512];
+  if (!pts) return -1;
+  int rc = 0;
+  snprintf(sub, sizeof sub, "%s, epoch period %g s, %s paths, %.0f s measured per phase", scene, period,
+           o->share_paths ? "shared" : "disjoint", o->ramp_seconds);
+  /* content age */
+  int np = 0;
+  for (int i = 0; i < nph; i++) {
+    int g = -1;
+    for (int b = 0; b < nb; b++)
+      if (o->budgets_mib[b] == ph[i].budget_mib) g = b;
+    if (g < 0 || ph[i].age_p99 < 0) continue;
+    pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].age_p99 > STRESS_AGE_MAX ? STRESS_AGE_MAX + 1 : ph[i].age_p99, .group = g};
+  }
+  octs_plot_desc_t d = {.title = "Verified content age p99 against viewers", .subtitle = sub, .xlabel = "viewers N",
+                        .ylabel = "time steps behind", .ngroups = nb, .lines = 1, .ymin_top = 3, .hline = STRESS_AGE_ALLOWED,
+                        .hline_label = "sustained limit"};
+  for (int b = 0; b < nb; b++) {
+    snprintf(names[b], sizeof names[b], "%ld MiB", o->budgets_mib[b]);
+    d.group_name[b] = names[b];
+  }
+  snprintf(path, sizeof path, "%s-age.png", o->plot);
+  if (np && octs_plot_png(path, pts, np, &d, why, sizeof why) < 0) {
+    fprintf(stderr, "overcast-stress: %s: %s\n", path, why);
+    rc = -1;
+  } else if (np) {
+    printf("plot: %s\n", path);
+  }
+  /* time to full detail, the stepped reference drawn as a line across the same N */
+  np = 0;
+  for (int i = 0; i < nph; i++) {
+    int g = -1;
+    for (int b = 0; b < nb; b++)
+      if (o->budgets_mib[b] == ph[i].budget_mib) g = b;
+    if (g < 0) continue;
+    pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_p50, .group = g};
+    for (int r = 0; r < nrefs; r++)
+      if (refs[r].budget_mib == ph[i].budget_mib)
+        pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = refs[r].detail_p50, .group = nb + g};
+  }
+  octs_plot_desc_t e = {.title = "Time to full detail after a teleport (p50) against viewers", .subtitle = sub,
+                        .xlabel = "viewers N", .ylabel = "seconds", .ngroups = 2 * nb, .lines = 1};
+  for (int b = 0; b < nb; b++) {
+    snprintf(names[nb + b], sizeof names[nb + b], "stepped, %ld MiB", o->budgets_mib[b]);
+    e.group_name[b] = names[b];
+    e.group_name[nb + b] = names[nb + b];
+  }
+  snprintf(path, sizeof path, "%s-detail.png", o->plot);
+  if (np && octs_plot_png(path, pts, np, &e, why, sizeof why) < 0) {
+    fprintf(stderr, "overcast-stress: %s: %s\n", path, why);
+    rc = -1;
+  } else if (np) {
+    printf("plot: %s\n", path);
+  }
+  free(pts);
+  return rc;
+}
+
 int stress_ramp_report(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
-                       int largest, const stress_summary_t *s) {
-  char b1[32], b2[32], b3[32], b4[32], b5[32], b6[32], b7[32], b8[32];
+                       const int *largest, const stress_ref_t *refs, int nrefs, const stress_summary_t *s) {
+  char b1[32], b2[32], b3[32], b4[32], b5[32], b6[32], b7[32], b8[32], b9[32], b10[32];
   int pass = !s->error[0];
-  printf("overcast-stress --ramp: scene %s, epoch period %g s, %.0f s warm-up + %.0f s measured per phase, one server\n",
-         scene, period, o->ramp_warmup, o->ramp_seconds);
-  printf("sustained: every viewer's median interval <= %.1f x the period and <= %.0f %% of epochs skipped\n\n",
-         STRESS_RAMP_INTERVAL, 100.0 * STRESS_RAMP_SKIPPED);
-  printf("| N | interval p50 s | p99 s | worst viewer median s | states | skipped | server CPU | server RSS MiB | "
-         "MB/s per viewer p50 | p99 | sustained |\n");
-  printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  printf("overcast-stress --ramp: scene %s, epoch period %g s, %.0f s warm-up + %.0f s measured per phase, one server, "
+         "%s paths%s\n",
+         scene, period, o->ramp_warmup, o->ramp_seconds, o->share_paths ? "shared (one seed)" : "disjoint",
+         o->verify_content > 0 ? "" : ", content not verified (--verify-content)");
+  printf("sustained: every viewer has lateness p99 <= %.0f ms, <= %.0f %% of ticks coalesced, verified content age p99 <= %d, "
+         "time to full detail p50 <= %.2f x stepped, median interval <= %.1f x the period\n",
+         1e3 * STRESS_LATE_P99, 100.0 * STRESS_COALESCED_MAX, STRESS_AGE_ALLOWED, STRESS_DETAIL_FACTOR, STRESS_RAMP_INTERVAL);
+  for (int r = 0; r < nrefs; r++)
+    printf("stepped reference, %ld MiB (viewer %d's teleport path, %.0f s): full detail p50 %s s, p99 %s s, p50 %s epochs, "
+           "%" PRIu64 " of %" PRIu64 " teleports settled%s%s\n",
+           refs[r].budget_mib, refs[r].index, refs[r].seconds, sr_num(b1, sizeof b1, refs[r].detail_p50, "%.2f"),
+           sr_num(b2, sizeof b2, refs[r].detail_p99, "%.2f"), sr_num(b3, sizeof b3, refs[r].detail_epochs_p50, "%.0f"),
+           refs[r].settled, refs[r].teleports, refs[r].error[0] ? "; " : "", refs[r].error);
+  printf("\n| budget MiB | N | lateness p99 ms (worst viewer) | max ms | coalesced (worst) | age p99 (worst) | mismatches | "
+         "full detail p50 s | x stepped (worst) | interval p50 s | server CPU | MB/s per viewer p50 | sustained |\n");
+  printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (int i = 0; i < nph; i++) {
     const stress_ramp_phase_t *p = &ph[i];
-    if (p->failed || p->violations || p->checksum || p->protocol || p->mismatch) pass = 0;
-    printf("| %d | %s | %s | %s | %" PRIu64 " | %" PRIu64 " (%s) | %s | %s | %s | %s | %s%s |\n", p->n,
-           sr_num(b1, sizeof b1, p->itv_p50, "%.2f"), sr_num(b2, sizeof b2, p->itv_p99, "%.2f"),
-           sr_num(b3, sizeof b3, p->worst_median, "%.2f"), p->states, p->skipped,
-           sr_num(b4, sizeof b4, 100.0 * p->skipped_frac, "%.1f %%"), sr_num(b5, sizeof b5, p->cpu_pct, "%.0f %%"),
-           sr_num(b6, sizeof b6, p->rss_mib, "%.0f"), sr_num(b7, sizeof b7, p->mbps_p50, "%.3f"),
-           sr_num(b8, sizeof b8, p->mbps_p99, "%.3f"), p->sustained ? "yes" : "no: ", p->sustained ? "" : p->why);
+    if (p->failed || p->violations || p->checksum || p->protocol || p->mismatch || p->age_mismatch) pass = 0;
+    char late[80], coal[80], age[80];
+    snprintf(late, sizeof late, "%s (%s)", sr_num(b1, sizeof b1, 1e3 * p->late_p99, "%.0f"),
+             sr_num(b2, sizeof b2, 1e3 * p->late_worst_p99, "%.0f"));
+    snprintf(coal, sizeof coal, "%s (%s)", sr_num(b3, sizeof b3, 100.0 * p->coalesced_frac, "%.1f %%"),
+             sr_num(b4, sizeof b4, 100.0 * p->coalesced_worst, "%.1f %%"));
+    snprintf(age, sizeof age, "%s (%s)", sr_age(b5, sizeof b5, p->age_p99), sr_age(b6, sizeof b6, p->age_worst_p99));
+    printf("| %ld | %d | %s | %s | %s | %s | %" PRIu64 " | %s | %s | %s | %s | %s | %s%s |\n", p->budget_mib, p->n, late,
+           sr_num(b7, sizeof b7, 1e3 * p->late_max, "%.0f"), coal, age, p->age_mismatch,
+           sr_num(b8, sizeof b8, p->detail_p50, "%.2f"), sr_num(b9, sizeof b9, p->detail_worst_ratio, "%.2f"),
+           sr_num(b10, sizeof b10, p->itv_p50, "%.2f"), sr_num(b1, sizeof b1, p->cpu_pct, "%.0f %%"),
+           sr_num(b2, sizeof b2, p->mbps_p50, "%.3f"), p->sustained ? "yes" : "no: ", p->sustained ? "" : p->why);
   }
-  int all = nph > 0 && ph[nph - 1].sustained; /* the ramp ended at --ramp-max, not at a failure */
-  printf("\nlargest N sustained at the epoch rate: %d%s\n", largest, all ? " (every phase was: at least this; raise --ramp-max)" : "");
+  if (o->verify_content > 0) {
+    printf("\nverified content age p99 per level (bricks verified):\n");
+    for (int i = 0; i < nph; i++) {
+      printf("  %ld MiB, N = %d:", ph[i].budget_mib, ph[i].n);
+      sr_age_levels(&ph[i].age);
+      printf("; sampled %" PRIu64 ", dropped %" PRIu64 ", errors %" PRIu64 "%s\n", ph[i].age.sampled, ph[i].age.dropped,
+             ph[i].age.errors, ph[i].verify_left ? " (some left unverified: the drain timed out)" : "");
+      if (ph[i].age_mismatch)
+        printf("CONTENT MISMATCH: %ld MiB, N = %d: %" PRIu64 " verified bricks matched none of s, s-1, s-2\n", ph[i].budget_mib,
+               ph[i].n, ph[i].age_mismatch);
+    }
+  }
+  printf("\n");
+  for (int b = 0; b < o->nbudgets; b++) {
+    int all = 0; /* the ramp of this budget ended at --ramp-max, not at a failure */
+    for (int i = 0; i < nph; i++)
+      if (ph[i].budget_mib == o->budgets_mib[b]) all = ph[i].sustained;
+    printf("largest N sustained at %ld MiB: %d%s\n", o->budgets_mib[b], largest[b],
+           all ? " (every phase was: at least this; raise --ramp-max)" : "");
+  }
   if (s->server_end.ok || s->tool.ok)
     printf("overcast-stress itself: peak RSS %s MiB\n", sr_num(b1, sizeof b1, s->tool.ok ? s->tool.hwm_mib : NAN, "%.1f"));
+  int rc_plot = o->plot ? sr_ramp_plots(o, scene, period, ph, nph, refs, nrefs) : 0;
   if (s->error[0]) printf("FAIL: %s\n", s->error);
   printf("%s\n", pass ? "PASS" : "FAIL");
   fflush(stdout);
   int rc = pass;
+  if (rc_plot < 0) rc = -1;
   if (o->json) {
     cJSON *j = cJSON_CreateObject();
     cJSON *r = cJSON_AddObjectToObject(j, "ramp");
@@ -529,13 +771,34 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
     cJSON_AddNumberToObject(r, "epoch_period", period);
     cJSON_AddNumberToObject(r, "warmup_s", o->ramp_warmup);
     cJSON_AddNumberToObject(r, "measured_s", o->ramp_seconds);
-    cJSON_AddNumberToObject(r, "rule_interval_factor", STRESS_RAMP_INTERVAL);
-    cJSON_AddNumberToObject(r, "rule_skipped_fraction", STRESS_RAMP_SKIPPED);
+    cJSON_AddStringToObject(r, "paths", o->share_paths ? "shared" : "disjoint");
+    cJSON_AddNumberToObject(r, "verify_content", o->verify_content);
+    cJSON *rule = cJSON_AddObjectToObject(r, "rule");
+    cJSON_AddNumberToObject(rule, "lateness_p99_s", STRESS_LATE_P99);
+    cJSON_AddNumberToObject(rule, "coalesced_fraction", STRESS_COALESCED_MAX);
+    cJSON_AddNumberToObject(rule, "content_age_p99", STRESS_AGE_ALLOWED);
+    cJSON_AddNumberToObject(rule, "full_detail_factor", STRESS_DETAIL_FACTOR);
+    cJSON_AddNumberToObject(rule, "interval_factor", STRESS_RAMP_INTERVAL);
+    cJSON *ra = cJSON_AddArrayToObject(r, "stepped_reference");
+    for (int k = 0; k < nrefs; k++) {
+      cJSON *x = cJSON_CreateObject();
+      cJSON_AddItemToArray(ra, x);
+      cJSON_AddNumberToObject(x, "budget_mib", (double)refs[k].budget_mib);
+      cJSON_AddNumberToObject(x, "viewer_index", refs[k].index);
+      sr_add_num(x, "full_detail_p50_s", refs[k].detail_p50);
+      sr_add_num(x, "full_detail_p99_s", refs[k].detail_p99);
+      sr_add_num(x, "full_detail_epochs_p50", refs[k].detail_epochs_p50);
+      cJSON_AddNumberToObject(x, "teleports", (double)refs[k].teleports);
+      cJSON_AddNumberToObject(x, "settled", (double)refs[k].settled);
+      cJSON_AddNumberToObject(x, "seconds", refs[k].seconds);
+      if (refs[k].error[0]) cJSON_AddStringToObject(x, "error", refs[k].error);
+    }
     cJSON *a = cJSON_AddArrayToObject(r, "phases");
     for (int i = 0; i < nph; i++) {
       const stress_ramp_phase_t *p = &ph[i];
       cJSON *x = cJSON_CreateObject();
       cJSON_AddItemToArray(a, x);
+      cJSON_AddNumberToObject(x, "budget_mib", (double)p->budget_mib);
       cJSON_AddNumberToObject(x, "viewers", p->n);
       sr_add_num(x, "seconds", p->seconds);
       sr_add_num(x, "interval_p50_s", p->itv_p50);
@@ -544,6 +807,25 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
       cJSON_AddNumberToObject(x, "states", (double)p->states);
       cJSON_AddNumberToObject(x, "skipped", (double)p->skipped);
       sr_add_num(x, "skipped_fraction", p->skipped_frac);
+      sr_add_num(x, "lateness_p50_s", p->late_p50);
+      sr_add_num(x, "lateness_p99_s", p->late_p99);
+      sr_add_num(x, "lateness_max_s", p->late_max);
+      sr_add_num(x, "lateness_worst_viewer_p99_s", p->late_worst_p99);
+      cJSON_AddNumberToObject(x, "ticks_due", (double)p->due);
+      cJSON_AddNumberToObject(x, "ticks_coalesced", (double)p->coalesced);
+      sr_add_num(x, "coalesced_fraction", p->coalesced_frac);
+      sr_add_num(x, "coalesced_worst_viewer_fraction", p->coalesced_worst);
+      cJSON_AddNumberToObject(x, "coalesced_server", (double)p->coalesced_server);
+      if (o->verify_content > 0) cJSON_AddItemToObject(x, "content_age", sr_age_json(&p->age));
+      if (p->age_worst_p99 >= 0) cJSON_AddNumberToObject(x, "content_age_worst_viewer_p99", p->age_worst_p99);
+      cJSON_AddNumberToObject(x, "verify_left", (double)p->verify_left);
+      sr_add_num(x, "full_detail_p50_s", p->detail_p50);
+      sr_add_num(x, "full_detail_p99_s", p->detail_p99);
+      sr_add_num(x, "full_detail_stepped_p50_s", p->detail_ref);
+      sr_add_num(x, "full_detail_worst_ratio", p->detail_worst_ratio);
+      cJSON_AddNumberToObject(x, "teleports", (double)p->teleports);
+      cJSON_AddNumberToObject(x, "teleports_settled", (double)p->detail_n);
+      cJSON_AddNumberToObject(x, "teleports_unreached", (double)p->unreached);
       sr_add_num(x, "server_cpu_percent", p->cpu_pct);
       sr_add_num(x, "server_rss_mib", p->rss_mib);
       sr_add_num(x, "server_peak_rss_mib", p->hwm_mib);
@@ -553,11 +835,18 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
       cJSON_AddNumberToObject(x, "checksum_failures", (double)p->checksum);
       cJSON_AddNumberToObject(x, "protocol_errors", (double)p->protocol);
       cJSON_AddNumberToObject(x, "resident_mismatch", (double)p->mismatch);
+      cJSON_AddNumberToObject(x, "content_mismatches", (double)p->age_mismatch);
       cJSON_AddNumberToObject(x, "viewers_failed", (double)p->failed);
       cJSON_AddBoolToObject(x, "sustained", p->sustained);
       if (p->why[0]) cJSON_AddStringToObject(x, "why", p->why);
     }
-    cJSON_AddNumberToObject(r, "largest_sustained", largest);
+    cJSON *lg = cJSON_AddArrayToObject(r, "largest_sustained");
+    for (int b = 0; b < o->nbudgets; b++) {
+      cJSON *x = cJSON_CreateObject();
+      cJSON_AddItemToArray(lg, x);
+      cJSON_AddNumberToObject(x, "budget_mib", (double)o->budgets_mib[b]);
+      cJSON_AddNumberToObject(x, "viewers", largest[b]);
+    }
     sr_add_num(r, "tool_peak_rss_mib", s->tool.ok ? s->tool.hwm_mib : NAN);
     if (s->error[0]) cJSON_AddStringToObject(r, "error", s->error);
     cJSON_AddBoolToObject(j, "pass", pass);

@@ -11,7 +11,12 @@
  *                   the session's own count;
  *   checksums       a mismatch fails the session (OC_ECHECKSUM): counted and reported;
  *   skipped epochs  gaps in the epoch numbers of complete states (each one listed), next to the
- *                   server's own count of coalesced epochs from STATS.
+ *                   server's own count of coalesced epochs from STATS;
+ *   lateness        with a period: the instant each EPOCH_BEGIN was readable (CLOCK_REALTIME, seen
+ *                   by the connection's input tap and stress_scan_feed) minus its due instant n·P;
+ *   content age     --verify-content F: a fraction F of the bricks each state brings (ids above any
+ *                   seen before) is queued, as key, ranges and the digest of its codes, for
+ *                   stress_verify.c to re-produce off this thread.
  *
  * Nothing is allocated for a GPU: besides what the session keeps (K−1 states: records and, in a lean
  * session, the default, a 12-byte digest a brick instead of its 2052 bytes), a viewer keeps the
@@ -39,35 +44,10 @@ double stress_now(void) {
   return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-int stress_samples_add(stress_samples_t *s, double x) {
-  if (s->n == s->cap) {
-    size_t cap = s->cap ? 2 * s->cap : 64;
-    double *nv = realloc(s->v, cap * sizeof *nv);
-    if (!nv) return OC_ENOMEM;
-    s->v = nv;
-    s->cap = cap;
-  }
-  s->v[s->n++] = x;
-  return 0;
-}
-
-void stress_samples_free(stress_samples_t *s) {
-  free(s->v);
-  memset(s, 0, sizeof *s);
-}
-
-static int sv_cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-double stress_quantile(double *v, size_t n, double q) {
-  if (!n) return NAN;
-  qsort(v, n, sizeof *v, sv_cmp_double);
-  size_t k = (size_t)ceil(q * (double)n);
-  if (k < 1) k = 1;
-  if (k > n) k = n;
-  return v[k - 1];
+double stress_utc(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_REALTIME, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
 /*-*** Footprints: the bricks a state's records reference ***/
@@ -142,6 +122,76 @@ static double sv_step_time(stress_run_t *run, uint64_t step, uint64_t epoch) {
 
 static uint64_t sv_bytes_in(stress_viewer_t *v);
 
+/* --verify-content: the bricks this state brought (ids above every id seen in this session), each
+ * with probability F, go to the verifier as key, ranges and the digest of the codes received. */
+static void sv_sample_bricks(stress_viewer_t *v, const oc_state_t *s, int measured) {
+  stress_run_t *run = v->run;
+  double f = run->o->verify_content;
+  if (v->have_prev && s->epoch > v->prev_epoch && s->time != v->prev_time) {
+    double dt = (s->time - v->prev_time) / (double)(s->epoch - v->prev_epoch);
+    pthread_mutex_lock(&run->mu);
+    run->world_dt = dt;
+    pthread_mutex_unlock(&run->mu);
+  }
+  v->prev_time = s->time;
+  v->prev_epoch = s->epoch;
+  v->have_prev = 1;
+  uint32_t max_id = v->max_id;
+  if (!(f > 0) || !run->verify) {
+    for (uint32_t i = 0; i < s->node_count; i++)
+      if (s->nodes[i].kind == OC_NODE_BRICK && s->nodes[i].brick_id > max_id) max_id = s->nodes[i].brick_id;
+    v->max_id = max_id;
+    return;
+  }
+  pthread_mutex_lock(&run->mu);
+  double dt = run->world_dt;
+  pthread_mutex_unlock(&run->mu);
+  const oc_brick_digests_t *dig = ocp_viewer_digests(ocv_conn_session(v->conn), 0);
+  uint64_t threshold = f >= 1 ? UINT64_MAX : (uint64_t)(f * 18446744073709551616.0);
+  for (uint32_t i = 0; i < s->node_count; i++) {
+    const oc_node_t *nd = &s->nodes[i];
+    if (nd->kind != OC_NODE_BRICK || nd->brick_id <= v->max_id) continue;
+    if (nd->brick_id > max_id) max_id = nd->brick_id;
+    v->rng ^= v->rng << 13; /* xorshift64 */
+    v->rng ^= v->rng >> 7;
+    v->rng ^= v->rng << 17;
+    if (v->rng > threshold) continue;
+    stress_brick_sample_t smp = {.key = nd->key, .t = s->time, .dt = dt, .into = measured ? &v->m_age : &v->age};
+    memcpy(smp.range, nd->range, sizeof smp.range);
+    if (dig) {
+      int64_t k = oc_brick_digests_find(dig, nd->brick_id);
+      if (k < 0) continue;
+      smp.digest = dig->digests[k];
+    } else {
+      uint32_t lo = 0, hi = s->brick_count; /* bricks ascend by id */
+      while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (s->bricks[mid].id < nd->brick_id) lo = mid + 1;
+        else hi = mid;
+      }
+      if (lo == s->brick_count || s->bricks[lo].id != nd->brick_id) continue;
+      smp.digest = oc_brick_digest(&s->bricks[lo].codes);
+    }
+    stress_verify_push(run->verify, &smp);
+  }
+  v->max_id = max_id;
+}
+
+/* The input tap: frame headers of every byte read; an EPOCH_BEGIN is timed by the read that
+ * completed its first bytes (v->poll_utc: when that read's bytes were readable). */
+static void sv_on_begin(void *ctx, uint64_t epoch, double world_time, double utc) {
+  stress_viewer_t *v = ctx;
+  (void)world_time;
+  v->begin_epoch = epoch;
+  v->begin_utc = utc;
+  v->begin_seen = 1;
+}
+
+static void sv_tap(void *ctx, const uint8_t *p, size_t n) {
+  stress_viewer_t *v = ctx;
+  stress_scan_feed(&v->scan, p, n, v->poll_utc, sv_on_begin, v);
+}
+
 static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   stress_viewer_t *v = ctx;
   stress_run_t *run = v->run;
@@ -194,6 +244,12 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   }
   v->last_epoch = s->epoch;
   if (v->detail_phase && v->teleport_epoch == UINT64_MAX) v->teleport_epoch = s->epoch - 1;
+  if (!stepped) { /* lateness and coalesced ticks */
+    double begin = v->begin_seen && v->begin_epoch == s->epoch ? v->begin_utc : NAN;
+    stress_ticks_add(&v->ticks, s->epoch, begin);
+    if (measured) stress_ticks_add(&v->m_ticks, s->epoch, begin);
+  }
+  sv_sample_bricks(v, s, measured);
 
   /* The budget measure, counted here: this state and the K−1 before it. */
   int keep = v->welcome.kept_states > 1 ? v->welcome.kept_states - 1 : 1;
@@ -256,15 +312,21 @@ static void sv_on_stats(void *ctx, const ocp_stats_t *st) {
             "overcast-stress: viewer %d (%s): epoch %" PRIu64 " plan: %" PRIu32 " leaves, %" PRIu32 " splits, %" PRIu32
             " merges, %" PRIu32 " deferred, %" PRIu64 " coalesced\n",
             v->index, sv_name(v), st->epoch, st->leaves, st->splits, st->merges, st->deferred, st->coalesced);
-  /* Time to full detail after a teleport: the plan first reacts to the new place (a state with
-   * splits or merges planned after the jump), then settles (the first later state whose plan split
-   * nothing: the tree stopped growing toward the camera). */
+  /* Time to full detail after a teleport: the plan first reacts to the new place (a state planned
+   * after the jump with splits or merges, or splits waiting for their children's content), then
+   * settles: the first later state whose plan split nothing and has no split waiting (STATS
+   * split_backlog; always 0 when stepped, where a step makes everything its plan asks): the tree
+   * stopped growing toward the camera and nothing it wants is still being made. */
   if (!v->detail_phase || st->epoch != v->last_epoch || st->epoch <= v->teleport_epoch) return;
   if (v->detail_phase == 1) {
-    if (st->splits || st->merges) v->detail_phase = 2;
-  } else if (st->splits == 0) {
+    if (st->splits || st->merges || st->split_backlog) v->detail_phase = 2;
+  } else if (st->splits == 0 && st->split_backlog == 0) {
     double from = v->welcome.epoch_period == 0 ? sv_step_time(v->run, v->teleport_step, 0) : v->teleport_at;
-    if (isfinite(from)) stress_samples_add(&v->detail, v->state_at - from);
+    if (isfinite(from)) {
+      if (!v->detail.n && v->teleports == 1) v->detail_first = 1; /* the first place, from no tree */
+      stress_samples_add(&v->detail, v->state_at - from);
+      if (v->teleport_measured) stress_samples_add(&v->m_detail, v->state_at - from);
+    }
     stress_samples_add(&v->detail_epochs, (double)(st->epoch - v->teleport_epoch));
     v->detail_phase = 0;
   }
@@ -277,6 +339,8 @@ static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
     v->fresh = 1;
     for (int i = 0; i < v->nfp; i++) v->fp[i].n = v->fp[i].records = 0; /* emptied, arrays kept */
     v->detail_phase = 0;
+    v->max_id = 0; /* ids begin again at 1 */
+    v->have_prev = 0;
   }
   v->welcome = *w;
   v->have_welcome = 1;
@@ -289,8 +353,15 @@ static int sv_camera(stress_viewer_t *v, double path_t, double now) {
   long jump = 0;
   oc_camera_pose_t pose = stress_path_at(&v->p, path_t, &jump);
   if (v->path == STRESS_TELEPORT && jump != v->jump) {
-    if (v->detail_phase) v->detail_unreached++; /* the previous place never settled */
+    if (v->detail_phase) { /* the previous place never settled */
+      v->detail_unreached++;
+      if (v->teleport_measured) v->m_unreached++;
+    }
     v->teleports++;
+    pthread_mutex_lock(&v->run->mu);
+    v->teleport_measured = v->run->measure_from > 0 && now >= v->run->measure_from;
+    pthread_mutex_unlock(&v->run->mu);
+    if (v->teleport_measured) v->m_teleports++;
     v->detail_phase = 1;
     v->teleport_at = now;
     v->teleport_epoch = v->states ? v->last_epoch : UINT64_MAX; /* UINT64_MAX: before the first state */
@@ -350,6 +421,7 @@ static int sv_reconnect(stress_viewer_t *v, const char *cause) {
   double backoff = 0.05;
   v->lost_at = stress_now();
   v->reconnects++;
+  memset(&v->scan, 0, sizeof v->scan); /* a new byte stream */
   pthread_mutex_lock(&run->mu);
   v->ready = 0;
   pthread_mutex_unlock(&run->mu);
@@ -392,6 +464,7 @@ void *stress_viewer_main(void *arg) {
   ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats};
   /* created, then connected: --source-address applies to the first connect and every reconnect */
   int r = ocv_conn_create(&v->conn, run->host, run->port, &vd, &ev, why, sizeof why);
+  if (r == 0) ocv_conn_set_tap(v->conn, sv_tap, v);
   if (r == 0 && o->source && ocv_conn_set_source(v->conn, o->source) < 0) {
     snprintf(why, sizeof why, "--source-address %s: not an IP address", o->source);
     r = OC_EINVAL;
@@ -415,9 +488,12 @@ void *stress_viewer_main(void *arg) {
   }
   oc_camera_pose_t home = {{v->welcome.cam_lat, v->welcome.cam_lon, v->welcome.cam_alt}, v->welcome.cam_heading,
                            v->welcome.cam_pitch, v->welcome.cam_fov};
-  stress_path_init(&v->p, v->path, home, o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)(o->sweep ? 0 : v->index) + 1, o->teleport_every,
-                   o->dive_seconds);
+  stress_path_init(&v->p, v->path, home,
+                   o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)(o->sweep || o->share_paths ? 0 : v->index) + 1,
+                   o->teleport_every, o->dive_seconds);
   int stepped = v->welcome.epoch_period == 0;
+  v->ticks.period = v->m_ticks.period = v->welcome.epoch_period;
+  v->rng = (o->seed + 1) * 0xD1B54A32D192ED03ull + (uint64_t)v->index * 0x9E3779B97F4A7C15ull + 1;
   double t_start = stress_now();
   v->between = 1;
   if (sv_camera(v, 0, t_start) < 0) goto out;
@@ -446,6 +522,7 @@ void *stress_viewer_main(void *arg) {
     struct pollfd pf = {ocv_conn_fd(v->conn), (short)(POLLIN | (ocv_conn_pending(v->conn) ? POLLOUT : 0)), 0};
     int k = poll(&pf, 1, (int)ceil(wait * 1e3));
     double t_in = stress_now();
+    v->poll_utc = stress_utc();
     int readable = k > 0 && (pf.revents & (POLLIN | POLLHUP | POLLERR));
     int marked = 0;
     if (readable && v->between) {
@@ -486,7 +563,10 @@ void *stress_viewer_main(void *arg) {
   }
 out:
   v->t_end = stress_now();
-  if (v->detail_phase) v->detail_unreached++;
+  if (v->detail_phase) { /* cut off by the end: how long it had been waiting */
+    v->detail_unreached++;
+    if (v->teleport_measured && v->welcome.epoch_period > 0) v->m_open_s = v->t_end - v->teleport_at;
+  }
   v->detail_phase = 0;
   if (v->conn) ocp_viewer_stats(ocv_conn_session(v->conn), &v->session);
   pthread_mutex_lock(&run->mu);
@@ -505,6 +585,9 @@ void stress_viewer_free(stress_viewer_t *v) {
   stress_samples_free(&v->detail);
   stress_samples_free(&v->detail_epochs);
   stress_samples_free(&v->m_interval);
+  stress_samples_free(&v->m_detail);
+  stress_ticks_free(&v->ticks);
+  stress_ticks_free(&v->m_ticks);
   stress_samples_free(&v->resync);
   for (int i = 0; i < 2; i++) free(v->fp[i].ids);
   free(v->fp_new.ids);
