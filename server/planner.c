@@ -395,13 +395,6 @@ static int available(const ocs_planner_t *p, pn_t *n, int level, uint64_t held, 
   return 0;
 }
 
-/* Without ready() but with want(): the plan is a target (what a stepped epoch would make), and
- * want() hears of every new content it takes, children that are split again in the same plan
- * included, since a clocked tick can show them only once each level's content exists. */
-static void target_wants(const ocs_planner_t *p, const pn_t *n, double prio) {
-  if (p->in->want && n->age == AGE_NEW) p->in->want(p->in->ctx, n->key, n->stamp, prio);
-}
-
 /* contribution of a leaf to C_j (j = 0..K-1) and to T */
 static void leaf_cost(const ocs_planner_t *p, const pn_t *n, int level, double c[OCS_PLAN_MAX_KEPT], double *t) {
   const double R = p->d.record_bytes, S = p->d.slot_bytes;
@@ -708,7 +701,6 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     for (int j = 0; j < K; j++) c1[j] -= c0[j];
     int dnew = new_brick(&nc) - new_brick(n);
     if (n->age == AGE_NEW || (fits(p, c1) && new_ok(p, dnew))) {
-      if (!p->in->ready) target_wants(p, &nc, n->prio);
       apply_delta(p, c1, t1c - t0c);
       p->new_bricks += dnew;
       int was_new = n->age == AGE_NEW;
@@ -782,8 +774,6 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     if (!fits(p, dc) || !new_ok(p, dnew)) { st.stop = "epoch change limit (held states, throughput)"; break; }
     if (p->T + dt <= p->target) {
       h_pop(&p->split_h);
-      if (!p->in->ready)
-        for (int k = 0; k < 8; k++) target_wants(p, &kids[k], s.prio);
       int32_t b = do_split(p, s.idx, kids, &fr);
       if (b < 0) { rc = b; break; }
       apply_delta(p, dc, dt);
@@ -827,6 +817,9 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     while (sp) {
       int32_t i = stack[--sp];
       const pn_t *n = &p->nodes[i];
+      /* a target plan: every new content it holds, inner nodes too, since a clocked tick can show
+       * a node's children only once it shows the node */
+      if (!in->ready && in->want && n->age == AGE_NEW) in->want(in->ctx, n->key, n->stamp, n->prio);
       if (n->child >= 0) {
         for (int c = 7; c >= 0; c--) stack[sp++] = n->child + c;
         continue;

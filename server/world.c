@@ -752,6 +752,50 @@ static void wishes_dedup(ocs_world_t *w) {
   w->nwish = m;
 }
 
+/* The wish of viewer vi for node key (any stamp) in the wishes sorted by brick, or -1. */
+static ptrdiff_t wish_find(const ocs_world_t *w, oc_key_t key, uint32_t vi) {
+  size_t lo = 0, hi = w->nwish;
+  while (lo < hi) { /* the first wish with key >= key */
+    size_t mid = lo + (hi - lo) / 2;
+    if (w->wish[mid].key < key) lo = mid + 1;
+    else hi = mid;
+  }
+  for (size_t i = lo; i < w->nwish && w->wish[i].key == key; i++)
+    if (w->wish[i].viewer == vi) return (ptrdiff_t)i;
+  return -1;
+}
+
+typedef struct {
+  int level;
+  size_t i;
+} by_level_t;
+
+static int cmp_level_desc(const void *a, const void *b) {
+  const by_level_t *x = a, *y = b;
+  if (x->level != y->level) return x->level > y->level ? -1 : 1;
+  return x->i < y->i ? -1 : (x->i > y->i);
+}
+
+/* Coarse before fine: a wished node is worth at least what its wished descendants are (a tick can
+ * show them only after it), so each wish passes its priority up to the nearest wished ancestor of
+ * the same viewer, deepest first. Ties go to the coarser node (the smaller key). */
+static void wishes_inherit(ocs_world_t *w) {
+  by_level_t *order = w->nwish ? malloc(w->nwish * sizeof *order) : NULL;
+  if (!order) return; /* without it the queue is only less well ordered */
+  for (size_t i = 0; i < w->nwish; i++) order[i] = (by_level_t){oc_key_level(w->wish[i].key), i};
+  qsort(order, w->nwish, sizeof *order, cmp_level_desc);
+  for (size_t j = 0; j < w->nwish; j++) {
+    const wish_t *x = &w->wish[order[j].i];
+    for (oc_key_t a = oc_key_parent(x->key); a != OC_KEY_INVALID; a = oc_key_parent(a)) {
+      ptrdiff_t p = wish_find(w, a, x->viewer);
+      if (p < 0) continue;
+      if (w->wish[p].prio < x->prio) w->wish[p].prio = x->prio;
+      break;
+    }
+  }
+  free(order);
+}
+
 /* Each viewer's wishes cut to its share of the queue (its best ones) and normalised to sum 1. */
 static void wishes_share(ocs_world_t *w) {
   int nv = w->nviewers > 0 ? w->nviewers : 1;
@@ -778,6 +822,7 @@ static void wishes_share(ocs_world_t *w) {
 static void queue_build(ocs_world_t *w) {
   w->nqueue = 0;
   wishes_dedup(w);
+  wishes_inherit(w);
   wishes_share(w);
   if (w->nwish) qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_viewer);
   if (w->queue_cap < w->nwish) {
@@ -797,6 +842,15 @@ static void queue_build(ocs_world_t *w) {
       w->queue[m++] = (queued_t){x->key, x->stamp, x->prio, (uint32_t)i, 1};
     }
   }
+  /* the target plan wishes for content it has not taken yet, which may exist already */
+  size_t k = 0;
+  for (size_t i = 0; i < m; i++) {
+    ocs_cache_key_t ck = ckey(w, T_BRICK, w->queue[i].key, w->queue[i].stamp, 0);
+    ocs_cache_entry_t *e;
+    if (ocs_cache_peek(w->cache, &ck, &e)) ocs_cache_release(w->cache, e);
+    else w->queue[k++] = w->queue[i];
+  }
+  m = k;
   if (m) qsort(w->queue, m, sizeof *w->queue, cmp_queued_prio);
   w->nqueue = m < OCS_QUEUE_MAX ? m : OCS_QUEUE_MAX;
 }
@@ -1100,6 +1154,15 @@ int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
 }
 
 size_t ocs_world_queue_length(const ocs_world_t *w) { return w ? w->nqueue : 0; }
+
+int ocs_world_queue_peek(const ocs_world_t *w, size_t i, oc_key_t *key, double *prio, uint32_t *viewers) {
+  if (!w || i >= w->nqueue) return OC_ENOENT;
+  const queued_t *q = &w->queue[i];
+  if (key) *key = q->key;
+  if (prio) *prio = q->prio;
+  if (viewers) *viewers = q->count;
+  return 0;
+}
 
 void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   memset(out, 0, sizeof *out);

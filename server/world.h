@@ -147,6 +147,10 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
 /*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). */
 size_t ocs_world_queue_length(const ocs_world_t *w);
+/*! ocs_world_queue_peek() : the i-th best item of the queue: its node, priority (the sum over the
+ *  viewers that want it of their normalised priorities) and how many viewers want it.
+ *  @return 0 or OC_ENOENT (i ≥ the queue's length). */
+int ocs_world_queue_peek(const ocs_world_t *w, size_t i, oc_key_t *key, double *prio, uint32_t *viewers);
 /*! ocs_world_utc() / ocs_world_epoch() : the instant and index of the last epoch stepped
  *  (start_utc and 0 before the first). */
 double ocs_world_utc(const ocs_world_t *w);
