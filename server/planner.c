@@ -19,6 +19,7 @@
 #define F_SPLIT 0x02   /* split this epoch: not merged again this epoch */
 #define F_MERGED 0x04  /* merged this epoch: not split again this epoch */
 #define F_FREE 0x08    /* in the free list */
+#define F_REFRESH 0x10 /* its content refreshed this epoch */
 
 typedef struct {
   oc_key_t key;
@@ -380,6 +381,13 @@ static void content_for(ocs_planner_t *p, pn_t *n, int level, int look) {
   n->age = AGE_NEW;
 }
 
+/* What refreshing a node of `pixels` buys: its pixels times the share of its level's content that
+ * one time step changes (ocs_plan_input_t.step_change). */
+static double refresh_gain(const ocs_planner_t *p, double pixels, int level) {
+  double c = p->in->step_change[level];
+  return c > 0 ? pixels * c : pixels;
+}
+
 /* Clocked epochs: new content (age AGE_NEW, stamp this epoch's) is usable only when it exists; the
  * stamp may become an older one of the same level whose content exists (stale but complete: it is
  * refreshed once newer content is ready). `held` is the stamp a leaf holds now (0: none), which an
@@ -644,7 +652,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     while (sp) {
       walk_t w = stack[--sp];
       pn_t *n = &p->nodes[w.idx];
-      n->flags &= (uint8_t)~(F_SPLIT | F_MERGED);
+      n->flags &= (uint8_t)~(F_SPLIT | F_MERGED | F_REFRESH);
       double s = size[w.level];
       oc_dvec3 o = oc_dv3(-OC_ROOT_HALF + w.x * s, -OC_ROOT_HALF + w.y * s, -OC_ROOT_HALF + w.z * s);
       n->prio = (float)prio_box(&fr, o, s);
@@ -687,7 +695,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     int level = oc_key_level(n->key);
     pn_t nc = *n;
     content_for(p, &nc, level, 1);
-    if (!available(p, &nc, level, n->age == AGE_NEW ? 0 : n->stamp, n->prio)) {
+    if (!available(p, &nc, level, n->age == AGE_NEW ? 0 : n->stamp, n->age == AGE_NEW ? n->prio : refresh_gain(p, n->prio, level))) {
       if (n->age == AGE_NEW) { /* a leaf with nothing to show (the first root): no plan yet */
         free(refresh);
         return epoch_fail(p, OC_EAGAIN);
@@ -704,7 +712,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       apply_delta(p, c1, t1c - t0c);
       p->new_bricks += dnew;
       int was_new = n->age == AGE_NEW;
-      nc.flags = n->flags;
+      nc.flags = (uint8_t)(n->flags | (was_new ? 0 : F_REFRESH));
       nc.prio = n->prio;
       *n = nc;
       if (!was_new) st.refreshed++;
@@ -819,7 +827,8 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       const pn_t *n = &p->nodes[i];
       /* a target plan: every new content it holds, inner nodes too, since a clocked tick can show
        * a node's children only once it shows the node */
-      if (!in->ready && in->want && n->age == AGE_NEW) in->want(in->ctx, n->key, n->stamp, n->prio);
+      if (!in->ready && in->want && n->age == AGE_NEW)
+        in->want(in->ctx, n->key, n->stamp, n->flags & F_REFRESH ? refresh_gain(p, n->prio, oc_key_level(n->key)) : n->prio);
       if (n->child >= 0) {
         for (int c = 7; c >= 0; c--) stack[sp++] = n->child + c;
         continue;

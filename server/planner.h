@@ -85,6 +85,10 @@ typedef struct {
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];    /**< content stamp per level at this epoch's time */
   double refresh_rate[OC_KEY_MAX_LEVEL + 1]; /**< fraction of epochs a level's content changes, [0,1] */
   uint32_t max_new_bricks; /**< throughput limit for this plan (slow viewer); 0 = none */
+  double step_change[OC_KEY_MAX_LEVEL + 1]; /**< per level, the share of content one time step
+                                changes (docs/performance.md); a refresh wished for (want()) is
+                                worth the node's pixels times this, so production goes where change
+                                shows; 0: 1 */
   /*! Clocked epochs (production runs behind the ticks): new content is used only when it exists.
    *  ready() returns the stamp of content of (key) that exists, `stamp` itself or an older stamp of
    *  that level (stale but complete), or 0 when none does; NULL: everything is ready (stepped

@@ -22,6 +22,13 @@ enum { T_BRICK = 1, T_SIGMA = 2, T_TAUVOL = 3 };
 /* Stamps of a level kept after they change: content of that age may still be shown (stale but
  * complete) while the newer one waits in the queue. */
 #define OCS_STAMP_HISTORY 3
+/* How much of a level's σt one time step of the procedural field changes (L1 relative to L1, 32
+ * brick nodes per level; docs/performance.md, "What skipping costs"; odd levels and levels past 15
+ * interpolated or held). Refreshes are worth the node's pixels times this (planner.h). */
+static const double STEP_CHANGE[OC_KEY_MAX_LEVEL + 1] = {
+    0.52, 0.52, 0.52, 0.44, 0.36, 0.345, 0.33, 0.295, 0.26, 0.11,  0.071,
+    0.063, 0.048, 0.034, 0.034, 0.014, 0.014, 0.014, 0.014, 0.014, 0.014, 0.014};
+
 /* The production queue's bound (entries of 24 bytes). */
 #define OCS_QUEUE_MAX (1u << 16)
 
@@ -1086,6 +1093,7 @@ static int step(ocs_world_t *w) {
   in.ground_tau = w->ground_tau;
   memcpy(in.stamp, w->stamp, sizeof in.stamp);
   memcpy(in.refresh_rate, w->rate, sizeof in.refresh_rate);
+  if (ocs_field_animated(w->field)) memcpy(in.step_change, STEP_CHANGE, sizeof in.step_change);
   if (w->d.clocked) {
     in.ready = ready_cb;
     in.want = want_cb;

@@ -1124,6 +1124,64 @@ static void test_planner__out_of_memory_keeps_the_tree(void **state) {
 
 /*-*** 6. Abandon ***/
 
+/* Clocked plans: a refresh wished for is worth the node's pixels times its level's step change
+ * (ocs_plan_input_t.step_change), a split its pixels. The same animated tree is planned with no
+ * new content ready, once without step_change and once with it: the refresh wishes' priorities
+ * scale by it, the splits' do not. */
+typedef struct {
+  oc_key_t key[4096];
+  double prio[4096];
+  int n;
+} wishes_t;
+
+static uint64_t nothing_new(void *ctx, oc_key_t key, int level, uint64_t stamp) {
+  (void)ctx, (void)key, (void)level, (void)stamp;
+  return 0;
+}
+
+static wishes_t *heard;
+static void hear(void *ctx, oc_key_t key, uint64_t stamp, double prio) {
+  (void)ctx, (void)stamp;
+  if (heard->n < 4096) {
+    heard->key[heard->n] = key;
+    heard->prio[heard->n++] = prio;
+  }
+}
+
+static void test_planner__refresh_worth_its_change(void **state) {
+  (void)state;
+  ocs_plan_desc_t d = desc_make(2048, 32, 3, 1500, 0.3);
+  pose_t cam = {10.0, 20.0, 2500.0, 30.0, -20.0, 60.0, 960, 540};
+  ocs_view_t v = view_of(cam);
+  static wishes_t plain, weighed;
+  for (int run = 0; run < 2; run++) {
+    sim_t s;
+    sim_init(&s, &d, 1, 0.0, 7);
+    for (int e = 0; e < 12; e++) sim_step(&s, &v); /* a tree, refreshed every epoch */
+    s.in.ready = nothing_new;
+    s.in.want = hear;
+    for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) s.in.step_change[l] = run ? 0.25 : 0.0;
+    heard = run ? &weighed : &plain;
+    heard->n = 0;
+    sim_stamps(&s);
+    const ocs_plan_leaf_t *L;
+    uint32_t n;
+    assert_int_equal(ocs_plan_epoch(s.p, &v, &s.in, &L, &n, NULL), 0);
+    ocs_plan_abandon(s.p);
+    sim_free(&s);
+  }
+  assert_true(plain.n == weighed.n && plain.n > 0);
+  int refreshes = 0, splits = 0;
+  for (int i = 0; i < plain.n; i++) {
+    assert_true(plain.key[i] == weighed.key[i]);
+    if (fabs(weighed.prio[i] - 0.25 * plain.prio[i]) <= 1e-9 * plain.prio[i] && plain.prio[i] > 0) refreshes++;
+    else if (weighed.prio[i] == plain.prio[i]) splits++;
+    else fail_msg("wish %d: %g, %g without step_change", i, weighed.prio[i], plain.prio[i]);
+  }
+  print_message("%d wishes: %d refreshes weighed by their change, %d others\n", plain.n, refreshes, splits);
+  assert_true(refreshes > 0);
+}
+
 static void test_planner__abandon_restores(void **state) {
   (void)state;
   rng_state = 0x5EED0006ull;
@@ -1190,6 +1248,7 @@ int main(void) {
       cmocka_unit_test(test_planner__never_splits_what_it_must_not),
       cmocka_unit_test(test_planner__clamp_and_views),
       cmocka_unit_test(test_planner__abandon_restores),
+      cmocka_unit_test(test_planner__refresh_worth_its_change),
       cmocka_unit_test(test_planner__out_of_memory_keeps_the_tree),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
