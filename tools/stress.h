@@ -76,6 +76,8 @@ typedef struct {
   const char *plot;         /* --ramp: PNG files PREFIX-age.png, PREFIX-detail.png */
   int reference;            /* --ramp: time to detail of a stepped server side by side (default on) */
   long ref_teleports;       /* teleports the stepped reference measures (after its first) */
+  int ramp_all;             /* --ramp-all: every phase, even after one was not sustained */
+  int detail_ref_epochs;    /* --detail-reference epochs: compare with its epochs × P, not its seconds */
   int nserver_args;
   char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;
@@ -86,7 +88,8 @@ typedef struct {
  *   - at most STRESS_COALESCED_MAX of its due ticks coalesced,
  *   - (--verify-content) verified content age p99 ≤ STRESS_AGE_ALLOWED time steps and no mismatch,
  *   - (teleport path) time to full detail p50 ≤ STRESS_DETAIL_FACTOR × a stepped server's on the
- *     same path and budget, measured side by side (--no-reference: not checked),
+ *     same path and budget, measured side by side: its seconds stepping as fast as it can, or
+ *     (--detail-reference epochs) its epochs × P (--no-reference: not checked),
  *   - and its median interval between states ≤ STRESS_RAMP_INTERVAL × the period (kept from the
  *     first rule: a viewer whose states come rarely is not keeping up, however punctual). */
 #define STRESS_LATE_P99 0.050

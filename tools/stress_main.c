@@ -91,10 +91,15 @@ static void usage(FILE *f) {
           "                        (with --verify-content), time to full detail after a teleport <= %.2f x a\n"
           "                        stepped server's on the same path and budget (measured first, side by\n"
           "                        side), and a median interval <= %.1f x the period\n"
+          "  --ramp-all            with --ramp: measure every phase up to --ramp-max even after one was not\n"
+          "                        sustained (figures against N; the largest sustained N is unchanged)\n"
           "  --plot PREFIX         with --ramp: PREFIX-age.png (content age p99 against N) and\n"
           "                        PREFIX-detail.png (time to full detail against N, stepped beside it)\n"
           "  --no-reference        with --ramp: no stepped reference (time to detail is not judged)\n"
           "  --reference-teleports K  teleports the stepped reference measures (default 3)\n"
+          "  --detail-reference M  what the rule compares time to full detail with: seconds (default: the\n"
+          "                        stepped server's own seconds, stepped as fast as it makes epochs) or\n"
+          "                        epochs (the stepped server's epochs to full detail x the period)\n"
           "  --ramp-from N         the first phase's viewers (default 1)\n"
           "  --ramp-max N          the last phase's at most (default %d)\n"
           "  --ramp-seconds S      each phase's measured time, after its warm-up (default 10)\n"
@@ -725,7 +730,10 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   ph->mbps_p50 = ph->mbps_p99 = NAN;
   ph->late_p50 = ph->late_p99 = ph->late_max = ph->late_worst_p99 = ph->coalesced_frac = ph->coalesced_worst = NAN;
   ph->detail_p50 = ph->detail_p99 = ph->detail_worst_ratio = NAN;
-  ph->detail_ref = ref ? ref->detail_p50 : NAN;
+  /* the stepped figure the rule compares with: its seconds (stepped as fast as it goes), or with
+   * --detail-reference epochs its epochs × P (what the same epochs take on the clock) */
+  double refv = !ref ? NAN : o->detail_ref_epochs ? ref->detail_epochs_p50 * period : ref->detail_p50;
+  ph->detail_ref = refv;
   ph->age_p99 = ph->age_worst_p99 = -1;
   run->v = calloc((size_t)n, sizeof *run->v);
   if (!run->v) {
@@ -812,8 +820,8 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
     int age99 = stress_age_quantile(&v->m_age, -1, 0.99);
     if (age99 > ph->age_worst_p99) ph->age_worst_p99 = age99;
     double d50 = stress_quantile(v->m_detail.v, v->m_detail.n, 0.5);
-    w_ratio[i] = isfinite(d50) && ref && ref->detail_p50 > 0 ? d50 / ref->detail_p50 : NAN;
-    double limit = ref && ref->detail_p50 > 0 ? STRESS_DETAIL_FACTOR * ref->detail_p50 : NAN;
+    w_ratio[i] = isfinite(d50) && refv > 0 ? d50 / refv : NAN;
+    double limit = refv > 0 ? STRESS_DETAIL_FACTOR * refv : NAN;
     if (why_viewer >= 0) continue;
     why_viewer = v->index;
     if (w_late[i] > STRESS_LATE_P99)
@@ -828,10 +836,10 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
       snprintf(vwhy, sizeof vwhy, "viewer %d: verified content age p99 %d > %d steps", v->index, age99, STRESS_AGE_ALLOWED);
     else if (isfinite(w_ratio[i]) && w_ratio[i] > STRESS_DETAIL_FACTOR)
       snprintf(vwhy, sizeof vwhy, "viewer %d: time to full detail %.2f s > %.2f x stepped %.2f s", v->index, d50,
-               STRESS_DETAIL_FACTOR, ref->detail_p50);
+               STRESS_DETAIL_FACTOR, refv);
     else if (isfinite(limit) && (v->m_unreached || v->m_open_s > limit))
       snprintf(vwhy, sizeof vwhy, "viewer %d: a teleport did not reach full detail within %.2f x stepped %.2f s", v->index,
-               STRESS_DETAIL_FACTOR, ref->detail_p50);
+               STRESS_DETAIL_FACTOR, refv);
     else if (isfinite(med) && med > STRESS_RAMP_INTERVAL * period)
       snprintf(vwhy, sizeof vwhy, "viewer %d: median interval %.2f s > %.1f x %g s", v->index, med, STRESS_RAMP_INTERVAL, period);
     else
@@ -894,7 +902,7 @@ int main(int argc, char **argv) {
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
          O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE, O_VERIFY, O_SHARE,
-         O_PLOT, O_NO_REF, O_REF_TELE };
+         O_PLOT, O_NO_REF, O_REF_TELE, O_DETAIL_REF, O_RAMP_ALL };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -918,7 +926,8 @@ int main(int argc, char **argv) {
       {"full-sessions", no_argument, 0, O_FULL},    {"source-address", required_argument, 0, O_SOURCE},
       {"verify-content", required_argument, 0, O_VERIFY}, {"share-paths", no_argument, 0, O_SHARE},
       {"plot", required_argument, 0, O_PLOT},       {"no-reference", no_argument, 0, O_NO_REF},
-      {"reference-teleports", required_argument, 0, O_REF_TELE},
+      {"reference-teleports", required_argument, 0, O_REF_TELE}, {"detail-reference", required_argument, 0, O_DETAIL_REF},
+      {"ramp-all", no_argument, 0, O_RAMP_ALL},
       {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
@@ -1034,6 +1043,13 @@ int main(int argc, char **argv) {
         o.plot = optarg;
         break;
       case O_NO_REF: o.reference = 0; ref_given = 1; break;
+      case O_RAMP_ALL: o.ramp_all = 1; ref_given = 1; break;
+      case O_DETAIL_REF:
+        if (strcmp(optarg, "seconds") && strcmp(optarg, "epochs"))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--detail-reference: expected seconds or epochs, got \"%s\"", optarg);
+        o.detail_ref_epochs = !strcmp(optarg, "epochs");
+        ref_given = 1;
+        break;
       case O_REF_TELE:
         if (oc_cli_int(prog, "--reference-teleports", optarg, 1, 100, &o.ref_teleports)) return OC_EXIT_USAGE;
         ref_given = 1;
@@ -1066,7 +1082,7 @@ int main(int argc, char **argv) {
   if (o.ramp && !o.spawn) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp goes with --spawn, not --connect");
   if (o.ramp && o.epoch_period == 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp needs a period (--epoch-period > 0)");
   if (!o.ramp && (o.plot || ref_given))
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--plot, --no-reference and --reference-teleports go with --ramp");
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--plot, --ramp-all, --no-reference, --reference-teleports and --detail-reference go with --ramp");
   if (o.verify_content > 0 && !o.spawn)
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--verify-content needs --spawn: the tool re-produces bricks of the scene it gave the server");
   if (o.ramp && o.nbudgets > 64) return oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp: at most 64 budgets");
@@ -1232,13 +1248,15 @@ int main(int argc, char **argv) {
                   o.budgets_mib[b], ref->detail_p50, ref->settled, ref->teleports);
         if (!(ref->detail_p50 > 0)) ref = NULL;
       }
+      int stopped = 0; /* a phase was not sustained: larger N are measured with --ramp-all only */
       for (long n = o.ramp_from; n <= o.ramp_max && nph < maxph && !g_interrupted; n *= 2) {
         ramp_phase(&run, ctl, pid, period, (int)n, ref, &ph[nph]);
         const stress_ramp_phase_t *p = &ph[nph++];
         fprintf(stderr, "overcast-stress: ramp: %ld MiB, %d viewer%s: %s%s\n", p->budget_mib, p->n, p->n == 1 ? "" : "s",
                 p->sustained ? "sustained" : "not sustained: ", p->sustained ? "" : p->why);
-        if (!p->sustained) break;
-        largest[b] = p->n;
+        if (!p->sustained) stopped = 1;
+        if (!stopped) largest[b] = p->n;
+        if (stopped && !o.ramp_all) break;
       }
     }
     run.o = &o;

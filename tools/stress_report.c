@@ -713,11 +713,12 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
          "time to full detail p50 <= %.2f x stepped, median interval <= %.1f x the period\n",
          1e3 * STRESS_LATE_P99, 100.0 * STRESS_COALESCED_MAX, STRESS_AGE_ALLOWED, STRESS_DETAIL_FACTOR, STRESS_RAMP_INTERVAL);
   for (int r = 0; r < nrefs; r++)
-    printf("stepped reference, %ld MiB (viewer %d's teleport path, %.0f s): full detail p50 %s s, p99 %s s, p50 %s epochs, "
-           "%" PRIu64 " of %" PRIu64 " teleports settled%s%s\n",
+    printf("stepped reference, %ld MiB (viewer %d's teleport path, %.0f s): full detail p50 %s s, p99 %s s, p50 %s epochs "
+           "(%s s at the period), %" PRIu64 " of %" PRIu64 " teleports settled; the rule compares with its %s%s%s\n",
            refs[r].budget_mib, refs[r].index, refs[r].seconds, sr_num(b1, sizeof b1, refs[r].detail_p50, "%.2f"),
            sr_num(b2, sizeof b2, refs[r].detail_p99, "%.2f"), sr_num(b3, sizeof b3, refs[r].detail_epochs_p50, "%.0f"),
-           refs[r].settled, refs[r].teleports, refs[r].error[0] ? "; " : "", refs[r].error);
+           sr_num(b4, sizeof b4, refs[r].detail_epochs_p50 * period, "%.0f"), refs[r].settled, refs[r].teleports,
+           o->detail_ref_epochs ? "epochs x P" : "seconds", refs[r].error[0] ? "; " : "", refs[r].error);
   printf("\n| budget MiB | N | lateness p99 ms (worst viewer) | max ms | coalesced (worst) | age p99 (worst) | mismatches | "
          "full detail p50 s | x stepped (worst) | interval p50 s | server CPU | MB/s per viewer p50 | sustained |\n");
   printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
@@ -778,6 +779,7 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
     cJSON_AddNumberToObject(rule, "coalesced_fraction", STRESS_COALESCED_MAX);
     cJSON_AddNumberToObject(rule, "content_age_p99", STRESS_AGE_ALLOWED);
     cJSON_AddNumberToObject(rule, "full_detail_factor", STRESS_DETAIL_FACTOR);
+    cJSON_AddStringToObject(rule, "full_detail_reference", o->detail_ref_epochs ? "stepped epochs x period" : "stepped seconds");
     cJSON_AddNumberToObject(rule, "interval_factor", STRESS_RAMP_INTERVAL);
     cJSON *ra = cJSON_AddArrayToObject(r, "stepped_reference");
     for (int k = 0; k < nrefs; k++) {

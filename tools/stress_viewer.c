@@ -310,8 +310,9 @@ static void sv_on_stats(void *ctx, const ocp_stats_t *st) {
   if (v->run->o->verbose)
     fprintf(stderr,
             "overcast-stress: viewer %d (%s): epoch %" PRIu64 " plan: %" PRIu32 " leaves, %" PRIu32 " splits, %" PRIu32
-            " merges, %" PRIu32 " deferred, %" PRIu64 " coalesced\n",
-            v->index, sv_name(v), st->epoch, st->leaves, st->splits, st->merges, st->deferred, st->coalesced);
+            " merges, %" PRIu32 " deferred, %" PRIu64 " coalesced, %" PRIu32 " splits waiting, queue %" PRIu32 "\n",
+            v->index, sv_name(v), st->epoch, st->leaves, st->splits, st->merges, st->deferred, st->coalesced, st->split_backlog,
+            st->queue);
   /* Time to full detail after a teleport: the plan first reacts to the new place (a state planned
    * after the jump with splits or merges, or splits waiting for their children's content), then
    * settles: the first later state whose plan split nothing and has no split waiting (STATS
