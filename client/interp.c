@@ -487,6 +487,13 @@ float ocv_interp_param(double now, double arrival, double period) {
   return t >= 1.0 ? 1.0f : (float)t;
 }
 
+double ocv_interp_blend_seconds(double period, uint64_t prev_epoch, uint64_t next_epoch) {
+  if (!(period > 0.0) || !isfinite(period)) return 0.0;
+  uint64_t span = next_epoch > prev_epoch ? next_epoch - prev_epoch : 1;
+  if (span > OCV_INTERP_MAX_SPAN) span = OCV_INTERP_MAX_SPAN;
+  return (double)span * period;
+}
+
 float ocv_interp_weight(int source, int animated, double now, double arrival, double period) {
   switch (source) {
     case OCV_INTERP_OWN:

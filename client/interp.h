@@ -153,6 +153,15 @@ void ocv_interp_stats(const ocv_interp_t *ip, ocv_interp_stats_t *out);
  *  1 when period ≤ 0 or any input is not finite (never blend on nonsense). */
 float ocv_interp_param(double now, double arrival, double period);
 
+/*! The longest blend, in epoch periods: a viewer that fell further behind catches up instead. */
+#define OCV_INTERP_MAX_SPAN 4
+/*! ocv_interp_blend_seconds() : how long the blend from state `prev` to state `next` lasts: the
+ *  wall time the world took to go from one to the other, (next − prev epoch index) × P for clocked
+ *  epochs (their indices count periods since the Unix epoch, so a tick coalesced or skipped between
+ *  them lengthens it; world time ran at the clock's scale over it), at least P and at most
+ *  OCV_INTERP_MAX_SPAN × P; P when the indices do not increase. 0 when period ≤ 0 or not finite. */
+double ocv_interp_blend_seconds(double period, uint64_t prev_epoch, uint64_t next_epoch);
+
 /*! ocv_interp_weight() : the weight w of the NEWEST value of a leaf with this source; the shader
  *  shows mix(previous, newest, w) and may skip the previous value wherever w is 1.
  *    animated scenes : t for OWN, PARENT and CHILDREN (time interpolation); 1 for NONE and SAME.

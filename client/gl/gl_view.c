@@ -16,6 +16,7 @@ struct ocv_gl_view_s {
   oc_state_t staged[2];     /* the store points at staged[cur] until it is complete */
   int cur, have_shown, have_staged;
   double shown_at;          /* when the shown state became complete; < 0: at the next frame */
+  double blend_s;           /* how long its blend from the state before lasts */
   ocv_interp_t ip;
   ocv_gl_prev_t prev;
   int have_prev;
@@ -84,6 +85,7 @@ static int ocv__switch(ocv_gl_view_t *v, double now, char *why, size_t why_len) 
   int rc = ocv_interp_build(&v->ip, v->have_shown ? &v->shown : NULL, next);
   if (rc < 0) return oc_errorf(rc, why, why_len, "gl view: previous values of epoch %llu: %s",
                                (unsigned long long)next->epoch, oc_strerror(rc));
+  v->blend_s = v->have_shown ? ocv_interp_blend_seconds(v->d.epoch_period, v->shown.epoch, next->epoch) : 0.0;
   if (v->have_shown && v->d.epoch_period > 0.0) {
     if ((rc = ocv_gl_prev_upload(&v->prev, &v->ip, v->d.animated, why, why_len)) < 0) return rc;
     v->have_prev = 1;
@@ -118,7 +120,7 @@ int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now
   const ocv_gl_state_t *gs = ocv_gl_store_state(v->store, 0);
   if (gs && v->have_shown) {
     s.epoch = v->shown.epoch;
-    s.t = v->have_prev ? ocv_interp_param(now, v->shown_at, v->d.epoch_period) : 1.0f;
+    s.t = v->have_prev ? ocv_interp_param(now, v->shown_at, v->blend_s) : 1.0f;
     ocv_gl_renderer_set_prev(v->r, v->have_prev ? &v->prev : NULL, s.t);
     if (reproject && (!v->hist || v->hw != desc->width || v->hh != desc->height)) {
       ocv_gl_history_free(v->hist);

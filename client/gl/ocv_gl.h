@@ -257,7 +257,8 @@ typedef struct {
   uint64_t budget;             /**< the granted budget, bytes: the atlas holds budget / OCV_GL_SLOT_BYTES bricks */
   int kept;                    /**< complete states kept: K − 1 (2 animated, 1 static) */
   int animated;                /**< time interpolation (else only splits and merges cross-fade) */
-  double epoch_period;         /**< s; the blend lasts one period (≤ 0: no blend) */
+  double epoch_period;         /**< s; the blend lasts the wall time between the two states'
+                                    epochs (ocv_interp_blend_seconds; ≤ 0: no blend) */
   uint64_t upload_per_frame;   /**< bytes of bricks uploaded per frame; 0 → 4 MiB */
 } ocv_gl_view_desc_t;
 

@@ -681,6 +681,17 @@ static void test_interp__weights(void **state) {
   assert_true(ocv_interp_param(NAN, 10.0, 1.0) == 1.0f);
   assert_true(ocv_interp_param(10.5, INFINITY, 1.0) == 1.0f);
   assert_true(ocv_interp_param(10.5, 10.0, NAN) == 1.0f);
+  /* the blend spans the epochs between the two states (a coalesced tick lengthens it), 1..4 P */
+  const uint64_t e = 1764633600ull; /* clocked indices count periods since the Unix epoch */
+  assert_true(ocv_interp_blend_seconds(1.0, e, e + 1) == 1.0);
+  assert_true(ocv_interp_blend_seconds(1.0, e, e + 2) == 2.0);
+  assert_true(ocv_interp_blend_seconds(0.5, e, e + 3) == 1.5);
+  assert_true(ocv_interp_blend_seconds(1.0, e, e + 100) == OCV_INTERP_MAX_SPAN);
+  assert_true(ocv_interp_blend_seconds(1.0, e, e) == 1.0);
+  assert_true(ocv_interp_blend_seconds(1.0, e + 1, e) == 1.0);
+  assert_true(ocv_interp_blend_seconds(0.0, e, e + 1) == 0.0);
+  assert_true(ocv_interp_blend_seconds(NAN, e, e + 1) == 0.0);
+  assert_true(ocv_interp_param(e + 1.0, e, ocv_interp_blend_seconds(1.0, e, e + 2)) == 0.5f);
   for (int animated = 0; animated < 2; animated++) {
     assert_true(ocv_interp_weight(OCV_INTERP_NONE, animated, 10.5, 10.0, 1.0) == 1.0f);
     assert_true(ocv_interp_weight(OCV_INTERP_SAME, animated, 10.5, 10.0, 1.0) == 1.0f);
