@@ -41,8 +41,8 @@ static ocs_world_t *world(int clocked) {
   return w;
 }
 
-static ocs_viewer_t *viewer(ocs_world_t *w, double lat) {
-  ocs_plan_desc_t d = {.budget = BUDGET, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 18, .split_fraction = 0.5,
+static ocs_viewer_t *viewer_of(ocs_world_t *w, double lat, uint64_t budget) {
+  ocs_plan_desc_t d = {.budget = budget, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 18, .split_fraction = 0.5,
                        .reserve = 0.1};
   ocs_viewer_t *v = NULL;
   char why[256];
@@ -53,6 +53,8 @@ static ocs_viewer_t *viewer(ocs_world_t *w, double lat) {
   assert_int_equal(ocs_viewer_set_view(v, &view), 0);
   return v;
 }
+
+static ocs_viewer_t *viewer(ocs_world_t *w, double lat) { return viewer_of(w, lat, BUDGET); }
 
 /* One tick at epoch n; the viewer's new state (if any) is checked and acknowledged.
  * @return 1 if it got a state. */
@@ -279,12 +281,12 @@ static void test_clocked__teleport(void **st) {
  * v[nv - 1] teleports between the clouds every tick when `teleporter`. ttd[i]: the tick from which
  * viewer i's node and brick counts no longer change. */
 static void detail_run(int nv, int teleporter, size_t per_tick, int ttd[]) {
-  enum { RUN = 60 };
+  enum { RUN = 40 };
   ocs_world_t *w = world_of(TWO, 1, NULL, NULL);
   ocs_viewer_t *v[8];
   uint32_t last[8][2];
   for (int i = 0; i < nv; i++) {
-    v[i] = viewer(w, i % 2 ? -5.0 : 0.0);
+    v[i] = viewer_of(w, i % 2 ? -5.0 : 0.0, BUDGET / 2);
     ttd[i] = 0;
     last[i][0] = last[i][1] = 0;
   }
@@ -310,7 +312,7 @@ static void detail_run(int nv, int teleporter, size_t per_tick, int ttd[]) {
  * content age is 0 in both runs, so time to detail is what it could steal. */
 static void test_clocked__fair_to_the_well_behaved(void **st) {
   (void)st;
-  const size_t per_tick = 512;
+  const size_t per_tick = 256;
   int alone[5], with[5];
   detail_run(4, 0, per_tick, alone);
   detail_run(5, 1, per_tick, with);
@@ -368,6 +370,65 @@ static void test_clocked__producer_error_retried(void **st) {
   ocs_world_free(w);
 }
 
+/* Pause and resume while bricks are in flight (queued, half made), on the animated planet: each
+ * tick's world time is the control history's at its instant; the bricks wished before the resume
+ * that nobody wants any more are dropped, and once production catches up every leaf's content is
+ * current (age at most 1 at every level: the last tick's own step may be due). */
+static const char *PLANET_UNSHADOWED =
+    "{\"version\":1,\"features\":{\"shadows\":false},\"sources\":[{\"type\":\"procedural\",\"preset\":\"fair\"}]}";
+
+static void test_clocked__resume_with_bricks_in_flight(void **st) {
+  (void)st;
+  char why[256];
+  ocs_world_t *w = world_of(PLANET_UNSHADOWED, 1, NULL, NULL); /* no τ: a tenth of the cost */
+  ocs_plan_desc_t pd = {.budget = 256u << 10, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 9,
+                        .split_fraction = 0.5, .reserve = 0.1};
+  ocs_viewer_t *v = NULL;
+  assert_int_equal(ocs_world_add_viewer(w, &pd, &v, NULL, why, sizeof why), 0);
+  oc_camera_pose_t pose = {{20.0, 10.0, 3000.0}, 0.0, -10.0, 60.0};
+  oc_camera_t c = oc_camera_from_pose(pose);
+  ocs_view_t view = {c.pos, c.forward, c.up, 60.0, 160, 90};
+  assert_int_equal(ocs_viewer_set_view(v, &view), 0);
+  const double P = ocs_world_scene(w)->epoch_period, T0 = 1.0e5; /* the clock's instants: n·P */
+  uint64_t n = (uint64_t)(T0 / P);
+  for (int i = 0; i < 4; i++, n++) {
+    ocs_world_produce(w, 1e9, 0);
+    tick(w, v, n);
+  }
+  double paused_at = (double)n * P - 0.5 * P;
+  assert_int_equal(ocs_world_pause(w, paused_at), 0);
+  double frozen = ocs_world_time_at(w, paused_at);
+  tick(w, v, n++);
+  assert_true(ocs_world_queue_length(w) > 0);
+  ocs_world_produce(w, 1e9, 4); /* in flight: some made, the rest queued */
+  tick(w, v, n++);
+  ocs_epoch_out_t o;
+  assert_int_equal(ocs_viewer_output(v, &o), 0);
+  assert_true(o.state->time == frozen); /* paused: the world stands still */
+  double resumed_at = (double)n * P - 0.25 * P;
+  assert_int_equal(ocs_world_resume(w, resumed_at), 0);
+  ocs_world_produce(w, 1e9, 4);
+  for (int i = 0; i < 8; i++, n++) {
+    tick(w, v, n);
+    assert_int_equal(ocs_viewer_output(v, &o), 0);
+    assert_true(fabs(o.state->time - ocs_world_time_at(w, (double)o.state->epoch * P)) < 1e-9);
+    ocs_world_produce(w, 1e9, 0);
+  }
+  assert_true(o.state->time > frozen);
+  ocs_world_produce(w, 1e9, 0);
+  tick(w, v, n++); /* production caught up: every level current */
+  ocs_viewer_stats_t vs;
+  ocs_viewer_stats(v, &vs);
+  int levels = 0;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
+    if (vs.age_p99[l] != 255) {
+      levels++;
+      if (vs.age_p99[l] > 1) fail_msg("level %d: content age p99 %d after production caught up", l, vs.age_p99[l]);
+    }
+  assert_true(levels >= 3);
+  ocs_world_free(w);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_clocked__held_then_released),
@@ -376,6 +437,7 @@ int main(void) {
       cmocka_unit_test(test_clocked__teleport),
       cmocka_unit_test(test_clocked__fair_to_the_well_behaved),
       cmocka_unit_test(test_clocked__producer_error_retried),
+      cmocka_unit_test(test_clocked__resume_with_bricks_in_flight),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
