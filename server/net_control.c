@@ -88,6 +88,7 @@ static cJSON *world_stats_json(ocs_server_t *srv) {
   cJSON_AddNumberToObject(o, "late_ticks", (double)srv->late_ticks);
   cJSON_AddNumberToObject(o, "queue", (double)ocs_world_queue_length(srv->world));
   cJSON_AddNumberToObject(o, "bricks_made_between_ticks", (double)srv->bricks_made);
+  cJSON_AddNumberToObject(o, "produce_errors", (double)ws.produce_errors);
   cJSON_AddNumberToObject(o, "connections", srv->nconnected);
   cJSON_AddNumberToObject(o, "accepted", (double)srv->accepted);
   cJSON_AddNumberToObject(o, "refused", (double)srv->refused);
