@@ -131,7 +131,7 @@ struct ocs_world_s {
   _Atomic int last_error;
   _Atomic oc_key_t last_error_key;
   uint64_t brick_requests;
-  double produce_seconds, plan_seconds;
+  double produce_seconds, plan_seconds, target_seconds;
 };
 
 static double now_s(void) {
@@ -941,7 +941,11 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
     /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
     in->max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
     w->planning = (uint32_t)vi;
-    if (in->ready) OC_TRY(wish_target(v, in));
+    if (in->ready) {
+      double t0 = now_s();
+      OC_TRY(wish_target(v, in));
+      w->target_seconds += now_s() - t0;
+    }
     int rc = ocs_plan_epoch(v->planner, &v->view, in, &v->leaves, &v->nleaves, &v->plan);
     if (rc == OC_EAGAIN) continue;
     if (rc < 0) return rc;
@@ -1101,6 +1105,7 @@ static int step(ocs_world_t *w) {
   }
   want_t *want = NULL;
   size_t nwant = 0;
+  w->target_seconds = 0;
   int rc = plan_viewers(w, &in, &want, &nwant);
   double t1 = now_s();
   w->plan_seconds = t1 - t0;
@@ -1197,6 +1202,7 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
     }
   out->produce_seconds = w->produce_seconds;
   out->plan_seconds = w->plan_seconds;
+  out->target_seconds = w->target_seconds;
   out->produce_errors = w->produce_errors;
   out->last_error = w->last_error;
   out->last_error_key = w->last_error_key;

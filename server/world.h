@@ -63,7 +63,9 @@ typedef struct {
   uint32_t viewers;
   uint64_t granted_bytes;    /**< sum of viewers' budgets */
   uint64_t held_bytes;       /**< server-side memory of the states kept for viewers */
-  double produce_seconds, plan_seconds; /**< wall time of the last step's phases */
+  double produce_seconds, plan_seconds; /**< wall time of the last step's phases (clocked: of the
+                                           last production between ticks) */
+  double target_seconds;     /**< of plan_seconds, the clocked target plans' */
   uint64_t produce_errors;   /**< bricks whose production failed (clocked: asked again) */
   int last_error;            /**< the last failure's OC_E* and brick */
   oc_key_t last_error_key;

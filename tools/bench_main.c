@@ -75,6 +75,8 @@ void oct_bench_usage(FILE *f) {
           "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera)\n"
           "  --orbit DEG         heading change per epoch (default 0: a still camera)\n"
           "  --split-fraction X  planner split cap per epoch as a fraction of capacity (default 0.1)\n"
+          "  --clocked S         clocked epochs: each tick shows only content that exists, then production\n"
+          "                      runs S seconds (0: none); plan-ms includes the target plans (target-ms)\n"
           "\n"
           "wire options (the built-in procedural planet, one viewer at its camera; every decode is checked):\n"
           "  --epochs N          epochs to step (default 8)\n"

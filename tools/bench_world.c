@@ -39,15 +39,16 @@ static double step_change(const ocs_field_t *f, oc_key_t key, double t, double *
 }
 
 int oct_bench_world(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_VIEWERS, O_EPOCHS, O_BUDGET, O_THREADS, O_CAMERA, O_ORBIT, O_SPLIT, O_HELP };
+  enum { O_SCENE = 256, O_VIEWERS, O_EPOCHS, O_BUDGET, O_THREADS, O_CAMERA, O_ORBIT, O_SPLIT, O_CLOCKED, O_HELP };
   static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},     {"viewers", required_argument, 0, O_VIEWERS},
                                        {"epochs", required_argument, 0, O_EPOCHS},   {"budget", required_argument, 0, O_BUDGET},
                                        {"threads", required_argument, 0, O_THREADS}, {"camera", required_argument, 0, O_CAMERA},
                                        {"orbit", required_argument, 0, O_ORBIT},     {"split-fraction", required_argument, 0, O_SPLIT},
-                                       {"help", no_argument, 0, O_HELP},             {0, 0, 0, 0}};
+                                       {"clocked", required_argument, 0, O_CLOCKED}, {"help", no_argument, 0, O_HELP},
+                                       {0, 0, 0, 0}};
   const char *scene_path = NULL, *camera_text = NULL;
   long viewers = 1, epochs = 20, budget_mib = 64, threads = 0;
-  double orbit = 0.0, split = 0.0;
+  double orbit = 0.0, split = 0.0, clocked = -1.0;
   int c;
   opterr = 0;
   optind = 1;
@@ -61,6 +62,7 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
       case O_CAMERA: camera_text = optarg; break;
       case O_ORBIT: if (oc_cli_double(prog, "--orbit", optarg, -180, 180, &orbit)) return OC_EXIT_USAGE; break;
       case O_SPLIT: if (oc_cli_double(prog, "--split-fraction", optarg, 0.001, 1, &split)) return OC_EXIT_USAGE; break;
+      case O_CLOCKED: if (oc_cli_double(prog, "--clocked", optarg, 0, 3600, &clocked)) return OC_EXIT_USAGE; break;
       case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
       default: return oc_cli_fail(prog, OC_EXIT_USAGE, "world: unknown or incomplete option \"%s\"", argv[optind - 1]);
     }
@@ -75,7 +77,7 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
     oc_scene_free(&sc);
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
   }
-  ocs_world_desc_t wd = {.threads = (int)threads, .cache_bytes = 1ull << 30};
+  ocs_world_desc_t wd = {.threads = (int)threads, .cache_bytes = 1ull << 30, .clocked = clocked >= 0};
   ocs_world_t *w = NULL;
   if (ocs_world_create(&w, &sc, &wd, why, sizeof why) < 0) {
     oc_scene_free(&sc);
@@ -93,7 +95,9 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
   }
   printf("scene %s, %ld viewer(s), budget %ld MiB each, %d producer threads, %s field\n", sc.name, viewers, budget_mib,
          (int)wd.threads, ocs_field_animated(ocs_world_field(w)) ? "animated" : "static");
-  printf("epoch  leaves  splits merges refreshed deferred  produced  hit-rate  plan-ms produce-ms\n");
+  if (wd.clocked)
+    printf("clocked: each tick builds its states from content that exists, then production runs %.3g s\n", clocked);
+  printf("epoch  leaves  splits merges refreshed deferred  produced  hit-rate  plan-ms target-ms produce-ms  queue\n");
   uint64_t refresh_all = 0, refreshed = 0, last_produced = 0, produced_after_first = 0;
   int rc = 0;
   for (long e = 0; e < epochs && rc == 0; e++) {
@@ -112,8 +116,14 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
     if ((rc = ocs_world_step(w)) < 0) break;
     ocs_world_stats_t ws;
     ocs_world_stats(w, &ws);
+    double plan_s = ws.plan_seconds, target_s = ws.target_seconds;
+    size_t queue = ocs_world_queue_length(w);
+    if (wd.clocked && (rc = ocs_world_produce(w, clocked, 0)) < 0) break;
+    rc = 0;
+    ocs_world_stats(w, &ws);
     ocs_epoch_out_t o;
-    ocs_viewer_output(v[0], &o);
+    memset(&o, 0, sizeof o);
+    if (ocs_viewer_output(v[0], &o) < 0) memset(&o, 0, sizeof o); /* clocked: no state until the root exists */
     for (long i = 0; i < viewers; i++) {
       ocs_epoch_out_t oi;
       if (ocs_viewer_output(v[i], &oi) == 0) ocs_viewer_ack(v[i], oi.state->epoch);
@@ -123,9 +133,9 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
       refreshed += o.plan.refreshed;
       produced_after_first += ws.bricks_produced - last_produced;
     }
-    printf("%5ld %7u %7u %6u %9u %8u %9llu %9.3f %8.1f %10.1f\n", e, o.plan.leaves, o.plan.splits, o.plan.merges,
+    printf("%5ld %7u %7u %6u %9u %8u %9llu %9.3f %8.1f %9.1f %10.1f %6zu\n", e, o.plan.leaves, o.plan.splits, o.plan.merges,
            o.plan.refreshed, o.plan.deferred, (unsigned long long)(ws.bricks_produced - last_produced), ws.cache_hit_rate,
-           1e3 * ws.plan_seconds, 1e3 * ws.produce_seconds);
+           1e3 * plan_s, 1e3 * target_s, 1e3 * ws.produce_seconds, queue);
     fflush(stdout);
     last_produced = ws.bricks_produced;
   }
@@ -146,7 +156,8 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
            refresh_all ? 100.0 * refreshed / refresh_all : 0.0, refreshed ? (double)refresh_all / refreshed : INFINITY);
     /* the error of not refreshing within a step: how far content moves in one step, per level */
     ocs_epoch_out_t o;
-    ocs_viewer_output(v[0], &o);
+    memset(&o, 0, sizeof o);
+    if (ocs_viewer_output(v[0], &o) < 0) memset(&o, 0, sizeof o); /* clocked: no state until the root exists */
     double num[22] = {0}, den[22] = {0};
     int n[22] = {0};
     for (uint32_t i = 0; i < o.state->node_count; i++) {
