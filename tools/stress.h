@@ -72,7 +72,10 @@ typedef struct {
   double fault_rss_slack;   /* MiB */
   int full_sessions;        /* keep brick codes (a full session) instead of digests */
   double verify_content;    /* --verify-content F: fraction of received bricks re-produced (0: off) */
+  long verify_queue;        /* samples waiting at most (more are dropped, counted) */
+  double verify_drain_s;    /* seconds to verify what is left after a run or phase */
   int share_paths;          /* every viewer flies the same path with the same seed (a shared region) */
+  double time_scale;        /* --time-scale: set on the server at the start (< 0: not given) */
   const char *plot;         /* --ramp: PNG files PREFIX-age.png, PREFIX-detail.png */
   int reference;            /* --ramp: time to detail of a stepped server side by side (default on) */
   long ref_teleports;       /* teleports the stepped reference measures (after its first) */
@@ -473,6 +476,8 @@ typedef struct {
   stress_age_t age;             /* --verify-content: verified ages in the window, all viewers */
   int age_p99, age_worst_p99;   /* pooled over levels and viewers; the largest viewer's (-1: none) */
   uint64_t age_mismatch, verify_left;
+  int server_age_p99;           /* the server's own STATS age_p99, the largest over levels and viewers
+                                   (their last STATS; -1: none reported) */
   double detail_p50, detail_p99, detail_ref; /* teleport viewers, s; the stepped server's p50 */
   double detail_worst_ratio;    /* the largest of the viewers' p50 / detail_ref */
   uint64_t teleports, detail_n, unreached;

@@ -67,6 +67,9 @@ static void usage(FILE *f) {
           "  --share-paths         every viewer flies its path with the same seed: viewers on one path\n"
           "                        share a region (default: each viewer its own seed, disjoint paths)\n"
           "  --seed N              camera paths' seed (default 1)\n"
+          "  --time-scale S        world seconds per second, set on the server before the viewers come\n"
+          "                        (a control request; e.g. 60: an animated scene's content changes\n"
+          "                        faster, which --verify-content's ages then show)\n"
           "  --tick-hz F           camera updates per second, with a period (default 10)\n"
           "  --step-seconds S      stepped: path seconds per epoch (default 1)\n"
           "  --teleport-every S    path seconds between teleports (default 10)\n"
@@ -82,6 +85,9 @@ static void usage(FILE *f) {
           "                        stamps s, s-1, s-2 of the state's world time, and count its content age;\n"
           "                        a brick matching none of them is a MISMATCH (a failure). Off-thread, at\n"
           "                        the lowest priority; what is left is verified after the run (default 0)\n"
+          "  --verify-queue N      samples waiting for the verifier at most; more are dropped, counted\n"
+          "                        (default 256: F is what is offered, the verifier's pace what is done)\n"
+          "  --verify-drain S      seconds to verify what is left after the run or a ramp phase (default 300)\n"
           "Modes:\n"
           "  --ramp                for each --budget: N = --ramp-from, ×2, .. --ramp-max viewers, all at\n"
           "                        that budget, one phase each on the same spawned server (needs a period);\n"
@@ -734,7 +740,7 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
    * --detail-reference epochs its epochs × P (what the same epochs take on the clock) */
   double refv = !ref ? NAN : o->detail_ref_epochs ? ref->detail_epochs_p50 * period : ref->detail_p50;
   ph->detail_ref = refv;
-  ph->age_p99 = ph->age_worst_p99 = -1;
+  ph->age_p99 = ph->age_worst_p99 = ph->server_age_p99 = -1;
   run->v = calloc((size_t)n, sizeof *run->v);
   if (!run->v) {
     snprintf(ph->why, sizeof ph->why, "out of memory");
@@ -744,7 +750,7 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   run->nv = n;
   atomic_store(&run->stop, 0);
   pthread_mutex_lock(&run->mu);
-  run->measure_from = 0;
+  run->measure_from = INFINITY; /* a ramp, not measuring yet (the warm-up starts when all are in) */
   pthread_mutex_unlock(&run->mu);
   start_viewers(run, ctl);
   double t = stress_now();
@@ -760,7 +766,13 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   stress_proc_sample(pid, &p1);
   ph->seconds = stress_now() - m0;
   stop_viewers(run);
-  ph->verify_left = stress_verify_drain(run->verify, o->timeout);
+  /* the verifier's backlog, in slices, keeping the control connection alive */
+  for (double until = stress_now() + o->verify_drain_s;;) {
+    double left_s = until - stress_now();
+    ph->verify_left = stress_verify_drain(run->verify, left_s < 1 ? left_s : 1);
+    ctl_tend(ctl);
+    if (!ph->verify_left || left_s <= 0 || g_interrupted) break;
+  }
   if (p0.ok && p1.ok && ph->seconds > 0) {
     ph->cpu_pct = 100.0 * (p1.cpu_s - p0.cpu_s) / ph->seconds;
     ph->rss_mib = p1.rss_mib;
@@ -799,6 +811,9 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
     ph->teleports += v->m_teleports;
     ph->unreached += v->m_unreached;
     stress_age_merge(&ph->age, &v->m_age);
+    for (int l = 0; l < OCP_STATS_LEVELS; l++)
+      if (v->stats_msgs && v->last_stats.age_p99[l] != 255 && v->last_stats.age_p99[l] > ph->server_age_p99)
+        ph->server_age_p99 = v->last_stats.age_p99[l];
     if (v->failed && !ph->why[0]) snprintf(ph->why, sizeof ph->why, "%.150s", v->error);
     double med = stress_quantile(v->m_interval.v, v->m_interval.n, 0.5);
     if (!isfinite(med)) {
@@ -902,7 +917,7 @@ int main(int argc, char **argv) {
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
          O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE, O_VERIFY, O_SHARE,
-         O_PLOT, O_NO_REF, O_REF_TELE, O_DETAIL_REF, O_RAMP_ALL };
+         O_PLOT, O_NO_REF, O_REF_TELE, O_DETAIL_REF, O_RAMP_ALL, O_TSCALE, O_VQUEUE, O_VDRAIN };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -927,7 +942,8 @@ int main(int argc, char **argv) {
       {"verify-content", required_argument, 0, O_VERIFY}, {"share-paths", no_argument, 0, O_SHARE},
       {"plot", required_argument, 0, O_PLOT},       {"no-reference", no_argument, 0, O_NO_REF},
       {"reference-teleports", required_argument, 0, O_REF_TELE}, {"detail-reference", required_argument, 0, O_DETAIL_REF},
-      {"ramp-all", no_argument, 0, O_RAMP_ALL},
+      {"ramp-all", no_argument, 0, O_RAMP_ALL},     {"time-scale", required_argument, 0, O_TSCALE},
+      {"verify-queue", required_argument, 0, O_VQUEUE}, {"verify-drain", required_argument, 0, O_VDRAIN},
       {0, 0, 0, 0}};
   static stress_opts_t o;
   memset(&o, 0, sizeof o);
@@ -949,6 +965,9 @@ int main(int argc, char **argv) {
   o.fault_budget_mib = 16;
   o.fault_rss_slack = STRESS_FAULT_SLACK_MIB;
   o.reference = 1;
+  o.verify_drain_s = 300;
+  o.verify_queue = 256;
+  o.time_scale = -1;
   o.ref_teleports = 3;
   int ref_given = 0;
   int spawn_given = 0, connect_given = 0, spawn_only = 0;
@@ -1038,6 +1057,9 @@ int main(int argc, char **argv) {
       case O_FULL: o.full_sessions = 1; break;
       case O_VERIFY: if (oc_cli_double(prog, "--verify-content", optarg, 0, 1, &o.verify_content)) return OC_EXIT_USAGE; break;
       case O_SHARE: o.share_paths = 1; break;
+      case O_VQUEUE: if (oc_cli_int(prog, "--verify-queue", optarg, 1, 1L << 20, &o.verify_queue)) return OC_EXIT_USAGE; break;
+      case O_VDRAIN: if (oc_cli_double(prog, "--verify-drain", optarg, 0, 86400, &o.verify_drain_s)) return OC_EXIT_USAGE; break;
+      case O_TSCALE: if (oc_cli_double(prog, "--time-scale", optarg, 0, 1e6, &o.time_scale)) return OC_EXIT_USAGE; break;
       case O_PLOT:
         if (!*optarg) return oc_cli_fail(prog, OC_EXIT_USAGE, "--plot: expected a file prefix, e.g. docs/images/stress_ramp");
         o.plot = optarg;
@@ -1188,13 +1210,24 @@ int main(int argc, char **argv) {
   reply = NULL;
   run.epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
   run.world_dt = period; /* a world second per second, until two states say otherwise */
+  if (o.time_scale >= 0) { /* before any viewer: every state runs at this scale */
+    char req[96];
+    snprintf(req, sizeof req, "{\"op\":\"time\",\"scale\":%.17g}", o.time_scale);
+    if (control(ctl, req, o.timeout, &reply, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--time-scale: %s", why);
+      goto out;
+    }
+    cJSON_Delete(reply);
+    reply = NULL;
+    run.world_dt = period * o.time_scale;
+  }
   sum.stepped = period == 0;
   if (o.verify_content > 0) { /* the verifier's world: the scene the server runs */
     oc_scene_t *sc = calloc(1, sizeof *sc);
     int r = sc ? 0 : OC_ENOMEM;
     if (sc && o.scene) r = oc_scene_load(sc, o.scene, why, sizeof why);
     else if (sc) oc_scene_default(sc);
-    if (r == 0) r = stress_verify_start(&run.verify, sc, 65536, why, sizeof why);
+    if (r == 0) r = stress_verify_start(&run.verify, sc, (size_t)o.verify_queue, why, sizeof why);
     else if (r == OC_ENOMEM) snprintf(why, sizeof why, "out of memory");
     if (sc) oc_scene_free(sc);
     free(sc);
@@ -1310,8 +1343,6 @@ int main(int argc, char **argv) {
    * read, then its statistics (a request waits for a step in progress, which must not count). */
   sum.wall_s = stress_now() - run.t0;
   stop_viewers(&run);
-  sum.verify_left = stress_verify_drain(run.verify, o.timeout);
-  if (run.verify) stress_verify_work(run.verify, &sum.verify_s, &sum.verify_reproduced);
   if (o.faults) { /* the last garbage must still be answered; then the memory once more */
     stress_faults_stop(&run, &sum.fault_conns);
     if (ctl) fault_sample(&run, ctl, &fx, &sum);
@@ -1331,6 +1362,10 @@ int main(int argc, char **argv) {
   } else if (!sum.error[0]) {
     snprintf(sum.error, sizeof sum.error, "final stats: %.400s", why);
   }
+  /* what the verifier has left is verified now, after the measurements (the control connection
+   * is done with) */
+  sum.verify_left = stress_verify_drain(run.verify, o.verify_drain_s);
+  if (run.verify) stress_verify_work(run.verify, &sum.verify_s, &sum.verify_reproduced);
 
 out:
   stop_viewers(&run);

@@ -606,6 +606,9 @@ static cJSON *sr_age_json(const stress_age_t *a) {
   cJSON_AddNumberToObject(o, "errors", (double)a->errors);
   cJSON_AddNumberToObject(o, "verified", (double)stress_age_count(a, -1));
   cJSON_AddNumberToObject(o, "mismatches", (double)stress_age_mismatches(a, -1));
+  uint64_t none = 0;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) none += a->n[l][STRESS_AGE_MAX + 1];
+  cJSON_AddNumberToObject(o, "matched_none", (double)none); /* of the mismatches: no stamp tried matched */
   int p99 = stress_age_quantile(a, -1, 0.99);
   if (p99 >= 0) cJSON_AddNumberToObject(o, "p99", p99);
   else cJSON_AddNullToObject(o, "p99");
@@ -636,6 +639,10 @@ static void sr_age_levels(const stress_age_t *a) {
     any = 1;
   }
   if (!any) printf(" —");
+  uint64_t none = 0, older = stress_age_mismatches(a, -1);
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) none += a->n[l][STRESS_AGE_MAX + 1];
+  if (older) printf("; mismatches %" PRIu64 ": %" PRIu64 " older than s-2 (matched s-3..s-%d), %" PRIu64 " matched none", older,
+                    older - none, STRESS_AGE_MAX, none);
 }
 
 /* Plots of a ramp: content age p99 and time to full detail against N, one line per budget. */
@@ -742,11 +749,12 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
     for (int i = 0; i < nph; i++) {
       printf("  %ld MiB, N = %d:", ph[i].budget_mib, ph[i].n);
       sr_age_levels(&ph[i].age);
-      printf("; sampled %" PRIu64 ", dropped %" PRIu64 ", errors %" PRIu64 "%s\n", ph[i].age.sampled, ph[i].age.dropped,
-             ph[i].age.errors, ph[i].verify_left ? " (some left unverified: the drain timed out)" : "");
+      printf("; sampled %" PRIu64 ", dropped %" PRIu64 ", errors %" PRIu64 "%s; the server's own STATS age p99 (worst level, "
+             "last STATS): %s\n", ph[i].age.sampled, ph[i].age.dropped, ph[i].age.errors,
+             ph[i].verify_left ? " (some left unverified: the drain timed out)" : "", sr_age(b1, sizeof b1, ph[i].server_age_p99));
       if (ph[i].age_mismatch)
-        printf("CONTENT MISMATCH: %ld MiB, N = %d: %" PRIu64 " verified bricks matched none of s, s-1, s-2\n", ph[i].budget_mib,
-               ph[i].n, ph[i].age_mismatch);
+        printf("CONTENT MISMATCH: %ld MiB, N = %d: %" PRIu64 " verified bricks matched none of s, s-1, s-2 (see the line above: "
+               "older content, or none at all)\n", ph[i].budget_mib, ph[i].n, ph[i].age_mismatch);
     }
   }
   printf("\n");
@@ -821,6 +829,7 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
       if (o->verify_content > 0) cJSON_AddItemToObject(x, "content_age", sr_age_json(&p->age));
       if (p->age_worst_p99 >= 0) cJSON_AddNumberToObject(x, "content_age_worst_viewer_p99", p->age_worst_p99);
       cJSON_AddNumberToObject(x, "verify_left", (double)p->verify_left);
+      if (p->server_age_p99 >= 0) cJSON_AddNumberToObject(x, "server_stats_age_p99_worst", p->server_age_p99);
       sr_add_num(x, "full_detail_p50_s", p->detail_p50);
       sr_add_num(x, "full_detail_p99_s", p->detail_p99);
       sr_add_num(x, "full_detail_stepped_p50_s", p->detail_ref);

@@ -137,7 +137,10 @@ static void sv_sample_bricks(stress_viewer_t *v, const oc_state_t *s, int measur
   v->prev_epoch = s->epoch;
   v->have_prev = 1;
   uint32_t max_id = v->max_id;
-  if (!(f > 0) || !run->verify) {
+  pthread_mutex_lock(&run->mu);
+  int warmup = run->measure_from > 0 && !measured; /* a ramp's warm-up: not reported, not verified */
+  pthread_mutex_unlock(&run->mu);
+  if (!(f > 0) || !run->verify || warmup) {
     for (uint32_t i = 0; i < s->node_count; i++)
       if (s->nodes[i].kind == OC_NODE_BRICK && s->nodes[i].brick_id > max_id) max_id = s->nodes[i].brick_id;
     v->max_id = max_id;
