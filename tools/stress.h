@@ -217,7 +217,7 @@ int stress_brick_matches(const stress_brick_sample_t *got, const ocs_brick_out_t
 /* Verified content age, per level: ages 0..STRESS_AGE_MAX (time steps behind the state's), and
  * those that matched none of them. A mismatch (a failure) is a brick matching none of s, s − 1,
  * s − 2; older ones are still looked for (up to STRESS_AGE_MAX) to say how old. */
-#define STRESS_AGE_MAX 8
+#define STRESS_AGE_MAX 16
 #define STRESS_AGE_ALLOWED 2
 #define STRESS_AGE_SCAN_EPOCHS 64
 struct stress_age_s {
@@ -480,6 +480,7 @@ typedef struct {
                                    (their last STATS; -1: none reported) */
   double detail_p50, detail_p99, detail_ref; /* teleport viewers, s; the stepped server's p50 */
   double detail_worst_ratio;    /* the largest of the viewers' p50 / detail_ref */
+  double detail_lower_s;        /* teleports that did not settle waited at least this long (NAN: none) */
   uint64_t teleports, detail_n, unreached;
   double cpu_pct, rss_mib, hwm_mib; /* the server over the measured window; at its end */
   double mbps_p50, mbps_p99;    /* per viewer over the measured window */

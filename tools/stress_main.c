@@ -36,9 +36,11 @@ static void usage(FILE *f) {
           "own camera path with its own budget and depth, and checks every state live: resident bytes\n"
           "(counted here from the states each viewer keeps) never above the granted budget, every\n"
           "checksum verified, every skipped epoch reported. Measures bytes/s per viewer, epoch latency,\n"
-          "time to full detail after a teleport, server RSS and CPU, the tool's own CPU and the brick\n"
-          "cache hit rate; prints a table, and JSON with --json. No GPU memory is allocated.\n"
-          "Definitions and measured runs: docs/performance.md, \"Many viewers\".\n"
+          "with a period each epoch's lateness (EPOCH_BEGIN readable minus its due instant n x P, UTC)\n"
+          "and the ticks coalesced, with --verify-content the content age it verifies itself, time to\n"
+          "full detail after a teleport, server RSS and CPU, the tool's own CPU and the brick cache hit\n"
+          "rate; prints a table, and JSON with --json. No GPU memory is allocated.\n"
+          "Definitions and measured runs: docs/performance.md, \"Many viewers\" and \"Epochs on the clock\".\n"
           "\n"
           "The server:\n"
           "  --spawn               start overcast-server on 127.0.0.1:0 as a child process (default)\n"
@@ -653,7 +655,10 @@ static void stepped_reference(const stress_opts_t *o, const char *exe, long budg
   ro.step_seconds = period;
   ro.verify_content = 0;
   ro.duration = 0;
-  ro.epochs = (long)ceil((double)(o->ref_teleports + 1) * o->teleport_every / period) + 1;
+  /* the first place and K more, each flown for teleport_every path seconds (the next jump would come
+   * with the step after the last) */
+  ro.epochs = (long)floor((double)(o->ref_teleports + 1) * o->teleport_every / period + 1e-9);
+  if (ro.epochs < 2) ro.epochs = 2;
   server_argv_t sa;
   server_argv(&ro, exe, 0, &sa);
   stress_child_t child = {.pid = -1, .out_fd = -1};
@@ -735,7 +740,7 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   ph->itv_p50 = ph->itv_p99 = ph->worst_median = ph->cpu_pct = ph->rss_mib = ph->hwm_mib = NAN;
   ph->mbps_p50 = ph->mbps_p99 = NAN;
   ph->late_p50 = ph->late_p99 = ph->late_max = ph->late_worst_p99 = ph->coalesced_frac = ph->coalesced_worst = NAN;
-  ph->detail_p50 = ph->detail_p99 = ph->detail_worst_ratio = NAN;
+  ph->detail_p50 = ph->detail_p99 = ph->detail_worst_ratio = ph->detail_lower_s = NAN;
   /* the stepped figure the rule compares with: its seconds (stepped as fast as it goes), or with
    * --detail-reference epochs its epochs × P (what the same epochs take on the clock) */
   double refv = !ref ? NAN : o->detail_ref_epochs ? ref->detail_epochs_p50 * period : ref->detail_p50;
@@ -811,6 +816,8 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
     ph->teleports += v->m_teleports;
     ph->unreached += v->m_unreached;
     stress_age_merge(&ph->age, &v->m_age);
+    if (v->m_unreached && !(ph->detail_lower_s >= o->teleport_every)) ph->detail_lower_s = o->teleport_every;
+    if (v->m_open_s > 0 && !(ph->detail_lower_s >= v->m_open_s)) ph->detail_lower_s = v->m_open_s;
     for (int l = 0; l < OCP_STATS_LEVELS; l++)
       if (v->stats_msgs && v->last_stats.age_p99[l] != 255 && v->last_stats.age_p99[l] > ph->server_age_p99)
         ph->server_age_p99 = v->last_stats.age_p99[l];

@@ -648,7 +648,7 @@ static void sr_age_levels(const stress_age_t *a) {
 /* Plots of a ramp: content age p99 and time to full detail against N, one line per budget. */
 static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
                          const stress_ref_t *refs, int nrefs) {
-  int nb = o->nbudgets < OCTS_PLOT_GROUPS / 2 ? o->nbudgets : OCTS_PLOT_GROUPS / 2;
+  int nb = o->nbudgets < OCTS_PLOT_GROUPS / 3 ? o->nbudgets : OCTS_PLOT_GROUPS / 3;
   octs_plot_point_t *pts = calloc((size_t)(2 * nph + 2 * nrefs * 16 + 1), sizeof *pts);
   char names[OCTS_PLOT_GROUPS][48], path[4096], sub[256], why[512];
   if (!pts) return -1;
@@ -686,14 +686,18 @@ static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double perio
       if (o->budgets_mib[b] == ph[i].budget_mib) g = b;
     if (g < 0) continue;
     pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_p50, .group = g};
+    if (isfinite(ph[i].detail_lower_s) && !isfinite(ph[i].detail_p50)) /* none settled: a lower bound */
+      pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_lower_s, .group = 2 * nb + g};
     for (int r = 0; r < nrefs; r++)
       if (refs[r].budget_mib == ph[i].budget_mib)
         pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = refs[r].detail_p50, .group = nb + g};
   }
   octs_plot_desc_t e = {.title = "Time to full detail after a teleport (p50) against viewers", .subtitle = sub,
-                        .xlabel = "viewers N", .ylabel = "seconds", .ngroups = 2 * nb, .lines = 1};
+                        .xlabel = "viewers N", .ylabel = "seconds", .ngroups = 3 * nb, .lines = 1};
   for (int b = 0; b < nb; b++) {
     snprintf(names[nb + b], sizeof names[nb + b], "stepped, %ld MiB", o->budgets_mib[b]);
+    snprintf(names[2 * nb + b], sizeof names[2 * nb + b], "not settled: > y");
+    e.group_name[2 * nb + b] = names[2 * nb + b];
     e.group_name[b] = names[b];
     e.group_name[nb + b] = names[nb + b];
   }
@@ -727,7 +731,7 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
            sr_num(b4, sizeof b4, refs[r].detail_epochs_p50 * period, "%.0f"), refs[r].settled, refs[r].teleports,
            o->detail_ref_epochs ? "epochs x P" : "seconds", refs[r].error[0] ? "; " : "", refs[r].error);
   printf("\n| budget MiB | N | lateness p99 ms (worst viewer) | max ms | coalesced (worst) | age p99 (worst) | mismatches | "
-         "full detail p50 s | x stepped (worst) | interval p50 s | server CPU | MB/s per viewer p50 | sustained |\n");
+         "full detail p50 s (settled/teleports) | x stepped (worst) | interval p50 s | server CPU | MB/s per viewer p50 | sustained |\n");
   printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (int i = 0; i < nph; i++) {
     const stress_ramp_phase_t *p = &ph[i];
@@ -738,9 +742,17 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
     snprintf(coal, sizeof coal, "%s (%s)", sr_num(b3, sizeof b3, 100.0 * p->coalesced_frac, "%.1f %%"),
              sr_num(b4, sizeof b4, 100.0 * p->coalesced_worst, "%.1f %%"));
     snprintf(age, sizeof age, "%s (%s)", sr_age(b5, sizeof b5, p->age_p99), sr_age(b6, sizeof b6, p->age_worst_p99));
+    char det[80]; /* p50, and teleports settled of those made in the window */
+    if (p->teleports && !p->detail_n && isfinite(p->detail_lower_s))
+      snprintf(det, sizeof det, "> %.0f (0/%" PRIu64 ")", p->detail_lower_s, p->teleports);
+    else if (p->teleports)
+      snprintf(det, sizeof det, "%s (%" PRIu64 "/%" PRIu64 ")", sr_num(b8, sizeof b8, p->detail_p50, "%.2f"), p->detail_n,
+               p->teleports);
+    else
+      snprintf(det, sizeof det, "—");
     printf("| %ld | %d | %s | %s | %s | %s | %" PRIu64 " | %s | %s | %s | %s | %s | %s%s |\n", p->budget_mib, p->n, late,
            sr_num(b7, sizeof b7, 1e3 * p->late_max, "%.0f"), coal, age, p->age_mismatch,
-           sr_num(b8, sizeof b8, p->detail_p50, "%.2f"), sr_num(b9, sizeof b9, p->detail_worst_ratio, "%.2f"),
+           det, sr_num(b9, sizeof b9, p->detail_worst_ratio, "%.2f"),
            sr_num(b10, sizeof b10, p->itv_p50, "%.2f"), sr_num(b1, sizeof b1, p->cpu_pct, "%.0f %%"),
            sr_num(b2, sizeof b2, p->mbps_p50, "%.3f"), p->sustained ? "yes" : "no: ", p->sustained ? "" : p->why);
   }
@@ -834,6 +846,7 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
       sr_add_num(x, "full_detail_p99_s", p->detail_p99);
       sr_add_num(x, "full_detail_stepped_p50_s", p->detail_ref);
       sr_add_num(x, "full_detail_worst_ratio", p->detail_worst_ratio);
+      sr_add_num(x, "full_detail_unsettled_at_least_s", p->detail_lower_s);
       cJSON_AddNumberToObject(x, "teleports", (double)p->teleports);
       cJSON_AddNumberToObject(x, "teleports_settled", (double)p->detail_n);
       cJSON_AddNumberToObject(x, "teleports_unreached", (double)p->unreached);
