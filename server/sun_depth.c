@@ -54,6 +54,9 @@ typedef struct {
   oc_key_t key; /* 0: free slot */
   float smin, smax;
   int32_t brick; /* index into the pool, -1: not fetched */
+  float bmax;    /* the fetched samples' maximum */
+  int32_t ranged; /* smin/smax narrowed to the samples' range (ocs__brick; the clear-sky proof
+                     fetches without narrowing, so the march it may precede is unchanged) */
 } ocs__ent_t;
 
 typedef struct {
@@ -156,12 +159,14 @@ static int32_t ocs__lookup(ocs__ctx_t *c, oc_key_t key) {
   c->tab[h].smin = mn;
   c->tab[h].smax = mx;
   c->tab[h].brick = -1;
+  c->tab[h].ranged = 0;
   c->count++;
   return (int32_t)h;
 }
 
-/* The brick of a slot (fetched the first time); NULL on error. */
-static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
+/* The brick of a slot (fetched the first time, e->bmax set), without narrowing the slot's range;
+ * NULL on error. */
+static const float *ocs__fetch(ocs__ctx_t *c, int32_t slot) {
   ocs__ent_t *e = &c->tab[slot];
   if (e->brick < 0) {
     if (c->nbricks == c->pool_cap) {
@@ -182,6 +187,18 @@ static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
     }
     oc_sanitize(b, OC_BRICK_VOXELS, NULL);
     e->brick = c->nbricks++;
+    float mx = b[0];
+    for (int i = 1; i < OC_BRICK_VOXELS; i++) mx = b[i] > mx ? b[i] : mx;
+    e->bmax = mx;
+  }
+  return c->pool + (size_t)e->brick * OC_BRICK_VOXELS;
+}
+
+/* The brick of a slot (fetched the first time), its range narrowed; NULL on error. */
+static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
+  const float *b = ocs__fetch(c, slot);
+  ocs__ent_t *e = &c->tab[slot];
+  if (b && !e->ranged) {
     /* The samples' own range is exact where the bound was only conservative: an all-zero brick is
      * skipped from now on, a uniform one read without interpolation. */
     float mn = b[0], mx = b[0];
@@ -190,9 +207,10 @@ static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
       mx = b[i] > mx ? b[i] : mx;
     }
     e->smin = mn, e->smax = mx;
+    e->ranged = 1;
     c->chk_level = -1;
   }
-  return c->pool + (size_t)e->brick * OC_BRICK_VOXELS;
+  return b;
 }
 
 /* The slot of node (ix, iy, iz) of `level` through the per-level "current node" cache; -1 on error. */
@@ -438,12 +456,134 @@ static float ocs__to_float(double tau) {
   return tau < 3.0e38 ? (float)tau : 3.0e38f;
 }
 
+/*-*** Clear sky: a node's sun column proven empty by the bounds (ocs_tau_direct(), note 1) ***/
+
+/*! Most nodes one proof may visit before giving up (and marching): a column through clear air
+ *  visits tens; one through a cloud fails long before this. */
+#define OCS__CLEAR_BUDGET 4096
+/*! Spatial margin (m) around every node tested: far above the rounding of the walk's positions
+ *  (a few ulps of 6.5e6 m, about 1e-9 m each). */
+#define OCS__CLEAR_EPS 0.05
+
+typedef struct {
+  double c[3], h;  /* the node box's centre and half edge (+ margin) */
+  double id[3];    /* 1/sun per axis, 0 where the sun's component is 0 */
+  int sg[3];
+  int maxl;        /* the finest level that may prove this piece */
+  long budget;
+} ocs__sweep_t;
+
+/* Whether the segment c + t·sun, t ∈ [ta, tb], meets the box [lo − h, hi + h] (the node grown by
+ * the swept box's half edge: the swept box meets the node iff its centre's segment meets that). */
+static int ocs__seg_meets(const ocs__sweep_t *w, double ta, double tb, const double lo[3], const double hi[3]) {
+  for (int a = 0; a < 3; a++) {
+    double l = lo[a] - w->h, u = hi[a] + w->h;
+    if (!w->sg[a]) {
+      if (w->c[a] < l || w->c[a] > u) return 0;
+      continue;
+    }
+    double t1 = (l - w->c[a]) * w->id[a], t2 = (u - w->c[a]) * w->id[a];
+    if (t1 > t2) {
+      double x = t1;
+      t1 = t2, t2 = x;
+    }
+    ta = t1 > ta ? t1 : ta;
+    tb = t2 < tb ? t2 : tb;
+    if (ta > tb) return 0;
+  }
+  return 1;
+}
+
+/* Whether every point of the swept box over [ta, tb] inside node (level; ix, iy, iz) lies in a
+ * node of level level_lo .. maxl whose bound is [0, 0] (the test ocs__empty_level() makes), or in
+ * a node of level maxl whose samples are all 0. */
+static int ocs__clear_node(ocs__ctx_t *c, ocs__sweep_t *w, int level, uint32_t ix, uint32_t iy, uint32_t iz, double ta, double tb) {
+  if (--w->budget < 0) return 0;
+  double size = oc_key_size(level);
+  double lo[3] = {-OCS__S + (double)ix * size, -OCS__S + (double)iy * size, -OCS__S + (double)iz * size};
+  double hi[3] = {lo[0] + size, lo[1] + size, lo[2] + size};
+  if (!ocs__seg_meets(w, ta, tb, lo, hi)) return 1;
+  if (level >= c->level_lo) {
+    int32_t slot = ocs__slot(c, level, ix, iy, iz);
+    if (slot < 0) return 0;
+    if (!(c->tab[slot].smax > 0.0f)) return 1;
+    if (level >= w->maxl) { /* the level walked here: its samples decide, as they do in the walk */
+      const float *b = ocs__fetch(c, slot);
+      return b && !(c->tab[slot].bmax > 0.0f);
+    }
+  }
+  for (int q = 0; q < 8; q++)
+    if (!ocs__clear_node(c, w, level + 1, 2 * ix + (q & 1), 2 * iy + (q >> 1 & 1), 2 * iz + (q >> 2), ta, tb)) return 0;
+  return 1;
+}
+
+/* Whether the direct march of `key` provably gives τ = 0 at all 512 samples: the swept box is cut
+ * where the cone changes level (as ocs__march cuts each ray, t_ref = 0, at the same doubles), and
+ * each piece is covered by nodes the walk of that piece would find empty: a bound [0, 0] at a level
+ * from level_lo to the one walked there, or, at the level walked, samples all 0 (the walk fetches
+ * that brick and then jumps it; the proof fetches it without narrowing the memo's range, so a
+ * march after a failed proof runs exactly as without it). */
+static int ocs__column_clear(ocs__ctx_t *c, oc_key_t key) {
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(key, &o, &size);
+  const oc_dvec3 s = c->d->sun;
+  ocs__sweep_t w;
+  w.h = 0.5 * size + OCS__CLEAR_EPS;
+  w.c[0] = o.x + 0.5 * size, w.c[1] = o.y + 0.5 * size, w.c[2] = o.z + 0.5 * size;
+  const double dv[3] = {s.x, s.y, s.z};
+  for (int a = 0; a < 3; a++) {
+    w.sg[a] = dv[a] > 0.0 ? 1 : dv[a] < 0.0 ? -1 : 0;
+    w.id[a] = w.sg[a] ? 1.0 / dv[a] : 0.0;
+  }
+  w.budget = OCS__CLEAR_BUDGET;
+  /* Where any sample's ray may leave the atmosphere sphere (clip's t1 ≤ that exit): for p in the
+   * box, exit = −b + sqrt(Ra² − |p|² + b²), b = p·sun, bounded with max(−b) and max(b²) over the
+   * corners (b is linear) and min |p|² over the box. */
+  double nb = -INFINITY, b2 = 0.0, p2 = 0.0;
+  for (int q = 0; q < 8; q++) {
+    double b = (o.x + (q & 1) * size) * s.x + (o.y + (q >> 1 & 1) * size) * s.y + (o.z + (q >> 2) * size) * s.z;
+    nb = fmax(nb, -b), b2 = fmax(b2, b * b);
+  }
+  const double pv[3] = {o.x, o.y, o.z};
+  for (int a = 0; a < 3; a++) {
+    double x = pv[a] > 0.0 ? pv[a] : pv[a] + size < 0.0 ? pv[a] + size : 0.0;
+    p2 += x * x;
+  }
+  double t_hi = nb + sqrt(fmax(0.0, OCS__R_ATMO * OCS__R_ATMO - p2 + b2));
+  t_hi = t_hi * (1.0 + 1e-9) + 1.0;
+  if (!(t_hi > 0.0)) return 1; /* no ray meets the atmosphere ahead */
+  int jmax = c->level_m - c->level_lo;
+  double ta = 0.0;
+  for (int j = 0; j <= jmax && ta < t_hi; j++) {
+    double tb = j < jmax ? c->step_up[j] / c->d->cone : t_hi;
+    if (tb > t_hi) tb = t_hi;
+    if (tb > ta) {
+      w.maxl = c->level_m - j;
+      if (!ocs__clear_node(c, &w, 0, 0, 0, 0, ta, tb)) return 0;
+    }
+    ta = tb > ta ? tb : ta;
+  }
+  return 1;
+}
+
 int ocs_tau_direct(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
   ocs__desc_t d;
   if (!tau || !oc_key_valid(key)) return OC_EINVAL;
   OC_TRY(ocs__desc(du, &d));
   ocs__ctx_t c;
   OC_TRY(ocs__ctx_init(&c, &d, oc_key_level(key)));
+  if (du->stats) atomic_fetch_add_explicit(&du->stats->direct, 1, memory_order_relaxed);
+  if (ocs__column_clear(&c, key)) {
+    if (du->stats) atomic_fetch_add_explicit(&du->stats->clear_proven, 1, memory_order_relaxed);
+    if (!du->march_clear) {
+      ocs__ctx_free(&c);
+      memset(tau, 0, sizeof(float) * OC_BRICK_VOXELS);
+      return 0;
+    }
+    if (du->stats) atomic_fetch_add_explicit(&du->stats->clear_marched, 1, memory_order_relaxed);
+  }
+  c.err = 0; /* a failed proof (out of memory in its memo) leaves the march to find out */
   for (int k = 0; k < 8 && !c.err; k++)
     for (int j = 0; j < 8; j++)
       for (int i = 0; i < 8; i++) tau[i + 8 * j + 64 * k] = ocs__to_float(ocs__tau_point(&c, oc_brick_sample_pos(key, i, j, k), 0.0));

@@ -66,7 +66,8 @@
 #ifndef OC_SERVER_SUN_DEPTH_H
 #define OC_SERVER_SUN_DEPTH_H
 
-#include <stddef.h> /* size_t */
+#include <stdatomic.h> /* atomic_long: ocs_tau_stats_t */
+#include <stddef.h>    /* size_t */
 
 #include "oc_brick.h"  /* OC_BRICK_VOXELS */
 #include "oc_key.h"    /* oc_key_t */
@@ -107,6 +108,16 @@
 #define OCS_TAU_SLICE_SPACING 1.5
 #endif
 
+/*! ocs_tau_stats_t : what the direct march did, counted where a caller asks (ocs_tau_desc_t.stats);
+ *  relaxed atomic increments, so one struct may serve every thread. Zero-initialise it. */
+typedef struct {
+  atomic_long direct;        /**< ocs_tau_direct() calls that got as far as marching or proving */
+  atomic_long clear_proven;  /**< of those, nodes whose sun column was proven clear (bounds, and
+                                  samples at the level walked: ocs_tau_direct(), note 1) */
+  atomic_long clear_marched; /**< of those, provably clear nodes marched anyway (march_clear set):
+                                  wasted work; 0 whenever march_clear is 0 */
+} ocs_tau_stats_t;
+
 /* How τ is computed. Zero-initialise (ocs_tau_desc_t d = {0};), set the callbacks and the sun;
  * every other zero field takes the default given here. */
 typedef struct {
@@ -134,9 +145,23 @@ typedef struct {
                            0 → 2 (64 nodes share one volume) */
   int cover_all;      /**< volumes cover every descendant; default 0: only those the march level's
                            σt says may hold σt (ocs_tau_volume_build(), note 2) */
+  int march_clear;    /**< march even nodes whose sun column is proven clear (ocs_tau_direct(),
+                           note 1; the result is the same bits): for tests and before/after
+                           figures; default 0 */
+  ocs_tau_stats_t *stats; /**< counters to add to (may be NULL: none) */
 } ocs_tau_desc_t;
 
 /*! ocs_tau_direct() : τ at the node's 512 sample positions, each marched on its own (the reference).
+ *  note 1 : clear sky costs nothing. Before marching, the node's box swept toward the sun (up to a
+ *           bound on where any of its rays leaves the atmosphere) is covered by nodes whose bound
+ *           is [0, 0], each at a level the march itself would test at that distance (level_lo ..
+ *           the cone's level there), or, at that level itself, whose σt samples are all 0 (the
+ *           walk fetches such a brick and jumps it); a hierarchical search from the root, on a
+ *           budget. When that succeeds every ray only jumps empty nodes, so the march would give
+ *           exactly 0 at every sample: τ = 0 is returned without marching, bit for bit what the
+ *           march gives (the test compares them with march_clear). When it fails, the march runs
+ *           exactly as it would have (bounds and bricks the proof asked for are memoised for it).
+ *           Ground nodes under clear air are the common case.
  *  @return 0; OC_EINVAL for a bad desc or key; OC_ENOMEM; or the sigma callback's error. */
 int ocs_tau_direct(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOXELS]);
 

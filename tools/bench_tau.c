@@ -24,29 +24,12 @@
 #include "ocs_field.h"
 #include "sun_depth.h"
 
-/*-*** A single-threaded brick cache in front of the field ***/
+/*-*** A single-threaded brick cache in front of the field (bench.h: oct_fcache_t) ***/
 
-typedef struct {
-  oc_key_t key;
-  int has_bound, brick; /* brick: index + 1 into the pool, 0: not sampled */
-  float lo, hi;
-} oct__ent_t;
-
-typedef struct {
-  const ocs_field_t *f;
-  double t;
-  oct__ent_t *tab;
-  size_t cap, n;
-  float *pool;
-  size_t nb, pool_cap;
-  long sigma_calls, bound_calls, sigma_fetches, bound_fetches; /* callback calls; field work */
-  int err;
-} oct__cache_t;
-
-static oct__ent_t *oct__find(oct__cache_t *c, oc_key_t key) {
+static oct_fcache_ent_t *oct__find(oct_fcache_t *c, oc_key_t key) {
   if ((c->n + 1) * 2 > c->cap) {
     size_t ncap = c->cap ? c->cap * 2 : 4096;
-    oct__ent_t *nt = calloc(ncap, sizeof *nt);
+    oct_fcache_ent_t *nt = calloc(ncap, sizeof *nt);
     if (!nt) return NULL;
     for (size_t i = 0; i < c->cap; i++) {
       if (!c->tab[i].key) continue;
@@ -67,10 +50,10 @@ static oct__ent_t *oct__find(oct__cache_t *c, oc_key_t key) {
   return &c->tab[h];
 }
 
-static int oct__sigma(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) {
-  oct__cache_t *c = ctx;
+int oct_fcache_sigma(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+  oct_fcache_t *c = ctx;
   c->sigma_calls++;
-  oct__ent_t *e = oct__find(c, key);
+  oct_fcache_ent_t *e = oct__find(c, key);
   if (!e) return OC_ENOMEM;
   if (!e->brick) {
     if (c->nb == c->pool_cap) {
@@ -90,10 +73,10 @@ static int oct__sigma(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) {
   return 0;
 }
 
-static void oct__bound(void *ctx, oc_key_t key, float *lo, float *hi) {
-  oct__cache_t *c = ctx;
+void oct_fcache_bound(void *ctx, oc_key_t key, float *lo, float *hi) {
+  oct_fcache_t *c = ctx;
   c->bound_calls++;
-  oct__ent_t *e = oct__find(c, key);
+  oct_fcache_ent_t *e = oct__find(c, key);
   if (!e) { /* out of memory: say "anything" (the sample will fail the same way) */
     *lo = 0.0f, *hi = INFINITY;
     return;
@@ -106,7 +89,14 @@ static void oct__bound(void *ctx, oc_key_t key, float *lo, float *hi) {
   *lo = e->lo, *hi = e->hi;
 }
 
-static void oct__counts(const oct__cache_t *c, long out[4]) {
+void oct_fcache_free(oct_fcache_t *c) {
+  free(c->tab);
+  free(c->pool);
+  c->tab = NULL, c->pool = NULL;
+  c->cap = c->n = c->nb = c->pool_cap = 0;
+}
+
+static void oct__counts(const oct_fcache_t *c, long out[4]) {
   out[0] = c->sigma_calls, out[1] = c->bound_calls, out[2] = c->sigma_fetches, out[3] = c->bound_fetches;
 }
 
@@ -179,9 +169,9 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
   int rc = OC_EXIT_OK;
   for (int li = 0; li < nlevels && rc == OC_EXIT_OK; li++) {
     int level = (int)levels[li];
-    oct__cache_t cache = {.f = f, .t = t};
+    oct_fcache_t cache = {.f = f, .t = t};
     ocs_tau_desc_t d = {0};
-    d.sigma = oct__sigma, d.bound = oct__bound, d.ctx = &cache, d.sun_dir = sun;
+    d.sigma = oct_fcache_sigma, d.bound = oct_fcache_bound, d.ctx = &cache, d.sun_dir = sun;
     /* The block, aligned to groups; the nodes with some σt > 0, in group order. */
     uint32_t cx, cy, cz;
     oc_key_coords(oc_key_from_point(level, centre), &cx, &cy, &cz);
@@ -201,9 +191,9 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
             if (x < 0 || y < 0 || z < 0 || x >= lim || y >= lim || z >= lim) continue;
             oc_key_t k = oc_key_make(level, (uint32_t)x, (uint32_t)y, (uint32_t)z);
             float lo, hi;
-            oct__bound(&cache, k, &lo, &hi);
+            oct_fcache_bound(&cache, k, &lo, &hi);
             if (!(hi > 0.0f)) continue;
-            if (oct__sigma(&cache, k, s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
+            if (oct_fcache_sigma(&cache, k, s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
             int any = 0;
             for (int i = 0; i < OC_BRICK_VOXELS; i++) any |= s[i] > 0.0f;
             if (any) keys[nk++] = k;
@@ -218,7 +208,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
     }
     /* First pass (untimed), each method with its own empty cache: the field work it causes (what
      * a cold server cache would fetch); the caches are then warm for the timed passes. */
-    oct__cache_t cd = {.f = f, .t = t}, cv = {.f = f, .t = t};
+    oct_fcache_t cd = {.f = f, .t = t}, cv = {.f = f, .t = t};
     ocs_tau_desc_t dd = d, dv = d;
     dd.ctx = &cd, dv.ctx = &cv;
     for (int i = 0; i < nk; i++)
@@ -274,7 +264,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
     double emax = 0.0, esum = 0.0, tmax = 0.0, tsum = 0.0;
     long ns = 0;
     for (int i = 0; i < nk; i++) {
-      if (oct__sigma(&cache, keys[i], s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
+      if (oct_fcache_sigma(&cache, keys[i], s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
       for (int v = 0; v < OC_BRICK_VOXELS; v++) {
         if (!(s[v] > 0.0f)) continue;
         size_t q = (size_t)i * OC_BRICK_VOXELS + (size_t)v;
@@ -300,7 +290,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
       long nr = 0;
       float tr[OC_BRICK_VOXELS];
       for (int i = 0; i < nk; i++) {
-        if (ocs_tau_direct(&dr, keys[i], tr) < 0 || oct__sigma(&cache, keys[i], s) < 0)
+        if (ocs_tau_direct(&dr, keys[i], tr) < 0 || oct_fcache_sigma(&cache, keys[i], s) < 0)
           return oc_cli_fail(prog, OC_EXIT_RUNTIME, "reference failed");
         for (int v = 0; v < OC_BRICK_VOXELS; v++) {
           if (!(s[v] > 0.0f)) continue;
