@@ -834,6 +834,18 @@ static void test_sun_depth__clear_column_is_the_march(void **st) {
   assert_int_equal(atomic_load(&off.clear_marched), atomic_load(&off.clear_proven));
   assert_int_equal(atomic_load(&off.clear_proven), atomic_load(&on.clear_proven)); /* the same proofs either way */
   tc_free(&c);
+
+  /* Clear air over the planet's ground near the default camera (t = 0): the bounds alone prove
+   * nothing there (the level-13 node above the ground is bounded by [0, 0.14]); its samples,
+   * all 0, prove the columns clear, and still give the march's bits. */
+  tc_init(&c, NULL, 0.0);
+  long proven = atomic_load(&on.clear_proven);
+  clear_case(&c, 44.98, -0.02, 0.01, SIZE(4, 2), 14, 30.0, &on, &off);
+  printf("planet, clear air: %ld proven clear\n", atomic_load(&on.clear_proven) - proven);
+  assert_true(atomic_load(&on.clear_proven) > proven);
+  assert_int_equal(atomic_load(&on.clear_marched), 0);
+  assert_int_equal(atomic_load(&off.clear_marched), atomic_load(&off.clear_proven));
+  tc_free(&c);
 }
 
 /*-*** Arguments and errors ***/
