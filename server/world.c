@@ -132,6 +132,7 @@ struct ocs_world_s {
   _Atomic oc_key_t last_error_key;
   uint64_t brick_requests;
   double produce_seconds, plan_seconds, target_seconds;
+  ocs_tau_stats_t tau_stats;
 };
 
 static double now_s(void) {
@@ -381,7 +382,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   ocs_clock_init(&w->clock, w->utc, w->time);
   w->sun = w->scene.sun_dir;
   w->sun_version = 1;
-  w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .ctx = w, .sun_dir = w->sun};
+  w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .ctx = w, .sun_dir = w->sun, .stats = &w->tau_stats};
   clock_update(w);
   *out = w;
   return 0;
@@ -1203,6 +1204,8 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   out->produce_seconds = w->produce_seconds;
   out->plan_seconds = w->plan_seconds;
   out->target_seconds = w->target_seconds;
+  out->tau_direct = (uint64_t)atomic_load(&w->tau_stats.direct);
+  out->tau_clear = (uint64_t)atomic_load(&w->tau_stats.clear_proven);
   out->produce_errors = w->produce_errors;
   out->last_error = w->last_error;
   out->last_error_key = w->last_error_key;

@@ -66,6 +66,9 @@ typedef struct {
   double produce_seconds, plan_seconds; /**< wall time of the last step's phases (clocked: of the
                                            last production between ticks) */
   double target_seconds;     /**< of plan_seconds, the clocked target plans' */
+  uint64_t tau_direct;       /**< τ of single nodes (ocs_tau_direct): ground nodes, nodes outside
+                                  their group's volume */
+  uint64_t tau_clear;        /**< of those, proven clear toward the sun: τ = 0 without a march */
   uint64_t produce_errors;   /**< bricks whose production failed (clocked: asked again) */
   int last_error;            /**< the last failure's OC_E* and brick */
   oc_key_t last_error_key;

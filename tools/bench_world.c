@@ -146,9 +146,11 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
   }
   ocs_world_stats_t ws;
   ocs_world_stats(w, &ws);
-  printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings, %llu τ volumes\n",
+  printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings, %llu τ volumes, "
+         "%llu single-node τ (%llu proven clear toward the sun: no march)\n",
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
-         (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes);
+         (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_direct,
+         (unsigned long long)ws.tau_clear);
   if (ocs_field_animated(ocs_world_field(w)) && epochs > 1) {
     printf("refresh (viewer 0, epochs 1..%ld): %llu leaves refreshed; refreshing every leaf every epoch: %llu "
            "(%.1f%% of it, %.1fx fewer)\n",
