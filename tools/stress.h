@@ -216,10 +216,12 @@ int stress_brick_matches(const stress_brick_sample_t *got, const ocs_brick_out_t
 
 /* Verified content age, per level: ages 0..STRESS_AGE_MAX (time steps behind the state's), and
  * those that matched none of them. A mismatch (a failure) is a brick matching none of s, s − 1,
- * s − 2; older ones are still looked for (up to STRESS_AGE_MAX) to say how old. */
+ * s − 2; older ones are still looked for (up to STRESS_AGE_MAX) to say how old. The scan back goes
+ * up to STRESS_AGE_SCAN_EPOCHS epochs: a coarse level's time step spans many epochs, and 64 (the
+ * first choice) reached only 2–3 of its stamps. */
 #define STRESS_AGE_MAX 16
 #define STRESS_AGE_ALLOWED 2
-#define STRESS_AGE_SCAN_EPOCHS 64
+#define STRESS_AGE_SCAN_EPOCHS 4096
 struct stress_age_s {
   uint64_t n[OC_KEY_MAX_LEVEL + 1][STRESS_AGE_MAX + 2]; /* [level][age]; [STRESS_AGE_MAX + 1]: none */
   uint64_t sampled, dropped, errors; /* queued; not queued (queue full); reproduction failed */

@@ -655,9 +655,9 @@ static void stepped_reference(const stress_opts_t *o, const char *exe, long budg
   ro.step_seconds = period;
   ro.verify_content = 0;
   ro.duration = 0;
-  /* the first place and K more, each flown for teleport_every path seconds (the next jump would come
-   * with the step after the last) */
-  ro.epochs = (long)floor((double)(o->ref_teleports + 1) * o->teleport_every / period + 1e-9);
+  /* the first place and K more, each flown for teleport_every path seconds: the camera after step k
+   * is at path time k·P, so the last step is the one before the next jump */
+  ro.epochs = (long)ceil((double)(o->ref_teleports + 1) * o->teleport_every / period - 1e-9) - 1;
   if (ro.epochs < 2) ro.epochs = 2;
   server_argv_t sa;
   server_argv(&ro, exe, 0, &sa);
