@@ -8,11 +8,77 @@
 #include "oc_err.h"
 #include "ocs_field.h"
 
+/*-*** The bound cache (ocs_field.h) ***/
+
+/* One slot: a seqlock over (key, step, lo|hi). seq is odd while a writer fills the slot; key 0
+ * (no sentinel bit) is never a node, so a zeroed slot never hits. All fields are atomics, read
+ * and written relaxed, ordered by the fences (the seqlock of Boehm, "Can seqlocks get along with
+ * programming language memory models?", 2012). */
+typedef struct {
+  atomic_ullong seq, key, step, val;
+} ocs__bslot_t;
+
+_Static_assert((OCS_FIELD_BOUND_CACHE_SLOTS & (OCS_FIELD_BOUND_CACHE_SLOTS - 1)) == 0, "a power of two");
+
 struct ocs_field_s {
   int count;
+  int cache_on;
   ocs_source_t *src[OC_SCENE_MAX_SOURCES];
-  atomic_ullong sampled, bounds;
+  ocs__bslot_t *bc[OC_SCENE_MAX_SOURCES]; /* NULL: the source is not cached */
+  atomic_ullong sampled, bounds, hits, misses;
 };
+
+static size_t ocs__bslot_of(oc_key_t key, uint64_t step) {
+  uint64_t h = (uint64_t)key * 0x9e3779b97f4a7c15ull ^ step * 0xc2b2ae3d27d4eb4full;
+  h ^= h >> 29;
+  h *= 0xbf58476d1ce4e5b9ull;
+  h ^= h >> 32;
+  return (size_t)(h & (OCS_FIELD_BOUND_CACHE_SLOTS - 1));
+}
+
+static int ocs__bcache_get(ocs__bslot_t *e, oc_key_t key, uint64_t step, float *lo, float *hi) {
+  uint64_t s1 = atomic_load_explicit(&e->seq, memory_order_acquire);
+  if (s1 & 1u) return 0;
+  uint64_t k = atomic_load_explicit(&e->key, memory_order_relaxed);
+  uint64_t st = atomic_load_explicit(&e->step, memory_order_relaxed);
+  uint64_t v = atomic_load_explicit(&e->val, memory_order_relaxed);
+  atomic_thread_fence(memory_order_acquire);
+  if (atomic_load_explicit(&e->seq, memory_order_relaxed) != s1 || k != key || st != step) return 0;
+  uint32_t a = (uint32_t)(v >> 32), b = (uint32_t)v;
+  memcpy(lo, &a, sizeof a);
+  memcpy(hi, &b, sizeof b);
+  return 1;
+}
+
+static void ocs__bcache_put(ocs__bslot_t *e, oc_key_t key, uint64_t step, float lo, float hi) {
+  uint64_t s = atomic_load_explicit(&e->seq, memory_order_relaxed);
+  if ((s & 1u) || !atomic_compare_exchange_strong_explicit(&e->seq, &s, s + 1, memory_order_relaxed, memory_order_relaxed))
+    return; /* another writer holds the slot: skip, the next miss inserts */
+  atomic_thread_fence(memory_order_release);
+  uint32_t a, b;
+  memcpy(&a, &lo, sizeof a);
+  memcpy(&b, &hi, sizeof b);
+  atomic_store_explicit(&e->key, key, memory_order_relaxed);
+  atomic_store_explicit(&e->step, step, memory_order_relaxed);
+  atomic_store_explicit(&e->val, ((uint64_t)a << 32) | b, memory_order_relaxed);
+  atomic_store_explicit(&e->seq, s + 2, memory_order_release);
+}
+
+/* Empties every table (callers serialise against bound()). */
+static void ocs__bcache_clear(ocs_field_t *f) {
+  for (int i = 0; i < f->count; i++) {
+    ocs__bslot_t *t = f->bc[i];
+    if (!t) continue;
+    for (size_t j = 0; j < OCS_FIELD_BOUND_CACHE_SLOTS; j++) {
+      atomic_store_explicit(&t[j].key, 0, memory_order_relaxed);
+      atomic_store_explicit(&t[j].step, 0, memory_order_relaxed);
+      atomic_store_explicit(&t[j].val, 0, memory_order_relaxed);
+    }
+  }
+  atomic_thread_fence(memory_order_seq_cst);
+}
+
+/*-*** The field ***/
 
 int ocs_field_create(ocs_field_t **out, const oc_scene_t *sc, char *why, size_t why_len) {
   *out = NULL;
@@ -20,6 +86,10 @@ int ocs_field_create(ocs_field_t **out, const oc_scene_t *sc, char *why, size_t 
   if (!f) return OC_ENOMEM;
   atomic_init(&f->sampled, 0);
   atomic_init(&f->bounds, 0);
+  atomic_init(&f->hits, 0);
+  atomic_init(&f->misses, 0);
+  const char *env = getenv("OCS_FIELD_BOUND_CACHE"); /* "0": bypassed, for before/after benches */
+  f->cache_on = !(env && strcmp(env, "0") == 0);
   for (int i = 0; i < sc->nsources; i++) {
     const oc_source_t *d = &sc->sources[i];
     char sub[512] = "";
@@ -38,6 +108,13 @@ int ocs_field_create(ocs_field_t **out, const oc_scene_t *sc, char *why, size_t 
       return r;
     }
     f->count = i + 1;
+    if (f->src[i]->vt->bound_by_step) {
+      f->bc[i] = calloc(OCS_FIELD_BOUND_CACHE_SLOTS, sizeof *f->bc[i]); /* zero bits: every atomic 0, no slot valid */
+      if (!f->bc[i]) {
+        ocs_field_free(f);
+        return OC_ENOMEM;
+      }
+    }
     /* The scene decides: with animation off, sources freeze at t = 0 (2 kept states). */
     if (!oc_scene_has(sc, OC_FEATURE_ANIMATION)) f->src[i]->animated = 0;
   }
@@ -49,6 +126,7 @@ void ocs_field_free(ocs_field_t *f) {
   if (!f) return;
   for (int i = 0; i < f->count; i++)
     if (f->src[i]) f->src[i]->vt->destroy(f->src[i]);
+  for (int i = 0; i < f->count; i++) free(f->bc[i]);
   free(f);
 }
 
@@ -66,13 +144,31 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
   double g = size / 14.0;
   oc_dvec3 lo = oc_dv3(o.x - g, o.y - g, o.z - g), hi = oc_dv3(o.x + size + g, o.y + size + g, o.z + size + g);
   float mn = 0.0f, mx = 0.0f;
+  int cache = f->cache_on && oc_key_valid(key), level = oc_key_level(key);
+  uint64_t hits = 0, misses = 0;
   for (int i = 0; i < f->count; i++) {
+    const ocs_source_t *s = f->src[i];
     float a, b;
-    f->src[i]->vt->bound(f->src[i], lo, hi, t, &a, &b);
+    if (cache && f->bc[i]) {
+      uint64_t step = s->vt->time_step(s, level, t);
+      ocs__bslot_t *e = &f->bc[i][ocs__bslot_of(key, step)];
+      if (ocs__bcache_get(e, key, step, &a, &b)) {
+        hits++;
+      } else {
+        s->vt->bound(s, lo, hi, t, &a, &b);
+        ocs__bcache_put(e, key, step, a, b);
+        misses++;
+      }
+    } else {
+      s->vt->bound(s, lo, hi, t, &a, &b);
+    }
     mn += a;
     mx += b;
   }
-  atomic_fetch_add_explicit(&((ocs_field_t *)f)->bounds, 1, memory_order_relaxed);
+  ocs_field_t *fm = (ocs_field_t *)f;
+  atomic_fetch_add_explicit(&fm->bounds, 1, memory_order_relaxed);
+  if (hits) atomic_fetch_add_explicit(&fm->hits, hits, memory_order_relaxed);
+  if (misses) atomic_fetch_add_explicit(&fm->misses, misses, memory_order_relaxed);
   if (f->count > 1 && mn != mx) { /* float sums may round inward: widen by one ulp to stay conservative */
     mn = mn > 0.0f ? nextafterf(mn, 0.0f) : mn;
     mx = nextafterf(mx, INFINITY);
@@ -111,8 +207,10 @@ int ocs_field_set_weather(ocs_field_t *f, oc_preset_t preset, double t0, double 
   int n = 0;
   for (int i = 0; i < f->count; i++)
     if (f->src[i]->vt->set_weather) {
-      OC_TRY(f->src[i]->vt->set_weather(f->src[i], preset, t0, seconds));
-      n++;
+      int r = f->src[i]->vt->set_weather(f->src[i], preset, t0, seconds);
+      if (r == 0) n++;
+      ocs__bcache_clear(f); /* even after a failure: a source may have changed before it failed */
+      OC_TRY(r);
     }
   return n ? 0 : OC_EINVAL;
 }
@@ -120,4 +218,12 @@ int ocs_field_set_weather(ocs_field_t *f, oc_preset_t preset, double t0, double 
 void ocs_field_stats(const ocs_field_t *f, ocs_field_stats_t *out) {
   out->sampled_bricks = atomic_load(&((ocs_field_t *)f)->sampled);
   out->bound_calls = atomic_load(&((ocs_field_t *)f)->bounds);
+  out->bound_hits = atomic_load(&((ocs_field_t *)f)->hits);
+  out->bound_misses = atomic_load(&((ocs_field_t *)f)->misses);
+}
+
+void ocs_field_set_bound_cache(ocs_field_t *f, int on) {
+  if (!f) return;
+  ocs__bcache_clear(f);
+  f->cache_on = on != 0;
 }

@@ -9,9 +9,20 @@
  * Sources add: the field's σt is the sum of its sources'. The τ (sun optical depth) channel is the
  * server core's job ([3/7]), not the field's.
  *
+ * Bound cache: ocs_field_bound() remembers, per source whose vtbl sets bound_by_step, the last
+ * bounds it computed in a fixed direct-mapped table of OCS_FIELD_BOUND_CACHE_SLOTS entries per
+ * such source (32 bytes each: 2 MiB per procedural source, allocated at create, never grown),
+ * keyed by (key, that source's time_step(level of key, t)). The planner's classify, production's
+ * known-empty check and every τ march ask for the same nodes again and again; a hit returns the
+ * bits the source would compute. Entries are per-slot seqlocks (lock-free: a reader that meets a
+ * write in progress misses, a writer that meets another write skips its insert), and
+ * ocs_field_set_weather() empties the table, so a generation wrap of the time step can never
+ * revive an entry. ocs_field_stats() counts hits and misses. The environment variable
+ * OCS_FIELD_BOUND_CACHE=0 at ocs_field_create() bypasses the cache (before/after benches).
+ *
  * Thread safety: after ocs_field_create(), bound/sample/time_step may be called from any number
- * of threads at once. ocs_field_set_weather() must not race with them (the caller serialises;
- * the server calls it between epochs). */
+ * of threads at once. ocs_field_set_weather() and ocs_field_set_bound_cache() must not race with
+ * them (the caller serialises; the server calls set_weather between epochs). */
 #ifndef OC_SERVER_FIELD_H
 #define OC_SERVER_FIELD_H
 
@@ -42,6 +53,10 @@ typedef struct {
   /*! set_weather() : procedural only: move to `preset` over [t0, t0 + seconds]. */
   int (*set_weather)(ocs_source_t *src, oc_preset_t preset, double t0, double seconds);
   void (*destroy)(ocs_source_t *src);
+  /*! bound_by_step : 1 when bound() over a node's sample footprint is a pure function of (node,
+   *  time_step(node's level, t)) between set_weather() calls, so the field may cache it (0: the
+   *  field calls bound() every time). */
+  int bound_by_step;
 } ocs_source_vtbl_t;
 
 struct ocs_source_s {
@@ -51,8 +66,15 @@ struct ocs_source_s {
 
 typedef struct {
   uint64_t sampled_bricks;  /**< sample() calls */
-  uint64_t bound_calls;     /**< bound() calls */
+  uint64_t bound_calls;     /**< ocs_field_bound() calls */
+  uint64_t bound_hits;      /**< source bounds answered by the bound cache */
+  uint64_t bound_misses;    /**< source bounds computed by a cacheable source (then inserted) */
 } ocs_field_stats_t;
+
+/*! Entries of the bound cache per cacheable source (a power of two). */
+#ifndef OCS_FIELD_BOUND_CACHE_SLOTS
+#define OCS_FIELD_BOUND_CACHE_SLOTS 65536
+#endif
 
 /*! ocs_field_create() : builds every source of the scene (VDB files are opened here; the OpenVDB
  *  shim is loaded only if the scene has a vdb source). @return 0, or a negative OC_E* with a
@@ -75,6 +97,9 @@ double ocs_field_point(const ocs_field_t *f, oc_dvec3 p, double t);
  *  @return OC_EINVAL when the scene has no procedural source. */
 int ocs_field_set_weather(ocs_field_t *f, oc_preset_t preset, double t0, double seconds);
 void ocs_field_stats(const ocs_field_t *f, ocs_field_stats_t *out);
+/*! ocs_field_set_bound_cache() : on = 0 bypasses the bound cache (and empties it), on = 1 uses it
+ *  again (the default); for tests and before/after benches. Bounds are the same bits either way. */
+void ocs_field_set_bound_cache(ocs_field_t *f, int on);
 
 /* Constructors of the source kinds (server/source_*.c), used by ocs_field_create(). */
 int ocs_source_analytic_create(ocs_source_t **out, const oc_source_t *desc, char *why, size_t why_len);

@@ -632,6 +632,10 @@ static float ocs__round_up(double x) {
   return f;
 }
 
+/* Reads t only through ocs__frame(level, t): the motion step of the level and the quantised weather
+ * (ocs_weather_at(quantised), fixed by the weather step). Both steps are non-decreasing in t, so
+ * their sum in ocs__proc_time_step() is equal at two times only when both are: within one weather
+ * generation, equal time steps give equal frames and the same bits (bound_by_step; the field caches). */
 static void ocs__proc_bound(const ocs_source_t *s, oc_dvec3 lo, oc_dvec3 hi, double t, float *smin, float *smax) {
   const ocs__proc_t *P = (const ocs__proc_t *)s;
   ocs__frame_t F;
@@ -864,6 +868,7 @@ static const ocs_source_vtbl_t ocs__proc_vt = {
     .point = ocs__proc_point,
     .set_weather = ocs__proc_set_weather,
     .destroy = ocs__proc_destroy,
+    .bound_by_step = 1, /* the bound reads t only through ocs__frame(level_of_box, t): see ocs__proc_time_step */
 };
 
 /*-*** Creation ***/

@@ -209,6 +209,14 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
            march_clear ? "--march-clear: provably clear columns marched anyway" : "clear columns skipped");
     for (int li = 0; li < nlevels; li++) fputs(tau_rows[li], stdout);
   }
+  {
+    ocs_field_stats_t fs;
+    ocs_field_stats(f, &fs);
+    printf("\nfield bounds: %llu calls, bound cache %llu hits / %llu misses (hit rate %.3f%s)\n",
+           (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
+           fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0,
+           fs.bound_hits + fs.bound_misses ? "" : "; OCS_FIELD_BOUND_CACHE=0 or no cacheable source");
+  }
   if (sink == 1234.5) printf("\n"); /* keeps the anchor's sum alive */
   free(keys);
   free(s);

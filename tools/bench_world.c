@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 
 #include "bench.h"
 #include "oc_camera.h"
@@ -151,6 +152,17 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
          (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_direct,
          (unsigned long long)ws.tau_clear);
+  {
+    ocs_field_stats_t fs;
+    struct rusage ru;
+    ocs_field_stats(ocs_world_field(w), &fs);
+    getrusage(RUSAGE_SELF, &ru);
+    double cpu = (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec + 1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+    printf("bounds: %llu field bounds, cache %llu hits / %llu misses (hit rate %.3f); process CPU %.1f s (%.2f s per epoch)\n",
+           (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
+           fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0, cpu,
+           epochs > 0 ? cpu / (double)epochs : 0.0);
+  }
   if (ocs_field_animated(ocs_world_field(w)) && epochs > 1) {
     printf("refresh (viewer 0, epochs 1..%ld): %llu leaves refreshed; refreshing every leaf every epoch: %llu "
            "(%.1f%% of it, %.1fx fewer)\n",

@@ -169,6 +169,84 @@ static void test_field__static_procedural_is_frozen(void **st) {
   ocs_field_free(f);
 }
 
+/* The bound cache (ocs_field.h) returns the bits the source computes: two fields of one procedural
+ * planet, one with the cache bypassed, asked about random nodes (levels 0–21, 0–16 km shell) at
+ * random times and at the two sides of a time-step boundary of the node's level (found by
+ * bisection), each twice (a miss, then a hit), before and across weather changes (a transition to
+ * storm, then a switch back to fair while cached entries from the storm are still in the table). */
+static uint64_t cache_rng = 0x2545f4914f6cdd1dull;
+static double cache_u(void) {
+  cache_rng ^= cache_rng << 13;
+  cache_rng ^= cache_rng >> 7;
+  cache_rng ^= cache_rng << 17;
+  return (double)(cache_rng >> 11) * 0x1.0p-53;
+}
+
+static void same_bound(ocs_field_t *c, ocs_field_t *u, oc_key_t k, double t) {
+  float a0, b0, a1, b1, a2, b2;
+  ocs_field_bound(u, k, t, &a0, &b0);
+  ocs_field_bound(c, k, t, &a1, &b1);
+  ocs_field_bound(c, k, t, &a2, &b2);
+  if (memcmp(&a0, &a1, sizeof a0) || memcmp(&b0, &b1, sizeof b0) || memcmp(&a0, &a2, sizeof a0) ||
+      memcmp(&b0, &b2, sizeof b0))
+    fail_msg("key %llx level %d t %.17g: uncached [%a, %a], cached [%a, %a] then [%a, %a]", (unsigned long long)k,
+             oc_key_level(k), t, a0, b0, a1, b1, a2, b2);
+}
+
+static void test_field__bound_cache_is_exact(void **st) {
+  (void)st;
+  const char *json = "{\"sources\": [{\"type\": \"procedural\", \"preset\": \"fair\"}], \"features\": {\"animation\": true}}";
+  ocs_field_t *c = field_from(json), *u = field_from(json);
+  ocs_field_set_bound_cache(u, 0);
+  enum { NODES = 160 };
+  oc_key_t keys[NODES];
+  double times[NODES][4];
+  int nonzero = 0;
+  for (int i = 0; i < NODES; i++) {
+    int level = i % (OC_KEY_MAX_LEVEL + 1);
+    oc_geo_t g = {-70.0 + 140.0 * cache_u(), -180.0 + 360.0 * cache_u(), 16000.0 * cache_u()};
+    keys[i] = oc_key_from_point(level, oc_geo_to_xyz(g));
+    double ta = 4000.0 * cache_u(), tb = ta;
+    uint64_t sa = ocs_field_time_step(c, level, ta);
+    double span = 1.0;
+    while (ocs_field_time_step(c, level, tb) == sa && span < 1e7) tb = ta + (span *= 2.0);
+    for (int it = 0; it < 80 && tb - ta > 1e-9 * (1.0 + ta); it++) { /* the boundary within [ta, tb] */
+      double m = 0.5 * (ta + tb);
+      if (ocs_field_time_step(c, level, m) == sa) ta = m; else tb = m;
+    }
+    times[i][0] = ta;
+    times[i][1] = tb;
+    times[i][2] = 4000.0 * cache_u();
+    times[i][3] = times[i][2] + 1e-3;
+  }
+  for (int phase = 0; phase < 3; phase++) {
+    if (phase == 1) { /* to storm over [1000, 1600] s: entries at t ≥ 1000 from phase 0 are stale */
+      assert_int_equal(ocs_field_set_weather(c, OC_PRESET_STORM, 1000.0, 600.0), 0);
+      assert_int_equal(ocs_field_set_weather(u, OC_PRESET_STORM, 1000.0, 600.0), 0);
+    } else if (phase == 2) { /* and back to fair at 1200 s, a switch */
+      assert_int_equal(ocs_field_set_weather(c, OC_PRESET_FAIR, 1200.0, 0.0), 0);
+      assert_int_equal(ocs_field_set_weather(u, OC_PRESET_FAIR, 1200.0, 0.0), 0);
+    }
+    for (int i = 0; i < NODES; i++)
+      for (int j = 0; j < 4; j++) {
+        same_bound(c, u, keys[i], times[i][j]);
+        float lo, hi;
+        ocs_field_bound(u, keys[i], times[i][j], &lo, &hi);
+        nonzero += hi > 0.0f;
+      }
+    for (double t = 990.0; t < 1700.0; t += 37.5) /* through the transition's steps */
+      for (int i = 0; i < NODES; i += 7) same_bound(c, u, keys[i], t);
+  }
+  ocs_field_stats_t sc, su;
+  ocs_field_stats(c, &sc);
+  ocs_field_stats(u, &su);
+  assert_true(nonzero > NODES / 4); /* the nodes are not all trivially empty */
+  assert_true(sc.bound_hits >= sc.bound_misses); /* every bound asked twice in a row */
+  assert_true(su.bound_hits == 0 && su.bound_misses == 0);
+  ocs_field_free(c);
+  ocs_field_free(u);
+}
+
 static void test_field__bad_source_names_it(void **st) {
   (void)st;
   oc_scene_t sc;
@@ -228,6 +306,7 @@ int main(void) {
       cmocka_unit_test(test_field__bound_is_conservative),
       cmocka_unit_test(test_field__sources_add_and_static_steps),
       cmocka_unit_test(test_field__static_procedural_is_frozen),
+      cmocka_unit_test(test_field__bound_cache_is_exact),
       cmocka_unit_test(test_field__bad_source_names_it),
       cmocka_unit_test(test_field__slab_filter_is_exact),
   };
