@@ -312,6 +312,12 @@ static void detail_run(int nv, int teleporter, size_t per_tick, int ttd[]) {
  * content age is 0 in both runs, so time to detail is what it could steal. */
 static void test_clocked__fair_to_the_well_behaved(void **st) {
   (void)st;
+#if defined(__SANITIZE_ADDRESS__)
+  /* three runs of 40 ticks of five viewers: 20 s in the optimised build, minutes under ASan, and
+   * nothing a shorter run does not exercise (teleport, held_then_released); the gcc stage runs it */
+  printf("built with AddressSanitizer: skipped (the gcc stage runs it)\n");
+  skip();
+#endif
   const size_t per_tick = 256;
   int alone[5], with[5];
   detail_run(4, 0, per_tick, alone);
@@ -379,6 +385,12 @@ static const char *PLANET_UNSHADOWED =
 
 static void test_clocked__resume_with_bricks_in_flight(void **st) {
   (void)st;
+#if defined(__SANITIZE_ADDRESS__)
+  /* the planet's coarse levels: seconds in the optimised build, minutes under ASan; the gcc stage
+   * runs it, and the sanitizer stage covers pause and resume in test_world_clock and tests/net */
+  printf("built with AddressSanitizer: skipped (the gcc stage runs it)\n");
+  skip();
+#endif
   char why[256];
   ocs_world_t *w = world_of(PLANET_UNSHADOWED, 1, NULL, NULL); /* no τ: a tenth of the cost */
   ocs_plan_desc_t pd = {.budget = 256u << 10, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 9,
