@@ -20,6 +20,7 @@
  * used evicted; a frame in use is never evicted), so memory stays bounded whatever the length.
  * Frame 0 is loaded and validated at creation and every frame file must exist then; a later frame
  * that fails to load is logged once per attempt and its nodes fail to sample (OC_EIO). */
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -383,7 +384,8 @@ static int ocs__frame_load(ocs__vdb_t *s, int index, int show_progress, ocs__fra
 
 /* Sequence index shown at world time t. */
 static int ocs__frame_at(const ocs__vdb_t *s, double t) {
-  if (!s->has_seq || s->seq.count <= 1 || !isfinite(t)) return 0;
+  /* animation off (the scene's feature): the first frame always, as time_step() says */
+  if (!s->has_seq || s->seq.count <= 1 || !s->base.animated || !isfinite(t)) return 0;
   double fl = floor(t * s->seq.frame_rate);
   int64_t n = s->seq.count;
   if (s->seq.end == OC_SEQ_HOLD) return fl <= 0.0 ? 0 : fl >= (double)(n - 1) ? (int)(n - 1) : (int)fl;
@@ -510,7 +512,8 @@ static void ocs__frame_range(const ocs__vdb_t *s, const ocs__frame_t *fr, oc_dve
 
 static void ocs__vdb_bound(const ocs_source_t *src, oc_dvec3 lo, oc_dvec3 hi, double t, float *smin, float *smax) {
   ocs__vdb_t *s = (ocs__vdb_t *)src;
-  *smin = *smax = 0.0f;
+  *smin = 0.0f;
+  *smax = FLT_MAX; /* a frame that cannot be read: nothing is known, and its sample() fails (OC_EIO) */
   ocs__slot_t *sl = ocs__acquire(s, ocs__frame_at(s, t));
   if (!sl) return;
   float a, b;

@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -771,6 +772,58 @@ static void test_vdb__sequence_loop_hold_and_cache(void **st) {
       sample(s, oc_key_from_point(15, c), ts[i], b);
       assert_true(b[0] >= 0.0f);
     }
+    s->vt->destroy(s);
+  }
+  /* Animation off (the scene's feature; the field clears the flag): the first frame at any time,
+   * for point, bound and sample alike, as its time step (0) says. */
+  {
+    oc_source_t d = vdb_desc(pattern, 10.0, 10.0, 1000.0, 10.0, 1.0);
+    d.vdb.has_sequence = true;
+    d.vdb.sequence = (oc_src_sequence_t){.frame_rate = 2.0, .first = 1, .count = 6};
+    ocs_source_t *s = must_create(&d);
+    s->animated = 0;
+    place_t p = place_of(s, 0.0, 10.0);
+    double c0[3] = {0, 0, 0};
+    oc_dvec3 c = index_to_planet(&p, c0);
+    oc_key_t k = oc_key_from_point(15, c);
+    float lo0, hi0, lo, hi, b0[512], b[512];
+    s->vt->bound(s, oc_dv3(c.x - 5, c.y - 5, c.z - 5), oc_dv3(c.x + 5, c.y + 5, c.z + 5), 0.0, &lo0, &hi0);
+    sample(s, k, 0.0, b0);
+    for (double t = 0.5; t < 3.0; t += 0.5) {
+      assert_true(fabs(s->vt->point(s, c, t) - 1.0) < 1e-6);
+      s->vt->bound(s, oc_dv3(c.x - 5, c.y - 5, c.z - 5), oc_dv3(c.x + 5, c.y + 5, c.z + 5), t, &lo, &hi);
+      assert_true(lo == lo0 && hi == hi0);
+      sample(s, k, t, b);
+      assert_memory_equal(b, b0, sizeof b);
+      assert_int_equal(s->vt->time_step(s, 10, t), 0);
+    }
+    s->vt->destroy(s);
+  }
+  /* A frame that vanished after creation: its bound claims nothing (not "empty", which would draw
+   * a silently clear sky) and its sample fails with OC_EIO. */
+  {
+    char dir[512], pat[600], f6[600];
+    tmp_path(dir, sizeof dir, "vanish");
+    mkdir(dir, 0755);
+    for (int f = 1; f <= 6; f++) {
+      snprintf(f6, sizeof f6, "%s/v_%d.vdb", dir, f);
+      sphere_t sp = {.R = 6, .peak = f};
+      write_sphere(f6, &sp, OCS_VDB_COMPRESS_DEFAULT);
+    }
+    snprintf(pat, sizeof pat, "%s/v_#.vdb", dir);
+    oc_source_t d = vdb_desc(pat, 10.0, 10.0, 1000.0, 10.0, 1.0);
+    d.vdb.has_sequence = true;
+    d.vdb.sequence = (oc_src_sequence_t){.frame_rate = 2.0, .first = 1, .count = 6};
+    ocs_source_t *s = must_create(&d);
+    assert_int_equal(unlink(f6), 0); /* frame 6: world time 2.5 .. 3 */
+    place_t p = place_of(s, 0.0, 10.0);
+    double c0[3] = {0, 0, 0};
+    oc_dvec3 c = index_to_planet(&p, c0);
+    float lo, hi, b[512];
+    s->vt->bound(s, oc_dv3(c.x - 5, c.y - 5, c.z - 5), oc_dv3(c.x + 5, c.y + 5, c.z + 5), 2.7, &lo, &hi);
+    assert_true(hi > 0.0f);
+    memset(b, 0, sizeof b);
+    assert_int_equal(s->vt->sample(s, oc_key_from_point(15, c), 2.7, b), OC_EIO);
     s->vt->destroy(s);
   }
   /* A missing frame is an error at creation, naming the frame's file. */
