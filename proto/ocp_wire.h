@@ -214,7 +214,7 @@ typedef struct {
 typedef struct {
   uint64_t epoch;
   uint32_t leaves, splits, merges, deferred;
-  uint64_t coalesced;      /**< epochs skipped for this viewer so far */
+  uint64_t coalesced;      /**< due ticks this viewer got no state of so far (unacknowledged, or skipped) */
   uint64_t resident_bytes; /**< server's count of what the viewer keeps */
   uint64_t wire_bytes;     /**< bytes of this epoch's frames */
   uint64_t raw_bytes;      /**< what they would be uncompressed */

@@ -177,6 +177,7 @@ static void on_epoch_timer(uv_timer_t *t) {
   uint64_t due = due_epoch(srv, ocs_net_utc(srv) + 1e-3); /* a timer may fire up to 1 ms early */
   if (due < srv->armed_epoch) due = srv->armed_epoch;
   srv->late_ticks += due - srv->armed_epoch; /* due instants the loop reached too late */
+  if (srv->producing && srv->tick_overrun) srv->late_ticks++; /* the tick still waiting is replaced: skipped */
   srv->tick_epoch = due;
   arm_timer(srv);
   if (srv->producing) { /* production overran its deadline (a long brick): the tick follows it */

@@ -354,24 +354,31 @@ uint64_t ocs_plan_resident(const ocs_planner_t *p) { return (uint64_t)held_bytes
 int ocs_plan_ground_tau(oc_key_t key) { return oc_key_level(key) >= OCS_GROUND_TAU_LEVEL && oc_key_meets_ground(key); }
 
 /* Whether the held states may hold a node whose topology changed at commit count `topo`: the
- * binary searches of content_for() are skipped for the rest (most splits and merges). */
+ * binary searches of content_held() are skipped for the rest (most splits and merges). */
 static int recent(const ocs_planner_t *p, uint32_t topo) { return (uint64_t)topo + (uint64_t)p->K >= p->commits; }
 
-/* What a node would hold at this epoch's stamp: held content when some kept state has it (looked
- * up only when `look`). */
-static void content_for(ocs_planner_t *p, pn_t *n, int level, int look) {
+/* Content of this epoch's stamp that some kept state holds: taken into n. @return 1 if found. */
+static int content_held(const ocs_planner_t *p, pn_t *n, int level) {
   uint64_t st = p->in->stamp[level];
   n->stamp = st;
-  for (int i = 0; look && i < p->K - 1; i++) {
+  for (int i = 0; i < p->K - 1; i++) {
     const snap_rec_t *r = snap_find(&p->snap[i], n->key);
     if (r && r->stamp == st) {
       n->kind = r->kind;
       n->skind = r->skind;
       n->brick_id = r->brick_id;
       n->age = (uint8_t)(i + 1);
-      return;
+      return 1;
     }
   }
+  return 0;
+}
+
+static void content_new(ocs_planner_t *p, pn_t *n);
+
+
+/* New content: its kind from the field's bound (classify), to be produced. */
+static void content_new(ocs_planner_t *p, pn_t *n) {
   oc_node_kind_t k = p->in->classify(p->in->ctx, n->key);
   n->skind = (uint8_t)k;
   n->kind = (uint8_t)k;
@@ -388,19 +395,27 @@ static double refresh_gain(const ocs_planner_t *p, double pixels, int level) {
   return c > 0 ? pixels * c : pixels;
 }
 
-/* Clocked epochs: new content (age AGE_NEW, stamp this epoch's) is usable only when it exists; the
- * stamp may become an older one of the same level whose content exists (stale but complete: it is
- * refreshed once newer content is ready). `held` is the stamp a leaf holds now (0: none), which an
- * older stamp must differ from to be worth anything. @return 1 usable, 0 wanted at `prio`. */
-static int available(const ocs_planner_t *p, pn_t *n, int level, uint64_t held, double prio) {
-  if (n->age != AGE_NEW || !p->in->ready) return 1;
-  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp);
-  if (s && s != held) {
-    n->stamp = s;
+
+/* A node's content at this epoch's stamp (into n): held already (looked up when `look`), else new,
+ * and in clocked plans usable only when it exists and differs from `held` (the stamp the node
+ * shows now; 0: none). Existence is asked before the node is classified: classifying costs a field
+ * bound, and a split or refresh that waits is tried again every tick. @return 1 usable, 0 waiting
+ * (wanted at prio). */
+static int new_content(ocs_planner_t *p, pn_t *n, int level, int look, uint64_t held, double prio) {
+  if (look && content_held(p, n, level)) return 1;
+  n->stamp = p->in->stamp[level];
+  if (!p->in->ready) {
+    content_new(p, n);
     return 1;
   }
-  if (p->in->want) p->in->want(p->in->ctx, n->key, n->stamp, prio);
-  return 0;
+  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp);
+  if (!s || s == held) {
+    if (p->in->want) p->in->want(p->in->ctx, n->key, n->stamp, prio);
+    return 0;
+  }
+  content_new(p, n);
+  n->stamp = s;
+  return 1;
 }
 
 /* contribution of a leaf to C_j (j = 0..K-1) and to T */
@@ -571,8 +586,7 @@ static int try_merge(ocs_planner_t *p, double limit, int32_t keep, ocs_plan_stat
     if (e.idx == keep) return -1;
     int level = oc_key_level(m->key);
     pn_t pc = *m;
-    content_for(p, &pc, level, recent(p, m->topo));
-    if (!available(p, &pc, level, 0, m->prio)) return -1; /* not until the parent's content exists */
+    if (!new_content(p, &pc, level, recent(p, m->topo), 0, m->prio)) return -1; /* not until the parent's content exists */
     pc.topo = p->commits;
     double dc[OCS_PLAN_MAX_KEPT], dt;
     int dnew;
@@ -694,8 +708,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     pn_t *n = &p->nodes[refresh[i].idx];
     int level = oc_key_level(n->key);
     pn_t nc = *n;
-    content_for(p, &nc, level, 1);
-    if (!available(p, &nc, level, n->age == AGE_NEW ? 0 : n->stamp, n->age == AGE_NEW ? n->prio : refresh_gain(p, n->prio, level))) {
+    if (!new_content(p, &nc, level, 1, n->age == AGE_NEW ? 0 : n->stamp, n->age == AGE_NEW ? n->prio : refresh_gain(p, n->prio, level))) {
       if (n->age == AGE_NEW) { /* a leaf with nothing to show (the first root): no plan yet */
         free(refresh);
         return epoch_fail(p, OC_EAGAIN);
@@ -757,15 +770,14 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     dt = -t;
     int dnew = -new_brick(n);
     if (kids_of != n->key) { /* a retry after a merge reuses it */
+      int all = 1;
       for (int k = 0; k < 8; k++) {
         memset(&kids[k], 0, sizeof kids[k]);
         kids[k].key = oc_key_child(n->key, k);
-        content_for(p, &kids[k], level + 1, recent(p, n->topo));
+        all &= new_content(p, &kids[k], level + 1, recent(p, n->topo), 0, s.prio);
         kids[k].topo = n->topo; /* their children can be held only if n was internal lately */
       }
       kids_of = n->key;
-      int all = 1;
-      for (int k = 0; k < 8; k++) all &= available(p, &kids[k], level + 1, 0, s.prio);
       if (!all) { /* a split comes with its 8 children or waits for them */
         h_pop(&p->split_h);
         st.split_backlog++;

@@ -64,6 +64,7 @@ typedef struct {
   ocs_cache_entry_t *entry; /* pinned until the states are built */
   float *sigma;             /* σt kept while the request waits for a τ volume (produce_one) */
   int made;                 /* produced here (not found in the cache) */
+  int built_tau;            /* its τ volume was built for it (the expensive kind of brick) */
 } req_t;
 
 struct ocs_viewer_s {
@@ -83,6 +84,7 @@ struct ocs_viewer_s {
   uint32_t next_id;
   uint32_t last_new;       /* bricks sent in the last state */
   uint32_t ticks;          /* epochs since the last plan */
+  uint64_t seen;           /* the last epoch stepped while it was here (0: none yet) */
   uint32_t produced, produced_last; /* bricks made for it since its last state; before that state */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /* of its newest state */
   /* during a step */
@@ -133,6 +135,10 @@ struct ocs_world_s {
   uint64_t brick_requests;
   double produce_seconds, plan_seconds, target_seconds;
   ocs_tau_stats_t tau_stats;
+  /* per level, a decaying maximum of the seconds one brick took: [0] with its τ volume at hand,
+   * [1] when it had to build the volume; production starts no brick expected to end after the
+   * deadline (a brick started is finished, and the tick waits for it) */
+  _Atomic double cost[OC_KEY_MAX_LEVEL + 1][2];
 };
 
 static double now_s(void) {
@@ -192,7 +198,7 @@ static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
 
 /* τ of a node from its group's volume, through the cache. !wait: OCS_CACHE_BUSY, and nothing
  * done, when another thread is building that volume. */
-static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS], int wait) {
+static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS], int wait, int *built) {
   int level = oc_key_level(key);
   oc_key_t group = ocs_tau_group_of(&w->tau, key);
   ocs_cache_key_t k = ckey(w, T_TAUVOL, group, w->light[level], ((uint64_t)level) | (w->sun_version << 8));
@@ -209,6 +215,7 @@ static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS], int
     }
     ocs_cache_publish(w->cache, e, vol, bytes);
     w->tau_volumes++;
+    *built = 1;
   }
   r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
   ocs_cache_release(w->cache, e);
@@ -226,7 +233,7 @@ static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_V
   for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
   /* nothing scatters where σt is all zero: such a node needs no τ and stays empty, unless it holds
    * the ground, which the renderer lights through τ (cloud shadows on the ground) */
-  if (w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(w, q->key, tau, wait);
+  if (w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(w, q->key, tau, wait, &q->built_tau);
   if (r == OCS_CACHE_BUSY) return r;
   payload_t *p = r >= 0 ? malloc(sizeof *p) : NULL;
   if (!p) {
@@ -246,8 +253,36 @@ static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_V
  * the first thread that needs it, in tens of ms). Waiting for another thread's volume cost about a
  * third of two producer threads' time on the planet; a request that would wait keeps its σt and is
  * finished in a second pass (produce_deferred) while the thread goes on to other requests. */
+/* What a brick of `key` is expected to cost: the level's estimate, the dearer kind when its group's
+ * τ volume is not in the cache yet (it would be built for it). */
+static double expected_cost(ocs_world_t *w, oc_key_t key) {
+  int level = oc_key_level(key), build = 0;
+  if (w->shadows) {
+    ocs_cache_key_t k = ckey(w, T_TAUVOL, ocs_tau_group_of(&w->tau, key), w->light[level], ((uint64_t)level) | (w->sun_version << 8));
+    ocs_cache_entry_t *e;
+    if (ocs_cache_peek(w->cache, &k, &e)) ocs_cache_release(w->cache, e);
+    else build = 1;
+  }
+  return atomic_load_explicit(&w->cost[level][build], memory_order_relaxed);
+}
+
+static void learn_cost(ocs_world_t *w, const req_t *q, double seconds) {
+  _Atomic double *c = &w->cost[oc_key_level(q->key)][q->built_tau];
+  double old = atomic_load_explicit(c, memory_order_relaxed);
+  atomic_store_explicit(c, seconds > 0.9 * old ? seconds : 0.9 * old, memory_order_relaxed); /* races only blur it */
+}
+
+static int produce_brick_timed(ocs_world_t *w, req_t *q);
+
 static int produce_brick(ocs_world_t *w, req_t *q) {
-  if (w->deadline > 0 && now_s() >= w->deadline) return 0; /* the tick is due: the rest waits */
+  if (w->deadline > 0 && now_s() + expected_cost(w, q->key) >= w->deadline) return 0; /* the tick is due: it waits */
+  double t0 = now_s();
+  int r = produce_brick_timed(w, q);
+  if (r >= 0 && q->made) learn_cost(w, q, now_s() - t0);
+  return r;
+}
+
+static int produce_brick_timed(ocs_world_t *w, req_t *q) {
   ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
   int r = ocs_cache_acquire(w->cache, &k, &q->entry);
   if (r < 0) {
@@ -934,6 +969,8 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
     ocs_viewer_t *v = w->viewers[vi];
     v->planned = 0;
     v->ticks++;
+    if (v->seen && w->epoch > v->seen + 1) v->coalesced += w->epoch - v->seen - 1; /* ticks the clock skipped */
+    v->seen = w->epoch;
     if (!v->has_view) continue;
     if (v->unacked) {
       v->coalesced++;
@@ -971,7 +1008,7 @@ static int push_req(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
     w->req = a;
     w->req_cap = nc;
   }
-  w->req[w->nreq++] = (req_t){key, stamp, NULL, NULL, 0};
+  w->req[w->nreq++] = (req_t){key, stamp, NULL, NULL, 0, 0};
   return 0;
 }
 

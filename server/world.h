@@ -82,7 +82,7 @@ typedef struct {
 } ocs_epoch_out_t;
 
 typedef struct {
-  uint64_t epochs_sent, coalesced; /**< states produced for it; epochs skipped while unacknowledged */
+  uint64_t epochs_sent, coalesced; /**< states produced for it; due ticks it got none of (unacknowledged, or skipped by the clock) */
   uint64_t acked;                  /**< newest acknowledged epoch (UINT64_MAX: none) */
   uint64_t resident_bytes;         /**< of the states it keeps (the budget measure) */
   uint64_t budget;
