@@ -121,7 +121,7 @@ static void produce_done(uv_work_t *req, int status) {
 /* What the last tick's plans wait for is made until shortly before the next due instant, on the
  * thread pool; the world is busy meanwhile (input that needs it waits, as during a step). */
 static void start_production(ocs_server_t *srv) {
-  if (!(srv->period > 0) || srv->stepping || srv->stopping || !ocs_world_queue_length(srv->world)) return;
+  if (!(srv->period > 0) || srv->stepping || srv->stopping || !ocs_world_production_due(srv->world)) return;
   double margin = srv->period * 0.1 < OCS_PRODUCE_MARGIN_S ? srv->period * 0.1 : OCS_PRODUCE_MARGIN_S;
   srv->produce_s = (double)srv->armed_epoch * srv->period - ocs_net_utc(srv) - margin;
   if (!(srv->produce_s > 0)) return;

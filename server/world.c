@@ -85,6 +85,10 @@ struct ocs_viewer_s {
   uint32_t last_new;       /* bricks sent in the last state */
   uint32_t ticks;          /* epochs since the last plan */
   uint64_t seen;           /* the last epoch stepped while it was here (0: none yet) */
+  int targeted;            /* planned at the last tick: its target is wished for (plan_targets) */
+  oc_key_t *wished;        /* the nodes it wished for at the last tick, ascending */
+  size_t nwished, wished_cap;
+  double steady;           /* the share of its wishes it also wished at the tick before (1: first) */
   uint32_t produced, produced_last; /* bricks made for it since its last state; before that state */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /* of its newest state */
   /* during a step */
@@ -126,6 +130,7 @@ struct ocs_world_s {
   size_t nqueue, queue_cap;
   uint32_t planning;        /* the viewer being planned */
   double deadline;          /* production stops then (monotonic s); 0: none */
+  int targets_due;          /* the last tick's targets are still to be planned (plan_targets) */
   size_t *deferred; /* requests whose τ volume another thread was building */
   size_t ndeferred, deferred_cap;
   /* counters (production runs on many threads) */
@@ -571,6 +576,7 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
   for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) oc_state_free(&v->held[i]);
   free(v->lacking);
   free(v->req_of);
+  free(v->wished);
   free(v);
 }
 
@@ -839,7 +845,47 @@ static void wishes_inherit(ocs_world_t *w) {
   free(order);
 }
 
-/* Each viewer's wishes cut to its share of the queue (its best ones) and normalised to sum 1. */
+static int has_key(const oc_key_t *a, size_t n, oc_key_t k) {
+  size_t lo = 0, hi = n;
+  while (lo < hi) {
+    size_t mid = lo + (hi - lo) / 2;
+    if (a[mid] < k) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo < n && a[lo] == k;
+}
+
+/* How steady each viewer's wishes are: the share of this tick's that it also wished at the last
+ * (wishes sorted by brick). A viewer whose wishes change every tick (one teleporting) is served
+ * after the steady ones: little of what it wants now is still wanted when it is made. */
+static void wishes_steadiness(ocs_world_t *w) {
+  for (int vi = 0; vi < w->nviewers; vi++) {
+    ocs_viewer_t *v = w->viewers[vi];
+    size_t n = 0, kept = 0;
+    for (size_t i = 0; i < w->nwish; i++)
+      if (w->wish[i].viewer == (uint32_t)vi) {
+        n++;
+        kept += has_key(v->wished, v->nwished, w->wish[i].key);
+      }
+    v->steady = v->nwished && n ? (double)kept / (double)n : 1.0;
+    if (n > v->wished_cap) {
+      oc_key_t *a = realloc(v->wished, n * sizeof *a);
+      if (!a) { /* forgotten: counted as steady next tick */
+        v->nwished = 0;
+        continue;
+      }
+      v->wished = a;
+      v->wished_cap = n;
+    }
+    v->nwished = 0;
+    for (size_t i = 0; i < w->nwish; i++) /* ascending: the wishes are sorted by brick */
+      if (w->wish[i].viewer == (uint32_t)vi && (!v->nwished || v->wished[v->nwished - 1] != w->wish[i].key))
+        v->wished[v->nwished++] = w->wish[i].key;
+  }
+}
+
+/* Each viewer's wishes cut to its share of the queue (its best ones) and normalised to sum its
+ * steadiness weight: 1/4 for wishes that all change every tick, up to 1. */
 static void wishes_share(ocs_world_t *w) {
   int nv = w->nviewers > 0 ? w->nviewers : 1;
   size_t share = 2 * OCS_QUEUE_MAX / (size_t)nv, k = 0;
@@ -852,7 +898,11 @@ static void wishes_share(ocs_world_t *w) {
         sum[w->wish[i].viewer] += w->wish[i].prio;
         w->wish[k++] = w->wish[i];
       }
-    for (size_t i = 0; i < k; i++) w->wish[i].prio = sum[w->wish[i].viewer] > 0 ? w->wish[i].prio / sum[w->wish[i].viewer] : 0.0;
+    for (size_t i = 0; i < k; i++) {
+      uint32_t vi = w->wish[i].viewer;
+      double weight = 0.25 + 0.75 * w->viewers[vi]->steady;
+      w->wish[i].prio = sum[vi] > 0 ? weight * w->wish[i].prio / sum[vi] : 0.0;
+    }
   }
   free(sum);
   free(taken);
@@ -865,6 +915,7 @@ static void wishes_share(ocs_world_t *w) {
 static void queue_build(ocs_world_t *w) {
   w->nqueue = 0;
   wishes_dedup(w);
+  wishes_steadiness(w);
   wishes_inherit(w);
   wishes_share(w);
   if (w->nwish) qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_viewer);
@@ -968,6 +1019,7 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
   for (int vi = 0; vi < w->nviewers; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
     v->planned = 0;
+    v->targeted = 0;
     v->ticks++;
     if (v->seen && w->epoch > v->seen + 1) v->coalesced += w->epoch - v->seen - 1; /* ticks the clock skipped */
     v->seen = w->epoch;
@@ -979,11 +1031,7 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
     /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
     in->max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
     w->planning = (uint32_t)vi;
-    if (in->ready) {
-      double t0 = now_s();
-      OC_TRY(wish_target(v, in));
-      w->target_seconds += now_s() - t0;
-    }
+    v->targeted = 1;
     int rc = ocs_plan_epoch(v->planner, &v->view, in, &v->leaves, &v->nleaves, &v->plan);
     if (rc == OC_EAGAIN) continue;
     if (rc < 0) return rc;
@@ -1125,25 +1173,32 @@ static int emit_states(ocs_world_t *w) {
 
 /* Plans every ready viewer, produces what the plans lack once (clocked: only what exists is
  * planned, and what waits goes to the queue), emits their states. */
+/* What a plan of this epoch is given (clocked: ready() and want() too). */
+static void plan_input(ocs_world_t *w, ocs_plan_input_t *in) {
+  memset(in, 0, sizeof *in);
+  in->classify = classify_cb;
+  in->ctx = w;
+  in->uniform_is_brick = w->shadows;
+  in->ground_tau = w->ground_tau;
+  memcpy(in->stamp, w->stamp, sizeof in->stamp);
+  memcpy(in->refresh_rate, w->rate, sizeof in->refresh_rate);
+  if (ocs_field_animated(w->field)) memcpy(in->step_change, STEP_CHANGE, sizeof in->step_change);
+  if (w->d.clocked) {
+    in->ready = ready_cb;
+    in->want = want_cb;
+  }
+}
+
 static int step(ocs_world_t *w) {
   double t0 = now_s();
   ocs_plan_input_t in;
-  memset(&in, 0, sizeof in);
-  in.classify = classify_cb;
-  in.ctx = w;
-  in.uniform_is_brick = w->shadows;
-  in.ground_tau = w->ground_tau;
-  memcpy(in.stamp, w->stamp, sizeof in.stamp);
-  memcpy(in.refresh_rate, w->rate, sizeof in.refresh_rate);
-  if (ocs_field_animated(w->field)) memcpy(in.step_change, STEP_CHANGE, sizeof in.step_change);
-  if (w->d.clocked) {
-    in.ready = ready_cb;
-    in.want = want_cb;
-    w->nwish = w->nqueue = 0; /* the queue is made anew from this tick's wishes */
+  plan_input(w, &in);
+  if (w->d.clocked) { /* the queue is made anew from this tick's wishes */
+    w->nwish = w->nqueue = 0;
+    w->targets_due = 0;
   }
   want_t *want = NULL;
   size_t nwant = 0;
-  w->target_seconds = 0;
   int rc = plan_viewers(w, &in, &want, &nwant);
   double t1 = now_s();
   w->plan_seconds = t1 - t0;
@@ -1164,7 +1219,27 @@ static int step(ocs_world_t *w) {
       }
   release_requests(w);
   release_pins(w);
-  if (w->d.clocked) queue_build(w);
+  w->targets_due = w->d.clocked; /* the targets are planned when production starts, off the tick */
+  return rc;
+}
+
+/* Clocked, at the start of production: each viewer's target (the plan a stepped epoch would make
+ * from its tree as the tick left it) is wished for, then the tick's wishes become the queue. Off
+ * the tick's path: a target is a whole plan, classifying every new node. */
+static int plan_targets(ocs_world_t *w) {
+  double t0 = now_s();
+  ocs_plan_input_t in;
+  plan_input(w, &in);
+  int rc = 0;
+  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
+    ocs_viewer_t *v = w->viewers[vi];
+    if (!v->has_view || !v->targeted) continue;
+    w->planning = (uint32_t)vi;
+    rc = wish_target(v, &in);
+  }
+  queue_build(w);
+  w->targets_due = 0;
+  w->target_seconds = now_s() - t0;
   return rc;
 }
 
@@ -1185,6 +1260,7 @@ static void queue_made(ocs_world_t *w) {
 
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
   if (!w || !w->d.clocked) return 0;
+  if (w->targets_due) OC_TRY(plan_targets(w));
   double t0 = now_s();
   w->deadline = t0 + (seconds > 0 ? seconds : 0.0);
   w->nreq = 0;
@@ -1205,6 +1281,8 @@ int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
 }
 
 size_t ocs_world_queue_length(const ocs_world_t *w) { return w ? w->nqueue : 0; }
+
+int ocs_world_production_due(const ocs_world_t *w) { return w && w->d.clocked && (w->targets_due || w->nqueue); }
 
 int ocs_world_queue_peek(const ocs_world_t *w, size_t i, oc_key_t *key, double *prio, uint32_t *viewers) {
   if (!w || i >= w->nqueue) return OC_ENOENT;

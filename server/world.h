@@ -65,7 +65,7 @@ typedef struct {
   uint64_t held_bytes;       /**< server-side memory of the states kept for viewers */
   double produce_seconds, plan_seconds; /**< wall time of the last step's phases (clocked: of the
                                            last production between ticks) */
-  double target_seconds;     /**< of plan_seconds, the clocked target plans' */
+  double target_seconds;     /**< the clocked target plans' of the last production (not in plan_seconds) */
   uint64_t tau_direct;       /**< τ of single nodes (ocs_tau_direct): ground nodes, nodes outside
                                   their group's volume */
   uint64_t tau_clear;        /**< of those, proven clear toward the sun: τ = 0 without a march */
@@ -150,8 +150,12 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
  *  (ocs_world_stats_t.produce_errors), stays queued and does not stop the others. Nothing else may
  *  touch the world meanwhile. @return bricks made, or a negative OC_E* (no memory to start). */
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
-/*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). */
+/*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). The queue of a
+ *  tick is made when production starts (ocs_world_produce(), even for 0 seconds), after each
+ *  viewer's target plan: those are whole plans, kept off the tick's path. */
 size_t ocs_world_queue_length(const ocs_world_t *w);
+/*! ocs_world_production_due() : clocked, and targets to plan or bricks queued. */
+int ocs_world_production_due(const ocs_world_t *w);
 /*! ocs_world_queue_peek() : the i-th best item of the queue: its node, priority (the sum over the
  *  viewers that want it of their normalised priorities) and how many viewers want it.
  *  @return 0 or OC_ENOENT (i ≥ the queue's length). */

@@ -88,6 +88,7 @@ static void test_clocked__held_then_released(void **st) {
   ocs_world_t *w = world(1);
   ocs_viewer_t *v = viewer(w, 0.0);
   for (uint64_t n = 1; n <= 3; n++) assert_int_equal(tick(w, v, n), 0);
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0); /* no time: the queue is made, nothing else */
   assert_true(produced(w) == 0);
   assert_true(ocs_world_queue_length(w) > 0);
   uint64_t n = 4;
@@ -138,11 +139,12 @@ static void test_clocked__deadline(void **st) {
   ocs_world_t *w = world(1);
   ocs_viewer_t *v = viewer(w, 0.0);
   tick(w, v, 1);
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0); /* already due: nothing is made */
   size_t q = ocs_world_queue_length(w);
   assert_true(q > 0);
-  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0); /* already due: nothing is made */
   assert_true(produced(w) == 0);
   tick(w, v, 2);
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0);
   assert_true(ocs_world_queue_length(w) == q); /* still wanted, asked again */
   ocs_world_free(w);
 }
@@ -170,8 +172,10 @@ static void test_clocked__shared_and_dropped(void **st) {
   ocs_world_t *w = world(1);
   ocs_viewer_t *v = viewer(w, 0.0);
   tick(w, v, 1);
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0);
   assert_true(ocs_world_queue_length(w) > 0);
   ocs_world_remove_viewer(w, v);
+  assert_true(ocs_world_queue_length(w) == 0); /* withdrawn at once */
   ocs_world_step_at(w, 2, 2.0);
   assert_true(ocs_world_queue_length(w) == 0);
   assert_int_equal(ocs_world_produce(w, 1e9, 0), 0);
@@ -258,7 +262,8 @@ static void test_clocked__teleport(void **st) {
     tick_all(w, &v, 1, e);
   }
   look(v, -5.0, 0.0);
-  tick_all(w, &v, 1, e++); /* the new view's wishes reach the queue */
+  tick_all(w, &v, 1, e++);
+  ocs_world_produce(w, 0.0, 0); /* the new view's wishes reach the queue */
   assert_int_equal(ocs_viewer_output(v, &o), 0);
   uint32_t before = uncovered(target.state, o.state, lc);
   assert_true(before > 0); /* the old tree does not show the new view: the test can fail */
@@ -357,6 +362,7 @@ static void test_clocked__producer_error_retried(void **st) {
   ocs_world_t *w = world_of(SPHERE, 1, fail_once, &left);
   ocs_viewer_t *v = viewer(w, 0.0);
   tick(w, v, 1); /* the root and the target tree are wished */
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0);
   size_t q = ocs_world_queue_length(w);
   assert_true(q > 1);
   failing = OC_KEY_ROOT;
@@ -367,7 +373,8 @@ static void test_clocked__producer_error_retried(void **st) {
   assert_true(ws.produce_errors == 1 && ws.last_error == OC_EIO && ws.last_error_key == OC_KEY_ROOT);
   assert_true(ocs_world_queue_length(w) == 1 && queued(w, OC_KEY_ROOT)); /* still queued */
   assert_int_equal(tick(w, v, 2), 0); /* the tick goes out; without the root nothing can show */
-  assert_true(queued(w, OC_KEY_ROOT));  /* asked again */
+  assert_int_equal(ocs_world_produce(w, 0.0, 0), 0);
+  assert_true(queued(w, OC_KEY_ROOT)); /* asked again */
   assert_true(ocs_world_produce(w, 1e9, 0) >= 1);
   assert_int_equal(tick(w, v, 3), 1);
   ocs_viewer_stats_t vs;
@@ -411,6 +418,7 @@ static void test_clocked__resume_with_bricks_in_flight(void **st) {
   assert_int_equal(ocs_world_pause(w, paused_at), 0);
   double frozen = ocs_world_time_at(w, paused_at);
   tick(w, v, n++);
+  ocs_world_produce(w, 0.0, 0);
   assert_true(ocs_world_queue_length(w) > 0);
   ocs_world_produce(w, 1e9, 4); /* in flight: some made, the rest queued */
   tick(w, v, n++);
