@@ -1261,6 +1261,10 @@ static void queue_made(ocs_world_t *w) {
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
   if (!w || !w->d.clocked) return 0;
   if (w->targets_due) OC_TRY(plan_targets(w));
+  /* estimates fade between productions: a kind of brick too dear for every window would otherwise
+   * never be made again (it is made, late, once its estimate fits) */
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
+    for (int k = 0; k < 2; k++) atomic_store(&w->cost[l][k], 0.7 * atomic_load(&w->cost[l][k]));
   double t0 = now_s();
   w->deadline = t0 + (seconds > 0 ? seconds : 0.0);
   w->nreq = 0;
