@@ -1260,13 +1260,13 @@ static void queue_made(ocs_world_t *w) {
 
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
   if (!w || !w->d.clocked) return 0;
+  double t0 = now_s(), deadline = t0 + (seconds > 0 ? seconds : 0.0); /* the targets' time included */
   if (w->targets_due) OC_TRY(plan_targets(w));
   /* estimates fade between productions: a kind of brick too dear for every window would otherwise
    * never be made again (it is made, late, once its estimate fits) */
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
     for (int k = 0; k < 2; k++) atomic_store(&w->cost[l][k], 0.7 * atomic_load(&w->cost[l][k]));
-  double t0 = now_s();
-  w->deadline = t0 + (seconds > 0 ? seconds : 0.0);
+  w->deadline = deadline;
   w->nreq = 0;
   size_t n = limit && limit < w->nqueue ? limit : w->nqueue;
   int rc = 0;
