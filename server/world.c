@@ -131,6 +131,7 @@ struct ocs_world_s {
   uint32_t planning;        /* the viewer being planned */
   double deadline;          /* production stops then (monotonic s); 0: none */
   int targets_due;          /* the last tick's targets are still to be planned (plan_targets) */
+  size_t queue_left;        /* what the last production left queued (reported until the next queue) */
   size_t *deferred; /* requests whose τ volume another thread was building */
   size_t ndeferred, deferred_cap;
   /* counters (production runs on many threads) */
@@ -1194,6 +1195,7 @@ static int step(ocs_world_t *w) {
   ocs_plan_input_t in;
   plan_input(w, &in);
   if (w->d.clocked) { /* the queue is made anew from this tick's wishes */
+    w->queue_left = w->nqueue;
     w->nwish = w->nqueue = 0;
     w->targets_due = 0;
   }
@@ -1284,7 +1286,7 @@ int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
   return rc < 0 ? rc : (int)(made < INT32_MAX ? made : INT32_MAX);
 }
 
-size_t ocs_world_queue_length(const ocs_world_t *w) { return w ? w->nqueue : 0; }
+size_t ocs_world_queue_length(const ocs_world_t *w) { return !w ? 0 : w->targets_due ? w->queue_left : w->nqueue; }
 
 int ocs_world_production_due(const ocs_world_t *w) { return w && w->d.clocked && (w->targets_due || w->nqueue); }
 

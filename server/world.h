@@ -152,7 +152,8 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
 /*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). The queue of a
  *  tick is made when production starts (ocs_world_produce(), even for 0 seconds), after each
- *  viewer's target plan: those are whole plans, kept off the tick's path. */
+ *  viewer's target plan: those are whole plans, kept off the tick's path. Until then, what the
+ *  last production left. */
 size_t ocs_world_queue_length(const ocs_world_t *w);
 /*! ocs_world_production_due() : clocked, and targets to plan or bricks queued. */
 int ocs_world_production_due(const ocs_world_t *w);
