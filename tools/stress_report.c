@@ -43,12 +43,13 @@ static const stress_samples_t *sr_which(const stress_viewer_t *v, int which) {
     case 1: return &v->transfer;
     case 2: return &v->detail;
     case 3: return &v->detail_epochs;
+    case 5: return &v->ticks.lateness;
     default: return &v->interval;
   }
 }
 
 /* Quantiles of a copy of the pooled samples of every viewer (which = 0 latency, 1 transfer,
- * 2 detail, 3 detail epochs, 4 interval) or of one viewer (only >= 0). */
+ * 2 detail, 3 detail epochs, 4 interval, 5 lateness) or of one viewer (only >= 0). */
 static sr_q_t sr_pool(const stress_run_t *run, int which, int only) {
   sr_q_t q = {NAN, NAN, NAN, 0};
   size_t n = 0;
@@ -264,32 +265,16 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     }
   }
   /* epochs on the clock: lateness pooled, coalesced ticks summed; verified content ages merged */
-  size_t nlate = 0;
   uint64_t due = 0, coal_ticks = 0;
   stress_age_t ages;
   memset(&ages, 0, sizeof ages);
   for (int i = 0; i < run->nv; i++) {
-    nlate += run->v[i].ticks.lateness.n;
     due += stress_ticks_due(&run->v[i].ticks);
     coal_ticks += run->v[i].ticks.coalesced;
     stress_age_merge(&ages, &run->v[i].age);
     stress_age_merge(&ages, &run->v[i].m_age);
   }
-  sr_q_t late = {NAN, NAN, NAN, 0};
-  double *lv = malloc((nlate + 1) * sizeof *lv);
-  if (lv && nlate) {
-    size_t k = 0;
-    for (int i = 0; i < run->nv; i++) {
-      const stress_samples_t *x = &run->v[i].ticks.lateness;
-      if (x->n) memcpy(lv + k, x->v, x->n * sizeof *lv);
-      k += x->n;
-    }
-    late.p50 = stress_quantile(lv, nlate, 0.5);
-    late.p99 = stress_quantile(lv, nlate, 0.99);
-    late.max = lv[nlate - 1];
-    late.n = nlate;
-  }
-  free(lv);
+  sr_q_t late = sr_pool(run, 5, -1);
   uint64_t content_mismatch = stress_age_mismatches(&ages, -1);
   int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !coarser && !content_mismatch &&
              !s->error[0];
