@@ -860,29 +860,33 @@ static int has_key(const oc_key_t *a, size_t n, oc_key_t k) {
  * (wishes sorted by brick). A viewer whose wishes change every tick (one teleporting) is served
  * after the steady ones: little of what it wants now is still wanted when it is made. */
 static void wishes_steadiness(ocs_world_t *w) {
-  for (int vi = 0; vi < w->nviewers; vi++) {
+  size_t nv = (size_t)w->nviewers, *n = calloc(nv ? 2 * nv : 1, sizeof *n), *kept = n + nv;
+  if (!n) return; /* every viewer keeps last tick's weight */
+  for (size_t i = 0; i < w->nwish; i++) { /* one pass over the wishes, not one per viewer */
+    const ocs_viewer_t *v = w->viewers[w->wish[i].viewer];
+    n[w->wish[i].viewer]++;
+    kept[w->wish[i].viewer] += has_key(v->wished, v->nwished, w->wish[i].key);
+  }
+  for (size_t vi = 0; vi < nv; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
-    size_t n = 0, kept = 0;
-    for (size_t i = 0; i < w->nwish; i++)
-      if (w->wish[i].viewer == (uint32_t)vi) {
-        n++;
-        kept += has_key(v->wished, v->nwished, w->wish[i].key);
-      }
-    v->steady = v->nwished && n ? (double)kept / (double)n : 1.0;
-    if (n > v->wished_cap) {
-      oc_key_t *a = realloc(v->wished, n * sizeof *a);
-      if (!a) { /* forgotten: counted as steady next tick */
-        v->nwished = 0;
+    v->steady = v->nwished && n[vi] ? (double)kept[vi] / (double)n[vi] : 1.0;
+    v->nwished = 0;
+    if (n[vi] > v->wished_cap) {
+      oc_key_t *k = realloc(v->wished, n[vi] * sizeof *k);
+      if (!k) { /* forgotten: counted as steady next tick */
+        n[vi] = 0;
         continue;
       }
-      v->wished = a;
-      v->wished_cap = n;
+      v->wished = k;
+      v->wished_cap = n[vi];
     }
-    v->nwished = 0;
-    for (size_t i = 0; i < w->nwish; i++) /* ascending: the wishes are sorted by brick */
-      if (w->wish[i].viewer == (uint32_t)vi && (!v->nwished || v->wished[v->nwished - 1] != w->wish[i].key))
-        v->wished[v->nwished++] = w->wish[i].key;
   }
+  for (size_t i = 0; i < w->nwish; i++) { /* ascending: the wishes are sorted by brick */
+    ocs_viewer_t *v = w->viewers[w->wish[i].viewer];
+    if (n[w->wish[i].viewer] && (!v->nwished || v->wished[v->nwished - 1] != w->wish[i].key))
+      v->wished[v->nwished++] = w->wish[i].key;
+  }
+  free(n);
 }
 
 /* Each viewer's wishes cut to its share of the queue (its best ones) and normalised to sum its
