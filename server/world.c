@@ -65,7 +65,25 @@ typedef struct {
   float *sigma;             /* σt kept while the request waits for a τ volume (produce_one) */
   int made;                 /* produced here (not found in the cache) */
   int built_tau;            /* its τ volume was built for it (the expensive kind of brick) */
+  uint32_t first, count;    /* production: its viewers, who[first .. first + count) */
 } req_t;
+
+/* What production reads of the world, fixed when it starts. A tick may run while production's
+ * last bricks finish (ocs_world_produce_run()), and the tick moves the world's clock on; so each
+ * production, and each step, works from its own copy. */
+typedef struct {
+  ocs_world_t *w;
+  double time;
+  uint64_t ts[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1], sun_version;
+  ocs_tau_desc_t tau; /* ctx: this */
+  double deadline;    /* no brick is started that is expected to end after it (monotonic s); 0: none */
+  req_t *req;
+  size_t nreq, req_cap;
+  size_t *deferred; /* requests whose τ volume another thread was building */
+  size_t ndeferred, deferred_cap;
+  struct ocs_viewer_s **who; /* production: the viewers that wanted each request (NULL: it left) */
+  size_t nwho, who_cap;
+} prod_t;
 
 struct ocs_viewer_s {
   ocs_world_t *w;
@@ -118,8 +136,12 @@ struct ocs_world_s {
   ocs_viewer_t **viewers;
   int nviewers, viewers_cap;
   uint64_t granted;
-  req_t *req;
-  size_t nreq, req_cap;
+  prod_t stepping;   /* the step's requests (a clocked tick's: all content that exists) */
+  prod_t producing;  /* production's (clocked), between ocs_world_produce_begin() and _end() */
+  int in_production; /* begun and not ended */
+  int ticked;        /* a tick ran since production began: the queue is the tick's now */
+  int produce_rc;    /* ocs_world_produce_run()'s */
+  double produce_t0;
   /* clocked epochs */
   uint64_t stamp_hist[OC_KEY_MAX_LEVEL + 1][OCS_STAMP_HISTORY]; /* each level's previous stamps */
   ocs_cache_entry_t **pins; /* content found ready during a tick */
@@ -129,11 +151,8 @@ struct ocs_world_s {
   queued_t *queue;          /* what production makes between ticks, best first */
   size_t nqueue, queue_cap;
   uint32_t planning;        /* the viewer being planned */
-  double deadline;          /* production stops then (monotonic s); 0: none */
   int targets_due;          /* the last tick's targets are still to be planned (plan_targets) */
   size_t queue_left;        /* what the last production left queued (reported until the next queue) */
-  size_t *deferred; /* requests whose τ volume another thread was building */
-  size_t ndeferred, deferred_cap;
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
   _Atomic int last_error;
@@ -166,10 +185,11 @@ static ocs_cache_key_t ckey(const ocs_world_t *w, int type, uint64_t a, uint64_t
 /*-*** Content: σt, τ, codes ***/
 
 /* σt samples of a node at this epoch, through the cache (sanitised). */
-static int sigma_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+static int sigma_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+  ocs_world_t *w = p->w;
   int level = oc_key_level(key);
   if (level < 0) return OC_EINVAL;
-  ocs_cache_key_t k = ckey(w, T_SIGMA, key, w->ts[level], 0);
+  ocs_cache_key_t k = ckey(w, T_SIGMA, key, p->ts[level], 0);
   ocs_cache_entry_t *e;
   int r = ocs_cache_acquire(w->cache, &k, &e);
   if (r < 0) return r;
@@ -180,7 +200,7 @@ static int sigma_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
       return OC_ENOMEM;
     }
     memset(s, 0, OC_BRICK_VOXELS * sizeof *s);
-    r = ocs_field_sample(w->field, key, w->time, s);
+    r = ocs_field_sample(w->field, key, p->time, s);
     if (r < 0) {
       free(s);
       ocs_cache_abandon(w->cache, e);
@@ -198,23 +218,29 @@ static int sigma_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS]) {
 static int tau_sigma_cb(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) { return sigma_get(ctx, key, out); }
 
 static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
-  const ocs_world_t *w = ctx;
-  ocs_field_bound(w->field, key, w->time, smin, smax);
+  const prod_t *p = ctx;
+  ocs_field_bound(p->w->field, key, p->time, smin, smax);
 }
 
 /* τ of a node from its group's volume, through the cache. !wait: OCS_CACHE_BUSY, and nothing
  * done, when another thread is building that volume. */
-static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS], int wait, int *built) {
+static ocs_cache_key_t tau_key(const prod_t *p, oc_key_t key) {
   int level = oc_key_level(key);
-  oc_key_t group = ocs_tau_group_of(&w->tau, key);
-  ocs_cache_key_t k = ckey(w, T_TAUVOL, group, w->light[level], ((uint64_t)level) | (w->sun_version << 8));
+  return ckey(p->w, T_TAUVOL, ocs_tau_group_of(&p->tau, key), p->light[level], ((uint64_t)level) | (p->sun_version << 8));
+}
+
+static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait, int *built) {
+  ocs_world_t *w = p->w;
+  int level = oc_key_level(key);
+  oc_key_t group = ocs_tau_group_of(&p->tau, key);
+  ocs_cache_key_t k = tau_key(p, key);
   ocs_cache_entry_t *e;
   int r = wait ? ocs_cache_acquire(w->cache, &k, &e) : ocs_cache_try_acquire(w->cache, &k, &e);
   if (r < 0 || r == OCS_CACHE_BUSY) return r;
   if (r == OCS_CACHE_MISS) {
     void *vol = NULL;
     size_t bytes = 0;
-    r = ocs_tau_volume_build(&w->tau, group, level, &vol, &bytes);
+    r = ocs_tau_volume_build(&p->tau, group, level, &vol, &bytes);
     if (r < 0) {
       ocs_cache_abandon(w->cache, e);
       return r;
@@ -227,19 +253,20 @@ static int tau_get(ocs_world_t *w, oc_key_t key, float out[OC_BRICK_VOXELS], int
   ocs_cache_release(w->cache, e);
   /* the volume covers the nodes its march level says may hold σt; others (the ground under a
    * cloud, a wisp the coarser level missed) are marched on their own */
-  return r == OC_ENOENT ? ocs_tau_direct(&w->tau, key, out) : r;
+  return r == OC_ENOENT ? ocs_tau_direct(&p->tau, key, out) : r;
 }
 
 /* A request's end: τ where it is needed, the codes, published. !wait: OCS_CACHE_BUSY, with the
  * reservation kept, when another thread is building the τ volume. */
-static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_VOXELS], int wait) {
+static int produce_finish(prod_t *pr, req_t *q, const float sigma[OC_BRICK_VOXELS], int wait) {
+  ocs_world_t *w = pr->w;
   float tau[OC_BRICK_VOXELS];
   memset(tau, 0, sizeof tau);
   int any = 0, r = 0;
   for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= sigma[j] > 0.0f;
   /* nothing scatters where σt is all zero: such a node needs no τ and stays empty, unless it holds
    * the ground, which the renderer lights through τ (cloud shadows on the ground) */
-  if (w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(w, q->key, tau, wait, &q->built_tau);
+  if (w->shadows && (any || (w->ground_tau && ocs_plan_ground_tau(q->key)))) r = tau_get(pr, q->key, tau, wait, &q->built_tau);
   if (r == OCS_CACHE_BUSY) return r;
   payload_t *p = r >= 0 ? malloc(sizeof *p) : NULL;
   if (!p) {
@@ -261,10 +288,11 @@ static int produce_finish(ocs_world_t *w, req_t *q, const float sigma[OC_BRICK_V
  * finished in a second pass (produce_deferred) while the thread goes on to other requests. */
 /* What a brick of `key` is expected to cost: the level's estimate, the dearer kind when its group's
  * τ volume is not in the cache yet (it would be built for it). */
-static double expected_cost(ocs_world_t *w, oc_key_t key) {
+static double expected_cost(const prod_t *p, oc_key_t key) {
+  ocs_world_t *w = p->w;
   int level = oc_key_level(key), build = 0;
   if (w->shadows) {
-    ocs_cache_key_t k = ckey(w, T_TAUVOL, ocs_tau_group_of(&w->tau, key), w->light[level], ((uint64_t)level) | (w->sun_version << 8));
+    ocs_cache_key_t k = tau_key(p, key);
     ocs_cache_entry_t *e;
     if (ocs_cache_peek(w->cache, &k, &e)) ocs_cache_release(w->cache, e);
     else build = 1;
@@ -278,17 +306,18 @@ static void learn_cost(ocs_world_t *w, const req_t *q, double seconds) {
   atomic_store_explicit(c, seconds > 0.9 * old ? seconds : 0.9 * old, memory_order_relaxed); /* races only blur it */
 }
 
-static int produce_brick_timed(ocs_world_t *w, req_t *q);
+static int produce_brick_timed(prod_t *p, req_t *q);
 
-static int produce_brick(ocs_world_t *w, req_t *q) {
-  if (w->deadline > 0 && now_s() + expected_cost(w, q->key) >= w->deadline) return 0; /* the tick is due: it waits */
+static int produce_brick(prod_t *p, req_t *q) {
+  if (p->deadline > 0 && now_s() + expected_cost(p, q->key) >= p->deadline) return 0; /* the tick is due: it waits */
   double t0 = now_s();
-  int r = produce_brick_timed(w, q);
-  if (r >= 0 && q->made) learn_cost(w, q, now_s() - t0);
+  int r = produce_brick_timed(p, q);
+  if (r >= 0 && q->made) learn_cost(p->w, q, now_s() - t0);
   return r;
 }
 
-static int produce_brick_timed(ocs_world_t *w, req_t *q) {
+static int produce_brick_timed(prod_t *p, req_t *q) {
+  ocs_world_t *w = p->w;
   ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
   int r = ocs_cache_acquire(w->cache, &k, &q->entry);
   if (r < 0) {
@@ -303,47 +332,63 @@ static int produce_brick_timed(ocs_world_t *w, req_t *q) {
   }
   float sigma[OC_BRICK_VOXELS];
   float lo, hi;
-  ocs_field_bound(w->field, q->key, w->time, &lo, &hi);
+  ocs_field_bound(w->field, q->key, p->time, &lo, &hi);
   if (!(hi > 0.0f)) { /* known empty: no sampling */
     memset(sigma, 0, sizeof sigma);
-  } else if ((r = sigma_get(w, q->key, sigma)) < 0) {
+  } else if ((r = sigma_get(p, q->key, sigma)) < 0) {
     ocs_cache_abandon(w->cache, q->entry);
     q->entry = NULL;
     return r;
   }
-  r = produce_finish(w, q, sigma, 0);
+  r = produce_finish(p, q, sigma, 0);
   if (r != OCS_CACHE_BUSY) return r;
   q->sigma = malloc(sizeof sigma);
-  if (!q->sigma) return produce_finish(w, q, sigma, 1); /* no room to set it aside: wait */
+  if (!q->sigma) return produce_finish(p, q, sigma, 1); /* no room to set it aside: wait */
   memcpy(q->sigma, sigma, sizeof sigma);
   return 0;
 }
 
+static void produce_failed(ocs_world_t *w, oc_key_t key, int r) {
+  atomic_fetch_add(&w->produce_errors, 1);
+  atomic_store(&w->last_error, r);
+  atomic_store(&w->last_error_key, key);
+}
+
 static int produce_one(void *ctx, size_t i, int worker) {
-  ocs_world_t *w = ctx;
+  prod_t *p = ctx;
   (void)worker;
-  int r = produce_brick(w, &w->req[i]);
-  if (r < 0) {
-    atomic_fetch_add(&w->produce_errors, 1);
-    atomic_store(&w->last_error, r);
-    atomic_store(&w->last_error_key, w->req[i].key);
-  }
+  int r = produce_brick(p, &p->req[i]);
+  if (r < 0) produce_failed(p->w, p->req[i].key, r);
   return r;
 }
 
 static int produce_deferred(void *ctx, size_t i, int worker) {
   (void)worker;
-  ocs_world_t *w = ctx;
-  req_t *q = &w->req[w->deferred[i]];
-  int r = produce_finish(w, q, q->sigma, 1);
+  prod_t *p = ctx;
+  req_t *q = &p->req[p->deferred[i]];
+  int r = produce_finish(p, q, q->sigma, 1);
   free(q->sigma);
   q->sigma = NULL;
-  if (r < 0) {
-    atomic_fetch_add(&w->produce_errors, 1);
-    atomic_store(&w->last_error, r);
-    atomic_store(&w->last_error_key, q->key);
-  }
+  if (r < 0) produce_failed(p->w, q->key, r);
   return r;
+}
+
+/* Production's copy of the world's clock and sun. */
+static void prod_snapshot(ocs_world_t *w, prod_t *p) {
+  p->w = w;
+  p->time = w->time;
+  memcpy(p->ts, w->ts, sizeof p->ts);
+  memcpy(p->light, w->light, sizeof p->light);
+  p->sun_version = w->sun_version;
+  p->tau = w->tau;
+  p->tau.ctx = p;
+  p->deadline = 0;
+}
+
+static void prod_free(prod_t *p) {
+  free(p->req);
+  free(p->deferred);
+  free(p->who);
 }
 
 /*-*** Clock ***/
@@ -423,7 +468,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   ocs_clock_init(&w->clock, w->utc, w->time);
   w->sun = w->scene.sun_dir;
   w->sun_version = 1;
-  w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .ctx = w, .sun_dir = w->sun, .stats = &w->tau_stats};
+  w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .sun_dir = w->sun, .stats = &w->tau_stats};
   clock_update(w);
   *out = w;
   return 0;
@@ -432,9 +477,10 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
 void ocs_world_free(ocs_world_t *w) {
   if (!w) return;
   while (w->nviewers) ocs_world_remove_viewer(w, w->viewers[w->nviewers - 1]);
+  if (w->in_production) ocs_world_produce_end(w);
   free(w->viewers);
-  free(w->req);
-  free(w->deferred);
+  prod_free(&w->stepping);
+  prod_free(&w->producing);
   free(w->pins);
   free(w->wish);
   free(w->queue);
@@ -568,6 +614,8 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
   for (int i = 0; i < w->nviewers; i++)
     if (w->viewers[i] == v) {
       queue_forget(w, (uint32_t)i);
+      for (size_t j = 0; j < w->producing.nwho; j++) /* production goes on without it */
+        if (w->producing.who[j] == v) w->producing.who[j] = NULL;
       memmove(&w->viewers[i], &w->viewers[i + 1], (size_t)(w->nviewers - i - 1) * sizeof *w->viewers);
       w->nviewers--;
       w->granted -= v->desc.budget;
@@ -649,7 +697,7 @@ static int build_state(ocs_world_t *w, ocs_viewer_t *v, oc_state_t *st, uint8_t 
     memset(&n, 0, sizeof n);
     n.key = L->key;
     if (L->produce) {
-      const payload_t *p = ocs_cache_data(w->req[v->req_of[i]].entry);
+      const payload_t *p = ocs_cache_data(w->stepping.req[v->req_of[i]].entry);
       n.kind = p->kind;
       n.range[0] = p->range[0];
       n.range[1] = p->range[1];
@@ -691,10 +739,10 @@ static int build_state(ocs_world_t *w, ocs_viewer_t *v, oc_state_t *st, uint8_t 
   return 0;
 }
 
-static void release_requests(ocs_world_t *w) {
-  for (size_t i = 0; i < w->nreq; i++)
-    if (w->req[i].entry) ocs_cache_release(w->cache, w->req[i].entry);
-  w->nreq = 0;
+static void release_requests(prod_t *p) {
+  for (size_t i = 0; i < p->nreq; i++)
+    if (p->req[i].entry) ocs_cache_release(p->w->cache, p->req[i].entry);
+  p->nreq = 0;
 }
 
 static int step(ocs_world_t *w);
@@ -1053,55 +1101,70 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
   return 0;
 }
 
-static int push_req(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
-  if (w->nreq == w->req_cap) {
-    size_t nc = w->req_cap ? 2 * w->req_cap : 1024;
-    req_t *a = realloc(w->req, nc * sizeof *a);
+static int push_req(prod_t *p, oc_key_t key, uint64_t stamp) {
+  if (p->nreq == p->req_cap) {
+    size_t nc = p->req_cap ? 2 * p->req_cap : 1024;
+    req_t *a = realloc(p->req, nc * sizeof *a);
     if (!a) return OC_ENOMEM;
-    w->req = a;
-    w->req_cap = nc;
+    p->req = a;
+    p->req_cap = nc;
   }
-  w->req[w->nreq++] = (req_t){key, stamp, NULL, NULL, 0, 0};
+  p->req[p->nreq++] = (req_t){.key = key, .stamp = stamp};
   return 0;
 }
 
 /* One request per distinct (key, stamp) over all viewers. */
 static int make_requests(ocs_world_t *w, want_t *want, size_t nwant) {
+  prod_t *p = &w->stepping;
   if (nwant) qsort(want, nwant, sizeof *want, cmp_want); /* qsort(NULL, 0) is undefined */
-  w->nreq = 0;
+  p->nreq = 0;
   w->brick_requests += nwant;
   for (size_t i = 0; i < nwant; i++) {
-    if (!w->nreq || w->req[w->nreq - 1].key != want[i].key || w->req[w->nreq - 1].stamp != want[i].stamp)
-      OC_TRY(push_req(w, want[i].key, want[i].stamp));
-    w->viewers[want[i].viewer]->req_of[want[i].leaf] = (uint32_t)(w->nreq - 1);
+    if (!p->nreq || p->req[p->nreq - 1].key != want[i].key || p->req[p->nreq - 1].stamp != want[i].stamp)
+      OC_TRY(push_req(p, want[i].key, want[i].stamp));
+    w->viewers[want[i].viewer]->req_of[want[i].leaf] = (uint32_t)(p->nreq - 1);
   }
   return 0;
 }
 
-/* Produces (or, for content that exists, pins) every request, in parallel; the ones set aside for
- * a τ volume another thread was building are finished in a second pass. */
-static int produce_requests(ocs_world_t *w) {
-  int rc = ocs_pool_run(w->pool, w->nreq, produce_one, w);
+/* Produces (or, for content that exists, pins) every request, on the pool or (serial: a clocked
+ * tick, whose requests all exist, while production may hold the pool) on this thread; the ones
+ * set aside for a τ volume another thread was building are finished in a second pass. */
+static int produce_requests(prod_t *p, int serial) {
+  ocs_pool_t *pool = p->w->pool;
+  int rc = 0;
+  if (serial)
+    for (size_t i = 0; i < p->nreq; i++) {
+      int r = produce_one(p, i, 0);
+      if (r < 0 && rc >= 0) rc = r;
+    }
+  else
+    rc = ocs_pool_run(pool, p->nreq, produce_one, p);
   /* the set-aside requests hold reservations: they are finished even after an error */
-  w->ndeferred = 0;
-  for (size_t i = 0; i < w->nreq; i++) {
-    if (!w->req[i].sigma) continue;
-    if (w->ndeferred == w->deferred_cap) {
-      size_t nc = w->deferred_cap ? 2 * w->deferred_cap : 256;
-      size_t *a = realloc(w->deferred, nc * sizeof *a);
+  p->ndeferred = 0;
+  for (size_t i = 0; i < p->nreq; i++) {
+    if (!p->req[i].sigma) continue;
+    if (p->ndeferred == p->deferred_cap) {
+      size_t nc = p->deferred_cap ? 2 * p->deferred_cap : 256;
+      size_t *a = realloc(p->deferred, nc * sizeof *a);
       if (!a) { /* finish it here, waiting */
-        int r = produce_finish(w, &w->req[i], w->req[i].sigma, 1);
-        free(w->req[i].sigma);
-        w->req[i].sigma = NULL;
+        int r = produce_finish(p, &p->req[i], p->req[i].sigma, 1);
+        free(p->req[i].sigma);
+        p->req[i].sigma = NULL;
         if (r < 0 && rc >= 0) rc = r;
         continue;
       }
-      w->deferred = a;
-      w->deferred_cap = nc;
+      p->deferred = a;
+      p->deferred_cap = nc;
     }
-    w->deferred[w->ndeferred++] = i;
+    p->deferred[p->ndeferred++] = i;
   }
-  int r = w->ndeferred ? ocs_pool_run(w->pool, w->ndeferred, produce_deferred, w) : 0;
+  int r = 0;
+  for (size_t i = 0; serial && i < p->ndeferred; i++) {
+    int e = produce_deferred(p, i, 0);
+    if (e < 0 && r >= 0) r = e;
+  }
+  if (!serial && p->ndeferred) r = ocs_pool_run(pool, p->ndeferred, produce_deferred, p);
   return r < 0 && rc >= 0 ? r : rc;
 }
 
@@ -1198,7 +1261,9 @@ static int step(ocs_world_t *w) {
   double t0 = now_s();
   ocs_plan_input_t in;
   plan_input(w, &in);
+  prod_snapshot(w, &w->stepping);
   if (w->d.clocked) { /* the queue is made anew from this tick's wishes */
+    w->ticked = 1;
     w->queue_left = w->nqueue;
     w->nwish = w->nqueue = 0;
     w->targets_due = 0;
@@ -1210,10 +1275,11 @@ static int step(ocs_world_t *w) {
   w->plan_seconds = t1 - t0;
   if (rc >= 0) rc = make_requests(w, want, nwant);
   free(want);
-  if (rc >= 0) rc = produce_requests(w); /* clocked: every request is a hit */
+  if (rc >= 0) rc = produce_requests(&w->stepping, w->d.clocked); /* clocked: every request is a hit */
   for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) { /* stepped: what was made for whom */
     ocs_viewer_t *v = w->viewers[vi];
-    for (uint32_t i = 0; v->planned && i < v->nleaves; i++) v->produced += v->leaves[i].produce && w->req[v->req_of[i]].made;
+    for (uint32_t i = 0; v->planned && i < v->nleaves; i++)
+      v->produced += v->leaves[i].produce && w->stepping.req[v->req_of[i]].made;
   }
   w->produce_seconds = now_s() - t1;
   if (rc >= 0) rc = emit_states(w);
@@ -1223,7 +1289,7 @@ static int step(ocs_world_t *w) {
         ocs_plan_abandon(w->viewers[vi]->planner);
         w->viewers[vi]->planned = 0;
       }
-  release_requests(w);
+  release_requests(&w->stepping);
   release_pins(w);
   w->targets_due = w->d.clocked; /* the targets are planned when production starts, off the tick */
   return rc;
@@ -1249,45 +1315,86 @@ static int plan_targets(ocs_world_t *w) {
   return rc;
 }
 
-/* What was made is counted for the viewers that wanted it, and leaves the queue. */
-static void queue_made(ocs_world_t *w) {
-  size_t m = 0;
-  for (size_t i = 0; i < w->nqueue; i++) {
-    const queued_t *q = &w->queue[i];
-    if (i < w->nreq && w->req[i].made) {
-      for (uint32_t j = q->first; j < q->first + q->count; j++)
-        if (w->wish[j].viewer != OCS_NO_VIEWER) w->viewers[w->wish[j].viewer]->produced++;
-    } else {
-      w->queue[m++] = *q;
-    }
+/* A production's requests: the queue's best `n`, each with the viewers that want it. */
+static int round_fill(ocs_world_t *w, prod_t *p, size_t n) {
+  p->nreq = p->nwho = 0;
+  size_t nwho = 0;
+  for (size_t i = 0; i < n; i++) nwho += w->queue[i].count;
+  if (nwho > p->who_cap) {
+    ocs_viewer_t **a = realloc(p->who, nwho * sizeof *a);
+    if (!a) return OC_ENOMEM;
+    p->who = a;
+    p->who_cap = nwho;
   }
-  w->nqueue = m;
+  for (size_t i = 0; i < n; i++) {
+    const queued_t *q = &w->queue[i];
+    OC_TRY(push_req(p, q->key, q->stamp));
+    p->req[i].first = (uint32_t)p->nwho;
+    p->req[i].count = q->count;
+    for (uint32_t j = q->first; j < q->first + q->count; j++)
+      p->who[p->nwho++] = w->wish[j].viewer == OCS_NO_VIEWER ? NULL : w->viewers[w->wish[j].viewer];
+  }
+  return 0;
 }
 
-int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
+int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
   if (!w || !w->d.clocked) return 0;
+  if (w->in_production) return OC_EAGAIN;
   double t0 = now_s(), deadline = t0 + (seconds > 0 ? seconds : 0.0); /* the targets' time included */
   if (w->targets_due) OC_TRY(plan_targets(w));
   /* estimates fade between productions: a kind of brick too dear for every window would otherwise
    * never be made again (it is made, late, once its estimate fits) */
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
     for (int k = 0; k < 2; k++) atomic_store(&w->cost[l][k], 0.7 * atomic_load(&w->cost[l][k]));
-  w->deadline = deadline;
-  w->nreq = 0;
-  size_t n = limit && limit < w->nqueue ? limit : w->nqueue;
-  int rc = 0;
-  for (size_t i = 0; i < n && rc >= 0; i++) rc = push_req(w, w->queue[i].key, w->queue[i].stamp);
-  uint64_t before = w->bricks_produced, errors = w->produce_errors;
-  if (rc >= 0) rc = produce_requests(w);
-  queue_made(w);
-  release_requests(w);
-  w->deadline = 0;
-  w->produce_seconds = now_s() - t0;
-  uint64_t made = w->bricks_produced - before;
-  /* a brick that failed stays queued and is asked again; only a failure of the whole (no memory
-   * for the requests) is returned */
-  if (rc < 0 && w->produce_errors > errors) rc = 0;
-  return rc < 0 ? rc : (int)(made < INT32_MAX ? made : INT32_MAX);
+  prod_t *p = &w->producing;
+  prod_snapshot(w, p);
+  p->deadline = deadline;
+  int rc = round_fill(w, p, limit && limit < w->nqueue ? limit : w->nqueue);
+  if (rc < 0) {
+    p->nreq = 0;
+    return rc;
+  }
+  w->in_production = 1;
+  w->ticked = 0;
+  w->produce_rc = 0;
+  w->produce_t0 = t0;
+  return (int)(p->nreq < INT32_MAX ? p->nreq : INT32_MAX);
+}
+
+int ocs_world_produce_run(ocs_world_t *w) {
+  if (!w || !w->in_production) return 0;
+  return w->produce_rc = produce_requests(&w->producing, 0);
+}
+
+int ocs_world_produce_end(ocs_world_t *w) {
+  if (!w || !w->in_production) return 0;
+  prod_t *p = &w->producing;
+  uint64_t made = 0;
+  for (size_t i = 0; i < p->nreq; i++) { /* counted for the viewers that wanted it */
+    const req_t *q = &p->req[i];
+    made += (uint64_t)q->made;
+    for (uint32_t j = q->first; q->made && j < q->first + q->count; j++)
+      if (p->who[j]) p->who[j]->produced++;
+  }
+  if (!w->ticked) { /* what was made leaves the queue (req[i] is queue[i]); after a tick, the queue is its */
+    size_t m = 0;
+    for (size_t i = 0; i < w->nqueue; i++)
+      if (!(i < p->nreq && p->req[i].made)) w->queue[m++] = w->queue[i];
+    w->nqueue = m;
+  }
+  release_requests(p);
+  p->nwho = 0;
+  w->in_production = 0;
+  w->produce_seconds = now_s() - w->produce_t0;
+  /* a brick that failed (produce_rc) is counted, stays queued and is asked again */
+  return (int)(made < INT32_MAX ? made : INT32_MAX);
+}
+
+int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
+  int rc = ocs_world_produce_begin(w, seconds, limit);
+  if (rc < 0) return rc;
+  ocs_world_produce_run(w);
+  return ocs_world_produce_end(w);
 }
 
 size_t ocs_world_queue_length(const ocs_world_t *w) { return !w ? 0 : w->targets_due ? w->queue_left : w->nqueue; }
@@ -1352,12 +1459,14 @@ int ocs_world_reproduce(ocs_world_t *w, oc_key_t key, double t, ocs_brick_out_t 
     w->time = t;
     clock_update(w);
   }
-  w->nreq = 0;
-  OC_TRY(push_req(w, key, w->stamp[level]));
-  req_t *q = &w->req[0];
-  int r = produce_brick(w, q);
+  prod_t *pr = &w->stepping;
+  prod_snapshot(w, pr);
+  pr->nreq = 0;
+  OC_TRY(push_req(pr, key, w->stamp[level]));
+  req_t *q = &pr->req[0];
+  int r = produce_brick(pr, q);
   if (r >= 0 && q->sigma) { /* set aside for a τ volume: nobody else builds it here */
-    r = produce_finish(w, q, q->sigma, 1);
+    r = produce_finish(pr, q, q->sigma, 1);
     free(q->sigma);
     q->sigma = NULL;
   }
@@ -1368,7 +1477,7 @@ int ocs_world_reproduce(ocs_world_t *w, oc_key_t key, double t, ocs_brick_out_t 
     if (p->kind == OC_NODE_BRICK) out->codes = p->codes;
     else memset(&out->codes, 0, sizeof out->codes);
   }
-  release_requests(w);
+  release_requests(&w->stepping);
   return r;
 }
 

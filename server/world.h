@@ -150,6 +150,19 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc);
  *  (ocs_world_stats_t.produce_errors), stays queued and does not stop the others. Nothing else may
  *  touch the world meanwhile. @return bricks made, or a negative OC_E* (no memory to start). */
 int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
+/*! ocs_world_produce() in three parts, so that a tick need not wait for the bricks in flight.
+ *  _begin() (nothing else may touch the world): plans the targets, makes the queue and takes its
+ *  best `limit` items (0: all) for production, with a copy of the clock; OC_EAGAIN if begun and not
+ *  ended. @return the bricks taken, or a negative OC_E*.
+ *  _run() (on a thread of its own): produces them on the world's pool; no brick is started that
+ *  is expected to end after `seconds` from _begin(). While it runs, ocs_world_step_at() (a clocked
+ *  tick: it produces nothing and uses no pool) may run on another thread, and nothing else.
+ *  _end() (nothing else may touch the world): counts what was made for the viewers that wanted it
+ *  (ocs_viewer_stats_t.produced) and, if no tick ran meanwhile, takes it off the queue.
+ *  @return bricks made. */
+int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit);
+int ocs_world_produce_run(ocs_world_t *w);
+int ocs_world_produce_end(ocs_world_t *w);
 /*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). The queue of a
  *  tick is made when production starts (ocs_world_produce(), even for 0 seconds), after each
  *  viewer's target plan: those are whole plans, kept off the tick's path. Until then, what the
