@@ -7,9 +7,10 @@
  * time of that instant (world_clock.h). The timer is armed for the next due instant; a tick that
  * finds the previous step still running, or that the loop reached late, is skipped and counted
  * (late_ticks), and the step takes the newest due epoch. A tick builds its states from content
- * that exists (world.h, clocked); between ticks the world's production queue is worked on until
- * shortly before the next due instant, so production runs behind the clock instead of holding
- * epochs back. Stepped (P = 0): the virtual clock of ocs_world_step(), each step producing all its
+ * that exists (world.h, clocked); between ticks the world's production queue is worked on: no
+ * brick is started after shortly before the next due instant, and the bricks still in flight then
+ * finish while the tick runs beside them (ocs_world_produce_run()), so production runs behind the
+ * clock instead of holding epochs back. Stepped (P = 0): the virtual clock of ocs_world_step(), each step producing all its
  * plans ask. */
 #include <math.h>
 #include <time.h>
@@ -21,8 +22,9 @@
 static void start_step_at(ocs_server_t *srv, uint64_t n);
 static void start_production(ocs_server_t *srv);
 
-/* Production stops this long before the next due instant (or a tenth of the period), so the tick
- * starts on time: a brick started is finished, and a planet brick takes a few ms. */
+/* Production starts no brick after this long before the next due instant (or a tenth of the
+ * period): the bricks still in flight then finish beside the tick, and the next production (from
+ * the tick's wishes) waits for them. */
 #define OCS_PRODUCE_MARGIN_S 0.03
 
 /* What a viewer said while a step ran (its acknowledgement, its newest camera) reaches the world. */
@@ -64,17 +66,20 @@ static void remove_doomed(ocs_server_t *srv) {
   srv->ndoomed = 0;
 }
 
+static void finish_production(ocs_server_t *srv);
+
 static void step_done(uv_work_t *req, int status) {
   ocs_server_t *srv = req->data;
   (void)status;
-  srv->stepping = 0;
+  srv->ticking = 0;
+  srv->stepping = srv->producing; /* production's last bricks may still be in flight */
   srv->steps_done++;
   if (srv->step_rc < 0) oc_log_error("epoch step failed: %s (viewers keep their states)", oc_strerror(srv->step_rc));
   ocs_world_stats_t ws; /* once per step, not once per viewer */
   ocs_world_stats(srv->world, &ws);
   srv->plan_ms = 1e3 * ws.plan_seconds;
   srv->produce_ms = 1e3 * ws.produce_seconds;
-  remove_doomed(srv);
+  if (!srv->stepping) remove_doomed(srv);
   /* New states go out, then the layers above see the step's end (held input, waiting "step"
    * requests). The list may change under these calls (sessions close), so walk it with care. */
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
@@ -85,6 +90,11 @@ static void step_done(uv_work_t *req, int status) {
     if (h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack)
       ocs_session_stream(s, ocs_viewer_held(s->viewer, 1));
   }
+  if (srv->producing) return; /* what follows comes when production ends */
+  if (srv->end_due) {
+    finish_production(srv);
+    return;
+  }
   if (srv->after_step) srv->after_step(srv);
   if (srv->steps_queued && !srv->stopping) start_step_at(srv, 0);
   else start_production(srv);
@@ -94,16 +104,21 @@ static void step_done(uv_work_t *req, int status) {
 
 static void produce_work(uv_work_t *req) {
   ocs_server_t *srv = req->data;
-  srv->step_rc = ocs_world_produce(srv->world, srv->produce_s, 0);
+  srv->produce_rc = ocs_world_produce_begin(srv->world, srv->produce_s, 0);
+  if (srv->produce_rc < 0) return;
+  atomic_store(&srv->overlap, 1); /* from here a tick may run beside it */
+  ocs_world_produce_run(srv->world);
 }
 
-static void produce_done(uv_work_t *req, int status) {
-  ocs_server_t *srv = req->data;
-  (void)status;
-  srv->stepping = srv->producing = 0;
+/* Production is over and no tick runs: what was made is counted, then as after a step. */
+static void finish_production(ocs_server_t *srv) {
+  srv->end_due = 0;
+  if (srv->produce_rc < 0) {
+    oc_log_warn("production: %s (asked again at the next tick)", oc_strerror(srv->produce_rc));
+  } else {
+    srv->bricks_made += (uint64_t)ocs_world_produce_end(srv->world);
+  }
   remove_doomed(srv);
-  if (srv->step_rc < 0) oc_log_warn("production: %s (asked again at the next tick)", oc_strerror(srv->step_rc));
-  else srv->bricks_made += (uint64_t)srv->step_rc;
   ocs_world_stats_t ws;
   ocs_world_stats(srv->world, &ws);
   if (ws.produce_errors > srv->produce_errors) /* a failed brick: reported, and asked again */
@@ -115,7 +130,18 @@ static void produce_done(uv_work_t *req, int status) {
   if (srv->stopping) return;
   if (srv->steps_queued) start_step_at(srv, 0);
   else if (srv->tick_epoch > ocs_world_epoch(srv->world) && srv->tick_overrun) start_step_at(srv, srv->tick_epoch);
+  else if (ocs_world_epoch(srv->world) != srv->production_epoch) start_production(srv); /* a tick ran beside it */
   srv->tick_overrun = 0;
+}
+
+static void produce_done(uv_work_t *req, int status) {
+  ocs_server_t *srv = req->data;
+  (void)status;
+  srv->producing = 0;
+  atomic_store(&srv->overlap, 0);
+  srv->stepping = srv->ticking;
+  if (srv->ticking) srv->end_due = 1; /* the tick beside it ends first */
+  else finish_production(srv);
 }
 
 /* What the last tick's plans wait for is made until shortly before the next due instant, on the
@@ -126,14 +152,19 @@ static void start_production(ocs_server_t *srv) {
   srv->produce_s = (double)srv->armed_epoch * srv->period - ocs_net_utc(srv) - margin;
   if (!(srv->produce_s > 0)) return;
   srv->stepping = srv->producing = 1;
-  srv->work.data = srv;
-  uv_queue_work(&srv->loop, &srv->work, produce_work, produce_done);
+  srv->production_epoch = ocs_world_epoch(srv->world);
+  srv->produce_work.data = srv;
+  uv_queue_work(&srv->loop, &srv->produce_work, produce_work, produce_done);
 }
 
 /* A step of epoch n (clocked), or of the next one (a "step" request: on the clock the newest due
  * epoch, or the one after the last if that is not due yet; stepped: the virtual clock's next). */
+static int tick_may_start(const ocs_server_t *srv) {
+  return !srv->ticking && !srv->stopping && !srv->end_due && (!srv->producing || atomic_load(&srv->overlap));
+}
+
 static void start_step_at(ocs_server_t *srv, uint64_t n) {
-  if (srv->stepping || srv->stopping) return;
+  if (!tick_may_start(srv)) return;
   if (!n && srv->period > 0) {
     uint64_t due = due_epoch(srv, ocs_net_utc(srv)), last = ocs_world_epoch(srv->world);
     n = due > last ? due : last + 1;
@@ -142,7 +173,7 @@ static void start_step_at(ocs_server_t *srv, uint64_t n) {
   if (srv->steps_queued) srv->steps_queued--;
   for (ocs_session_t *s = srv->sessions; s; s = s->next)
     if (s->viewer) apply_pending(s);
-  srv->stepping = 1;
+  srv->stepping = srv->ticking = 1;
   srv->work.data = srv;
   uv_queue_work(&srv->loop, &srv->work, step_work, step_done);
 }
@@ -160,7 +191,11 @@ static void on_tick_check(uv_check_t *h) {
   ocs_server_t *srv = h->data;
   uv_idle_stop(&srv->tick_idle);
   uv_check_stop(&srv->tick_check);
-  if (srv->stepping || srv->stopping) {
+  if (srv->producing && !atomic_load(&srv->overlap)) { /* it follows production */
+    srv->tick_overrun = 1;
+    return;
+  }
+  if (!tick_may_start(srv)) {
     srv->late_ticks++;
     return;
   }
@@ -180,11 +215,11 @@ static void on_epoch_timer(uv_timer_t *t) {
   if (srv->producing && srv->tick_overrun) srv->late_ticks++; /* the tick still waiting is replaced: skipped */
   srv->tick_epoch = due;
   arm_timer(srv);
-  if (srv->producing) { /* production overran its deadline (a long brick): the tick follows it */
+  if (srv->producing && !atomic_load(&srv->overlap)) { /* production has not taken its bricks yet */
     srv->tick_overrun = 1;
     return;
   }
-  if (srv->stepping) {
+  if (srv->ticking || srv->end_due) {
     srv->late_ticks++; /* the previous step is still running: this tick is skipped */
     return;
   }

@@ -18,6 +18,7 @@
 #ifndef OC_SERVER_NET_INTERNAL_H
 #define OC_SERVER_NET_INTERNAL_H
 
+#include <stdatomic.h>
 #include <uv.h>
 
 #include "ocs_server.h"
@@ -107,7 +108,7 @@ struct ocs_server_s {
   uv_idle_t tick_idle;       /* a due tick: keeps the next poll from blocking ... */
   uv_check_t tick_check;     /* ... and starts the step after it, once pending ACKs are read */
   uv_signal_t sig_int, sig_term;
-  uv_work_t work;
+  uv_work_t work, produce_work; /* a step; production between ticks (both may run at once) */
   int signals;
   ocs_server_desc_t desc;
   char host[64], address[96];
@@ -119,13 +120,19 @@ struct ocs_server_s {
   int nconnected;          /* open connections, refused ones still closing included */
   int nadmitted;           /* open connections that passed the connection limits */
   uint32_t next_id;
-  int stepping, step_rc, stopping;
+  int stepping, step_rc, stopping; /* stepping: the world is busy (ticking or producing) */
+  int ticking;                      /* a step runs */
   uint64_t steps_queued, steps_done, late_ticks;
   uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
   uint64_t tick_epoch;  /* the due epoch the last tick asked for */
   uint64_t armed_epoch; /* the epoch the timer waits for */
   int producing;        /* the world's production queue is being worked on (stepping is set too) */
-  int tick_overrun;     /* a tick came due while producing: it starts when production ends */
+  atomic_int overlap;   /* production has taken its bricks (ocs_world_produce_run): a tick may run */
+  int produce_rc;       /* ocs_world_produce_begin()'s */
+  uint64_t production_epoch; /* the world's epoch when production started */
+  int end_due;          /* production ended during a tick: ocs_world_produce_end() when it ends */
+  int tick_overrun;     /* a tick came due before production took its bricks: it starts when
+                           production ends */
   double produce_s;     /* this production's time limit */
   uint64_t bricks_made; /* by production between ticks */
   uint64_t produce_errors; /* bricks whose production failed, as last reported */

@@ -1,16 +1,20 @@
 /* pool.c — see pool.h. */
+#define _GNU_SOURCE /* gettid() */
 #include "pool.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "oc_err.h"
 
 struct ocs_pool_s {
   int threads;
+  int spawned0; /* index of the first spawned worker: 1 (the caller is worker 0) or 0 */
+  int nice;
   pthread_t tid[OCS_POOL_MAX_THREADS];
   pthread_mutex_t mu;
   pthread_cond_t go, done;
@@ -47,6 +51,7 @@ static void *worker_main(void *a) {
   free(a);
   ocs_pool_t *p = arg.p;
   uint64_t seen = 0;
+  if (p->nice > 0) setpriority(PRIO_PROCESS, (id_t)gettid(), p->nice); /* per thread on Linux; best effort */
   pthread_mutex_lock(&p->mu);
   for (;;) {
     while (!p->quit && p->generation == seen) pthread_cond_wait(&p->go, &p->mu);
@@ -61,8 +66,10 @@ static void *worker_main(void *a) {
   return NULL;
 }
 
-int ocs_pool_create(ocs_pool_t **out, int threads) {
-  if (!out || threads < 0) return OC_EINVAL;
+int ocs_pool_create(ocs_pool_t **out, int threads) { return ocs_pool_create_niced(out, threads, 0); }
+
+int ocs_pool_create_niced(ocs_pool_t **out, int threads, int nice) {
+  if (!out || threads < 0 || nice < 0 || nice > 19) return OC_EINVAL;
   *out = NULL;
   if (threads == 0) {
     long c = sysconf(_SC_NPROCESSORS_ONLN);
@@ -74,8 +81,9 @@ int ocs_pool_create(ocs_pool_t **out, int threads) {
   pthread_mutex_init(&p->mu, NULL);
   pthread_cond_init(&p->go, NULL);
   pthread_cond_init(&p->done, NULL);
-  p->threads = 1;
-  for (int i = 1; i < threads; i++) {
+  p->nice = nice;
+  p->spawned0 = p->threads = nice > 0 ? 0 : 1;
+  for (int i = p->spawned0; i < threads; i++) {
     arg_t *a = malloc(sizeof *a);
     if (!a) break;
     *a = (arg_t){p, i};
@@ -95,14 +103,14 @@ void ocs_pool_free(ocs_pool_t *p) {
   p->quit = 1;
   pthread_cond_broadcast(&p->go);
   pthread_mutex_unlock(&p->mu);
-  for (int i = 1; i < p->threads; i++) pthread_join(p->tid[i], NULL);
+  for (int i = p->spawned0; i < p->threads; i++) pthread_join(p->tid[i], NULL);
   pthread_mutex_destroy(&p->mu);
   pthread_cond_destroy(&p->go);
   pthread_cond_destroy(&p->done);
   free(p);
 }
 
-int ocs_pool_threads(const ocs_pool_t *p) { return p ? p->threads : 0; }
+int ocs_pool_threads(const ocs_pool_t *p) { return !p ? 0 : p->threads > 0 ? p->threads : 1; }
 
 int ocs_pool_run(ocs_pool_t *p, size_t n, ocs_pool_fn fn, void *ctx) {
   if (!p || !fn) return OC_EINVAL;
@@ -113,11 +121,11 @@ int ocs_pool_run(ocs_pool_t *p, size_t n, ocs_pool_fn fn, void *ctx) {
   p->n = n;
   atomic_store(&p->next, 0);
   atomic_store(&p->err, 0);
-  p->busy = p->threads - 1;
+  p->busy = p->threads - p->spawned0;
   p->generation++;
   pthread_cond_broadcast(&p->go);
   pthread_mutex_unlock(&p->mu);
-  run_share(p, 0);
+  if (p->spawned0 || !p->threads) run_share(p, 0); /* no worker could be spawned: the caller works */
   pthread_mutex_lock(&p->mu);
   while (p->busy > 0) pthread_cond_wait(&p->done, &p->mu);
   pthread_mutex_unlock(&p->mu);

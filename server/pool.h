@@ -17,6 +17,10 @@ typedef int (*ocs_pool_fn)(void *ctx, size_t index, int worker);
 /*! ocs_pool_create() : threads 1..64 (0 → the number of online CPUs, at most 64), including the
  *  caller. @return 0, OC_EINVAL or OC_ENOMEM. */
 int ocs_pool_create(ocs_pool_t **out, int threads);
+/*! ocs_pool_create_niced() : nice 0 is ocs_pool_create(). nice 1..19: every thread is spawned and
+ *  runs at that nice value (lower priority than the caller's threads), and run() only waits: a
+ *  server's producers then yield the cores to its ticks and its sockets. */
+int ocs_pool_create_niced(ocs_pool_t **out, int threads, int nice);
 void ocs_pool_free(ocs_pool_t *p);
 int ocs_pool_threads(const ocs_pool_t *p);
 /*! ocs_pool_run() : fn(ctx, i, worker) for every i < n, worker in 0..threads-1; blocks until all

@@ -29,6 +29,11 @@ static const double STEP_CHANGE[OC_KEY_MAX_LEVEL + 1] = {
     0.52, 0.52, 0.52, 0.44, 0.36, 0.345, 0.33, 0.295, 0.26, 0.11,  0.071,
     0.063, 0.048, 0.034, 0.034, 0.014, 0.014, 0.014, 0.014, 0.014, 0.014, 0.014};
 
+/* Clocked: producer threads run at this nice value, so a tick (which runs beside production's last
+ * bricks) and the sockets get the cores first: on 2 cores, a tick shared them with 2 producers at
+ * equal priority and went out 40–80 ms late (docs/performance.md). */
+#define OCS_PRODUCER_NICE 10
+
 /* The production queue's bound (entries of 24 bytes). */
 #define OCS_QUEUE_MAX (1u << 16)
 
@@ -453,7 +458,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
     return r;
   }
   if ((r = ocs_field_create(&w->field, &w->scene, why, why_len)) < 0 || (r = ocs_cache_create(&w->cache, w->d.cache_bytes)) < 0 ||
-      (r = ocs_pool_create(&w->pool, w->d.threads)) < 0) {
+      (r = ocs_pool_create_niced(&w->pool, w->d.threads, w->d.clocked ? OCS_PRODUCER_NICE : 0)) < 0) {
     if (why && r != OC_ESCENE && r != OC_ENOENT && r != OC_EIO && r != OC_ECORRUPT && r != OC_ERANGE)
       snprintf(why, why_len, "creating the world: %s", oc_strerror(r));
     ocs_world_free(w);
