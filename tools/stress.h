@@ -215,8 +215,10 @@ typedef struct {
 int stress_brick_matches(const stress_brick_sample_t *got, const ocs_brick_out_t *made);
 
 /* Verified content age, per level: ages 0..STRESS_AGE_MAX (time steps behind the state's), and
- * those that matched none of them. A mismatch (a failure) is a brick matching none of s, s − 1,
- * s − 2; older ones are still looked for (up to STRESS_AGE_MAX) to say how old. The scan back goes
+ * those that matched none of them. A mismatch (a failure: content no time step made) is a brick
+ * matching none of s .. s − STRESS_AGE_MAX; a brick older than s − 2 is stale, not wrong (the
+ * server may show content up to 3 steps old while the newer waits in its queue), and counts in the
+ * age quantiles, which the sustained rule bounds. The scan back goes
  * up to STRESS_AGE_SCAN_EPOCHS epochs: a coarse level's time step spans many epochs, and 64 (the
  * first choice) reached only 2–3 of its stamps. */
 #define STRESS_AGE_MAX 16
@@ -226,8 +228,8 @@ struct stress_age_s {
   uint64_t n[OC_KEY_MAX_LEVEL + 1][STRESS_AGE_MAX + 2]; /* [level][age]; [STRESS_AGE_MAX + 1]: none */
   uint64_t sampled, dropped, errors; /* queued; not queued (queue full); reproduction failed */
 };
-/*! stress_age_count() : verified bricks (every level, or one level ≥ 0), and those of them older
- *  than STRESS_AGE_ALLOWED or matching nothing (mismatches). */
+/*! stress_age_count() : verified bricks (every level, or one level ≥ 0), and those of them
+ *  matching no stamp at all (mismatches). */
 uint64_t stress_age_count(const stress_age_t *a, int level);
 uint64_t stress_age_mismatches(const stress_age_t *a, int level);
 /*! stress_age_quantile() : nearest-rank quantile of the verified ages (a level ≥ 0, or all: -1);

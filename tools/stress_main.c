@@ -84,9 +84,10 @@ static void usage(FILE *f) {
           "  --json FILE           write everything measured\n"
           "  --verify-content F    re-produce a random fraction F (0..1; e.g. 0.01) of the bricks each viewer\n"
           "                        receives, in this process with a world of the server's scene, at the\n"
-          "                        stamps s, s-1, s-2 of the state's world time, and count its content age;\n"
-          "                        a brick matching none of them is a MISMATCH (a failure). Off-thread, at\n"
-          "                        the lowest priority; what is left is verified after the run (default 0)\n"
+          "                        stamps s, s-1, s-2 (and older, to say how old) of the state's world time,\n"
+          "                        and count its content age; a brick matching none is a MISMATCH (a\n"
+          "                        failure). Off-thread, at the lowest priority; what is left is verified\n"
+          "                        after the run (default 0)\n"
           "  --verify-queue N      samples waiting for the verifier at most; more are dropped, counted\n"
           "                        (default 256: F is what is offered, the verifier's pace what is done)\n"
           "  --verify-drain S      seconds to verify what is left after the run or a ramp phase (default 300)\n"
@@ -903,7 +904,7 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   ph->skipped_frac = ph->states + ph->skipped ? (double)ph->skipped / (double)(ph->states + ph->skipped) : NAN;
   if (ph->failed || ph->violations || ph->checksum || ph->protocol || ph->mismatch || ph->age_mismatch) {
     if (!ph->why[0] && ph->age_mismatch)
-      snprintf(ph->why, sizeof ph->why, "CONTENT MISMATCH: %" PRIu64 " verified bricks matched none of s, s-1, s-2",
+      snprintf(ph->why, sizeof ph->why, "CONTENT MISMATCH: %" PRIu64 " verified bricks matched no time step s .. s-16",
                ph->age_mismatch);
     if (!ph->why[0]) snprintf(ph->why, sizeof ph->why, "a check failed");
   } else if (short_viewer >= 0) {
