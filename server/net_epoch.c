@@ -4,7 +4,11 @@
  * next step.
  *
  * Clocked (period P > 0): epoch n is due at n·P seconds after the Unix epoch and takes the world
- * time of that instant (world_clock.h). The timer is armed for the next due instant; a tick that
+ * time of that instant (world_clock.h), whenever it is built. So a tick is built a little ahead
+ * (tick_lead: what the last ticks took, with a margin) and its states go out at the due instant
+ * itself, not a tick's planning time after it; the world stays busy until then, so input and
+ * control changes apply after the send, to the next epoch. The timer is armed for the next build
+ * instant; a tick that
  * finds the previous step still running, or that the loop reached late, is skipped and counted
  * (late_ticks), and the step takes the newest due epoch. A tick builds its states from content
  * that exists (world.h, clocked); between ticks the world's production queue is worked on: no
@@ -49,8 +53,18 @@ double ocs_net_utc(const ocs_server_t *srv) {
 /* The epoch whose due instant is the newest not after utc. */
 static uint64_t due_epoch(const ocs_server_t *srv, double utc) { return (uint64_t)floor(utc / srv->period); }
 
+static double mono_s(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* A tick is built this much ahead of its due instant at first, and at most half a period. */
+#define OCS_TICK_LEAD_S 0.02
+
 static void step_work(uv_work_t *req) {
   ocs_server_t *srv = req->data;
+  double t0 = mono_s();
   uint64_t n = srv->step_epoch;
   if (srv->desc.step_delay_s > 0) { /* the test hook: a slow step whatever the machine's speed */
     double s = srv->desc.step_delay_s;
@@ -58,6 +72,7 @@ static void step_work(uv_work_t *req) {
     nanosleep(&t, NULL);
   }
   srv->step_rc = n ? ocs_world_step_at(srv->world, n, (double)n * srv->period) : ocs_world_step(srv->world);
+  srv->step_took = mono_s() - t0;
 }
 
 /* Viewers dropped while the world was busy leave it now. */
@@ -68,9 +83,40 @@ static void remove_doomed(ocs_server_t *srv) {
 
 static void finish_production(ocs_server_t *srv);
 
+static void tick_end(ocs_server_t *srv);
+
+/* The lead: a decaying maximum of what ticks take, 1.5× with 5 ms more, at most half a period. */
+static void learn_lead(ocs_server_t *srv) {
+  double lead = 1.5 * srv->step_took + 0.005, old = 0.9 * srv->tick_lead;
+  lead = lead > old ? lead : old;
+  srv->tick_lead = lead < 0.5 * srv->period ? lead : 0.5 * srv->period;
+}
+
+static void on_send_timer(uv_timer_t *t) { tick_end(t->data); }
+
 static void step_done(uv_work_t *req, int status) {
   ocs_server_t *srv = req->data;
   (void)status;
+  if (srv->tick_hold) {
+    learn_lead(srv);
+    double wait = (double)srv->step_epoch * srv->period - ocs_net_utc(srv);
+    if (wait > 0 && !srv->stopping) { /* built ahead: out at the due instant */
+      uv_timer_start(&srv->send_timer, on_send_timer, (uint64_t)ceil(wait * 1e3), 0);
+      return;
+    }
+  }
+  tick_end(srv);
+}
+
+void ocs_epoch_flush(ocs_server_t *srv) {
+  if (!uv_is_active((uv_handle_t *)&srv->send_timer)) return;
+  uv_timer_stop(&srv->send_timer);
+  tick_end(srv);
+}
+
+/* The step's states go out, and the world is free again. */
+static void tick_end(ocs_server_t *srv) {
+  srv->tick_hold = 0;
   srv->ticking = 0;
   srv->stepping = srv->producing; /* production's last bricks may still be in flight */
   srv->steps_done++;
@@ -149,7 +195,7 @@ static void produce_done(uv_work_t *req, int status) {
 static void start_production(ocs_server_t *srv) {
   if (!(srv->period > 0) || srv->stepping || srv->stopping || !ocs_world_production_due(srv->world)) return;
   double margin = srv->period * 0.1 < OCS_PRODUCE_MARGIN_S ? srv->period * 0.1 : OCS_PRODUCE_MARGIN_S;
-  srv->produce_s = (double)srv->armed_epoch * srv->period - ocs_net_utc(srv) - margin;
+  srv->produce_s = (double)srv->armed_epoch * srv->period - srv->tick_lead - ocs_net_utc(srv) - margin;
   if (!(srv->produce_s > 0)) return;
   srv->stepping = srv->producing = 1;
   srv->production_epoch = ocs_world_epoch(srv->world);
@@ -199,7 +245,11 @@ static void on_tick_check(uv_check_t *h) {
     srv->late_ticks++;
     return;
   }
-  if (srv->tick_epoch > ocs_world_epoch(srv->world)) start_step_at(srv, srv->tick_epoch); /* else a "step" took it */
+  if (srv->tick_epoch > ocs_world_epoch(srv->world)) {
+    int was = srv->ticking;
+    start_step_at(srv, srv->tick_epoch);
+    srv->tick_hold = !was && srv->ticking;
+  } /* else a "step" took it */
 }
 
 static void arm_timer(ocs_server_t *srv);
@@ -209,7 +259,7 @@ static void arm_timer(ocs_server_t *srv);
  * handle keeps from blocking). */
 static void on_epoch_timer(uv_timer_t *t) {
   ocs_server_t *srv = t->data;
-  uint64_t due = due_epoch(srv, ocs_net_utc(srv) + 1e-3); /* a timer may fire up to 1 ms early */
+  uint64_t due = due_epoch(srv, ocs_net_utc(srv) + srv->tick_lead + 1e-3); /* a timer may fire up to 1 ms early */
   if (due < srv->armed_epoch) due = srv->armed_epoch;
   srv->late_ticks += due - srv->armed_epoch; /* due instants the loop reached too late */
   if (srv->producing && srv->tick_overrun) srv->late_ticks++; /* the tick still waiting is replaced: skipped */
@@ -227,12 +277,13 @@ static void on_epoch_timer(uv_timer_t *t) {
   uv_check_start(&srv->tick_check, on_tick_check);
 }
 
-/* One shot, for the due instant of the next epoch after tick_epoch. */
+/* One shot, for the build instant (tick_lead before the due instant) of the next epoch after
+ * tick_epoch. */
 static void arm_timer(ocs_server_t *srv) {
   double now = ocs_net_utc(srv);
-  uint64_t next = due_epoch(srv, now) + 1;
+  uint64_t next = due_epoch(srv, now + srv->tick_lead) + 1;
   if (next <= srv->tick_epoch) next = srv->tick_epoch + 1;
-  double wait = (double)next * srv->period - now;
+  double wait = (double)next * srv->period - srv->tick_lead - now;
   srv->armed_epoch = next;
   uv_timer_start(&srv->epoch_timer, on_epoch_timer, wait > 0 ? (uint64_t)ceil(wait * 1e3) : 0, 0);
 }
@@ -241,11 +292,13 @@ void ocs_epoch_init(ocs_server_t *srv) {
   uv_idle_init(&srv->loop, &srv->tick_idle);
   uv_check_init(&srv->loop, &srv->tick_check);
   uv_timer_init(&srv->loop, &srv->epoch_timer);
-  srv->tick_idle.data = srv->tick_check.data = srv->epoch_timer.data = srv;
+  uv_timer_init(&srv->loop, &srv->send_timer);
+  srv->tick_idle.data = srv->tick_check.data = srv->epoch_timer.data = srv->send_timer.data = srv;
 }
 
 void ocs_epoch_start_timer(ocs_server_t *srv) {
   if (!(srv->period > 0)) return;
   srv->tick_epoch = srv->armed_epoch = 0;
+  srv->tick_lead = OCS_TICK_LEAD_S < 0.5 * srv->period ? OCS_TICK_LEAD_S : 0.5 * srv->period;
   arm_timer(srv);
 }

@@ -104,6 +104,7 @@ struct ocs_server_s {
   uv_loop_t loop;
   uv_tcp_t listener;
   uv_timer_t epoch_timer, house_timer;
+  uv_timer_t send_timer;     /* a tick built ahead of its due instant: its states go out then */
   uv_async_t stop_async;     /* ocs_server_stop_async(): a stop asked from another thread */
   uv_idle_t tick_idle;       /* a due tick: keeps the next poll from blocking ... */
   uv_check_t tick_check;     /* ... and starts the step after it, once pending ACKs are read */
@@ -126,6 +127,9 @@ struct ocs_server_s {
   uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
   uint64_t tick_epoch;  /* the due epoch the last tick asked for */
   uint64_t armed_epoch; /* the epoch the timer waits for */
+  double tick_lead;     /* s: a clock tick is built this long before its due instant (learnt) */
+  double step_took;     /* s: the last step's time on its thread */
+  int tick_hold;        /* the running step is a clock tick: its states wait for the due instant */
   int producing;        /* the world's production queue is being worked on (stepping is set too) */
   atomic_int overlap;   /* production has taken its bricks (ocs_world_produce_run): a tick may run */
   int produce_rc;       /* ocs_world_produce_begin()'s */
@@ -206,6 +210,8 @@ int ocs_admit_viewer(ocs_session_t *s, const ocp_hello_t *h);
 /*! ocs_server_queue_steps() : n more epochs to step as soon as possible. */
 void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n);
 void ocs_epoch_start_timer(ocs_server_t *srv);
+/*! ocs_epoch_flush() : a tick built ahead of its due instant sends its states now (on stopping). */
+void ocs_epoch_flush(ocs_server_t *srv);
 /*! ocs_net_utc() : now on the server's clock: the wall clock (UTC, s since the Unix epoch) when
  *  epochs are clocked; the virtual instant of the last epoch when they are stepped. */
 double ocs_net_utc(const ocs_server_t *srv);

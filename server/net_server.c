@@ -41,6 +41,7 @@ void ocs_server_stop_async(ocs_server_t *srv) { uv_async_send(&srv->stop_async);
 
 void ocs_server_stop(ocs_server_t *srv) {
   if (srv->stopping) return;
+  ocs_epoch_flush(srv); /* a tick built ahead goes out now */
   srv->stopping = 1;
   uv_timer_stop(&srv->epoch_timer);
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
@@ -55,6 +56,7 @@ void ocs_server_stop(ocs_server_t *srv) {
   }
   close_quiet((uv_handle_t *)&srv->listener);
   close_quiet((uv_handle_t *)&srv->epoch_timer);
+  close_quiet((uv_handle_t *)&srv->send_timer);
   close_quiet((uv_handle_t *)&srv->stop_async);
   close_quiet((uv_handle_t *)&srv->tick_idle);
   close_quiet((uv_handle_t *)&srv->tick_check);
