@@ -153,6 +153,7 @@ static void produce_work(uv_work_t *req) {
   srv->produce_rc = ocs_world_produce_begin(srv->world, srv->produce_s, 0);
   if (srv->produce_rc < 0) return;
   atomic_store(&srv->overlap, 1); /* from here a tick may run beside it */
+  uv_async_send(&srv->taken_async);
   ocs_world_produce_run(srv->world);
 }
 
@@ -178,6 +179,14 @@ static void finish_production(ocs_server_t *srv) {
   else if (srv->tick_epoch > ocs_world_epoch(srv->world) && srv->tick_overrun) start_step_at(srv, srv->tick_epoch);
   else if (ocs_world_epoch(srv->world) != srv->production_epoch) start_production(srv); /* a tick ran beside it */
   srv->tick_overrun = 0;
+}
+
+/* A tick that came due while production was taking its bricks starts now, beside the rest. */
+static void on_taken(uv_async_t *h) {
+  ocs_server_t *srv = h->data;
+  if (!srv->tick_overrun || !srv->producing || srv->stopping) return;
+  srv->tick_overrun = 0;
+  if (srv->tick_epoch > ocs_world_epoch(srv->world)) start_step_at(srv, srv->tick_epoch);
 }
 
 static void produce_done(uv_work_t *req, int status) {
@@ -293,7 +302,13 @@ void ocs_epoch_init(ocs_server_t *srv) {
   uv_check_init(&srv->loop, &srv->tick_check);
   uv_timer_init(&srv->loop, &srv->epoch_timer);
   uv_timer_init(&srv->loop, &srv->send_timer);
+  uv_async_init(&srv->loop, &srv->taken_async, on_taken);
+  srv->taken_async.data = srv;
   srv->tick_idle.data = srv->tick_check.data = srv->epoch_timer.data = srv->send_timer.data = srv;
+}
+
+void ocs_epoch_close(ocs_server_t *srv) {
+  if (!uv_is_closing((uv_handle_t *)&srv->taken_async)) uv_close((uv_handle_t *)&srv->taken_async, NULL);
 }
 
 void ocs_epoch_start_timer(ocs_server_t *srv) {

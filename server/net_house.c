@@ -79,8 +79,10 @@ static void on_house_timer(uv_timer_t *t) {
     }
   }
   ocs_peer_sweep(srv, now);
-  if (srv->stopping && !srv->sessions && !srv->stepping && !uv_is_closing((uv_handle_t *)&srv->house_timer))
+  if (srv->stopping && !srv->sessions && !srv->stepping && !uv_is_closing((uv_handle_t *)&srv->house_timer)) {
+    ocs_epoch_close(srv);
     uv_close((uv_handle_t *)&srv->house_timer, NULL);
+  }
 }
 
 void ocs_house_start(ocs_server_t *srv) {

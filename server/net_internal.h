@@ -105,6 +105,7 @@ struct ocs_server_s {
   uv_tcp_t listener;
   uv_timer_t epoch_timer, house_timer;
   uv_timer_t send_timer;     /* a tick built ahead of its due instant: its states go out then */
+  uv_async_t taken_async;    /* production has taken its bricks: a tick that waited may start */
   uv_async_t stop_async;     /* ocs_server_stop_async(): a stop asked from another thread */
   uv_idle_t tick_idle;       /* a due tick: keeps the next poll from blocking ... */
   uv_check_t tick_check;     /* ... and starts the step after it, once pending ACKs are read */
@@ -212,6 +213,9 @@ void ocs_server_queue_steps(ocs_server_t *srv, uint64_t n);
 void ocs_epoch_start_timer(ocs_server_t *srv);
 /*! ocs_epoch_flush() : a tick built ahead of its due instant sends its states now (on stopping). */
 void ocs_epoch_flush(ocs_server_t *srv);
+/*! ocs_epoch_close() : closes the epoch layer's handles that production signals (once no step or
+ *  production runs). */
+void ocs_epoch_close(ocs_server_t *srv);
 /*! ocs_net_utc() : now on the server's clock: the wall clock (UTC, s since the Unix epoch) when
  *  epochs are clocked; the virtual instant of the last epoch when they are stepped. */
 double ocs_net_utc(const ocs_server_t *srv);

@@ -157,6 +157,7 @@ struct ocs_world_s {
   size_t nqueue, queue_cap;
   uint32_t planning;        /* the viewer being planned */
   int targets_due;          /* the last tick's targets are still to be planned (plan_targets) */
+  int target_next;          /* the viewer whose target is planned first (they take turns) */
   size_t queue_left;        /* what the last production left queued (reported until the next queue) */
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
@@ -839,8 +840,13 @@ static int cmp_queued_prio(const void *a, const void *b) {
   return x->stamp < y->stamp ? -1 : (x->stamp > y->stamp);
 }
 
-/* Sorts the wishes by (key, stamp, viewer) and keeps one per viewer and brick, the best. */
+/* Sorts the wishes by (key, stamp, viewer) and keeps one per viewer and brick, the best; the
+ * wishes of viewers that left since the tick (queue_forget) go. */
 static void wishes_dedup(ocs_world_t *w) {
+  size_t kept = 0;
+  for (size_t i = 0; i < w->nwish; i++)
+    if (w->wish[i].viewer != OCS_NO_VIEWER) w->wish[kept++] = w->wish[i];
+  w->nwish = kept;
   if (!w->nwish) return;
   qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_viewer);
   size_t m = 0;
@@ -1303,14 +1309,21 @@ static int step(ocs_world_t *w) {
 /* Clocked, at the start of production: each viewer's target (the plan a stepped epoch would make
  * from its tree as the tick left it) is wished for, then the tick's wishes become the queue. Off
  * the tick's path: a target is a whole plan, classifying every new node. */
-static int plan_targets(ocs_world_t *w) {
+static int plan_targets(ocs_world_t *w, double deadline) {
   double t0 = now_s();
   ocs_plan_input_t in;
   plan_input(w, &in);
-  int rc = 0;
-  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
+  int rc = 0, n = w->nviewers;
+  /* whole plans take tens to hundreds of ms each: past production's deadline the rest wait for the
+   * next production (the tick would wait for them), taking turns from where this one stopped */
+  for (int k = 0; k < n && rc >= 0; k++) {
+    int vi = (w->target_next + k) % n;
     ocs_viewer_t *v = w->viewers[vi];
     if (!v->has_view || !v->targeted) continue;
+    if (deadline > 0 && now_s() >= deadline) {
+      w->target_next = vi;
+      break;
+    }
     w->planning = (uint32_t)vi;
     rc = wish_target(v, &in);
   }
@@ -1346,7 +1359,7 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
   if (!w || !w->d.clocked) return 0;
   if (w->in_production) return OC_EAGAIN;
   double t0 = now_s(), deadline = t0 + (seconds > 0 ? seconds : 0.0); /* the targets' time included */
-  if (w->targets_due) OC_TRY(plan_targets(w));
+  if (w->targets_due) OC_TRY(plan_targets(w, seconds > 0 ? deadline : 0.0));
   /* estimates fade between productions: a kind of brick too dear for every window would otherwise
    * never be made again (it is made, late, once its estimate fits) */
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)

@@ -183,6 +183,22 @@ static void test_clocked__shared_and_dropped(void **st) {
   assert_true(produced(w) == 0);
   ocs_world_free(w);
   ocs_world_free(two);
+  /* one of two viewers leaves between the tick and the queue (the server removes viewers that
+   * closed once the tick is out): the queue is the other's alone (it read past the viewers once) */
+  ocs_world_t *both = world(1), *alone = world(1);
+  ocs_viewer_t *stay = viewer(both, 0.0), *go = viewer(both, 0.3), *ref = viewer(alone, 0.0);
+  (void)stay;
+  tick(both, go, 1);
+  tick(alone, ref, 1);
+  ocs_world_remove_viewer(both, go);
+  assert_int_equal(ocs_world_produce(both, 0.0, 0), 0);
+  assert_int_equal(ocs_world_produce(alone, 0.0, 0), 0);
+  assert_true(ocs_world_queue_length(both) > 0);
+  assert_int_equal(ocs_world_queue_length(both), ocs_world_queue_length(alone));
+  uint32_t wanted_by;
+  for (size_t i = 0; ocs_world_queue_peek(both, i, NULL, NULL, &wanted_by) == 0; i++) assert_int_equal(wanted_by, 1);
+  ocs_world_free(both);
+  ocs_world_free(alone);
 }
 
 /*-*** Teleports, fairness, producer errors ***/
