@@ -109,6 +109,11 @@ struct ocs_viewer_s {
   uint32_t ticks;          /* epochs since the last plan */
   uint64_t seen;           /* the last epoch stepped while it was here (0: none yet) */
   int targeted;            /* planned at the last tick: its target is wished for (plan_targets) */
+  wish_t *target;          /* its last target plan's wishes, best first (reused: plan_targets) */
+  size_t ntarget, target_cap;
+  uint64_t target_epoch;   /* the tick it was planned after */
+  ocs_view_t target_view;  /* the view it was planned for */
+  int has_target;
   oc_key_t *wished;        /* the nodes it wished for at the last tick, ascending */
   size_t nwished, wished_cap;
   double steady;           /* the share of its wishes it also wished at the tick before (1: first) */
@@ -158,6 +163,7 @@ struct ocs_world_s {
   uint32_t planning;        /* the viewer being planned */
   int targets_due;          /* the last tick's targets are still to be planned (plan_targets) */
   int target_next;          /* the viewer whose target is planned first (they take turns) */
+  double target_cost;       /* s: what one target plan takes, a decaying maximum */
   size_t queue_left;        /* what the last production left queued (reported until the next queue) */
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
@@ -632,6 +638,7 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
   free(v->lacking);
   free(v->req_of);
   free(v->wished);
+  free(v->target);
   free(v);
 }
 
@@ -915,16 +922,20 @@ static int has_key(const oc_key_t *a, size_t n, oc_key_t k) {
   return lo < n && a[lo] == k;
 }
 
-/* How steady each viewer's wishes are: the share of this tick's that it also wished at the last
- * (wishes sorted by brick). A viewer whose wishes change every tick (one teleporting) is served
- * after the steady ones: little of what it wants now is still wanted when it is made. */
+/* How steady each viewer's wishes are: the share of this tick's that it, their parent or their
+ * grandparent was wished at the last (wishes sorted by brick). A viewer whose tree deepens wishes
+ * children of what it wished (a new target plan goes a level or two further); one that teleports
+ * wishes nodes it never wished near. That one is served after the steady ones: little of what it
+ * wants now is still wanted when it is made. */
 static void wishes_steadiness(ocs_world_t *w) {
   size_t nv = (size_t)w->nviewers, *n = calloc(nv ? 2 * nv : 1, sizeof *n), *kept = n + nv;
   if (!n) return; /* every viewer keeps last tick's weight */
   for (size_t i = 0; i < w->nwish; i++) { /* one pass over the wishes, not one per viewer */
     const ocs_viewer_t *v = w->viewers[w->wish[i].viewer];
     n[w->wish[i].viewer]++;
-    kept[w->wish[i].viewer] += has_key(v->wished, v->nwished, w->wish[i].key);
+    oc_key_t k = w->wish[i].key, p = oc_key_parent(k), g = p != OC_KEY_INVALID ? oc_key_parent(p) : OC_KEY_INVALID;
+    kept[w->wish[i].viewer] += has_key(v->wished, v->nwished, k) || (p != OC_KEY_INVALID && has_key(v->wished, v->nwished, p)) ||
+                               (g != OC_KEY_INVALID && has_key(v->wished, v->nwished, g));
   }
   for (size_t vi = 0; vi < nv; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
@@ -1307,6 +1318,60 @@ static int step(ocs_world_t *w) {
   return rc;
 }
 
+/* A target plan is a whole plan (tens to hundreds of ms): one is reused, re-stamped to the current
+ * time steps, until it is OCS_TARGET_TICKS old, its viewer has moved (a quarter of its altitude,
+ * at least OCS_TARGET_MOVE_M, or turned OCS_TARGET_TURN_COS), or its best wishes are all made. */
+#define OCS_TARGET_TICKS 4
+#define OCS_TARGET_MOVE_M 250.0
+#define OCS_TARGET_TURN_COS 0.985 /* 10° */
+#define OCS_TARGET_PROBE 64
+
+static int target_stale(const ocs_world_t *w, const ocs_viewer_t *v) {
+  if (!v->has_target || w->epoch >= v->target_epoch + OCS_TARGET_TICKS) return 1;
+  const ocs_view_t *a = &v->target_view, *b = &v->view;
+  double alt = oc_dlen(b->pos) - OC_PLANET_RADIUS, move = 0.25 * alt;
+  if (move < OCS_TARGET_MOVE_M) move = OCS_TARGET_MOVE_M;
+  if (oc_dlen(oc_dsub(a->pos, b->pos)) > move || oc_ddot(a->forward, b->forward) < OCS_TARGET_TURN_COS) return 1;
+  size_t n = v->ntarget < OCS_TARGET_PROBE ? v->ntarget : OCS_TARGET_PROBE;
+  for (size_t i = 0; i < n; i++) { /* best first: production makes these first */
+    const wish_t *x = &v->target[i];
+    ocs_cache_key_t k = ckey(w, T_BRICK, x->key, w->stamp[oc_key_level(x->key)], 0);
+    ocs_cache_entry_t *e;
+    if (!ocs_cache_peek(w->cache, &k, &e)) return 0;
+    ocs_cache_release(w->cache, e);
+  }
+  return 1;
+}
+
+/* The target's wishes (w->wish[from ..]) are kept with the viewer, best first. */
+static void target_keep(ocs_world_t *w, ocs_viewer_t *v, size_t from) {
+  size_t n = w->nwish - from;
+  if (n > v->target_cap) {
+    wish_t *a = realloc(v->target, n * sizeof *a);
+    if (!a) {
+      v->has_target = 0; /* planned again next time */
+      return;
+    }
+    v->target = a;
+    v->target_cap = n;
+  }
+  memcpy(v->target, &w->wish[from], n * sizeof *v->target);
+  if (n) qsort(v->target, n, sizeof *v->target, cmp_wish_prio);
+  v->ntarget = n;
+  v->target_epoch = w->epoch;
+  v->target_view = v->view;
+  v->has_target = 1;
+}
+
+/* The kept target wished for again, at the current time steps. */
+static void target_reuse(ocs_world_t *w, const ocs_viewer_t *v, uint32_t vi) {
+  for (size_t i = 0; i < v->ntarget; i++) {
+    const wish_t *x = &v->target[i];
+    w->planning = vi;
+    want_cb(w, x->key, w->stamp[oc_key_level(x->key)], x->prio);
+  }
+}
+
 /* Clocked, at the start of production: each viewer's target (the plan a stepped epoch would make
  * from its tree as the tick left it) is wished for, then the tick's wishes become the queue. Off
  * the tick's path: a target is a whole plan, classifying every new node. */
@@ -1315,18 +1380,24 @@ static int plan_targets(ocs_world_t *w, double deadline) {
   ocs_plan_input_t in;
   plan_input(w, &in);
   int rc = 0, n = w->nviewers;
-  /* whole plans take tens to hundreds of ms each: past production's deadline the rest wait for the
-   * next production (the tick would wait for them), taking turns from where this one stopped */
+  /* past production's deadline (less what a plan takes) the rest reuse their targets, and plan
+   * first at the next production: the tick would wait for them */
   for (int k = 0; k < n && rc >= 0; k++) {
     int vi = (w->target_next + k) % n;
     ocs_viewer_t *v = w->viewers[vi];
     if (!v->has_view || !v->targeted) continue;
-    if (deadline > 0 && now_s() >= deadline) {
-      w->target_next = vi;
-      break;
+    double t = now_s();
+    if (!target_stale(w, v) || (deadline > 0 && t + w->target_cost >= deadline)) {
+      target_reuse(w, v, (uint32_t)vi);
+      continue;
     }
+    size_t from = w->nwish;
     w->planning = (uint32_t)vi;
     rc = wish_target(v, &in);
+    if (rc >= 0) target_keep(w, v, from);
+    double took = now_s() - t;
+    w->target_cost = took > 0.9 * w->target_cost ? took : 0.9 * w->target_cost;
+    w->target_next = (vi + 1) % n;
   }
   queue_build(w);
   w->targets_due = 0;
