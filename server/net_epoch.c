@@ -8,14 +8,13 @@
  * (tick_lead: what the last ticks took, with a margin) and its states go out at the due instant
  * itself, not a tick's planning time after it; the world stays busy until then, so input and
  * control changes apply after the send, to the next epoch. The timer is armed for the next build
- * instant; a tick that
- * finds the previous step still running, or that the loop reached late, is skipped and counted
- * (late_ticks), and the step takes the newest due epoch. A tick builds its states from content
- * that exists (world.h, clocked); between ticks the world's production queue is worked on: no
- * brick is started after shortly before the next due instant, and the bricks still in flight then
- * finish while the tick runs beside them (ocs_world_produce_run()), so production runs behind the
- * clock instead of holding epochs back. Stepped (P = 0): the virtual clock of ocs_world_step(), each step producing all its
- * plans ask. */
+ * instant; a tick that finds the previous step still running, or that the loop reached late, is
+ * skipped and counted (late_ticks), and the step takes the newest due epoch. A tick builds its
+ * states from content that exists (world.h, clocked). Between ticks the world's production queue
+ * is worked on: no brick is started after shortly before the next build instant, and the bricks
+ * still in flight then finish while the tick runs beside them (ocs_world_produce_run()), so
+ * production runs behind the clock instead of holding epochs back. Stepped (P = 0): the virtual
+ * clock of ocs_world_step(), each step producing all its plans ask. */
 #include <math.h>
 #include <time.h>
 
@@ -26,7 +25,7 @@
 static void start_step_at(ocs_server_t *srv, uint64_t n);
 static void start_production(ocs_server_t *srv);
 
-/* Production starts no brick after this long before the next due instant (or a tenth of the
+/* Production starts no brick after this long before the next build instant (or a tenth of the
  * period): the bricks still in flight then finish beside the tick, and the next production (from
  * the tick's wishes) waits for them. */
 #define OCS_PRODUCE_MARGIN_S 0.03
@@ -199,8 +198,8 @@ static void produce_done(uv_work_t *req, int status) {
   else finish_production(srv);
 }
 
-/* What the last tick's plans wait for is made until shortly before the next due instant, on the
- * thread pool; the world is busy meanwhile (input that needs it waits, as during a step). */
+/* What the last tick's plans wait for is made until shortly before the next build instant, on the
+ * producer pool; the world is busy meanwhile (input that needs it waits, as during a step). */
 static void start_production(ocs_server_t *srv) {
   if (!(srv->period > 0) || srv->stepping || srv->stopping || !ocs_world_production_due(srv->world)) return;
   double margin = srv->period * 0.1 < OCS_PRODUCE_MARGIN_S ? srv->period * 0.1 : OCS_PRODUCE_MARGIN_S;

@@ -19,9 +19,12 @@
 
 enum { T_BRICK = 1, T_SIGMA = 2, T_TAUVOL = 3 };
 
-/* Stamps of a level kept after they change: content of that age may still be shown (stale but
- * complete) while the newer one waits in the queue. */
+/* Stamps of a level kept after they change (for content age), and the oldest of them whose
+ * content a tick may still show (stale but complete) while the newer waits in the queue: 2, the
+ * sustained rule's bound (overcast-stress; with 3, 1–5 % of the bricks sent at 2–8 viewers were 3
+ * steps old, mostly at levels 9–11, content made minutes before and still cached). */
 #define OCS_STAMP_HISTORY 3
+#define OCS_READY_AGE 2
 /* How much of a level's σt one time step of the procedural field changes (L1 relative to L1, 32
  * brick nodes per level; docs/performance.md, "What skipping costs"; odd levels and levels past 15
  * interpolated or held). Refreshes are worth the node's pixels times this (planner.h). */
@@ -42,6 +45,7 @@ typedef struct {
   oc_key_t key;
   uint64_t stamp;
   double prio;
+  double turn;              /* its place in production's fair order (wishes_share) */
   uint32_t viewer;          /* index in the world's viewers; OCS_NO_VIEWER: it left */
 } wish_t;
 #define OCS_NO_VIEWER UINT32_MAX
@@ -52,6 +56,7 @@ typedef struct {
   oc_key_t key;
   uint64_t stamp;
   double prio;
+  double turn; /* the earliest turn of the viewers that want it */
   uint32_t first, count;
 } queued_t;
 
@@ -114,9 +119,9 @@ struct ocs_viewer_s {
   uint64_t target_epoch;   /* the tick it was planned after */
   ocs_view_t target_view;  /* the view it was planned for */
   int has_target;
-  oc_key_t *wished;        /* the nodes it wished for at the last tick, ascending */
-  size_t nwished, wished_cap;
-  double steady;           /* the share of its wishes it also wished at the tick before (1: first) */
+  double steady;           /* how rarely its view jumps (viewers_steadiness; 1 at first) */
+  ocs_view_t steady_view;  /* its view at the last production */
+  int has_steady_view;
   uint32_t produced, produced_last; /* bricks made for it since its last state; before that state */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /* of its newest state */
   /* during a step */
@@ -605,6 +610,7 @@ int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_
   }
   ocs_viewer_t *v = calloc(1, sizeof *v);
   if (!v) return OC_ENOMEM;
+  v->steady = 1.0; /* until its view jumps */
   v->w = w;
   v->desc = d;
   v->acked = UINT64_MAX;
@@ -637,7 +643,6 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
   for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) oc_state_free(&v->held[i]);
   free(v->lacking);
   free(v->req_of);
-  free(v->wished);
   free(v->target);
   free(v);
 }
@@ -777,11 +782,11 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc) {
 /*-*** Clocked epochs: content that exists, and what is wanted ***/
 
 /* The planner's ready(): the stamp of existing content of (key), this epoch's or one of the last
- * OCS_STAMP_HISTORY of its level, pinned until the tick's states are built (nothing is produced
+ * OCS_READY_AGE of its level, pinned until the tick's states are built (nothing is produced
  * during a tick, but pins keep that true whatever the cache does). */
 static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp) {
   ocs_world_t *w = ctx;
-  for (int i = -1; i < OCS_STAMP_HISTORY; i++) {
+  for (int i = -1; i < OCS_READY_AGE; i++) {
     uint64_t st = i < 0 ? stamp : w->stamp_hist[level][i];
     if (!st || (i >= 0 && st == stamp)) continue;
     ocs_cache_key_t k = ckey(w, T_BRICK, key, st, 0);
@@ -813,7 +818,7 @@ static void want_cb(void *ctx, oc_key_t key, uint64_t stamp, double prio) {
     w->wish = a;
     w->wish_cap = nc;
   }
-  w->wish[w->nwish++] = (wish_t){key, stamp, prio > 0 ? prio : 0.0, w->planning};
+  w->wish[w->nwish++] = (wish_t){key, stamp, prio > 0 ? prio : 0.0, 0.0, w->planning};
 }
 
 static void release_pins(ocs_world_t *w) {
@@ -840,8 +845,9 @@ static int cmp_wish_viewer(const void *a, const void *b) {
   return x->viewer < y->viewer ? -1 : (x->viewer > y->viewer);
 }
 
-static int cmp_queued_prio(const void *a, const void *b) {
+static int cmp_queued_turn(const void *a, const void *b) {
   const queued_t *x = a, *y = b;
+  if (x->turn != y->turn) return x->turn < y->turn ? -1 : 1;
   if (x->prio != y->prio) return x->prio > y->prio ? -1 : 1;
   if (x->key != y->key) return x->key < y->key ? -1 : 1;
   return x->stamp < y->stamp ? -1 : (x->stamp > y->stamp);
@@ -912,56 +918,39 @@ static void wishes_inherit(ocs_world_t *w) {
   free(order);
 }
 
-static int has_key(const oc_key_t *a, size_t n, oc_key_t k) {
-  size_t lo = 0, hi = n;
-  while (lo < hi) {
-    size_t mid = lo + (hi - lo) / 2;
-    if (a[mid] < k) lo = mid + 1;
-    else hi = mid;
-  }
-  return lo < n && a[lo] == k;
+/* A jump: the view moved more than a quarter of its altitude (at least OCS_JUMP_MOVE_M) or turned
+ * more than 10° since `from`. */
+#define OCS_JUMP_MOVE_M 250.0
+#define OCS_JUMP_TURN_COS 0.985 /* 10° */
+static int view_jumped(const ocs_view_t *from, const ocs_view_t *to) {
+  double alt = oc_dlen(to->pos) - OC_PLANET_RADIUS, move = 0.25 * alt;
+  if (move < OCS_JUMP_MOVE_M) move = OCS_JUMP_MOVE_M;
+  return oc_dlen(oc_dsub(from->pos, to->pos)) > move || oc_ddot(from->forward, to->forward) < OCS_JUMP_TURN_COS;
 }
 
-/* How steady each viewer's wishes are: the share of this tick's that it, their parent or their
- * grandparent was wished at the last (wishes sorted by brick). A viewer whose tree deepens wishes
- * children of what it wished (a new target plan goes a level or two further); one that teleports
- * wishes nodes it never wished near. That one is served after the steady ones: little of what it
- * wants now is still wanted when it is made. */
-static void wishes_steadiness(ocs_world_t *w) {
-  size_t nv = (size_t)w->nviewers, *n = calloc(nv ? 2 * nv : 1, sizeof *n), *kept = n + nv;
-  if (!n) return; /* every viewer keeps last tick's weight */
-  for (size_t i = 0; i < w->nwish; i++) { /* one pass over the wishes, not one per viewer */
-    const ocs_viewer_t *v = w->viewers[w->wish[i].viewer];
-    n[w->wish[i].viewer]++;
-    oc_key_t k = w->wish[i].key, p = oc_key_parent(k), g = p != OC_KEY_INVALID ? oc_key_parent(p) : OC_KEY_INVALID;
-    kept[w->wish[i].viewer] += has_key(v->wished, v->nwished, k) || (p != OC_KEY_INVALID && has_key(v->wished, v->nwished, p)) ||
-                               (g != OC_KEY_INVALID && has_key(v->wished, v->nwished, g));
-  }
-  for (size_t vi = 0; vi < nv; vi++) {
+/* How steady each viewer is: a running mean (halved each production) of the productions at which
+ * its view had not jumped since the last. One that teleports every tick is served after the
+ * steady ones: little of what it wants now is still wanted when it is made. (Measured on the
+ * wishes instead, a viewer arriving somewhere new counted as steady: its coarse wishes share
+ * parents with those of where it was.) */
+static void viewers_steadiness(ocs_world_t *w) {
+  for (int vi = 0; vi < w->nviewers; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
-    v->steady = v->nwished && n[vi] ? (double)kept[vi] / (double)n[vi] : 1.0;
-    v->nwished = 0;
-    if (n[vi] > v->wished_cap) {
-      oc_key_t *k = realloc(v->wished, n[vi] * sizeof *k);
-      if (!k) { /* forgotten: counted as steady next tick */
-        n[vi] = 0;
-        continue;
-      }
-      v->wished = k;
-      v->wished_cap = n[vi];
-    }
+    if (!v->has_view) continue;
+    int jumped = v->has_steady_view && view_jumped(&v->steady_view, &v->view);
+    v->steady = 0.5 * v->steady + 0.5 * (jumped ? 0.0 : 1.0);
+    v->steady_view = v->view;
+    v->has_steady_view = 1;
   }
-  for (size_t i = 0; i < w->nwish; i++) { /* ascending: the wishes are sorted by brick */
-    ocs_viewer_t *v = w->viewers[w->wish[i].viewer];
-    if (n[w->wish[i].viewer] && (!v->nwished || v->wished[v->nwished - 1] != w->wish[i].key))
-      v->wished[v->nwished++] = w->wish[i].key;
-  }
-  free(n);
 }
 
 /* Each viewer's wishes cut to its share of the queue (its best ones) and normalised to sum its
- * steadiness weight: 1/20 for wishes that all change every tick (1/4 let a teleporting viewer
- * age four steady ones' content by 20 %: test_clocked__fair_content_age), up to 1. */
+ * steadiness weight: 1/20 for wishes that all change every tick, up to 1. Production takes turns
+ * between the viewers in proportion to their weights (weighted fair queueing): a viewer's k-th
+ * best wish has turn k / weight. Best-first by priority alone let a viewer with few wishes (one
+ * arriving somewhere new: a coarse tree) take a fifth of production from four steady ones whatever
+ * its weight, since normalising to a sum makes each of few wishes dear
+ * (test_clocked__fair_content_age). */
 static void wishes_share(ocs_world_t *w) {
   int nv = w->nviewers > 0 ? w->nviewers : 1;
   size_t share = 2 * OCS_QUEUE_MAX / (size_t)nv, k = 0;
@@ -974,10 +963,12 @@ static void wishes_share(ocs_world_t *w) {
         sum[w->wish[i].viewer] += w->wish[i].prio;
         w->wish[k++] = w->wish[i];
       }
-    for (size_t i = 0; i < k; i++) {
+    memset(taken, 0, (size_t)nv * sizeof *taken);
+    for (size_t i = 0; i < k; i++) { /* best first within each viewer */
       uint32_t vi = w->wish[i].viewer;
       double weight = 0.05 + 0.95 * w->viewers[vi]->steady;
       w->wish[i].prio = sum[vi] > 0 ? weight * w->wish[i].prio / sum[vi] : 0.0;
+      w->wish[i].turn = (double)(++taken[vi]) / weight;
     }
   }
   free(sum);
@@ -986,12 +977,12 @@ static void wishes_share(ocs_world_t *w) {
 }
 
 /* The tick's wishes become the production queue: one item per brick, its priority the sum over
- * the viewers that want it, best first, at most OCS_QUEUE_MAX. What no viewer wants any more is
+ * the viewers that want it, in turn order (wishes_share), at most OCS_QUEUE_MAX. What no viewer wants any more is
  * gone. The wishes stay, sorted by brick, so that what is made is counted for its viewers. */
 static void queue_build(ocs_world_t *w) {
   w->nqueue = 0;
   wishes_dedup(w);
-  wishes_steadiness(w);
+  viewers_steadiness(w);
   wishes_inherit(w);
   wishes_share(w);
   if (w->nwish) qsort(w->wish, w->nwish, sizeof *w->wish, cmp_wish_viewer);
@@ -1007,9 +998,10 @@ static void queue_build(ocs_world_t *w) {
     queued_t *last = m ? &w->queue[m - 1] : NULL;
     if (last && last->key == x->key && last->stamp == x->stamp) {
       last->prio += x->prio;
+      if (x->turn < last->turn) last->turn = x->turn;
       last->count++;
     } else {
-      w->queue[m++] = (queued_t){x->key, x->stamp, x->prio, (uint32_t)i, 1};
+      w->queue[m++] = (queued_t){x->key, x->stamp, x->prio, x->turn, (uint32_t)i, 1};
     }
   }
   /* the target plan wishes for content it has not taken yet, which may exist already */
@@ -1021,7 +1013,7 @@ static void queue_build(ocs_world_t *w) {
     else w->queue[k++] = w->queue[i];
   }
   m = k;
-  if (m) qsort(w->queue, m, sizeof *w->queue, cmp_queued_prio);
+  if (m) qsort(w->queue, m, sizeof *w->queue, cmp_queued_turn);
   w->nqueue = m < OCS_QUEUE_MAX ? m : OCS_QUEUE_MAX;
 }
 
@@ -1319,19 +1311,13 @@ static int step(ocs_world_t *w) {
 }
 
 /* A target plan is a whole plan (tens to hundreds of ms): one is reused, re-stamped to the current
- * time steps, until it is OCS_TARGET_TICKS old, its viewer has moved (a quarter of its altitude,
- * at least OCS_TARGET_MOVE_M, or turned OCS_TARGET_TURN_COS), or its best wishes are all made. */
+ * time steps, until it is OCS_TARGET_TICKS old, its viewer's view has jumped (view_jumped), or its
+ * best wishes are all made. */
 #define OCS_TARGET_TICKS 4
-#define OCS_TARGET_MOVE_M 250.0
-#define OCS_TARGET_TURN_COS 0.985 /* 10° */
 #define OCS_TARGET_PROBE 64
 
 static int target_stale(const ocs_world_t *w, const ocs_viewer_t *v) {
-  if (!v->has_target || w->epoch >= v->target_epoch + OCS_TARGET_TICKS) return 1;
-  const ocs_view_t *a = &v->target_view, *b = &v->view;
-  double alt = oc_dlen(b->pos) - OC_PLANET_RADIUS, move = 0.25 * alt;
-  if (move < OCS_TARGET_MOVE_M) move = OCS_TARGET_MOVE_M;
-  if (oc_dlen(oc_dsub(a->pos, b->pos)) > move || oc_ddot(a->forward, b->forward) < OCS_TARGET_TURN_COS) return 1;
+  if (!v->has_target || w->epoch >= v->target_epoch + OCS_TARGET_TICKS || view_jumped(&v->target_view, &v->view)) return 1;
   size_t n = v->ntarget < OCS_TARGET_PROBE ? v->ntarget : OCS_TARGET_PROBE;
   for (size_t i = 0; i < n; i++) { /* best first: production makes these first */
     const wish_t *x = &v->target[i];

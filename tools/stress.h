@@ -217,7 +217,7 @@ int stress_brick_matches(const stress_brick_sample_t *got, const ocs_brick_out_t
 /* Verified content age, per level: ages 0..STRESS_AGE_MAX (time steps behind the state's), and
  * those that matched none of them. A mismatch (a failure: content no time step made) is a brick
  * matching none of s .. s − STRESS_AGE_MAX; a brick older than s − 2 is stale, not wrong (the
- * server may show content up to 3 steps old while the newer waits in its queue), and counts in the
+ * server may show stale content while the newer waits in its queue), and counts in the
  * age quantiles, which the sustained rule bounds. The scan back goes
  * up to STRESS_AGE_SCAN_EPOCHS epochs: a coarse level's time step spans many epochs, and 64 (the
  * first choice) reached only 2–3 of its stamps. */
