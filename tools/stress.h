@@ -85,6 +85,26 @@ typedef struct {
   char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;
 
+/* Time to full detail: after a teleport the plan reacts (splits, merges or splits waiting), then
+ * settles: STRESS_SETTLE_STATES states in a row whose plan changed at most STRESS_SETTLE_FRACTION
+ * of its leaves (splits + merges + splits waiting); the time is the first of them's. An animated
+ * field keeps a settled tree churning (a refreshed node turning empty is merged, one turning
+ * cloudy split: 0.2–0.8 % of the leaves a state at 4 MiB), and one state that only merges (a
+ * full budget making room) is not settled: with "no split and none waiting", the stepped
+ * reference settled 5 epochs after a jump whose tree went on changing for 7 more. */
+#define STRESS_SETTLE_FRACTION 0.01
+#define STRESS_SETTLE_STATES 3
+typedef struct {
+  int phase;            /* 0 idle, 1 waiting for the plan to react, 2 waiting for it to settle */
+  int quiet;            /* phase 2: consecutive quiet states */
+  double quiet_at;      /* when the first of them arrived */
+  uint64_t quiet_epoch;
+} stress_settle_t;
+/*! stress_settle_feed() : one state's plan after a teleport (phase 1 or 2), arrived at t.
+ *  @return 1 when it settles (phase back to 0; quiet_at and quiet_epoch say when), else 0. */
+int stress_settle_feed(stress_settle_t *s, uint32_t splits, uint32_t merges, uint32_t waiting, uint32_t leaves, double t,
+                       uint64_t epoch);
+
 /* The ramp's rule (docs/performance.md, "Epochs on the clock"): a phase is sustained when every
  * viewer, over the measured window, has
  *   - lateness p99 ≤ STRESS_LATE_P99 (EPOCH_BEGIN readable minus n·P),
@@ -347,7 +367,7 @@ typedef struct {
   double epoch_first_byte, state_at;
   int new_state;
   long jump;
-  int detail_phase;    /* 0 idle, 1 waiting for the plan to react, 2 waiting for it to settle */
+  stress_settle_t settle; /* time to full detail after the last teleport (.phase 0: idle) */
   double teleport_at;     /* period: when the camera jumped */
   uint64_t teleport_step; /* stepped: the first step planned for the new place */
   uint64_t teleport_epoch;

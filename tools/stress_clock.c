@@ -136,6 +136,26 @@ int stress_stamp_scan(stress_stamp_fn f, void *ctx, int level, double t, double 
   return found;
 }
 
+/*-*** Time to full detail ***/
+
+int stress_settle_feed(stress_settle_t *s, uint32_t splits, uint32_t merges, uint32_t waiting, uint32_t leaves, double t,
+                       uint64_t epoch) {
+  if (s->phase == 1) { /* the plan reacts to the new place */
+    if (splits || merges || waiting) s->phase = 2, s->quiet = 0;
+    return 0;
+  }
+  if (s->phase != 2) return 0;
+  double changed = (double)splits + (double)merges + (double)waiting;
+  if (!(changed <= STRESS_SETTLE_FRACTION * (double)leaves)) {
+    s->quiet = 0;
+    return 0;
+  }
+  if (!s->quiet++) s->quiet_at = t, s->quiet_epoch = epoch;
+  if (s->quiet < STRESS_SETTLE_STATES) return 0;
+  s->phase = 0;
+  return 1;
+}
+
 /*-*** Matching ***/
 
 int stress_brick_matches(const stress_brick_sample_t *got, const ocs_brick_out_t *made) {

@@ -246,7 +246,7 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
               s->epoch - v->last_epoch > 2 ? "s" : "", v->last_epoch + 1, s->epoch - 1);
   }
   v->last_epoch = s->epoch;
-  if (v->detail_phase && v->teleport_epoch == UINT64_MAX) v->teleport_epoch = s->epoch - 1;
+  if (v->settle.phase && v->teleport_epoch == UINT64_MAX) v->teleport_epoch = s->epoch - 1;
   if (!stepped) { /* lateness and coalesced ticks */
     double begin = v->begin_seen && v->begin_epoch == s->epoch ? v->begin_utc : NAN;
     stress_ticks_add(&v->ticks, s->epoch, begin);
@@ -318,22 +318,17 @@ static void sv_on_stats(void *ctx, const ocp_stats_t *st) {
             st->queue);
   /* Time to full detail after a teleport: the plan first reacts to the new place (a state planned
    * after the jump with splits or merges, or splits waiting for their children's content), then
-   * settles: the first later state whose plan split nothing and has no split waiting (STATS
-   * split_backlog; always 0 when stepped, where a step makes everything its plan asks): the tree
-   * stopped growing toward the camera and nothing it wants is still being made. */
-  if (!v->detail_phase || st->epoch != v->last_epoch || st->epoch <= v->teleport_epoch) return;
-  if (v->detail_phase == 1) {
-    if (st->splits || st->merges || st->split_backlog) v->detail_phase = 2;
-  } else if (st->splits == 0 && st->split_backlog == 0) {
-    double from = v->welcome.epoch_period == 0 ? sv_step_time(v->run, v->teleport_step, 0) : v->teleport_at;
-    if (isfinite(from)) {
-      if (!v->detail.n && v->teleports == 1) v->detail_first = 1; /* the first place, from no tree */
-      stress_samples_add(&v->detail, v->state_at - from);
-      if (v->teleport_measured) stress_samples_add(&v->m_detail, v->state_at - from);
-    }
-    stress_samples_add(&v->detail_epochs, (double)(st->epoch - v->teleport_epoch));
-    v->detail_phase = 0;
+   * settles (stress.h, STRESS_SETTLE_STATES): the tree stopped growing toward the camera and
+   * nothing it wants is still being made, beyond the churn of an animated field. */
+  if (!v->settle.phase || st->epoch != v->last_epoch || st->epoch <= v->teleport_epoch) return;
+  if (!stress_settle_feed(&v->settle, st->splits, st->merges, st->split_backlog, st->leaves, v->state_at, st->epoch)) return;
+  double from = v->welcome.epoch_period == 0 ? sv_step_time(v->run, v->teleport_step, 0) : v->teleport_at;
+  if (isfinite(from)) {
+    if (!v->detail.n && v->teleports == 1) v->detail_first = 1; /* the first place, from no tree */
+    stress_samples_add(&v->detail, v->settle.quiet_at - from);
+    if (v->teleport_measured) stress_samples_add(&v->m_detail, v->settle.quiet_at - from);
   }
+  stress_samples_add(&v->detail_epochs, (double)(v->settle.quiet_epoch - v->teleport_epoch));
 }
 
 static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
@@ -342,7 +337,7 @@ static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
     /* a new session (the server restarted): the session dropped its states, so does our count */
     v->fresh = 1;
     for (int i = 0; i < v->nfp; i++) v->fp[i].n = v->fp[i].records = 0; /* emptied, arrays kept */
-    v->detail_phase = 0;
+    v->settle.phase = 0;
     v->max_id = 0; /* ids begin again at 1 */
     v->have_prev = 0;
   }
@@ -357,7 +352,7 @@ static int sv_camera(stress_viewer_t *v, double path_t, double now) {
   long jump = 0;
   oc_camera_pose_t pose = stress_path_at(&v->p, path_t, &jump);
   if (v->path == STRESS_TELEPORT && jump != v->jump) {
-    if (v->detail_phase) { /* the previous place never settled */
+    if (v->settle.phase) { /* the previous place never settled */
       v->detail_unreached++;
       if (v->teleport_measured) v->m_unreached++;
     }
@@ -366,7 +361,7 @@ static int sv_camera(stress_viewer_t *v, double path_t, double now) {
     v->teleport_measured = v->run->measure_from > 0 && now >= v->run->measure_from;
     pthread_mutex_unlock(&v->run->mu);
     if (v->teleport_measured) v->m_teleports++;
-    v->detail_phase = 1;
+    v->settle = (stress_settle_t){.phase = 1};
     v->teleport_at = now;
     v->teleport_epoch = v->states ? v->last_epoch : UINT64_MAX; /* UINT64_MAX: before the first state */
     pthread_mutex_lock(&v->run->mu);
@@ -567,11 +562,11 @@ void *stress_viewer_main(void *arg) {
   }
 out:
   v->t_end = stress_now();
-  if (v->detail_phase) { /* cut off by the end: how long it had been waiting */
+  if (v->settle.phase) { /* cut off by the end: how long it had been waiting */
     v->detail_unreached++;
     if (v->teleport_measured && v->welcome.epoch_period > 0) v->m_open_s = v->t_end - v->teleport_at;
   }
-  v->detail_phase = 0;
+  v->settle.phase = 0;
   if (v->conn) ocp_viewer_stats(ocv_conn_session(v->conn), &v->session);
   pthread_mutex_lock(&run->mu);
   v->done = 1;

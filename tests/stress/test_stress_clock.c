@@ -218,6 +218,33 @@ static void test_stress_clock__ages(void **state) {
   assert_int_equal(b.sampled, 7);
 }
 
+/* Time to full detail: the stepped reference's own STATS after a jump at 4 MiB (splits, merges,
+ * waiting, leaves per epoch). "No split and none waiting" settled at the merge-only epoch 50,
+ * while the tree went on changing for 7 more; the rule waits for three quiet states in a row and
+ * takes the first's time. */
+static void test_stress_clock__settle(void **state) {
+  (void)state;
+  static const uint32_t trace[][4] = {
+      {24, 57, 0, 3417}, {24, 47, 0, 3256}, {24, 48, 0, 3088}, {24, 70, 0, 2766}, {0, 18, 0, 2640}, /* 46..50 */
+      {24, 48, 0, 2472}, {24, 75, 0, 2115}, {24, 39, 0, 2010}, {12, 51, 0, 1737},                   /* 51..54 */
+      {5, 0, 0, 1772},   {0, 4, 0, 1744},   {10, 0, 0, 1814},  {0, 2, 0, 1800}};                    /* 55..58 */
+  stress_settle_t s = {.phase = 1};
+  int settled_at = -1;
+  for (int i = 0; i < (int)(sizeof trace / sizeof trace[0]) && settled_at < 0; i++)
+    if (stress_settle_feed(&s, trace[i][0], trace[i][1], trace[i][2], trace[i][3], 100.0 + i, (uint64_t)(46 + i)))
+      settled_at = 46 + i;
+  assert_int_equal(settled_at, 57);          /* known at the third quiet state */
+  assert_true(s.quiet_epoch == 55 && s.quiet_at == 109.0); /* reached at the first */
+  assert_int_equal(s.phase, 0);
+  /* splits waiting for content are change too; and no reaction yet is not settling */
+  stress_settle_t w = {.phase = 1};
+  assert_int_equal(stress_settle_feed(&w, 0, 0, 0, 1000, 1.0, 1), 0);
+  assert_int_equal(w.phase, 1);
+  assert_int_equal(stress_settle_feed(&w, 24, 0, 0, 1000, 2.0, 2), 0);
+  for (int i = 0; i < 5; i++) assert_int_equal(stress_settle_feed(&w, 0, 0, 200, 1000, 3.0 + i, (uint64_t)(3 + i)), 0);
+  assert_int_equal(w.phase, 2);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_stress_clock__lateness_and_coalesced),
@@ -225,6 +252,7 @@ int main(void) {
       cmocka_unit_test(test_stress_clock__stamp_scan),
       cmocka_unit_test(test_stress_clock__match),
       cmocka_unit_test(test_stress_clock__ages),
+      cmocka_unit_test(test_stress_clock__settle),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
