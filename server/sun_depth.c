@@ -90,15 +90,28 @@ static void ocs__cur_reset(ocs__ctx_t *c) {
   c->chk_level = -1;
 }
 
+/* The finest level whose σt a node's march reads: L − filter_levels, never coarser than min_level
+ * (nor than the node itself, when that is coarser still). */
+static int ocs__march_level(const ocs__desc_t *d, int node_level) {
+  int m = node_level - d->filter_levels;
+  int lo = d->min_level < node_level ? d->min_level : node_level;
+  return m < lo ? lo : m;
+}
+
+int ocs_tau_march_level(const ocs_tau_desc_t *du, int node_level) {
+  ocs__desc_t d;
+  if (node_level < 0 || node_level > OC_KEY_MAX_LEVEL || ocs__desc(du, &d) < 0) return -1;
+  return ocs__march_level(&d, node_level);
+}
+
 static int ocs__ctx_init(ocs__ctx_t *c, const ocs__desc_t *d, int node_level) {
   memset(c, 0, sizeof *c);
   c->d = d;
   c->cap = 256;
   c->tab = calloc(c->cap, sizeof *c->tab);
   if (!c->tab) return OC_ENOMEM;
-  int m = node_level - d->filter_levels;
+  int m = ocs__march_level(d, node_level);
   int lo = d->min_level < node_level ? d->min_level : node_level;
-  if (m < lo) m = lo;
   c->level_m = m;
   c->level_lo = lo;
   c->h0 = d->step_factor * ocs__voxel(m);

@@ -168,6 +168,11 @@ int ocs_tau_direct(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOX
 /*! ocs_tau_group_of() : the ancestor `group_levels` (default 2) up of key, clamped at the root;
  *  OC_KEY_INVALID for an invalid key or desc. */
 oc_key_t ocs_tau_group_of(const ocs_tau_desc_t *d, oc_key_t key);
+/*! ocs_tau_march_level() : the finest level whose σt (and bounds) the τ of a node of `node_level`
+ *  reads: node_level − filter_levels, never coarser than min_level, nor than the node itself
+ *  (at the defaults: the node's own level up to level 6, the one above it below). A cache of τ
+ *  must be keyed by the time steps of levels 0 … this one. @return it, or -1 (invalid). */
+int ocs_tau_march_level(const ocs_tau_desc_t *d, int node_level);
 
 /*! ocs_tau_volume_build() : the sun-aligned optical-depth grid for the descendants of `group` at
  *  `level` (level(group) ≤ level ≤ level(group) + OCS_TAU_MAX_GROUP_LEVELS, ≤ 21).

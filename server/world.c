@@ -411,16 +411,24 @@ static void prod_free(prod_t *p) {
 /*-*** Clock ***/
 
 /* Time steps, stamps and refresh rates of every level at this epoch's time. */
-/* Every level's time step, stamp and light stamp (what its τ marches through: levels < l) at
- * world time t. */
+/* Every level's time step, stamp and light stamp at world time t. A level's stamp covers the time
+ * steps of levels 0 … it; its light stamp those of what its τ reads, levels 0 … its march level
+ * (ocs_tau_march_level: the level itself up to level 6, the one above below). Keyed by the levels
+ * above only, a τ volume of levels ≤ 6 outlived its own level's step: new σt went out with the old
+ * τ, content no time step makes (overcast-stress --verify-content: level-6 mismatches). */
 static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t stamp[], uint64_t light[]) {
-  uint64_t h = mix((uint64_t)w->shadows, w->shadows ? w->sun_version : 0);
+  uint64_t base = mix((uint64_t)w->shadows, w->shadows ? w->sun_version : 0), h = base;
+  uint64_t cum[OC_KEY_MAX_LEVEL + 1];
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
     uint64_t s = ocs_field_time_step(w->field, l, t);
     if (ts) ts[l] = s;
-    if (light) light[l] = h;
     h = mix(h, s);
-    stamp[l] = h;
+    cum[l] = h;
+    if (stamp) stamp[l] = h;
+  }
+  for (int l = 0; light && l <= OC_KEY_MAX_LEVEL; l++) {
+    int m = ocs_tau_march_level(&w->tau, l);
+    light[l] = m < 0 ? base : mix(cum[m < OC_KEY_MAX_LEVEL ? m : OC_KEY_MAX_LEVEL], 0x7A0u); /* distinct from stamp[m] */
   }
 }
 
