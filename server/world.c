@@ -1430,6 +1430,7 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
    * never be made again (it is made, late, once its estimate fits) */
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
     for (int k = 0; k < 2; k++) atomic_store(&w->cost[l][k], 0.7 * atomic_load(&w->cost[l][k]));
+  w->target_cost *= 0.7; /* likewise: a target plan too dear for every window is made again */
   prod_t *p = &w->producing;
   prod_snapshot(w, p);
   p->deadline = deadline;
