@@ -214,7 +214,7 @@ static void start_production(ocs_server_t *srv) {
 /* A step of epoch n (clocked), or of the next one (a "step" request: on the clock the newest due
  * epoch, or the one after the last if that is not due yet; stepped: the virtual clock's next). */
 static int tick_may_start(const ocs_server_t *srv) {
-  return !srv->ticking && !srv->stopping && !srv->end_due && (!srv->producing || atomic_load(&srv->overlap));
+  return !srv->ticking && !srv->stopping && (!srv->producing || atomic_load(&srv->overlap)); /* end_due: ticking */
 }
 
 static void start_step_at(ocs_server_t *srv, uint64_t n) {
@@ -277,7 +277,7 @@ static void on_epoch_timer(uv_timer_t *t) {
     srv->tick_overrun = 1;
     return;
   }
-  if (srv->ticking || srv->end_due) {
+  if (srv->ticking) {
     srv->late_ticks++; /* the previous step is still running: this tick is skipped */
     return;
   }

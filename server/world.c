@@ -410,7 +410,6 @@ static void prod_free(prod_t *p) {
 
 /*-*** Clock ***/
 
-/* Time steps, stamps and refresh rates of every level at this epoch's time. */
 /* Every level's time step, stamp and light stamp at world time t. A level's stamp covers the time
  * steps of levels 0 … it; its light stamp those of what its τ reads, levels 0 … its march level
  * (ocs_tau_march_level: the level itself up to level 6, the one above below). Keyed by the levels
@@ -428,7 +427,7 @@ static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t st
   }
   for (int l = 0; light && l <= OC_KEY_MAX_LEVEL; l++) {
     int m = ocs_tau_march_level(&w->tau, l);
-    light[l] = m < 0 ? base : mix(cum[m < OC_KEY_MAX_LEVEL ? m : OC_KEY_MAX_LEVEL], 0x7A0u); /* distinct from stamp[m] */
+    light[l] = m < 0 ? base : cum[m]; /* m ≤ l */
   }
 }
 
@@ -985,8 +984,8 @@ static void wishes_share(ocs_world_t *w) {
 }
 
 /* The tick's wishes become the production queue: one item per brick, its priority the sum over
- * the viewers that want it, in turn order (wishes_share), at most OCS_QUEUE_MAX. What no viewer wants any more is
- * gone. The wishes stay, sorted by brick, so that what is made is counted for its viewers. */
+ * the viewers that want it, in turn order (wishes_share), at most OCS_QUEUE_MAX. What no viewer
+ * wants any more is gone. The wishes stay, sorted by brick, so that what is made is counted for its viewers. */
 static void queue_build(ocs_world_t *w) {
   w->nqueue = 0;
   wishes_dedup(w);

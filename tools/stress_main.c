@@ -904,8 +904,8 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   ph->skipped_frac = ph->states + ph->skipped ? (double)ph->skipped / (double)(ph->states + ph->skipped) : NAN;
   if (ph->failed || ph->violations || ph->checksum || ph->protocol || ph->mismatch || ph->age_mismatch) {
     if (!ph->why[0] && ph->age_mismatch)
-      snprintf(ph->why, sizeof ph->why, "CONTENT MISMATCH: %" PRIu64 " verified bricks matched no time step s .. s-16",
-               ph->age_mismatch);
+      snprintf(ph->why, sizeof ph->why, "CONTENT MISMATCH: %" PRIu64 " verified bricks matched no time step s .. s-%d",
+               ph->age_mismatch, STRESS_AGE_MAX);
     if (!ph->why[0]) snprintf(ph->why, sizeof ph->why, "a check failed");
   } else if (short_viewer >= 0) {
     snprintf(ph->why, sizeof ph->why, "viewer %d: fewer than 2 states in the measured window", short_viewer);

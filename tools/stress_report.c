@@ -340,8 +340,8 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     sr_age_levels(&ages);
     printf("\n");
     if (content_mismatch)
-      printf("CONTENT MISMATCH: %" PRIu64 " verified bricks matched no stamp s .. s-16 of their state's world time\n",
-             content_mismatch);
+      printf("CONTENT MISMATCH: %" PRIu64 " verified bricks matched no stamp s .. s-%d of their state's world time\n",
+             content_mismatch, STRESS_AGE_MAX);
   }
   printf("time to full detail after a teleport: p50 %s s, p99 %s s, p50 %s epochs (%zu of %" PRIu64
          " teleports settled; %" PRIu64 " did not before the next one or the end)\n",
@@ -564,8 +564,8 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     else if (coarser)
       fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " sweep combinations coarser than a smaller or shallower one\n", coarser);
     else if (content_mismatch)
-      fprintf(stderr, "overcast-stress: FAIL: CONTENT MISMATCH: %" PRIu64 " verified bricks matched no stamp s .. s-16\n",
-              content_mismatch);
+      fprintf(stderr, "overcast-stress: FAIL: CONTENT MISMATCH: %" PRIu64 " verified bricks matched no stamp s .. s-%d\n",
+              content_mismatch, STRESS_AGE_MAX);
     else if (violations || mismatch)
       fprintf(stderr, "overcast-stress: FAIL: %" PRIu64 " budget violations, %" PRIu64 " resident counts differing from the session's\n",
               violations, mismatch);
@@ -751,7 +751,8 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
              "last STATS): %s\n", ph[i].age.sampled, ph[i].age.dropped, ph[i].age.errors,
              ph[i].verify_left ? " (some left unverified: the drain timed out)" : "", sr_age(b1, sizeof b1, ph[i].server_age_p99));
       if (ph[i].age_mismatch)
-        printf("CONTENT MISMATCH: %ld MiB, N = %d: %" PRIu64 " verified bricks matched no stamp s .. s-16\n", ph[i].budget_mib, ph[i].n, ph[i].age_mismatch);
+        printf("CONTENT MISMATCH: %ld MiB, N = %d: %" PRIu64 " verified bricks matched no stamp s .. s-%d\n", ph[i].budget_mib,
+               ph[i].n, ph[i].age_mismatch, STRESS_AGE_MAX);
     }
   }
   printf("\n");
