@@ -874,6 +874,18 @@ static void test_sun_depth__bad_arguments(void **st) {
   bad = d, bad.group_levels = OCS_TAU_MAX_GROUP_LEVELS + 1;
   assert_int_equal(ocs_tau_node(&bad, k, t), OC_EINVAL);
   assert_true(ocs_tau_group_of(&bad, k) == OC_KEY_INVALID);
+  assert_int_equal(ocs_tau_march_level(&bad, 7), -1);
+  assert_int_equal(ocs_tau_march_level(NULL, 7), -1);
+  /* the march level (what a τ cache must be keyed by): the node's own up to min_level, the one
+   * above it below; -1 off the key's levels */
+  ocs_tau_desc_t dl = d;
+  dl.filter_levels = dl.min_level = 0;
+  assert_int_equal(ocs_tau_march_level(&dl, 0), 0);
+  assert_int_equal(ocs_tau_march_level(&dl, 6), 6);
+  assert_int_equal(ocs_tau_march_level(&dl, 7), 6);
+  assert_int_equal(ocs_tau_march_level(&dl, 14), 13);
+  assert_int_equal(ocs_tau_march_level(&dl, -1), -1);
+  assert_int_equal(ocs_tau_march_level(&dl, OC_KEY_MAX_LEVEL + 1), -1);
   /* groups: the ancestor 2 up, clamped at the root */
   assert_true(ocs_tau_group_of(&d, k) == oc_key_ancestor(k, 12));
   assert_true(ocs_tau_group_of(&d, oc_key_child(OC_KEY_ROOT, 3)) == OC_KEY_ROOT);
