@@ -87,6 +87,7 @@ typedef struct {
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1], sun_version;
   ocs_tau_desc_t tau; /* ctx: this */
   double deadline;    /* no brick is started that is expected to end after it (monotonic s); 0: none */
+  double start;       /* when production began (monotonic s): see may_start() */
   req_t *req;
   size_t nreq, req_cap;
   size_t *deferred; /* requests whose τ volume another thread was building */
@@ -325,8 +326,21 @@ static void learn_cost(ocs_world_t *w, const req_t *q, double seconds) {
 
 static int produce_brick_timed(prod_t *p, req_t *q);
 
+/* A brick is started if it is expected to end before the deadline (the tick is due: it waits),
+ * and one dearer than the whole window (a coarse brick on the planet takes seconds) while the
+ * window is young: else it would wait until its estimate faded, for several productions, and the
+ * coarse levels a teleport needs first would come one every few ticks. It finishes beside the
+ * next tick. */
+#define OCS_YOUNG_WINDOW 0.25
+static int may_start(const prod_t *p, oc_key_t key) {
+  if (!(p->deadline > 0)) return 1;
+  double now = now_s(), cost = expected_cost(p, key), window = p->deadline - p->start;
+  if (now + cost < p->deadline) return 1;
+  return cost >= window && now - p->start < OCS_YOUNG_WINDOW * window;
+}
+
 static int produce_brick(prod_t *p, req_t *q) {
-  if (p->deadline > 0 && now_s() + expected_cost(p, q->key) >= p->deadline) return 0; /* the tick is due: it waits */
+  if (!may_start(p, q->key)) return 0;
   double t0 = now_s();
   int r = produce_brick_timed(p, q);
   if (r >= 0 && q->made) learn_cost(p->w, q, now_s() - t0);
@@ -399,7 +413,7 @@ static void prod_snapshot(ocs_world_t *w, prod_t *p) {
   p->sun_version = w->sun_version;
   p->tau = w->tau;
   p->tau.ctx = p;
-  p->deadline = 0;
+  p->deadline = p->start = 0;
 }
 
 static void prod_free(prod_t *p) {
@@ -1433,6 +1447,7 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
   prod_t *p = &w->producing;
   prod_snapshot(w, p);
   p->deadline = deadline;
+  p->start = now_s(); /* after the targets: the window the bricks have */
   int rc = round_fill(w, p, limit && limit < w->nqueue ? limit : w->nqueue);
   if (rc < 0) {
     p->nreq = 0;

@@ -7,15 +7,18 @@
  * is never produced. After a teleport, the first tick after the coarse levels are made shows them
  * over the new view; a viewer teleporting every tick does not slow four well-behaved ones nor age
  * their content; a producer error on one brick stops nothing and the brick is asked again; a tick
- * runs beside a brick held inside the producer. */
+ * runs beside a brick held inside the producer; a brick dearer than the production window still
+ * starts. */
 #include <math.h>
 #include <pthread.h>
 #include <setjmp.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include <cmocka.h>
 
@@ -554,6 +557,54 @@ static void test_clocked__tick_beside_bricks_in_flight(void **st) {
   ocs_world_free(w);
 }
 
+/* A brick dearer than the whole production window (a coarse planet brick takes seconds) is
+ * started while the window is young, and finishes beside the next tick: left waiting until its
+ * cost estimate faded, the coarse levels a teleport needs first came one every few ticks
+ * (overcast-stress --paths teleport). The hook makes every brick of one level take 0.6 s,
+ * whatever the machine; the cost the world learns, faded once (×0.7), is still above the 0.3 s
+ * window, so no brick of that level is expected to end inside it. No shadows: one cost per level
+ * (with τ, the brick that builds its group's τ volume has a cost of its own). */
+typedef struct {
+  atomic_int level, calls;
+} slow_t;
+
+static int slow_level(void *ctx, oc_key_t key) {
+  slow_t *s = ctx;
+  if (oc_key_level(key) == atomic_load(&s->level)) {
+    atomic_fetch_add(&s->calls, 1);
+    struct timespec ts = {0, 600000000L};
+    nanosleep(&ts, NULL);
+  }
+  return 0;
+}
+
+static void test_clocked__dear_bricks_start_young(void **st) {
+  (void)st;
+  static const char *UNSHADOWED =
+      "{\"version\":1,\"features\":{\"animation\":false,\"shadows\":false},"
+      "\"sources\":[{\"type\":\"sphere\",\"lat\":0,\"lon\":0,\"alt\":3000,\"radius\":2000,\"sigma_t\":0.05}]}";
+  slow_t slow = {-1, 0};
+  ocs_world_t *w = world_of(UNSHADOWED, 1, slow_level, &slow);
+  ocs_viewer_t *v = viewer(w, 0.0);
+  tick(w, v, 1);
+  ocs_world_produce(w, 1e9, 0);
+  assert_int_equal(tick(w, v, 2), 1); /* the root */
+  ocs_world_produce(w, 0.0, 0);       /* the queue of what the tree wants next */
+  oc_key_t key;
+  assert_int_equal(ocs_world_queue_peek(w, 0, &key, NULL, NULL), 0);
+  int level = oc_key_level(key);
+  atomic_store(&slow.level, level);
+  assert_int_equal(ocs_world_produce(w, 1e9, 1), 1); /* the world learns what that level costs */
+  assert_int_equal(atomic_load(&slow.calls), 1);
+  size_t at = 0;
+  while (ocs_world_queue_peek(w, at, &key, NULL, NULL) == 0 && oc_key_level(key) != level) at++;
+  if (ocs_world_queue_peek(w, at, &key, NULL, NULL) != 0) fail_msg("no other brick of level %d queued", level);
+  assert_true(ocs_world_produce(w, 0.3, at + 1) >= 1);
+  assert_int_equal(atomic_load(&slow.calls), 2);
+  print_message("level %d: a 0.6 s brick started in a 0.3 s window (%zu cheaper before it)\n", level, at);
+  ocs_world_free(w);
+}
+
 /* τ across a time step of the node's own level: levels ≤ 6 march their own level's σt, so their τ
  * is made anew when that level moves on, though the levels above did not. World a makes a level-6
  * node at t1 and then at t2 (level 6 moved on, level 5 not); world b makes it at t2 only: the same
@@ -672,6 +723,7 @@ int main(void) {
       cmocka_unit_test(test_clocked__fair_content_age),
       cmocka_unit_test(test_clocked__producer_error_retried),
       cmocka_unit_test(test_clocked__tick_beside_bricks_in_flight),
+      cmocka_unit_test(test_clocked__dear_bricks_start_young),
       cmocka_unit_test(test_clocked__tau_follows_its_own_level),
       cmocka_unit_test(test_clocked__resume_with_bricks_in_flight),
   };
