@@ -739,6 +739,51 @@ static void ocs__flush(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *w
   ws->n = 0;
 }
 
+/* A point of voxel v into the batch if it lies in [band_lo, band_hi] (outside, every layer is
+ * exactly 0). r is computed as |p| always is, so the points' values do not depend on the path. */
+static inline void ocs__add_point(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *ws, const double xyz[3],
+                                  double band_lo, double band_hi, int v, const ocs__bb_t *vb) {
+  double x = xyz[0], y = xyz[1], z = xyz[2];
+  double r = sqrt(x * x + y * y + z * z), h = r - OCS__R;
+  if (!(h >= band_lo && h <= band_hi)) return;
+  int at = ws->n++;
+  ws->p[3 * at] = x, ws->p[3 * at + 1] = y, ws->p[3 * at + 2] = z;
+  ws->r[at] = r, ws->h[at] = h;
+  ws->vox[at] = (uint16_t)v;
+  ws->mask[at] = (uint8_t)vb->mask;
+  ws->wone[at] = (uint8_t)vb->wone;
+  if (ws->n == OCS__CHUNK) ocs__flush(P, F, ws);
+}
+
+/* The strata m of a column whose vertical coordinate t(m) = -S + (g + (m + ½)/n - ½)·u can meet
+ * the band: with a2 the squared horizontal distance from the axis, R + band_lo ≤ √(a2 + t²) ≤ R +
+ * band_hi holds only for |t| in [t_lo, t_hi]. Solved for m in closed form, widened by two strata
+ * for rounding (far more than the ~1e-9 relative error of the inversion), clamped, as at most two
+ * increasing runs m0[i]..m1[i]. @return the number of runs (0: the column misses the band). */
+static int ocs__column_range(double a2, double band_lo, double band_hi, double g, double u, int n, int m0[2],
+                             int m1[2]) {
+  double rlo = OCS__R + band_lo, rhi = OCS__R + band_hi;
+  double hi2 = rhi * rhi - a2, lo2 = rlo * rlo - a2;
+  if (!(hi2 >= 0.0) && !(hi2 > -1e-6 * rhi * rhi)) return 0;
+  double t_hi = sqrt(hi2 > 0.0 ? hi2 : 0.0), t_lo = lo2 > 0.0 ? sqrt(lo2) : 0.0;
+  /* m(t) = ((t + S)/u - g + ½)·n - ½, increasing in t */
+  double ta[2] = {-t_hi, t_lo}, tb[2] = {-t_lo, t_hi};
+  int runs = 0;
+  for (int k = 0; k < 2; k++) {
+    double a = ((ta[k] + OC_ROOT_HALF) / u - g + 0.5) * (double)n - 0.5;
+    double b = ((tb[k] + OC_ROOT_HALF) / u - g + 0.5) * (double)n - 0.5;
+    if (!(b >= -2.0) || !(a <= (double)n + 1.0)) continue;
+    int lo = a < 2.0 ? 0 : (int)floor(a) - 2, hi = b > (double)n - 3.0 ? n - 1 : (int)ceil(b) + 2;
+    if (runs && lo <= m1[runs - 1] + 1) { /* overlaps the first run (t_lo small): one run */
+      if (hi > m1[runs - 1]) m1[runs - 1] = hi;
+      continue;
+    }
+    m0[runs] = lo, m1[runs] = hi;
+    runs++;
+  }
+  return runs;
+}
+
 /* Strata of a level: sub_h along the two most horizontal axes, sub_v along the most vertical. */
 static int ocs__strata(int level, double spacing, int max) {
   double n = ceil(ocs__voxel_size(level) / spacing);
@@ -810,26 +855,36 @@ static int ocs__proc_sample(const ocs_source_t *s, oc_key_t key, double t, float
             band_lo = fmin(band_lo, P->L[l].band_lo);
             band_hi = fmax(band_hi, P->L[l].band_hi);
           }
-        const double *ox = n[0] == sub_h ? off_h : off_v, *oy = n[1] == sub_h ? off_h : off_v,
-                     *oz = n[2] == sub_h ? off_h : off_v;
-        for (int mz = 0; mz < n[2]; mz++) {
-          double z = -OC_ROOT_HALF + (gg[2] + oz[mz]) * u;
-          for (int my = 0; my < n[1]; my++) {
-            double y = -OC_ROOT_HALF + (gg[1] + oy[my]) * u;
-            for (int mx = 0; mx < n[0]; mx++) {
-              double x = -OC_ROOT_HALF + (gg[0] + ox[mx]) * u;
-              double r = sqrt(x * x + y * y + z * z), h = r - OCS__R;
-              if (!(h >= band_lo && h <= band_hi)) continue; /* every layer is exactly 0 there */
-              int at = ws->n++;
-              ws->p[3 * at] = x, ws->p[3 * at + 1] = y, ws->p[3 * at + 2] = z;
-              ws->r[at] = r, ws->h[at] = h;
-              ws->vox[at] = (uint16_t)v;
-              ws->mask[at] = (uint8_t)vm;
-              ws->wone[at] = (uint8_t)vb.wone;
-              if (ws->n == OCS__CHUNK) ocs__flush(P, &F, ws);
+        if (n[va] == sub_h) { /* isotropic: oc_brick_sample()'s order, so the sums are its bits */
+          for (int mz = 0; mz < sub_h; mz++) {
+            double z = -OC_ROOT_HALF + (gg[2] + off_h[mz]) * u;
+            for (int my = 0; my < sub_h; my++) {
+              double y = -OC_ROOT_HALF + (gg[1] + off_h[my]) * u;
+              for (int mx = 0; mx < sub_h; mx++) {
+                double xyz[3] = {-OC_ROOT_HALF + (gg[0] + off_h[mx]) * u, y, z};
+                ocs__add_point(P, &F, ws, xyz, band_lo, band_hi, v, &vb);
+              }
             }
           }
+          continue;
         }
+        /* Anisotropic (coarse): column by column along the vertical axis, each column's strata
+         * limited to those that can meet the band (ocs__column_range); the exact test still
+         * decides each point. */
+        int ha = va == 0 ? 1 : 0, hb = va == 2 ? 1 : 2;
+        for (int mb = 0; mb < sub_h; mb++)
+          for (int ma = 0; ma < sub_h; ma++) {
+            double xyz[3];
+            xyz[ha] = -OC_ROOT_HALF + (gg[ha] + off_h[ma]) * u;
+            xyz[hb] = -OC_ROOT_HALF + (gg[hb] + off_h[mb]) * u;
+            int m0[2], m1[2];
+            int runs = ocs__column_range(xyz[ha] * xyz[ha] + xyz[hb] * xyz[hb], band_lo, band_hi, gg[va], u, sub_v, m0, m1);
+            for (int run = 0; run < runs; run++)
+              for (int m = m0[run]; m <= m1[run]; m++) {
+                xyz[va] = -OC_ROOT_HALF + (gg[va] + off_v[m]) * u;
+                ocs__add_point(P, &F, ws, xyz, band_lo, band_hi, v, &vb);
+              }
+          }
       }
   ocs__flush(P, &F, ws);
   for (int v = 0; v < OC_BRICK_VOXELS; v++)

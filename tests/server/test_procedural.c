@@ -283,6 +283,57 @@ static void test_procedural__sample_is_box_average_of_point(void **st) {
   s->vt->destroy(s);
 }
 
+/* Where the vertical axis gets more strata (levels ≤ 12), each voxel's strata are walked column
+ * by column along it, each column limited to the strata that can meet the cloud band: a stratum
+ * wrongly left out would move the voxel's mean by about 1/(strata in the band). Against the plain
+ * mean of point() over every stratum (sub_h, sub_v as source_procedural.c sets them: 450 m
+ * horizontal and 100 m vertical spacing, 4..6 and 4..1024 strata), the sums differ only in their
+ * order. */
+static void test_procedural__coarse_strata_are_all_counted(void **st) {
+  (void)st;
+  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  uint64_t rng = 29;
+  int checked = 0, nonzero = 0;
+  for (int level = 4; level <= 12; level += SIZE(1, 4)) {
+    oc_key_t k = oc_key_from_point(level, cloudy_point(s, 0.0, 500.0, 12000.0, &rng));
+    float got[512];
+    sample(s, k, 0.0, got);
+    double u = 2.0 * OC_ROOT_HALF / 7.0 / ldexp(1.0, level);
+    int sub_h = (int)fmin(6.0, fmax(4.0, ceil(u / 450.0))), sub_v = (int)fmin(1024.0, fmax(4.0, ceil(u / 100.0)));
+    uint32_t ic[3];
+    oc_key_coords(k, &ic[0], &ic[1], &ic[2]);
+    int picked = 0;
+    for (int v = 0; v < 512 && picked < SIZE(6, 2); v++) {
+      int edge = got[v] == 0.0f && ((v % 8 < 7 && got[v + 1] > 0.0f) || (v % 8 > 0 && got[v - 1] > 0.0f));
+      if (!(got[v] > 0.0f) && !edge) continue;
+      picked++;
+      int ijk[3] = {v % 8, v / 8 % 8, v / 64};
+      double c[3];
+      for (int a = 0; a < 3; a++) c[a] = -OC_ROOT_HALF + (double)(7 * (int64_t)ic[a] + ijk[a]) * u;
+      int va = fabs(c[1]) > fabs(c[0]) ? 1 : 0;
+      va = fabs(c[2]) > fabs(c[va]) ? 2 : va;
+      int n[3] = {sub_h, sub_h, sub_h};
+      n[va] = sub_v;
+      double sum = 0.0;
+      for (int mz = 0; mz < n[2]; mz++)
+        for (int my = 0; my < n[1]; my++)
+          for (int mx = 0; mx < n[0]; mx++) {
+            double o[3] = {(mx + 0.5) / n[0] - 0.5, (my + 0.5) / n[1] - 0.5, (mz + 0.5) / n[2] - 0.5};
+            sum += s->vt->point(s, oc_dv3(c[0] + o[0] * u, c[1] + o[1] * u, c[2] + o[2] * u), 0.0);
+          }
+      double want = sum / ((double)n[0] * n[1] * n[2]);
+      if (!(fabs((double)got[v] - want) <= 1e-6 * want))
+        fail_msg("level %d voxel %d (%d×%d×%d strata): sample %.9g, mean of point() %.9g", level, v, n[0], n[1], n[2],
+                 (double)got[v], want);
+      checked++;
+      nonzero += want > 0.0;
+    }
+  }
+  print_message("  %d voxels checked against every stratum, %d with cloud\n", checked, nonzero);
+  assert_true(nonzero >= SIZE(20, 2));
+  s->vt->destroy(s);
+}
+
 /* A sample on a face shared by two nodes of a level is the same bits in both bricks: its strata
  * depend only on its own position, and every shortcut (empty layers, W = 1) is exact. */
 static void test_procedural__shared_faces_agree(void **st) {
@@ -750,6 +801,7 @@ int main(void) {
       cmocka_unit_test(test_procedural__deterministic),
       cmocka_unit_test(test_procedural__sample_is_box_average_of_point),
       cmocka_unit_test(test_procedural__shared_faces_agree),
+      cmocka_unit_test(test_procedural__coarse_strata_are_all_counted),
       cmocka_unit_test(test_procedural__filter_mean_coarse),
       cmocka_unit_test(test_procedural__filter_mean_mid),
       cmocka_unit_test(test_procedural__filter_mean_fine),
