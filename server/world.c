@@ -88,6 +88,7 @@ typedef struct {
   ocs_tau_desc_t tau; /* ctx: this */
   double deadline;    /* no brick is started that is expected to end after it (monotonic s); 0: none */
   double start;       /* when production began (monotonic s): see may_start() */
+  _Atomic double busy_until; /* when the bricks started so far are expected to end */
   req_t *req;
   size_t nreq, req_cap;
   size_t *deferred; /* requests whose τ volume another thread was building */
@@ -327,16 +328,22 @@ static void learn_cost(ocs_world_t *w, const req_t *q, double seconds) {
 static int produce_brick_timed(prod_t *p, req_t *q);
 
 /* A brick is started if it is expected to end before the deadline (the tick is due: it waits),
- * and one dearer than the whole window (a coarse brick on the planet takes seconds) while the
- * window is young: else it would wait until its estimate faded, for several productions, and the
- * coarse levels a teleport needs first would come one every few ticks. It finishes beside the
- * next tick. */
+ * or before the bricks already started are expected to end (production ends with them anyway, so
+ * an idle producer beside a dear brick keeps working); and one dearer than the whole window (a
+ * coarse brick on the planet takes seconds) while the window is young: else it would wait until
+ * its estimate faded, for several productions, and the coarse levels a teleport needs first came
+ * one every few ticks. It finishes beside the next tick. */
 #define OCS_YOUNG_WINDOW 0.25
-static int may_start(const prod_t *p, oc_key_t key) {
+static int may_start(prod_t *p, oc_key_t key) {
   if (!(p->deadline > 0)) return 1;
   double now = now_s(), cost = expected_cost(p, key), window = p->deadline - p->start;
-  if (now + cost < p->deadline) return 1;
-  return cost >= window && now - p->start < OCS_YOUNG_WINDOW * window;
+  double until = atomic_load(&p->busy_until), end = now + cost;
+  if (!(end < (until > p->deadline ? until : p->deadline)) &&
+      !(cost >= window && now - p->start < OCS_YOUNG_WINDOW * window))
+    return 0;
+  while (end > until && !atomic_compare_exchange_weak(&p->busy_until, &until, end)) {
+  }
+  return 1;
 }
 
 static int produce_brick(prod_t *p, req_t *q) {
@@ -1448,6 +1455,7 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
   prod_snapshot(w, p);
   p->deadline = deadline;
   p->start = now_s(); /* after the targets: the window the bricks have */
+  atomic_store(&p->busy_until, 0.0);
   int rc = round_fill(w, p, limit && limit < w->nqueue ? limit : w->nqueue);
   if (rc < 0) {
     p->nreq = 0;

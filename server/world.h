@@ -156,7 +156,8 @@ int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
  *  ended. @return the bricks taken, or a negative OC_E*.
  *  _run() (on a thread of its own): produces them on the world's pool; no brick is started that
  *  is expected to end after `seconds` from _begin(), except one expected to take longer than the
- *  whole window, while the window is young (its first quarter): it finishes late. While it runs, ocs_world_step_at() (a clocked
+ *  whole window, while the window is young (its first quarter), and one expected to end before
+ *  the bricks already started: they finish late. While it runs, ocs_world_step_at() (a clocked
  *  tick: it produces nothing and uses no pool) may run on another thread, and nothing else.
  *  _end() (nothing else may touch the world): counts what was made for the viewers that wanted it
  *  (ocs_viewer_stats_t.produced) and, if no tick ran meanwhile, takes it off the queue.
