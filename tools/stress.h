@@ -85,7 +85,9 @@ typedef struct {
   char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;
 
-/* Time to full detail: after a teleport the plan reacts (splits, merges or splits waiting), then
+/* Time to full detail: after a teleport the plan reacts (splits or merges: splits that only wait
+ * are not a reaction, else a clocked tree waiting for a few dear coarse bricks "settled" at once,
+ * its waiting splits under 1 % of the old tree's leaves), then
  * settles: STRESS_SETTLE_STATES states in a row whose plan changed at most STRESS_SETTLE_FRACTION
  * of its leaves (splits + merges + splits waiting); the time is the first of them's. An animated
  * field keeps a settled tree churning (a refreshed node turning empty is merged, one turning

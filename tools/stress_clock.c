@@ -140,8 +140,8 @@ int stress_stamp_scan(stress_stamp_fn f, void *ctx, int level, double t, double 
 
 int stress_settle_feed(stress_settle_t *s, uint32_t splits, uint32_t merges, uint32_t waiting, uint32_t leaves, double t,
                        uint64_t epoch) {
-  if (s->phase == 1) { /* the plan reacts to the new place */
-    if (splits || merges || waiting) s->phase = 2, s->quiet = 0;
+  if (s->phase == 1) { /* the plan reacts to the new place: it splits or merges */
+    if (splits || merges) s->phase = 2, s->quiet = 0;
     return 0;
   }
   if (s->phase != 2) return 0;

@@ -317,7 +317,7 @@ static void sv_on_stats(void *ctx, const ocp_stats_t *st) {
             v->index, sv_name(v), st->epoch, st->leaves, st->splits, st->merges, st->deferred, st->coalesced, st->split_backlog,
             st->queue);
   /* Time to full detail after a teleport: the plan first reacts to the new place (a state planned
-   * after the jump with splits or merges, or splits waiting for their children's content), then
+   * after the jump with splits or merges; splits that only wait for content are no reaction), then
    * settles (stress.h, STRESS_SETTLE_STATES): the tree stopped growing toward the camera and
    * nothing it wants is still being made, beyond the churn of an animated field. */
   if (!v->settle.phase || st->epoch != v->last_epoch || st->epoch <= v->teleport_epoch) return;
