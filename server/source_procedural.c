@@ -764,7 +764,7 @@ static int ocs__column_range(double a2, double band_lo, double band_hi, double g
                              int m1[2]) {
   double rlo = OCS__R + band_lo, rhi = OCS__R + band_hi;
   double hi2 = rhi * rhi - a2, lo2 = rlo * rlo - a2;
-  if (!(hi2 >= 0.0) && !(hi2 > -1e-6 * rhi * rhi)) return 0;
+  if (!(hi2 > -1e-6 * rhi * rhi)) return 0; /* a column within ~3 m of the top still counts */
   double t_hi = sqrt(hi2 > 0.0 ? hi2 : 0.0), t_lo = lo2 > 0.0 ? sqrt(lo2) : 0.0;
   /* m(t) = ((t + S)/u - g + ½)·n - ½, increasing in t */
   double ta[2] = {-t_hi, t_lo}, tb[2] = {-t_lo, t_hi};

@@ -86,7 +86,8 @@ typedef struct {
   double time;
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1], sun_version;
   ocs_tau_desc_t tau; /* ctx: this */
-  double deadline;    /* no brick is started that is expected to end after it (monotonic s); 0: none */
+  double deadline;    /* no brick is started that is expected to end after it, but for may_start()'s
+                         exceptions (monotonic s); 0: none */
   double start;       /* when production began (monotonic s): see may_start() */
   _Atomic double busy_until; /* when the bricks started so far are expected to end */
   req_t *req;
