@@ -129,6 +129,9 @@ enum { STRESS_FK_STALL, STRESS_FK_DROP, STRESS_FK_GARBAGE, STRESS_FK_COUNT };
 #define STRESS_FAULT_RESTART (1 << STRESS_FK_COUNT)
 /* seconds past the server's handshake timeout by which garbage must have been closed */
 #define STRESS_FAULT_GRACE 10.0
+/* seconds a HELLO may wait for its WELCOME: a HELLO that arrives during a step is answered when
+ * the step ends (a stepped planet's step under ASan has taken 39 s) */
+#define STRESS_FAULT_WELCOME_WAIT 120.0
 /* seconds past the server's stall timeout by which a viewer that stopped reading must be let go */
 #define STRESS_FAULT_STALL_GRACE 5.0
 /* misbehaving connections open at once, at most (stress_fault.c) */

@@ -20,7 +20,8 @@
  *            5  3 bytes of a header, then silence
  *
  * Garbage must be answered with an ERROR frame and closed by the server within its handshake
- * timeout plus STRESS_FAULT_GRACE seconds; anything else (no ERROR, still open, or served as if
+ * timeout plus STRESS_FAULT_GRACE seconds of being sent (garbage after WELCOME: of the WELCOME,
+ * which a running step may hold back for up to STRESS_FAULT_WELCOME_WAIT); anything else (no ERROR, still open, or served as if
  * valid) is a failure. A stalled viewer must be let go within the server's stall timeout plus
  * STRESS_FAULT_STALL_GRACE (seen at the end, by reading it to its EOF); meanwhile its unsent bytes are
  * read from the "sessions" request by the coordinator. Drops need no answer. */
@@ -51,7 +52,8 @@ static const char *const sf_kind_names[STRESS_FK_COUNT] = {"stall", "drop", "gar
 typedef struct {
   int kind, variant;
   int fd;
-  double opened, deadline; /* deadline: garbage must be closed by then (0: none) */
+  double opened, sent;     /* sent: when the garbage went out */
+  double deadline;         /* garbage must be closed by then (0: none) */
   ocp_viewer_t *sess;      /* stall, drop 2..3, garbage 3..4: the handshake */
   ocp_reader_t rd;         /* garbage 0..2, 5: frames from the server */
   oc_buf_t out;
@@ -150,15 +152,17 @@ static void sf_resolve(stress_faults_t *f, sf_conn_t *c, int by_server, double n
   int k = c->kind;
   if (by_server) {
     f->st.closed[k]++;
-    double s = now - c->opened;
+    double s = now - (c->sent ? c->sent : c->opened);
     if (s > f->st.close_s_max[k]) f->st.close_s_max[k] = s;
   }
   if (c->got_error) f->st.errors[k]++;
   if (k == STRESS_FK_GARBAGE) {
     if (!by_server) {
       f->st.late++;
-      sf_fail(f, "garbage %d: still open %.1f s after it was sent (the server's handshake timeout is %.0f s)", c->variant,
-              now - c->opened, f->st.handshake_s);
+      if (!c->sent) sf_fail(f, "garbage %d: no WELCOME %.1f s after its HELLO", c->variant, now - c->opened);
+      else
+        sf_fail(f, "garbage %d: still open %.1f s after it was sent (the server's handshake timeout is %.0f s)", c->variant,
+                now - c->sent, f->st.handshake_s);
     } else if (!c->got_error) {
       f->st.unanswered++;
       sf_fail(f, "garbage %d: closed without an ERROR frame naming the problem", c->variant);
@@ -219,6 +223,8 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
   ocp_reader_init(&c->rd, OCP_MAX_PAYLOAD);
   f->n++;
   if (kind == STRESS_FK_GARBAGE) c->deadline = now + f->st.handshake_s + STRESS_FAULT_GRACE;
+  if (kind == STRESS_FK_GARBAGE && sf_uses_session(kind, variant)) c->deadline += STRESS_FAULT_WELCOME_WAIT;
+  else if (kind == STRESS_FK_GARBAGE) c->sent = now;
   if (sf_uses_session(kind, variant)) {
     ocp_viewer_desc_t vd = {.role = OCP_ROLE_VIEWER, .budget = run->o->fault_budget_mib << 20, .max_depth = 21,
                             .width = (uint32_t)run->o->width, .height = (uint32_t)run->o->height, .caps = OCP_CAP_ALL,
@@ -317,6 +323,8 @@ static int sf_read(stress_faults_t *f, sf_conn_t *c, double now) {
         c->last_keepalive = now;
         if (c->kind == STRESS_FK_GARBAGE && !c->injected) {
           c->injected = 1;
+          c->sent = now; /* the clock on the server's answer starts here, not at the connect */
+          c->deadline = now + f->st.handshake_s + STRESS_FAULT_GRACE;
           if (c->variant == 3) {
             uint8_t h[12] = {OCP_MAGIC0, OCP_MAGIC1, (uint8_t)w->version, 0x5A, 4, 0, 0, 0, 0xDE, 0xAD, 0xBE, 0xEF};
             oc_buf_append(&c->out, h, sizeof h);
