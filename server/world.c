@@ -184,6 +184,7 @@ struct ocs_world_s {
    * [1] when it had to build the volume; production starts no brick expected to end after the
    * deadline (a brick started is finished, and the tick waits for it) */
   _Atomic double cost[OC_KEY_MAX_LEVEL + 1][2];
+  ocs_hist_t brick_seconds; /* what each brick made took on its thread (wall), τ included */
 };
 
 static double now_s(void) {
@@ -351,7 +352,11 @@ static int produce_brick(prod_t *p, req_t *q) {
   if (!may_start(p, q->key)) return 0;
   double t0 = now_s();
   int r = produce_brick_timed(p, q);
-  if (r >= 0 && q->made) learn_cost(p->w, q, now_s() - t0);
+  if (r >= 0 && q->made) {
+    double took = now_s() - t0;
+    learn_cost(p->w, q, took);
+    ocs_hist_observe(&p->w->brick_seconds, took);
+  }
   return r;
 }
 
@@ -488,6 +493,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   ocs_world_t *w = calloc(1, sizeof *w);
   if (!w) return OC_ENOMEM;
   if (desc) w->d = *desc;
+  ocs_hist_init(&w->brick_seconds, ocs_hist_seconds);
   if (!w->d.cache_bytes) w->d.cache_bytes = 256ull << 20;
   if (!w->d.viewer_bytes) w->d.viewer_bytes = 4ull << 30;
   if (!w->d.max_budget) w->d.max_budget = ocs_world_fair_share(w->d.viewer_bytes);
@@ -1549,6 +1555,7 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   out->produce_errors = w->produce_errors;
   out->last_error = w->last_error;
   out->last_error_key = w->last_error_key;
+  ocs_hist_read(&w->brick_seconds, &out->brick_seconds);
 }
 
 /*-*** Content at another time (overcast-stress --verify-content) ***/

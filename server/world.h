@@ -22,6 +22,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "histogram.h"
 #include "oc_scene.h"
 #include "oc_state.h"
 #include "planner.h"
@@ -72,6 +73,7 @@ typedef struct {
   uint64_t produce_errors;   /**< bricks whose production failed (clocked: asked again) */
   int last_error;            /**< the last failure's OC_E* and brick */
   oc_key_t last_error_key;
+  ocs_hist_view_t brick_seconds; /**< what each brick made took (wall s on its producer thread) */
 } ocs_world_stats_t;
 
 typedef struct {
