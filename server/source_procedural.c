@@ -29,62 +29,13 @@
 #include <string.h>
 
 #include "oc_err.h"
-#include "oc_noise.h"
-#include "oc_planet.h"
-#include "ocs_field.h"
-#include "weather.h"
-
-#define OCG_REAL_DOUBLE /* Märkl's conversions in double, from the one shared implementation */
-#include "optics.h"     /* ocg_sigma_t_liquid, ocg_sigma_t_ice */
-
-/*-*** Tuning knobs ***/
-
-/*! Fewest strata per axis of the box filter: 4³ = 64 points per sample (oc_voxelize's default),
- *  all a fine level needs. */
-#ifndef OCS_PROC_SUB
-#define OCS_PROC_SUB 4
-#endif
-/*! Coarser levels add strata until their spacing is at most these many metres: along the two most
- *  horizontal axes (cumulus cells are 1–2 km across; with 4 strata a 7 km voxel's brick mean was
- *  off by up to 10%, with 6 by 1%), up to OCS_PROC_MAX_SUB_H, and along the axis closest to the local
- *  vertical (the layers are 0.3–3 km thick with flat bases; 100 m strata keep brick means within
- *  0.2% of 10 m ones), up to OCS_PROC_MAX_SUB_V. */
-#ifndef OCS_PROC_DH
-#define OCS_PROC_DH 450.0
-#endif
-#ifndef OCS_PROC_DZ
-#define OCS_PROC_DZ 100.0
-#endif
-#ifndef OCS_PROC_MAX_SUB_H
-#define OCS_PROC_MAX_SUB_H 6
-#endif
-/*! Most strata along the vertical axis (levels 0–4 reach it: their voxels are ≥ 115 km). */
-#ifndef OCS_PROC_MAX_SUB_V
-#define OCS_PROC_MAX_SUB_V 1024
-#endif
-/*! Octave truncation of the detail noise: at level L, an octave of period λ is kept while
- *  λ ≥ OCS_PROC_OCTAVE_DROP × the level's voxel size. 0 keeps every octave at every level. Any
- *  non-zero value must pass the parent-vs-descendants mean test (tests/server/test_procedural.c). */
-#ifndef OCS_PROC_OCTAVE_DROP
-#define OCS_PROC_OCTAVE_DROP 0.0
-#endif
-/*! Fraction of a voxel the content may move before a level's time step changes. */
-#ifndef OCS_PROC_STEP_VOXELS
-#define OCS_PROC_STEP_VOXELS 0.25
-#endif
-/*! Scale height of the air density, ρ_air(h) = 1.225·exp(-h/H): the least-squares fit to the
- *  1976 standard atmosphere over 0–12 km (within 3.5% up to 11 km; above the tropopause the air
- *  thins faster: 7% high at 12 km, 23% at 15 km, where only cumulonimbus tops live). */
-#define OCS_PROC_RHO_H 9200.0
-
-#define OCS__R OC_PLANET_RADIUS
-#define OCS__CHUNK 512 /* points per batch pass: the scratch stays in L1/L2 */
+#include "procedural.h"
 
 /*-*** Deterministic elementary functions (no libm in the output path) ***/
 
 /* e^x: Cody–Waite reduction by ln 2, degree-13 Taylor polynomial on |r| ≤ ln2/2 (truncation below
  * 2e-17 relative), exact scaling by ldexp. */
-static double ocs__exp(double x) {
+double ocs__exp(double x) {
   if (x < -700.0) return 0.0;
   if (x > 700.0) x = 700.0;
   double k = floor(x * 1.4426950408889634 + 0.5);
@@ -117,55 +68,13 @@ static void ocs__sincos(double a, double *s, double *c) {
   *c = cs;
 }
 
-static inline double ocs__sat(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
-static inline double ocs__smoothstep(double a, double b, double x) {
-  double u = ocs__sat((x - a) / (b - a));
-  return u * u * (3.0 - 2.0 * u);
-}
-/* Biweight bump: (1 - x²)² on |x| < 1, else 0; monotone on each side of 0. */
-static inline double ocs__bump(double x) {
-  double u = 1.0 - x * x;
-  return u > 0.0 ? u * u : 0.0;
-}
-static inline double ocs__rho_air(double h) { return 1.225 * ocs__exp(-h / OCS_PROC_RHO_H); }
-
-/*-*** Layers ***/
-
-typedef struct {
-  double lambda;       /* m: period of the first octave */
-  double lambda_short; /* m: period along the layer's wind axis (streaks across it); 0: isotropic */
-  int octaves;         /* lacunarity 2, gain 0.5 */
-  double drift[3];     /* m/s: drift of the pattern in the layer's advected frame (evolution) */
-} ocs__nspec_t;
-
-enum { OCS__LIQUID = 0, OCS__ICE = 1, OCS__MIXED = 2 };
-
-typedef struct {
-  const char *name;
-  ocs__nspec_t cov, cell, det; /* coverage C and cells K on the sphere; 3D detail D */
-  double axis[3], wind;        /* advection: rotation about axis; m/s at its equator, sea level */
-  double s_w;                  /* coverage ramp width (in units of C) */
-  double a0, a1;               /* A = W·sat(a0 + a1·K) */
-  double h_c, H_lo, H_hi;      /* Q: ((h_c - h)/H_lo)^p_lo below h_c, ((h - h_c)/H_hi)^p_hi above */
-  int p_lo, p_hi;              /* 1 or 2 */
-  double h_tp, H_tp;           /* above h_tp, add (h - h_tp)/H_tp (H_tp 0: none) */
-  double anvil, h_av, w_av;    /* subtract anvil·bump((h - h_av)/w_av) */
-  double e, k_d;               /* erosion e·sat(1/2 - k_d·D) */
-  double F_w;                  /* width of the density ramp φ = sat(F/F_w) */
-  int phase;                   /* OCS__LIQUID, OCS__ICE, OCS__MIXED */
-  double wc;                   /* kg/kg: nominal water content */
-  double prof_lo, prof_dh;     /* prof = prof_lo + (1 - prof_lo)·sat((h - h_c)/prof_dh) (prof_dh 0: 1) */
-  double thin_lo, thin_hi, thin; /* × (1 - thin·smoothstep(thin_lo, thin_hi, h)) */
-  double glac_lo, glac_hi, ice_ratio; /* mixed: ice fraction g = smoothstep(glac_lo, glac_hi, h),
-                                         liquid (1 - g)·wc, ice g·ice_ratio·wc */
-} ocs__layer_t;
 
 /* Altitudes, sizes and water contents from the usual cloud climatology (Wakapon's cloud types;
  * LWC/IWC ranges as in Märkl 2018): stratus 0.35–1.35 km; cumulus base 1.2 km, tops 2–5.4 km;
  * cumulonimbus base 1 km, tops to 14.7 km, anvil near 11.5 km, glaciating over 4–7 km; cirrus
  * 8.7–11.3 km. Winds: easterly low stratus, westerlies increasing with height, a 25 m/s jet for
  * cirrus. */
-static const ocs__layer_t ocs__layers[OCS_LAYER_COUNT] = {
+const ocs__layer_t ocs__layers[OCS_LAYER_COUNT] = {
     [OCS_LAYER_STRATUS] = {.name = "stratus",
                            .cov = {800e3, 0, 4, {1.2, -0.8, 0.5}},
                            .cell = {15e3, 0, 3, {0.5, 0.6, -0.4}},
@@ -208,6 +117,7 @@ static const ocs__layer_t ocs__layers[OCS_LAYER_COUNT] = {
                           .phase = OCS__ICE, .wc = 2.5e-5, .prof_lo = 1.0},
 };
 
+
 /* θ(cov): the (1 - cov) quantile of a 4-octave fBm (lacunarity 2, gain 0.5) over the sphere, at
  * cov = k/32 (measured once over 2e6 random directions; mean 0, sd 0.160, range ±0.64), so that
  * the coverage map has cloud (W > 0) on about a fraction cov of the planet. */
@@ -227,93 +137,6 @@ static double ocs__theta(double cov, double s_w) {
   return a + (b - a) * f;
 }
 
-/* Q(h) without the anvil: decreasing below h_c, increasing above (the minimum is at h_c). */
-static inline double ocs__q_mono(const ocs__layer_t *L, double h) {
-  double q;
-  if (h < L->h_c) {
-    double x = (L->h_c - h) / L->H_lo;
-    q = L->p_lo == 2 ? x * x : x;
-  } else {
-    double x = (h - L->h_c) / L->H_hi;
-    q = L->p_hi == 2 ? x * x : x;
-  }
-  if (L->H_tp > 0.0 && h > L->h_tp) q += (h - L->h_tp) / L->H_tp;
-  return q;
-}
-static inline double ocs__q(const ocs__layer_t *L, double h) {
-  double q = ocs__q_mono(L, h);
-  if (L->anvil > 0.0) q -= L->anvil * ocs__bump((h - L->h_av) / L->w_av);
-  return q;
-}
-/* Water-content profile: a non-decreasing factor times a non-increasing one. */
-static inline double ocs__prof_up(const ocs__layer_t *L, double h) {
-  return L->prof_dh > 0.0 ? L->prof_lo + (1.0 - L->prof_lo) * ocs__sat((h - L->h_c) / L->prof_dh) : 1.0;
-}
-static inline double ocs__prof_down(const ocs__layer_t *L, double h) {
-  return L->thin > 0.0 ? 1.0 - L->thin * ocs__smoothstep(L->thin_lo, L->thin_hi, h) : 1.0;
-}
-
-/*-*** The source ***/
-
-typedef struct {
-  double axis[3];          /* unit wind axis */
-  double omega;            /* rad/s */
-  double band_lo, band_hi; /* m: outside, Q ≥ 1 + anvil and the layer is exactly empty */
-  oc_fbm_t fcov, fcell, fdet;
-  double inv[3][2];        /* [cov, cell, det][1/λ, 1/λ_short] */
-  int aniso[3];
-  double lip_cov, lip_cell; /* bound on |∇C|, |∇K| per metre of the point on the reference sphere */
-} ocs__lstate_t;
-
-typedef struct {
-  ocs_source_t base; /* first: the field holds ocs_source_t pointers */
-  ocs_weather_t weather;
-  double sigma_scale;
-  double vmax; /* m/s: fastest motion of any pattern */
-  double dt0;  /* s: motion time step at level 0 */
-  ocs__lstate_t L[OCS_LAYER_COUNT];
-} ocs__proc_t;
-
-/* What one evaluation needs at one (level, time): snapped motion time, blended weather. */
-typedef struct {
-  double M[9];                /* rotation planet frame → layer's advected frame */
-  double theta, wc;           /* coverage threshold; water content kg/kg */
-  double off[3][3];           /* [cov, cell, det]: noise-space drift offsets */
-  oc_fbm_t det;               /* detail fBm with this level's octaves */
-  double det_scale;           /* Σ kept amplitudes / Σ all */
-} ocs__lframe_t;
-
-typedef struct {
-  unsigned mask; /* layers that may hold cloud */
-  double sigma_scale;
-  ocs__lframe_t l[OCS_LAYER_COUNT];
-} ocs__frame_t;
-
-enum { OCS__COV = 0, OCS__CELL = 1, OCS__DET = 2 };
-
-static inline void ocs__rotate(const double M[9], const double *p, double *q) {
-  q[0] = M[0] * p[0] + M[1] * p[1] + M[2] * p[2];
-  q[1] = M[3] * p[0] + M[4] * p[1] + M[5] * p[2];
-  q[2] = M[6] * p[0] + M[7] * p[1] + M[8] * p[2];
-}
-
-/* Noise-space coordinates of a pattern at X (metres): X/λ, or with streaks, the component along
- * the wind axis over λ_short and the rest over λ; plus the drift offset. */
-static inline void ocs__coords(const ocs__lstate_t *S, int f, const double X[3], const double off[3], double *out) {
-  double il = S->inv[f][0];
-  if (!S->aniso[f]) {
-    out[0] = X[0] * il + off[0];
-    out[1] = X[1] * il + off[1];
-    out[2] = X[2] * il + off[2];
-  } else {
-    double is = S->inv[f][1], d = X[0] * S->axis[0] + X[1] * S->axis[1] + X[2] * S->axis[2];
-    for (int k = 0; k < 3; k++) {
-      double par = d * S->axis[k];
-      out[k] = (X[k] - par) * il + par * is + off[k];
-    }
-  }
-}
-
 static double ocs__fbm_lipschitz(const oc_fbm_t *f) {
   double num = 0.0, den = 0.0, a = 1.0, fr = 1.0;
   for (int i = 0; i < f->octaves; i++) {
@@ -325,7 +148,6 @@ static double ocs__fbm_lipschitz(const oc_fbm_t *f) {
   return OC_NOISE_LIPSCHITZ * num / den;
 }
 
-static inline double ocs__voxel_size(int level) { return ldexp(2.0 * OC_ROOT_HALF / 7.0, -level); }
 
 /* Motion step of a level at t (0 when the source is static). */
 static int64_t ocs__motion_step(const ocs__proc_t *P, int level, double t) {
@@ -338,7 +160,7 @@ static int64_t ocs__motion_step(const ocs__proc_t *P, int level, double t) {
 
 /* The evaluation frame. level ≥ 0: a brick of that level (motion time snapped to the level's
  * step, weather quantised, detail octaves for the level); level < 0: a point at exactly t. */
-static void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F) {
+void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F) {
   double tm;
   if (level >= 0)
     tm = (double)ocs__motion_step(P, level, t) * ldexp(P->dt0, -level);
@@ -397,29 +219,6 @@ static void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *
 
 /*-*** The finest σt ***/
 
-/* The coverage ramp W from the coverage value C, and the cell ramp V from the cell value K; the
- * column strength is A = W·V, and there is no cloud where it is 0. */
-static inline double ocs__w(const ocs__layer_t *L, const ocs__lframe_t *lf, float C) {
-  return ocs__sat(((double)C - lf->theta) / L->s_w);
-}
-static inline double ocs__v(const ocs__layer_t *L, float K) { return ocs__sat(L->a0 + L->a1 * (double)K); }
-/* σt of a layer from G > 0, the detail value D and the altitude. */
-static inline double ocs__sigma(const ocs__layer_t *L, const ocs__frame_t *F, const ocs__lframe_t *lf, double G,
-                                float D, double h) {
-  double d = (double)D * lf->det_scale;
-  double phi = ocs__sat((G - L->e * ocs__sat(0.5 - L->k_d * d)) / L->F_w);
-  if (!(phi > 0.0)) return 0.0;
-  double wc = lf->wc * ocs__prof_up(L, h) * ocs__prof_down(L, h) * phi, rho = ocs__rho_air(h), s;
-  if (L->phase == OCS__LIQUID)
-    s = ocg_sigma_t_liquid(wc, rho);
-  else if (L->phase == OCS__ICE)
-    s = ocg_sigma_t_ice(wc, rho);
-  else {
-    double g = ocs__smoothstep(L->glac_lo, L->glac_hi, h);
-    s = ocg_sigma_t_liquid(wc * (1.0 - g), rho) + ocg_sigma_t_ice(wc * g * L->ice_ratio, rho);
-  }
-  return F->sigma_scale * s;
-}
 
 /* One layer at one point (r = |p|, h = r - R), the scalar twin of ocs__layer_batch(). */
 static double ocs__layer_point(const ocs__proc_t *P, const ocs__frame_t *F, int l, const double p[3], double r,
@@ -462,14 +261,6 @@ static double ocs__proc_point(const ocs_source_t *s, oc_dvec3 p, double t) {
 
 /*-*** Bound ***/
 
-/* What a box bound learns per layer: the coverage range and the cell maximum over the box (a
- * sub-box may reuse them: they bound it too), the layers that may be non-zero, and those whose
- * coverage ramp is exactly 1 over the whole box (their coverage noise need not be evaluated). */
-typedef struct {
-  double cmin[OCS_LAYER_COUNT], cmax[OCS_LAYER_COUNT], kmax[OCS_LAYER_COUNT];
-  unsigned mask, wone;
-} ocs__bb_t;
-
 /* The directions a box covers: within angle θ of its centre's direction ĉ. */
 typedef struct {
   double c[3];       /* box centre, planet frame */
@@ -478,10 +269,6 @@ typedef struct {
   double chord, tan_t; /* 2 sin(θ/2), tan θ */
 } ocs__cap_t;
 
-/*! Largest grid half-size m of ocs__dir_range(): (2m + 1)² = 289 noise points per field. */
-#ifndef OCS_PROC_BOUND_GRID
-#define OCS_PROC_BOUND_GRID 8
-#endif
 /*! Lipschitz margin below which the grid is not refined further, and above which it is not worth
  *  evaluating (the noise values span about ±0.6). */
 #define OCS__GRID_EPS 0.02
@@ -532,7 +319,7 @@ static void ocs__dir_range(const ocs__proc_t *P, const ocs__lframe_t *lf, int l,
  * coverage and cell values are bounded by ocs__dir_range() (grid ≤ `grid`, 0: the centre only);
  * layers in `reuse` take their ranges from `inherit` (an enclosing box) instead. Detail erosion
  * is ≥ 0, so it never raises the bound. Small margins cover ulp-level non-monotonicity. */
-static double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3],
+double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3],
                            const double hi[3], int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb) {
   bb->mask = bb->wone = 0;
   unsigned todo = F->mask & only;
@@ -646,253 +433,6 @@ static void ocs__proc_bound(const ocs_source_t *s, oc_dvec3 lo, oc_dvec3 hi, dou
   *smax = ocs__round_up(ocs__box_max(P, &F, ~0u, l3, h3, OCS_PROC_BOUND_GRID, NULL, 0, &bb));
 }
 
-/*-*** Bricks ***/
-
-typedef struct {
-  int n;
-  double p[3 * OCS__CHUNK], r[OCS__CHUNK], h[OCS__CHUNK], sig[OCS__CHUNK];
-  uint16_t vox[OCS__CHUNK];
-  uint8_t mask[OCS__CHUNK], wone[OCS__CHUNK]; /* the voxel's ocs__bb_t mask and wone */
-  /* per-layer scratch */
-  int idx[OCS__CHUNK], sel[OCS__CHUNK];
-  double q[3 * OCS__CHUNK], xyz[3 * OCS__CHUNK], w[OCS__CHUNK], v[OCS__CHUNK];
-  float val[OCS__CHUNK];
-  double sum[OC_BRICK_VOXELS];
-} ocs__ws_t;
-
-/* One layer over the chunk's points in three batch passes; each pass keeps only the points that
- * can still be non-zero, which skips exactly the work whose result could only be 0 (G = W·V - Q
- * with W the coverage ramp and V = sat(a0 + a1·K) the cell ramp: when either is 0, G ≤ 0).
- * Layers whose cells are mostly empty (a0 ≤ 0: cumulus, cumulonimbus) evaluate the cheaper cell
- * noise first; where the voxel's bound proved W = 1, the coverage noise is not evaluated at all.
- * The value of each point is that of ocs__layer_point() whatever the order. Adds σt to ws->sig in
- * layer order, as ocs__eval_point() does. */
-static void ocs__layer_batch(const ocs__proc_t *P, const ocs__frame_t *F, int l, ocs__ws_t *ws) {
-  const ocs__layer_t *L = &ocs__layers[l];
-  const ocs__lstate_t *S = &P->L[l];
-  const ocs__lframe_t *lf = &F->l[l];
-  int m = 0;
-  for (int i = 0; i < ws->n; i++)
-    if ((ws->mask[i] >> l & 1u) && ws->h[i] >= S->band_lo && ws->h[i] <= S->band_hi) {
-      double *q = &ws->q[3 * m];
-      ocs__rotate(lf->M, &ws->p[3 * i], q);
-      ws->w[m] = 1.0; /* W, until computed */
-      ws->v[m] = 1.0; /* V, until computed */
-      ws->idx[m++] = i;
-    }
-  int cell_first = L->a0 <= 0.0;
-  for (int pass = 0; pass < 2 && m > 0; pass++) {
-    int cov = (pass == 0) != cell_first;
-    int n = 0;
-    for (int j = 0; j < m; j++) {
-      int i = ws->idx[j];
-      if (cov && (ws->wone[i] >> l & 1u)) continue; /* W = 1 exactly */
-      const double *q = &ws->q[3 * j];
-      double X[3], s = OCS__R / ws->r[i];
-      X[0] = q[0] * s, X[1] = q[1] * s, X[2] = q[2] * s;
-      ocs__coords(S, cov ? OCS__COV : OCS__CELL, X, lf->off[cov ? OCS__COV : OCS__CELL], &ws->xyz[3 * n]);
-      ws->sel[n++] = j;
-    }
-    oc_fbm3_batch(ws->xyz, n, cov ? &S->fcov : &S->fcell, ws->val);
-    for (int t = 0; t < n; t++) {
-      int j = ws->sel[t];
-      if (cov)
-        ws->w[j] = ocs__w(L, lf, ws->val[t]);
-      else
-        ws->v[j] = ocs__v(L, ws->val[t]);
-    }
-    int k = 0; /* compact the survivors */
-    for (int j = 0; j < m; j++) {
-      if (!(ws->w[j] > 0.0) || !(ws->v[j] > 0.0)) continue;
-      if (k != j) {
-        ws->idx[k] = ws->idx[j], ws->w[k] = ws->w[j], ws->v[k] = ws->v[j];
-        memcpy(&ws->q[3 * k], &ws->q[3 * j], 3 * sizeof(double));
-      }
-      k++;
-    }
-    m = k;
-  }
-  int k = 0;
-  for (int j = 0; j < m; j++) {
-    double G = ws->w[j] * ws->v[j] - ocs__q(L, ws->h[ws->idx[j]]);
-    if (!(G > 0.0)) continue;
-    ws->idx[k] = ws->idx[j], ws->w[k] = G;
-    if (k != j) memcpy(&ws->q[3 * k], &ws->q[3 * j], 3 * sizeof(double));
-    k++;
-  }
-  m = k;
-  if (!m) return;
-  for (int j = 0; j < m; j++) ocs__coords(S, OCS__DET, &ws->q[3 * j], lf->off[OCS__DET], &ws->xyz[3 * j]);
-  oc_fbm3_batch(ws->xyz, m, &lf->det, ws->val);
-  for (int j = 0; j < m; j++) {
-    int i = ws->idx[j];
-    ws->sig[i] += ocs__sigma(L, F, lf, ws->w[j], ws->val[j], ws->h[i]);
-  }
-}
-
-static void ocs__flush(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *ws) {
-  for (int i = 0; i < ws->n; i++) ws->sig[i] = 0.0;
-  for (int l = 0; l < OCS_LAYER_COUNT; l++)
-    if (F->mask >> l & 1u) ocs__layer_batch(P, F, l, ws);
-  /* In point order: each voxel's points are contiguous and in oc_brick_sample()'s order. */
-  for (int i = 0; i < ws->n; i++) ws->sum[ws->vox[i]] += ws->sig[i];
-  ws->n = 0;
-}
-
-/* A point of voxel v into the batch if it lies in [band_lo, band_hi] (outside, every layer is
- * exactly 0). r is computed as |p| always is, so the points' values do not depend on the path. */
-static inline void ocs__add_point(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *ws, const double xyz[3],
-                                  double band_lo, double band_hi, int v, const ocs__bb_t *vb) {
-  double x = xyz[0], y = xyz[1], z = xyz[2];
-  double r = sqrt(x * x + y * y + z * z), h = r - OCS__R;
-  if (!(h >= band_lo && h <= band_hi)) return;
-  int at = ws->n++;
-  ws->p[3 * at] = x, ws->p[3 * at + 1] = y, ws->p[3 * at + 2] = z;
-  ws->r[at] = r, ws->h[at] = h;
-  ws->vox[at] = (uint16_t)v;
-  ws->mask[at] = (uint8_t)vb->mask;
-  ws->wone[at] = (uint8_t)vb->wone;
-  if (ws->n == OCS__CHUNK) ocs__flush(P, F, ws);
-}
-
-/* The strata m of a column whose vertical coordinate t(m) = -S + (g + (m + ½)/n - ½)·u can meet
- * the band: with a2 the squared horizontal distance from the axis, R + band_lo ≤ √(a2 + t²) ≤ R +
- * band_hi holds only for |t| in [t_lo, t_hi]. Solved for m in closed form, widened by two strata
- * for rounding (far more than the ~1e-9 relative error of the inversion), clamped, as at most two
- * increasing runs m0[i]..m1[i]. @return the number of runs (0: the column misses the band). */
-static int ocs__column_range(double a2, double band_lo, double band_hi, double g, double u, int n, int m0[2],
-                             int m1[2]) {
-  double rlo = OCS__R + band_lo, rhi = OCS__R + band_hi;
-  double hi2 = rhi * rhi - a2, lo2 = rlo * rlo - a2;
-  if (!(hi2 > -1e-6 * rhi * rhi)) return 0; /* a column within ~3 m of the top still counts */
-  double t_hi = sqrt(hi2 > 0.0 ? hi2 : 0.0), t_lo = lo2 > 0.0 ? sqrt(lo2) : 0.0;
-  /* m(t) = ((t + S)/u - g + ½)·n - ½, increasing in t */
-  double ta[2] = {-t_hi, t_lo}, tb[2] = {-t_lo, t_hi};
-  int runs = 0;
-  for (int k = 0; k < 2; k++) {
-    double a = ((ta[k] + OC_ROOT_HALF) / u - g + 0.5) * (double)n - 0.5;
-    double b = ((tb[k] + OC_ROOT_HALF) / u - g + 0.5) * (double)n - 0.5;
-    if (!(b >= -2.0) || !(a <= (double)n + 1.0)) continue;
-    int lo = a < 2.0 ? 0 : (int)floor(a) - 2, hi = b > (double)n - 3.0 ? n - 1 : (int)ceil(b) + 2;
-    if (runs && lo <= m1[runs - 1] + 1) { /* overlaps the first run (t_lo small): one run */
-      if (hi > m1[runs - 1]) m1[runs - 1] = hi;
-      continue;
-    }
-    m0[runs] = lo, m1[runs] = hi;
-    runs++;
-  }
-  return runs;
-}
-
-/* Strata of a level: sub_h along the two most horizontal axes, sub_v along the most vertical. */
-static int ocs__strata(int level, double spacing, int max) {
-  double n = ceil(ocs__voxel_size(level) / spacing);
-  return n < OCS_PROC_SUB ? OCS_PROC_SUB : (n > max ? max : (int)n);
-}
-static void ocs__subs(int level, int *sub_h, int *sub_v) {
-  *sub_h = ocs__strata(level, OCS_PROC_DH, OCS_PROC_MAX_SUB_H);
-  *sub_v = ocs__strata(level, OCS_PROC_DZ, OCS_PROC_MAX_SUB_V);
-}
-
-static int ocs__proc_sample(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
-  const ocs__proc_t *P = (const ocs__proc_t *)s;
-  int level = oc_key_level(key);
-  if (level < 0 || !out) return OC_EINVAL;
-  ocs__frame_t F;
-  ocs__frame(P, level, t, &F);
-  if (!F.mask) return 0;
-  oc_dvec3 o;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
-  ocs__bb_t nb;
-  if (!(ocs__box_max(P, &F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, &nb) > 0.0)) return 0;
-
-  int sub_h, sub_v;
-  ocs__subs(level, &sub_h, &sub_v);
-  double off_h[OCS_PROC_MAX_SUB_H], off_v[OCS_PROC_MAX_SUB_V];
-  for (int m = 0; m < sub_h; m++) off_h[m] = ((double)m + 0.5) / (double)sub_h - 0.5;
-  for (int m = 0; m < sub_v; m++) off_v[m] = ((double)m + 0.5) / (double)sub_v - 0.5;
-  ocs__ws_t *ws = malloc(sizeof *ws);
-  if (!ws) return OC_ENOMEM;
-  ws->n = 0;
-  memset(ws->sum, 0, sizeof ws->sum);
-  double inv[OC_BRICK_VOXELS];
-  uint32_t ic[3];
-  oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
-  double u = ocs__voxel_size(level);
-  /* Per-voxel bounds re-evaluate a layer's noise only where that can decide something: the node's
-   * coverage is in the ramp (a voxel may be all 0 or all 1), or the cell bound is informative at
-   * the voxel's size (Lipschitz step below 1/2). Elsewhere they reuse the node's ranges. */
-  unsigned reuse = 0;
-  for (int l = 0; l < OCS_LAYER_COUNT; l++)
-    if ((nb.wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) reuse |= 1u << l;
-
-  for (int k = 0; k < 8; k++)
-    for (int j = 0; j < 8; j++)
-      for (int i = 0; i < 8; i++) {
-        int v = i + 8 * j + 64 * k, ijk[3] = {i, j, k};
-        double gg[3], c[3], vlo[3], vhi[3];
-        for (int a = 0; a < 3; a++) {
-          gg[a] = (double)(7 * (int64_t)ic[a] + ijk[a]);
-          c[a] = -OC_ROOT_HALF + gg[a] * u;
-          vlo[a] = c[a] - 0.5 * u;
-          vhi[a] = c[a] + 0.5 * u;
-        }
-        /* The strata's shape depends only on the sample's own position, so a face sample shared
-         * with a neighbour gets the same points from either brick. */
-        int va = fabs(c[1]) > fabs(c[0]) ? 1 : 0;
-        va = fabs(c[2]) > fabs(c[va]) ? 2 : va;
-        int n[3] = {sub_h, sub_h, sub_h};
-        n[va] = sub_v;
-        inv[v] = 1.0 / ((double)n[0] * n[1] * n[2]);
-        ocs__bb_t vb;
-        if (!(ocs__box_max(P, &F, nb.mask, vlo, vhi, 0, &nb, reuse, &vb) > 0.0)) continue;
-        unsigned vm = vb.mask;
-        double band_lo = INFINITY, band_hi = -INFINITY;
-        for (int l = 0; l < OCS_LAYER_COUNT; l++)
-          if (vm >> l & 1u) {
-            band_lo = fmin(band_lo, P->L[l].band_lo);
-            band_hi = fmax(band_hi, P->L[l].band_hi);
-          }
-        if (n[va] == sub_h) { /* isotropic: oc_brick_sample()'s order, so the sums are its bits */
-          for (int mz = 0; mz < sub_h; mz++) {
-            double z = -OC_ROOT_HALF + (gg[2] + off_h[mz]) * u;
-            for (int my = 0; my < sub_h; my++) {
-              double y = -OC_ROOT_HALF + (gg[1] + off_h[my]) * u;
-              for (int mx = 0; mx < sub_h; mx++) {
-                double xyz[3] = {-OC_ROOT_HALF + (gg[0] + off_h[mx]) * u, y, z};
-                ocs__add_point(P, &F, ws, xyz, band_lo, band_hi, v, &vb);
-              }
-            }
-          }
-          continue;
-        }
-        /* Anisotropic (coarse): column by column along the vertical axis, each column's strata
-         * limited to those that can meet the band (ocs__column_range); the exact test still
-         * decides each point. */
-        int ha = va == 0 ? 1 : 0, hb = va == 2 ? 1 : 2;
-        for (int mb = 0; mb < sub_h; mb++)
-          for (int ma = 0; ma < sub_h; ma++) {
-            double xyz[3];
-            xyz[ha] = -OC_ROOT_HALF + (gg[ha] + off_h[ma]) * u;
-            xyz[hb] = -OC_ROOT_HALF + (gg[hb] + off_h[mb]) * u;
-            int m0[2], m1[2];
-            int runs = ocs__column_range(xyz[ha] * xyz[ha] + xyz[hb] * xyz[hb], band_lo, band_hi, gg[va], u, sub_v, m0, m1);
-            for (int run = 0; run < runs; run++)
-              for (int m = m0[run]; m <= m1[run]; m++) {
-                xyz[va] = -OC_ROOT_HALF + (gg[va] + off_v[m]) * u;
-                ocs__add_point(P, &F, ws, xyz, band_lo, band_hi, v, &vb);
-              }
-          }
-      }
-  ocs__flush(P, &F, ws);
-  for (int v = 0; v < OC_BRICK_VOXELS; v++)
-    if (ws->sum[v] > 0.0) out[v] += (float)(ws->sum[v] * inv[v]);
-  free(ws);
-  return 0;
-}
-
 /*-*** Time ***/
 
 /* The motion part moves one level step every OCS_PROC_STEP_VOXELS voxels of the fastest pattern
@@ -918,7 +458,7 @@ static void ocs__proc_destroy(ocs_source_t *s) { free(s); }
 static const ocs_source_vtbl_t ocs__proc_vt = {
     .name = "procedural",
     .bound = ocs__proc_bound,
-    .sample = ocs__proc_sample,
+    .sample = ocs__proc_sample_strata,
     .time_step = ocs__proc_time_step,
     .point = ocs__proc_point,
     .set_weather = ocs__proc_set_weather,
