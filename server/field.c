@@ -23,6 +23,7 @@ _Static_assert((OCS_FIELD_BOUND_CACHE_SLOTS & (OCS_FIELD_BOUND_CACHE_SLOTS - 1))
 struct ocs_field_s {
   int count;
   int cache_on;
+  int exact; /* sample with each source's sample_exact where it has one */
   ocs_source_t *src[OC_SCENE_MAX_SOURCES];
   ocs__bslot_t *bc[OC_SCENE_MAX_SOURCES]; /* NULL: the source is not cached */
   atomic_ullong sampled, bounds, hits, misses;
@@ -90,6 +91,8 @@ int ocs_field_create(ocs_field_t **out, const oc_scene_t *sc, char *why, size_t 
   atomic_init(&f->misses, 0);
   const char *env = getenv("OCS_FIELD_BOUND_CACHE"); /* "0": bypassed, for before/after benches */
   f->cache_on = !(env && strcmp(env, "0") == 0);
+  env = getenv("OCS_FIELD_EXACT"); /* "1": the exact box filters, for before/after benches */
+  f->exact = env && strcmp(env, "1") == 0;
   for (int i = 0; i < sc->nsources; i++) {
     const oc_source_t *d = &sc->sources[i];
     char sub[512] = "";
@@ -180,7 +183,10 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
 int ocs_field_sample(const ocs_field_t *f, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
   if (!oc_key_valid(key)) return OC_EINVAL;
   memset(out, 0, sizeof(float) * OC_BRICK_VOXELS);
-  for (int i = 0; i < f->count; i++) OC_TRY(f->src[i]->vt->sample(f->src[i], key, t, out));
+  for (int i = 0; i < f->count; i++) {
+    const ocs_source_vtbl_t *vt = f->src[i]->vt;
+    OC_TRY((f->exact && vt->sample_exact ? vt->sample_exact : vt->sample)(f->src[i], key, t, out));
+  }
   atomic_fetch_add_explicit(&((ocs_field_t *)f)->sampled, 1, memory_order_relaxed);
   return 0;
 }
@@ -226,4 +232,8 @@ void ocs_field_set_bound_cache(ocs_field_t *f, int on) {
   if (!f) return;
   ocs__bcache_clear(f);
   f->cache_on = on != 0;
+}
+
+void ocs_field_set_exact(ocs_field_t *f, int on) {
+  if (f) f->exact = on != 0;
 }

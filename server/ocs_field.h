@@ -57,6 +57,9 @@ typedef struct {
    *  time_step(node's level, t)) between set_weather() calls, so the field may cache it (0: the
    *  field calls bound() every time). */
   int bound_by_step;
+  /*! sample_exact() : optional; the exact box filter where sample() is a cheaper estimate of it
+   *  (NULL: sample() is exact). Tests and benches compare the two (ocs_field_set_exact()). */
+  int (*sample_exact)(const ocs_source_t *src, oc_key_t key, double t, float out[OC_BRICK_VOXELS]);
 } ocs_source_vtbl_t;
 
 struct ocs_source_s {
@@ -100,6 +103,12 @@ void ocs_field_stats(const ocs_field_t *f, ocs_field_stats_t *out);
 /*! ocs_field_set_bound_cache() : on = 0 bypasses the bound cache (and empties it), on = 1 uses it
  *  again (the default); for tests and before/after benches. Bounds are the same bits either way. */
 void ocs_field_set_bound_cache(ocs_field_t *f, int on);
+
+/*! ocs_field_set_exact() : on = 1 makes ocs_field_sample() use each source's exact box filter
+ *  (sample_exact) where the source has one, on = 0 its default sample() again. For tests and
+ *  benches (the oracle of the fast filters); not to be raced with sampling. The environment
+ *  variable OCS_FIELD_EXACT=1 at ocs_field_create() sets it. */
+void ocs_field_set_exact(ocs_field_t *f, int on);
 
 /* Constructors of the source kinds (server/source_*.c), used by ocs_field_create(). */
 int ocs_source_analytic_create(ocs_source_t **out, const oc_source_t *desc, char *why, size_t why_len);

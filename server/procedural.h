@@ -163,6 +163,7 @@ typedef struct {
   double off[3][3];           /* [cov, cell, det]: noise-space drift offsets */
   oc_fbm_t det;               /* detail fBm with this level's octaves */
   double det_scale;           /* Σ kept amplitudes / Σ all */
+  double kmargin, amargin;    /* ocs__col_margins() of the frame's level */
 } ocs__lframe_t;
 
 typedef struct {
@@ -249,6 +250,17 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
 /* Strata of the exact box filter at a level: sub_h along the two most horizontal axes of a voxel,
  * sub_v along the most vertical (procedural_strata.c). */
 void ocs__subs(int level, int *sub_h, int *sub_v);
+
+/* A layer's band: outside [lo, hi], Q ≥ 1 + anvil and the layer is exactly empty. */
+void ocs__layer_band(const ocs__layer_t *L, double *lo, double *hi);
+
+/* The fast filter's tables, built once per process (thread-safe; the layers' constants are all
+ * they depend on). @return 0 or OC_ENOMEM. */
+int ocs__col_tables(void);
+/* What the fast filter's estimate of a layer at a level may exceed the evaluated field by: cell
+ * values up to kmargin beyond the evaluated octaves, A' up to amargin (one table step); 0 for
+ * level < 0 (points). ocs__frame() puts them in the frame, ocs__box_max() adds them. */
+void ocs__col_margins(int level, int layer, double *kmargin, double *amargin);
 
 /* The two samplers of a brick (the vtable's sample() and sample_exact()): ADD the source's σt. */
 int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]);

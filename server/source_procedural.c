@@ -201,6 +201,7 @@ void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F) {
     }
     lf->det = S->fdet;
     lf->det_scale = 1.0;
+    ocs__col_margins(level, l, &lf->kmargin, &lf->amargin);
     if (level >= 0 && OCS_PROC_OCTAVE_DROP > 0.0) {
       double keep = OCS_PROC_OCTAVE_DROP * ocs__voxel_size(level);
       double lam = L->det.lambda_short > 0.0 ? L->det.lambda_short : L->det.lambda;
@@ -373,7 +374,8 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
     bb->cmin[l] = cmin, bb->cmax[l] = cmax, bb->kmax[l] = kmax;
     double W = ocs__sat((cmax - lf->theta) / L->s_w);
     if (!(W > 0.0)) continue;
-    double A = W * ocs__sat(L->a0 + L->a1 * (kmax > 1.0 ? 1.0 : kmax));
+    double km = kmax + lf->kmargin; /* the fast filter's estimate may reach this far (procedural_columns.c) */
+    double A = W * ocs__sat(L->a0 + L->a1 * (km > 1.0 ? 1.0 : km)) + lf->amargin;
     double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c);
     double qmin = ocs__q_mono(L, hq);
     if (L->anvil > 0.0) {
@@ -458,7 +460,8 @@ static void ocs__proc_destroy(ocs_source_t *s) { free(s); }
 static const ocs_source_vtbl_t ocs__proc_vt = {
     .name = "procedural",
     .bound = ocs__proc_bound,
-    .sample = ocs__proc_sample_strata,
+    .sample = ocs__proc_sample_columns,
+    .sample_exact = ocs__proc_sample_strata,
     .time_step = ocs__proc_time_step,
     .point = ocs__proc_point,
     .set_weather = ocs__proc_set_weather,
@@ -486,15 +489,19 @@ static double ocs__band_top(const ocs__layer_t *L) {
   return b + 1.0;
 }
 
+void ocs__layer_band(const ocs__layer_t *L, double *lo, double *hi) {
+  double lim = 1.0 + L->anvil;
+  *lo = L->h_c - L->H_lo * (L->p_lo == 2 ? sqrt(lim) : lim) - 1.0;
+  *hi = ocs__band_top(L);
+}
+
 static void ocs__init_layer(ocs__proc_t *P, int l, uint64_t seed) {
   const ocs__layer_t *L = &ocs__layers[l];
   ocs__lstate_t *S = &P->L[l];
   double an = sqrt(L->axis[0] * L->axis[0] + L->axis[1] * L->axis[1] + L->axis[2] * L->axis[2]);
   for (int k = 0; k < 3; k++) S->axis[k] = L->axis[k] / an;
   S->omega = L->wind / OCS__R;
-  double lim = 1.0 + L->anvil;
-  S->band_lo = L->h_c - L->H_lo * (L->p_lo == 2 ? sqrt(lim) : lim) - 1.0;
-  S->band_hi = ocs__band_top(L);
+  ocs__layer_band(L, &S->band_lo, &S->band_hi);
   const ocs__nspec_t *ns[3] = {&L->cov, &L->cell, &L->det};
   oc_fbm_t *fb[3] = {&S->fcov, &S->fcell, &S->fdet};
   double vmax = fabs(L->wind) * (OCS__R + S->band_hi) / OCS__R, drift = 0.0;
@@ -547,6 +554,10 @@ int ocs_source_procedural_create(ocs_source_t **out, const oc_source_t *desc, ui
     return rc;
   }
   for (int l = 0; l < OCS_LAYER_COUNT; l++) ocs__init_layer(P, l, seed);
+  if (ocs__col_tables() < 0) {
+    ocs__proc_destroy(&P->base);
+    return OC_ENOMEM;
+  }
   P->dt0 = OCS_PROC_STEP_VOXELS * ocs__voxel_size(0) / P->vmax;
   *out = &P->base;
   return 0;

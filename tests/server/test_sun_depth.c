@@ -540,9 +540,11 @@ static void stat_add(stat_t *s, double a, double b) {
 
 /* One volume for the 64 nodes of a cloudy group (sun 60° from the zenith), against ocs_tau_direct at
  * every sample holding σt (τ matters only there). Bounds, from the measurements in
- * docs/numerics.md with a 25–40 % margin: RMS |Δe^-τ| ≤ 0.009, worst |Δe^-τ| ≤ 0.35 (a few
+ * docs/numerics.md with a 20–40 % margin: RMS |Δe^-τ| ≤ 0.009, worst |Δe^-τ| ≤ 0.5 (a few
  * samples at the sharp shadow edges of optically thick cumulus: a sample's τ is interpolated
- * between columns one voxel apart whose τ differ by tens); |Δτ|/(1 + τ): RMS ≤ 0.05, worst ≤ 0.6.
+ * between columns one voxel apart whose τ differ by tens; the fast box filter's level-13 bricks,
+ * two columns a voxel side, have sharper edges than the exact filter's: worst 0.41 against 0.28);
+ * |Δτ|/(1 + τ): RMS ≤ 0.05, worst ≤ 0.9 (0.73 against 0.49).
  * The direct march is exact: steps and cone 8× finer (the same levels) change nothing but rounding. */
 static void test_sun_depth__volume_matches_direct_on_the_planet(void **st) {
   (void)st;
@@ -592,10 +594,10 @@ static void test_sun_depth__volume_matches_direct_on_the_planet(void **st) {
          s.t_max, rms_t, s.tau_max, rms_tau);
   assert_true(with_sigma >= 48);
   oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, RMS error of e^-τ (samples with σt)", rms_t, 0.009, "");
-  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, worst error of e^-τ", s.t_max, 0.35, "");
+  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, worst error of e^-τ", s.t_max, 0.5, "");
   oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, RMS of Δτ/(1+τ)", rms_tau, 0.05, "");
-  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, worst Δτ/(1+τ)", s.tau_max, 0.6, "");
-  assert_true(rms_t <= 0.009 && s.t_max <= 0.35 && rms_tau <= 0.05 && s.tau_max <= 0.6);
+  oc_report("tau", "planet, level-14 group, sun 60°: volume vs direct, worst Δτ/(1+τ)", s.tau_max, 0.9, "");
+  assert_true(rms_t <= 0.009 && s.t_max <= 0.5 && rms_tau <= 0.05 && s.tau_max <= 0.9);
 
   /* The direct march integrates the reconstruction exactly: steps and cone 8× finer (the same
    * levels at the same distances) change nothing but rounding. */
