@@ -247,6 +247,12 @@ typedef struct {
 double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3], const double hi[3],
                     int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb);
 
+/* The per-voxel bounds of a brick (ocs__box_max() with grid 0 on each voxel's cube, batched):
+ * the layers that may be non-zero, and those whose W is 1, per voxel. nb is the node's bound, whose
+ * ranges the layers in `reuse` take. */
+void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key, const ocs__bb_t *nb, unsigned reuse,
+                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS]);
+
 /* Strata of the exact box filter at a level: sub_h along the two most horizontal axes of a voxel,
  * sub_v along the most vertical (procedural_strata.c). */
 void ocs__subs(int level, int *sub_h, int *sub_v);

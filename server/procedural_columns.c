@@ -44,6 +44,7 @@
  *     of A'; a zero bound therefore means a zero estimate, whichever brick asks. */
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -79,10 +80,11 @@
  *  OCS_COL_DH metres, each integrated on OCS_COL_SUB sub-steps; OCS_COL_DIST points of each
  *  pattern's distribution for Ĵ. */
 #define OCS_COL_NA 257
-#define OCS_COL_NW 129
+#define OCS_COL_NX 129
+#define OCS_COL_NW 65
 #define OCS_COL_DH 4.0
 #define OCS_COL_SUB 16
-#define OCS_COL_DIST 512
+#define OCS_COL_DIST 16384
 
 #define OCS__R OC_PLANET_RADIUS
 #define OCS__CHUNK 512
@@ -94,7 +96,8 @@ typedef struct {
   int nh;         /* rows: altitude h0 + i·OCS_COL_DH, i < nh */
   double h0;      /* the layer's band_lo */
   float *j;       /* J: [OCS_COL_NA][nh] */
-  float *jbar;    /* Ĵ: [OCS_COL_NW][nh] */
+  float *jd;      /* J_D: [OCS_COL_NX][nh], the expectation over the full detail */
+  float *jbar;    /* Ĵ: [OCS_COL_NW][nh], over the full cells and detail */
 } ocs__tab_t;
 
 /* How a pattern's fBm splits at a level: the first n octaves are evaluated (fbm over them times
@@ -118,8 +121,9 @@ typedef struct {
 static struct {
   ocs__tab_t tab[OCS_LAYER_COUNT];
   ocs__plan_t plan[OCS__LEVELS][OCS_LAYER_COUNT];
-  int rc;
-} ocs__T;
+  _Atomic int built[OCS_LAYER_COUNT]; /* 1: tab[l] built, 2: it could not be (no memory) */
+  pthread_mutex_t lock;
+} ocs__T = {.lock = PTHREAD_MUTEX_INITIALIZER};
 static pthread_once_t ocs__T_once = PTHREAD_ONCE_INIT;
 
 /* s(h): σt per unit water content (kg/kg) at h, with the layer's profile and phase. */
@@ -162,21 +166,16 @@ static int ocs__build_j(const ocs__layer_t *L, ocs__tab_t *T) {
   return 0;
 }
 
-static int ocs__cmp_float(const void *a, const void *b) {
-  float x = *(const float *)a, y = *(const float *)b;
-  return x < y ? -1 : x > y;
-}
-
-/* OCS_COL_DIST quantiles of an fBm's values at points spread over a cube of 64 periods (a fixed
- * deterministic sequence: the distribution does not depend on the seed). */
-static void ocs__fbm_quantiles(const oc_fbm_t *f, float *out) {
-  enum { N = 16 * OCS_COL_DIST };
+/* The distribution of y = sat(a + b·v) over the values v of an fBm, as masses at the nb + 1
+ * points j/nb (each value's mass split between its two neighbours): OCS_COL_DIST values at a
+ * fixed sequence of points spread over 64 periods (the distribution does not depend on the seed). */
+static int ocs__ramp_dist(const oc_fbm_t *f, double a, double b, int nb, double *mass) {
+  enum { N = OCS_COL_DIST };
   double *xyz = malloc(sizeof(double) * 3 * N);
   float *v = malloc(sizeof(float) * N);
   if (!xyz || !v) {
-    for (int i = 0; i < OCS_COL_DIST; i++) out[i] = 0.0f;
     free(xyz), free(v);
-    return;
+    return OC_ENOMEM;
   }
   uint64_t h = 0x0C0FFEEull;
   for (int i = 0; i < 3 * N; i++) {
@@ -186,50 +185,64 @@ static void ocs__fbm_quantiles(const oc_fbm_t *f, float *out) {
   oc_fbm_t g = *f;
   g.seed = 1;
   oc_fbm3_batch(xyz, N, &g, v);
-  qsort(v, N, sizeof(float), ocs__cmp_float);
-  for (int i = 0; i < OCS_COL_DIST; i++) out[i] = v[16 * i + 8];
+  for (int j = 0; j <= nb; j++) mass[j] = 0.0;
+  for (int i = 0; i < N; i++) {
+    double y = ocs__sat(a + b * (double)v[i]) * (double)nb;
+    int j = y >= (double)nb ? nb - 1 : (int)y;
+    mass[j] += (1.0 - (y - (double)j)) / N;
+    mass[j + 1] += (y - (double)j) / N;
+  }
   free(xyz), free(v);
+  return 0;
 }
 
-/* Ĵ(W, h) = E[J(W·V(K) − E(D), h)] over the full distributions of K and D: the distribution of A'
- * for each W, spread linearly over J's A' columns, then a weighted sum of J's rows. */
-static int ocs__build_jbar(const ocs__layer_t *L, const oc_fbm_t *cell, const oc_fbm_t *det, ocs__tab_t *T) {
-  float kq[OCS_COL_DIST], dq[OCS_COL_DIST];
-  ocs__fbm_quantiles(cell, kq);
-  ocs__fbm_quantiles(det, dq);
-  double V[OCS_COL_DIST], E[OCS_COL_DIST], p[OCS_COL_NA];
-  for (int i = 0; i < OCS_COL_DIST; i++) {
-    V[i] = ocs__v(L, kq[i]);
-    E[i] = L->e * ocs__sat(0.5 - L->k_d * (double)dq[i]);
+/* out[i] = Σ_a p[a]·J[a][i]: the table of a distribution p over J's A' columns. */
+static void ocs__mix_rows(const ocs__tab_t *T, const double *p, double *acc, float *out) {
+  memset(acc, 0, sizeof(double) * (size_t)T->nh);
+  for (int a = 1; a < OCS_COL_NA; a++) {
+    if (p[a] == 0.0) continue;
+    const float *row = &T->j[(size_t)a * (size_t)T->nh];
+    for (int i = 0; i < T->nh; i++) acc[i] += p[a] * (double)row[i];
   }
+  for (int i = 0; i < T->nh; i++) out[i] = (float)acc[i];
+}
+
+/* Adds mass m at A' to p, split linearly between J's two nearest columns (nothing for A' ≤ 0). */
+static inline void ocs__put(double *p, double A, double m) {
+  if (!(A > 0.0)) return;
+  double y = A * (OCS_COL_NA - 1);
+  int a = y >= (double)(OCS_COL_NA - 1) ? OCS_COL_NA - 2 : (int)y;
+  p[a] += m * (1.0 - (y - (double)a));
+  p[a + 1] += m * (y - (double)a);
+}
+
+/* J_D(x, h) = E[J(x − E(D), h)] and Ĵ(W, h) = E[J(W·V(K) − E(D), h)] over the full distributions
+ * of the layer's detail and cells. */
+static int ocs__build_means(const ocs__layer_t *L, const oc_fbm_t *cell, const oc_fbm_t *det, ocs__tab_t *T) {
+  enum { NB = 64 };
+  double mv[NB + 1], me[NB + 1], p[OCS_COL_NA];
+  if (ocs__ramp_dist(cell, L->a0, L->a1, NB, mv) < 0 || ocs__ramp_dist(det, 0.5, -L->k_d, NB, me) < 0)
+    return OC_ENOMEM;
+  T->jd = malloc(sizeof(float) * (size_t)OCS_COL_NX * (size_t)T->nh);
   T->jbar = malloc(sizeof(float) * (size_t)OCS_COL_NW * (size_t)T->nh);
   double *acc = malloc(sizeof(double) * (size_t)T->nh);
-  if (!T->jbar || !acc) {
+  if (!T->jd || !T->jbar || !acc) {
     free(acc);
     return OC_ENOMEM;
   }
-  const double w = 1.0 / ((double)OCS_COL_DIST * OCS_COL_DIST);
+  for (int ix = 0; ix < OCS_COL_NX; ix++) {
+    double x = (double)ix / (OCS_COL_NX - 1);
+    memset(p, 0, sizeof p);
+    for (int j = 0; j <= NB; j++) ocs__put(p, x - L->e * j / NB, me[j]);
+    ocs__mix_rows(T, p, acc, &T->jd[(size_t)ix * (size_t)T->nh]);
+  }
   for (int iw = 0; iw < OCS_COL_NW; iw++) {
     double W = (double)iw / (OCS_COL_NW - 1);
     memset(p, 0, sizeof p);
-    for (int i = 0; i < OCS_COL_DIST; i++)
-      for (int k = 0; k < OCS_COL_DIST; k++) {
-        double A = W * V[i] - E[k];
-        if (!(A > 0.0)) continue;
-        double y = A * (OCS_COL_NA - 1);
-        int a = y >= (double)(OCS_COL_NA - 1) ? OCS_COL_NA - 2 : (int)y;
-        double f = y - (double)a;
-        p[a] += w * (1.0 - f);
-        p[a + 1] += w * f;
-      }
-    memset(acc, 0, sizeof(double) * (size_t)T->nh);
-    for (int a = 1; a < OCS_COL_NA; a++) {
-      if (p[a] == 0.0) continue;
-      const float *row = &T->j[(size_t)a * (size_t)T->nh];
-      for (int i = 0; i < T->nh; i++) acc[i] += p[a] * (double)row[i];
-    }
-    float *out = &T->jbar[(size_t)iw * (size_t)T->nh];
-    for (int i = 0; i < T->nh; i++) out[i] = (float)acc[i];
+    for (int i = 0; i <= NB; i++)
+      if (mv[i] > 0.0)
+        for (int j = 0; j <= NB; j++) ocs__put(p, W * i / NB - L->e * j / NB, mv[i] * me[j]);
+    ocs__mix_rows(T, p, acc, &T->jbar[(size_t)iw * (size_t)T->nh]);
   }
   free(acc);
   return 0;
@@ -277,27 +290,44 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
   pl->kmargin = pl->qk == 3 || (pl->k.n == 0 && pl->d.n == 0) ? 2.0 * pl->k.amp : 0.0;
 }
 
-static void ocs__tables_init(void) {
+static void ocs__fbms(const ocs__layer_t *L, oc_fbm_t *cell, oc_fbm_t *det) {
+  *cell = (oc_fbm_t){.octaves = L->cell.octaves, .lacunarity = 2.0, .gain = 0.5, .seed = 1};
+  *det = (oc_fbm_t){.octaves = L->det.octaves, .lacunarity = 2.0, .gain = 0.5, .seed = 1};
+}
+
+static void ocs__plans_init(void) {
   for (int l = 0; l < OCS_LAYER_COUNT; l++) {
-    const ocs__layer_t *L = &ocs__layers[l];
-    ocs__tab_t *T = &ocs__T.tab[l];
-    double band_lo, band_hi;
-    ocs__layer_band(L, &band_lo, &band_hi);
-    oc_fbm_t cell = {.octaves = L->cell.octaves, .lacunarity = 2.0, .gain = 0.5, .seed = 1};
-    oc_fbm_t det = {.octaves = L->det.octaves, .lacunarity = 2.0, .gain = 0.5, .seed = 1};
-    T->h0 = band_lo;
-    T->nh = (int)ceil((band_hi - band_lo) / OCS_COL_DH) + 2;
-    if (ocs__build_j(L, T) < 0 || ocs__build_jbar(L, &cell, &det, T) < 0) {
-      ocs__T.rc = OC_ENOMEM;
-      return;
-    }
-    for (int lv = 0; lv < OCS__LEVELS; lv++) ocs__make_plan(L, &cell, &det, lv, &ocs__T.plan[lv][l]);
+    oc_fbm_t cell, det;
+    ocs__fbms(&ocs__layers[l], &cell, &det);
+    for (int lv = 0; lv < OCS__LEVELS; lv++) ocs__make_plan(&ocs__layers[l], &cell, &det, lv, &ocs__T.plan[lv][l]);
   }
 }
 
 int ocs__col_tables(void) {
-  pthread_once(&ocs__T_once, ocs__tables_init);
-  return ocs__T.rc;
+  pthread_once(&ocs__T_once, ocs__plans_init);
+  return 0;
+}
+
+/* A layer's tables, built at its first use (only the layers a weather uses cost anything; the
+ * cumulonimbus' 14 km band is the dearest, about 0.1 s). NULL: no memory. */
+static const ocs__tab_t *ocs__layer_tab(int l) {
+  int b = atomic_load_explicit(&ocs__T.built[l], memory_order_acquire);
+  if (b) return b == 1 ? &ocs__T.tab[l] : NULL;
+  pthread_mutex_lock(&ocs__T.lock);
+  if (!atomic_load_explicit(&ocs__T.built[l], memory_order_relaxed)) {
+    const ocs__layer_t *L = &ocs__layers[l];
+    ocs__tab_t *T = &ocs__T.tab[l];
+    double band_lo, band_hi;
+    oc_fbm_t cell, det;
+    ocs__fbms(L, &cell, &det);
+    ocs__layer_band(L, &band_lo, &band_hi);
+    T->h0 = band_lo;
+    T->nh = (int)ceil((band_hi - band_lo) / OCS_COL_DH) + 2;
+    int ok = ocs__build_j(L, T) == 0 && ocs__build_means(L, &cell, &det, T) == 0;
+    atomic_store_explicit(&ocs__T.built[l], ok ? 1 : 2, memory_order_release);
+  }
+  pthread_mutex_unlock(&ocs__T.lock);
+  return atomic_load_explicit(&ocs__T.built[l], memory_order_acquire) == 1 ? &ocs__T.tab[l] : NULL;
 }
 
 void ocs__col_margins(int level, int layer, double *kmargin, double *amargin) {
@@ -374,11 +404,10 @@ static void ocs__pattern(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, i
 /* One layer over the chunk's pieces: W, then (coarse) Ĵ, or (finer) the resolved cells and detail
  * and J over the unresolved rest. Adds σt × length to ws->sum per voxel. */
 static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
-                              ocs__cws_t *ws) {
+                              const ocs__tab_t *T, ocs__cws_t *ws) {
   const ocs__layer_t *L = &ocs__layers[l];
   const ocs__lstate_t *S = &P->L[l];
   const ocs__lframe_t *lf = &F->l[l];
-  const ocs__tab_t *T = &ocs__T.tab[l];
   int m = ws->n;
   for (int i = 0; i < m; i++) {
     ocs__rotate(lf->M, &ws->p[3 * i], &ws->q[3 * i]);
@@ -427,16 +456,21 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
     for (int j = 0; j < m; j++) ocs__coords(S, OCS__DET, &ws->q[3 * ws->idx[j]], lf->off[OCS__DET], &ws->xyz[3 * j]);
     oc_fbm3_batch(ws->xyz, m, &dres, ws->val);
   }
+  int full_d = pl->d.n == 0 && pl->qd == 3; /* the detail wholly unresolved: J_D holds its expectation */
   for (int j = 0; j < m; j++) {
     int i = ws->idx[j];
     double d = pl->d.n > 0 ? (double)ws->val[j] * pl->d.scale * lf->det_scale : 0.0, c = 0.0;
     for (int a = 0; a < pl->qk; a++) {
       double V = ocs__v(L, (float)(ws->k[j] + (pl->qk == 3 ? xq[a] / 1.7320508075688772 * kx : 0.0)));
       double wv = ws->w[j] * V, ca = 0.0;
-      for (int b = 0; b < pl->qd; b++) {
-        double A = wv - L->e * ocs__sat(0.5 - L->k_d * (d + (pl->qd == 3 ? xq[b] / 1.7320508075688772 * dx : 0.0)));
-        ca += (pl->qd == 3 ? wq[b] : 1.0) *
-              (ocs__tab_at(T, T->j, OCS_COL_NA, A, ws->h1[i]) - ocs__tab_at(T, T->j, OCS_COL_NA, A, ws->h0[i]));
+      if (full_d) {
+        ca = ocs__tab_at(T, T->jd, OCS_COL_NX, wv, ws->h1[i]) - ocs__tab_at(T, T->jd, OCS_COL_NX, wv, ws->h0[i]);
+      } else {
+        for (int b = 0; b < pl->qd; b++) {
+          double A = wv - L->e * ocs__sat(0.5 - L->k_d * (d + (pl->qd == 3 ? xq[b] / 1.7320508075688772 * dx : 0.0)));
+          ca += (pl->qd == 3 ? wq[b] : 1.0) *
+                (ocs__tab_at(T, T->j, OCS_COL_NA, A, ws->h1[i]) - ocs__tab_at(T, T->j, OCS_COL_NA, A, ws->h0[i]));
+        }
       }
       c += (pl->qk == 3 ? wq[a] : 1.0) * ca;
     }
@@ -447,8 +481,9 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
 /* The pieces of one column (along axis va at the horizontal position xyz[ha], xyz[hb]) inside the
  * voxel's extent [ta, tb] of that axis and the layer's band: one, or pieces at most pl->piece
  * long. */
-static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl, ocs__cws_t *ws,
-                        const double xyz[3], int va, double ta, double tb, int v, unsigned wone) {
+static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
+                        const ocs__tab_t *T, ocs__cws_t *ws, const double xyz[3], int va, double ta, double tb, int v,
+                        unsigned wone) {
   const ocs__lstate_t *S = &P->L[l];
   double a2 = 0.0;
   for (int k = 0; k < 3; k++)
@@ -479,7 +514,7 @@ static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, cons
     ws->vox[at] = (uint16_t)v;
     ws->wone[at] = (uint8_t)wone;
     if (ws->n == OCS__CHUNK) {
-      ocs__layer_pieces(P, F, l, pl, ws);
+      ocs__layer_pieces(P, F, l, pl, T, ws);
       ws->n = 0;
     }
   }
@@ -513,21 +548,15 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
   /* Which layers may be non-zero in each voxel (the bound bounds the estimate: a skip changes no
    * value, so the brick-wide ranges it inherits do not make values depend on the brick). */
   uint8_t vmask[OC_BRICK_VOXELS], vwone[OC_BRICK_VOXELS];
-  for (int v = 0; v < OC_BRICK_VOXELS; v++) {
-    double vlo[3], vhi[3];
-    int ijk[3] = {v % 8, v / 8 % 8, v / 64};
-    for (int a = 0; a < 3; a++) {
-      double c = -OC_ROOT_HALF + (double)(7 * (int64_t)ic[a] + ijk[a]) * u;
-      vlo[a] = c - 0.5 * u;
-      vhi[a] = c + 0.5 * u;
-    }
-    ocs__bb_t vb;
-    vmask[v] = ocs__box_max(P, &F, nb.mask, vlo, vhi, 0, &nb, reuse, &vb) > 0.0 ? (uint8_t)vb.mask : 0;
-    vwone[v] = (uint8_t)vb.wone;
-  }
+  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone);
   for (int l = 0; l < OCS_LAYER_COUNT; l++) {
     if (!(nb.mask >> l & 1u)) continue;
     const ocs__plan_t *pl = &plan[l];
+    const ocs__tab_t *T = ocs__layer_tab(l);
+    if (!T) {
+      free(ws);
+      return OC_ENOMEM;
+    }
     double off[OCS_COL_MAX_H];
     for (int m = 0; m < pl->nc; m++) off[m] = ((double)m + 0.5) / (double)pl->nc - 0.5;
     ws->n = 0;
@@ -548,10 +577,10 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
           xyz[ha] = -OC_ROOT_HALF + (gg[ha] + off[ma]) * u;
           xyz[hb] = -OC_ROOT_HALF + (gg[hb] + off[mb]) * u;
           xyz[va] = c[va];
-          ocs__column(P, &F, l, pl, ws, xyz, va, c[va] - 0.5 * u, c[va] + 0.5 * u, v, vwone[v]);
+          ocs__column(P, &F, l, pl, T, ws, xyz, va, c[va] - 0.5 * u, c[va] + 0.5 * u, v, vwone[v]);
         }
     }
-    if (ws->n) ocs__layer_pieces(P, &F, l, pl, ws);
+    if (ws->n) ocs__layer_pieces(P, &F, l, pl, T, ws);
   }
   for (int v = 0; v < OC_BRICK_VOXELS; v++)
     if (ws->sum[v] > 0.0) out[v] += (float)ws->sum[v];

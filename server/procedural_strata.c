@@ -198,17 +198,17 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
   unsigned reuse = 0;
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
     if ((nb.wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) reuse |= 1u << l;
+  uint8_t vmask[OC_BRICK_VOXELS], vwone[OC_BRICK_VOXELS];
+  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone);
 
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++)
       for (int i = 0; i < 8; i++) {
         int v = i + 8 * j + 64 * k, ijk[3] = {i, j, k};
-        double gg[3], c[3], vlo[3], vhi[3];
+        double gg[3], c[3];
         for (int a = 0; a < 3; a++) {
           gg[a] = (double)(7 * (int64_t)ic[a] + ijk[a]);
           c[a] = -OC_ROOT_HALF + gg[a] * u;
-          vlo[a] = c[a] - 0.5 * u;
-          vhi[a] = c[a] + 0.5 * u;
         }
         /* The strata's shape depends only on the sample's own position, so a face sample shared
          * with a neighbour gets the same points from either brick. */
@@ -217,8 +217,8 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
         int n[3] = {sub_h, sub_h, sub_h};
         n[va] = sub_v;
         inv[v] = 1.0 / ((double)n[0] * n[1] * n[2]);
-        ocs__bb_t vb;
-        if (!(ocs__box_max(P, &F, nb.mask, vlo, vhi, 0, &nb, reuse, &vb) > 0.0)) continue;
+        if (!vmask[v]) continue;
+        ocs__bb_t vb = {.mask = vmask[v], .wone = vwone[v]};
         unsigned vm = vb.mask;
         double band_lo = INFINITY, band_hi = -INFINITY;
         for (int l = 0; l < OCS_LAYER_COUNT; l++)

@@ -316,17 +316,18 @@ static void ocs__dir_range(const ocs__proc_t *P, const ocs__lframe_t *lf, int l,
   *vmax = hi + margin;
 }
 
-/* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`. The
- * coverage and cell values are bounded by ocs__dir_range() (grid ≤ `grid`, 0: the centre only);
- * layers in `reuse` take their ranges from `inherit` (an enclosing box) instead. Detail erosion
- * is ≥ 0, so it never raises the bound. Small margins cover ulp-level non-monotonicity. */
-double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3],
-                           const double hi[3], int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb) {
-  bb->mask = bb->wone = 0;
-  unsigned todo = F->mask & only;
-  if (!todo) return 0.0;
+/* The directions and altitudes an axis-aligned box covers. far = 0: the box reaches the planet
+ * centre (no finite angle; patterns range over [-1, 1]). */
+typedef struct {
+  double hmin, hmax; /* altitude range of the box, widened by 1e-6 m */
+  int far;
+  double sn;         /* sin θ */
   ocs__cap_t cap;
-  double near2 = 0.0, far2 = 0.0, d2 = 0.0, *c = cap.c;
+} ocs__geom_t;
+
+static void ocs__box_geom(const double lo[3], const double hi[3], int tangent, ocs__geom_t *g) {
+  ocs__cap_t *cap = &g->cap;
+  double near2 = 0.0, far2 = 0.0, d2 = 0.0, *c = cap->c;
   for (int k = 0; k < 3; k++) {
     double n = lo[k] > 0.0 ? lo[k] : (hi[k] < 0.0 ? -hi[k] : 0.0);
     double f = fabs(lo[k]) > fabs(hi[k]) ? fabs(lo[k]) : fabs(hi[k]);
@@ -335,70 +336,169 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
     c[k] = 0.5 * (lo[k] + hi[k]);
     d2 += 0.25 * (hi[k] - lo[k]) * (hi[k] - lo[k]);
   }
-  double hmin = sqrt(near2) - OCS__R - 1e-6, hmax = sqrt(far2) - OCS__R + 1e-6;
+  g->hmin = sqrt(near2) - OCS__R - 1e-6, g->hmax = sqrt(far2) - OCS__R + 1e-6;
   double cr = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d = sqrt(d2);
-  /* A finite angle (the box does not reach the planet centre), below 60° for the tangent grid. */
-  int far = cr > 1.000001 * d;
-  if (far) {
-    double sn = d / cr, cs = sqrt(1.0 - sn * sn);
-    cap.chord = sn / sqrt(0.5 * (1.0 + cs)) * (1.0 + 1e-9); /* 2 sin(θ/2) without cancellation */
-    cap.tan_t = sn / cs * (1.0 + 1e-9);
-    for (int k = 0; k < 3; k++) cap.u[k] = c[k] / cr;
-    /* e1 ⊥ ĉ from the axis least aligned with it, e2 = ĉ × e1. */
-    double au[3] = {fabs(cap.u[0]), fabs(cap.u[1]), fabs(cap.u[2])};
-    int a = au[0] < au[1] ? (au[0] < au[2] ? 0 : 2) : (au[1] < au[2] ? 1 : 2);
-    double ax[3] = {a == 0, a == 1, a == 2}, dt = cap.u[a];
-    double e[3] = {ax[0] - dt * cap.u[0], ax[1] - dt * cap.u[1], ax[2] - dt * cap.u[2]};
-    double en = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
-    for (int k = 0; k < 3; k++) cap.e1[k] = e[k] / en;
-    cap.e2[0] = cap.u[1] * cap.e1[2] - cap.u[2] * cap.e1[1];
-    cap.e2[1] = cap.u[2] * cap.e1[0] - cap.u[0] * cap.e1[2];
-    cap.e2[2] = cap.u[0] * cap.e1[1] - cap.u[1] * cap.e1[0];
-    if (!(sn < 0.866)) grid = 0;
+  /* A finite angle (the box does not reach the planet centre). */
+  g->far = cr > 1.000001 * d;
+  if (!g->far) return;
+  double sn = d / cr, cs = sqrt(1.0 - sn * sn);
+  g->sn = sn;
+  cap->chord = sn / sqrt(0.5 * (1.0 + cs)) * (1.0 + 1e-9); /* 2 sin(θ/2) without cancellation */
+  cap->tan_t = sn / cs * (1.0 + 1e-9);
+  for (int k = 0; k < 3; k++) cap->u[k] = c[k] / cr;
+  if (!tangent) return;
+  /* e1 ⊥ ĉ from the axis least aligned with it, e2 = ĉ × e1. */
+  double au[3] = {fabs(cap->u[0]), fabs(cap->u[1]), fabs(cap->u[2])};
+  int a = au[0] < au[1] ? (au[0] < au[2] ? 0 : 2) : (au[1] < au[2] ? 1 : 2);
+  double ax[3] = {a == 0, a == 1, a == 2}, dt = cap->u[a];
+  double e[3] = {ax[0] - dt * cap->u[0], ax[1] - dt * cap->u[1], ax[2] - dt * cap->u[2]};
+  double en = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+  for (int k = 0; k < 3; k++) cap->e1[k] = e[k] / en;
+  cap->e2[0] = cap->u[1] * cap->e1[2] - cap->u[2] * cap->e1[1];
+  cap->e2[1] = cap->u[2] * cap->e1[0] - cap->u[0] * cap->e1[2];
+  cap->e2[2] = cap->u[0] * cap->e1[1] - cap->u[1] * cap->e1[0];
+}
+
+/* A layer's σt maximum over altitudes [hmin, hmax] given its coverage range [cmin, cmax] and cell
+ * maximum kmax (recorded in bb, with the layer's mask and W = 1 bits). Detail erosion is ≥ 0, so it
+ * never raises the bound; the frame's margins cover the fast filter's estimate; small margins
+ * cover ulp-level non-monotonicity. */
+static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l, double hmin, double hmax,
+                             double cmin, double cmax, double kmax, ocs__bb_t *bb) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  const ocs__lstate_t *S = &P->L[l];
+  const ocs__lframe_t *lf = &F->l[l];
+  double a = hmin > S->band_lo ? hmin : S->band_lo, b = hmax < S->band_hi ? hmax : S->band_hi;
+  bb->cmin[l] = cmin, bb->cmax[l] = cmax, bb->kmax[l] = kmax;
+  if (a > b) return 0.0;
+  double W = ocs__sat((cmax - lf->theta) / L->s_w);
+  if (!(W > 0.0)) return 0.0;
+  double km = kmax + lf->kmargin; /* the fast filter's estimate may reach this far (procedural_columns.c) */
+  double A = W * ocs__sat(L->a0 + L->a1 * (km > 1.0 ? 1.0 : km)) + lf->amargin;
+  double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c);
+  double qmin = ocs__q_mono(L, hq);
+  if (L->anvil > 0.0) {
+    double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
+    qmin -= L->anvil * ocs__bump((ha - L->h_av) / L->w_av);
   }
+  double G = A - qmin + 1e-9;
+  if (!(G > 0.0)) return 0.0;
+  double phi = ocs__sat(G / L->F_w);
+  double wc = lf->wc * ocs__prof_up(L, b) * ocs__prof_down(L, a) * phi, rho = ocs__rho_air(a), s;
+  if (L->phase == OCS__LIQUID)
+    s = ocg_sigma_t_liquid(wc, rho);
+  else if (L->phase == OCS__ICE)
+    s = ocg_sigma_t_ice(wc, rho);
+  else {
+    double sl = ocg_sigma_t_liquid(wc, rho), si = ocg_sigma_t_ice(wc * L->ice_ratio, rho);
+    s = sl > si ? sl : si; /* σt is a convex combination of the two */
+  }
+  bb->mask |= 1u << l;
+  if (cmin >= lf->theta + L->s_w + 1e-9) bb->wone |= 1u << l;
+  return F->sigma_scale * s * (1.0 + 1e-6);
+}
+
+/* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`. The
+ * coverage and cell values are bounded by ocs__dir_range() (grid ≤ `grid`, 0: the centre only);
+ * layers in `reuse` take their ranges from `inherit` (an enclosing box) instead. */
+double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3],
+                    const double hi[3], int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb) {
+  bb->mask = bb->wone = 0;
+  unsigned todo = F->mask & only;
+  if (!todo) return 0.0;
+  ocs__geom_t g;
+  ocs__box_geom(lo, hi, 1, &g);
+  if (g.far && !(g.sn < 0.866)) grid = 0; /* the tangent grid needs an angle below 60° */
   double total = 0.0;
   for (int l = 0; l < OCS_LAYER_COUNT; l++) {
     if (!(todo >> l & 1u)) continue;
-    const ocs__layer_t *L = &ocs__layers[l];
     const ocs__lstate_t *S = &P->L[l];
-    const ocs__lframe_t *lf = &F->l[l];
-    double a = hmin > S->band_lo ? hmin : S->band_lo, b = hmax < S->band_hi ? hmax : S->band_hi;
-    if (a > b) continue;
+    if ((g.hmin > S->band_lo ? g.hmin : S->band_lo) > (g.hmax < S->band_hi ? g.hmax : S->band_hi)) continue;
     double cmin = -1.0, cmax = 1.0, kmin, kmax = 1.0;
     if (inherit && (reuse >> l & 1u)) {
       cmin = inherit->cmin[l], cmax = inherit->cmax[l], kmax = inherit->kmax[l];
-    } else if (far) {
-      ocs__dir_range(P, lf, l, OCS__COV, &cap, grid, &cmin, &cmax);
-      if (cmax > lf->theta) ocs__dir_range(P, lf, l, OCS__CELL, &cap, grid, &kmin, &kmax); /* else W = 0 */
+    } else if (g.far) {
+      ocs__dir_range(P, &F->l[l], l, OCS__COV, &g.cap, grid, &cmin, &cmax);
+      if (cmax > F->l[l].theta) ocs__dir_range(P, &F->l[l], l, OCS__CELL, &g.cap, grid, &kmin, &kmax); /* else W = 0 */
     }
-    bb->cmin[l] = cmin, bb->cmax[l] = cmax, bb->kmax[l] = kmax;
-    double W = ocs__sat((cmax - lf->theta) / L->s_w);
-    if (!(W > 0.0)) continue;
-    double km = kmax + lf->kmargin; /* the fast filter's estimate may reach this far (procedural_columns.c) */
-    double A = W * ocs__sat(L->a0 + L->a1 * (km > 1.0 ? 1.0 : km)) + lf->amargin;
-    double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c);
-    double qmin = ocs__q_mono(L, hq);
-    if (L->anvil > 0.0) {
-      double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
-      qmin -= L->anvil * ocs__bump((ha - L->h_av) / L->w_av);
-    }
-    double G = A - qmin + 1e-9;
-    if (!(G > 0.0)) continue;
-    double phi = ocs__sat(G / L->F_w);
-    double wc = lf->wc * ocs__prof_up(L, b) * ocs__prof_down(L, a) * phi, rho = ocs__rho_air(a), s;
-    if (L->phase == OCS__LIQUID)
-      s = ocg_sigma_t_liquid(wc, rho);
-    else if (L->phase == OCS__ICE)
-      s = ocg_sigma_t_ice(wc, rho);
-    else {
-      double sl = ocg_sigma_t_liquid(wc, rho), si = ocg_sigma_t_ice(wc * L->ice_ratio, rho);
-      s = sl > si ? sl : si; /* σt is a convex combination of the two */
-    }
-    total += F->sigma_scale * s * (1.0 + 1e-6);
-    bb->mask |= 1u << l;
-    if (cmin >= lf->theta + L->s_w + 1e-9) bb->wone |= 1u << l;
+    total += ocs__layer_max(P, F, l, g.hmin, g.hmax, cmin, cmax, kmax, bb);
   }
   return total;
+}
+
+/* The per-voxel bounds of a brick: what ocs__box_max(grid 0) gives for each voxel's cube, with
+ * each pattern evaluated for all voxels in one batch (a call per voxel and pattern spent more on
+ * the fBm's set-up than on its octaves). */
+void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key, const ocs__bb_t *nb, unsigned reuse,
+                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS]) {
+  enum { N = OC_BRICK_VOXELS };
+  static _Thread_local struct {
+    ocs__geom_t g[N];
+    ocs__bb_t bb[N];
+    double total[N], cmin[N], cmax[N], kmax[N], xyz[3 * N];
+    float val[N];
+    int sel[N];
+  } w;
+  int level = oc_key_level(key);
+  double u = ocs__voxel_size(level);
+  uint32_t ic[3];
+  oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
+  for (int v = 0; v < N; v++) {
+    double vlo[3], vhi[3];
+    int ijk[3] = {v % 8, v / 8 % 8, v / 64};
+    for (int a = 0; a < 3; a++) {
+      double c = -OC_ROOT_HALF + (double)(7 * (int64_t)ic[a] + ijk[a]) * u;
+      vlo[a] = c - 0.5 * u;
+      vhi[a] = c + 0.5 * u;
+    }
+    ocs__box_geom(vlo, vhi, 0, &w.g[v]);
+    w.bb[v].mask = w.bb[v].wone = 0;
+    w.total[v] = 0.0;
+  }
+  unsigned todo = F->mask & nb->mask;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++) {
+    if (!(todo >> l & 1u)) continue;
+    const ocs__lstate_t *S = &P->L[l];
+    const ocs__lframe_t *lf = &F->l[l];
+    int inh = (reuse >> l & 1u) != 0;
+    for (int f = OCS__COV; f <= OCS__CELL; f++) {
+      int n = 0;
+      for (int v = 0; v < N; v++) {
+        const ocs__geom_t *g = &w.g[v];
+        if (f == OCS__COV) w.cmin[v] = -1.0, w.cmax[v] = 1.0, w.kmax[v] = 1.0;
+        if ((g->hmin > S->band_lo ? g->hmin : S->band_lo) > (g->hmax < S->band_hi ? g->hmax : S->band_hi)) continue;
+        if (inh) {
+          w.cmin[v] = nb->cmin[l], w.cmax[v] = nb->cmax[l], w.kmax[v] = nb->kmax[l];
+          continue;
+        }
+        if (!g->far || (f == OCS__CELL && !(w.cmax[v] > lf->theta))) continue;
+        double X[3], q[3];
+        for (int k = 0; k < 3; k++) X[k] = g->cap.u[k] * OCS__R;
+        ocs__rotate(lf->M, X, q);
+        ocs__coords(S, f, q, lf->off[f], &w.xyz[3 * n]);
+        w.sel[n++] = v;
+      }
+      oc_fbm3_batch(w.xyz, n, f == OCS__COV ? &S->fcov : &S->fcell, w.val);
+      double lip = (f == OCS__COV ? S->lip_cov : S->lip_cell) * OCS__R;
+      for (int i = 0; i < n; i++) {
+        int v = w.sel[i];
+        double margin = lip * w.g[v].cap.chord * (1.0 + 1e-9) + 1e-6;
+        if (f == OCS__COV)
+          w.cmin[v] = (double)w.val[i] - margin, w.cmax[v] = (double)w.val[i] + margin;
+        else
+          w.kmax[v] = (double)w.val[i] + margin;
+      }
+    }
+    for (int v = 0; v < N; v++) {
+      const ocs__geom_t *g = &w.g[v];
+      if ((g->hmin > S->band_lo ? g->hmin : S->band_lo) > (g->hmax < S->band_hi ? g->hmax : S->band_hi)) continue;
+      w.total[v] += ocs__layer_max(P, F, l, g->hmin, g->hmax, w.cmin[v], w.cmax[v], w.kmax[v], &w.bb[v]);
+    }
+  }
+  for (int v = 0; v < N; v++) {
+    vmask[v] = w.total[v] > 0.0 ? (uint8_t)w.bb[v].mask : 0;
+    vwone[v] = (uint8_t)w.bb[v].wone;
+  }
 }
 
 /* The level whose node footprint (or node) a box is: bound() is asked about footprints, and a
