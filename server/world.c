@@ -511,6 +511,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
     ocs_world_free(w);
     return r;
   }
+  if (w->d.exact_filter) ocs_field_set_exact(w->field, 1);
   w->K = ocs_field_animated(w->field) ? 3 : 2;
   w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
   w->ground_tau = w->shadows && oc_scene_has(&w->scene, OC_FEATURE_PLANET_SURFACE);

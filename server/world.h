@@ -50,6 +50,8 @@ typedef struct {
                                   for goes to one production queue for all viewers, and
                                   ocs_world_produce() makes it between ticks; 0: a step produces
                                   everything its plans ask before its states go out */
+  int exact_filter;          /**< bricks from each source's exact box filter (ocs_field_set_exact):
+                                  the oracle of the fast ones, for benches and tests */
 } ocs_world_desc_t;
 
 typedef struct {

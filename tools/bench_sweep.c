@@ -85,6 +85,10 @@ void oct_bench_sweep_usage(FILE *f) {
           "  --md FILE           the Markdown report (Table 6.1 form: budget × step factor → ms / RMSE)\n"
           "  --plot FILE.png     RMSE against render ms, Pareto front marked\n"
           "  --images DIR        also every image as a PNG (camera in its text chunk), the reference's too\n"
+          "  --reference-filter fast|exact  the reference image's bricks from the sources' fast box filter\n"
+          "                      (default, as every setting's) or their exact one (a server run of its own at\n"
+          "                      the reference's budget and depth): the RMSE column is then each setting's\n"
+          "                      error against the exact filter, the fast filter's included\n"
           "\n");
 }
 
@@ -209,6 +213,7 @@ typedef struct {
   long depths[MAXK], octs[MAXK], reps[2], ints[2];
   int nb, nd, ns, no, nr, ni;
   int analytic;
+  int ref_exact;
   const agg_t *agg;
   int nagg;
 } report_t;
@@ -255,9 +260,11 @@ static void write_report(FILE *f, const report_t *R) {
   for (int i = 0; i < R->nagg; i++)
     if (R->agg[i].reference) ref = &R->agg[i];
   fprintf(f, "Reference (the highest-quality setting): budget %g MiB, depth %ld, step factor %g, %ld octave%s, "
-             "reprojection off, interpolation off",
-          R->budgets[0], R->depths[0], R->steps[0], R->octs[0], R->octs[0] == 1 ? "" : "s");
-  if (ref) fprintf(f, " — %.1f ms a frame", ref->ms);
+             "reprojection off, interpolation off, bricks from the %s box filter",
+          R->budgets[0], R->depths[0], R->steps[0], R->octs[0], R->octs[0] == 1 ? "" : "s",
+          R->ref_exact ? "sources' exact" : "same fast");
+  if (ref) fprintf(f, " — %.1f ms a frame%s", ref->ms, R->ref_exact ? " (its fast-filter twin's time)" : "");
+  if (R->ref_exact) fprintf(f, "; every setting's bricks come from the fast filter, so its RMSE includes the fast filter's error");
   fprintf(f, ". Not swept: sample reconstruction (exact trilinear only: the RG16UI code atlas cannot be hardware "
              "filtered) and the server refresh policy (the core has one: stamp-driven, nearest first).\n\n");
 
@@ -322,7 +329,7 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
   enum {
     O_SCENE = 256, O_CAMERA, O_VIEWS, O_PATH, O_PATH_N, O_SIZE, O_PLAN_SIZE, O_RENDERER, O_THREADS, O_REPEAT, O_BUDGETS,
     O_DEPTHS, O_STEPS, O_OCTS, O_REPROJ, O_INTERP, O_FRAMES, O_MOTION, O_INTERP_T, O_RECON, O_REFRESH, O_EPOCHS, O_SPLIT,
-    O_SRV_THREADS, O_RESERVE, O_TIME, O_CSV, O_MD, O_PLOT, O_IMAGES, O_HELP
+    O_SRV_THREADS, O_RESERVE, O_TIME, O_CSV, O_MD, O_PLOT, O_IMAGES, O_REF_FILTER, O_HELP
   };
   static const struct option opts[] = {
       {"scene", required_argument, 0, O_SCENE},         {"camera", required_argument, 0, O_CAMERA},
@@ -340,6 +347,7 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
       {"reserve", required_argument, 0, O_RESERVE},     {"time", required_argument, 0, O_TIME},
       {"csv", required_argument, 0, O_CSV},             {"md", required_argument, 0, O_MD},
       {"plot", required_argument, 0, O_PLOT},           {"images", required_argument, 0, O_IMAGES},
+      {"reference-filter", required_argument, 0, O_REF_FILTER},
       {"help", no_argument, 0, O_HELP},                 {0, 0, 0, 0}};
   const char *scene_path = NULL, *views_text = NULL, *path_file = NULL, *csv_path = NULL, *md_path = NULL, *plot_path = NULL,
              *images_dir = NULL;
@@ -349,6 +357,7 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
   const char *reproj_text = "off", *interp_text = "off";
   long path_n = 4, threads = 2, repeat = 2, frames = 16, epochs = 8, srv_threads = 0;
   double motion = 0.1, interp_t = 0.5, split = 0.5, reserve = 0.1, world_time = 0.0;
+  int ref_exact = 0;
   int w = 160, h = 90, pw = 0, ph = 0, gl = 0, c;
   opterr = 0;
   optind = 1;
@@ -404,6 +413,11 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
       case O_MD: md_path = optarg; break;
       case O_PLOT: plot_path = optarg; break;
       case O_IMAGES: images_dir = optarg; break;
+      case O_REF_FILTER:
+        if (strcmp(optarg, "fast") && strcmp(optarg, "exact"))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--reference-filter: \"%s\" is not fast or exact", optarg);
+        ref_exact = !strcmp(optarg, "exact");
+        break;
       case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
       default: return oc_cli_fail(prog, OC_EXIT_USAGE, "sweep: unknown or incomplete option \"%s\"", argv[optind - 1]);
     }
@@ -595,7 +609,7 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
       snprintf(pg.head, sizeof pg.head, "server %d/%d: budget %g MiB, depth %ld, view %d/%d", s + 1, S, R.budgets[b],
                R.depths[d], v + 1, nv);
       octs_server_desc_t sd = {(uint64_t)(R.budgets[b] * 1048576.0), (int)R.depths[d], (int)epochs, (int)srv_threads, split,
-                               reserve, world_time, pw, ph};
+                               reserve, world_time, pw, ph, 0};
       octs_server_out_t so;
       double t0 = oct_now();
       int r = octs_server_run(&sc, &sd, views[v].pose, &so, server_progress, &pg, why, sizeof why);
@@ -618,7 +632,26 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
       if (s == 0) { /* the reference image of this view */
         octs_render_knobs_t k = {R.steps[0], (int)R.octs[0], 0, 0};
         octs_times_t tm;
-        if ((r = octs_render(ren, views[v].pose, &k, &img, &tm, why, sizeof why)) < 0) {
+        octs_server_out_t ro; /* --reference-filter exact: the same setting, bricks from the exact filter */
+        if (ref_exact) {
+          sd.exact_filter = 1;
+          snprintf(pg.head, sizeof pg.head, "reference (exact filter), view %d/%d", v + 1, nv);
+          if ((r = octs_server_run(&sc, &sd, views[v].pose, &ro, server_progress, &pg, why, sizeof why)) < 0 ||
+              (r = octs_renderer_set_states(ren, &ro.newest, &ro.prev, ro.animated, why, sizeof why)) < 0) {
+            octs_server_out_free(&so);
+            rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", pg.head, why);
+            break;
+          }
+          fprintf(stderr, "%s%s: %s: %u nodes, %u bricks ... done\n", pg.tty ? "\r\033[K" : "", prog, pg.head,
+                  ro.newest.node_count, ro.newest.brick_count);
+        }
+        r = octs_render(ren, views[v].pose, &k, &img, &tm, why, sizeof why);
+        if (ref_exact) {
+          int r2 = octs_renderer_set_states(ren, &so.newest, &so.prev, so.animated, why, sizeof why);
+          octs_server_out_free(&ro);
+          if (r >= 0) r = r2;
+        }
+        if (r < 0) {
           octs_server_out_free(&so);
           rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "reference, view %d: %s", v + 1, why);
           break;
@@ -716,6 +749,7 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
   R.w = w, R.h = h, R.pw = pw, R.ph = ph, R.nv = nv, R.epochs = (int)epochs, R.threads = (int)threads, R.frames = (int)frames;
   R.repeat = (int)repeat;
   R.motion = motion, R.interp_t = interp_t, R.split = split, R.reserve = reserve, R.views = views;
+  R.ref_exact = ref_exact;
   fprintf(stderr, "%s: sweep done in %.1f s\n", prog, oct_now() - t_start);
   write_report(stdout, &R);
   if (md_path) {

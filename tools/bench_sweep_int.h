@@ -29,6 +29,7 @@ typedef struct {
   double reserve;        /**< budget fraction kept free for change; 0 → split_fraction */
   double time;           /**< world time at epoch 0 */
   int plan_w, plan_h;    /**< the viewport the planner sizes priorities for */
+  int exact_filter;      /**< bricks from the sources' exact box filters (the fast ones' oracle) */
 } octs_server_desc_t;
 
 typedef struct {

@@ -46,7 +46,7 @@ int octs_server_run(const oc_scene_t *sc, const octs_server_desc_t *d, oc_camera
   memset(out, 0, sizeof *out);
   oc_state_init(&out->newest);
   oc_state_init(&out->prev);
-  ocs_world_desc_t wd = {.threads = d->threads, .cache_bytes = 1ull << 30, .time = d->time};
+  ocs_world_desc_t wd = {.threads = d->threads, .cache_bytes = 1ull << 30, .time = d->time, .exact_filter = d->exact_filter};
   ocs_world_t *w = NULL;
   int r = ocs_world_create(&w, sc, &wd, why, why_len);
   if (r < 0) return r;
