@@ -67,7 +67,7 @@
 /*! An octave is resolved when its period is at least this many column spacings (or piece
  *  lengths); pieces are cut so that resolved octaves move at most 1/OCS_COL_KAPPA of a period. */
 #ifndef OCS_COL_KAPPA
-#define OCS_COL_KAPPA 2.0
+#define OCS_COL_KAPPA 1.0
 #endif
 /*! The unresolved rest of a pattern gets a quadrature when its standard deviation moves A' by
  *  more than this fraction of the density ramp F_w. */
@@ -95,9 +95,11 @@
 typedef struct {
   int nh;         /* rows: altitude h0 + i·OCS_COL_DH, i < nh */
   double h0;      /* the layer's band_lo */
-  float *j;       /* J: [OCS_COL_NA][nh] */
-  float *jd;      /* J_D: [OCS_COL_NX][nh], the expectation over the full detail */
-  float *jbar;    /* Ĵ: [OCS_COL_NW][nh], over the full cells and detail */
+  float *j;       /* J: [nh][OCS_COL_NA] (built [OCS_COL_NA][nh], then transposed: a brick's pieces
+                     span a few hundred metres of altitude and any A', so rows by altitude keep a
+                     lookup's four entries, and the next lookup's, in a few cache lines) */
+  float *jd;      /* J_D: [nh][OCS_COL_NX], the expectation over the full detail */
+  float *jbar;    /* Ĵ: [nh][OCS_COL_NW], over the full cells and detail */
 } ocs__tab_t;
 
 /* How a pattern's fBm splits at a level: the first n octaves are evaluated (fbm over them times
@@ -290,6 +292,17 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
   pl->kmargin = pl->qk == 3 || (pl->k.n == 0 && pl->d.n == 0) ? 2.0 * pl->k.amp : 0.0;
 }
 
+/* [n][nh] → [nh][n], in a new block. */
+static int ocs__transpose(float **t, int n, int nh) {
+  float *o = malloc(sizeof(float) * (size_t)n * (size_t)nh);
+  if (!o) return OC_ENOMEM;
+  for (int a = 0; a < n; a++)
+    for (int i = 0; i < nh; i++) o[(size_t)i * (size_t)n + (size_t)a] = (*t)[(size_t)a * (size_t)nh + (size_t)i];
+  free(*t);
+  *t = o;
+  return 0;
+}
+
 static void ocs__fbms(const ocs__layer_t *L, oc_fbm_t *cell, oc_fbm_t *det) {
   *cell = (oc_fbm_t){.octaves = L->cell.octaves, .lacunarity = 2.0, .gain = 0.5, .seed = 1};
   *det = (oc_fbm_t){.octaves = L->det.octaves, .lacunarity = 2.0, .gain = 0.5, .seed = 1};
@@ -323,7 +336,9 @@ static const ocs__tab_t *ocs__layer_tab(int l) {
     ocs__layer_band(L, &band_lo, &band_hi);
     T->h0 = band_lo;
     T->nh = (int)ceil((band_hi - band_lo) / OCS_COL_DH) + 2;
-    int ok = ocs__build_j(L, T) == 0 && ocs__build_means(L, &cell, &det, T) == 0;
+    int ok = ocs__build_j(L, T) == 0 && ocs__build_means(L, &cell, &det, T) == 0 &&
+             ocs__transpose(&T->j, OCS_COL_NA, T->nh) == 0 && ocs__transpose(&T->jd, OCS_COL_NX, T->nh) == 0 &&
+             ocs__transpose(&T->jbar, OCS_COL_NW, T->nh) == 0;
     atomic_store_explicit(&ocs__T.built[l], ok ? 1 : 2, memory_order_release);
   }
   pthread_mutex_unlock(&ocs__T.lock);
@@ -346,10 +361,10 @@ static inline double ocs__tab_at(const ocs__tab_t *T, const float *tab, int n, d
   int i = z >= (double)(T->nh - 1) ? T->nh - 2 : (int)z, a = y >= (double)(n - 1) ? n - 2 : (int)y;
   double fz = z - (double)i, fy = y - (double)a;
   if (fz > 1.0) fz = 1.0;
-  const float *r0 = &tab[(size_t)a * (size_t)T->nh + (size_t)i], *r1 = r0 + T->nh;
-  double v0 = (double)r0[0] + fz * ((double)r0[1] - (double)r0[0]);
-  double v1 = (double)r1[0] + fz * ((double)r1[1] - (double)r1[0]);
-  return v0 + fy * (v1 - v0);
+  const float *r0 = &tab[(size_t)i * (size_t)n + (size_t)a], *r1 = r0 + n;
+  double v0 = (double)r0[0] + fy * ((double)r0[1] - (double)r0[0]);
+  double v1 = (double)r1[0] + fy * ((double)r1[1] - (double)r1[0]);
+  return v0 + fz * (v1 - v0);
 }
 
 /*-*** Columns and pieces of a brick ***/

@@ -49,6 +49,8 @@ void oct_bench_usage(FILE *f) {
           "  --time T            world time in seconds (default 0)\n"
           "  --march-clear       march τ even where the sun column is proven clear (the state before\n"
           "                      the clear-sky shortcut; the same bits, counted as clear marched)\n"
+          "  --exact             also sample the same nodes through the sources' exact box filter: its\n"
+          "                      µs per brick beside the fast filter's, and the fast one's error\n"
           "  (prints the anchor beside each level: a scalar 6-octave Perlin fBm once per voxel, bricks/s\n"
           "   per core, and the ratios to it; with shadows, σt + τ as the world makes them, the CPU on\n"
           "   bricks that end up empty, and the τ direct marches proven clear)\n"
