@@ -249,9 +249,12 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
 
 /* The per-voxel bounds of a brick (ocs__box_max() with grid 0 on each voxel's cube, batched):
  * the layers that may be non-zero, and those whose W is 1, per voxel. nb is the node's bound, whose
- * ranges the layers in `reuse` take. */
+ * ranges the layers in `reuse` take. ccentre (may be NULL) gets each layer's coverage value C at
+ * each voxel's centre where it was evaluated (+inf where the layer took the node's ranges: W = 1
+ * there). */
 void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key, const ocs__bb_t *nb, unsigned reuse,
-                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS]);
+                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
+                       double (*ccentre)[OC_BRICK_VOXELS]);
 
 /* Strata of the exact box filter at a level: sub_h along the two most horizontal axes of a voxel,
  * sub_v along the most vertical (procedural_strata.c). */

@@ -117,6 +117,7 @@ typedef struct {
   double piece; /* m along the column; 0: one piece per column (nothing resolved) */
   ocs__split_t k, d;
   int qk, qd;
+  int cvox;       /* the coverage taken at the voxel's centre (its finest octave ≥ 16 voxels) */
   double kmargin; /* what the estimate may add to the cells' value beyond the evaluated octaves */
 } ocs__plan_t;
 
@@ -287,6 +288,7 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
     piece = piece > 0.0 && piece < pd ? piece : pd;
   }
   pl->piece = piece > 0.0 && piece < spacing ? spacing : piece;
+  pl->cvox = ldexp(L->cov.lambda, -(L->cov.octaves - 1)) >= 16.0 * u;
   pl->qk = L->a1 * pl->k.sd > OCS_COL_SPREAD * L->F_w ? 3 : 1;
   pl->qd = L->e * L->k_d * pl->d.sd > OCS_COL_SPREAD * L->F_w ? 3 : 1;
   pl->kmargin = pl->qk == 3 || (pl->k.n == 0 && pl->d.n == 0) ? 2.0 * pl->k.amp : 0.0;
@@ -376,6 +378,7 @@ typedef struct {
   double h0[OCS__CHUNK], h1[OCS__CHUNK], drdt[OCS__CHUNK]; /* altitude range; |dt/dh| = r/|t| */
   uint16_t vox[OCS__CHUNK];
   uint8_t wone[OCS__CHUNK];
+  const double *cc; /* the layer's coverage at each voxel's centre (ocs__voxel_bounds) */
   /* scratch */
   int idx[OCS__CHUNK], sel[OCS__CHUNK];
   double q[3 * OCS__CHUNK], xyz[3 * OCS__CHUNK], w[OCS__CHUNK], k[OCS__CHUNK];
@@ -428,7 +431,14 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
     ocs__rotate(lf->M, &ws->p[3 * i], &ws->q[3 * i]);
     ws->idx[i] = i;
   }
-  ocs__pattern(P, lf, l, OCS__COV, &S->fcov, ws, m, ws->w);
+  if (pl->cvox) /* the coverage at the voxel's centre, from its bound */
+    for (int j = 0; j < m; j++) {
+      int i = ws->idx[j];
+      double C = ws->cc[ws->vox[i]];
+      ws->w[j] = (ws->wone[i] >> l & 1u) || !(C < 2.0) ? 2.0 : C;
+    }
+  else
+    ocs__pattern(P, lf, l, OCS__COV, &S->fcov, ws, m, ws->w);
   int k = 0;
   for (int j = 0; j < m; j++) {
     double W = ws->w[j] > 1.5 ? 1.0 : ocs__w(L, lf, (float)ws->w[j]);
@@ -515,17 +525,21 @@ static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, cons
   int n = pl->piece > 0.0 ? (int)ceil((u1 - u0) / pl->piece) : 1;
   if (n < 1) n = 1;
   double step = (u1 - u0) / (double)n;
+  /* piece boundaries' radii shared by neighbours; the midpoint's radius is their mean (r(t) is
+   * convex, but over a piece the difference is below 1e-9 of a voxel) */
+  double t0 = u0, r0 = sqrt(a2 + u0 * u0);
   for (int m = 0; m < n; m++) {
-    double t0 = u0 + (double)m * step, t1 = m + 1 == n ? u1 : t0 + step, tm = 0.5 * (t0 + t1);
+    double t1 = m + 1 == n ? u1 : u0 + (double)(m + 1) * step, r1 = sqrt(a2 + t1 * t1), tm = 0.5 * (t0 + t1);
+    double r = 0.5 * (r0 + r1);
     int at = ws->n++;
     double *p = &ws->p[3 * at];
     for (int k = 0; k < 3; k++) p[k] = xyz[k];
     p[va] = sgn * tm;
-    double r = sqrt(a2 + tm * tm);
     ws->r[at] = r;
-    ws->h0[at] = sqrt(a2 + t0 * t0) - OCS__R;
-    ws->h1[at] = sqrt(a2 + t1 * t1) - OCS__R;
+    ws->h0[at] = r0 - OCS__R;
+    ws->h1[at] = r1 - OCS__R;
     ws->drdt[at] = r / tm;
+    t0 = t1, r0 = r1;
     ws->vox[at] = (uint16_t)v;
     ws->wone[at] = (uint8_t)wone;
     if (ws->n == OCS__CHUNK) {
@@ -563,18 +577,25 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
   /* Which layers may be non-zero in each voxel (the bound bounds the estimate: a skip changes no
    * value, so the brick-wide ranges it inherits do not make values depend on the brick). */
   uint8_t vmask[OC_BRICK_VOXELS], vwone[OC_BRICK_VOXELS];
-  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone);
+  double (*cc)[OC_BRICK_VOXELS] = malloc(sizeof(double) * OCS_LAYER_COUNT * OC_BRICK_VOXELS);
+  if (!cc) {
+    free(ws);
+    return OC_ENOMEM;
+  }
+  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone, cc);
   for (int l = 0; l < OCS_LAYER_COUNT; l++) {
     if (!(nb.mask >> l & 1u)) continue;
     const ocs__plan_t *pl = &plan[l];
     const ocs__tab_t *T = ocs__layer_tab(l);
     if (!T) {
       free(ws);
+      free(cc);
       return OC_ENOMEM;
     }
     double off[OCS_COL_MAX_H];
     for (int m = 0; m < pl->nc; m++) off[m] = ((double)m + 0.5) / (double)pl->nc - 0.5;
     ws->n = 0;
+    ws->cc = cc[l];
     for (int v = 0; v < OC_BRICK_VOXELS; v++) {
       if (!(vmask[v] >> l & 1u)) continue;
       int ijk[3] = {v % 8, v / 8 % 8, v / 64};
@@ -600,5 +621,6 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
   for (int v = 0; v < OC_BRICK_VOXELS; v++)
     if (ws->sum[v] > 0.0) out[v] += (float)ws->sum[v];
   free(ws);
+  free(cc);
   return 0;
 }

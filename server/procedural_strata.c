@@ -199,7 +199,7 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
     if ((nb.wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) reuse |= 1u << l;
   uint8_t vmask[OC_BRICK_VOXELS], vwone[OC_BRICK_VOXELS];
-  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone);
+  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone, NULL);
 
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++)

@@ -430,7 +430,8 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
  * each pattern evaluated for all voxels in one batch (a call per voxel and pattern spent more on
  * the fBm's set-up than on its octaves). */
 void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key, const ocs__bb_t *nb, unsigned reuse,
-                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS]) {
+                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
+                       double (*ccentre)[OC_BRICK_VOXELS]) {
   enum { N = OC_BRICK_VOXELS };
   static _Thread_local struct {
     ocs__geom_t g[N];
@@ -469,6 +470,7 @@ void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key
         if ((g->hmin > S->band_lo ? g->hmin : S->band_lo) > (g->hmax < S->band_hi ? g->hmax : S->band_hi)) continue;
         if (inh) {
           w.cmin[v] = nb->cmin[l], w.cmax[v] = nb->cmax[l], w.kmax[v] = nb->kmax[l];
+          if (ccentre) ccentre[l][v] = INFINITY; /* inherited only where W = 1 over the node */
           continue;
         }
         if (!g->far || (f == OCS__CELL && !(w.cmax[v] > lf->theta))) continue;
@@ -483,9 +485,10 @@ void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key
       for (int i = 0; i < n; i++) {
         int v = w.sel[i];
         double margin = lip * w.g[v].cap.chord * (1.0 + 1e-9) + 1e-6;
-        if (f == OCS__COV)
+        if (f == OCS__COV) {
           w.cmin[v] = (double)w.val[i] - margin, w.cmax[v] = (double)w.val[i] + margin;
-        else
+          if (ccentre) ccentre[l][v] = (double)w.val[i];
+        } else
           w.kmax[v] = (double)w.val[i] + margin;
       }
     }
