@@ -16,6 +16,7 @@
  * production runs behind the clock instead of holding epochs back. Stepped (P = 0): the virtual
  * clock of ocs_world_step(), each step producing all its plans ask. */
 #include <math.h>
+#include <sys/stat.h>
 #include <time.h>
 
 #include "net_internal.h"
@@ -65,10 +66,9 @@ static void step_work(uv_work_t *req) {
   ocs_server_t *srv = req->data;
   double t0 = mono_s();
   uint64_t n = srv->step_epoch;
-  if (srv->desc.step_delay_s > 0) { /* the test hook: a slow step whatever the machine's speed */
-    double s = srv->desc.step_delay_s;
-    struct timespec t = {(time_t)s, (long)((s - floor(s)) * 1e9)};
-    nanosleep(&t, NULL);
+  if (srv->desc.step_gate) { /* the test hook: the producer held until the test releases it */
+    struct stat st;
+    for (int i = 0; i < 120000 && stat(srv->desc.step_gate, &st) != 0; i++) nanosleep(&(struct timespec){0, 5000000}, NULL);
   }
   srv->step_rc = n ? ocs_world_step_at(srv->world, n, (double)n * srv->period) : ocs_world_step(srv->world);
   srv->step_took = mono_s() - t0;

@@ -42,7 +42,8 @@ typedef struct {
   int insecure;            /**< allow a non-loopback host without a token (ocs_server_create
                                 refuses it otherwise) */
   int send_buffer;         /**< SO_SNDBUF of each connection, bytes; 0 → the system's */
-  double step_delay_s;     /**< tests: each step lasts at least this long (a slow step on demand) */
+  const char *step_gate;   /**< tests: each step waits until this file exists (a held producer the
+                                test releases), at most 600 s; NULL: none */
   int zstd_level;          /**< 0 → OCP_LEVEL_DEFAULT */
   int deltas;              /**< < 0 → off; otherwise on for viewers that accept them */
   const char *scene_path;  /**< re-read by the "reload" control request; NULL: the built-in planet */

@@ -178,10 +178,10 @@ static const oc_cli_opt_t opts[] = {
              "server's own limits"},
     {.name = "no-deltas", .type = OC_CLI_CUSTOM, .parse = parse_no_deltas, .group = SERVE,
      .help = "send refreshed bricks whole"},
-    {.name = "step-delay", .type = OC_CLI_DOUBLE, .offset = AT(desc.step_delay_s), .arg = "S", .lo = 0, .hi = 3600,
-     .def = "0", .group = SERVE,
-     .help = "for tests: every step takes at least this long, as a slow production would (a test that needs "
-             "a slow step makes one with this, whatever the machine's speed)"},
+    {.name = "step-gate", .type = OC_CLI_STRING, .offset = AT(desc.step_gate), .arg = "FILE", .group = SERVE,
+     .help = "for tests: every step waits, before it produces anything, until FILE exists (the test holds "
+             "the producer and releases it by creating the file: a step as long as the test wants, whatever "
+             "the machine's speed; at most 600 s)"},
     /* Other modes */
     {.name = "check", .type = OC_CLI_FLAG, .offset = AT(check), .group = OTHER,
      .help = "load the scene, build every source, print a summary and exit"},
