@@ -75,6 +75,8 @@ typedef struct {
   float *sigma;             /* σt kept while the request waits for a τ volume (produce_one) */
   int made;                 /* produced here (not found in the cache) */
   int built_tau;            /* its τ volume was built for it (the expensive kind of brick) */
+  uint8_t kind;             /* what it turned out to be (OC_NODE_*), once made */
+  double cpu;               /* thread CPU seconds spent on it so far (both passes) */
   uint32_t first, count;    /* production: its viewers, who[first .. first + count) */
 } req_t;
 
@@ -175,6 +177,9 @@ struct ocs_world_s {
   size_t queue_left;        /* what the last production left queued (reported until the next queue) */
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
+  /* thread CPU seconds on made bricks, and on those that ended up empty (σt and τ all zero) */
+  _Atomic double brick_cpu, brick_cpu_empty;
+  _Atomic uint64_t bricks_empty;
   _Atomic int last_error;
   _Atomic oc_key_t last_error_key;
   uint64_t brick_requests;
@@ -297,6 +302,7 @@ static int produce_finish(prod_t *pr, req_t *q, const float sigma[OC_BRICK_VOXEL
   }
   oc_sanitize(tau, OC_BRICK_VOXELS, NULL);
   p->kind = (uint8_t)oc_brick_encode(sigma, tau, &p->codes, p->range);
+  q->kind = p->kind;
   ocs_cache_publish(w->cache, q->entry, p, p->kind == OC_NODE_BRICK ? sizeof *p : PAYLOAD_HEAD);
   q->made = 1;
   w->bricks_produced++;
@@ -398,10 +404,35 @@ static void produce_failed(ocs_world_t *w, oc_key_t key, int r) {
   atomic_store(&w->last_error_key, key);
 }
 
+static double thread_cpu_s(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static void atomic_add_double(_Atomic double *a, double v) {
+  double old = atomic_load_explicit(a, memory_order_relaxed);
+  while (!atomic_compare_exchange_weak_explicit(a, &old, old + v, memory_order_relaxed, memory_order_relaxed)) {
+  }
+}
+
+/* What a made brick cost, and whether that was spent on nothing (issue 17's wasted work). */
+static void account_cpu(ocs_world_t *w, req_t *q, double since) {
+  q->cpu += thread_cpu_s() - since;
+  if (!q->made || q->sigma) return; /* set aside: its second pass counts it */
+  atomic_add_double(&w->brick_cpu, q->cpu);
+  if (q->kind == OC_NODE_EMPTY) {
+    atomic_add_double(&w->brick_cpu_empty, q->cpu);
+    atomic_fetch_add_explicit(&w->bricks_empty, 1, memory_order_relaxed);
+  }
+}
+
 static int produce_one(void *ctx, size_t i, int worker) {
   prod_t *p = ctx;
   (void)worker;
+  double c0 = thread_cpu_s();
   int r = produce_brick(p, &p->req[i]);
+  account_cpu(p->w, &p->req[i], c0);
   if (r < 0) produce_failed(p->w, p->req[i].key, r);
   return r;
 }
@@ -410,9 +441,11 @@ static int produce_deferred(void *ctx, size_t i, int worker) {
   (void)worker;
   prod_t *p = ctx;
   req_t *q = &p->req[p->deferred[i]];
+  double c0 = thread_cpu_s();
   int r = produce_finish(p, q, q->sigma, 1);
   free(q->sigma);
   q->sigma = NULL;
+  account_cpu(p->w, q, c0);
   if (r < 0) produce_failed(p->w, q->key, r);
   return r;
 }
@@ -1554,6 +1587,9 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   out->tau_direct = (uint64_t)atomic_load(&w->tau_stats.direct);
   out->tau_clear = (uint64_t)atomic_load(&w->tau_stats.clear_proven);
   out->produce_errors = w->produce_errors;
+  out->brick_cpu = w->brick_cpu;
+  out->brick_cpu_empty = w->brick_cpu_empty;
+  out->bricks_empty = w->bricks_empty;
   out->last_error = w->last_error;
   out->last_error_key = w->last_error_key;
   ocs_hist_read(&w->brick_seconds, &out->brick_seconds);
