@@ -94,6 +94,29 @@ static inline double oc__floor(double x, uint64_t *ix) {
   return r;
 }
 
+/* The noise inside a cell at (fx, fy, fz) in [0, 1)³ from its corners' gradient indices g[c],
+ * corner c = x + 2y + 4z: the part of the kernel after the hash (oc_noise3_cell exposes it). */
+OC__INLINE double oc__cell(const uint64_t g[8], double fx, double fy, double fz) {
+  double gx = fx - 1.0, gy = fy - 1.0, gz = fz - 1.0;
+  double n000 = oc__grad(g[0], fx, fy, fz);
+  double n100 = oc__grad(g[1], gx, fy, fz);
+  double n010 = oc__grad(g[2], fx, gy, fz);
+  double n110 = oc__grad(g[3], gx, gy, fz);
+  double n001 = oc__grad(g[4], fx, fy, gz);
+  double n101 = oc__grad(g[5], gx, fy, gz);
+  double n011 = oc__grad(g[6], fx, gy, gz);
+  double n111 = oc__grad(g[7], gx, gy, gz);
+  /* Quintic fade 6t^5 - 15t^4 + 10t^3. */
+  double u = fx * fx * fx * (fx * (fx * 6.0 - 15.0) + 10.0);
+  double v = fy * fy * fy * (fy * (fy * 6.0 - 15.0) + 10.0);
+  double w = fz * fz * fz * (fz * (fz * 6.0 - 15.0) + 10.0);
+  double a = oc__lerp(oc__lerp(n000, n100, u), oc__lerp(n010, n110, u), v);
+  double b = oc__lerp(oc__lerp(n001, n101, u), oc__lerp(n011, n111, u), v);
+  double r = oc__lerp(a, b, w) * OC__SCALE;
+  r = oc__sel(oc__mask(r > 1.0), 1.0, r);
+  return oc__sel(oc__mask(r < -1.0), -1.0, r);
+}
+
 /* The noise at one point; `s` is the premixed seed. Shared by every entry point. */
 OC__INLINE double oc__noise(double x, double y, double z, uint64_t s) {
   uint64_t ix, iy, iz;
@@ -104,24 +127,10 @@ OC__INLINE double oc__noise(double x, double y, double z, uint64_t s) {
   uint64_t hx0 = ix * OC__PX + s, hx1 = hx0 + OC__PX;
   uint64_t hy0 = iy * OC__PY, hy1 = hy0 + OC__PY;
   uint64_t hz0 = iz * OC__PZ, hz1 = hz0 + OC__PZ;
-  double gx = fx - 1.0, gy = fy - 1.0, gz = fz - 1.0;
-  double n000 = oc__grad(oc__corner(hx0 + hy0 + hz0), fx, fy, fz);
-  double n100 = oc__grad(oc__corner(hx1 + hy0 + hz0), gx, fy, fz);
-  double n010 = oc__grad(oc__corner(hx0 + hy1 + hz0), fx, gy, fz);
-  double n110 = oc__grad(oc__corner(hx1 + hy1 + hz0), gx, gy, fz);
-  double n001 = oc__grad(oc__corner(hx0 + hy0 + hz1), fx, fy, gz);
-  double n101 = oc__grad(oc__corner(hx1 + hy0 + hz1), gx, fy, gz);
-  double n011 = oc__grad(oc__corner(hx0 + hy1 + hz1), fx, gy, gz);
-  double n111 = oc__grad(oc__corner(hx1 + hy1 + hz1), gx, gy, gz);
-  /* Quintic fade 6t^5 - 15t^4 + 10t^3. */
-  double u = fx * fx * fx * (fx * (fx * 6.0 - 15.0) + 10.0);
-  double v = fy * fy * fy * (fy * (fy * 6.0 - 15.0) + 10.0);
-  double w = fz * fz * fz * (fz * (fz * 6.0 - 15.0) + 10.0);
-  double a = oc__lerp(oc__lerp(n000, n100, u), oc__lerp(n010, n110, u), v);
-  double b = oc__lerp(oc__lerp(n001, n101, u), oc__lerp(n011, n111, u), v);
-  double r = oc__lerp(a, b, w) * OC__SCALE;
-  r = oc__sel(oc__mask(r > 1.0), 1.0, r);
-  return oc__sel(oc__mask(r < -1.0), -1.0, r);
+  uint64_t g[8] = {oc__corner(hx0 + hy0 + hz0), oc__corner(hx1 + hy0 + hz0), oc__corner(hx0 + hy1 + hz0),
+                   oc__corner(hx1 + hy1 + hz0), oc__corner(hx0 + hy0 + hz1), oc__corner(hx1 + hy0 + hz1),
+                   oc__corner(hx0 + hy1 + hz1), oc__corner(hx1 + hy1 + hz1)};
+  return oc__cell(g, fx, fy, fz);
 }
 
 /*-*** Noise ***/
@@ -142,6 +151,12 @@ OC__INLINE double oc__noise(double x, double y, double z, uint64_t s) {
 #endif
 
 double oc_noise3(double x, double y, double z, uint64_t seed) { return oc__noise(x, y, z, oc__mix64(seed)); }
+
+double oc_noise3_cell(const unsigned char g[8], double fx, double fy, double fz) {
+  uint64_t h[8];
+  for (int c = 0; c < 8; c++) h[c] = g[c] & 15u;
+  return oc__cell(h, fx, fy, fz);
+}
 
 OC__BATCH int oc_noise3_batch(const double *xyz, int n, uint64_t seed, float *out) {
   if (n < 0 || (n > 0 && (!xyz || !out))) return OC_EINVAL;

@@ -22,20 +22,33 @@
  * Domain. Exact for |x|, |y|, |z| < 2^50 (≈ 1.1e15 lattice units; a 6.4e6 m planet at a 1 mm
  * feature size is 6.4e9). Outside that, or for NaN/inf, the result is unspecified (never UB).
  *
- * Lipschitz. |∇n| ≤ 14.3 per lattice unit, a safe analytic bound (per axis 2·(15/8)·2 + 1 = 8.5
- * before scaling, × √3); the test checks |n(p) - n(q)| ≤ 14.3·|p - q| and sees at most about 2.7. */
+ * Lipschitz. |∇n| ≤ 3.88 per lattice unit, proven: inside a cell the largest derivative along a
+ * unit direction d over every gradient configuration is S·Σ_c max_g g·v_c, v_c = (d·∇w_c)(p − c) +
+ * w_c d (w_c the corner's fade weight; each corner's gradient independent), convex in d; a branch
+ * and bound with interval arithmetic over the cell, on the vertices of a subdivided icosahedron
+ * (convexity bounds the directions between them), certifies ≤ 3.8772 (tests/common/test_noise.c,
+ * docs/numerics.md). The supremum is 3.75·S = 3.6184, at the cell's centre along an axis (every
+ * corner's gradient the best for it), which the adversarial test reaches with the kernel itself.
+ * The field is C² across cell faces, so the bound holds between any two points. */
 #ifndef OC_COMMON_NOISE_H
 #define OC_COMMON_NOISE_H
 
 #include <stdint.h>
 
-#define OC_NOISE_LIPSCHITZ 14.3 /**< bound on |∇ oc_noise3| per lattice unit */
+#define OC_NOISE_LIPSCHITZ 3.88 /**< proven bound on |∇ oc_noise3| per lattice unit (above) */
 #define OC_FBM_MAX_OCTAVES 24   /**< octaves beyond this add nothing a double can hold */
 
 /*! oc_noise3() :
  *  Gradient noise at (x, y, z) in lattice units.
  *  @return a value in [-1, 1]; 0 at every integer lattice point. Thread-safe, pure. */
 double oc_noise3(double x, double y, double z, uint64_t seed);
+
+/*! oc_noise3_cell() :
+ *  The kernel of oc_noise3() inside one lattice cell, at (fx, fy, fz) in [0, 1]³, with the corners'
+ *  gradient indices g[c] (0..15, Perlin's list; corner c = x + 2y + 4z) given instead of hashed:
+ *  every value oc_noise3() takes is one of these. For tests that search the gradient
+ *  configurations (the Lipschitz bound's). */
+double oc_noise3_cell(const unsigned char g[8], double fx, double fy, double fz);
 
 /*! oc_noise3_batch() :
  *  out[i] = (float)oc_noise3(xyz[3i], xyz[3i+1], xyz[3i+2], seed) for i < n, bit for bit.
