@@ -19,23 +19,25 @@
  * OCS_COL_SUB sub-steps, which resolves the 3 m ramp of a cumulus base; bilinear between entries).
  *
  * The voxel is cut, as the exact filter cuts it, into nc × nc columns along its most vertical axis
- * (nc: OCS_COL_DH_H metres apart, 4..6, two at fine levels), so its volume is partitioned exactly. Along a column,
- * dt = (r/|t|)·dh (t the coordinate along the axis), taken at a piece's midpoint. Each pattern's
- * fBm is split per level: octaves at least OCS_COL_KAPPA column spacings long are evaluated
- * ("resolved"), the finer ones are not, and enter through their distribution:
- *   - coarse levels, where neither cells nor detail have a resolved octave: one piece per column
- *     and layer; W is evaluated at the column's middle, and the expectation over the full
- *     distributions of K and D is a second table per layer, Ĵ(W, h) = E[J(W·V(K) − E(D), h)],
- *     over the empirical distributions of the layer's cell and detail fBm (OCS_COL_DIST points);
- *   - finer levels: the column is cut into pieces along which the resolved octaves move less
- *     than 1/OCS_COL_KAPPA of their period (a tilted column drifts sideways by up to √2 of its
- *     length); W, V(K_res) and D_res at each piece's midpoint, and the unresolved rest of K and D
- *     as a three-node quadrature each (a normal of the rest's variance, clamped to its range)
- *     where its spread on A' matters (above OCS_COL_SPREAD × F_w), else its mean, 0.
+ * (OCS_COL_DH_H metres apart, 4 to 6; two at fine levels), so its volume is partitioned exactly.
+ * Along a column dt = (r/|t|)·dh (t the coordinate along the axis), taken at a piece's midpoint.
+ * Each pattern's fBm is split per level: octaves at least OCS_COL_KAPPA column spacings long are
+ * evaluated ("resolved"), the finer ones are not, and enter through their distribution:
+ *   - nothing resolved (coarse levels): one piece per column and layer, W at its middle (or at the
+ *     voxel's centre, below), and Ĵ(W, h) = E[J(W·V(K) − E(D), h)], a second table per layer
+ *     over the empirical distributions of the layer's cell and detail ramps;
+ *   - cells resolved, detail not: J_D(W·V, h) = E[J(W·V − E(D), h)], a third table;
+ *   - otherwise: the column is cut into pieces along which the resolved octaves move by at most
+ *     1/OCS_COL_KAPPA of their finest period (a tilted column drifts sideways by up to √2 of its
+ *     length), W, V(K_res) and D_res at each piece's midpoint, and each unresolved rest a
+ *     three-node quadrature (a normal of the rest's variance, clamped to its range) where its
+ *     spread on A' matters (above OCS_COL_SPREAD × F_w), else its mean, 0.
+ * W is taken at the voxel's centre (the value its bound evaluated) where the coverage's finest
+ * octave spans 16 voxels.
  *
  * The estimate differs from the exact filter by what the unresolved octaves do inside a voxel and
  * by the tables' resolution; per level the error against the exact filter and the parent-vs-
- * descendants test are in docs/numerics.md ("The fast box filter"). What it keeps:
+ * descendants test are in docs/numerics.md ("The procedural planet's fast box filter"). What it keeps:
  *   - every sample depends on its own position only (shared faces agree bit for bit), and on
  *     nothing but (seed, key, time step);
  *   - the bounds bound the estimate: where a level leaves cell octaves unresolved the estimate may

@@ -106,9 +106,10 @@ static void usage(FILE *f) {
           "                        PREFIX-detail.png (time to full detail against N, stepped beside it)\n"
           "  --no-reference        with --ramp: no stepped reference (time to detail is not judged)\n"
           "  --reference-teleports K  teleports the stepped reference measures (default 3)\n"
-          "  --detail-reference M  what the rule compares time to full detail with: seconds (default: the\n"
-          "                        stepped server's own seconds, stepped as fast as it makes epochs) or\n"
-          "                        epochs (the stepped server's epochs to full detail x the period)\n"
+          "  --detail-reference M  what the rule compares time to full detail with: held (default: the\n"
+          "                        larger of the stepped server's seconds and its epochs x the period,\n"
+          "                        what a server whose epochs wait for their bricks takes on the clock),\n"
+          "                        seconds (stepped as fast as it makes epochs) or epochs (x the period)\n"
           "  --ramp-from N         the first phase's viewers (default 1)\n"
           "  --ramp-max N          the last phase's at most (default %d)\n"
           "  --ramp-seconds S      each phase's measured time, after its warm-up (default 10)\n"
@@ -742,9 +743,13 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
   ph->mbps_p50 = ph->mbps_p99 = NAN;
   ph->late_p50 = ph->late_p99 = ph->late_max = ph->late_worst_p99 = ph->coalesced_frac = ph->coalesced_worst = NAN;
   ph->detail_p50 = ph->detail_p99 = ph->detail_worst_ratio = ph->detail_lower_s = NAN;
-  /* the stepped figure the rule compares with: its seconds (stepped as fast as it goes), or with
-   * --detail-reference epochs its epochs × P (what the same epochs take on the clock) */
-  double refv = !ref ? NAN : o->detail_ref_epochs ? ref->detail_epochs_p50 * period : ref->detail_p50;
+  /* the stepped figure the rule compares with (stress.h, the rule) */
+  double on_clock = ref ? ref->detail_epochs_p50 * period : NAN;
+  double refv = !ref                                            ? NAN
+                : o->detail_ref == STRESS_DETAIL_REF_SECONDS     ? ref->detail_p50
+                : o->detail_ref == STRESS_DETAIL_REF_EPOCHS      ? on_clock
+                : ref->detail_p50 > on_clock || isnan(on_clock) ? ref->detail_p50
+                                                                 : on_clock;
   ph->detail_ref = refv;
   ph->age_p99 = ph->age_worst_p99 = ph->server_age_p99 = -1;
   run->v = calloc((size_t)n, sizeof *run->v);
@@ -1075,9 +1080,11 @@ int main(int argc, char **argv) {
       case O_NO_REF: o.reference = 0; ref_given = 1; break;
       case O_RAMP_ALL: o.ramp_all = 1; ref_given = 1; break;
       case O_DETAIL_REF:
-        if (strcmp(optarg, "seconds") && strcmp(optarg, "epochs"))
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--detail-reference: expected seconds or epochs, got \"%s\"", optarg);
-        o.detail_ref_epochs = !strcmp(optarg, "epochs");
+        if (strcmp(optarg, "held") && strcmp(optarg, "seconds") && strcmp(optarg, "epochs"))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--detail-reference: expected held, seconds or epochs, got \"%s\"", optarg);
+        o.detail_ref = !strcmp(optarg, "seconds") ? STRESS_DETAIL_REF_SECONDS
+                       : !strcmp(optarg, "epochs") ? STRESS_DETAIL_REF_EPOCHS
+                                                   : STRESS_DETAIL_REF_HELD;
         ref_given = 1;
         break;
       case O_REF_TELE:

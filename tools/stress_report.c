@@ -715,7 +715,10 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
            refs[r].budget_mib, refs[r].index, refs[r].seconds, sr_num(b1, sizeof b1, refs[r].detail_p50, "%.2f"),
            sr_num(b2, sizeof b2, refs[r].detail_p99, "%.2f"), sr_num(b3, sizeof b3, refs[r].detail_epochs_p50, "%.0f"),
            sr_num(b4, sizeof b4, refs[r].detail_epochs_p50 * period, "%.0f"), refs[r].settled, refs[r].teleports,
-           o->detail_ref_epochs ? "epochs x P" : "seconds", refs[r].error[0] ? "; " : "", refs[r].error);
+           o->detail_ref == STRESS_DETAIL_REF_SECONDS  ? "seconds"
+           : o->detail_ref == STRESS_DETAIL_REF_EPOCHS ? "epochs x P"
+                                                        : "seconds or epochs x P, the larger",
+           refs[r].error[0] ? "; " : "", refs[r].error);
   printf("\n| budget MiB | N | lateness p99 ms (worst viewer) | max ms | coalesced (worst) | age p99 (worst) | mismatches | "
          "full detail p50 s (settled/teleports) | x stepped (worst) | interval p50 s | server CPU | MB/s per viewer p50 | sustained |\n");
   printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
@@ -785,7 +788,10 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
     cJSON_AddNumberToObject(rule, "coalesced_fraction", STRESS_COALESCED_MAX);
     cJSON_AddNumberToObject(rule, "content_age_p99", STRESS_AGE_ALLOWED);
     cJSON_AddNumberToObject(rule, "full_detail_factor", STRESS_DETAIL_FACTOR);
-    cJSON_AddStringToObject(rule, "full_detail_reference", o->detail_ref_epochs ? "stepped epochs x period" : "stepped seconds");
+    cJSON_AddStringToObject(rule, "full_detail_reference",
+                            o->detail_ref == STRESS_DETAIL_REF_SECONDS  ? "stepped seconds"
+                            : o->detail_ref == STRESS_DETAIL_REF_EPOCHS ? "stepped epochs x period"
+                                                                         : "stepped seconds or epochs x period, the larger");
     cJSON_AddNumberToObject(rule, "interval_factor", STRESS_RAMP_INTERVAL);
     cJSON *ra = cJSON_AddArrayToObject(r, "stepped_reference");
     for (int k = 0; k < nrefs; k++) {
