@@ -76,7 +76,7 @@ typedef struct {
   int made;                 /* produced here (not found in the cache) */
   int built_tau;            /* its τ volume was built for it (the expensive kind of brick) */
   uint8_t kind;             /* what it turned out to be (OC_NODE_*), once made */
-  double cpu;               /* thread CPU seconds spent on it so far (both passes) */
+  double cpu;               /* seconds its producer threads spent on it so far (both passes) */
   uint32_t first, count;    /* production: its viewers, who[first .. first + count) */
 } req_t;
 
@@ -177,7 +177,7 @@ struct ocs_world_s {
   size_t queue_left;        /* what the last production left queued (reported until the next queue) */
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
-  /* thread CPU seconds on made bricks, and on those that ended up empty (σt and τ all zero) */
+  /* producer-thread seconds on made bricks, and on those that ended up empty (σt and τ all zero) */
   _Atomic double brick_cpu, brick_cpu_empty;
   _Atomic uint64_t bricks_empty;
   _Atomic int last_error;
@@ -404,21 +404,17 @@ static void produce_failed(ocs_world_t *w, oc_key_t key, int r) {
   atomic_store(&w->last_error_key, key);
 }
 
-static double thread_cpu_s(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 static void atomic_add_double(_Atomic double *a, double v) {
   double old = atomic_load_explicit(a, memory_order_relaxed);
   while (!atomic_compare_exchange_weak_explicit(a, &old, old + v, memory_order_relaxed, memory_order_relaxed)) {
   }
 }
 
-/* What a made brick cost, and whether that was spent on nothing (issue 17's wasted work). */
+/* What a made brick took on its producer thread (wall time: a thread's CPU clock is a system call,
+ * which cost a tenth of production), and whether that was spent on nothing (issue 17's wasted
+ * work). */
 static void account_cpu(ocs_world_t *w, req_t *q, double since) {
-  q->cpu += thread_cpu_s() - since;
+  q->cpu += now_s() - since;
   if (!q->made || q->sigma) return; /* set aside: its second pass counts it */
   atomic_add_double(&w->brick_cpu, q->cpu);
   if (q->kind == OC_NODE_EMPTY) {
@@ -430,7 +426,7 @@ static void account_cpu(ocs_world_t *w, req_t *q, double since) {
 static int produce_one(void *ctx, size_t i, int worker) {
   prod_t *p = ctx;
   (void)worker;
-  double c0 = thread_cpu_s();
+  double c0 = now_s();
   int r = produce_brick(p, &p->req[i]);
   account_cpu(p->w, &p->req[i], c0);
   if (r < 0) produce_failed(p->w, p->req[i].key, r);
@@ -441,7 +437,7 @@ static int produce_deferred(void *ctx, size_t i, int worker) {
   (void)worker;
   prod_t *p = ctx;
   req_t *q = &p->req[p->deferred[i]];
-  double c0 = thread_cpu_s();
+  double c0 = now_s();
   int r = produce_finish(p, q, q->sigma, 1);
   free(q->sigma);
   q->sigma = NULL;

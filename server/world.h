@@ -73,7 +73,8 @@ typedef struct {
                                   their group's volume */
   uint64_t tau_clear;        /**< of those, proven clear toward the sun: τ = 0 without a march */
   uint64_t produce_errors;   /**< bricks whose production failed (clocked: asked again) */
-  double brick_cpu;          /**< thread CPU seconds spent making bricks (σt, τ, codes) */
+  double brick_cpu;          /**< seconds producer threads spent making bricks (σt, τ, codes;
+                                  per-brick wall timers on threads that run nothing else) */
   double brick_cpu_empty;    /**< of that, on bricks that ended up empty (σt and τ all zero) */
   uint64_t bricks_empty;     /**< bricks made that ended up empty */
   int last_error;            /**< the last failure's OC_E* and brick */

@@ -152,8 +152,8 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
          (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_direct,
          (unsigned long long)ws.tau_clear);
-  printf("wasted work: %llu of %llu bricks made ended up empty (σt and τ all zero), %.2f of %.2f CPU-s on made bricks "
-         "(%.1f %%; per-brick thread CPU timers)\n",
+  printf("wasted work: %llu of %llu bricks made ended up empty (σt and τ all zero), %.2f of %.2f s on made bricks "
+         "(%.1f %%; per-brick timers on the producer threads)\n",
          (unsigned long long)ws.bricks_empty, (unsigned long long)ws.bricks_produced, ws.brick_cpu_empty, ws.brick_cpu,
          ws.brick_cpu > 0.0 ? 100.0 * ws.brick_cpu_empty / ws.brick_cpu : 0.0);
   {
