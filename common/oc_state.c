@@ -20,6 +20,16 @@ void oc_state_init(oc_state_t *s) {
   s->sun_dir = oc_dv3(0.0, 0.0, 1.0);
 }
 
+void oc_state_clear(oc_state_t *s) {
+  if (!s) return;
+  oc_node_t *nodes = s->nodes;
+  oc_brick_t *bricks = s->bricks;
+  uint32_t ncap = s->node_cap, bcap = s->brick_cap;
+  oc_state_init(s);
+  s->nodes = nodes, s->node_cap = ncap;
+  s->bricks = bricks, s->brick_cap = bcap;
+}
+
 void oc_state_free(oc_state_t *s) {
   if (!s) return;
   free(s->nodes);

@@ -58,6 +58,9 @@ typedef struct {
 /*! oc_state_init() : an empty state (no nodes). oc_state_free() releases arrays; NULL is fine. */
 void oc_state_init(oc_state_t *s);
 void oc_state_free(oc_state_t *s);
+/*! oc_state_clear() : empty again, keeping its arrays (a state rebuilt every epoch reuses its memory
+ *  instead of growing and faulting in a new one). */
+void oc_state_clear(oc_state_t *s);
 /*! oc_state_add_node() / oc_state_add_brick() : append (any order); @return 0 or OC_ENOMEM. */
 int oc_state_add_node(oc_state_t *s, const oc_node_t *n);
 int oc_state_add_brick(oc_state_t *s, uint32_t id, const oc_brick_codes_t *codes);

@@ -408,7 +408,7 @@ static int new_content(ocs_planner_t *p, pn_t *n, int level, int look, uint64_t 
     content_new(p, n);
     return 1;
   }
-  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp);
+  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp, held);
   if (!s || s == held) {
     if (p->in->want) p->in->want(p->in->ctx, n->key, n->stamp, prio);
     return 0;
@@ -782,6 +782,11 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
         h_pop(&p->split_h);
         st.split_backlog++;
         kids_of = OC_KEY_INVALID;
+        /* Past twice the splits an epoch may make, further waiting splits are left for later ticks:
+         * each costs 8 looks into the brick cache, and behind a teleport or a budget that grew
+         * faster than production, tens of thousands wait (their children are wished by the target
+         * plans meanwhile). */
+        if (st.split_backlog > 2 * max_new_nodes / 8) { st.stop = "split backlog (children not made yet)"; break; }
         continue;
       }
     }

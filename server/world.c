@@ -107,6 +107,8 @@ struct ocs_viewer_s {
   ocs_view_t view;
   int has_view;
   oc_state_t held[OCS_PLAN_MAX_KEPT]; /* held[0]: newest state sent */
+  oc_state_t spare;                   /* the last state dropped, its arrays kept for the next one
+                                         (tens of MB at 64 MiB: a new one faulted them in every tick) */
   int nheld;
   uint32_t *lacking;
   uint32_t nlacking, lacking_cap;
@@ -681,6 +683,7 @@ int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_
   v->acked = UINT64_MAX;
   v->next_id = 1;
   for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) oc_state_init(&v->held[i]);
+  oc_state_init(&v->spare);
   if ((r = ocs_planner_create(&v->planner, &d)) < 0) {
     free(v);
     return r;
@@ -706,6 +709,7 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
     }
   ocs_planner_free(v->planner);
   for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) oc_state_free(&v->held[i]);
+  oc_state_free(&v->spare);
   free(v->lacking);
   free(v->req_of);
   free(v->target);
@@ -847,12 +851,15 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc) {
 /*-*** Clocked epochs: content that exists, and what is wanted ***/
 
 /* The planner's ready(): the stamp of existing content of (key), this epoch's or one of the last
- * OCS_READY_AGE of its level, pinned until the tick's states are built (nothing is produced
- * during a tick, but pins keep that true whatever the cache does). */
-static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp) {
+ * OCS_READY_AGE of its level, newer than the one it shows (the history is newest first: a
+ * refresh stops at `held`, never going back in time, and a waiting refresh costs one look, not
+ * three), pinned until the tick's states are built (nothing is produced during a tick, but pins
+ * keep that true whatever the cache does). */
+static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held) {
   ocs_world_t *w = ctx;
   for (int i = -1; i < OCS_READY_AGE; i++) {
     uint64_t st = i < 0 ? stamp : w->stamp_hist[level][i];
+    if (held && st == held) return 0;
     if (!st || (i >= 0 && st == stamp)) continue;
     ocs_cache_key_t k = ckey(w, T_BRICK, key, st, 0);
     ocs_cache_entry_t *e;
@@ -1290,8 +1297,9 @@ static int emit_states(ocs_world_t *w) {
     free(ids);
     kinds = malloc(v->nleaves ? v->nleaves : 1);
     ids = malloc((v->nleaves ? v->nleaves : 1) * sizeof *ids);
-    oc_state_t st;
-    oc_state_init(&st);
+    oc_state_t st = v->spare; /* its arrays; nothing refers to the state it was */
+    oc_state_clear(&st);
+    oc_state_init(&v->spare);
     uint32_t first_id = v->next_id;
     rc = kinds && ids ? build_state(w, v, &st, kinds, ids) : OC_ENOMEM;
     if (rc >= 0) rc = ocs_plan_commit(v->planner, kinds, ids);
@@ -1302,7 +1310,7 @@ static int emit_states(ocs_world_t *w) {
     }
     content_age(w, v);
     v->planned = 0;
-    oc_state_free(&v->held[w->K - 1]);
+    v->spare = v->held[w->K - 1]; /* dropped: its arrays serve the next state */
     memmove(&v->held[1], &v->held[0], (size_t)(w->K - 1) * sizeof v->held[0]);
     v->held[0] = st;
     if (v->nheld < w->K) v->nheld++;
@@ -1577,6 +1585,10 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
       const oc_state_t *s = &w->viewers[i]->held[j];
       out->held_bytes += (uint64_t)s->node_count * sizeof(oc_node_t) + (uint64_t)s->brick_count * sizeof(oc_brick_t);
     }
+  for (int i = 0; i < w->nviewers; i++) { /* the spare's arrays are memory held too */
+    const oc_state_t *s = &w->viewers[i]->spare;
+    out->held_bytes += (uint64_t)s->node_cap * sizeof(oc_node_t) + (uint64_t)s->brick_cap * sizeof(oc_brick_t);
+  }
   out->produce_seconds = w->produce_seconds;
   out->plan_seconds = w->plan_seconds;
   out->target_seconds = w->target_seconds;

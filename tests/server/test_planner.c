@@ -1134,8 +1134,8 @@ typedef struct {
   int n;
 } wishes_t;
 
-static uint64_t nothing_new(void *ctx, oc_key_t key, int level, uint64_t stamp) {
-  (void)ctx, (void)key, (void)level, (void)stamp;
+static uint64_t nothing_new(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held) {
+  (void)ctx, (void)key, (void)level, (void)stamp, (void)held;
   return 0;
 }
 
