@@ -93,10 +93,37 @@ static void learn_lead(ocs_server_t *srv) {
 
 static void on_send_timer(uv_timer_t *t) { tick_end(t->data); }
 
+/* The step's figures for STATS, read once per step, not once per viewer. */
+static void take_step_stats(ocs_server_t *srv) {
+  ocs_world_stats_t ws;
+  ocs_world_stats(srv->world, &ws);
+  srv->plan_ms = 1e3 * ws.plan_seconds;
+  srv->produce_ms = 1e3 * ws.produce_seconds;
+}
+
+/* A session that will stream the step's state: READY, its newest state not sent yet, the one before
+ * acknowledged. */
+static int will_stream(const ocs_session_t *s) {
+  if (s->state != OCS_SS_READY || !s->viewer) return 0;
+  const oc_state_t *h0 = ocs_viewer_held(s->viewer, 0);
+  return h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack;
+}
+
 static void step_done(uv_work_t *req, int status) {
   ocs_server_t *srv = req->data;
   (void)status;
   if (srv->tick_hold) {
+    /* built ahead: each stream is set up now (the encoder hashes tens of MB for a 64 MiB viewer),
+     * so the first frames leave at the due instant; the set-up counts in the lead */
+    double t0 = mono_s();
+    if (srv->step_rc >= 0) {
+      take_step_stats(srv);
+      for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
+        nx = s->next;
+        if (will_stream(s)) ocs_session_prepare(s, ocs_viewer_held(s->viewer, 1));
+      }
+    }
+    srv->step_took += mono_s() - t0;
     learn_lead(srv);
     double wait = (double)srv->step_epoch * srv->period - ocs_net_utc(srv);
     if (wait > 0 && !srv->stopping) { /* built ahead: out at the due instant */
@@ -120,10 +147,7 @@ static void tick_end(ocs_server_t *srv) {
   srv->stepping = srv->producing; /* production's last bricks may still be in flight */
   srv->steps_done++;
   if (srv->step_rc < 0) oc_log_error("epoch step failed: %s (viewers keep their states)", oc_strerror(srv->step_rc));
-  ocs_world_stats_t ws; /* once per step, not once per viewer */
-  ocs_world_stats(srv->world, &ws);
-  srv->plan_ms = 1e3 * ws.plan_seconds;
-  srv->produce_ms = 1e3 * ws.produce_seconds;
+  take_step_stats(srv);
   if (!srv->stepping) remove_doomed(srv);
   /* New states go out, then the layers above see the step's end (held input, waiting "step"
    * requests). The list may change under these calls (sessions close), so walk it with care. */
@@ -131,8 +155,9 @@ static void tick_end(ocs_server_t *srv) {
     nx = s->next;
     if (s->state != OCS_SS_READY || !s->viewer) continue;
     apply_pending(s);
-    const oc_state_t *h0 = ocs_viewer_held(s->viewer, 0);
-    if (h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack)
+    if (s->prepared)
+      ocs_session_go(s);
+    else if (will_stream(s))
       ocs_session_stream(s, ocs_viewer_held(s->viewer, 1));
   }
   if (srv->producing) return; /* what follows comes when production ends */

@@ -88,6 +88,7 @@ struct ocs_session_s {
   uint32_t caps;
   ocp_epoch_enc_t *enc;
   int streaming, awaiting_ack, ack_pending, cam_new;
+  int prepared;            /* the newest state's stream is set up (ocs_session_prepare), not started */
   uint64_t stream_epoch, stream_checksum, last_out_epoch;
   ocs_view_t cam;
   ocp_stats_t stats_msg; /* the STATS sent after the epoch being streamed */
@@ -195,8 +196,14 @@ void ocs_session_let_go(ocs_session_t *t, const char *why);
  *  linger with how much budget. */
 ocs_session_t *ocs_session_oldest_lingering(ocs_server_t *srv, int *count, uint64_t *budget);
 /*! ocs_session_stream() : starts streaming the viewer's newest state, as a difference from `base`
- *  (what it holds). */
+ *  (what it holds): ocs_session_prepare() then ocs_session_go(). */
 void ocs_session_stream(ocs_session_t *s, const oc_state_t *base);
+/*! ocs_session_prepare() : everything of ocs_session_stream() but the sending (the encoder's set-up:
+ *  the record differences, the checksum over tens of MB of codes), so a tick built ahead of its due
+ *  instant sends its first frame at that instant. @return 0, or -1 (nothing to send, or the session
+ *  was closed). ocs_session_go() : starts sending a prepared stream (nothing otherwise). */
+int ocs_session_prepare(ocs_session_t *s, const oc_state_t *base);
+void ocs_session_go(ocs_session_t *s);
 
 /*-*** net_admit.c ***/
 

@@ -68,7 +68,7 @@ void ocs_session_drop_viewer(ocs_server_t *srv, ocs_session_t *s) {
     ocs_world_remove_viewer(srv->world, s->viewer);
   }
   s->viewer = NULL;
-  s->streaming = s->awaiting_ack = s->ack_pending = 0;
+  s->streaming = s->awaiting_ack = s->ack_pending = s->prepared = 0;
 }
 
 void ocs_session_on_closed(uv_handle_t *h) {
@@ -190,7 +190,7 @@ void ocs_session_lost(ocs_session_t *s, const char *cause) {
     s->state = OCS_SS_LINGER;
     s->linger_since = ocs_net_now();
     s->linger_until = s->linger_since + srv->desc.linger_s;
-    s->streaming = s->awaiting_ack = 0; /* the epoch in flight is lost with the connection */
+    s->streaming = s->awaiting_ack = s->prepared = 0; /* the epoch in flight is lost with the connection */
     uv_read_stop((uv_stream_t *)&s->tcp);
     ocs_session_close_handle(s);
     return;
@@ -288,13 +288,13 @@ static void pump(ocs_session_t *s) {
   }
 }
 
-void ocs_session_stream(ocs_session_t *s, const oc_state_t *base) {
+int ocs_session_prepare(ocs_session_t *s, const oc_state_t *base) {
   ocs_epoch_out_t o;
-  if (ocs_viewer_output(s->viewer, &o) < 0) return;
+  if (ocs_viewer_output(s->viewer, &o) < 0) return -1;
   int r = ocp_epoch_enc_begin(s->enc, o.state, base, o.lacking, o.nlacking);
   if (r < 0) {
     ocs_session_close(s, OCP_CODE_INTERNAL, oc_strerror(r));
-    return;
+    return -1;
   }
   /* The epoch's STATS are taken now: a step may run while the frames go out, and the world is
    * not read during a step. */
@@ -308,13 +308,24 @@ void ocs_session_stream(ocs_session_t *s, const oc_state_t *base) {
                                .produced = vs.produced, .split_backlog = o.plan.split_backlog};
   memcpy(s->stats_msg.age_p50, vs.age_p50, OCP_STATS_LEVELS);
   memcpy(s->stats_msg.age_p99, vs.age_p99, OCP_STATS_LEVELS);
-  s->streaming = 1;
-  s->awaiting_ack = 0;
   s->stream_epoch = o.state->epoch;
   s->stream_checksum = ocp_epoch_enc_checksum(s->enc); /* what EPOCH_END carries, in the session's form */
   s->last_out_epoch = o.state->epoch;
+  s->prepared = 1;
+  return 0;
+}
+
+void ocs_session_go(ocs_session_t *s) {
+  if (!s->prepared) return;
+  s->prepared = 0;
+  s->streaming = 1;
+  s->awaiting_ack = 0;
   s->stream_started = ocs_net_now();
   s->epochs++;
   pump(s);
+}
+
+void ocs_session_stream(ocs_session_t *s, const oc_state_t *base) {
+  if (ocs_session_prepare(s, base) == 0) ocs_session_go(s);
 }
 
