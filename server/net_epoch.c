@@ -16,6 +16,7 @@
  * production runs behind the clock instead of holding epochs back. Stepped (P = 0): the virtual
  * clock of ocs_world_step(), each step producing all its plans ask. */
 #include <math.h>
+#include <stdlib.h>
 #include <sys/stat.h>
 #include <time.h>
 
@@ -84,9 +85,11 @@ static void finish_production(ocs_server_t *srv);
 
 static void tick_end(ocs_server_t *srv);
 
-/* The lead: a decaying maximum of what ticks take, 1.5× with 5 ms more, at most half a period. */
+/* The lead: a decaying maximum of what ticks take, 2× with 10 ms more, at most half a period. */
 static void learn_lead(ocs_server_t *srv) {
-  double lead = 1.5 * srv->step_took + 0.005, old = 0.9 * srv->tick_lead;
+  /* twice: a tree growing by a tenth of its capacity a tick, or a wave of refreshes where several
+   * levels' time steps change at once, makes the next tick dearer than the last */
+  double lead = 2.0 * srv->step_took + 0.010, old = 0.9 * srv->tick_lead;
   lead = lead > old ? lead : old;
   srv->tick_lead = lead < 0.5 * srv->period ? lead : 0.5 * srv->period;
 }
@@ -109,6 +112,40 @@ static int will_stream(const ocs_session_t *s) {
   return h0 && ocs_viewer_in_flight(s->viewer) && h0->epoch != s->last_out_epoch && !s->streaming && !s->awaiting_ack;
 }
 
+/* The streams of a tick built ahead, set up in parallel (each session's encoder is its own; the
+ * world is only read), closing those that failed afterwards on this thread. */
+typedef struct {
+  ocs_session_t **s;
+  int *rc;
+} prep_job_t;
+
+static int prepare_one(void *ctx, size_t i, int worker) {
+  prep_job_t *j = ctx;
+  (void)worker;
+  j->rc[i] = ocs_session_encode(j->s[i], ocs_viewer_held(j->s[i]->viewer, 1));
+  return 0;
+}
+
+static void prepare_streams(ocs_server_t *srv) {
+  size_t n = 0;
+  for (ocs_session_t *s = srv->sessions; s; s = s->next) n += will_stream(s);
+  if (!n) return;
+  ocs_session_t **ss = malloc(n * sizeof *ss);
+  int *rc = malloc(n * sizeof *rc);
+  if (!ss || !rc) { /* set up at the due instant instead */
+    free(ss), free(rc);
+    return;
+  }
+  size_t k = 0;
+  for (ocs_session_t *s = srv->sessions; s && k < n; s = s->next)
+    if (will_stream(s)) ss[k++] = s;
+  prep_job_t job = {ss, rc};
+  ocs_world_parallel(srv->world, k, prepare_one, &job);
+  for (size_t i = 0; i < k; i++)
+    if (rc[i] < 0 && rc[i] != OC_ENOENT) ocs_session_close(ss[i], OCP_CODE_INTERNAL, oc_strerror(rc[i]));
+  free(ss), free(rc);
+}
+
 static void step_done(uv_work_t *req, int status) {
   ocs_server_t *srv = req->data;
   (void)status;
@@ -118,15 +155,17 @@ static void step_done(uv_work_t *req, int status) {
     double t0 = mono_s();
     if (srv->step_rc >= 0) {
       take_step_stats(srv);
-      for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
-        nx = s->next;
-        if (will_stream(s)) ocs_session_prepare(s, ocs_viewer_held(s->viewer, 1));
-      }
+      prepare_streams(srv);
     }
     srv->step_took += mono_s() - t0;
+    double late = ocs_net_utc(srv) - (double)srv->step_epoch * srv->period;
+    if (late > 0) /* built after its due instant: sent late (the lead learns from it) */
+      oc_log_info("tick %llu built %.0f ms after its due instant (it took %.0f ms, the lead was %.0f ms)",
+                  (unsigned long long)srv->step_epoch, 1e3 * late, 1e3 * srv->step_took, 1e3 * srv->tick_lead);
     learn_lead(srv);
     double wait = (double)srv->step_epoch * srv->period - ocs_net_utc(srv);
     if (wait > 0 && !srv->stopping) { /* built ahead: out at the due instant */
+      uv_update_time(&srv->loop); /* the loop's clock was read before the streams' set-up */
       uv_timer_start(&srv->send_timer, on_send_timer, (uint64_t)ceil(wait * 1e3), 0);
       return;
     }

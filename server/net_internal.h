@@ -204,6 +204,10 @@ void ocs_session_stream(ocs_session_t *s, const oc_state_t *base);
  *  was closed). ocs_session_go() : starts sending a prepared stream (nothing otherwise). */
 int ocs_session_prepare(ocs_session_t *s, const oc_state_t *base);
 void ocs_session_go(ocs_session_t *s);
+/*! ocs_session_encode() : the part of ocs_session_prepare() that touches only this session and
+ *  reads the world (safe on another thread while nothing else uses the session): OC_ENOENT when
+ *  the viewer has nothing to send, another OC_E* for the caller to close the session with. */
+int ocs_session_encode(ocs_session_t *s, const oc_state_t *base);
 
 /*-*** net_admit.c ***/
 

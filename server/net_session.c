@@ -264,12 +264,15 @@ void ocs_session_send(ocs_session_t *s, oc_buf_t *b) {
 }
 
 /* Produces the current epoch's next frames while the socket keeps up. */
-static void pump(ocs_session_t *s) {
+/* Frames while fewer than OCS_LOW_WATER bytes are unsent, in bursts of OCS_BURST; with `first`,
+ * only the first frame (EPOCH_BEGIN): every viewer of a tick gets it at the due instant, before
+ * any session compresses a burst of bricks (the rest follows from the write's completion). */
+static void pump_frames(ocs_session_t *s, int first) {
   while (s->streaming && s->queued < OCS_LOW_WATER && s->state == OCS_SS_READY) {
     oc_buf_t b = {0};
     int r;
     do r = ocp_epoch_enc_next(s->enc, s->version, &b);
-    while (r == 1 && b.len < OCS_BURST);
+    while (r == 1 && !first && b.len < OCS_BURST);
     if (r < 0) {
       oc_buf_free(&b);
       ocs_session_close(s, OCP_CODE_INTERNAL, oc_strerror(r));
@@ -285,17 +288,27 @@ static void pump(ocs_session_t *s) {
       ocp_put_stats(&b, s->version, &s->stats_msg);
     }
     ocs_session_send(s, &b);
+    if (first) return;
   }
 }
 
+static void pump(ocs_session_t *s) { pump_frames(s, 0); }
+
 int ocs_session_prepare(ocs_session_t *s, const oc_state_t *base) {
-  ocs_epoch_out_t o;
-  if (ocs_viewer_output(s->viewer, &o) < 0) return -1;
-  int r = ocp_epoch_enc_begin(s->enc, o.state, base, o.lacking, o.nlacking);
+  int r = ocs_session_encode(s, base);
+  if (r == OC_ENOENT) return -1;
   if (r < 0) {
     ocs_session_close(s, OCP_CODE_INTERNAL, oc_strerror(r));
     return -1;
   }
+  return 0;
+}
+
+int ocs_session_encode(ocs_session_t *s, const oc_state_t *base) {
+  ocs_epoch_out_t o;
+  if (ocs_viewer_output(s->viewer, &o) < 0) return OC_ENOENT;
+  int r = ocp_epoch_enc_begin(s->enc, o.state, base, o.lacking, o.nlacking);
+  if (r < 0) return r;
   /* The epoch's STATS are taken now: a step may run while the frames go out, and the world is
    * not read during a step. */
   ocs_viewer_stats_t vs;
@@ -322,7 +335,7 @@ void ocs_session_go(ocs_session_t *s) {
   s->awaiting_ack = 0;
   s->stream_started = ocs_net_now();
   s->epochs++;
-  pump(s);
+  pump_frames(s, 1);
 }
 
 void ocs_session_stream(ocs_session_t *s, const oc_state_t *base) {

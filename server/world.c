@@ -2,6 +2,7 @@
 #include "world.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -172,7 +173,9 @@ struct ocs_world_s {
   size_t nwish, wish_cap;
   queued_t *queue;          /* what production makes between ticks, best first */
   size_t nqueue, queue_cap;
-  uint32_t planning;        /* the viewer being planned */
+  ocs_pool_t *tick_pool;    /* clocked: the viewers' plans of a tick, in parallel (nice 0: the
+                               tick goes before production's threads) */
+  pthread_mutex_t tick_mu;  /* guards wish and pins while plans run in parallel */
   int targets_due;          /* the last tick's targets are still to be planned (plan_targets) */
   int target_next;          /* the viewer whose target is planned first (they take turns) */
   double target_cost;       /* s: what one target plan takes, a decaying maximum */
@@ -543,6 +546,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
     return r;
   }
   if (w->d.exact_filter) ocs_field_set_exact(w->field, 1);
+  pthread_mutex_init(&w->tick_mu, NULL);
+  if (w->d.clocked && ocs_pool_threads(w->pool) > 1 && ocs_pool_create(&w->tick_pool, 2) < 0) w->tick_pool = NULL; /* serial */
   w->K = ocs_field_animated(w->field) ? 3 : 2;
   w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
   w->ground_tau = w->shadows && oc_scene_has(&w->scene, OC_FEATURE_PLANET_SURFACE);
@@ -569,6 +574,8 @@ void ocs_world_free(ocs_world_t *w) {
   free(w->wish);
   free(w->queue);
   ocs_pool_free(w->pool);
+  ocs_pool_free(w->tick_pool);
+  pthread_mutex_destroy(&w->tick_mu); /* calloc'd zeros are glibc's static initialiser, also before init */
   ocs_cache_free(w->cache);
   ocs_field_free(w->field);
   oc_scene_free(&w->scene);
@@ -763,8 +770,14 @@ int ocs_viewer_in_flight(const ocs_viewer_t *v) { return v && v->unacked; }
 
 /*-*** Epochs ***/
 
+/* What a plan's callbacks are given: the world, and the viewer planned (its wishes are tagged). */
+typedef struct {
+  ocs_world_t *w;
+  uint32_t viewer;
+} plan_ctx_t;
+
 static oc_node_kind_t classify_cb(void *ctx, oc_key_t key) {
-  const ocs_world_t *w = ctx;
+  const ocs_world_t *w = ((const plan_ctx_t *)ctx)->w;
   float lo, hi;
   ocs_field_bound(w->field, key, w->time, &lo, &hi);
   if (!(hi > 0.0f)) return OC_NODE_EMPTY;
@@ -856,7 +869,7 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc) {
  * three), pinned until the tick's states are built (nothing is produced during a tick, but pins
  * keep that true whatever the cache does). */
 static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held) {
-  ocs_world_t *w = ctx;
+  ocs_world_t *w = ((plan_ctx_t *)ctx)->w;
   for (int i = -1; i < OCS_READY_AGE; i++) {
     uint64_t st = i < 0 ? stamp : w->stamp_hist[level][i];
     if (held && st == held) return 0;
@@ -864,10 +877,12 @@ static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uin
     ocs_cache_key_t k = ckey(w, T_BRICK, key, st, 0);
     ocs_cache_entry_t *e;
     if (!ocs_cache_peek(w->cache, &k, &e)) continue;
+    pthread_mutex_lock(&w->tick_mu);
     if (w->npins == w->pins_cap) {
       size_t nc = w->pins_cap ? 2 * w->pins_cap : 1024;
       ocs_cache_entry_t **a = realloc(w->pins, nc * sizeof *a);
       if (!a) {
+        pthread_mutex_unlock(&w->tick_mu);
         ocs_cache_release(w->cache, e);
         return 0; /* treated as not ready */
       }
@@ -875,6 +890,7 @@ static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uin
       w->pins_cap = nc;
     }
     w->pins[w->npins++] = e;
+    pthread_mutex_unlock(&w->tick_mu);
     return st;
   }
   return 0;
@@ -882,15 +898,21 @@ static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uin
 
 /* The planner's want(): kept for the production queue, with the viewer being planned. */
 static void want_cb(void *ctx, oc_key_t key, uint64_t stamp, double prio) {
-  ocs_world_t *w = ctx;
+  const plan_ctx_t *c = ctx;
+  ocs_world_t *w = c->w;
+  pthread_mutex_lock(&w->tick_mu);
   if (w->nwish == w->wish_cap) {
     size_t nc = w->wish_cap ? 2 * w->wish_cap : 1024;
     wish_t *a = realloc(w->wish, nc * sizeof *a);
-    if (!a) return; /* asked again next tick */
+    if (!a) { /* asked again next tick */
+      pthread_mutex_unlock(&w->tick_mu);
+      return;
+    }
     w->wish = a;
     w->wish_cap = nc;
   }
-  w->wish[w->nwish++] = (wish_t){key, stamp, prio > 0 ? prio : 0.0, 0.0, w->planning};
+  w->wish[w->nwish++] = (wish_t){key, stamp, prio > 0 ? prio : 0.0, 0.0, c->viewer};
+  pthread_mutex_unlock(&w->tick_mu);
 }
 
 static void release_pins(ocs_world_t *w) {
@@ -1152,10 +1174,40 @@ static int wish_target(ocs_viewer_t *v, const ocs_plan_input_t *in) {
   return 0;
 }
 
+/* One viewer's plan of a tick (the viewers' plans are independent: on the tick pool). */
+typedef struct {
+  ocs_world_t *w;
+  const ocs_plan_input_t *in;
+  const int *who;
+  plan_ctx_t *ctx;
+  int *rc;
+} plan_job_t;
+
+static int plan_one(void *arg, size_t i, int worker) {
+  const plan_job_t *j = arg;
+  (void)worker;
+  int vi = j->who[i];
+  ocs_viewer_t *v = j->w->viewers[vi];
+  ocs_plan_input_t in = *j->in;
+  /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
+  in.max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
+  j->ctx[i] = (plan_ctx_t){j->w, (uint32_t)vi};
+  in.ctx = &j->ctx[i];
+  j->rc[i] = ocs_plan_epoch(v->planner, &v->view, &in, &v->leaves, &v->nleaves, &v->plan);
+  return 0;
+}
+
 /* Plans every viewer that acknowledged its last state; the leaves to produce go to *want.
  * A clocked viewer whose first content is not ready yet gets no plan (OC_EAGAIN). */
 static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, size_t *nwant) {
   size_t cap = 0;
+  int n = 0, *who = malloc(sizeof(int) * (size_t)(w->nviewers ? w->nviewers : 1));
+  int *rcs = malloc(sizeof(int) * (size_t)(w->nviewers ? w->nviewers : 1));
+  plan_ctx_t *ctx = malloc(sizeof *ctx * (size_t)(w->nviewers ? w->nviewers : 1));
+  if (!who || !rcs || !ctx) {
+    free(who), free(rcs), free(ctx);
+    return OC_ENOMEM;
+  }
   for (int vi = 0; vi < w->nviewers; vi++) {
     ocs_viewer_t *v = w->viewers[vi];
     v->planned = 0;
@@ -1168,24 +1220,37 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
       v->coalesced++;
       continue;
     }
-    /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
-    in->max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
-    w->planning = (uint32_t)vi;
     v->targeted = 1;
-    int rc = ocs_plan_epoch(v->planner, &v->view, in, &v->leaves, &v->nleaves, &v->plan);
-    if (rc == OC_EAGAIN) continue;
-    if (rc < 0) return rc;
+    who[n++] = vi;
+  }
+  plan_job_t job = {w, in, who, ctx, rcs};
+  int rc = 0;
+  if (w->tick_pool && n > 1)
+    rc = ocs_pool_run(w->tick_pool, (size_t)n, plan_one, &job);
+  else
+    for (int i = 0; i < n; i++) plan_one(&job, (size_t)i, 0);
+  for (int i = 0; i < n && rc >= 0; i++) {
+    ocs_viewer_t *v = w->viewers[who[i]];
+    if (rcs[i] == OC_EAGAIN) continue;
+    if ((rc = rcs[i]) < 0) break;
     v->planned = 1;
     if (v->nleaves > v->req_cap) {
       uint32_t *a = realloc(v->req_of, v->nleaves * sizeof *a);
-      if (!a) return OC_ENOMEM;
+      if (!a) {
+        rc = OC_ENOMEM;
+        break;
+      }
       v->req_of = a;
       v->req_cap = v->nleaves;
     }
-    for (uint32_t i = 0; i < v->nleaves; i++)
-      if (v->leaves[i].produce) OC_TRY(push_want(want, nwant, &cap, (want_t){v->leaves[i].key, v->leaves[i].stamp, (uint32_t)vi, i}));
+    for (uint32_t k = 0; k < v->nleaves && rc >= 0; k++)
+      if (v->leaves[k].produce) rc = push_want(want, nwant, &cap, (want_t){v->leaves[k].key, v->leaves[k].stamp, (uint32_t)who[i], k});
   }
-  return 0;
+  if (rc < 0) /* the plans not taken up are let go: their planners must not stay pending */
+    for (int i = 0; i < n; i++)
+      if (rcs[i] >= 0 && !w->viewers[who[i]]->planned) ocs_plan_abandon(w->viewers[who[i]]->planner);
+  free(who), free(rcs), free(ctx);
+  return rc;
 }
 
 static int push_req(prod_t *p, oc_key_t key, uint64_t stamp) {
@@ -1285,46 +1350,49 @@ static void content_age(const ocs_world_t *w, ocs_viewer_t *v) {
   }
 }
 
-/* Each planned viewer's state, built and committed; its previous ones shift down the window. */
-static int emit_states(ocs_world_t *w) {
-  uint8_t *kinds = NULL;
-  uint32_t *ids = NULL;
-  int rc = 0;
-  for (int vi = 0; vi < w->nviewers && rc >= 0; vi++) {
-    ocs_viewer_t *v = w->viewers[vi];
-    if (!v->planned) continue;
-    free(kinds);
-    free(ids);
-    kinds = malloc(v->nleaves ? v->nleaves : 1);
-    ids = malloc((v->nleaves ? v->nleaves : 1) * sizeof *ids);
-    oc_state_t st = v->spare; /* its arrays; nothing refers to the state it was */
-    oc_state_clear(&st);
-    oc_state_init(&v->spare);
-    uint32_t first_id = v->next_id;
-    rc = kinds && ids ? build_state(w, v, &st, kinds, ids) : OC_ENOMEM;
-    if (rc >= 0) rc = ocs_plan_commit(v->planner, kinds, ids);
-    if (rc < 0) {
-      v->next_id = first_id;
-      oc_state_free(&st);
-      break;
-    }
-    content_age(w, v);
-    v->planned = 0;
-    v->spare = v->held[w->K - 1]; /* dropped: its arrays serve the next state */
-    memmove(&v->held[1], &v->held[0], (size_t)(w->K - 1) * sizeof v->held[0]);
-    v->held[0] = st;
-    if (v->nheld < w->K) v->nheld++;
-    v->in_flight = w->epoch;
-    v->unacked = 1;
-    v->sent++;
-    v->last_new = v->nlacking;
-    v->ticks = 0;
-    v->produced_last = v->produced;
-    v->produced = 0;
-  }
+/* One planned viewer's state, built and committed; its previous ones shift down the window.
+ * Viewers are independent here (their own planner, states and ids; the requests are read only),
+ * so a tick builds them on the tick pool. */
+static int emit_one(void *arg, size_t vi, int worker) {
+  ocs_world_t *w = arg;
+  ocs_viewer_t *v = w->viewers[vi];
+  (void)worker;
+  if (!v->planned) return 0;
+  uint8_t *kinds = malloc(v->nleaves ? v->nleaves : 1);
+  uint32_t *ids = malloc((v->nleaves ? v->nleaves : 1) * sizeof *ids);
+  oc_state_t st = v->spare; /* its arrays; nothing refers to the state it was */
+  oc_state_clear(&st);
+  oc_state_init(&v->spare);
+  uint32_t first_id = v->next_id;
+  int rc = kinds && ids ? build_state(w, v, &st, kinds, ids) : OC_ENOMEM;
+  if (rc >= 0) rc = ocs_plan_commit(v->planner, kinds, ids);
   free(kinds);
   free(ids);
-  return rc;
+  if (rc < 0) {
+    v->next_id = first_id;
+    oc_state_free(&st);
+    return rc;
+  }
+  content_age(w, v);
+  v->planned = 0;
+  v->spare = v->held[w->K - 1]; /* dropped: its arrays serve the next state */
+  memmove(&v->held[1], &v->held[0], (size_t)(w->K - 1) * sizeof v->held[0]);
+  v->held[0] = st;
+  if (v->nheld < w->K) v->nheld++;
+  v->in_flight = w->epoch;
+  v->unacked = 1;
+  v->sent++;
+  v->last_new = v->nlacking;
+  v->ticks = 0;
+  v->produced_last = v->produced;
+  v->produced = 0;
+  return 0;
+}
+
+static int emit_states(ocs_world_t *w) {
+  if (w->tick_pool && w->nviewers > 1) return ocs_pool_run(w->tick_pool, (size_t)w->nviewers, emit_one, w);
+  for (int vi = 0; vi < w->nviewers; vi++) OC_TRY(emit_one(w, (size_t)vi, 0));
+  return 0;
 }
 
 /* Plans every ready viewer, produces what the plans lack once (clocked: only what exists is
@@ -1333,7 +1401,7 @@ static int emit_states(ocs_world_t *w) {
 static void plan_input(ocs_world_t *w, ocs_plan_input_t *in) {
   memset(in, 0, sizeof *in);
   in->classify = classify_cb;
-  in->ctx = w;
+  in->ctx = NULL; /* a plan_ctx_t per plan: plan_viewers, plan_targets */
   in->uniform_is_brick = w->shadows;
   in->ground_tau = w->ground_tau;
   memcpy(in->stamp, w->stamp, sizeof in->stamp);
@@ -1424,10 +1492,10 @@ static void target_keep(ocs_world_t *w, ocs_viewer_t *v, size_t from) {
 
 /* The kept target wished for again, at the current time steps. */
 static void target_reuse(ocs_world_t *w, const ocs_viewer_t *v, uint32_t vi) {
+  plan_ctx_t c = {w, vi};
   for (size_t i = 0; i < v->ntarget; i++) {
     const wish_t *x = &v->target[i];
-    w->planning = vi;
-    want_cb(w, x->key, w->stamp[oc_key_level(x->key)], x->prio);
+    want_cb(&c, x->key, w->stamp[oc_key_level(x->key)], x->prio);
   }
 }
 
@@ -1451,7 +1519,8 @@ static int plan_targets(ocs_world_t *w, double deadline) {
       continue;
     }
     size_t from = w->nwish;
-    w->planning = (uint32_t)vi;
+    plan_ctx_t c = {w, (uint32_t)vi};
+    in.ctx = &c;
     rc = wish_target(v, &in);
     if (rc >= 0) target_keep(w, v, from);
     double took = now_s() - t;
@@ -1547,6 +1616,13 @@ int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit) {
   if (rc < 0) return rc;
   ocs_world_produce_run(w);
   return ocs_world_produce_end(w);
+}
+
+int ocs_world_parallel(ocs_world_t *w, size_t n, int (*fn)(void *ctx, size_t index, int worker), void *ctx) {
+  if (!w || !fn) return OC_EINVAL;
+  if (w->tick_pool && n > 1) return ocs_pool_run(w->tick_pool, n, fn, ctx);
+  for (size_t i = 0; i < n; i++) OC_TRY(fn(ctx, i, 0));
+  return 0;
 }
 
 size_t ocs_world_queue_length(const ocs_world_t *w) { return !w ? 0 : w->targets_due ? w->queue_left : w->nqueue; }

@@ -173,6 +173,11 @@ int ocs_world_produce(ocs_world_t *w, double seconds, size_t limit);
 int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit);
 int ocs_world_produce_run(ocs_world_t *w);
 int ocs_world_produce_end(ocs_world_t *w);
+/*! ocs_world_parallel() : fn(ctx, i, worker) for i < n on the threads a clocked tick plans its
+ *  viewers with (the caller's thread among them; serially where there are none), for work of the
+ *  tick that is independent per viewer (the network layer sets up each viewer's stream with it).
+ *  Not while the world steps. @return 0 or fn's first negative result. */
+int ocs_world_parallel(ocs_world_t *w, size_t n, int (*fn)(void *ctx, size_t index, int worker), void *ctx);
 /*! ocs_world_queue_length() : bricks waiting in the production queue (clocked). The queue of a
  *  tick is made when production starts (ocs_world_produce(), even for 0 seconds), after each
  *  viewer's target plan: those are whole plans, kept off the tick's path. Until then, what the
