@@ -741,7 +741,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   /* Pass 3: Pettersson's split/merge loop. */
   p->target = (1.0 - p->d.reserve) * (double)p->d.budget;
   double capacity = (double)p->d.budget / ((double)p->d.slot_bytes + K * (double)p->d.record_bytes);
-  double max_new_nodes = fmax(8.0, p->d.split_fraction * capacity);
+  double max_new_nodes = fmax(8.0, p->d.split_fraction * capacity * (in->split_scale > 1.0 ? in->split_scale : 1.0));
   double created = 0.0;
   pn_t kids[8];
   oc_key_t kids_of = OC_KEY_INVALID; /* kids[] holds this node's children content */
@@ -782,11 +782,12 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
         h_pop(&p->split_h);
         st.split_backlog++;
         kids_of = OC_KEY_INVALID;
-        /* Past twice the splits an epoch may make, further waiting splits are left for later ticks:
-         * each costs 8 looks into the brick cache, and behind a teleport or a budget that grew
-         * faster than production, tens of thousands wait (their children are wished by the target
-         * plans meanwhile). */
-        if (st.split_backlog > 2 * max_new_nodes / 8) { st.stop = "split backlog (children not made yet)"; break; }
+        /* Past eight times the splits an epoch may make, further waiting splits are left for later
+         * ticks: each costs 8 looks into the brick cache, and behind a teleport or a budget that
+         * grew faster than production, tens of thousands wait (their children are wished by the
+         * target plans meanwhile). Fewer, and a teleport's ready splits further down were not
+         * reached: 2× took 12-15 ticks to full detail at 4 MiB where the stepped server needs 10. */
+        if (st.split_backlog > 8 * max_new_nodes / 8) { st.stop = "split backlog (children not made yet)"; break; }
         continue;
       }
     }

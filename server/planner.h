@@ -85,6 +85,9 @@ typedef struct {
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];    /**< content stamp per level at this epoch's time */
   double refresh_rate[OC_KEY_MAX_LEVEL + 1]; /**< fraction of epochs a level's content changes, [0,1] */
   uint32_t max_new_bricks; /**< throughput limit for this plan (slow viewer); 0 = none */
+  double split_scale;      /**< the split cap (split_fraction of capacity) times this for this plan;
+                                ≤ 1: 1. Clocked plans take only splits whose children exist, so
+                                production paces them and the cap can be wider */
   double step_change[OC_KEY_MAX_LEVEL + 1]; /**< per level, the share of content one time step
                                 changes (docs/performance.md); a refresh wished for (want()) is
                                 worth the node's pixels times this, so production goes where change
