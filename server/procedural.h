@@ -247,6 +247,11 @@ typedef struct {
 double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3], const double hi[3],
                     int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb);
 
+/* What both samplers do first: the frame of the key's level at t, the node's bound over its sample
+ * footprint, and which layers' per-voxel bounds take the node's ranges (reuse). @return 1 when
+ * the brick may hold cloud, 0 when it is empty, or OC_EINVAL (a bad key). */
+int ocs__brick_begin(const ocs__proc_t *P, oc_key_t key, double t, ocs__frame_t *F, ocs__bb_t *nb, unsigned *reuse);
+
 /* The per-voxel bounds of a brick (ocs__box_max() with grid 0 on each voxel's cube, batched):
  * the layers that may be non-zero, and those whose W is 1, per voxel. nb is the node's bound, whose
  * ranges the layers in `reuse` take. ccentre (may be NULL) gets each layer's coverage value C at

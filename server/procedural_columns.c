@@ -553,24 +553,16 @@ static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, cons
 
 int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
   const ocs__proc_t *P = (const ocs__proc_t *)s;
-  int level = oc_key_level(key);
-  if (level < 0 || !out) return OC_EINVAL;
+  if (!out) return OC_EINVAL;
   if (ocs__col_tables() < 0) return OC_ENOMEM;
   ocs__frame_t F;
-  ocs__frame(P, level, t, &F);
-  if (!F.mask) return 0;
-  oc_dvec3 o;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
   ocs__bb_t nb;
-  if (!(ocs__box_max(P, &F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, &nb) > 0.0)) return 0;
-
+  unsigned reuse;
+  int r = ocs__brick_begin(P, key, t, &F, &nb, &reuse);
+  if (r <= 0) return r;
+  int level = oc_key_level(key);
   double u = ocs__voxel_size(level);
   const ocs__plan_t *plan = ocs__T.plan[level];
-  unsigned reuse = 0;
-  for (int l = 0; l < OCS_LAYER_COUNT; l++)
-    if ((nb.wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) reuse |= 1u << l;
   ocs__cws_t *ws = malloc(sizeof *ws);
   if (!ws) return OC_ENOMEM;
   memset(ws->sum, 0, sizeof ws->sum);

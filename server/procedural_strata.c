@@ -167,17 +167,13 @@ void ocs__subs(int level, int *sub_h, int *sub_v) {
 
 int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
   const ocs__proc_t *P = (const ocs__proc_t *)s;
-  int level = oc_key_level(key);
-  if (level < 0 || !out) return OC_EINVAL;
+  if (!out) return OC_EINVAL;
   ocs__frame_t F;
-  ocs__frame(P, level, t, &F);
-  if (!F.mask) return 0;
-  oc_dvec3 o;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
   ocs__bb_t nb;
-  if (!(ocs__box_max(P, &F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, &nb) > 0.0)) return 0;
+  unsigned reuse;
+  int r = ocs__brick_begin(P, key, t, &F, &nb, &reuse);
+  if (r <= 0) return r;
+  int level = oc_key_level(key);
 
   int sub_h, sub_v;
   ocs__subs(level, &sub_h, &sub_v);
@@ -192,12 +188,6 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
   uint32_t ic[3];
   oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
   double u = ocs__voxel_size(level);
-  /* Per-voxel bounds re-evaluate a layer's noise only where that can decide something: the node's
-   * coverage is in the ramp (a voxel may be all 0 or all 1), or the cell bound is informative at
-   * the voxel's size (Lipschitz step below 1/2). Elsewhere they reuse the node's ranges. */
-  unsigned reuse = 0;
-  for (int l = 0; l < OCS_LAYER_COUNT; l++)
-    if ((nb.wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) reuse |= 1u << l;
   uint8_t vmask[OC_BRICK_VOXELS], vwone[OC_BRICK_VOXELS];
   ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone, NULL);
 

@@ -426,6 +426,26 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
   return total;
 }
 
+int ocs__brick_begin(const ocs__proc_t *P, oc_key_t key, double t, ocs__frame_t *F, ocs__bb_t *nb, unsigned *reuse) {
+  int level = oc_key_level(key);
+  if (level < 0) return OC_EINVAL;
+  ocs__frame(P, level, t, F);
+  if (!F->mask) return 0;
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(key, &o, &size);
+  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
+  if (!(ocs__box_max(P, F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, nb) > 0.0)) return 0;
+  /* Per-voxel bounds re-evaluate a layer's noise only where that can decide something: the node's
+   * coverage is in the ramp (a voxel may be all 0 or all 1), or the cell bound is informative at
+   * the voxel's size (Lipschitz step below 1/2). Elsewhere they reuse the node's ranges. */
+  double u = ocs__voxel_size(level);
+  *reuse = 0;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++)
+    if ((nb->wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) *reuse |= 1u << l;
+  return 1;
+}
+
 /* The per-voxel bounds of a brick: what ocs__box_max(grid 0) gives for each voxel's cube, with
  * each pattern evaluated for all voxels in one batch (a call per voxel and pattern spent more on
  * the fBm's set-up than on its octaves). */
