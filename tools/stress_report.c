@@ -632,10 +632,9 @@ static void sr_age_levels(const stress_age_t *a) {
 }
 
 /* Plots of a ramp: content age p99 and time to full detail against N, one line per budget. */
-static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph,
-                         const stress_ref_t *refs, int nrefs) {
+static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph) {
   int nb = o->nbudgets < OCTS_PLOT_GROUPS / 3 ? o->nbudgets : OCTS_PLOT_GROUPS / 3;
-  octs_plot_point_t *pts = calloc((size_t)(2 * nph + 2 * nrefs * 16 + 1), sizeof *pts);
+  octs_plot_point_t *pts = calloc((size_t)(3 * nph + 1), sizeof *pts);
   char names[OCTS_PLOT_GROUPS][48], path[4096], sub[256], why[512];
   if (!pts) return -1;
   int rc = 0;
@@ -674,14 +673,13 @@ static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double perio
     pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_p50, .group = g};
     if (isfinite(ph[i].detail_lower_s) && !isfinite(ph[i].detail_p50)) /* none settled: a lower bound */
       pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_lower_s, .group = 2 * nb + g};
-    for (int r = 0; r < nrefs; r++)
-      if (refs[r].budget_mib == ph[i].budget_mib)
-        pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = refs[r].detail_p50, .group = nb + g};
+    if (isfinite(ph[i].detail_ref)) /* what the rule compares with (stress.h: held, seconds or epochs) */
+      pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_ref, .group = nb + g};
   }
   octs_plot_desc_t e = {.title = "Time to full detail after a teleport (p50) against viewers", .subtitle = sub,
                         .xlabel = "viewers N", .ylabel = "seconds", .ngroups = 3 * nb, .lines = 1};
   for (int b = 0; b < nb; b++) {
-    snprintf(names[nb + b], sizeof names[nb + b], "stepped, %ld MiB", o->budgets_mib[b]);
+    snprintf(names[nb + b], sizeof names[nb + b], "stepped (the rule's), %ld MiB", o->budgets_mib[b]);
     snprintf(names[2 * nb + b], sizeof names[2 * nb + b], "not settled: > y");
     e.group_name[2 * nb + b] = names[2 * nb + b];
     e.group_name[b] = names[b];
@@ -768,7 +766,7 @@ int stress_ramp_report(const stress_opts_t *o, const char *scene, double period,
   }
   if (s->server_end.ok || s->tool.ok)
     printf("overcast-stress itself: peak RSS %s MiB\n", sr_num(b1, sizeof b1, s->tool.ok ? s->tool.hwm_mib : NAN, "%.1f"));
-  int rc_plot = o->plot ? sr_ramp_plots(o, scene, period, ph, nph, refs, nrefs) : 0;
+  int rc_plot = o->plot ? sr_ramp_plots(o, scene, period, ph, nph) : 0;
   if (s->error[0]) printf("FAIL: %s\n", s->error);
   printf("%s\n", pass ? "PASS" : "FAIL");
   fflush(stdout);
