@@ -109,7 +109,7 @@ struct ocs_viewer_s {
   int has_view;
   ocs_view_t planned_view;  /* the view of its last plan */
   int has_planned_view;
-  uint64_t jumped_at;       /* the tick its view last jumped between two plans (view_jumped) */
+  uint64_t jumped_at;       /* the tick of its first plan, or its view's last jump (view_jumped) */
   oc_state_t held[OCS_PLAN_MAX_KEPT]; /* held[0]: newest state sent */
   oc_state_t spare;                   /* the last state dropped, its arrays kept for the next one
                                          (tens of MB at 64 MiB: a new one faulted them in every tick) */
@@ -1203,7 +1203,7 @@ static int plan_one(void *arg, size_t i, int worker) {
   ocs_plan_input_t in = *j->in;
   /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
   in.max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
-  if (in.ready && v->jumped_at && j->w->epoch < v->jumped_at + OCS_JUMP_TICKS) in.split_scale = OCS_CLOCKED_SPLIT_SCALE;
+  if (in.ready && j->w->epoch < v->jumped_at + OCS_JUMP_TICKS) in.split_scale = OCS_CLOCKED_SPLIT_SCALE;
   j->ctx[i] = (plan_ctx_t){j->w, (uint32_t)vi};
   in.ctx = &j->ctx[i];
   j->rc[i] = ocs_plan_epoch(v->planner, &v->view, &in, &v->leaves, &v->nleaves, &v->plan);
@@ -1234,7 +1234,8 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
       continue;
     }
     v->targeted = 1;
-    if (v->has_planned_view && view_jumped(&v->planned_view, &v->view)) v->jumped_at = w->epoch;
+    /* a first view is a jump too: the tree starts from the root */
+    if (!v->has_planned_view || view_jumped(&v->planned_view, &v->view)) v->jumped_at = w->epoch;
     v->planned_view = v->view;
     v->has_planned_view = 1;
     who[n++] = vi;

@@ -145,13 +145,18 @@ int stress_settle_feed(stress_settle_t *s, uint32_t splits, uint32_t merges, uin
     return 0;
   }
   if (s->phase != 2) return 0;
-  double changed = (double)splits + (double)merges + (double)waiting;
-  if (!(changed <= STRESS_SETTLE_FRACTION * (double)leaves)) {
-    s->quiet = 0;
-    return 0;
-  }
-  if (!s->quiet++) s->quiet_at = t, s->quiet_epoch = epoch;
+  int slot = s->quiet++ % STRESS_SETTLE_STATES;
+  s->changed[slot] = (double)splits + (double)merges + (double)waiting;
+  s->leaves[slot] = leaves;
+  s->at[slot] = t;
+  s->epoch[slot] = epoch;
   if (s->quiet < STRESS_SETTLE_STATES) return 0;
+  double changed = 0.0, sum = 0.0;
+  for (int i = 0; i < STRESS_SETTLE_STATES; i++) changed += s->changed[i], sum += s->leaves[i];
+  if (!(changed <= STRESS_SETTLE_FRACTION * sum)) return 0;
+  int first = s->quiet % STRESS_SETTLE_STATES; /* the oldest in the ring */
+  s->quiet_at = s->at[first];
+  s->quiet_epoch = s->epoch[first];
   s->phase = 0;
   return 1;
 }

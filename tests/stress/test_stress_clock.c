@@ -247,6 +247,18 @@ static void test_stress_clock__settle(void **state) {
   assert_int_equal(stress_settle_feed(&w, 24, 0, 0, 1000, 2.0, 2), 0);
   for (int i = 0; i < 5; i++) assert_int_equal(stress_settle_feed(&w, 0, 0, 200, 1000, 3.0 + i, (uint64_t)(3 + i)), 0);
   assert_int_equal(w.phase, 2);
+  /* a full clocked 4 MiB tree churning in bursts (ticks 12-19 of one teleporting viewer: deferred
+   * refreshes land, 24 splits, 41 merges, none): judged one state at a time, it never settled (a
+   * burst above 1 % every second or third tick); over three states together it settles at once */
+  static const uint32_t churn[][4] = {{48, 0, 0, 3823}, {1, 24, 0, 3662}, {48, 0, 0, 3998}, {1, 0, 0, 4005},
+                                      {22, 0, 0, 4159}, {0, 41, 0, 3872}, {0, 0, 0, 3872}, {24, 29, 0, 3837}};
+  stress_settle_t c = {.phase = 1};
+  settled_at = -1;
+  for (int i = 0; i < (int)(sizeof churn / sizeof churn[0]) && settled_at < 0; i++)
+    if (stress_settle_feed(&c, churn[i][0], churn[i][1], churn[i][2], churn[i][3], 12.0 + i, (uint64_t)(12 + i)))
+      settled_at = 12 + i;
+  assert_int_equal(settled_at, 15);
+  assert_true(c.quiet_epoch == 13 && c.quiet_at == 13.0);
 }
 
 int main(void) {
