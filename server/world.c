@@ -782,6 +782,10 @@ int ocs_viewer_in_flight(const ocs_viewer_t *v) { return v && v->unacked; }
 #define OCS_CLOCKED_SPLIT_SCALE 2.0
 #define OCS_JUMP_TICKS 16
 
+static double split_scale(const ocs_world_t *w, const ocs_viewer_t *v) {
+  return w->epoch < v->jumped_at + OCS_JUMP_TICKS ? OCS_CLOCKED_SPLIT_SCALE : 1.0;
+}
+
 /* What a plan's callbacks are given: the world, and the viewer planned (its wishes are tagged). */
 typedef struct {
   ocs_world_t *w;
@@ -1175,9 +1179,12 @@ static int push_want(want_t **want, size_t *n, size_t *cap, want_t x) {
 /* Clocked: what the viewer's tree is heading for — the plan a stepped epoch would make, all its
  * content assumed ready — is wished for, so that production works toward the whole target tree
  * and not one level per tick; then that plan is dropped. */
-static int wish_target(ocs_viewer_t *v, const ocs_plan_input_t *in) {
+static int wish_target(const ocs_world_t *w, ocs_viewer_t *v, const ocs_plan_input_t *in) {
   ocs_plan_input_t target = *in;
   target.ready = NULL; /* want() stays: it hears of everything the target takes */
+  /* as far ahead as the viewer's ticks may split: with the stepped cap here, a tick after a jump
+   * found only that many splits' children made, whatever its own cap */
+  target.split_scale = split_scale(w, v);
   const ocs_plan_leaf_t *leaves;
   uint32_t n;
   int rc = ocs_plan_epoch(v->planner, &v->view, &target, &leaves, &n, NULL);
@@ -1203,7 +1210,7 @@ static int plan_one(void *arg, size_t i, int worker) {
   ocs_plan_input_t in = *j->in;
   /* a viewer that took k epochs to take the last state gets about 1/k of it per epoch */
   in.max_new_bricks = v->ticks > 1 && v->last_new ? (v->last_new / v->ticks > 8 ? v->last_new / v->ticks : 8) : 0;
-  if (in.ready && j->w->epoch < v->jumped_at + OCS_JUMP_TICKS) in.split_scale = OCS_CLOCKED_SPLIT_SCALE;
+  if (in.ready) in.split_scale = split_scale(j->w, v);
   j->ctx[i] = (plan_ctx_t){j->w, (uint32_t)vi};
   in.ctx = &j->ctx[i];
   j->rc[i] = ocs_plan_epoch(v->planner, &v->view, &in, &v->leaves, &v->nleaves, &v->plan);
@@ -1538,7 +1545,7 @@ static int plan_targets(ocs_world_t *w, double deadline) {
     size_t from = w->nwish;
     plan_ctx_t c = {w, (uint32_t)vi};
     in.ctx = &c;
-    rc = wish_target(v, &in);
+    rc = wish_target(w, v, &in);
     if (rc >= 0) target_keep(w, v, from);
     double took = now_s() - t;
     w->target_cost = took > 0.9 * w->target_cost ? took : 0.9 * w->target_cost;
