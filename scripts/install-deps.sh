@@ -9,6 +9,8 @@ PKGS=(
   libuv1-dev libzstd-dev libxxhash-dev libcjson-dev libpng-dev libstb-dev libcmocka-dev
   libopenvdb-dev libboost-iostreams-dev # VDB shim (design.md: FindOpenVDB needs boost-iostreams)
   libglfw3-dev libepoxy-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri mesa-utils-bin
+  libmicrohttpd-dev                     # overcast-server's /metrics (docs/operations.md)
+  prometheus curl                       # tests: promtool checks a /metrics scrape (the daemon never runs)
 )
 
 missing=()

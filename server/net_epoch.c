@@ -188,6 +188,10 @@ static void tick_end(ocs_server_t *srv) {
   if (srv->step_rc < 0) oc_log_error("epoch step failed: %s (viewers keep their states)", oc_strerror(srv->step_rc));
   take_step_stats(srv);
   if (!srv->stepping) remove_doomed(srv);
+  if (srv->period > 0 && srv->step_rc >= 0) { /* its first frames go out now: how late (0: on time) */
+    double late = ocs_net_utc(srv) - (double)srv->step_epoch * srv->period;
+    ocs_hist_observe(&srv->tick_lateness, late > 0 ? late : 0.0);
+  }
   /* New states go out, then the layers above see the step's end (held input, waiting "step"
    * requests). The list may change under these calls (sessions close), so walk it with care. */
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {

@@ -1,5 +1,6 @@
 /* net_handshake.c — a connection's HELLO (net_internal.h): the version (the highest both speak),
- * the token, resume of a lingering or still-open session, admission, and WELCOME. */
+ * the token (the viewer's, or the control token for a control client when the server has one),
+ * resume of a lingering or still-open session, admission, and WELCOME. */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,7 +13,7 @@
 
 /* Compares in a time that depends on neither the tokens' bytes nor their lengths: every one of
  * OCP_TOKEN_MAX positions is read, so a peer cannot find the token a byte at a time by timing. */
-static int token_equal(const char *want, const uint8_t *got, size_t got_len) {
+int ocs_token_equal(const char *want, const uint8_t *got, size_t got_len) {
   size_t want_len = strlen(want);
   volatile unsigned diff = (unsigned)(want_len ^ got_len);
   for (size_t i = 0; i < OCP_TOKEN_MAX; i++) {
@@ -20,6 +21,24 @@ static int token_equal(const char *want, const uint8_t *got, size_t got_len) {
     diff |= a ^ b;
   }
   return diff == 0;
+}
+
+/* The token a HELLO must present: the control token for a control client when the server has one
+ * (the viewer token is then refused for control, saying so), else the viewer token; the control
+ * token also admits a viewer (an operator's overcast-view --step presents one token for both).
+ * @return 1 accepted; 0 refused (TOKEN). */
+static int token_accepted(ocs_session_t *s, const ocp_hello_t *h) {
+  const ocs_server_t *srv = s->srv;
+  int control = h->role == OCP_ROLE_CONTROL && srv->control_token;
+  const char *want = control ? srv->control_token : srv->token;
+  if (!want || ocs_token_equal(want, h->token, h->token_len)) return 1;
+  if (!control && srv->control_token && ocs_token_equal(srv->control_token, h->token, h->token_len)) return 1;
+  const char *why = "the token does not match";
+  if (!h->token_len) why = control ? "this server requires the control token for control requests" : "this server requires a token";
+  else if (control && srv->token && ocs_token_equal(srv->token, h->token, h->token_len))
+    why = "the viewer token cannot run control requests: present the control token";
+  ocs_session_refuse(s, OCS_REFUSE_TOKEN, why);
+  return 0;
 }
 
 static void send_welcome(ocs_session_t *s, int resumed) {
@@ -114,10 +133,7 @@ void ocs_handshake_hello(ocs_session_t *s, const uint8_t *p, size_t n) {
     return;
   }
   s->version = (uint8_t)v;
-  if (srv->token && !token_equal(srv->token, h.token, h.token_len)) {
-    ocs_session_refuse(s, OCS_REFUSE_TOKEN, h.token_len ? "the token does not match" : "this server requires a token");
-    return;
-  }
+  if (!token_accepted(s, &h)) return;
   s->role = h.role;
   s->caps = h.caps;
   if (h.role == OCP_ROLE_CONTROL) {

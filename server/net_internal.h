@@ -9,18 +9,24 @@
  *                    pump, stream)
  *   net_admit.c      fair admission: budgets, lingering sessions giving theirs back first
  *   net_epoch.c      ticks on the epoch timer, steps on the thread pool, new states streamed
- *   net_handshake.c  HELLO: version, token (constant time), resume, WELCOME
+ *   net_handshake.c  HELLO: version, tokens (constant time; viewer and control), resume, WELCOME
+ *   net_stats.c      the server's figures, gathered once for the stats reply and for /metrics
+ *   net_audit.c      the audit log: a JSON line per control change
  *   net_control.c    CONTROL requests (weather, time, sun, step, reload, sessions, stats)
  *   net_input.c      reading, frames dispatched by type, input held while a step runs
  *   net_listener.c   the listening socket and accepting connections (limits checked first)
+ *   net_metrics_text.c  the figures as Prometheus families (what /metrics exports)
+ *   net_metrics.c    /metrics over HTTP (libmicrohttpd driven by the loop)
  *   net_house.c      housekeeping: handshake, idle and stall timeouts, lingering sessions
  *   net_server.c     create, run, stop and free; signals */
 #ifndef OC_SERVER_NET_INTERNAL_H
 #define OC_SERVER_NET_INTERNAL_H
 
 #include <stdatomic.h>
+#include <stdio.h>
 #include <uv.h>
 
+#include "histogram.h"
 #include "ocs_server.h"
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
@@ -29,7 +35,8 @@ typedef enum {
   OCS_SS_HANDSHAKE = 0, /* waiting for HELLO */
   OCS_SS_READY = 1,     /* welcomed */
   OCS_SS_LINGER = 2,    /* connection lost, viewer kept for resume */
-  OCS_SS_CLOSING = 3    /* saying goodbye; freed in the close callback */
+  OCS_SS_CLOSING = 3,   /* saying goodbye; freed in the close callback */
+  OCS_SS_COUNT
 } ocs_session_state_t;
 
 /* Why a connection or a HELLO was refused: counted per reason in the stats reply. */
@@ -115,7 +122,10 @@ struct ocs_server_s {
   int signals;
   ocs_server_desc_t desc;
   char host[64], address[96];
-  char *token, *scene_path;
+  char *token, *control_token, *scene_path;
+  FILE *audit;                   /* --audit-log, appended; NULL: none */
+  struct ocs_metrics_s *metrics; /* the /metrics endpoint (net_metrics.c); NULL: none */
+  char metrics_address[96];
   oc_scene_t scene;
   ocs_world_t *world;
   double period;
@@ -126,6 +136,7 @@ struct ocs_server_s {
   int stepping, step_rc, stopping; /* stepping: the world is busy (ticking or producing) */
   int ticking;                      /* a step runs */
   uint64_t steps_queued, steps_done, late_ticks;
+  ocs_hist_t tick_lateness; /* s: clocked ticks' first frames after their due instants (0: on time) */
   uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
   uint64_t tick_epoch;  /* the due epoch the last tick asked for */
   uint64_t armed_epoch; /* the epoch the timer waits for */
@@ -170,6 +181,8 @@ const char *ocs_refusal_key(ocs_refusal_t r);
 
 double ocs_net_now(void);
 const char *ocs_role_name(int role);
+/*! ocs_session_state_name() : "handshake", "ready", "lingering" or "closing". */
+const char *ocs_session_state_name(int state);
 void ocs_session_link(ocs_server_t *srv, ocs_session_t *s);
 void ocs_session_unlink(ocs_server_t *srv, ocs_session_t *s);
 void ocs_session_free(ocs_session_t *s);
@@ -236,6 +249,60 @@ void ocs_epoch_init(ocs_server_t *srv);
 
 /*! ocs_handshake_hello() : the HELLO of a session in handshake (never while a step runs). */
 void ocs_handshake_hello(ocs_session_t *s, const uint8_t *p, size_t n);
+/*! ocs_token_equal() : whether `got` is the token `want`, in a time that depends on neither's
+ *  bytes nor their lengths (up to OCP_TOKEN_MAX). */
+int ocs_token_equal(const char *want, const uint8_t *got, size_t got_len);
+
+/*-*** net_stats.c ***/
+
+struct cJSON;
+
+/* One session's figures. */
+typedef struct {
+  uint32_t id;
+  int role, state;   /* OCP_ROLE_* (meaningless in handshake), ocs_session_state_t */
+  char addr[64];
+  uint64_t queued, memory, bytes_out, bytes_in;
+  int has_viewer;    /* vs and ack_latency_ms are its viewer's */
+  ocs_viewer_stats_t vs;
+  double ack_latency_ms;
+} ocs_stats_session_t;
+
+/* The server's figures at one instant: what the stats and sessions replies and /metrics show, so
+ * that they agree by construction. */
+typedef struct {
+  ocs_world_stats_t world;
+  double utc, time;                /* now: the server's clock and the world time */
+  uint64_t ticks, late_ticks;      /* steps done; due ticks skipped */
+  uint64_t queue, bricks_made;     /* the production queue; bricks made between ticks */
+  uint64_t accepted, refused, closed_errors, resumes;
+  uint64_t refusals[OCS_REFUSE_COUNT];
+  int connections, admitted, lingering, by_state[OCS_SS_COUNT];
+  uint64_t lingering_budget, total_budget, max_budget;
+  ocs_hist_view_t tick_lateness;
+  uint64_t rss;                    /* the process's resident memory, bytes (0: unknown) */
+  ocs_stats_session_t *sessions;
+  size_t nsessions;
+} ocs_stats_t;
+
+/*! ocs_stats_gather() : the figures now; only while the world is free (no step or production).
+ *  @return 0 or OC_ENOMEM (nothing to free then). */
+int ocs_stats_gather(ocs_server_t *srv, ocs_stats_t *st);
+void ocs_stats_free(ocs_stats_t *st);
+/*! ocs_stats_world_json() / ocs_stats_sessions_json() : the "world" object of the stats reply
+ *  and the "sessions" array (cJSON objects for the caller). */
+struct cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st);
+struct cJSON *ocs_stats_sessions_json(const ocs_stats_t *st);
+
+/*-*** net_audit.c ***/
+
+/*! ocs_audit_open() : opens desc.audit_log for appending (nothing when none is given).
+ *  @return 0, or OC_EIO with a reason naming the file. */
+int ocs_audit_open(ocs_server_t *srv, char *why, size_t why_len);
+/*! ocs_audit_write() : one line for a control change of session s: when, who, the op, the
+ *  request's arguments and the outcome (error NULL: ok). */
+void ocs_audit_write(ocs_session_t *s, const char *op, const struct cJSON *req, const char *error);
+void ocs_audit_close(ocs_server_t *srv);
 
 /*-*** net_control.c ***/
 
@@ -258,6 +325,22 @@ void ocs_input_drain(ocs_session_t *s);
 /*-*** net_listener.c ***/
 
 int ocs_listener_open(ocs_server_t *srv, char *why, size_t why_len);
+/*! ocs_net_sockaddr() : a numeric IPv4 or IPv6 host and a port. @return 0 or OC_EINVAL. */
+int ocs_net_sockaddr(const char *host, int port, struct sockaddr_storage *sa);
+/*! ocs_net_name() : "HOST:PORT" ("[V6]:PORT" for IPv6) with the port of a bound address. */
+void ocs_net_name(char *out, size_t cap, const char *host, const struct sockaddr_storage *sa);
+
+/*-*** net_metrics.c ***/
+
+/*! ocs_metrics_open() : starts the /metrics endpoint when desc.metrics asks for it (on the loop:
+ *  libmicrohttpd in external-poll mode). @return 0, or a negative OC_E* with a reason. */
+int ocs_metrics_open(ocs_server_t *srv, char *why, size_t why_len);
+/*! ocs_metrics_resume() : the world is free: scrapes that waited for it are answered now. */
+void ocs_metrics_resume(ocs_server_t *srv);
+/*! ocs_metrics_close() : stops the endpoint and closes its handles (idempotent). */
+void ocs_metrics_close(ocs_server_t *srv);
+/*! ocs_metrics_text() : the figures as Prometheus text (exposition format 0.0.4). */
+void ocs_metrics_text(const ocs_stats_t *st, oc_buf_t *out);
 
 /*-*** net_house.c ***/
 

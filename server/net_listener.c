@@ -101,14 +101,25 @@ static void on_connection(uv_stream_t *ls, int status) {
   ocs_input_start(s);
 }
 
+int ocs_net_sockaddr(const char *host, int port, struct sockaddr_storage *sa) {
+  if (uv_ip4_addr(host, port, (struct sockaddr_in *)sa) == 0 || uv_ip6_addr(host, port, (struct sockaddr_in6 *)sa) == 0)
+    return 0;
+  return OC_EINVAL;
+}
+
+void ocs_net_name(char *out, size_t cap, const char *host, const struct sockaddr_storage *sa) {
+  int port = sa->ss_family == AF_INET6 ? ntohs(((const struct sockaddr_in6 *)sa)->sin6_port)
+                                       : ntohs(((const struct sockaddr_in *)sa)->sin_port);
+  snprintf(out, cap, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, port);
+}
+
 int ocs_listener_open(ocs_server_t *srv, char *why, size_t why_len) {
   const ocs_server_desc_t *d = &srv->desc;
   struct sockaddr_storage sa;
   int r;
   uv_tcp_init(&srv->loop, &srv->listener);
   srv->listener.data = srv;
-  if (uv_ip4_addr(srv->host, d->port, (struct sockaddr_in *)&sa) < 0 &&
-      uv_ip6_addr(srv->host, d->port, (struct sockaddr_in6 *)&sa) < 0) {
+  if (ocs_net_sockaddr(srv->host, d->port, &sa) < 0) {
     snprintf(why, why_len, "--listen: \"%s\" is not an IPv4 or IPv6 address", srv->host);
     return OC_EINVAL;
   }
@@ -119,7 +130,6 @@ int ocs_listener_open(ocs_server_t *srv, char *why, size_t why_len) {
   }
   int len = sizeof sa;
   uv_tcp_getsockname(&srv->listener, (struct sockaddr *)&sa, &len);
-  int port = sa.ss_family == AF_INET6 ? ntohs(((struct sockaddr_in6 *)&sa)->sin6_port) : ntohs(((struct sockaddr_in *)&sa)->sin_port);
-  snprintf(srv->address, sizeof srv->address, strchr(srv->host, ':') ? "[%s]:%d" : "%s:%d", srv->host, port);
+  ocs_net_name(srv->address, sizeof srv->address, srv->host, &sa);
   return 0;
 }

@@ -1,6 +1,6 @@
 /* net_server.c — the server's lifecycle (ocs_server.h; the files it is made of are listed in
- * net_internal.h; wire format in docs/protocol.md): create (world, listener, timers), run the
- * loop, stop (every client gets GOODBYE; the loop ends when they have gone), free. */
+ * net_internal.h; wire format in docs/protocol.md): create (audit log, world, listener, /metrics,
+ * timers), run the loop, stop (every client gets GOODBYE; the loop ends when they have gone), free. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
@@ -17,9 +17,11 @@ static void close_quiet(uv_handle_t *h) {
   if (h->type && !uv_is_closing(h)) uv_close(h, NULL);
 }
 
-/* The end of a step, for the layers above net_epoch.c: input held back by the step is handled,
- * and "step" requests whose epochs are done are answered. */
+/* The end of a step, for the layers above net_epoch.c: scrapes that waited for the world are
+ * answered (first: the input handled next may start a step), input held back by the step is
+ * handled, and "step" requests whose epochs are done are answered. */
 static void after_step(ocs_server_t *srv) {
+  ocs_metrics_resume(srv);
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
     nx = s->next;
     if (s->blocked && !srv->stepping) ocs_input_drain(s);
@@ -55,6 +57,7 @@ void ocs_server_stop(ocs_server_t *srv) {
     }
   }
   close_quiet((uv_handle_t *)&srv->listener);
+  ocs_metrics_close(srv);
   close_quiet((uv_handle_t *)&srv->epoch_timer);
   close_quiet((uv_handle_t *)&srv->send_timer);
   close_quiet((uv_handle_t *)&srv->stop_async);
@@ -94,13 +97,26 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
     free(srv);
     return OC_EINVAL;
   }
+  if (d->metrics && !ocs_metrics_token(d) && !d->insecure && ocs_config_is_loopback(d->metrics_host) == 0) {
+    snprintf(why, why_len, "refusing to serve metrics on %s without a token (give a control token or a token, or "
+             "insecure)", d->metrics_host);
+    free(srv);
+    return OC_EINVAL;
+  }
   srv->token = d->token ? strdup(d->token) : NULL;
+  srv->control_token = d->control_token ? strdup(d->control_token) : NULL;
   srv->scene_path = d->scene_path ? strdup(d->scene_path) : NULL;
-  d->host = d->token = d->scene_path = NULL; /* the copies above are what is used */
+  d->host = d->token = d->control_token = d->scene_path = NULL; /* the copies above are what is used */
+  ocs_hist_init(&srv->tick_lateness, ocs_hist_seconds);
   int r = oc_scene_copy(&srv->scene, scene);
-  if (r < 0 || (desc->token && !srv->token) || (desc->scene_path && !srv->scene_path)) {
+  if (r < 0 || (desc->token && !srv->token) || (desc->control_token && !srv->control_token) ||
+      (desc->scene_path && !srv->scene_path)) {
     ocs_server_free(srv);
     return OC_ENOMEM;
+  }
+  if ((r = ocs_audit_open(srv, why, why_len)) < 0) { /* before the world: a bad path fails fast */
+    ocs_server_free(srv);
+    return r;
   }
   srv->period = d->epoch_period < 0 ? scene->epoch_period : d->epoch_period;
   d->world.clocked = srv->period > 0; /* production runs behind the ticks */
@@ -116,15 +132,10 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
   if (!d->linger_budget) d->linger_budget = ocs_world_total_budget(srv->world) / 2;
   if ((r = uv_loop_init(&srv->loop)) < 0) {
     snprintf(why, why_len, "libuv: %s", uv_strerror(r));
-    ocs_world_free(srv->world);
-    srv->world = NULL;
-    free(srv->token);
-    free(srv->scene_path);
-    oc_scene_free(&srv->scene);
-    free(srv);
+    ocs_server_free(srv); /* nothing of the loop to close: the listener is not initialised */
     return OC_EIO;
   }
-  if ((r = ocs_listener_open(srv, why, why_len)) < 0) {
+  if ((r = ocs_listener_open(srv, why, why_len)) < 0 || (r = ocs_metrics_open(srv, why, why_len)) < 0) {
     ocs_server_free(srv);
     return r;
   }
@@ -137,6 +148,7 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
 }
 
 const char *ocs_server_address(const ocs_server_t *s) { return s->address; }
+const char *ocs_server_metrics_address(const ocs_server_t *s) { return s->metrics ? s->metrics_address : NULL; }
 int ocs_server_port(const ocs_server_t *s) {
   const char *c = strrchr(s->address, ':');
   return c ? atoi(c + 1) : 0;
@@ -164,6 +176,7 @@ static void walk_close(uv_handle_t *h, void *arg) {
 
 void ocs_server_free(ocs_server_t *srv) {
   if (!srv) return;
+  ocs_metrics_close(srv);
   if (srv->listener.type) {
     /* Close every handle and let the callbacks run (sessions free themselves in on_closed). */
     for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
@@ -188,7 +201,9 @@ void ocs_server_free(ocs_server_t *srv) {
   ocs_peer_free_all(srv);
   ocs_world_free(srv->world);
   oc_scene_free(&srv->scene);
+  ocs_audit_close(srv);
   free(srv->token);
+  free(srv->control_token);
   free(srv->scene_path);
   free(srv);
 }

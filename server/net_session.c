@@ -24,6 +24,11 @@ double ocs_net_now(void) {
 
 const char *ocs_role_name(int role) { return role == OCP_ROLE_CONTROL ? "control" : "viewer"; }
 
+const char *ocs_session_state_name(int state) {
+  static const char *names[OCS_SS_COUNT] = {"handshake", "ready", "lingering", "closing"};
+  return state >= 0 && state < OCS_SS_COUNT ? names[state] : "?";
+}
+
 /*-*** Sessions: lifetime ***/
 
 void ocs_session_unlink(ocs_server_t *srv, ocs_session_t *s) {

@@ -24,7 +24,15 @@ typedef struct ocs_server_s ocs_server_t;
 typedef struct {
   const char *host;        /**< address to bind; NULL → "127.0.0.1" */
   int port;                /**< 0: any free port (ocs_server_port() tells which) */
-  const char *token;       /**< required from every client; NULL: none */
+  const char *token;       /**< required from every client (from viewers only when control_token is
+                                set); NULL: none */
+  const char *control_token; /**< required from control clients instead of token, which is then refused
+                                for control (a viewer's credentials cannot change the world); NULL:
+                                control clients present token */
+  int metrics;             /**< serve Prometheus metrics over HTTP (docs/operations.md) */
+  const char *metrics_host; /**< its address; NULL → "127.0.0.1" (another needs a token or insecure) */
+  int metrics_port;        /**< 0: any free port (ocs_server_metrics_address() tells which) */
+  const char *audit_log;   /**< a file that gets one JSON line per control change (appended); NULL: none */
   double epoch_period;     /**< s; < 0 → the scene's; 0 → stepped by control requests only */
   double linger_s;         /**< keep a dropped viewer's session for resume; < 0 → 30, 0 → none */
   double handshake_s;      /**< HELLO must arrive within; 0 → 10 (at most idle_s) */
@@ -39,8 +47,8 @@ typedef struct {
                                 bucket of max_per_address); 0 → 10 */
   int max_lingering;       /**< dropped viewers kept for resume at once (oldest let go first); 0 → 16 */
   uint64_t linger_budget;  /**< sum of the lingering viewers' budgets; 0 → half the total */
-  int insecure;            /**< allow a non-loopback host without a token (ocs_server_create
-                                refuses it otherwise) */
+  int insecure;            /**< allow a non-loopback host (and metrics_host) without a token
+                                (ocs_server_create refuses it otherwise) */
   int send_buffer;         /**< SO_SNDBUF of each connection, bytes; 0 → the system's */
   const char *step_gate;   /**< tests: each step waits until this file exists (a held producer the
                                 test releases), at most 600 s; NULL: none */
@@ -56,6 +64,11 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
 /*! ocs_server_address() : "HOST:PORT" actually bound. */
 const char *ocs_server_address(const ocs_server_t *s);
 int ocs_server_port(const ocs_server_t *s);
+/*! ocs_server_metrics_address() : "HOST:PORT" the metrics endpoint is bound to; NULL: none. */
+const char *ocs_server_metrics_address(const ocs_server_t *s);
+/*! ocs_metrics_token() : the token a scrape of /metrics presents (Authorization: Bearer): the
+ *  control token, else the token; NULL: none asked. */
+const char *ocs_metrics_token(const ocs_server_desc_t *d);
 /*! ocs_server_run() : runs the loop until SIGINT/SIGTERM (handled when handle_signals) or
  *  ocs_server_stop(). @return 0 or a negative OC_E*. */
 int ocs_server_run(ocs_server_t *s, int handle_signals);

@@ -15,9 +15,8 @@ static const char *prog = "overcast-server";
 
 /* ---- Custom types ---- */
 
-/* --listen: "HOST:PORT", "[V6]:PORT", ":PORT" or "PORT" (the host then 127.0.0.1). */
-static int parse_listen(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
-  ocs_config_t *c = base;
+/* "HOST:PORT", "[V6]:PORT", ":PORT" or "PORT" (the host then 127.0.0.1) into host and *port. */
+static int parse_address(const char *p, const oc_cli_opt_t *o, const char *text, char *host, size_t cap, int *port_out) {
   const char *colon = strrchr(text, ':');
   const char *ps = colon ? colon + 1 : text, *h = text;
   size_t n = colon ? (size_t)(colon - text) : 0;
@@ -27,19 +26,31 @@ static int parse_listen(const char *p, const oc_cli_opt_t *o, const char *text, 
     h++;
     n -= 2;
   }
-  if (end == ps || *end || port < 0 || port > 65535 || (colon && colon != text && (n == 0 || n >= sizeof c->host))) {
+  if (end == ps || *end || port < 0 || port > 65535 || (colon && colon != text && (n == 0 || n >= cap))) {
     oc_cli_fail(p, 0, "--%s: expected HOST:PORT (port 0..65535), got \"%s\"", o->name, text);
     return -1;
   }
   if (!colon || colon == text) {
-    snprintf(c->host, sizeof c->host, "127.0.0.1");
+    snprintf(host, cap, "%s", OCS_CONFIG_DEFAULT_HOST);
   } else {
-    memcpy(c->host, h, n);
-    c->host[n] = 0;
+    memcpy(host, h, n);
+    host[n] = 0;
   }
-  c->desc.port = (int)port;
-  c->listen = text;
+  *port_out = (int)port;
   return 0;
+}
+
+static int parse_listen(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  ocs_config_t *c = base;
+  c->listen = text;
+  return parse_address(p, o, text, c->host, sizeof c->host, &c->desc.port);
+}
+
+static int parse_metrics_listen(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  ocs_config_t *c = base;
+  c->metrics_listen = text;
+  c->desc.metrics = 1;
+  return parse_address(p, o, text, c->metrics_host, sizeof c->metrics_host, &c->desc.metrics_port);
 }
 
 /* --queue-limits: "SOFT,HARD" in MiB. */
@@ -135,9 +146,24 @@ static const oc_cli_opt_t opts[] = {
      .help = "address to listen on; port 0 picks a free port; the address bound is printed as \"listening on "
              "HOST:PORT\"; one that is not loopback needs --token or --insecure"},
     {.name = "token", .type = OC_CLI_STRING, .offset = AT(desc.token), .arg = "TEXT", .lo = 1, .hi = OCP_TOKEN_MAX,
-     .group = SERVE, .help = "clients must present this token, viewers and control alike"},
+     .group = SERVE, .help = "clients must present this token: viewers, and control clients too unless "
+                             "--control-token is given"},
+    {.name = "control-token", .type = OC_CLI_STRING, .offset = AT(desc.control_token), .arg = "TEXT", .lo = 1,
+     .hi = OCP_TOKEN_MAX, .group = SERVE,
+     .help = "control clients (overcast-ctl --control-token) must present this token instead of --token, which "
+             "is then refused for control: a viewer's credentials cannot change the world; /metrics wants it too"},
     {.name = "insecure", .type = OC_CLI_FLAG, .offset = AT(desc.insecure), .group = SERVE,
-     .help = "allow listening on a non-loopback address without --token"},
+     .help = "allow listening (--listen, --metrics-listen) on a non-loopback address without a token"},
+    {.name = "metrics-listen", .type = OC_CLI_CUSTOM, .parse = parse_metrics_listen, .arg = "HOST:PORT",
+     .def_note = "off", .group = SERVE,
+     .help = "serve Prometheus metrics at http://HOST:PORT/metrics (HOST 127.0.0.1 when only PORT is given; "
+             "port 0 picks a free port, printed as \"metrics on HOST:PORT\"); scrapes present \"Authorization: "
+             "Bearer TOKEN\" when the server has a token (--control-token, else --token); an address that is not "
+             "loopback needs a token or --insecure"},
+    {.name = "audit-log", .type = OC_CLI_STRING, .offset = AT(desc.audit_log), .arg = "FILE", .def_note = "none",
+     .group = SERVE,
+     .help = "append one JSON line per control request that changes the world (weather, time, pause, resume, sun, "
+             "step, reload, disconnect): when, who, what, and the outcome"},
     {.name = "epoch-period", .type = OC_CLI_DOUBLE, .offset = AT(desc.epoch_period), .arg = "S", .lo = 0, .hi = 60,
      .def_note = "the scene's, 1", .group = SERVE,
      .help = "seconds between epochs; 0: epochs are stepped only by control requests (overcast-ctl step)"},
@@ -269,6 +295,11 @@ static int check_modes(ocs_config_t *c, const unsigned char *given) {
                        "--listen %s: refusing a non-loopback address without --token (anyone who reaches it could "
                        "take the whole budget); add --token, or --insecure to allow it",
                        c->listen);
+  if (c->desc.metrics && !ocs_metrics_token(&c->desc) && !c->desc.insecure && ocs_config_is_loopback(c->metrics_host) == 0)
+    return oc_cli_fail(prog, OC_EXIT_USAGE,
+                       "--metrics-listen %s: refusing a non-loopback address without a token (anyone who reaches it "
+                       "could read who is connected); add --control-token or --token, or --insecure to allow it",
+                       c->metrics_listen);
   return OCS_CONFIG_RUN;
 }
 
@@ -281,6 +312,7 @@ int ocs_config_parse(ocs_config_t *c, int argc, char **argv) {
   if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
   if ((r = check_modes(c, given)) != OCS_CONFIG_RUN) return r;
   c->desc.host = c->host;
+  c->desc.metrics_host = c->metrics_host;
   c->desc.scene_path = c->scene_path;
   c->desc.world.threads = c->threads;
   c->desc.world.time = c->time;

@@ -44,6 +44,8 @@ typedef struct {
   ocs_server_desc_t desc;    /**< serving; desc.host points into `host` */
   char host[64];             /**< --listen's address */
   const char *listen;        /**< --listen as given, or the default */
+  char metrics_host[64];     /**< --metrics-listen's address */
+  const char *metrics_listen; /**< --metrics-listen as given; NULL: no metrics */
   const char *scene_path;    /**< NULL: the built-in procedural planet */
   int check, json, quiet;
   const char *inspect, *export_path, *save_path;

@@ -53,6 +53,7 @@ static int serve(const oc_scene_t *sc, const ocs_server_desc_t *d) {
   signal(SIGPIPE, SIG_IGN); /* a vanished peer is an error code on write, not a killed server */
   if (ocs_server_create(&srv, sc, d, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   printf("listening on %s\n", ocs_server_address(srv));
+  if (ocs_server_metrics_address(srv)) printf("metrics on %s\n", ocs_server_metrics_address(srv));
   fflush(stdout);
   oc_log_info("serving scene %s (%s), epoch period %s", sc->name,
               oc_scene_has(sc, OC_FEATURE_ANIMATION) ? "animated" : "static",

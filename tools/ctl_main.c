@@ -24,7 +24,10 @@ static void usage(FILE *f) {
           "\n"
           "options (also accepted after the command):\n"
           "  --connect HOST:PORT   the server (default 127.0.0.1:7420; [V6]:PORT for IPv6)\n"
-          "  --token TEXT          the server's token, if it has one\n"
+          "  --control-token TEXT  the token control requests present: the server's --control-token, or\n"
+          "                        its --token when it has no control token (the viewer token is refused\n"
+          "                        for control where a control token is set)\n"
+          "  --token TEXT          the same option under its older name\n"
           "  --timeout S           seconds to wait for the connection and the reply (default 30)\n"
           "  --help, --version\n"
           "\n"
@@ -51,12 +54,26 @@ typedef struct {
   double timeout;
 } ctl_opts_t;
 
+/* --control-token or --token (one token: HELLO carries one). @return 0, or -1 after a message. */
+static int set_token(ctl_opts_t *o, const char *opt, const char *val) {
+  if (!*val || strlen(val) > OCP_TOKEN_MAX) {
+    oc_cli_fail(prog, 0, "%s: 1..%d bytes", opt, OCP_TOKEN_MAX);
+    return -1;
+  }
+  if (o->token && strcmp(o->token, val) != 0) {
+    oc_cli_fail(prog, 0, "%s: a token was given already (--control-token and --token are one option)", opt);
+    return -1;
+  }
+  o->token = val;
+  return 0;
+}
+
 /* Global options, wherever they appear. @return 1 consumed (and *i advanced), 0 not one, -1 bad. */
 static int global_opt(ctl_opts_t *o, int argc, char **argv, int *i) {
   const char *a = argv[*i], *val = NULL;
-  static const char *names[] = {"--connect", "--token", "--timeout"};
+  static const char *names[] = {"--connect", "--control-token", "--token", "--timeout"};
   int which = -1;
-  for (int k = 0; k < 3 && which < 0; k++) {
+  for (int k = 0; k < 4 && which < 0; k++) {
     size_t n = strlen(names[k]);
     if (!strncmp(a, names[k], n) && (a[n] == '\0' || a[n] == '=')) {
       which = k;
@@ -79,11 +96,8 @@ static int global_opt(ctl_opts_t *o, int argc, char **argv, int *i) {
       }
       break;
     case 1:
-      if (!*val || strlen(val) > OCP_TOKEN_MAX) {
-        oc_cli_fail(prog, 0, "--token: 1..%d bytes", OCP_TOKEN_MAX);
-        return -1;
-      }
-      o->token = val;
+    case 2:
+      if (set_token(o, names[which], val) < 0) return -1;
       break;
     default:
       if (oc_cli_double(prog, "--timeout", val, 0.01, 86400, &o->timeout)) return -1;
@@ -244,8 +258,9 @@ bad:
 }
 
 int main(int argc, char **argv) {
-  enum { O_CONNECT = 256, O_TOKEN, O_TIMEOUT, O_HELP, O_VERSION };
+  enum { O_CONNECT = 256, O_CONTROL_TOKEN, O_TOKEN, O_TIMEOUT, O_HELP, O_VERSION };
   static const struct option opts[] = {{"connect", required_argument, 0, O_CONNECT},
+                                       {"control-token", required_argument, 0, O_CONTROL_TOKEN},
                                        {"token", required_argument, 0, O_TOKEN},
                                        {"timeout", required_argument, 0, O_TIMEOUT},
                                        {"help", no_argument, 0, O_HELP},
@@ -261,10 +276,9 @@ int main(int argc, char **argv) {
         if (ocv_parse_address(optarg, o.host, sizeof o.host, &o.port) < 0)
           return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect: expected HOST:PORT (port 1..65535), got \"%s\"", optarg);
         break;
+      case O_CONTROL_TOKEN:
       case O_TOKEN:
-        if (!*optarg || strlen(optarg) > OCP_TOKEN_MAX)
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--token: 1..%d bytes", OCP_TOKEN_MAX);
-        o.token = optarg;
+        if (set_token(&o, c == O_TOKEN ? "--token" : "--control-token", optarg) < 0) return OC_EXIT_USAGE;
         break;
       case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.01, 86400, &o.timeout)) return OC_EXIT_USAGE; break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;

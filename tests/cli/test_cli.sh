@@ -89,7 +89,7 @@ check "view: renders the server's state" 0 "" -- "$V" --state "$tmp/p.ocst" --si
 # row per option with its default and range; the serving limits are range-checked like the others;
 # a non-loopback --listen needs --token or --insecure.
 "$S" --help >"$tmp/help" 2>&1
-for o in listen token insecure epoch-period max-viewers max-budget total-budget cache linger max-lingering \
+for o in listen token control-token insecure metrics-listen audit-log epoch-period max-viewers max-budget total-budget cache linger max-lingering \
   linger-budget max-per-address handshake-rate idle-timeout stall-timeout queue-limits zstd-level send-buffer \
   no-deltas check inspect json export-vdb region level save-state camera epochs budget viewport scene time \
   threads quiet help version; do
@@ -112,6 +112,13 @@ check "server: bad --max-budget" 2 "^overcast-server: --max-budget: 0 is outside
 check "server: serving limits with --check" 2 "serving options go without" -- "$S" --check --max-per-address 4
 check "server: non-loopback without a token" 2 "^overcast-server: --listen 0\.0\.0\.0:0: refusing a non-loopback address without --token \(anyone who reaches it could take the whole budget\); add --token, or --insecure to allow it$" -- "$S" --listen 0.0.0.0:0 --epoch-period 0 -q
 check "server: IPv6 any without a token" 2 "^overcast-server: --listen \[::\]:0: refusing a non-loopback address.*--insecure" -- "$S" --listen "[::]:0" -q
+# /metrics follows the same rule (a token or --insecure off loopback); a bad --audit-log is a
+# runtime error naming the file; a metrics address must be numeric like --listen's
+check "server: non-loopback metrics without a token" 2 "^overcast-server: --metrics-listen 0\.0\.0\.0:0: refusing a non-loopback address without a token .*--insecure to allow it$" -- "$S" --metrics-listen 0.0.0.0:0 --epoch-period 0 -q
+check "server: bad --metrics-listen" 2 "--metrics-listen: expected HOST:PORT" -- "$S" --metrics-listen 127.0.0.1:x
+check "server: --metrics-listen with --check" 2 "serving options go without" -- "$S" --check --metrics-listen 0
+check "server: audit log cannot be opened" 1 "^overcast-server: --audit-log $tmp/nodir/audit\.log: cannot open it for appending: No such file or directory$" -- "$S" --listen 127.0.0.1:0 --audit-log "$tmp/nodir/audit.log" -q
+check "server: metrics address not an IP" 1 "--metrics-listen: \"nohost\" is not an IPv4 or IPv6 address" -- "$S" --listen 127.0.0.1:0 --metrics-listen nohost:0 --scene scenes/analytic_sphere.json -q
 # --insecure starts it: wait (generously) for "listening on", then SIGTERM exits 0
 "$S" --listen 0.0.0.0:0 --insecure --epoch-period 0 -q >"$tmp/srv.out" 2>"$tmp/srv.err" &
 spid=$!
@@ -169,6 +176,8 @@ check "ctl: step out of range" 2 "1001 is outside" -- "$C" step 1001
 check "ctl: sun without a place" 2 "sun: give" -- "$C" sun --lat 10
 check "ctl: raw non-object" 2 "raw: not a JSON object" -- "$C" raw '[1]'
 check "ctl: stray argument" 2 "unexpected argument \"x\"" -- "$C" stats x
+check "ctl: two different tokens" 2 "--token: a token was given already" -- "$C" --control-token a --token b stats
+"$C" --help | grep -q -- "--control-token TEXT" || { echo "FAIL ctl --help: --control-token not listed"; fail=$((fail + 1)); }
 check "ctl: connection refused" 1 "^overcast-ctl: 127\.0\.0\.1:1: cannot connect" -- "$C" --connect 127.0.0.1:1 --timeout 5 stats
 
 X=$BIN/overcast-stress

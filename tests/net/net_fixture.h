@@ -290,6 +290,17 @@ static inline void ev_reply(void *ctx, const ocp_control_t *c) {
   *(int *)ctx = 1;
 }
 
+/* A control connection, welcomed; each CONTROL_REPLY sets *replied to 1 (ev_reply). */
+static inline ocv_conn_t *control_open(int port, int *replied) {
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL};
+  ocp_viewer_events_t cev = {.ctx = replied, .control_reply = ev_reply};
+  ocv_conn_t *ctl = NULL;
+  char why[512];
+  if (ocv_conn_open(&ctl, "127.0.0.1", port, &cd, &cev, 5.0, why, sizeof why) < 0) fail_msg("control: %s", why);
+  assert_int_equal(ocv_conn_wait_ready(ctl, 5.0, why, sizeof why), 0);
+  return ctl;
+}
+
 /* A test's teardown: the server it started is killed when the test failed before stopping it. */
 static inline int net_teardown(void **state) {
   (void)state;

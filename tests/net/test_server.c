@@ -240,6 +240,56 @@ static void test_server__token(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
+/* --control-token: control requests need it and the viewer token is refused for them, saying so;
+ * viewers present the viewer token (or the control token); overcast-ctl presents it with
+ * --control-token. */
+static void test_server__control_token(void **state) {
+  (void)state;
+  server_t s;
+  const char *extra[] = {"--scene", scene_sphere, "--token", "viewer-secret", "--control-token", "control-secret", NULL};
+  start_server(&s, extra);
+  static const struct {
+    const char *token, *expect;
+  } refused[] = {{"viewer-secret", "the viewer token cannot run control requests"},
+                 {NULL, "requires the control token"},
+                 {"control-secre", "does not match"}};
+  int32_t st;
+  for (size_t i = 0; i < sizeof refused / sizeof refused[0]; i++) {
+    char *r = control(s.port, refused[i].token, "{\"op\":\"pause\"}", &st);
+    if (st == 0 || !strstr(r, refused[i].expect)) fail_msg("control with %s: status %d, %s", refused[i].token, (int)st, r);
+    free(r);
+  }
+  char *r = control(s.port, "control-secret", "{\"op\":\"pause\"}", &st);
+  assert_int_equal(st, 0);
+  free(r);
+  viewer_t v;
+  char why[256];
+  static const char *admitted[] = {"viewer-secret", "control-secret"};
+  for (int i = 0; i < 2; i++) {
+    viewer_open(&v, s.port, 4u << 20, admitted[i]);
+    assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
+    ocv_conn_close(v.c);
+  }
+  viewer_open(&v, s.port, 4u << 20, "wrong");
+  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 1);
+  assert_int_equal(v.closed_code, OCP_CODE_TOKEN);
+  ocv_conn_close(v.c);
+  r = control(s.port, "control-secret", "{\"op\":\"stats\"}", &st);
+  assert_int_equal(st, 0);
+  assert_true(json_num(r, "\"refusals\"", "token") == 4);
+  free(r);
+  /* overcast-ctl: --control-token runs the request; the viewer token is refused with the reason */
+  char cmd[1024];
+  const char *bin = getenv("OC_BIN_DIR");
+  snprintf(cmd, sizeof cmd, "'%s/overcast-ctl' --connect 127.0.0.1:%d --control-token control-secret resume >/dev/null", bin,
+           s.port);
+  assert_int_equal(system(cmd), 0);
+  snprintf(cmd, sizeof cmd, "'%s/overcast-ctl' --connect 127.0.0.1:%d --token viewer-secret resume 2>&1 | grep -q 'viewer token'",
+           bin, s.port);
+  assert_int_equal(system(cmd), 0);
+  assert_int_equal(stop_server(&s), 0);
+}
+
 /* A viewer that drops its connection resumes with what it holds: after an acknowledged epoch (the
  * next one is a difference), and after losing an epoch in flight (it is sent again). */
 static void test_server__resume(void **state) {
@@ -538,11 +588,7 @@ static void test_server__hello_during_step(void **state) {
   assert_int_equal(ocv_conn_camera(a.c, &c), 0);
   assert_int_equal(ocv_conn_flush(a.c, 5.0, why, sizeof why), 0);
   int replied = 0;
-  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL};
-  ocp_viewer_events_t cev = {.ctx = &replied, .control_reply = ev_reply};
-  ocv_conn_t *ctl = NULL;
-  if (ocv_conn_open(&ctl, "127.0.0.1", s.port, &cd, &cev, 5.0, why, sizeof why) < 0) fail_msg("control: %s", why);
-  assert_int_equal(ocv_conn_wait_ready(ctl, 5.0, why, sizeof why), 0);
+  ocv_conn_t *ctl = control_open(s.port, &replied);
   struct timespec t0, t;
   clock_gettime(CLOCK_MONOTONIC, &t0);
   assert_int_equal(ocv_conn_control(ctl, 1, "{\"op\":\"step\",\"epochs\":1}"), 0); /* held by the gate */
@@ -701,6 +747,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_server__matches_offline, net_teardown),
       cmocka_unit_test_teardown(test_server__hostile_peers, net_teardown),
       cmocka_unit_test_teardown(test_server__token, net_teardown),
+      cmocka_unit_test_teardown(test_server__control_token, net_teardown),
       cmocka_unit_test_teardown(test_server__resume, net_teardown),
       cmocka_unit_test_teardown(test_server__lean_viewer, net_teardown),
       cmocka_unit_test_teardown(test_server__slow_viewer, net_teardown),
