@@ -42,7 +42,7 @@ static void on_house_timer(uv_timer_t *t) {
       case OCS_SS_HANDSHAKE:
         /* a HELLO held back by a running step has arrived: it is answered when the step ends */
         if (!s->blocked && now - s->created > d->handshake_s) {
-          snprintf(why, sizeof why, "no hello within %.1f s", d->handshake_s);
+          snprintf(why, sizeof why, "no %s within %.1f s", s->proxy_buf ? "PROXY header" : "hello", d->handshake_s);
           ocs_session_close(s, OCP_CODE_TIMEOUT, why);
         }
         break;

@@ -1,6 +1,7 @@
-/* net_input.c — what peers send (net_internal.h): reading, frames dispatched by message type and
- * the connection's state, and a frame that needs the world held until the running step ends
- * (reading pauses meanwhile, so a peer cannot queue more behind it). */
+/* net_input.c — what peers send (net_internal.h): reading (a trusted proxy's PROXY header before
+ * anything else), frames dispatched by message type and the connection's state, and a frame that
+ * needs the world held until the running step ends (reading pauses meanwhile, so a peer cannot
+ * queue more behind it). */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -161,6 +162,58 @@ void ocs_input_drain(ocs_session_t *s) {
   }
 }
 
+/* The PROXY header's client: the session's name, then the connection limits of its address
+ * (a LOCAL header keeps the proxy's own). @return 1 admitted, 0 refused. */
+static int proxy_admit(ocs_session_t *s, const ocs_proxy_hdr_t *h) {
+  char ip[48], via[64];
+  snprintf(via, sizeof via, "%s", s->addr);
+  if (h->local) { /* "IP:PORT" or "[IP]:PORT" back to IP */
+    const char *a = s->addr + (s->addr[0] == '[');
+    int n = (int)(strrchr(s->addr, ':') - a) - (s->addr[0] == '[');
+    snprintf(ip, sizeof ip, "%.*s", n, a);
+  } else {
+    snprintf(ip, sizeof ip, "%s", h->ip);
+    snprintf(s->addr, sizeof s->addr, strchr(ip, ':') ? "[%s]:%d" : "%s:%d", ip, h->port);
+  }
+  oc_log_info("connection %s: PROXY v%d header from %s%s", s->addr, h->version, via, h->local ? " (LOCAL: the proxy's own)" : "");
+  return ocs_listener_admit(s, ip);
+}
+
+/* A trusted proxy's connection: bytes go to its PROXY header until it is complete (in as many
+ * reads as it takes; the handshake deadline bounds the wait); what follows is the wire's.
+ * @return 1 when the wire may be read, 0 when the header is not complete, -1 closed. */
+static int proxy_input(ocs_session_t *s, const uint8_t *p, size_t n) {
+  size_t take = n < OCS_PROXY_MAX - s->proxy_len ? n : OCS_PROXY_MAX - s->proxy_len;
+  memcpy(s->proxy_buf + s->proxy_len, p, take);
+  s->proxy_len += take;
+  ocs_proxy_hdr_t h;
+  char why[288], bad[160];
+  int r = ocs_proxy_parse(s->proxy_buf, s->proxy_len, &h, bad, sizeof bad);
+  if (r == 0) return 0;
+  if (r < 0) {
+    snprintf(why, sizeof why, "%s is a trusted proxy and must begin with a PROXY header: %s", s->addr, bad);
+    ocs_session_refuse(s, OCS_REFUSE_PROXY, why);
+    return -1;
+  }
+  uint8_t *hb = s->proxy_buf;
+  s->proxy_buf = NULL;
+  int fed = ocp_reader_feed(&s->rd, hb + h.bytes, s->proxy_len - h.bytes) == 0 && ocp_reader_feed(&s->rd, p + take, n - take) == 0;
+  free(hb);
+  if (!proxy_admit(s, &h)) return -1;
+  if (!fed) ocs_session_close(s, OCP_CODE_INTERNAL, "out of memory");
+  return fed ? 1 : -1;
+}
+
+/* A PROXY header from a peer that is not a trusted proxy: refused, saying why (a proxy whose
+ * address the server does not trust would otherwise fail as "bad frame magic"). @return 1 if so. */
+static int untrusted_proxy(ocs_session_t *s, const uint8_t *p, size_t n) {
+  if (s->bytes_in != (uint64_t)n || s->state != OCS_SS_HANDSHAKE || !ocs_proxy_signature(p, n)) return 0;
+  char why[160];
+  snprintf(why, sizeof why, "a PROXY header from %s, which is not a --trusted-proxy", s->addr);
+  ocs_session_refuse(s, OCS_REFUSE_PROXY, why);
+  return 1;
+}
+
 static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
   ocs_session_t *s = st->data;
   if (nread < 0) {
@@ -170,7 +223,13 @@ static void on_read(uv_stream_t *st, ssize_t nread, const uv_buf_t *buf) {
   if (nread == 0 || s->state == OCS_SS_CLOSING) return;
   s->last_rx = ocs_net_now();
   s->bytes_in += (uint64_t)nread;
-  if (ocp_reader_feed(&s->rd, buf->base, (size_t)nread) < 0) {
+  const uint8_t *p = (const uint8_t *)buf->base;
+  if (s->proxy_buf) {
+    if (proxy_input(s, p, (size_t)nread) == 1) ocs_input_drain(s);
+    return;
+  }
+  if (untrusted_proxy(s, p, (size_t)nread)) return;
+  if (ocp_reader_feed(&s->rd, p, (size_t)nread) < 0) {
     ocs_session_close(s, OCP_CODE_INTERNAL, "out of memory");
     return;
   }

@@ -4,6 +4,7 @@
  * One file per concern, each calling only the ones above it in this list (no loops; a step's end
  * reaches the higher layers through the after_step hook that net_server.c installs):
  *
+ *   net_proxy.c      the PROXY protocol header and the --trusted-proxy list (net_proxy.h: pure)
  *   net_peer.c       per-address connection counts and the handshake rate (token buckets)
  *   net_session.c    a session's lifetime (close, lost, linger within caps) and output (send,
  *                    pump, stream)
@@ -13,7 +14,8 @@
  *   net_stats.c      the server's figures, gathered once for the stats reply and for /metrics
  *   net_audit.c      the audit log: a JSON line per control change
  *   net_control.c    CONTROL requests (weather, time, sun, step, reload, sessions, stats)
- *   net_input.c      reading, frames dispatched by type, input held while a step runs
+ *   net_input.c      reading (a trusted proxy's PROXY header first), frames dispatched by type,
+ *                    input held while a step runs
  *   net_listener.c   the listening socket and accepting connections (limits checked first)
  *   net_metrics_text.c  the figures as Prometheus families (what /metrics exports)
  *   net_metrics.c    /metrics over HTTP (libmicrohttpd driven by the loop)
@@ -27,6 +29,7 @@
 #include <uv.h>
 
 #include "histogram.h"
+#include "net_proxy.h" /* ocs_proxy_addr_t */
 #include "ocs_server.h"
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
@@ -48,7 +51,8 @@ typedef enum {
   XX(BUDGET, "budget")           /* not even the minimum budget left */ \
   XX(TOKEN, "token")                                                    \
   XX(VERSION, "version")                                                \
-  XX(SHUTDOWN, "shutdown")
+  XX(SHUTDOWN, "shutdown")                                              \
+  XX(PROXY, "proxy") /* a PROXY header not from a trusted proxy, or a trusted one's missing or bad */
 typedef enum {
 #define OCS__REFUSAL_ENUM(name, key) OCS_REFUSE_##name,
   OCS_REFUSALS(OCS__REFUSAL_ENUM)
@@ -76,7 +80,10 @@ struct ocs_session_s {
   int role;  /* OCP_ROLE_* once welcomed */
   int state; /* ocs_session_state_t */
   int connected; /* tcp is open (not yet uv_close'd) */
-  char addr[64]; /* "IP:PORT" of the peer */
+  char addr[64]; /* "IP:PORT" of the peer: the client's, as a trusted proxy's header says */
+  uint8_t *proxy_buf; /* from a trusted proxy: its PROXY header so far (OCS_PROXY_MAX bytes);
+                         NULL once it is complete, or for a direct peer */
+  size_t proxy_len;
   ocs_peer_t *peer; /* its address's entry while it counts there (admitted, open); else NULL */
   ocp_reader_t rd;
   uint8_t version; /* negotiated */
@@ -123,6 +130,8 @@ struct ocs_server_s {
   ocs_server_desc_t desc;
   char host[64], address[96];
   char *token, *control_token, *scene_path;
+  ocs_proxy_addr_t trusted[OCS_PROXY_TRUSTED_MAX]; /* --trusted-proxy */
+  int ntrusted;
   FILE *audit;                   /* --audit-log, appended; NULL: none */
   struct ocs_metrics_s *metrics; /* the /metrics endpoint (net_metrics.c); NULL: none */
   char metrics_address[96];
@@ -325,6 +334,9 @@ void ocs_input_drain(ocs_session_t *s);
 /*-*** net_listener.c ***/
 
 int ocs_listener_open(ocs_server_t *srv, char *why, size_t why_len);
+/*! ocs_listener_admit() : the connection limits for a connection from `ip` (the server's, then that
+ *  address's). @return 1 admitted; 0 refused (the session is closing). */
+int ocs_listener_admit(ocs_session_t *s, const char *ip);
 /*! ocs_net_sockaddr() : a numeric IPv4 or IPv6 host and a port. @return 0 or OC_EINVAL. */
 int ocs_net_sockaddr(const char *host, int port, struct sockaddr_storage *sa);
 /*! ocs_net_name() : "HOST:PORT" ("[V6]:PORT" for IPv6) with the port of a bound address. */

@@ -1,7 +1,8 @@
 /* net_listener.c — the listening socket and new connections (net_internal.h). A connection is
  * checked against the limits before it costs more than its session struct: the server's
  * connection limit, then its address's (net_peer.c). A refused one gets ERROR naming the limit;
- * past a hard ceiling it is closed without a word, so a storm costs bounded memory. */
+ * past a hard ceiling it is closed without a word, so a storm costs bounded memory. A connection
+ * from a --trusted-proxy meets those limits only once its PROXY header names the client. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,25 +20,38 @@ static uint64_t random_u64(void) {
   return v ? v : 1;
 }
 
-/* "IP" into ip and "IP:PORT" into s->addr. */
-static void peer_name(ocs_session_t *s, char *ip, size_t cap) {
-  struct sockaddr_storage sa;
-  int len = sizeof sa, port = 0;
+/* "IP" into ip and "IP:PORT" into s->addr; the address itself into *sa. */
+static void peer_name(ocs_session_t *s, char *ip, size_t cap, struct sockaddr_storage *sa) {
+  int len = sizeof *sa, port = 0;
   snprintf(ip, cap, "?");
-  if (uv_tcp_getpeername(&s->tcp, (struct sockaddr *)&sa, &len) == 0) {
-    if (sa.ss_family == AF_INET) {
-      uv_ip4_name((struct sockaddr_in *)&sa, ip, cap);
-      port = ntohs(((struct sockaddr_in *)&sa)->sin_port);
-    } else if (sa.ss_family == AF_INET6) {
-      uv_ip6_name((struct sockaddr_in6 *)&sa, ip, cap);
-      port = ntohs(((struct sockaddr_in6 *)&sa)->sin6_port);
+  memset(sa, 0, sizeof *sa);
+  if (uv_tcp_getpeername(&s->tcp, (struct sockaddr *)sa, &len) == 0) {
+    if (sa->ss_family == AF_INET) {
+      uv_ip4_name((struct sockaddr_in *)sa, ip, cap);
+      port = ntohs(((struct sockaddr_in *)sa)->sin_port);
+    } else if (sa->ss_family == AF_INET6) {
+      uv_ip6_name((struct sockaddr_in6 *)sa, ip, cap);
+      port = ntohs(((struct sockaddr_in6 *)sa)->sin6_port);
     }
   }
   snprintf(s->addr, sizeof s->addr, strchr(ip, ':') ? "[%s]:%d" : "%s:%d", ip, port);
 }
 
-/* @return 1 if the connection may go on to its handshake; else it was refused. */
-static int admit_connection(ocs_server_t *srv, ocs_session_t *s, const char *ip) {
+/* A trusted proxy's connection waits for its PROXY header (net_input.c), which names the client
+ * whose address the limits then see; the handshake deadline covers the wait. @return 0, or -1
+ * (out of memory: closed). */
+static int await_proxy(ocs_session_t *s) {
+  if (!(s->proxy_buf = malloc(OCS_PROXY_MAX))) {
+    s->state = OCS_SS_CLOSING;
+    ocs_session_close_handle(s);
+    return -1;
+  }
+  s->version = OCP_VERSION_MAX; /* a refusal is sent before any HELLO was read */
+  return 0;
+}
+
+int ocs_listener_admit(ocs_session_t *s, const char *ip) {
+  ocs_server_t *srv = s->srv;
   const ocs_server_desc_t *d = &srv->desc;
   char why[160];
   ocs_refusal_t r;
@@ -90,9 +104,14 @@ static void on_connection(uv_stream_t *ls, int status) {
   s->created = s->last_rx = s->last_progress = ocs_net_now();
   ocp_reader_init(&s->rd, OCP_MAX_CLIENT_PAYLOAD);
   char ip[48];
-  peer_name(s, ip, sizeof ip);
+  struct sockaddr_storage sa;
+  peer_name(s, ip, sizeof ip, &sa);
   srv->accepted++;
-  if (!admit_connection(srv, s, ip)) return;
+  if (srv->ntrusted && ocs_proxy_list_has(srv->trusted, srv->ntrusted, &sa)) {
+    if (await_proxy(s) < 0) return;
+  } else if (!ocs_listener_admit(s, ip)) {
+    return;
+  }
   uv_tcp_nodelay(&s->tcp, 1);
   if (srv->desc.send_buffer > 0) {
     int v = srv->desc.send_buffer;

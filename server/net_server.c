@@ -103,6 +103,13 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
     free(srv);
     return OC_EINVAL;
   }
+  char bad[160];
+  if (d->trusted_proxies && (srv->ntrusted = ocs_proxy_list_parse(d->trusted_proxies, srv->trusted, bad, sizeof bad)) < 0) {
+    snprintf(why, why_len, "trusted proxies: %s", bad);
+    free(srv);
+    return OC_EINVAL;
+  }
+  d->trusted_proxies = NULL; /* parsed into srv->trusted */
   srv->token = d->token ? strdup(d->token) : NULL;
   srv->control_token = d->control_token ? strdup(d->control_token) : NULL;
   srv->scene_path = d->scene_path ? strdup(d->scene_path) : NULL;

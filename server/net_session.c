@@ -55,6 +55,7 @@ void ocs_session_free(ocs_session_t *s) {
   ocp_reader_free(&s->rd);
   ocp_epoch_enc_free(s->enc);
   free(s->deferred);
+  free(s->proxy_buf);
   free(s);
 }
 
@@ -130,7 +131,8 @@ void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
 
 void ocs_session_refuse(ocs_session_t *s, ocs_refusal_t why, const char *text) {
   static const uint32_t codes[] = {OCP_CODE_FULL, OCP_CODE_FULL, OCP_CODE_FULL,  OCP_CODE_FULL,
-                                   OCP_CODE_FULL, OCP_CODE_TOKEN, OCP_CODE_VERSION, OCP_CODE_SHUTDOWN};
+                                   OCP_CODE_FULL, OCP_CODE_TOKEN, OCP_CODE_VERSION, OCP_CODE_SHUTDOWN,
+                                   OCP_CODE_MALFORMED};
   _Static_assert(sizeof codes / sizeof *codes == OCS_REFUSE_COUNT, "a code per refusal");
   s->srv->refused++;
   s->srv->refusals[why]++;

@@ -32,6 +32,9 @@ typedef struct {
   int metrics;             /**< serve Prometheus metrics over HTTP (docs/operations.md) */
   const char *metrics_host; /**< its address; NULL → "127.0.0.1" (another needs a token or insecure) */
   int metrics_port;        /**< 0: any free port (ocs_server_metrics_address() tells which) */
+  const char *trusted_proxies; /**< "ADDR[,ADDR...]": peers that must begin with a PROXY protocol header
+                                (v2 or v1), whose client address then counts for limits and logs;
+                                a PROXY header from any other peer is refused. NULL: none */
   const char *audit_log;   /**< a file that gets one JSON line per control change (appended); NULL: none */
   double epoch_period;     /**< s; < 0 → the scene's; 0 → stepped by control requests only */
   double linger_s;         /**< keep a dropped viewer's session for resume; < 0 → 30, 0 → none */

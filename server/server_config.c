@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "net_proxy.h" /* --trusted-proxy */
 #include "oc_cli.h"
 #include "ocp_wire.h"
 
@@ -104,6 +105,19 @@ static int parse_region(const char *p, const oc_cli_opt_t *o, const char *text, 
   return 0;
 }
 
+/* --trusted-proxy: "ADDR[,ADDR...]", numeric (ocs_proxy_list_parse(); the server parses it again). */
+static int parse_trusted_proxy(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  ocs_config_t *c = base;
+  ocs_proxy_addr_t a[OCS_PROXY_TRUSTED_MAX];
+  char why[160];
+  if (ocs_proxy_list_parse(text, a, why, sizeof why) < 0) {
+    oc_cli_fail(p, 0, "--%s: %s", o->name, why);
+    return -1;
+  }
+  c->desc.trusted_proxies = text;
+  return 0;
+}
+
 /* --camera: "LAT,LON,ALT,HEADING,PITCH,FOV" (oc_camera_parse()). */
 static int parse_camera(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
   ocs_config_t *c = base;
@@ -160,6 +174,11 @@ static const oc_cli_opt_t opts[] = {
              "port 0 picks a free port, printed as \"metrics on HOST:PORT\"); scrapes present \"Authorization: "
              "Bearer TOKEN\" when the server has a token (--control-token, else --token); an address that is not "
              "loopback needs a token or --insecure"},
+    {.name = "trusted-proxy", .type = OC_CLI_CUSTOM, .parse = parse_trusted_proxy, .arg = "ADDR[,ADDR...]",
+     .def_note = "none", .group = SERVE,
+     .help = "connections from these addresses (a TLS-terminating HAProxy with send-proxy-v2) must begin with a "
+             "PROXY protocol header (v2 or v1); the client address it carries is the one limits (--max-per-address, "
+             "--handshake-rate), logs and the audit log see; a PROXY header from any other address is refused"},
     {.name = "audit-log", .type = OC_CLI_STRING, .offset = AT(desc.audit_log), .arg = "FILE", .def_note = "none",
      .group = SERVE,
      .help = "append one JSON line per control request that changes the world (weather, time, pause, resume, sun, "

@@ -268,6 +268,43 @@ static inline int raw_read_close_code(int fd, double timeout_s, char *text, size
 
 static inline void raw_send(int fd, const void *p, size_t n) { assert_int_equal(write(fd, p, n), (ssize_t)n); }
 
+/* A raw viewer's HELLO asking `budget`; returns the WELCOME's granted budget (0: refused, with
+ * the ERROR's code in *code). The socket stays open. */
+static inline uint64_t raw_hello(int fd, uint64_t budget, int *code) {
+  oc_buf_t b = {0};
+  ocp_hello_t h = {.min_version = 1, .max_version = OCP_VERSION_MAX, .role = OCP_ROLE_VIEWER, .max_depth = 21,
+                   .budget = budget, .slot_bytes = 2048, .record_bytes = 32, .width = 160, .height = 90};
+  ocp_put_hello(&b, &h);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  ocp_reader_t rd;
+  ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
+  uint8_t buf[4096];
+  uint64_t granted = 0;
+  *code = -1;
+  for (int i = 0; i < 600 && *code < 0; i++) {
+    struct pollfd p = {fd, POLLIN, 0};
+    if (poll(&p, 1, 50) <= 0) continue;
+    ssize_t n = read(fd, buf, sizeof buf);
+    if (n <= 0) break;
+    ocp_reader_feed(&rd, buf, (size_t)n);
+    ocp_header_t hd;
+    const uint8_t *pl;
+    while (*code < 0 && ocp_reader_next(&rd, &hd, &pl) == 1) {
+      ocp_welcome_t w;
+      ocp_text_msg_t t;
+      if (hd.type == OCP_MSG_WELCOME && ocp_get_welcome(pl, hd.length, &w, NULL, 0) == 0) {
+        granted = w.budget;
+        *code = OCP_CODE_OK;
+      } else if (hd.type == OCP_MSG_ERROR && ocp_get_text(pl, hd.length, &t, NULL, 0) == 0) {
+        *code = (int)t.code;
+      }
+    }
+  }
+  ocp_reader_free(&rd);
+  return granted;
+}
+
 /* A viewer on a raw socket with a small receive window: HELLO and camera sent, then never read. */
 static inline int raw_stalled_viewer(int port, uint64_t budget, uint32_t w, uint32_t h) {
   int fd = raw_connect(port);
