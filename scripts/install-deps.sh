@@ -11,7 +11,11 @@ PKGS=(
   libglfw3-dev libepoxy-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri mesa-utils-bin
   libmicrohttpd-dev                     # overcast-server's /metrics (docs/operations.md)
   prometheus curl                       # tests: promtool checks a /metrics scrape (the daemon never runs)
+  haproxy openssl                       # tests: TLS and PROXY v2 in front of the server (only the test runs it)
 )
+
+# Daemons that come with test packages (haproxy, prometheus) must not start as services: a
+# policy-rc.d that refuses every start is in place while they are installed (unless one is there).
 
 missing=()
 for p in "${PKGS[@]}"; do
@@ -28,4 +32,16 @@ SUDO=""
 echo "install-deps: installing ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
+POLICY=/usr/sbin/policy-rc.d
+OWN_POLICY=0
+if [ ! -e "$POLICY" ]; then
+  printf '#!/bin/sh\nexit 101\n' | $SUDO tee "$POLICY" >/dev/null
+  $SUDO chmod 755 "$POLICY"
+  OWN_POLICY=1
+fi
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+[ "$OWN_POLICY" -eq 0 ] || $SUDO rm -f "$POLICY"
+# under systemd the units were still enabled for the next boot: disable them
+if [ -d /run/systemd/system ]; then
+  for svc in haproxy prometheus; do $SUDO systemctl disable --now "$svc" 2>/dev/null || true; done
+fi

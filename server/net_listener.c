@@ -20,21 +20,22 @@ static uint64_t random_u64(void) {
   return v ? v : 1;
 }
 
-/* "IP" into ip and "IP:PORT" into s->addr; the address itself into *sa. */
-static void peer_name(ocs_session_t *s, char *ip, size_t cap, struct sockaddr_storage *sa) {
+/* "IP" into ip and "IP:PORT" into s->addr; the address itself into *sa. @return 0, or -1 when
+ * the peer has no name any more (it left before it was accepted: a health check, say). */
+static int peer_name(ocs_session_t *s, char *ip, size_t cap, struct sockaddr_storage *sa) {
   int len = sizeof *sa, port = 0;
-  snprintf(ip, cap, "?");
   memset(sa, 0, sizeof *sa);
-  if (uv_tcp_getpeername(&s->tcp, (struct sockaddr *)sa, &len) == 0) {
-    if (sa->ss_family == AF_INET) {
-      uv_ip4_name((struct sockaddr_in *)sa, ip, cap);
-      port = ntohs(((struct sockaddr_in *)sa)->sin_port);
-    } else if (sa->ss_family == AF_INET6) {
-      uv_ip6_name((struct sockaddr_in6 *)sa, ip, cap);
-      port = ntohs(((struct sockaddr_in6 *)sa)->sin6_port);
-    }
+  if (uv_tcp_getpeername(&s->tcp, (struct sockaddr *)sa, &len) != 0) return -1;
+  snprintf(ip, cap, "?");
+  if (sa->ss_family == AF_INET) {
+    uv_ip4_name((struct sockaddr_in *)sa, ip, cap);
+    port = ntohs(((struct sockaddr_in *)sa)->sin_port);
+  } else if (sa->ss_family == AF_INET6) {
+    uv_ip6_name((struct sockaddr_in6 *)sa, ip, cap);
+    port = ntohs(((struct sockaddr_in6 *)sa)->sin6_port);
   }
   snprintf(s->addr, sizeof s->addr, strchr(ip, ':') ? "[%s]:%d" : "%s:%d", ip, port);
+  return 0;
 }
 
 /* A trusted proxy's connection waits for its PROXY header (net_input.c), which names the client
@@ -93,7 +94,10 @@ static void on_connection(uv_stream_t *ls, int status) {
   s->connected = 1;
   srv->nconnected++;
   ocs_session_link(srv, s);
-  if (uv_accept(ls, (uv_stream_t *)&s->tcp) < 0 || srv->nconnected - srv->nadmitted > srv->desc.max_connections + OCS_REFUSING_MAX) {
+  char ip[48];
+  struct sockaddr_storage sa;
+  if (uv_accept(ls, (uv_stream_t *)&s->tcp) < 0 || srv->nconnected - srv->nadmitted > srv->desc.max_connections + OCS_REFUSING_MAX ||
+      peer_name(s, ip, sizeof ip, &sa) < 0) {
     s->state = OCS_SS_CLOSING;
     ocs_session_close_handle(s);
     return;
@@ -103,9 +107,6 @@ static void on_connection(uv_stream_t *ls, int status) {
   s->secret = random_u64();
   s->created = s->last_rx = s->last_progress = ocs_net_now();
   ocp_reader_init(&s->rd, OCP_MAX_CLIENT_PAYLOAD);
-  char ip[48];
-  struct sockaddr_storage sa;
-  peer_name(s, ip, sizeof ip, &sa);
   srv->accepted++;
   if (srv->ntrusted && ocs_proxy_list_has(srv->trusted, srv->ntrusted, &sa)) {
     if (await_proxy(s) < 0) return;
