@@ -78,11 +78,10 @@ static int v1_fields(char *line, ocs_proxy_hdr_t *h, char *why, size_t why_len) 
   uint8_t a[16];
   if (inet_pton(af, f[1], a) != 1 || inet_pton(af, f[2], a) != 1)
     return oc_errorf(OC_ECORRUPT, why, why_len, "PROXY v1: bad %s address", f[0]);
-  for (int i = 3; i < 5; i++) {
-    char *end;
-    long port = strtol(f[i], &end, 10);
-    if (end == f[i] || *end || f[i][0] == '-' || f[i][0] == '+' || port > 65535)
-      return oc_errorf(OC_ECORRUPT, why, why_len, "PROXY v1: bad port");
+  for (int i = 3; i < 5; i++) { /* 1 to 5 decimal digits: strtol would take blanks and signs */
+    size_t len = strspn(f[i], "0123456789");
+    long port = len && len <= 5 && !f[i][len] ? strtol(f[i], NULL, 10) : -1;
+    if (port < 0 || port > 65535) return oc_errorf(OC_ECORRUPT, why, why_len, "PROXY v1: bad port");
     if (i == 3) h->port = (int)port;
   }
   snprintf(h->ip, sizeof h->ip, "%s", f[1]);

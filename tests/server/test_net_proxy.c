@@ -105,7 +105,7 @@ static void test_net_proxy__v1_forms(void **state) {
   assert_int_equal(h.local, 1);
   const char *bad[] = {"PROXY TCP4 10.0.0.300 1.2.3.4 1 2\r\n", "PROXY TCP4 10.0.0.1 1.2.3.4 1 65536\r\n",
                        "PROXY TCP4 ::1 ::1 1 2\r\n", "PROXY TCP4 1.2.3.4 1.2.3.4 1\r\n", "PROXY UDP4 1.2.3.4 1.2.3.4 1 2\r\n",
-                       "PROXY TCP4 1.2.3.4 1.2.3.4 -1 2\r\n", "PROXY \r\n"};
+                       "PROXY TCP4 1.2.3.4 1.2.3.4 -1 2\r\n", "PROXY TCP4 1.2.3.4 1.2.3.4 \t-2 1\r\n", "PROXY \r\n"};
   char why[160];
   for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
     assert_true(ocs_proxy_parse((const uint8_t *)bad[i], strlen(bad[i]), &h, why, sizeof why) < 0);
