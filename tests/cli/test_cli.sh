@@ -89,7 +89,7 @@ check "view: renders the server's state" 0 "" -- "$V" --state "$tmp/p.ocst" --si
 # row per option with its default and range; the serving limits are range-checked like the others;
 # a non-loopback --listen needs --token or --insecure.
 "$S" --help >"$tmp/help" 2>&1
-for o in listen token control-token insecure metrics-listen audit-log epoch-period max-viewers max-budget total-budget cache linger max-lingering \
+for o in listen token control-token insecure metrics-listen audit-log trusted-proxy epoch-period max-viewers max-budget total-budget cache linger max-lingering \
   linger-budget max-per-address handshake-rate idle-timeout stall-timeout queue-limits zstd-level send-buffer \
   no-deltas check inspect json export-vdb region level save-state camera epochs budget viewport scene time \
   threads quiet help version; do
@@ -110,6 +110,7 @@ check "server: --max-lingering not an integer" 2 "^overcast-server: --max-linger
 check "server: bad --linger-budget" 2 "^overcast-server: --linger-budget: 0 is outside \[1, 16777216\]$" -- "$S" --linger-budget 0
 check "server: bad --max-budget" 2 "^overcast-server: --max-budget: 0 is outside \[1, 16777216\]$" -- "$S" --max-budget 0
 check "server: serving limits with --check" 2 "serving options go without" -- "$S" --check --max-per-address 4
+check "server: bad --trusted-proxy" 2 "^overcast-server: --trusted-proxy: \"haproxy\" is not a numeric IPv4 or IPv6 address$" -- "$S" --trusted-proxy 127.0.0.1,haproxy
 check "server: non-loopback without a token" 2 "^overcast-server: --listen 0\.0\.0\.0:0: refusing a non-loopback address without --token \(anyone who reaches it could take the whole budget\); add --token, or --insecure to allow it$" -- "$S" --listen 0.0.0.0:0 --epoch-period 0 -q
 check "server: IPv6 any without a token" 2 "^overcast-server: --listen \[::\]:0: refusing a non-loopback address.*--insecure" -- "$S" --listen "[::]:0" -q
 # /metrics follows the same rule (a token or --insecure off loopback); a bad --audit-log is a

@@ -1,7 +1,7 @@
 /* test_proxy.c — overcast-server --trusted-proxy end to end (server/net_proxy.c, net_input.c):
  * a PROXY header from a peer that is not trusted is refused with its reason; from a trusted one
- * (127.0.0.5 here) the address it carries is the one the per-address limit, the sessions reply and
- * the log see (v2 IPv4 and IPv6, v1, LOCAL); a trusted peer without a header, or with one that
+ * (127.0.0.5 here) the address it carries is the one the per-address limit, the sessions reply,
+ * the log and the audit log see (v2 IPv4 and IPv6, v1, LOCAL); a trusted peer without a header, or with one that
  * never completes, is refused. */
 #include <setjmp.h> /* cmocka */
 #include <stdarg.h>
@@ -48,6 +48,21 @@ static int via_proxy(int port, const char *ip, int client_port) {
   return fd;
 }
 
+/* A control client behind the proxy: HELLO and one CONTROL request; waits for the connection to
+ * end after the reply (ERROR/GOODBYE code, or -1 at EOF). */
+static void control_via_proxy(int port, const char *ip, int client_port, const char *json) {
+  int fd = via_proxy(port, ip, client_port);
+  oc_buf_t b = {0};
+  ocp_hello_t hello = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_CONTROL};
+  ocp_put_hello(&b, &hello);
+  ocp_control_t req = {.request = 1, .json = json, .json_len = (uint32_t)strlen(json)};
+  ocp_put_control(&b, 1, OCP_MSG_CONTROL, &req);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+  shutdown(fd, SHUT_WR); /* the server answers, then sees the end and closes */
+  raw_read_close_code(fd, 10.0, NULL, 0);
+}
+
 static char *slurp(const char *path) {
   FILE *f = fopen(path, "r");
   assert_non_null(f);
@@ -92,7 +107,10 @@ static void test_proxy__trusted_address_meets_limits(void **state) {
   (void)state;
   char log[256], text[OCP_TEXT_MAX + 1] = "";
   log_path(log, sizeof log, "trusted");
-  const char *extra[] = {"--scene", scene_sphere, "--trusted-proxy", "::1,127.0.0.5", "--max-per-address", "1", NULL};
+  char audit[256];
+  log_path(audit, sizeof audit, "audit");
+  const char *extra[] = {"--scene", scene_sphere, "--trusted-proxy", "::1,127.0.0.5", "--max-per-address", "1",
+                         "--audit-log", audit, NULL};
   server_t s;
   start_server_log(&s, extra, log);
   int code;
@@ -119,7 +137,10 @@ static void test_proxy__trusted_address_meets_limits(void **state) {
   close(b);
   close(c);
   close(v1);
+  control_via_proxy(s.port, "10.0.0.9", 9999, "{\"op\":\"pause\"}");
   assert_int_equal(stop_server(&s), 0);
+  assert_non_null(strstr(slurp(audit), "\"peer\":\"10.0.0.9:9999\""));
+  remove(audit);
   const char *l = slurp(log);
   assert_non_null(strstr(l, "(viewer 10.0.0.1:1111): welcomed"));
   assert_non_null(strstr(l, "(viewer 10.0.0.3:4444): welcomed"));
