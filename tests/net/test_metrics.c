@@ -294,7 +294,7 @@ static void test_metrics__promtool_and_stats(void **state) {
     assert_true(r->valuedouble <= m && m <= jnum(r2, r->string));
     reasons++;
   }
-  assert_int_equal(reasons, 8);
+  assert_int_equal(reasons, 9); /* OCS_REFUSALS: connections ... shutdown, proxy */
   assert_true(metric(text, "overcast_refusals_total{reason=\"viewers\"}") == 1);
   /* sessions by state: the viewer is ready; none lingers, as the stats reply says */
   assert_true(metric(text, "overcast_sessions{state=\"ready\"}") >= 1);
