@@ -679,7 +679,7 @@ static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double perio
   octs_plot_desc_t e = {.title = "Time to full detail after a teleport (p50) against viewers", .subtitle = sub,
                         .xlabel = "viewers N", .ylabel = "seconds", .ngroups = 3 * nb, .lines = 1};
   for (int b = 0; b < nb; b++) {
-    snprintf(names[nb + b], sizeof names[nb + b], "stepped (the rule's), %ld MiB", o->budgets_mib[b]);
+    snprintf(names[nb + b], sizeof names[nb + b], "stepped, %ld MiB", o->budgets_mib[b]);
     snprintf(names[2 * nb + b], sizeof names[2 * nb + b], "not settled: > y");
     e.group_name[2 * nb + b] = names[2 * nb + b];
     e.group_name[b] = names[b];
