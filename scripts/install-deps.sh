@@ -11,7 +11,7 @@ PKGS=(
   libglfw3-dev libepoxy-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri mesa-utils-bin
   libmicrohttpd-dev                     # overcast-server's /metrics (docs/operations.md)
   prometheus curl                       # tests: promtool checks a /metrics scrape (the daemon never runs)
-  haproxy openssl                       # tests: TLS and PROXY v2 in front of the server (only the test runs it)
+  haproxy openssl socat                 # tests: TLS and PROXY v2 in front of the server (only the test runs it)
 )
 
 # Daemons that come with test packages (haproxy, prometheus) must not start as services: a
