@@ -408,13 +408,15 @@ static int new_content(ocs_planner_t *p, pn_t *n, int level, int look, uint64_t 
     content_new(p, n);
     return 1;
   }
-  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp, held);
+  uint8_t made = OC_NODE_BRICK;
+  uint64_t s = p->in->ready(p->in->ctx, n->key, level, n->stamp, held, &made);
   if (!s || s == held) {
     if (p->in->want) p->in->want(p->in->ctx, n->key, n->stamp, prio);
     return 0;
   }
-  content_new(p, n);
+  content_new(p, n); /* the bound's class decides splits (ocs_plan_commit) */
   n->stamp = s;
+  if (made <= OC_NODE_BRICK) n->kind = made; /* its cost, as made */
   return 1;
 }
 

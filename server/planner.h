@@ -96,12 +96,15 @@ typedef struct {
    *  ready() returns the stamp of content of (key) that exists, `stamp` itself or an older stamp of
    *  that level (stale but complete) newer than `held` (the stamp the node shows, 0: none: a
    *  refresh never goes back in time), or 0 when none does; NULL: everything is ready (stepped
-   *  epochs produce what their plan asks before it goes out). want() is told what was not ready,
+   *  epochs produce what their plan asks before it goes out). It sets *kind to that content's
+   *  oc_node_kind_t as made: the plan counts its cost by it (the field's bound, classify(), says
+   *  "brick" of much that comes out empty, and a tick's costs swung by a third with the refreshes
+   *  it took), and splits still by the bound's class. want() is told what was not ready,
    *  with the pixels it would buy (the split's or the leaf's priority); NULL: not told. With want()
    *  but no ready(), the plan is a target: want() hears of the new content of its final tree,
    *  inner nodes included (what a split that a later merge undid took is not wished), and the plan
    *  is then abandoned. */
-  uint64_t (*ready)(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held);
+  uint64_t (*ready)(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held, uint8_t *kind);
   void (*want)(void *ctx, oc_key_t key, uint64_t stamp, double prio);
 } ocs_plan_input_t;
 

@@ -495,6 +495,8 @@ static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t st
   }
 }
 
+#define OCS_RATE_EPOCHS 64
+
 static void clock_update(ocs_world_t *w) {
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];
   stamps_at(w, w->time, w->ts, stamp, w->light);
@@ -505,16 +507,18 @@ static void clock_update(ocs_world_t *w) {
     }
     w->stamp[l] = stamp[l];
   }
-  /* refresh rate: how many of the next 8 epochs change each level's stamp */
+  /* refresh rate: the share of the next OCS_RATE_EPOCHS epochs that change each level's stamp.
+   * Over 8, a level stepping every 16 s read 0 or 1/8 by turns, and the plans' steady cost (each
+   * brick weighed by 1 + (K - 1) x rate) moved with it from one tick to the next. */
   double dt = w->scene.epoch_period * ocs_clock_scale(&w->clock, w->utc);
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) w->rate[l] = 0.0;
   if (!ocs_field_animated(w->field) || !(dt > 0.0)) return;
   uint64_t prev[OC_KEY_MAX_LEVEL + 1], next[OC_KEY_MAX_LEVEL + 1];
   memcpy(prev, w->stamp, sizeof prev);
-  for (int k = 1; k <= 8; k++) {
+  for (int k = 1; k <= OCS_RATE_EPOCHS; k++) {
     stamps_at(w, w->time + k * dt, NULL, next, NULL);
     for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
-      if (next[l] != prev[l]) w->rate[l] += 1.0 / 8.0;
+      if (next[l] != prev[l]) w->rate[l] += 1.0 / OCS_RATE_EPOCHS;
       prev[l] = next[l];
     }
   }
@@ -884,7 +888,7 @@ int ocs_world_step_at(ocs_world_t *w, uint64_t epoch, double utc) {
  * refresh stops at `held`, never going back in time, and a waiting refresh costs one look, not
  * three), pinned until the tick's states are built (nothing is produced during a tick, but pins
  * keep that true whatever the cache does). */
-static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held) {
+static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held, uint8_t *kind) {
   ocs_world_t *w = ((plan_ctx_t *)ctx)->w;
   for (int i = -1; i < OCS_READY_AGE; i++) {
     uint64_t st = i < 0 ? stamp : w->stamp_hist[level][i];
@@ -907,6 +911,7 @@ static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uin
     }
     w->pins[w->npins++] = e;
     pthread_mutex_unlock(&w->tick_mu);
+    *kind = ((const payload_t *)ocs_cache_data(e))->kind;
     return st;
   }
   return 0;

@@ -1134,8 +1134,8 @@ typedef struct {
   int n;
 } wishes_t;
 
-static uint64_t nothing_new(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held) {
-  (void)ctx, (void)key, (void)level, (void)stamp, (void)held;
+static uint64_t nothing_new(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held, uint8_t *kind) {
+  (void)ctx, (void)key, (void)level, (void)stamp, (void)held, (void)kind;
   return 0;
 }
 
@@ -1180,6 +1180,48 @@ static void test_planner__refresh_worth_its_change(void **state) {
   }
   print_message("%d wishes: %d refreshes weighed by their change, %d others\n", plain.n, refreshes, splits);
   assert_true(refreshes > 0);
+}
+
+/* Clocked plans count what exists by the kind it was made as, not by the bound's class: the bound
+ * says "brick" of much that comes out empty, and a tick that took many refreshes saw its steady
+ * cost swing by a third, splitting into room the next tick's costs took back (48 splits, then 50
+ * merges, every other tick). */
+static uint8_t made_kind;
+static uint64_t all_made(void *ctx, oc_key_t key, int level, uint64_t stamp, uint64_t held, uint8_t *kind) {
+  (void)ctx, (void)key, (void)level, (void)held;
+  *kind = made_kind;
+  return stamp;
+}
+
+static void test_planner__clocked_costs_what_was_made(void **state) {
+  (void)state;
+  ocs_plan_desc_t d = desc_make(2048, 32, 3, 1500, 0.3);
+  pose_t cam = {10.0, 20.0, 2500.0, 30.0, -20.0, 60.0, 960, 540};
+  ocs_view_t v = view_of(cam);
+  uint64_t steady[2];
+  for (int run = 0; run < 2; run++) {
+    sim_t s;
+    sim_init(&s, &d, 1, 0.0, 7);
+    for (int e = 0; e < 12; e++) sim_step(&s, &v);
+    made_kind = run ? OC_NODE_EMPTY : OC_NODE_BRICK;
+    s.in.ready = all_made;
+    s.in.split_scale = 0.0;
+    sim_stamps(&s);
+    const ocs_plan_leaf_t *L;
+    uint32_t n, fresh = 0;
+    ocs_plan_stats_t st;
+    assert_int_equal(ocs_plan_epoch(s.p, &v, &s.in, &L, &n, &st), 0);
+    for (uint32_t i = 0; i < n; i++)
+      if (L[i].produce) {
+        fresh++;
+        if (L[i].kind != made_kind) fail_msg("leaf %u: new content costed as kind %d, made as %d", i, L[i].kind, made_kind);
+      }
+    assert_true(fresh > 0 && st.refreshed > 0);
+    steady[run] = st.steady_bytes;
+    ocs_plan_abandon(s.p);
+    sim_free(&s);
+  }
+  assert_true(steady[1] < steady[0]); /* the same tree, its new content empty: cheaper */
 }
 
 static void test_planner__abandon_restores(void **state) {
@@ -1249,6 +1291,7 @@ int main(void) {
       cmocka_unit_test(test_planner__clamp_and_views),
       cmocka_unit_test(test_planner__abandon_restores),
       cmocka_unit_test(test_planner__refresh_worth_its_change),
+      cmocka_unit_test(test_planner__clocked_costs_what_was_made),
       cmocka_unit_test(test_planner__out_of_memory_keeps_the_tree),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
