@@ -199,6 +199,19 @@ static inline void ocs__coords(const ocs__lstate_t *S, int f, const double X[3],
 
 static inline double ocs__voxel_size(int level) { return ldexp(2.0 * OC_ROOT_HALF / 7.0, -level); }
 
+/* Voxel v of the brick at integer corner ic (voxel size u): its global lattice coordinates gg and
+ * centre c, planet frame. @return its most vertical axis (the largest |c|: a face sample shared
+ * with a neighbour gets the same axis, and so the same strata or columns, from either brick). */
+static inline int ocs__voxel_centre(const uint32_t ic[3], int v, double u, double gg[3], double c[3]) {
+  int ijk[3] = {v % 8, v / 8 % 8, v / 64};
+  for (int a = 0; a < 3; a++) {
+    gg[a] = (double)(7 * (int64_t)ic[a] + ijk[a]);
+    c[a] = -OC_ROOT_HALF + gg[a] * u;
+  }
+  int va = fabs(c[1]) > fabs(c[0]) ? 1 : 0;
+  return fabs(c[2]) > fabs(c[va]) ? 2 : va;
+}
+
 /* The evaluation frame. level ≥ 0: a brick of that level (motion time snapped to the level's
  * step, weather quantised, detail octaves for the level); level < 0: a point at exactly t. */
 void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F);

@@ -592,14 +592,8 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
     ws->cc = cc[l];
     for (int v = 0; v < OC_BRICK_VOXELS; v++) {
       if (!(vmask[v] >> l & 1u)) continue;
-      int ijk[3] = {v % 8, v / 8 % 8, v / 64};
       double gg[3], c[3];
-      for (int a = 0; a < 3; a++) {
-        gg[a] = (double)(7 * (int64_t)ic[a] + ijk[a]);
-        c[a] = -OC_ROOT_HALF + gg[a] * u;
-      }
-      int va = fabs(c[1]) > fabs(c[0]) ? 1 : 0;
-      va = fabs(c[2]) > fabs(c[va]) ? 2 : va;
+      int va = ocs__voxel_centre(ic, v, u, gg, c);
       int ha = va == 0 ? 1 : 0, hb = va == 2 ? 1 : 2;
       for (int mb = 0; mb < pl->nc; mb++)
         for (int ma = 0; ma < pl->nc; ma++) {

@@ -194,16 +194,11 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++)
       for (int i = 0; i < 8; i++) {
-        int v = i + 8 * j + 64 * k, ijk[3] = {i, j, k};
+        int v = i + 8 * j + 64 * k;
         double gg[3], c[3];
-        for (int a = 0; a < 3; a++) {
-          gg[a] = (double)(7 * (int64_t)ic[a] + ijk[a]);
-          c[a] = -OC_ROOT_HALF + gg[a] * u;
-        }
         /* The strata's shape depends only on the sample's own position, so a face sample shared
          * with a neighbour gets the same points from either brick. */
-        int va = fabs(c[1]) > fabs(c[0]) ? 1 : 0;
-        va = fabs(c[2]) > fabs(c[va]) ? 2 : va;
+        int va = ocs__voxel_centre(ic, v, u, gg, c);
         int n[3] = {sub_h, sub_h, sub_h};
         n[va] = sub_v;
         inv[v] = 1.0 / ((double)n[0] * n[1] * n[2]);
