@@ -542,6 +542,13 @@ int ocp_get_ack(const uint8_t *p, size_t n, ocp_ack_t *m, char *why, size_t why_
   return 0;
 }
 
+uint32_t ocp_reconnect_delay_ms(const char *text) {
+  uint64_t ms = 0;
+  int digits = 0;
+  for (; text && *text >= '0' && *text <= '9' && digits < 9; text++, digits++) ms = ms * 10 + (uint64_t)(*text - '0');
+  return digits && !strncmp(text, " ms", 3) ? (uint32_t)ms : 0;
+}
+
 int ocp_get_text(const uint8_t *p, size_t n, ocp_text_msg_t *m, char *why, size_t why_len) {
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);

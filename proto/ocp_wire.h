@@ -76,7 +76,8 @@ const char *ocp_msg_name(int type);
   XX(RELOAD, 12, "scene reloaded: reconnect")                      \
   XX(KICKED, 13, "disconnected by the operator")                   \
   XX(REQUEST, 14, "invalid request")                               \
-  XX(UNEXPECTED, 15, "message not valid in this state")
+  XX(UNEXPECTED, 15, "message not valid in this state")   \
+  XX(RECONNECT, 16, "the server is draining: reconnect")
 
 typedef enum {
 #define OCP__CODE_ENUM(name, val, str) OCP_CODE_##name = (val),
@@ -243,6 +244,9 @@ void ocp_put_welcome(oc_buf_t *b, uint8_t version, const ocp_welcome_t *m);
 void ocp_put_camera(oc_buf_t *b, uint8_t version, const ocp_camera_t *m);
 void ocp_put_ack(oc_buf_t *b, uint8_t version, const ocp_ack_t *m);
 void ocp_put_text(oc_buf_t *b, uint8_t version, uint8_t type, uint32_t code, const char *text); /* ERROR, GOODBYE */
+/*! ocp_reconnect_delay_ms() : the delay a GOODBYE RECONNECT's text asks for: its leading decimal
+ *  digits followed by " ms" (docs/protocol.md); 0 when the text does not begin so. */
+uint32_t ocp_reconnect_delay_ms(const char *text);
 void ocp_put_empty(oc_buf_t *b, uint8_t version, uint8_t type);                                 /* KEEPALIVE */
 void ocp_put_epoch_begin(oc_buf_t *b, uint8_t version, const ocp_epoch_begin_t *m);
 void ocp_put_epoch_end(oc_buf_t *b, uint8_t version, const ocp_epoch_end_t *m);

@@ -1,5 +1,5 @@
 /* net_control.c — control requests (docs/protocol.md, "CONTROL and CONTROL_REPLY"): weather,
- * world time, sun, stepping, reload, sessions, stats, disconnect. Requests and replies are JSON
+ * world time, sun, stepping, reload, sessions, stats, disconnect, drain. Requests and replies are JSON
  * objects (cJSON); they run on the loop thread and never while a step runs (net_input.c holds
  * them). Each op is a row of one table, which also says whether it changes the world: those go to
  * the audit log (net_audit.c) with their outcome. */
@@ -185,6 +185,18 @@ static int op_disconnect(ctl_t *c) {
   return 0;
 }
 
+/* Replies before the server stops: the stop comes from the housekeeper (net_house.c), later. */
+static int op_drain(ctl_t *c) {
+  ocs_server_t *srv = c->s->srv;
+  int viewers = 0;
+  for (ocs_session_t *s = srv->sessions; s; s = s->next) viewers += s->role == OCP_ROLE_VIEWER && s->state == OCS_SS_READY;
+  cJSON_AddBoolToObject(c->o, "already", srv->draining);
+  ocs_server_drain(srv);
+  cJSON_AddNumberToObject(c->o, "viewers", viewers);
+  cJSON_AddNumberToObject(c->o, "timeout_s", srv->desc.drain_s);
+  return 0;
+}
+
 static const struct {
   const char *name;
   int (*fn)(ctl_t *c);
@@ -193,7 +205,7 @@ static const struct {
     {"weather", op_weather, 1}, {"time", op_time, 1},         {"pause", op_pause, 1},
     {"resume", op_resume, 1},   {"sun", op_sun, 1},           {"step", op_step, 1},
     {"reload", op_reload, 1},   {"sessions", op_sessions, 0}, {"disconnect", op_disconnect, 1},
-    {"stats", add_world, 0},
+    {"stats", add_world, 0},    {"drain", op_drain, 1},
 };
 #define NOPS (sizeof ops / sizeof ops[0])
 

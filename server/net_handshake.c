@@ -142,6 +142,11 @@ void ocs_handshake_hello(ocs_session_t *s, const uint8_t *p, size_t n) {
     oc_log_info("session %" PRIu32 " (control %s): welcomed", s->id, s->addr);
     return;
   }
+  if (srv->draining) { /* control clients are still welcome: they watch the drain */
+    snprintf(why, sizeof why, "%d ms: the server is draining", OCS_RECONNECT_DELAY_MS);
+    ocs_session_refuse(s, OCS_REFUSE_DRAINING, why);
+    return;
+  }
   ocp_epoch_enc_free(s->enc);
   s->enc = NULL;
   /* HELLO never has DIGEST with DELTA (ocp_get_hello), so a lean viewer never gets a delta */

@@ -31,6 +31,16 @@ static int kernel_stalled(ocs_session_t *s, double now, double stall_s) {
   return now - s->kq_since > stall_s;
 }
 
+/* A drain ends when no drained viewer is left, or at its deadline, closing what remains. */
+static void drain_check(ocs_server_t *srv, double now) {
+  int left = 0;
+  for (ocs_session_t *s = srv->sessions; s; s = s->next) left += s->drained;
+  if (left && now < srv->drain_until) return;
+  if (left) oc_log_warn("drain timeout: closing %d viewer(s) still connected", left);
+  else oc_log_info("drained: every viewer has left");
+  ocs_server_stop(srv); /* closes the drained viewers still connected */
+}
+
 static void on_house_timer(uv_timer_t *t) {
   ocs_server_t *srv = t->data;
   const ocs_server_desc_t *d = &srv->desc;
@@ -73,12 +83,13 @@ static void on_house_timer(uv_timer_t *t) {
         }
         break;
       case OCS_SS_CLOSING:
-        if (s->connected && now - s->closing_since > OCS_CLOSE_GRACE_S) ocs_session_close_handle(s);
+        if (s->connected && !s->drained && now - s->closing_since > OCS_CLOSE_GRACE_S) ocs_session_close_handle(s);
         break;
       default: break;
     }
   }
   ocs_peer_sweep(srv, now);
+  if (srv->draining && !srv->stopping) drain_check(srv, now);
   if (srv->stopping && !srv->sessions && !srv->stepping && !uv_is_closing((uv_handle_t *)&srv->house_timer)) {
     ocs_epoch_close(srv);
     uv_close((uv_handle_t *)&srv->house_timer, NULL);

@@ -20,7 +20,7 @@
  *   net_metrics_text.c  the figures as Prometheus families (what /metrics exports)
  *   net_metrics.c    /metrics over HTTP (libmicrohttpd driven by the loop)
  *   net_house.c      housekeeping: handshake, idle and stall timeouts, lingering sessions
- *   net_server.c     create, run, stop and free; signals */
+ *   net_server.c     create, run, stop and free; signals; drains (ended by net_house.c) */
 #ifndef OC_SERVER_NET_INTERNAL_H
 #define OC_SERVER_NET_INTERNAL_H
 
@@ -33,6 +33,10 @@
 #include "ocs_server.h"
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
+
+/*! The delay a drain's GOODBYE RECONNECT asks of viewers before they come back (ms): long enough for
+ *  a restarted server to be listening again. */
+#define OCS_RECONNECT_DELAY_MS 1000
 
 typedef enum {
   OCS_SS_HANDSHAKE = 0, /* waiting for HELLO */
@@ -52,7 +56,8 @@ typedef enum {
   XX(TOKEN, "token")                                                    \
   XX(VERSION, "version")                                                \
   XX(SHUTDOWN, "shutdown")                                              \
-  XX(PROXY, "proxy") /* a PROXY header not from a trusted proxy, or a trusted one's missing or bad */
+  XX(PROXY, "proxy") /* a PROXY header not from a trusted proxy, or a trusted one's missing or bad */ \
+  XX(DRAINING, "draining") /* a viewer's HELLO while the server drains */
 typedef enum {
 #define OCS__REFUSAL_ENUM(name, key) OCS_REFUSE_##name,
   OCS_REFUSALS(OCS__REFUSAL_ENUM)
@@ -80,6 +85,7 @@ struct ocs_session_s {
   int role;  /* OCP_ROLE_* once welcomed */
   int state; /* ocs_session_state_t */
   int connected; /* tcp is open (not yet uv_close'd) */
+  int drained;   /* told GOODBYE RECONNECT: closing once the peer leaves, or at the drain's end */
   char addr[64]; /* "IP:PORT" of the peer: the client's, as a trusted proxy's header says */
   uint8_t *proxy_buf; /* from a trusted proxy: its PROXY header so far (OCS_PROXY_MAX bytes);
                          NULL once it is complete, or for a direct peer */
@@ -142,6 +148,8 @@ struct ocs_server_s {
   int nconnected;          /* open connections, refused ones still closing included */
   int nadmitted;           /* open connections that passed the connection limits */
   uint32_t next_id;
+  int draining;       /* no new viewers; the server stops once the drained ones have left */
+  double drain_until; /* ocs_net_now() at which a drain closes what remains */
   int stepping, step_rc, stopping; /* stepping: the world is busy (ticking or producing) */
   int ticking;                      /* a step runs */
   uint64_t steps_queued, steps_done, late_ticks;
@@ -357,5 +365,11 @@ void ocs_metrics_text(const ocs_stats_t *st, oc_buf_t *out);
 /*-*** net_house.c ***/
 
 void ocs_house_start(ocs_server_t *srv);
+
+/*-*** net_server.c ***/
+
+/*! ocs_server_drain() : stops admitting viewers, tells each one GOODBYE RECONNECT, and stops the
+ *  server once they have left or desc.drain_s has passed (net_house.c). Idempotent. */
+void ocs_server_drain(ocs_server_t *srv);
 
 #endif /* OC_SERVER_NET_INTERNAL_H */

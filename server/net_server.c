@@ -31,10 +31,37 @@ static void after_step(ocs_server_t *srv) {
 
 /*-*** Server ***/
 
+/* SIGTERM drains (a restart that does not drop viewers on the floor); a second one, or SIGINT,
+ * stops at once. */
 static void on_signal(uv_signal_t *h, int signum) {
   ocs_server_t *srv = h->data;
+  if (signum == SIGTERM && !srv->draining && !srv->stopping) {
+    oc_log_info("SIGTERM: draining");
+    ocs_server_drain(srv);
+    return;
+  }
   oc_log_info("%s: shutting down", signum == SIGINT ? "SIGINT" : "SIGTERM");
   ocs_server_stop(srv);
+}
+
+void ocs_server_drain(ocs_server_t *srv) {
+  if (srv->draining || srv->stopping) return;
+  srv->draining = 1;
+  srv->drain_until = ocs_net_now() + srv->desc.drain_s;
+  uint32_t delay_ms = OCS_RECONNECT_DELAY_MS;
+  char text[96];
+  snprintf(text, sizeof text, "%" PRIu32 " ms: the server is draining", delay_ms);
+  oc_log_info("draining: new viewers are refused; the server stops when every viewer has left, or in %.1f s",
+              srv->desc.drain_s);
+  for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
+    nx = s->next;
+    if (s->role != OCP_ROLE_VIEWER) continue;
+    if (s->state == OCS_SS_LINGER) ocs_session_let_go(s, "the server is draining");
+    else if (s->state == OCS_SS_READY) {
+      s->drained = 1;
+      ocs_session_close(s, OCP_CODE_RECONNECT, text);
+    }
+  }
 }
 
 static void on_stop_async(uv_async_t *h) { ocs_server_stop(h->data); }
@@ -54,6 +81,8 @@ void ocs_server_stop(ocs_server_t *srv) {
       ocs_session_free(s);
     } else if (s->state != OCS_SS_CLOSING) {
       ocs_session_close(s, OCP_CODE_SHUTDOWN, "the server is shutting down");
+    } else if (s->drained) { /* told to reconnect and not gone: the drain is over for it */
+      ocs_session_close_handle(s);
     }
   }
   close_quiet((uv_handle_t *)&srv->listener);
@@ -83,6 +112,7 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
   if (!(d->idle_s > 0)) d->idle_s = 60;
   if (!(d->stall_s > 0)) d->stall_s = 30;
   if (!(d->soft_s > 0)) d->soft_s = 10;
+  if (!(d->drain_s > 0)) d->drain_s = 30;
   if (!d->queue_soft) d->queue_soft = 4u << 20;
   if (!d->queue_hard) d->queue_hard = 16u << 20;
   if (d->queue_hard < d->queue_soft) d->queue_hard = d->queue_soft;

@@ -104,7 +104,8 @@ static void on_shutdown(uv_shutdown_t *req, int status) {
 void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
   ocs_server_t *srv = s->srv;
   if (s->state == OCS_SS_CLOSING) return;
-  int is_error = code != OCP_CODE_OK && code != OCP_CODE_SHUTDOWN && code != OCP_CODE_RELOAD && code != OCP_CODE_KICKED;
+  int is_error = code != OCP_CODE_OK && code != OCP_CODE_SHUTDOWN && code != OCP_CODE_RELOAD && code != OCP_CODE_KICKED &&
+                 code != OCP_CODE_RECONNECT;
   if (is_error) srv->closed_errors++;
   oc_log(is_error ? OC_LOG_WARN : OC_LOG_INFO, "session %" PRIu32 " (%s %s): closing: %s%s%s", s->id, ocs_role_name(s->role),
          s->addr, ocp_code_text(code), text && *text ? ": " : "", text ? text : "");
@@ -117,7 +118,7 @@ void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
     ocs_session_free(s);
     return;
   }
-  uv_read_stop((uv_stream_t *)&s->tcp);
+  if (!s->drained) uv_read_stop((uv_stream_t *)&s->tcp); /* a drained one's EOF says it has left */
   if (code == OCP_CODE_SLOW || (code == OCP_CODE_TIMEOUT && s->queued)) { /* not draining: queue nothing more */
     ocs_session_close_handle(s);
     return;
@@ -125,6 +126,7 @@ void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
   oc_buf_t b = {0};
   ocp_put_text(&b, s->version ? s->version : OCP_VERSION_MAX, is_error ? OCP_MSG_ERROR : OCP_MSG_GOODBYE, code, text);
   ocs_session_send(s, &b);
+  if (s->drained) return; /* the peer leaves (EOF: ocs_session_lost()), or the drain's end closes it */
   s->shut.data = s;
   if (uv_shutdown(&s->shut, (uv_stream_t *)&s->tcp, on_shutdown) < 0) ocs_session_close_handle(s);
 }
@@ -132,7 +134,7 @@ void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
 void ocs_session_refuse(ocs_session_t *s, ocs_refusal_t why, const char *text) {
   static const uint32_t codes[] = {OCP_CODE_FULL, OCP_CODE_FULL, OCP_CODE_FULL,  OCP_CODE_FULL,
                                    OCP_CODE_FULL, OCP_CODE_TOKEN, OCP_CODE_VERSION, OCP_CODE_SHUTDOWN,
-                                   OCP_CODE_MALFORMED};
+                                   OCP_CODE_MALFORMED, OCP_CODE_RECONNECT};
   _Static_assert(sizeof codes / sizeof *codes == OCS_REFUSE_COUNT, "a code per refusal");
   s->srv->refused++;
   s->srv->refusals[why]++;
@@ -189,7 +191,10 @@ static int linger_room(ocs_session_t *s) {
 
 void ocs_session_lost(ocs_session_t *s, const char *cause) {
   ocs_server_t *srv = s->srv;
-  if (s->state == OCS_SS_CLOSING) return;
+  if (s->state == OCS_SS_CLOSING) {
+    if (s->drained) ocs_session_close_handle(s); /* a drained viewer has left */
+    return;
+  }
   if (s->role == OCP_ROLE_VIEWER && s->state == OCS_SS_READY && s->viewer && srv->desc.linger_s > 0 && !srv->stopping &&
       linger_room(s)) {
     oc_log_info("session %" PRIu32 " (viewer %s): connection lost (%s); kept %.0f s for resume", s->id, s->addr, cause,

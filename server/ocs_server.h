@@ -37,6 +37,7 @@ typedef struct {
                                 a PROXY header from any other peer is refused. NULL: none */
   const char *audit_log;   /**< a file that gets one JSON line per control change (appended); NULL: none */
   double epoch_period;     /**< s; < 0 → the scene's; 0 → stepped by control requests only */
+  double drain_s;          /**< a drain (SIGTERM, control "drain") waits this long for viewers to leave; 0 → 30 */
   double linger_s;         /**< keep a dropped viewer's session for resume; < 0 → 30, 0 → none */
   double handshake_s;      /**< HELLO must arrive within; 0 → 10 (at most idle_s) */
   double idle_s;           /**< close a connection silent this long; 0 → 60 */

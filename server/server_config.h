@@ -21,6 +21,7 @@
 #define OCS_CONFIG_DEFAULT_TOTAL_BUDGET 4096 /* MiB */
 #define OCS_CONFIG_DEFAULT_CACHE 256         /* MiB */
 #define OCS_CONFIG_DEFAULT_LINGER 30         /* s */
+#define OCS_CONFIG_DEFAULT_DRAIN 30          /* s */
 #define OCS_CONFIG_DEFAULT_MAX_LINGERING 16
 #define OCS_CONFIG_DEFAULT_MAX_PER_ADDRESS 32
 #define OCS_CONFIG_DEFAULT_HANDSHAKE_RATE 10 /* connections per second from one address */

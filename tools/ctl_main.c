@@ -42,6 +42,8 @@ static void usage(FILE *f) {
           "  sessions                       list the sessions\n"
           "  disconnect ID                  close a session (GOODBYE KICKED)\n"
           "  stats                          world and server statistics\n"
+          "  drain                          stop admitting viewers, tell each GOODBYE RECONNECT; the server\n"
+          "                                 exits once they have left (or after its --drain-timeout)\n"
           "  raw JSON                       send a request object as given, e.g. '{\"op\":\"stats\"}'\n"
           "\n"
           "exit status: 0 ok, 1 refused by the server or no connection, 2 usage error\n");
@@ -141,7 +143,7 @@ static cJSON *build_request(ctl_opts_t *o, int argc, char **argv, int first) {
   const char *seconds = NULL, *set = NULL, *scale = NULL, *lat = NULL, *lon = NULL, *dir = NULL;
   int takes_pos = !strcmp(cmd, "weather") || !strcmp(cmd, "step") || !strcmp(cmd, "disconnect") || !strcmp(cmd, "raw");
   static const char *known[] = {"weather", "time", "pause", "resume", "sun", "step",
-                                "reload", "sessions", "disconnect", "stats", "raw"};
+                                "reload", "sessions", "disconnect", "stats", "drain", "raw"};
   int ok = 0;
   for (size_t k = 0; k < sizeof known / sizeof known[0]; k++) ok |= !strcmp(cmd, known[k]);
   if (!ok) {

@@ -79,7 +79,8 @@ static inline void start_server_log(server_t *s, const char *const *extra, const
 
 static inline void start_server(server_t *s, const char *const *extra) { start_server_log(s, extra, NULL); }
 
-/* SIGTERM and the exit status (must be 0). */
+/* SIGTERM and the exit status (must be 0). SIGTERM drains: a viewer still open must leave (be
+ * closed, or polled: it closes on the GOODBYE RECONNECT) within the 15 s this waits. */
 static inline int stop_server(server_t *s) {
   running = 0;
   kill(s->pid, SIGTERM);
@@ -95,6 +96,43 @@ static inline int stop_server(server_t *s) {
   waitpid(s->pid, &st, 0);
   fclose(s->out);
   return -1;
+}
+
+/* A file's whole text ("" when it cannot be opened; the caller frees). */
+static inline char *read_file(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return strdup("");
+  fseek(f, 0, SEEK_END);
+  long n = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *t = malloc((size_t)n + 1);
+  assert_non_null(t);
+  t[fread(t, 1, (size_t)n, f)] = 0;
+  fclose(f);
+  return t;
+}
+
+/* Waits until the server's log has `n` lines with `what` (at most 300 s). */
+static inline void wait_log(const char *log, const char *what, int n) {
+  for (int i = 0; i < 6000; i++) {
+    char *t = read_file(log);
+    int k = 0;
+    for (const char *p = strstr(t, what); p; p = strstr(p + 1, what)) k++;
+    free(t);
+    if (k >= n) return;
+    sleep_us(50000);
+  }
+  fail_msg("the server's log never had %d \"%s\"", n, what);
+}
+
+/* The exit status of a server that is stopping (at most 300 s). */
+static inline int wait_exit(server_t *s) {
+  int st = 0, gone = 0;
+  for (int i = 0; i < 6000 && !(gone = waitpid(s->pid, &st, WNOHANG) == s->pid); i++) sleep_us(50000);
+  if (!gone) return -1; /* the teardown kills it */
+  running = 0;
+  fclose(s->out);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
 }
 
 /*-*** Viewers and control ***/

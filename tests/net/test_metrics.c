@@ -32,19 +32,6 @@ static void require_tool(const char *tool) {
     fail_msg("%s is not installed: this test needs it (bash scripts/install-deps.sh installs it; CI does)", tool);
 }
 
-static char *read_file(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return strdup("");
-  fseek(f, 0, SEEK_END);
-  long n = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *t = malloc((size_t)n + 1);
-  assert_non_null(t);
-  t[fread(t, 1, (size_t)n, f)] = 0;
-  fclose(f);
-  return t;
-}
-
 /* curl's argv for GET http://127.0.0.1:port/path (auth: a bearer token or NULL), the body into
  * `body`, the status code on stdout. */
 static void curl_argv(const char **argv, char *url, size_t url_cap, char *hdr, size_t hdr_cap, int port, const char *path,
@@ -169,29 +156,6 @@ static int metrics_port(server_t *s) {
   return port;
 }
 
-/* Waits until the server's log has `n` lines with `what` (at most 300 s). */
-static void wait_log(const char *log, const char *what, int n) {
-  for (int i = 0; i < 6000; i++) {
-    char *t = read_file(log);
-    int k = 0;
-    for (const char *p = strstr(t, what); p; p = strstr(p + 1, what)) k++;
-    free(t);
-    if (k >= n) return;
-    sleep_us(50000);
-  }
-  fail_msg("the server's log never had %d \"%s\"", n, what);
-}
-
-/* The exit status of a server that is stopping (at most 300 s). */
-static int wait_exit(server_t *s) {
-  int st = 0, gone = 0;
-  for (int i = 0; i < 6000 && !(gone = waitpid(s->pid, &st, WNOHANG) == s->pid); i++) sleep_us(50000);
-  if (!gone) return -1; /* the teardown kills it */
-  running = 0;
-  fclose(s->out);
-  return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-}
-
 /* overcast-server with `extra` and --metrics-listen 127.0.0.1:0 (log: as start_server_log()), once
  * curl and promtool are known to be there. @return the metrics port. */
 static int start_with_metrics(server_t *s, const char *const *extra, const char *log) {
@@ -294,7 +258,7 @@ static void test_metrics__promtool_and_stats(void **state) {
     assert_true(r->valuedouble <= m && m <= jnum(r2, r->string));
     reasons++;
   }
-  assert_int_equal(reasons, 9); /* OCS_REFUSALS: connections ... shutdown, proxy */
+  assert_int_equal(reasons, 10); /* OCS_REFUSALS: connections ... shutdown, proxy, draining */
   assert_true(metric(text, "overcast_refusals_total{reason=\"viewers\"}") == 1);
   /* sessions by state: the viewer is ready; none lingers, as the stats reply says */
   assert_true(metric(text, "overcast_sessions{state=\"ready\"}") >= 1);

@@ -201,7 +201,16 @@ static void test_wire__names_and_codes(void **state) {
   assert_null(ocp_msg_name(-1));
   assert_string_equal(ocp_code_text(OCP_CODE_CHECKSUM), "state checksum mismatch");
   assert_string_equal(ocp_code_text(15), "message not valid in this state");
-  assert_string_equal(ocp_code_text(16), "unknown code");
+  assert_string_equal(ocp_code_text(OCP_CODE_RECONNECT), "the server is draining: reconnect");
+  assert_string_equal(ocp_code_text(17), "unknown code");
+  /* GOODBYE RECONNECT's delay: leading digits, then " ms" (docs/protocol.md) */
+  assert_int_equal(ocp_reconnect_delay_ms("1000 ms: the server is draining"), 1000);
+  assert_int_equal(ocp_reconnect_delay_ms("250 ms"), 250);
+  assert_int_equal(ocp_reconnect_delay_ms("1000ms"), 0);
+  assert_int_equal(ocp_reconnect_delay_ms("draining"), 0);
+  assert_int_equal(ocp_reconnect_delay_ms("1234567890 ms"), 0); /* at most 9 digits */
+  assert_int_equal(ocp_reconnect_delay_ms(""), 0);
+  assert_int_equal(ocp_reconnect_delay_ms(NULL), 0);
   assert_int_equal(ocp_code_from_err(0), OCP_CODE_OK);
   assert_int_equal(ocp_code_from_err(OC_EVERSION), OCP_CODE_VERSION);
   assert_int_equal(ocp_code_from_err(OC_ECORRUPT), OCP_CODE_MALFORMED);

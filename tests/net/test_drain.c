@@ -1,0 +1,184 @@
+/* test_drain.c — drains and reconnects (server/net_server.c ocs_server_drain(), net_house.c;
+ * docs/operations.md, "Drains"): `drain` tells a viewer GOODBYE RECONNECT with a delay, refuses a
+ * new viewer with the reason "draining", and the server exits 0 once the viewer left; a viewer
+ * that never leaves is closed at --drain-timeout and the server still exits 0; a second SIGTERM
+ * stops at once; a viewer told to reconnect comes back, with backoff, to a new server on the same
+ * port and verifies its states there. Waits are for messages, log lines and exits, never sleeps. */
+#include <setjmp.h> /* cmocka */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "oc_backoff.h"
+
+#include "net_fixture.h"
+
+/* Polls a viewer until the server closed it (at most 60 s); its close code. */
+static uint32_t wait_closed(viewer_t *v) {
+  char why[512];
+  for (int i = 0; i < 600 && !v->closed_code; i++)
+    if (ocv_conn_poll(v->c, 0.1, why, sizeof why) != 0) break;
+  return v->closed_code;
+}
+
+/* Steps until the viewer holds n states: a step that ran before its camera reached the server
+ * brings it nothing, so one more is asked (no sleep to guess when the camera is there). */
+static void step_until(int port, viewer_t *v, int n) {
+  char why[512];
+  assert_int_equal(ocv_conn_wait_ready(v->c, 60, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(v->c, 5, why, sizeof why), 0);
+  for (int i = 0; i < 30 && v->states < n; i++) {
+    step(port, 1);
+    int r = viewer_wait(v, v->states + 1, 10);
+    assert_true(r == 0 || r == OC_EIO); /* OC_EIO: not within 10 s; another step */
+  }
+  assert_true(v->states >= n);
+}
+
+static void log_path(char *out, size_t cap, const char *what) {
+  snprintf(out, cap, "/tmp/oc_net_drain_%s_%d.log", what, (int)getpid());
+}
+
+static void test_drain__ctl_drain(void **state) {
+  (void)state;
+  char log[256], audit[256];
+  log_path(log, sizeof log, "ctl");
+  log_path(audit, sizeof audit, "audit");
+  const char *extra[] = {"--scene", scene_sphere, "--audit-log", audit, NULL};
+  server_t s;
+  start_server_log(&s, extra, log);
+  viewer_t a, b;
+  viewer_open(&a, s.port, 4u << 20, NULL);
+  step_until(s.port, &a, 1);
+
+  int32_t st;
+  char *r = control(s.port, NULL, "{\"op\":\"drain\"}", &st);
+  assert_int_equal(st, 0);
+  assert_true(json_num(r, NULL, "viewers") == 1);
+  free(r);
+  /* a new viewer is refused while the first has not left: GOODBYE RECONNECT, reason draining */
+  char why[512];
+  viewer_open(&b, s.port, 4u << 20, NULL);
+  assert_int_equal(ocv_conn_wait_ready(b.c, 60, why, sizeof why), 1);
+  assert_int_equal(b.closed_code, OCP_CODE_RECONNECT);
+  assert_non_null(strstr(b.closed_text, "draining"));
+  ocv_conn_close(b.c);
+  r = control(s.port, NULL, "{\"op\":\"stats\"}", &st); /* control clients still welcome */
+  assert_int_equal(st, 0);
+  assert_true(json_num(r, "\"refusals\"", "draining") == 1);
+  free(r);
+
+  assert_int_equal(wait_closed(&a), OCP_CODE_RECONNECT);
+  assert_int_equal(ocp_reconnect_delay_ms(a.closed_text), 1000);
+  ocv_conn_close(a.c);
+  assert_int_equal(wait_exit(&s), 0);
+  wait_log(log, "drained: every viewer has left", 1);
+  char *t = read_file(audit);
+  assert_non_null(strstr(t, "\"op\":\"drain\""));
+  free(t);
+  unlink(log);
+  unlink(audit);
+}
+
+/* A server (logging to log) with --drain-timeout `timeout` and a raw viewer welcomed there that
+ * never reads nor leaves. @return the viewer's socket. */
+static int start_with_raw_viewer(server_t *s, const char *log, const char *timeout) {
+  const char *extra[] = {"--scene", scene_sphere, "--drain-timeout", timeout, NULL};
+  start_server_log(s, extra, log);
+  int fd = raw_connect(s->port), code;
+  assert_true(raw_hello(fd, 4u << 20, &code) > 0);
+  return fd;
+}
+
+/* A viewer that never leaves: the drain's deadline closes it. */
+static void test_drain__timeout(void **state) {
+  (void)state;
+  char log[256];
+  log_path(log, sizeof log, "timeout");
+  server_t s;
+  int fd = start_with_raw_viewer(&s, log, "1");
+  kill(s.pid, SIGTERM);
+  assert_int_equal(wait_exit(&s), 0);
+  wait_log(log, "drain timeout: closing 1 viewer(s)", 1);
+  close(fd);
+  unlink(log);
+}
+
+/* A second SIGTERM during a drain stops at once (the drain timeout would be 10 minutes). */
+static void test_drain__second_sigterm(void **state) {
+  (void)state;
+  char log[256];
+  log_path(log, sizeof log, "twice");
+  server_t s;
+  int fd = start_with_raw_viewer(&s, log, "600");
+  kill(s.pid, SIGTERM);
+  wait_log(log, "SIGTERM: draining", 1);
+  kill(s.pid, SIGTERM);
+  assert_int_equal(wait_exit(&s), 0);
+  wait_log(log, "SIGTERM: shutting down", 1);
+  close(fd);
+  unlink(log);
+}
+
+/* Told to reconnect, the viewer waits its backoff and comes back to a new server on the same
+ * port (no session to resume there: a new one), and verifies its states; nothing is left. */
+static void test_drain__reconnect_to_restarted(void **state) {
+  (void)state;
+  char log[256];
+  log_path(log, sizeof log, "restart");
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  server_t s;
+  start_server(&s, extra);
+  viewer_t v;
+  viewer_open(&v, s.port, 4u << 20, NULL);
+  step_until(s.port, &v, 2);
+  kill(s.pid, SIGTERM);
+  assert_int_equal(wait_closed(&v), OCP_CODE_RECONNECT);
+  assert_int_equal(wait_exit(&s), 0); /* it left: the drain is over */
+
+  char listen[64];
+  snprintf(listen, sizeof listen, "127.0.0.1:%d", s.port);
+  const char *again[] = {"--scene", scene_sphere, "--listen", listen, NULL};
+  server_t s2;
+  start_server_log(&s2, again, log);
+  assert_int_equal(s2.port, s.port);
+  oc_backoff_t bo;
+  oc_backoff_init(&bo, ocp_reconnect_delay_ms(v.closed_text), 7);
+  char why[512];
+  int ok = 0;
+  for (int attempt = 0; attempt < 8 && !ok; attempt++) {
+    sleep_us(1000L * oc_backoff_next(&bo)); /* the backoff under test, not a synchronisation */
+    v.closed_code = 0;
+    ok = ocv_conn_reconnect(v.c, 5.0, why, sizeof why) == 0 && ocv_conn_wait_ready(v.c, 60, why, sizeof why) == 0;
+  }
+  assert_true(ok);
+  assert_int_equal(v.resumed, 0); /* the old session died with the old server */
+  ocp_camera_t cam = sphere_camera(160, 90);
+  assert_int_equal(ocv_conn_camera(v.c, &cam), 0);
+  step_until(s2.port, &v, v.states + 2); /* each state's checksum verified */
+  ocv_conn_close(v.c);
+  assert_int_equal(stop_server(&s2), 0);
+  wait_log(log, "drained: every viewer has left", 1);
+  unlink(log);
+}
+
+int main(void) {
+  const char *src = getenv("OC_SOURCE_DIR");
+  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
+  signal(SIGPIPE, SIG_IGN);
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test_teardown(test_drain__ctl_drain, net_teardown),
+      cmocka_unit_test_teardown(test_drain__timeout, net_teardown),
+      cmocka_unit_test_teardown(test_drain__second_sigterm, net_teardown),
+      cmocka_unit_test_teardown(test_drain__reconnect_to_restarted, net_teardown),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
