@@ -12,9 +12,10 @@ PKGS=(
   libmicrohttpd-dev                     # overcast-server's /metrics (docs/operations.md)
   prometheus curl                       # tests: promtool checks a /metrics scrape (the daemon never runs)
   haproxy openssl socat                 # tests: TLS and PROXY v2 in front of the server (only the test runs it)
+  libhiredis-dev redis-server           # the shared brick store; tests start redis-server themselves
 )
 
-# Daemons that come with test packages (haproxy, prometheus) must not start as services: a
+# Daemons that come with test packages (haproxy, prometheus, redis-server) must not start as services: a
 # policy-rc.d that refuses every start is in place while they are installed (unless one is there).
 
 missing=()
@@ -43,5 +44,5 @@ $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 [ "$OWN_POLICY" -eq 0 ] || $SUDO rm -f "$POLICY"
 # under systemd the units were still enabled for the next boot: disable them
 if [ -d /run/systemd/system ]; then
-  for svc in haproxy prometheus; do $SUDO systemctl disable --now "$svc" 2>/dev/null || true; done
+  for svc in haproxy prometheus redis-server; do $SUDO systemctl disable --now "$svc" 2>/dev/null || true; done
 fi
