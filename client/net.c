@@ -620,6 +620,48 @@ void ocv_conn_close(ocv_conn_t *c) {
   free(c);
 }
 
+int64_t ocv_conn_close_code(const ocv_conn_t *c, const char **text) {
+  if (text) *text = c && c->server_closed ? c->close_text : "";
+  return c && c->server_closed ? (int64_t)c->close_code : -1;
+}
+
+/*-*** Reconnects ***/
+
+void ocv_retry_init(ocv_retry_t *r, uint32_t max_attempts, double max_s, uint64_t seed) {
+  memset(r, 0, sizeof *r);
+  r->max_attempts = max_attempts ? max_attempts : OCV_RETRY_ATTEMPTS;
+  r->max_s = max_s > 0 ? max_s : OCV_RETRY_S;
+  r->seed = seed;
+}
+
+double ocv_retry_next(ocv_retry_t *r, uint32_t server_ms, double now, const char *cause, char *line, size_t cap) {
+  if (!r->running) {
+    r->running = 1;
+    r->since = now;
+    r->attempts = 0;
+    oc_backoff_init(&r->bo, server_ms, r->seed++); /* another run, other jitter */
+  }
+  double wait = oc_backoff_next(&r->bo) / 1e3;
+  if (server_ms / 1e3 > wait) wait = server_ms / 1e3; /* told again (a HELLO during the drain) */
+  if (r->attempts >= r->max_attempts || now + wait - r->since > r->max_s) {
+    snprintf(line, cap, "%s; gave up after %u reconnect attempt%s in %.1f s", cause, r->attempts,
+             r->attempts == 1 ? "" : "s", now - r->since);
+    return -1;
+  }
+  r->attempts++;
+  snprintf(line, cap, "%s; reconnect attempt %u of %u in %.2f s", cause, r->attempts, r->max_attempts, wait);
+  return wait;
+}
+
+void ocv_retry_done(ocv_retry_t *r) {
+  r->running = 0;
+  r->attempts = 0;
+}
+
+int ocv_retry_fatal(int64_t code) {
+  return code == OCP_CODE_VERSION || code == OCP_CODE_TOKEN || code == OCP_CODE_KICKED;
+}
+
 /*-*** The network thread ***/
 
 struct ocv_net_s {
@@ -639,19 +681,14 @@ struct ocv_net_s {
   ocv_net_status_t st;
 };
 
-static void ocv__net_error(ocv_net_t *n, const char *text) {
-  pthread_mutex_lock(&n->mu);
-  snprintf(n->st.error, sizeof n->st.error, "%s", text);
-  pthread_mutex_unlock(&n->mu);
-}
-
 static void ocv__net_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
   ocv_net_t *n = ctx;
-  (void)resumed;
   pthread_mutex_lock(&n->mu);
+  n->st.resumed = resumed;
   n->st.connected = 1;
   n->st.have_welcome = 1;
   n->st.welcome = *w;
+  n->st.welcomes++;
   pthread_mutex_unlock(&n->mu);
 }
 
@@ -700,11 +737,31 @@ static int ocv__net_sleep(ocv_net_t *n, double t) {
   }
 }
 
+/* After a failure (why): waits for the next attempt, or gives up. @return 1 to leave the loop
+ * (stopped, or given up: the status says so). */
+static int ocv__net_retry(ocv_net_t *n, ocv_retry_t *rt, const char *why) {
+  const char *text;
+  int64_t code = ocv_conn_close_code(n->c, &text);
+  uint32_t server_ms = code == OCP_CODE_RECONNECT ? ocp_reconnect_delay_ms(text) : 0;
+  char line[sizeof n->st.error];
+  double wait = ocv_retry_fatal(code) ? -1 : ocv_retry_next(rt, server_ms, ocv__now(), why, line, sizeof line);
+  if (wait < 0 && ocv_retry_fatal(code)) snprintf(line, sizeof line, "%s; not reconnecting", why);
+  pthread_mutex_lock(&n->mu);
+  memcpy(n->st.error, line, sizeof line);
+  n->st.attempt = rt->attempts;
+  n->st.gave_up = wait < 0;
+  pthread_mutex_unlock(&n->mu);
+  if (n->d.on_log) n->d.on_log(n->d.ctx, line);
+  return wait < 0 || ocv__net_sleep(n, wait);
+}
+
 static void *ocv__net_main(void *arg) {
   ocv_net_t *n = arg;
   char why[512];
-  double backoff = n->d.backoff_min_s;
+  ocv_retry_t rt;
+  ocv_retry_init(&rt, n->d.retry_attempts, n->d.retry_s, n->d.seed);
   int connected = 0, stop = 0;
+  uint64_t welcomes = 0;
   while (!stop) {
     pthread_mutex_lock(&n->mu);
     stop = n->stop;
@@ -718,9 +775,7 @@ static void *ocv__net_main(void *arg) {
     if (cam_new) ocv_conn_camera(n->c, &cam);
     if (!connected) {
       if (ocv_conn_reconnect(n->c, n->d.connect_timeout_s, why, sizeof why) < 0) {
-        ocv__net_error(n, why);
-        stop = ocv__net_sleep(n, backoff);
-        backoff = fmin(2 * backoff, n->d.backoff_max_s);
+        stop = ocv__net_retry(n, &rt, why);
         continue;
       }
       connected = 1;
@@ -740,15 +795,15 @@ static void *ocv__net_main(void *arg) {
     pthread_mutex_lock(&n->mu);
     n->st.connected = r == 0 && ocp_viewer_ready(v);
     ocp_viewer_stats(v, &n->st.viewer);
-    pthread_mutex_unlock(&n->mu);
-    if (r == 0) {
-      if (ocp_viewer_ready(v)) backoff = n->d.backoff_min_s;
-      continue;
+    if (n->st.welcomes != welcomes) { /* welcomed again: this run of attempts is over */
+      welcomes = n->st.welcomes;
+      ocv_retry_done(&rt);
+      n->st.attempt = 0;
     }
-    ocv__net_error(n, why);
+    pthread_mutex_unlock(&n->mu);
+    if (r == 0) continue;
     connected = 0;
-    stop = ocv__net_sleep(n, backoff);
-    backoff = fmin(2 * backoff, n->d.backoff_max_s);
+    stop = ocv__net_retry(n, &rt, why);
   }
   ocv_conn_close(n->c); /* GOODBYE */
   n->c = NULL;
@@ -801,9 +856,7 @@ int ocv_net_start(ocv_net_t **out, const ocv_net_desc_t *d) {
     n->d.viewer.token = n->token;
   }
   if (!(n->d.connect_timeout_s > 0)) n->d.connect_timeout_s = 5.0;
-  if (!(n->d.backoff_min_s > 0)) n->d.backoff_min_s = 0.2;
-  if (!(n->d.backoff_max_s > 0)) n->d.backoff_max_s = 5.0;
-  if (n->d.backoff_max_s < n->d.backoff_min_s) n->d.backoff_max_s = n->d.backoff_min_s;
+  if (!n->d.seed) n->d.seed = (uint64_t)(ocv__now() * 1e9) ^ ((uint64_t)getpid() << 32);
   if (!(n->d.keepalive_s > 0)) n->d.keepalive_s = OCV_KEEPALIVE_S;
 
   int p[2], q[2];

@@ -21,6 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "oc_backoff.h"
 #include "oc_camera.h" /* oc_camera_pose_t */
 #include "oc_state.h"
 #include "ocp_viewer.h"
@@ -111,8 +112,42 @@ const char *ocv_conn_address(const ocv_conn_t *c);
 size_t ocv_conn_pending(const ocv_conn_t *c);
 /*! ocv_conn_silence() : seconds since bytes were last written on this connection. */
 double ocv_conn_silence(const ocv_conn_t *c);
+/*! ocv_conn_close_code() : the code of the GOODBYE or ERROR that closed the last connection, with
+ *  its text in *text (may be NULL); -1 when the server sent none (EOF, reset, never connected). */
+int64_t ocv_conn_close_code(const ocv_conn_t *c, const char **text);
 /*! ocv_conn_close() : GOODBYE (best effort, bounded to about a second), close, free. NULL is fine. */
 void ocv_conn_close(ocv_conn_t *c);
+
+/*-*** Reconnects ***/
+
+/*! Bounds on one run of reconnect attempts (defaults of ocv_retry_init() for 0). */
+#define OCV_RETRY_ATTEMPTS 10
+#define OCV_RETRY_S 120.0
+
+/*! ocv_retry_t : the reconnect policy of overcast-view and overcast-stress. After a lost connection
+ *  or a GOODBYE RECONNECT, each attempt waits oc_backoff_next() (exponential backoff with full
+ *  jitter, starting at the delay the server asked for); after max_attempts attempts, or once the
+ *  next wait would end more than max_s after the first failure, it gives up. A WELCOME
+ *  (ocv_retry_done()) ends the run: the next failure starts again at the server's delay. */
+typedef struct {
+  oc_backoff_t bo;
+  uint32_t max_attempts, attempts; /* attempts of the current run */
+  double max_s, since;             /* since: the first failure of the run */
+  int running;                     /* a run of attempts is under way */
+  uint64_t seed;
+} ocv_retry_t;
+
+void ocv_retry_init(ocv_retry_t *r, uint32_t max_attempts, double max_s, uint64_t seed);
+/*! ocv_retry_next() : after a failure at `now` (seconds, any monotonic clock) whose reason is
+ *  `cause` and for which the server asked `server_ms` (0: nothing asked): the wait in seconds before
+ *  the next attempt, with the one line to print in `line` ("CAUSE; reconnect attempt K of N in
+ *  S s"); or -1 when it gives up, `line` then saying so ("CAUSE; gave up after K reconnect attempts
+ *  in S s"). A server's delay asked mid-run is never cut short. */
+double ocv_retry_next(ocv_retry_t *r, uint32_t server_ms, double now, const char *cause, char *line, size_t cap);
+/*! ocv_retry_done() : welcomed again; the next failure starts a new run. */
+void ocv_retry_done(ocv_retry_t *r);
+/*! ocv_retry_fatal() : close codes after which reconnecting cannot help (VERSION, TOKEN, KICKED). */
+int ocv_retry_fatal(int64_t code);
 
 /*-*** The network thread ***/
 
@@ -123,8 +158,11 @@ typedef struct {
   int port;                  /**< 0 → 7420 */
   ocp_viewer_desc_t viewer;  /**< role must be OCP_ROLE_VIEWER; the token is copied */
   double connect_timeout_s;  /**< 0 → 5 */
-  double backoff_min_s;      /**< first wait before a reconnect; 0 → 0.2 (doubles each failure) */
-  double backoff_max_s;      /**< 0 → 5 */
+  uint32_t retry_attempts;   /**< reconnect attempts before giving up; 0 → OCV_RETRY_ATTEMPTS */
+  double retry_s;            /**< and the time they may take; 0 → OCV_RETRY_S (ocv_retry_t) */
+  uint64_t seed;             /**< the backoff's jitter; 0 → from the clock and the pid */
+  /*! One line per reconnect attempt, and the last one on giving up (NULL: none); network thread. */
+  void (*on_log)(void *ctx, const char *line);
   double keepalive_s;        /**< KEEPALIVE after this long without sending; 0 → 10 */
   /*! Called on the network thread after a new state was published (e.g. to wake a GL event loop
    *  with glfwPostEmptyEvent()); may be NULL. It must not call back into ocv_net. */
@@ -142,6 +180,10 @@ typedef struct {
   uint64_t states;              /**< complete states received */
   uint64_t epoch;               /**< epoch of the newest (valid when states > 0) */
   uint64_t connects;            /**< successful TCP connects */
+  uint64_t welcomes;            /**< WELCOMEs (the first and every reconnect's) */
+  int resumed;                  /**< the last WELCOME resumed the session (states kept) */
+  uint32_t attempt;             /**< reconnect attempts of the current run (0: connected or none) */
+  int gave_up;                  /**< the reconnects ran out (error says why); the thread is idle */
   char error[512];              /**< the last error or close reason ("" if none) */
 } ocv_net_status_t;
 

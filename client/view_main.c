@@ -58,7 +58,9 @@ static void usage(FILE *f) {
           "  --step                headless, for a server run with --epoch-period 0: ask it (on a second,\n"
           "                        control connection) to step one epoch whenever the previous state arrived\n"
           "  --timeout S           headless: give up when the states have not arrived within S s (default 60);\n"
-          "                        window: the connect timeout (at most 10 s; it reconnects with backoff)\n"
+          "                        window: the connect timeout (at most 10 s). A lost connection or a\n"
+          "                        draining server (GOODBYE RECONNECT) is retried with backoff and jitter,\n"
+          "                        one line per attempt, and given up after 10 attempts or 120 s\n"
           "mode:\n"
           "  --window              a window (OpenGL 4.5 core through GLFW) rendering continuously; the default\n"
           "                        when DISPLAY or WAYLAND_DISPLAY is set and none of --headless, --frames,\n"
@@ -415,6 +417,12 @@ static void net_wake(void *ctx) {
   (void)ctx; /* the loop renders continuously: nothing to wake */
 }
 
+/* One line per reconnect attempt, and the last on giving up (network thread). */
+static void net_log(void *ctx, const char *line) {
+  (void)ctx;
+  oc_log_warn("%s", line);
+}
+
 static ocp_camera_t wire_camera(oc_camera_pose_t pose, int w, int h) {
   oc_camera_t c = oc_camera_from_pose(pose);
   return (ocp_camera_t){c.pos, c.forward, c.up, pose.fov, (uint32_t)w, (uint32_t)h};
@@ -481,6 +489,7 @@ static int run_window(view_win_t *v) {
   ocv_gl_view_stats_t vs = {0};
   oc_atmo_t *atmo = NULL;
   int scene_ready = !v->net; /* with --connect: once the WELCOME brought features and optics */
+  uint64_t welcomes_seen = 0;
   if (scene_ready && make_atmo(v->sc, v->o.threads, &atmo) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
     goto out;
@@ -509,6 +518,21 @@ static int run_window(view_win_t *v) {
     ocv_net_status_t ns = {0};
     if (v->net) {
       ocv_net_status(v->net, &ns);
+      if (ns.gave_up) { /* the reconnects ran out: say so and stop, never hang on a dead server */
+        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", ns.error);
+        break;
+      }
+      if (scene_ready && ns.welcomes != welcomes_seen && !ns.resumed) {
+        /* a new session (a restarted server): nothing held is valid (its brick ids may name other
+         * bricks now) and the grant may differ, so the view starts again from this WELCOME */
+        oc_log_info("%s: a new session: the view starts afresh", v->net_opts->host);
+        ocv_gl_view_free(view);
+        view = NULL;
+        oc_atmo_free(atmo);
+        atmo = NULL;
+        scene_ready = have_gs = 0;
+      }
+      welcomes_seen = ns.welcomes;
       if (!scene_ready && ns.have_welcome) {
         const ocp_welcome_t *w = &ns.welcome;
         scene_from_welcome(v->sc, w);
@@ -887,7 +911,7 @@ int main(int argc, char **argv) {
                            .viewer = {.role = OCP_ROLE_VIEWER, .budget = (uint64_t)net.budget_mib << 20,
                                       .max_depth = (uint8_t)net.max_depth, .width = (uint32_t)w, .height = (uint32_t)h,
                                       .caps = OCP_CAP_ALL, .token = net.token},
-                           .connect_timeout_s = fmin(net.timeout, 10.0), .on_state = net_wake};
+                           .connect_timeout_s = fmin(net.timeout, 10.0), .on_state = net_wake, .on_log = net_log};
       int r = ocv_net_start(&v.net, &nd);
       if (r < 0) {
         rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s:%d: cannot start the network thread (%s)", net.host, net.port,

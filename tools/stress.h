@@ -69,6 +69,7 @@ typedef struct {
   long fault_every;         /* steps between rounds */
   uint64_t fault_budget_mib;/* budget of the misbehaving viewers */
   long restart_at;          /* the step after which the server is killed (0: the middle) */
+  int restart_drain;        /* --restart-by drain: SIGTERM (a drain), not SIGKILL */
   double fault_rss_slack;   /* MiB */
   int full_sessions;        /* keep brick codes (a full session) instead of digests */
   double verify_content;    /* --verify-content F: fraction of received bricks re-produced (0: off) */
@@ -148,6 +149,10 @@ enum { STRESS_FK_STALL, STRESS_FK_DROP, STRESS_FK_GARBAGE, STRESS_FK_COUNT };
 #define STRESS_FAULT_WELCOME_WAIT 120.0
 /* seconds past the server's stall timeout by which a viewer that stopped reading must be let go */
 #define STRESS_FAULT_STALL_GRACE 5.0
+/* a spawned server's --drain-timeout, s, and how long stress_server_stop() waits for its exit:
+ * the drain's longest, plus room for a step in progress (SIGKILL only after that) */
+#define STRESS_DRAIN_S 5.0
+#define STRESS_STOP_S (STRESS_DRAIN_S + 25.0)
 /* misbehaving connections open at once, at most (stress_fault.c) */
 #define STRESS_FAULT_MAX_CONNS 4096
 /* RSS growth allowed beyond the server's own accounting (--fault-rss-slack default), MiB */

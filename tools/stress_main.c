@@ -124,6 +124,9 @@ static void usage(FILE *f) {
           "  --fault-budget MIB    their budget (default 16)\n"
           "  --restart-at STEP     restart: kill the server (SIGKILL) right after this step's reply and\n"
           "                        start it again on the same port (default: the middle of the run)\n"
+          "  --restart-by HOW      kill (the default) or drain: SIGTERM, so that the server tells every\n"
+          "                        viewer GOODBYE RECONNECT and exits 0 once they left (a spawned server\n"
+          "                        drains for at most %g s); the viewers come back with backoff and jitter\n"
           "  --fault-rss-slack MIB the server's RSS may grow this much beyond its own accounting of\n"
           "                        brick cache, held states, send queues and connections (default %d)\n"
           "  --server-arg ARG      passed on to the spawned server (repeatable), e.g. --stall-timeout\n"
@@ -141,7 +144,7 @@ static void usage(FILE *f) {
           "exit status: 0 every check passed; 1 a check failed (budget, checksum, protocol, a viewer\n"
           "lost its connection or got no state, a fault check) or a runtime error; 2 usage error\n",
           STRESS_MAX_VIEWERS, 1e3 * STRESS_LATE_P99, 100.0 * STRESS_COALESCED_MAX, STRESS_AGE_ALLOWED, STRESS_DETAIL_FACTOR,
-          STRESS_RAMP_INTERVAL, STRESS_MAX_VIEWERS, STRESS_FAULT_SLACK_MIB);
+          STRESS_RAMP_INTERVAL, STRESS_MAX_VIEWERS, STRESS_DRAIN_S, STRESS_FAULT_SLACK_MIB);
 }
 
 /* "a,b,c" → integers in [lo, hi]. @return count, or -1 after a message naming the option. */
@@ -348,9 +351,20 @@ static int restart_server(stress_run_t *run, ocv_conn_t **ctl, fault_ctx_t *fx, 
   stress_proc_t dead;
   stress_proc_sample((long)fx->child->pid, &dead);
   double t_kill = stress_now();
-  stress_server_kill(fx->child);
-  fprintf(stderr, "overcast-stress: faults: killed the server after step %llu; starting it again on %s\n",
-          (unsigned long long)k, fx->listen_addr);
+  if (o->restart_drain) {
+    /* SIGTERM: every viewer is told GOODBYE RECONNECT and leaves; the server exits 0 */
+    int st = stress_server_stop(fx->child, STRESS_STOP_S);
+    fprintf(stderr, "overcast-stress: faults: drained the server after step %llu (exit %d in %.2f s); starting it again on %s\n",
+            (unsigned long long)k, st, stress_now() - t_kill, fx->listen_addr);
+    if (st != 0) {
+      snprintf(sum->error, sizeof sum->error, "faults: the drained server exited with status %d, not 0", st);
+      return -1;
+    }
+  } else {
+    stress_server_kill(fx->child);
+    fprintf(stderr, "overcast-stress: faults: killed the server after step %llu; starting it again on %s\n",
+            (unsigned long long)k, fx->listen_addr);
+  }
   fx->argv[fx->listen] = fx->listen_addr;
   int r = -1;
   for (int attempt = 0; attempt < 50 && r < 0; attempt++) { /* the port may take a moment to be free */
@@ -525,7 +539,7 @@ static int viewer_depth(const stress_opts_t *o, int i) {
 
 /* The command line of a spawned server (period < 0: the scene's). */
 typedef struct {
-  char period[32], threads[32], total[32], maxv[32], maxb[32], peraddr[32];
+  char period[32], threads[32], total[32], maxv[32], maxb[32], peraddr[32], drain[32];
   char *argv[32 + 32 + 1]; /* ours, then up to 32 --server-arg, then NULL */
   int listen;              /* argv[listen] is the listen address (a restart rewrites it) */
 } server_argv_t;
@@ -585,6 +599,10 @@ static void server_argv(const stress_opts_t *o, const char *exe, double period, 
   argv[n++] = sa->peraddr;
   argv[n++] = "--handshake-rate";
   argv[n++] = "1000";
+  /* a drain (our SIGTERM) ends within STRESS_DRAIN_S, inside stress_server_stop()'s wait */
+  snprintf(sa->drain, sizeof sa->drain, "%g", STRESS_DRAIN_S);
+  argv[n++] = "--drain-timeout";
+  argv[n++] = sa->drain;
   if (!o->verbose) argv[n++] = "-q";
   for (int i = 0; i < o->nserver_args; i++) argv[n++] = o->server_args[i];
   argv[n] = NULL;
@@ -715,7 +733,7 @@ static void stepped_reference(const stress_opts_t *o, const char *exe, long budg
   }
   cJSON_Delete(reply);
   ocv_conn_close(ctl);
-  stress_server_stop(&child, 10);
+  stress_server_stop(&child, STRESS_STOP_S);
   free(run.v);
   free(run.step_at);
   pthread_cond_destroy(&run.cv);
@@ -930,7 +948,7 @@ int main(int argc, char **argv) {
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
          O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE, O_VERIFY, O_SHARE,
-         O_PLOT, O_NO_REF, O_REF_TELE, O_DETAIL_REF, O_RAMP_ALL, O_TSCALE, O_VQUEUE, O_VDRAIN };
+         O_PLOT, O_NO_REF, O_REF_TELE, O_DETAIL_REF, O_RAMP_ALL, O_TSCALE, O_VQUEUE, O_VDRAIN, O_RESTART_BY };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
       {"scene", required_argument, 0, O_SCENE},     {"epoch-period", required_argument, 0, O_PERIOD},
@@ -950,6 +968,7 @@ int main(int argc, char **argv) {
       {"sweep-budgets", required_argument, 0, O_SW_B}, {"sweep-depths", required_argument, 0, O_SW_D},
       {"faults", required_argument, 0, O_FAULTS},   {"fault-every", required_argument, 0, O_FAULT_EVERY},
       {"fault-budget", required_argument, 0, O_FAULT_BUDGET}, {"restart-at", required_argument, 0, O_RESTART_AT},
+      {"restart-by", required_argument, 0, O_RESTART_BY},
       {"fault-rss-slack", required_argument, 0, O_FAULT_SLACK}, {"server-arg", required_argument, 0, O_SERVER_ARG},
       {"full-sessions", no_argument, 0, O_FULL},    {"source-address", required_argument, 0, O_SOURCE},
       {"verify-content", required_argument, 0, O_VERIFY}, {"share-paths", no_argument, 0, O_SHARE},
@@ -1058,6 +1077,11 @@ int main(int argc, char **argv) {
         if (oc_cli_int(prog, "--fault-budget", optarg, 1, 65536, &l)) return OC_EXIT_USAGE;
         o.fault_budget_mib = (uint64_t)l;
         break;
+      case O_RESTART_BY:
+        if (strcmp(optarg, "kill") && strcmp(optarg, "drain"))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "--restart-by \"%s\": kill or drain", optarg);
+        o.restart_drain = !strcmp(optarg, "drain");
+        break;
       case O_RESTART_AT: if (oc_cli_int(prog, "--restart-at", optarg, 1, STRESS_MAX_STEPS, &o.restart_at)) return OC_EXIT_USAGE; break;
       case O_FAULT_SLACK: if (oc_cli_double(prog, "--fault-rss-slack", optarg, 0, 1 << 20, &o.fault_rss_slack)) return OC_EXIT_USAGE; break;
       case O_SERVER_ARG:
@@ -1144,8 +1168,8 @@ int main(int argc, char **argv) {
     if ((o.faults & STRESS_FAULT_RESTART) && o.epochs && o.restart_at >= o.epochs)
       return oc_cli_fail(prog, OC_EXIT_USAGE, "--restart-at %ld: must come before the last step (--epochs %ld)", o.restart_at,
                          o.epochs);
-  } else if (o.fault_every != 1 || o.restart_at || o.fault_budget_mib != 16 || o.fault_rss_slack != STRESS_FAULT_SLACK_MIB) {
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--fault-every, --fault-budget, --restart-at and --fault-rss-slack go with --faults");
+  } else if (o.fault_every != 1 || o.restart_at || o.restart_drain || o.fault_budget_mib != 16 || o.fault_rss_slack != STRESS_FAULT_SLACK_MIB) {
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--fault-every, --fault-budget, --restart-at, --restart-by and --fault-rss-slack go with --faults");
   }
   if (o.ramp) o.viewers = (int)o.ramp_max;
   if (!o.npaths) {
@@ -1312,7 +1336,7 @@ int main(int argc, char **argv) {
     sum.wall_s = stress_now() - wall0;
     ocv_conn_close(ctl);
     ctl = NULL;
-    sum.server_exit = stress_server_stop(&child, 10);
+    sum.server_exit = stress_server_stop(&child, STRESS_STOP_S);
     child.pid = -1;
     if (sum.server_exit != 0 && !sum.error[0])
       snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
@@ -1401,7 +1425,7 @@ out:
     }
   ocv_conn_close(ctl);
   if (o.spawn && child.pid > 0) {
-    sum.server_exit = stress_server_stop(&child, 10);
+    sum.server_exit = stress_server_stop(&child, STRESS_STOP_S);
     if (sum.server_exit != 0 && rc == OC_EXIT_OK && !sum.error[0])
       snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
   }

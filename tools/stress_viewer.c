@@ -410,26 +410,40 @@ static void sv_publish(stress_viewer_t *v, double input_at) {
   v->new_state = 0;
 }
 
-/* The connection was lost while the server may be restarting (--faults restart): reconnects with
- * backoff until a WELCOME (resumed, or a new session after a restart) and sends the camera again.
+/* The connection was lost while the server may be restarting (--faults restart), or the server is
+ * draining (GOODBYE RECONNECT): reconnects with the viewers' backoff (ocv_retry_t: exponential with
+ * jitter, from the server's delay) until a WELCOME (resumed, or a new session after a restart) and
+ * sends the camera again. One line per attempt with --verbose.
  * @return 0, or -1 after o->timeout without a server (a failure) or when the run stops. */
 static int sv_reconnect(stress_viewer_t *v, const char *cause) {
   stress_run_t *run = v->run;
   const stress_opts_t *o = run->o;
-  char why[1024] = "";
-  double backoff = 0.05;
+  char why[1024] = "", line[1280];
+  const char *text;
+  int64_t code = ocv_conn_close_code(v->conn, &text);
+  uint32_t server_ms = code == OCP_CODE_RECONNECT ? ocp_reconnect_delay_ms(text) : 0;
+  ocv_retry_t rt;
+  /* bounded by time (o->timeout) before attempts: a restart under ASan may take long */
+  ocv_retry_init(&rt, 64, o->timeout, o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)v->index + 1);
   v->lost_at = stress_now();
   v->reconnects++;
   memset(&v->scan, 0, sizeof v->scan); /* a new byte stream */
   pthread_mutex_lock(&run->mu);
   v->ready = 0;
   pthread_mutex_unlock(&run->mu);
-  if (o->verbose) fprintf(stderr, "overcast-stress: viewer %d (%s): %s; reconnecting\n", v->index, sv_name(v), cause);
+  snprintf(why, sizeof why, "%s", cause);
   while (!atomic_load(&run->stop)) {
-    if (stress_now() - v->lost_at > o->timeout) {
-      sv_fail(v, "viewer %d (%s): no server for %.0f s after: %s (last try: %s)", v->index, sv_name(v), o->timeout, cause, why);
+    double wait = ocv_retry_next(&rt, server_ms, stress_now(), why, line, sizeof line);
+    if (wait < 0) {
+      sv_fail(v, "viewer %d (%s): %s (first: %s)", v->index, sv_name(v), line, cause);
       return -1;
     }
+    if (o->verbose) fprintf(stderr, "overcast-stress: viewer %d (%s): %s\n", v->index, sv_name(v), line);
+    for (double end = stress_now() + wait; stress_now() < end && !atomic_load(&run->stop);) {
+      struct timespec ts = {0, 20000000}; /* 20 ms slices: a stopped run does not wait out a backoff */
+      nanosleep(&ts, NULL);
+    }
+    if (atomic_load(&run->stop)) break;
     if (ocv_conn_reconnect(v->conn, 2.0, why, sizeof why) == 0 && ocv_conn_wait_ready(v->conn, 5.0, why, sizeof why) == 0 &&
         ocv_conn_flush(v->conn, o->timeout, why, sizeof why) == 0) {
       pthread_mutex_lock(&run->mu);
@@ -441,11 +455,18 @@ static int sv_reconnect(stress_viewer_t *v, const char *cause) {
       v->between = 1;
       return 0;
     }
-    struct timespec ts = {0, (long)(backoff * 1e9)};
-    nanosleep(&ts, NULL);
-    backoff = fmin(2 * backoff, 0.5);
+    code = ocv_conn_close_code(v->conn, &text); /* a draining server answers HELLO with RECONNECT */
+    server_ms = code == OCP_CODE_RECONNECT ? ocp_reconnect_delay_ms(text) : 0;
   }
   return -1;
+}
+
+/* Reconnect after this poll result? A lost connection during --faults restart, or a drain. */
+static int sv_should_reconnect(stress_viewer_t *v, int r) {
+  const stress_opts_t *o = v->run->o;
+  int lost = r == 1 || r == OC_EIO; /* closed, reset or refused: not a protocol failure */
+  if (!lost || atomic_load(&v->run->stop)) return 0;
+  return (o->faults & STRESS_FAULT_RESTART) || ocv_conn_close_code(v->conn, NULL) == OCP_CODE_RECONNECT;
 }
 
 void *stress_viewer_main(void *arg) {
@@ -534,8 +555,7 @@ void *stress_viewer_main(void *arg) {
     uint64_t got = sv_bytes_in(v) - before;
     if (marked && got == OCP_HEADER_BYTES && !v->new_state) v->between = 1; /* a lone KEEPALIVE */
     if (r) {
-      int lost = r == 1 || r == OC_EIO; /* closed, reset or refused: not a protocol failure */
-      if ((o->faults & STRESS_FAULT_RESTART) && lost && !atomic_load(&run->stop)) {
+      if (sv_should_reconnect(v, r)) {
         if (sv_reconnect(v, why[0] ? why : "connection lost") < 0) break;
         continue;
       }
@@ -549,7 +569,7 @@ void *stress_viewer_main(void *arg) {
       pthread_mutex_unlock(&run->mu);
       if (sv_camera(v, (double)sent * o->step_seconds, t_in) < 0) break;
       if ((r = ocv_conn_flush(v->conn, o->timeout, why, sizeof why))) {
-        if ((o->faults & STRESS_FAULT_RESTART) && (r == 1 || r == OC_EIO) && !atomic_load(&run->stop)) {
+        if (sv_should_reconnect(v, r)) {
           sv_publish(v, t_in);
           if (sv_reconnect(v, why[0] ? why : "connection lost") < 0) break;
           continue;

@@ -11,6 +11,7 @@
 
 #include <cmocka.h>
 
+#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -170,6 +171,101 @@ static void test_drain__reconnect_to_restarted(void **state) {
   unlink(log);
 }
 
+/* The viewer's network thread (overcast-view's): one line per attempt. */
+typedef struct {
+  pthread_mutex_t mu;
+  int lines;
+  char last[512];
+} net_log_t;
+
+static void net_log(void *ctx, const char *line) {
+  net_log_t *l = ctx;
+  pthread_mutex_lock(&l->mu);
+  l->lines++;
+  snprintf(l->last, sizeof l->last, "%s", line);
+  pthread_mutex_unlock(&l->mu);
+}
+
+static ocv_net_status_t net_status(ocv_net_t *n) {
+  ocv_net_status_t st;
+  ocv_net_status(n, &st);
+  return st;
+}
+
+/* Steps until the thread has published n states (each verified by its checksum in the session). */
+static void net_step_until(int port, ocv_net_t *n, uint64_t states) {
+  for (int i = 0; i < 60 && net_status(n).states < states; i++) {
+    if (net_status(n).connected) step(port, 1);
+    sleep_us(100000); /* polling the thread's status, not a synchronisation */
+  }
+  assert_true(net_status(n).states >= states);
+}
+
+/* overcast-view's network thread across a drain and a restart on the same port: told to
+ * reconnect, it waits (one line per attempt), finds the new server and keeps receiving verified
+ * states; the draining server exits 0 because it left. */
+static void test_drain__net_thread_follows_restart(void **state) {
+  (void)state;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  server_t s;
+  start_server(&s, extra);
+  net_log_t lg = {.mu = PTHREAD_MUTEX_INITIALIZER};
+  ocv_net_desc_t d = {.port = s.port, .seed = 3, .on_log = net_log, .ctx = &lg,
+                      .viewer = {.role = OCP_ROLE_VIEWER, .budget = 4u << 20, .slot_bytes = 2048, .record_bytes = 32,
+                                 .max_depth = 21, .width = 160, .height = 90}};
+  ocv_net_t *n = NULL;
+  assert_int_equal(ocv_net_start(&n, &d), 0);
+  ocp_camera_t cam = sphere_camera(160, 90);
+  assert_int_equal(ocv_net_set_camera(n, &cam), 0);
+  net_step_until(s.port, n, 2);
+  kill(s.pid, SIGTERM);
+  assert_int_equal(wait_exit(&s), 0); /* the thread left: the drain is over */
+  char listen[64];
+  snprintf(listen, sizeof listen, "127.0.0.1:%d", s.port);
+  const char *again[] = {"--scene", scene_sphere, "--listen", listen, NULL};
+  server_t s2;
+  start_server(&s2, again);
+  uint64_t before = net_status(n).states;
+  net_step_until(s2.port, n, before + 2);
+  ocv_net_status_t st = net_status(n);
+  assert_false(st.gave_up);
+  assert_true(st.welcomes >= 2);
+  assert_int_equal(st.viewer.over_budget, 0); /* and each state matched its checksum, or it would have closed */
+  pthread_mutex_lock(&lg.mu);
+  assert_true(lg.lines >= 1);
+  pthread_mutex_unlock(&lg.mu);
+  ocv_net_stop(n);
+  assert_int_equal(stop_server(&s2), 0);
+}
+
+/* No server comes back: the thread gives up after its attempts with one clear line, and stops. */
+static void test_drain__net_thread_gives_up(void **state) {
+  (void)state;
+  const char *extra[] = {"--scene", scene_sphere, NULL};
+  server_t s;
+  start_server(&s, extra);
+  net_log_t lg = {.mu = PTHREAD_MUTEX_INITIALIZER};
+  ocv_net_desc_t d = {.port = s.port, .seed = 5, .retry_attempts = 2, .on_log = net_log, .ctx = &lg,
+                      .viewer = {.role = OCP_ROLE_VIEWER, .budget = 4u << 20, .slot_bytes = 2048, .record_bytes = 32,
+                                 .max_depth = 21, .width = 160, .height = 90}};
+  ocv_net_t *n = NULL;
+  assert_int_equal(ocv_net_start(&n, &d), 0);
+  ocp_camera_t cam = sphere_camera(160, 90);
+  assert_int_equal(ocv_net_set_camera(n, &cam), 0);
+  net_step_until(s.port, n, 1);
+  kill(s.pid, SIGTERM);
+  assert_int_equal(wait_exit(&s), 0);
+  for (int i = 0; i < 600 && !net_status(n).gave_up; i++) sleep_us(100000);
+  ocv_net_status_t st = net_status(n);
+  assert_true(st.gave_up);
+  assert_non_null(strstr(st.error, "gave up after 2 reconnect attempts"));
+  pthread_mutex_lock(&lg.mu);
+  assert_int_equal(lg.lines, 3); /* attempt 1 of 2, attempt 2 of 2, gave up */
+  assert_non_null(strstr(lg.last, "gave up"));
+  pthread_mutex_unlock(&lg.mu);
+  ocv_net_stop(n);
+}
+
 int main(void) {
   const char *src = getenv("OC_SOURCE_DIR");
   snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
@@ -179,6 +275,8 @@ int main(void) {
       cmocka_unit_test_teardown(test_drain__timeout, net_teardown),
       cmocka_unit_test_teardown(test_drain__second_sigterm, net_teardown),
       cmocka_unit_test_teardown(test_drain__reconnect_to_restarted, net_teardown),
+      cmocka_unit_test_teardown(test_drain__net_thread_follows_restart, net_teardown),
+      cmocka_unit_test_teardown(test_drain__net_thread_gives_up, net_teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
