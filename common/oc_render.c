@@ -16,6 +16,7 @@
 #include "oc_err.h"
 #include "oc_log.h"
 #include "oc_planet.h"
+#include "march.h"    /* the march: sources, segment update, ground, sun disc */
 #include "optics.h"   /* phase functions, segment weights, octaves */
 #include "sampling.h" /* ocg_jitter */
 
@@ -38,6 +39,7 @@ typedef struct {
   int have_atmo;
   ocg_atmosphere atm;
   ocg_vec3 sun_e;      /**< solar irradiance at the top of the atmosphere */
+  ocg_cloud_model cm;  /**< albedo and multiple-scattering model */
   double ground_r;     /**< planet radius, or 0 without a planet */
   double air_top;      /**< atmosphere top radius */
   atomic_int next_row;
@@ -159,9 +161,7 @@ static ocg_vec3 oc__sun_transmittance(const oc__ctx_t *cx, double r, double mu_s
 static double oc__air_step(const oc__ctx_t *cx, oc_dvec3 p, oc_dvec3 dir, double air_step) {
   double r = oc_dlen(p);
   double h = r - cx->atm.bottom_radius; /* only called with an atmosphere */
-  double mu = fabs(oc_ddot(p, dir) / r);
-  double lim = 0.25 * (fmax(h, 0.0) + 500.0) / fmax(mu, 1e-3);
-  return fmin(air_step, fmax(lim, air_step / 16.0));
+  return ocg_march_air_step((float)h, (float)(oc_ddot(p, dir) / r), (float)air_step);
 }
 
 /* ---- One ray ----------------------------------------------------------------------------------------- */
@@ -171,8 +171,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
   const oc_dvec3 sun = cx->s->sun_dir;
   const float mu = (float)oc_ddot(dir, sun);
   const double S = OC_ROOT_HALF;
-  ocg_vec3 L = ocg_v3s(0.0f), T = ocg_v3s(1.0f);
-  float Tc = 1.0f;
+  ocg_march m = ocg_march_begin();
 
   /* The marched interval: the root cube (clouds) and, with air, the atmosphere sphere; cut by the ground. */
   double t0 = 0.0, t1 = 0.0, a0, a1;
@@ -239,31 +238,19 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     ocg_vec3 sigma_t = ocg_v3s(sig);
     ocg_vec3 J = ocg_v3s(0.0f); /* Σ σs·S per unit length */
     if (sig > 0.0f) {
-      float ms = ocg_ms_octaves(tau, mu, d->ms_a, d->ms_b, d->ms_c, d->ms_octaves);
-      ocg_vec3 Sc = ocg_scale3(Esun, ms);
-      if (cx->have_atmo && !(d->flags & OC_RF_NO_AMBIENT))
-        Sc = ocg_add3(Sc, ocg_scale3(ocg_mul3(cx->sun_e, oc_atmo_sky_fluence(d->atmo, r, mu_s)), OCG_INV_4PI));
-      J = ocg_scale3(Sc, d->albedo * sig);
+      ocg_vec3 F = ocg_v3s(0.0f);
+      if (cx->have_atmo && !(d->flags & OC_RF_NO_AMBIENT)) F = ocg_mul3(cx->sun_e, oc_atmo_sky_fluence(d->atmo, r, mu_s));
+      J = ocg_cloud_source(cx->cm, sig, tau, mu, Esun, F);
     }
     if (cx->have_atmo && r < cx->air_top) {
       float rf = (float)r;
-      ocg_vec3 sr = ocg_atmo_rayleigh_scattering(cx->atm, rf);
-      float sm = ocg_atmo_mie_scattering(cx->atm, rf);
       sigma_t = ocg_add3(sigma_t, ocg_atmo_extinction(cx->atm, rf));
-      ocg_vec3 lit = ocg_scale3(Esun, ocg_exp(-tau)); /* air in a cloud's shadow */
-      ocg_vec3 single = ocg_add3(ocg_scale3(sr, ocg_phase_rayleigh(mu)),
-                                 ocg_v3s(sm * ocg_phase_cornette_shanks(mu, cx->atm.mie_g)));
-      ocg_vec3 multi = ocg_mul3(ocg_add3(sr, ocg_v3s(sm)), ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s)));
-      J = ocg_add3(J, ocg_add3(ocg_mul3(single, lit), multi));
+      J = ocg_add3(J, ocg_air_source(cx->atm, rf, mu, Esun, tau, ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s))));
     }
-    float segf = (float)seg;
-    ocg_vec3 w = ocg_segment_weight3(sigma_t, segf);
-    L = ocg_add3(L, ocg_mul3(T, ocg_mul3(J, w)));
-    T = ocg_mul3(T, ocg_exp3(ocg_scale3(sigma_t, -segf)));
-    Tc *= ocg_exp(-sig * segf);
+    ocg_march_segment(&m, sigma_t, sig, J, (float)seg);
     st->samples++;
     t = te;
-    if (d->exit_t > 0.0 && ocg_max(T.x, ocg_max(T.y, T.z)) < (float)d->exit_t) {
+    if (ocg_march_done(m, (float)d->exit_t)) {
       st->early_exits++;
       exited = 1;
       break;
@@ -277,24 +264,20 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       float mu_s = (float)(oc_ddot(pg, sun) / r);
       float sg, tg;
       oc_render_sample_state(cx->s, pg, &sg, &tg);
-      ocg_vec3 E = ocg_scale3(oc__sun_transmittance(cx, r, mu_s), ocg_max(mu_s, 0.0f) * ocg_exp(-tg));
-      if (cx->have_atmo) E = ocg_add3(E, oc_atmo_sky_irradiance(d->atmo, r, mu_s));
+      ocg_vec3 I = cx->have_atmo ? oc_atmo_sky_irradiance(d->atmo, r, mu_s) : ocg_v3s(0.0f);
       ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);
-      L = ocg_add3(L, ocg_mul3(T, ocg_mul3(ocg_scale3(albedo, 1.0f / OCG_PI), ocg_mul3(cx->sun_e, E))));
+      ocg_march_background(&m, ocg_ground_radiance(oc__sun_transmittance(cx, r, mu_s), mu_s, tg, I, albedo, cx->sun_e));
     } else if (d->background == OC_BG_CONSTANT) {
-      L = ocg_add3(L, ocg_scale3(T, d->background_radiance));
+      ocg_march_background(&m, ocg_v3s(d->background_radiance));
     } else if (cx->have_atmo && !(d->flags & OC_RF_NO_SUN_DISC)) {
-      float cos_r = ocg_cos(cx->atm.sun_angular_radius);
-      if (mu > cos_r) {
-        float solid = 2.0f * OCG_PI * (1.0f - cos_r);
-        L = ocg_add3(L, ocg_mul3(T, ocg_scale3(cx->sun_e, 1.0f / solid)));
-      }
+      ocg_march_background(&m, ocg_sun_disc(mu, cx->atm.sun_angular_radius, cx->sun_e));
     }
   }
+  ocg_vec3 L = m.L;
   out[0] = L.x;
   out[1] = L.y;
   out[2] = L.z;
-  out[3] = Tc;
+  out[3] = m.Tc;
   if (!isfinite(L.x) || !isfinite(L.y) || !isfinite(L.z)) st->nonfinite++;
 }
 
@@ -355,6 +338,11 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   if (d->threads <= 0) d->threads = 1;
   if (d->threads > 256) return oc__bad("threads");
 
+  cx.cm.albedo = d->albedo;
+  cx.cm.ms_a = d->ms_a;
+  cx.cm.ms_b = d->ms_b;
+  cx.cm.ms_c = d->ms_c;
+  cx.cm.ms_n = d->ms_octaves;
   cx.have_atmo = d->background != OC_BG_CONSTANT && !(d->flags & OC_RF_NO_ATMOSPHERE);
   if (cx.have_atmo && !d->atmo) return oc__bad("atmo (required with an atmosphere)");
   cx.air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;

@@ -7,7 +7,7 @@
  * the reference reconstruction; hardware filtering of raw codes would interpolate in code space
  * (i.e. geometrically), and its error against this header belongs in docs/numerics.md.
  *
- * GLSL has no #include: client/shader_src.c concatenates oc_port.h, then this file. Everything
+ * GLSL has no #include: client/gl/gl_program.c concatenates oc_port.h, then this file. Everything
  * here is pointer-free and written with oc_port.h macros so it compiles as C17 and GLSL 4.50. */
 #ifndef OC_SHADERS_BRICK_H
 #define OC_SHADERS_BRICK_H

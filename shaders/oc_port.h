@@ -1,6 +1,6 @@
 /* oc_port.h — the macro layer that lets shaders/ headers compile as C17 and as GLSL 4.50.
  *
- * The includer defines OC_GLSL (shaders; client/shader_src.c prepends it) or nothing (C). The same
+ * The includer defines OC_GLSL (shaders; client/gl/gl_program.c prepends it) or nothing (C). The same
  * function bodies then serve the CPU reference renderer and the GPU, as PNanoVDB.h does for NanoVDB.
  *
  * Rules for code in shaders/ headers (style.md §4):

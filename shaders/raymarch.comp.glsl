@@ -1,7 +1,8 @@
 /* raymarch.comp.glsl — one state raymarched per pixel: the integral of oc__trace in
- * common/oc_render.c, step for step, with the same shared functions (ocg_*).
+ * common/oc_render.c, step for step, with the same shared march (shaders/march.h): this kernel only
+ * finds the samples (octree, atlas, tables).
  *
- * Assembled after oc_port.h, sampling.h, optics.h, brick.h and atmosphere.h by client/gl/gl_program.c;
+ * Assembled after oc_port.h, sampling.h, optics.h, brick.h, atmosphere.h and march.h by client/gl/gl_program.c;
  * the OCV_* constants come from client/gl/gl_render.c. GPU data layout: client/gl/README.md.
  *
  * Positions (design.md, Conventions): the shader never holds an absolute planet coordinate in float.
@@ -289,10 +290,7 @@ float ocv_radius(float b, float t) { return sqrt(max(u_cam_r2 + t * (2.0 * b + t
 /* oc__air_step */
 float ocv_air_step(float b, float t, float air_step) {
   float r = ocv_radius(b, t);
-  float h = r - u_atm.bottom_radius;
-  float mu = abs((b + t) / r);
-  float lim = 0.25 * (max(h, 0.0) + 500.0) / max(mu, 1e-3);
-  return min(air_step, max(lim, air_step / 16.0));
+  return ocg_march_air_step(r - u_atm.bottom_radius, (b + t) / r, air_step);
 }
 
 /* ---- One ray (oc__trace) ------------------------------------------------------------------------------ */
@@ -302,8 +300,8 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   float mu = dot(dir, u_sun);
   float b = dot(u_cam_hi, dir) + dot(u_cam_lo, dir); /* o·d without the 0.5 m rounding of a float o */
   vec3 o = u_cam_frac;
-  vec3 L = vec3(0.0), T = vec3(1.0);
-  float Tc = 1.0;
+  ocg_march m = ocg_march_begin();
+  ocg_cloud_model cm = ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves);
 
   float t0 = 0.0, t1 = 0.0, a0, a1;
   vec3 box_lo = vec3(-u_cam_cell) * u_cell, box_hi = vec3(ivec3(OCV_CELLS21) - u_cam_cell) * u_cell;
@@ -392,29 +390,19 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     vec3 sigma_t = vec3(sig);
     vec3 J = vec3(0.0);
     if (sig > 0.0) {
-      float ms = ocg_ms_octaves(tau, mu, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves);
-      vec3 Sc = Esun * ms;
-      if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u)
-        Sc += u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s) * OCG_INV_4PI;
-      J = Sc * (u_albedo * sig);
+      vec3 F = vec3(0.0);
+      if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s);
+      J = ocg_cloud_source(cm, sig, tau, mu, Esun, F);
     }
     if (OCV_ATMO && r < u_atm.top_radius) {
-      vec3 sr = ocg_atmo_rayleigh_scattering(u_atm, r);
-      float sm = ocg_atmo_mie_scattering(u_atm, r);
       sigma_t += ocg_atmo_extinction(u_atm, r);
-      vec3 lit = Esun * exp(-tau);
-      vec3 single = sr * ocg_phase_rayleigh(mu) + vec3(sm * ocg_phase_cornette_shanks(mu, u_atm.mie_g));
-      vec3 multi = (sr + vec3(sm)) * (u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
-      J += single * lit + multi;
+      J += ocg_air_source(u_atm, r, mu, Esun, tau, u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
     }
-    vec3 w = ocg_segment_weight3(sigma_t, seg);
-    L += T * (J * w);
-    bool above = max(T.x, max(T.y, T.z)) >= 0.5;
-    T *= exp(-sigma_t * seg);
-    if (above && max(T.x, max(T.y, T.z)) < 0.5 && depth == OCV_FAR) depth = tm;
-    Tc *= exp(-sig * seg);
+    bool above = max(m.T.x, max(m.T.y, m.T.z)) >= 0.5;
+    ocg_march_segment(m, sigma_t, sig, J, seg);
+    if (above && max(m.T.x, max(m.T.y, m.T.z)) < 0.5 && depth == OCV_FAR) depth = tm;
     t = te;
-    if (u_exit_t > 0.0 && max(T.x, max(T.y, T.z)) < u_exit_t) {
+    if (ocg_march_done(m, u_exit_t)) {
       exited = true;
       break;
     }
@@ -428,21 +416,16 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       float mu_s = (u_sun_o + t1 * mu) / r;
       OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
       float tg = g.idx >= 0 ? ocv_leaf_sample(g, ocv_local(g, pg)).y : 0.0;
-      vec3 E = ocv_sun_transmittance(r, mu_s) * (max(mu_s, 0.0) * exp(-tg));
-      if (OCV_ATMO) E += ocv_atmo_rmus(u_tab_irradiance, r, mu_s);
+      vec3 I = OCV_ATMO ? ocv_atmo_rmus(u_tab_irradiance, r, mu_s) : vec3(0.0);
       vec3 albedo = OCV_ATMO ? u_atm.ground_albedo : vec3(0.1);
-      L += T * ((albedo * (1.0 / OCG_PI)) * (u_sun_e * E));
+      ocg_march_background(m, ocg_ground_radiance(ocv_sun_transmittance(r, mu_s), mu_s, tg, I, albedo, u_sun_e));
     } else if (u_bg_constant != 0) {
-      L += T * u_bg_radiance;
+      ocg_march_background(m, vec3(u_bg_radiance));
     } else if (OCV_ATMO && (u_flags & OCV_RF_NO_SUN_DISC) == 0u) {
-      float cos_r = cos(u_atm.sun_angular_radius);
-      if (mu > cos_r) {
-        float solid = 2.0 * OCG_PI * (1.0 - cos_r);
-        L += T * (u_sun_e * (1.0 / solid));
-      }
+      ocg_march_background(m, ocg_sun_disc(mu, u_atm.sun_angular_radius, u_sun_e));
     }
   }
-  return vec4(L, Tc);
+  return vec4(m.L, m.Tc);
 }
 
 void main() {

@@ -457,8 +457,8 @@ static void test_gl_render__errors_name_file_and_line(void **state) {
   require_gl();
   char dir[] = "/tmp/oc_gl_render_XXXXXX", path[1200], src[1200], why[2048] = "";
   assert_non_null(mkdtemp(dir));
-  static const char *const headers[] = {"oc_port.h", "sampling.h", "optics.h", "brick.h", "atmosphere.h"};
-  for (int i = 0; i < 5; i++) { /* the real headers, then a broken kernel */
+  static const char *const headers[] = {"oc_port.h", "sampling.h", "optics.h", "brick.h", "atmosphere.h", "march.h"};
+  for (int i = 0; i < 6; i++) { /* the real headers, then a broken kernel */
     snprintf(src, sizeof src, "%s/%s", ocv_gl_shader_dir(), headers[i]);
     snprintf(path, sizeof path, "%s/%s", dir, headers[i]);
     FILE *in = fopen(src, "rb"), *out = fopen(path, "wb");

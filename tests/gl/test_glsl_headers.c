@@ -284,7 +284,7 @@ static int cmp_str(const void *a, const void *b) { return strcmp(*(const char *c
  * is compile-checked without editing this test. Returns the count; names are malloc'd. */
 #define MAX_HEADERS 48
 static int collect_headers(char *names[MAX_HEADERS]) {
-  static const char *const order[] = {"oc_port.h", "units.h", "optics.h", "sampling.h", "brick.h", "atmosphere.h"};
+  static const char *const order[] = {"oc_port.h", "units.h", "optics.h", "sampling.h", "brick.h", "atmosphere.h", "march.h"};
   int n = 0;
   for (int i = 0; i < LEN(order); ++i) {
     char rel[256];
