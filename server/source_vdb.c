@@ -127,14 +127,18 @@ static int ocs__inv3(const double a[3][3], double r[3][3]) {
 /* ---- Frames ------------------------------------------------------------------------------------ */
 
 /* The file of sequence index `index` (the '#' run replaced by first + index, zero-padded). */
-static void ocs__frame_path(const ocs__vdb_t *s, int index, char *out, size_t cap) {
-  if (!s->has_seq) {
-    snprintf(out, cap, "%s", s->file);
+void ocs_vdb_frame_path(const char *file, int has_seq, int first, int index, char *out, size_t cap) {
+  const char *h = has_seq ? strchr(file, '#') : NULL;
+  if (!h) {
+    snprintf(out, cap, "%s", file);
     return;
   }
-  const char *h = strchr(s->file, '#');
   size_t run = strspn(h, "#");
-  snprintf(out, cap, "%.*s%0*d%s", (int)(h - s->file), s->file, (int)run, s->seq.first + index, h + run);
+  snprintf(out, cap, "%.*s%0*d%s", (int)(h - file), file, (int)run, first + index, h + run);
+}
+
+static void ocs__frame_path(const ocs__vdb_t *s, int index, char *out, size_t cap) {
+  ocs_vdb_frame_path(s->file, s->has_seq, s->seq.first, index, out, cap);
 }
 
 typedef struct {

@@ -59,4 +59,8 @@ typedef struct {
 /*! ocs_vdb_source_info() : @return 0, or OC_EINVAL when src is not a vdb source. */
 int ocs_vdb_source_info(const ocs_source_t *src, ocs_vdb_source_info_t *out);
 
+/*! ocs_vdb_frame_path() : the file of a VDB source's frame `index`: with a sequence, the file's
+ *  run of '#' replaced by first + index, zero-padded to the run's length; else the file itself. */
+void ocs_vdb_frame_path(const char *file, int has_seq, int first, int index, char *out, size_t cap);
+
 #endif /* OC_SERVER_VDB_TOOLS_H */

@@ -10,6 +10,7 @@
 #include <time.h>
 
 #include "brick_cache.h"
+#include "oc_bytes.h"
 #include "oc_err.h"
 #include "oc_log.h"
 #include "oc_planet.h"
@@ -37,6 +38,16 @@ static const double STEP_CHANGE[OC_KEY_MAX_LEVEL + 1] = {
  * bricks) and the sockets get the cores first: on 2 cores, a tick shared them with 2 producers at
  * equal priority and went out 40–80 ms late (docs/performance.md). */
 #define OCS_PRODUCER_NICE 10
+
+/* A brick's place in the sharing tables: held back (open addressing, OCS_HOLD_SLOTS slots, at most
+ * half full) and made since the last take. */
+typedef struct {
+  oc_key_t key;
+  uint64_t stamp;
+  int used;
+} share_t;
+#define OCS_HOLD_SLOTS 8192u
+#define OCS_MADE_MAX (1u << 16)
 
 /* The production queue's bound (entries of 24 bytes). */
 #define OCS_QUEUE_MAX (1u << 16)
@@ -198,6 +209,14 @@ struct ocs_world_s {
    * deadline (a brick started is finished, and the tick waits for it) */
   _Atomic double cost[OC_KEY_MAX_LEVEL + 1][2];
   ocs_hist_t brick_seconds; /* what each brick made took on its thread (wall), τ included */
+  /* sharing bricks between front-ends (world.h, "Sharing bricks") */
+  uint64_t weather_hist;     /* the weather changes so far, hashed */
+  pthread_mutex_t share_mu;  /* guards hold[] and made[] */
+  share_t hold[OCS_HOLD_SLOTS]; /* made by another front-end now: not here until the next tick */
+  _Atomic size_t nhold;
+  share_t *made;             /* bricks made since the last ocs_world_made_take() */
+  size_t nmade, made_cap;
+  uint64_t made_dropped;
 };
 
 static double now_s(void) {
@@ -374,8 +393,11 @@ static int produce_brick(prod_t *p, req_t *q) {
   return r;
 }
 
+static int held_back(ocs_world_t *w, oc_key_t key, uint64_t stamp);
+
 static int produce_brick_timed(prod_t *p, req_t *q) {
   ocs_world_t *w = p->w;
+  if (atomic_load_explicit(&w->nhold, memory_order_relaxed) && held_back(w, q->key, q->stamp)) return 0; /* stays queued */
   ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
   int r = ocs_cache_acquire(w->cache, &k, &q->entry);
   if (r < 0) {
@@ -554,6 +576,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   }
   if (w->d.exact_filter) ocs_field_set_exact(w->field, 1);
   pthread_mutex_init(&w->tick_mu, NULL);
+  pthread_mutex_init(&w->share_mu, NULL);
   if (w->d.clocked && ocs_pool_threads(w->pool) > 1 && ocs_pool_create(&w->tick_pool, 2) < 0) w->tick_pool = NULL; /* serial */
   w->K = ocs_field_animated(w->field) ? 3 : 2;
   w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
@@ -583,6 +606,8 @@ void ocs_world_free(ocs_world_t *w) {
   ocs_pool_free(w->pool);
   ocs_pool_free(w->tick_pool);
   pthread_mutex_destroy(&w->tick_mu); /* calloc'd zeros are glibc's static initialiser, also before init */
+  pthread_mutex_destroy(&w->share_mu);
+  free(w->made);
   ocs_cache_free(w->cache);
   ocs_field_free(w->field);
   oc_scene_free(&w->scene);
@@ -638,7 +663,12 @@ void ocs_world_carry_clock(ocs_world_t *to, const ocs_world_t *from) {
 
 int ocs_world_set_weather(ocs_world_t *w, double utc, oc_preset_t preset, double seconds) {
   if (!w) return OC_EINVAL;
-  OC_TRY(ocs_field_set_weather(w->field, preset, ocs_clock_world(&w->clock, utc), seconds));
+  double t0 = ocs_clock_world(&w->clock, utc);
+  OC_TRY(ocs_field_set_weather(w->field, preset, t0, seconds));
+  uint64_t b[2];
+  memcpy(&b[0], &t0, 8);
+  memcpy(&b[1], &seconds, 8);
+  w->weather_hist = mix(mix(mix(w->weather_hist, (uint64_t)preset), b[0]), b[1]);
   clock_update(w);
   return 0;
 }
@@ -1616,6 +1646,8 @@ int ocs_world_produce_run(ocs_world_t *w) {
   return w->produce_rc = produce_requests(&w->producing, 0);
 }
 
+static void made_log(ocs_world_t *w, oc_key_t key, uint64_t stamp);
+
 int ocs_world_produce_end(ocs_world_t *w) {
   if (!w || !w->in_production) return 0;
   prod_t *p = &w->producing;
@@ -1623,6 +1655,7 @@ int ocs_world_produce_end(ocs_world_t *w) {
   for (size_t i = 0; i < p->nreq; i++) { /* counted for the viewers that wanted it */
     const req_t *q = &p->req[i];
     made += (uint64_t)q->made;
+    if (q->made && w->d.content_id) made_log(w, q->key, q->stamp);
     for (uint32_t j = q->first; q->made && j < q->first + q->count; j++)
       if (p->who[j]) p->who[j]->produced++;
   }
@@ -1771,4 +1804,144 @@ int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs
   r = oc_state_copy(out, o.state);
   ocs_world_remove_viewer(w, v);
   return r;
+}
+
+/*-*** Sharing bricks between front-ends ***/
+
+/* A brick as it travels between front-ends: kind, both ranges, and the codes of a brick, packed
+ * little-endian (the cache's payload_t is a struct image, never written out). */
+#define SHARE_HEAD (1 + 8 * OC_CHANNELS)
+
+ocs_bkey_t ocs_world_brick_id(const ocs_world_t *w, oc_key_t key, uint64_t stamp) {
+  uint64_t sun = 0;
+  for (int i = 0; i < 3; i++) {
+    uint64_t b;
+    double c = i == 0 ? w->sun.x : i == 1 ? w->sun.y : w->sun.z;
+    memcpy(&b, &c, 8);
+    sun = mix(sun, b);
+  }
+  ocs_bkey_in_t in = {.scene = w->d.content_id, .weather = w->weather_hist, .sun = sun, .stamp = stamp, .node = key,
+                      .channel = OCS_SHARE_CHANNEL_BRICK};
+  return ocs_bkey_make(&in);
+}
+
+int ocs_world_queue_item(const ocs_world_t *w, size_t i, oc_key_t *key, uint64_t *stamp) {
+  if (!w || i >= w->nqueue) return OC_ENOENT;
+  *key = w->queue[i].key;
+  *stamp = w->queue[i].stamp;
+  return 0;
+}
+
+static size_t share_slot(oc_key_t key, uint64_t stamp) { return (size_t)(mix(key, stamp) & (OCS_HOLD_SLOTS - 1)); }
+
+static int held_back(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
+  int found = 0;
+  pthread_mutex_lock(&w->share_mu);
+  for (size_t i = share_slot(key, stamp); w->hold[i].used; i = (i + 1) & (OCS_HOLD_SLOTS - 1))
+    if (w->hold[i].key == key && w->hold[i].stamp == stamp) {
+      found = 1;
+      break;
+    }
+  pthread_mutex_unlock(&w->share_mu);
+  return found;
+}
+
+void ocs_world_hold_back(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
+  pthread_mutex_lock(&w->share_mu);
+  if (atomic_load(&w->nhold) < OCS_HOLD_SLOTS / 2) { /* beyond: made here too, which is only waste */
+    size_t i = share_slot(key, stamp);
+    while (w->hold[i].used && !(w->hold[i].key == key && w->hold[i].stamp == stamp)) i = (i + 1) & (OCS_HOLD_SLOTS - 1);
+    if (!w->hold[i].used) {
+      w->hold[i] = (share_t){key, stamp, 1};
+      atomic_fetch_add(&w->nhold, 1);
+    }
+  }
+  pthread_mutex_unlock(&w->share_mu);
+}
+
+void ocs_world_hold_clear(ocs_world_t *w) {
+  pthread_mutex_lock(&w->share_mu);
+  if (atomic_load(&w->nhold)) memset(w->hold, 0, sizeof w->hold);
+  atomic_store(&w->nhold, 0);
+  pthread_mutex_unlock(&w->share_mu);
+}
+
+static void made_log(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
+  pthread_mutex_lock(&w->share_mu);
+  if (w->nmade == w->made_cap && w->made_cap < OCS_MADE_MAX) {
+    size_t nc = w->made_cap ? 2 * w->made_cap : 1024;
+    share_t *a = realloc(w->made, nc * sizeof *a);
+    if (a) {
+      w->made = a;
+      w->made_cap = nc;
+    }
+  }
+  if (w->nmade < w->made_cap) w->made[w->nmade++] = (share_t){key, stamp, 1};
+  else w->made_dropped++; /* not shared: made again elsewhere, which is only waste */
+  pthread_mutex_unlock(&w->share_mu);
+}
+
+size_t ocs_world_made_take(ocs_world_t *w, oc_key_t *keys, uint64_t *stamps, size_t cap) {
+  pthread_mutex_lock(&w->share_mu);
+  size_t n = w->nmade < cap ? w->nmade : cap;
+  for (size_t i = 0; i < n; i++) {
+    keys[i] = w->made[w->nmade - n + i].key;
+    stamps[i] = w->made[w->nmade - n + i].stamp;
+  }
+  w->nmade -= n;
+  pthread_mutex_unlock(&w->share_mu);
+  return n;
+}
+
+size_t ocs_world_export(ocs_world_t *w, oc_key_t key, uint64_t stamp, uint8_t *out, size_t cap) {
+  ocs_cache_key_t k = ckey(w, T_BRICK, key, stamp, 0);
+  ocs_cache_entry_t *e;
+  if (cap < OCS_SHARE_MAX_BYTES || !ocs_cache_peek(w->cache, &k, &e)) return 0;
+  const payload_t *p = ocs_cache_data(e);
+  out[0] = p->kind;
+  for (int c = 0; c < OC_CHANNELS; c++) {
+    oc_put_f32(out + 1 + 8 * c, p->range[c].lo);
+    oc_put_f32(out + 5 + 8 * c, p->range[c].hi);
+  }
+  size_t n = SHARE_HEAD;
+  if (p->kind == OC_NODE_BRICK)
+    for (int c = 0; c < OC_CHANNELS; c++)
+      for (int i = 0; i < OC_BRICK_VOXELS; i++, n += 2) oc_put_u16(out + n, p->codes.code[c][i]);
+  ocs_cache_release(w->cache, e);
+  return n;
+}
+
+/* A range as oc_brick_encode() makes them: both 0, or 0 < lo ≤ hi ≤ OC_VALUE_MAX. */
+static int range_ok(oc_range_t r) {
+  return (r.lo == 0.0f && r.hi == 0.0f) || (r.lo > 0.0f && r.lo <= r.hi && r.hi <= OC_VALUE_MAX);
+}
+
+int ocs_world_offer(ocs_world_t *w, oc_key_t key, uint64_t stamp, const uint8_t *content, size_t n) {
+  if (n < SHARE_HEAD || content[0] > OC_NODE_BRICK) return OC_ECORRUPT;
+  payload_t *p = malloc(sizeof *p);
+  if (!p) return OC_ENOMEM;
+  p->kind = content[0];
+  int ok = n == (p->kind == OC_NODE_BRICK ? (size_t)OCS_SHARE_MAX_BYTES : (size_t)SHARE_HEAD);
+  for (int c = 0; c < OC_CHANNELS; c++) {
+    p->range[c] = (oc_range_t){oc_get_f32(content + 1 + 8 * c), oc_get_f32(content + 5 + 8 * c)};
+    ok &= range_ok(p->range[c]) && (p->kind != OC_NODE_EMPTY || p->range[c].hi == 0.0f);
+  }
+  if (!ok) {
+    free(p);
+    return OC_ECORRUPT;
+  }
+  if (p->kind == OC_NODE_BRICK)
+    for (int c = 0, o = SHARE_HEAD; c < OC_CHANNELS; c++)
+      for (int i = 0; i < OC_BRICK_VOXELS; i++, o += 2) p->codes.code[c][i] = oc_get_u16(content + o);
+  ocs_cache_key_t k = ckey(w, T_BRICK, key, stamp, 0);
+  ocs_cache_entry_t *e;
+  int r = ocs_cache_try_acquire(w->cache, &k, &e);
+  if (r != OCS_CACHE_MISS) { /* here already, or being made here: the local one stands */
+    if (r == OCS_CACHE_HIT) ocs_cache_release(w->cache, e);
+    free(p);
+    return r < 0 ? r : 0;
+  }
+  ocs_cache_publish(w->cache, e, p, p->kind == OC_NODE_BRICK ? sizeof *p : PAYLOAD_HEAD);
+  ocs_cache_release(w->cache, e);
+  return 1;
 }

@@ -22,6 +22,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "brick_value.h"
 #include "histogram.h"
 #include "oc_scene.h"
 #include "oc_state.h"
@@ -52,6 +53,9 @@ typedef struct {
                                   everything its plans ask before its states go out */
   int exact_filter;          /**< bricks from each source's exact box filter (ocs_field_set_exact):
                                   the oracle of the fast ones, for benches and tests */
+  uint64_t content_id;       /**< what the bricks' bytes depend on beyond the world's own state:
+                                  the build and the scene's content (ocs_scene_digest()); 0: bricks
+                                  are not shared between front-ends ("Sharing bricks" below) */
 } ocs_world_desc_t;
 
 typedef struct {
@@ -237,5 +241,37 @@ int ocs_world_kept_states(const ocs_world_t *w);
 /*! ocs_world_sun() : the unit vector toward the sun now. */
 oc_dvec3 ocs_world_sun(const ocs_world_t *w);
 const struct ocs_field_s *ocs_world_field(const ocs_world_t *w);
+
+/*-*** Sharing bricks between front-ends (clocked worlds; brick_remote.h, docs/scale-out.md) ***
+ * Between a tick and the production behind it, the network layer looks the queue's bricks up in
+ * the shared store: a brick found there is offered to the cache (production then finds it made),
+ * one another front-end is making is held back until the next tick, and what production made is
+ * taken after it ends, exported and stored for the others. Offers and holds may come while
+ * production runs (they only touch the cache and a locked table); the rest runs on the loop's
+ * thread while no tick runs. */
+
+#define OCS_SHARE_CHANNEL_BRICK 1u /* the identity's channel of a final brick (codes and ranges) */
+/*! Largest exported brick: kind, OC_CHANNELS ranges (two f32 each), the codes. */
+#define OCS_SHARE_MAX_BYTES (1 + 8 * OC_CHANNELS + OC_BRICK_CODE_BYTES)
+
+/*! ocs_world_brick_id() : the brick (key, stamp)'s identity across front-ends: desc.content_id,
+ *  the weather history, the sun direction's bits, the stamp, the node and the channel. */
+ocs_bkey_t ocs_world_brick_id(const ocs_world_t *w, oc_key_t key, uint64_t stamp);
+/*! ocs_world_queue_item() : the node and stamp of the queue's i-th best item. @return 0 or OC_ENOENT. */
+int ocs_world_queue_item(const ocs_world_t *w, size_t i, oc_key_t *key, uint64_t *stamp);
+/*! ocs_world_offer() : a brick made elsewhere (ocs_world_export()'s bytes) into the cache, unless it
+ *  is there or being made here already. @return 1 taken, 0 not needed, OC_ECORRUPT (bad kind,
+ *  length or range: discarded), OC_ENOMEM. */
+int ocs_world_offer(ocs_world_t *w, oc_key_t key, uint64_t stamp, const uint8_t *content, size_t n);
+/*! ocs_world_export() : the cached brick (key, stamp) packed into out (≥ OCS_SHARE_MAX_BYTES).
+ *  @return its bytes, 0 when it is no longer cached. */
+size_t ocs_world_export(ocs_world_t *w, oc_key_t key, uint64_t stamp, uint8_t *out, size_t cap);
+/*! ocs_world_hold_back() : another front-end is making (key, stamp): production here skips it
+ *  (it stays queued) until ocs_world_hold_clear(), which the network layer calls at every tick. */
+void ocs_world_hold_back(ocs_world_t *w, oc_key_t key, uint64_t stamp);
+void ocs_world_hold_clear(ocs_world_t *w);
+/*! ocs_world_made_take() : up to cap of the bricks made since the last take (only with a
+ *  content_id), newest first. @return how many. */
+size_t ocs_world_made_take(ocs_world_t *w, oc_key_t *keys, uint64_t *stamps, size_t cap);
 
 #endif /* OC_SERVER_WORLD_H */
