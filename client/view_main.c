@@ -495,7 +495,10 @@ static int run_window(view_win_t *v) {
     goto out;
   }
   if (v->have_state) { /* one local state: a budget that holds it, nothing to blend */
-    ocv_gl_view_desc_t vd = {.budget = ((uint64_t)v->st->brick_count + 1) * OCV_GL_SLOT_BYTES, .kept = 1};
+    /* K = 2 (the state and none staged beside it) with the GL store's own sizes */
+    oc_budget_t g = {.slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 2};
+    g.budget = ((uint64_t)v->st->brick_count + 2) * (OC_SLOT_BYTES + OC_RECORD_BYTES); /* ≥ the minimum */
+    ocv_gl_view_desc_t vd = {.grant = g};
     if (!(view = ocv_gl_view_create(r, &vd, why, sizeof why)) || ocv_gl_view_push(view, v->st, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload: %s", why);
       goto out;
@@ -544,7 +547,7 @@ static int run_window(view_win_t *v) {
           rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
           break;
         }
-        ocv_gl_view_desc_t vd = {.budget = w->budget, .kept = w->kept_states > 2 ? 2 : 1,
+        ocv_gl_view_desc_t vd = {.grant = w->grant, /* the contract as granted: the atlas is sized from it */
                                  .animated = (w->features >> OC_FEATURE_ANIMATION) & 1u,
                                  .epoch_period = w->epoch_period > 0 ? w->epoch_period : 1.0};
         if (!(view = ocv_gl_view_create(r, &vd, why, sizeof why))) {
@@ -638,9 +641,9 @@ static int run_window(view_win_t *v) {
         if (hud) {
           memset(overlay, 0, (size_t)iw * OVERLAY_H * 4);
           ocv_hud_stats_t hs = {.frame_ms = frame_ms, .epoch = epoch, .epoch_age_s = t0 - shown_at,
-                                .bricks = vs.resident_bytes ? (uint32_t)(vs.resident_bytes / OCV_GL_SLOT_BYTES) : 0,
+                                .bricks = vs.bricks,
                                 .resident_bytes = vs.resident_bytes,
-                                .budget_bytes = v->net ? ns.welcome.budget : vs.resident_bytes,
+                                .budget_bytes = v->net ? ns.welcome.grant.budget : vs.resident_bytes,
                                 .bytes_per_s = bytes_rate, .renderer = reproject ? "gl, reprojected" : "gl"};
           ocv_gl_renderer_timings(r, &hs.trace_ms, &hs.reproject_ms);
           if (!reproject) hs.reproject_ms = -1.0;

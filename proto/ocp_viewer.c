@@ -19,8 +19,6 @@
 
 #define OCP__HELD_MAX 2                         /* K − 1 for the largest K (3, animated) */
 #define OCP__FEED_CHUNK (64u << 10)             /* bytes handed to the reader at once: bounds its buffer */
-#define OCP__SLOT_DEFAULT (OC_BRICK_CODE_BYTES) /* 8³ × 2 channels × 2 bytes */
-#define OCP__RECORD_DEFAULT 32u
 #define OCP__GPU_BYTES_MAX (1u << 20)
 #define OCP__VIEWPORT_MAX 65536u
 #define OCP__CONTROL_JSON_MAX (OCP_MAX_CLIENT_PAYLOAD - 8u)
@@ -145,8 +143,8 @@ int ocp_viewer_create(ocp_viewer_t **out, const ocp_viewer_desc_t *desc, const o
   if (!d.max_version) d.max_version = OCP_VERSION_MAX;
   if (d.max_version < OCP_VERSION_MIN || d.max_version > OCP_VERSION_MAX) return OC_EINVAL;
   if (d.role == OCP_ROLE_VIEWER) {
-    if (!d.slot_bytes) d.slot_bytes = OCP__SLOT_DEFAULT;
-    if (!d.record_bytes) d.record_bytes = OCP__RECORD_DEFAULT;
+    if (!d.slot_bytes) d.slot_bytes = OC_SLOT_BYTES;
+    if (!d.record_bytes) d.record_bytes = OC_RECORD_BYTES;
     if (d.budget == 0 || d.slot_bytes > OCP__GPU_BYTES_MAX || d.record_bytes > OCP__GPU_BYTES_MAX) return OC_EINVAL;
     if (d.width < 1 || d.width > OCP__VIEWPORT_MAX || d.height < 1 || d.height > OCP__VIEWPORT_MAX) return OC_EINVAL;
     if (d.caps & ~OCP_CAP_KNOWN) return OC_EINVAL;
@@ -196,9 +194,8 @@ void ocp_viewer_connected(ocp_viewer_t *v, oc_buf_t *out) {
   h.token_len = v->token_len;
   memcpy(h.token, v->token, v->token_len);
   if (v->desc.role == OCP_ROLE_VIEWER) { /* control clients send these as zero */
-    h.budget = v->desc.budget;
-    h.slot_bytes = v->desc.slot_bytes;
-    h.record_bytes = v->desc.record_bytes;
+    h.ask = v->desc.ask;
+    h.kept_states = 0; /* the server decides K */
     h.width = v->have_camera ? v->camera.width : v->desc.width; /* a resized window's viewport */
     h.height = v->have_camera ? v->camera.height : v->desc.height;
     h.caps = v->desc.caps;

@@ -31,9 +31,9 @@ typedef struct ocp_viewer_s ocp_viewer_t;
 
 typedef struct {
   uint8_t role;           /**< OCP_ROLE_VIEWER or OCP_ROLE_CONTROL */
-  uint64_t budget;        /**< bytes */
-  uint32_t slot_bytes;    /**< GPU bytes per brick slot; 0 → 8³ × 2 channels × 2 bytes = 2048 */
-  uint32_t record_bytes;  /**< GPU bytes per node record; 0 → 32 */
+  /** what HELLO asks: budget bytes; slot bytes, 0 → OC_SLOT_BYTES; record bytes, 0 →
+   *  OC_RECORD_BYTES (kept_states unused: the server decides) */
+  OC_BUDGET_MEMBER(ask);
   uint8_t max_depth;      /**< 0..21 */
   uint32_t width, height; /**< viewport */
   uint32_t caps;          /**< OCP_CAP_*; OCP_CAP_ALL normally (OCP_CAP_DICT for a lean viewer) */

@@ -15,6 +15,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "oc_budget.h" /* oc_budget_t */
 #include "oc_bytes.h" /* oc_buf_t */
 #include "oc_math.h"  /* oc_dvec3 */
 
@@ -143,8 +144,8 @@ typedef struct {
   uint16_t min_version, max_version;
   uint8_t role;         /**< OCP_ROLE_* */
   uint8_t max_depth;    /**< 0..21 */
-  uint64_t budget;      /**< bytes (viewer); 0 for control */
-  uint32_t slot_bytes, record_bytes;
+  /** budget, slot and record bytes asked for (viewer; 0 for control); kept_states is 0 */
+  OC_BUDGET_MEMBER(ask);
   uint32_t width, height; /**< viewport, 1..65536 (viewer); 0 for control */
   uint32_t caps;        /**< OCP_CAP_* */
   uint32_t resume_session; /**< 0: a new session */
@@ -160,11 +161,10 @@ typedef struct {
 typedef struct {
   uint16_t version;     /**< chosen */
   uint8_t flags;        /**< OCP_WELCOME_* */
-  uint8_t kept_states;  /**< 2 (static) or 3 (animated); 0 for control */
   uint32_t session;
   uint64_t secret;      /**< with `session`, lets this viewer resume after a reconnect */
-  uint64_t budget;      /**< granted (clamped) */
-  uint32_t slot_bytes, record_bytes;
+  /** the grant: budget (clamped), slot and record bytes, K (2 static, 3 animated); all 0 for control */
+  OC_BUDGET_MEMBER(grant);
   uint8_t max_depth;
   uint32_t features;    /**< oc_scene_t.features bits */
   double epoch_period;  /**< s; 0: epochs are stepped by command */

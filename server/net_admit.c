@@ -27,8 +27,8 @@ static void reclaim_lingering(ocs_session_t *s, const ocs_plan_desc_t *req) {
 
 int ocs_admit_viewer(ocs_session_t *s, const ocp_hello_t *h) {
   ocs_server_t *srv = s->srv;
-  ocs_plan_desc_t req = {.budget = h->budget, .slot_bytes = h->slot_bytes, .record_bytes = h->record_bytes,
-                         .max_depth = h->max_depth};
+  /* the contract as HELLO asked it; the world sets K and clamps the budget */
+  ocs_plan_desc_t req = {.grant = h->ask, .max_depth = h->max_depth};
   reclaim_lingering(s, &req);
   char why[256];
   int r = ocs_world_add_viewer(srv->world, &req, &s->viewer, &s->granted, why, sizeof why);

@@ -51,10 +51,7 @@ static void send_welcome(ocs_session_t *s, int resumed) {
   m.session = s->id;
   m.secret = s->secret;
   if (s->role == OCP_ROLE_VIEWER) {
-    m.kept_states = (uint8_t)ocs_world_kept_states(srv->world);
-    m.budget = s->granted.budget;
-    m.slot_bytes = s->granted.slot_bytes;
-    m.record_bytes = s->granted.record_bytes;
+    m.grant = s->granted.grant; /* the contract the planner plans under, K included */
     m.max_depth = (uint8_t)s->granted.max_depth;
   }
   m.features = sc->features;

@@ -39,17 +39,17 @@
 #include <stdint.h>
 
 #include "oc_brick.h" /* oc_node_kind_t */
+#include "oc_budget.h" /* oc_budget_t */
 #include "oc_key.h"   /* oc_key_t */
 #include "oc_math.h"  /* oc_dvec3 */
 
 #define OCS_PLAN_MAX_KEPT 3
 
 typedef struct {
-  uint64_t budget;         /**< bytes; see ocs_plan_clamp() */
-  uint32_t slot_bytes;     /**< GPU bytes per brick slot */
-  uint32_t record_bytes;   /**< GPU bytes per node record */
+  /** the budget contract (oc_budget.h): budget (see ocs_plan_clamp()), GPU bytes per brick slot and
+   *  per node record, K kept states (3 animated, 2 static) */
+  OC_BUDGET_MEMBER(grant);
   int max_depth;           /**< deepest level, 0..21 */
-  int kept_states;         /**< K: 3 animated, 2 static */
   double split_fraction;   /**< most new nodes per epoch, as a fraction of capacity; 0 → 0.1 */
   double reserve;          /**< budget fraction kept free for change; 0 → split_fraction */
   double min_pixels;       /**< a leaf is split only while its voxel spans more; 0 → 1 */

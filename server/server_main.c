@@ -30,7 +30,7 @@ static int save_state(const oc_scene_t *sc, const ocs_config_t *c) {
   if (ocs_world_create(&w, sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   oc_camera_pose_t pose = c->camera;
   if (!c->camera_given) pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
-  ocs_plan_desc_t d = {.budget = c->budget, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21};
+  ocs_plan_desc_t d = {.budget = c->budget, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21};
   oc_camera_t cam = oc_camera_from_pose(pose);
   ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, c->viewport[0], c->viewport[1]};
   oc_state_t st;

@@ -46,8 +46,6 @@
 #include "ocv_gl.h"
 #endif
 
-#define F_SLOT_BYTES 2048u
-#define F_RECORD_BYTES 32u
 #define F_VERSION OCP_VERSION_MAX
 
 void oct_bench_features_usage(FILE *f) {
@@ -129,7 +127,7 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
     goto out;
   }
   c->create_ms = 1e3 * (oct_now() - t0);
-  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = F_SLOT_BYTES, .record_bytes = F_RECORD_BYTES,
+  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES,
                          .max_depth = 21};
   if (ocs_world_add_viewer(w, &req, &v, NULL, why, sizeof why) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: %s", c->label, why);
@@ -196,7 +194,7 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
       int n = 0;
       for (int i = 0; i < c->K && i < OCS_PLAN_MAX_KEPT; i++)
         if ((kept[n] = ocs_viewer_held(v, i))) n++;
-      c->resident = oc_resident_bytes(kept, n, F_SLOT_BYTES, F_RECORD_BYTES);
+      c->resident = oc_resident_bytes(kept, n, OC_SLOT_BYTES, OC_RECORD_BYTES);
       c->nodes = s->node_count, c->state_bricks = s->brick_count, c->checksum = oc_state_checksum(s);
       for (uint32_t i = 0; i < s->node_count; i++)
         if (s->nodes[i].kind <= OC_NODE_BRICK) c->kinds[s->nodes[i].kind]++;

@@ -23,8 +23,6 @@
 #include "oc_planet.h"
 #include "planner.h"
 
-#define SLOT_BYTES 2048
-#define RECORD_BYTES 32
 #define KEPT 2
 #define RESERVE 0.05
 
@@ -144,8 +142,8 @@ int oct_bench_plan(const char *prog, int argc, char **argv) {
 
   ocs_plan_desc_t d;
   memset(&d, 0, sizeof d);
-  d.slot_bytes = SLOT_BYTES;
-  d.record_bytes = RECORD_BYTES;
+  d.slot_bytes = OC_SLOT_BYTES;
+  d.record_bytes = OC_RECORD_BYTES;
   d.max_depth = OC_KEY_MAX_LEVEL;
   d.kept_states = KEPT;
   d.split_fraction = 1.0;
@@ -153,7 +151,7 @@ int oct_bench_plan(const char *prog, int argc, char **argv) {
   /* --leaves alone sizes the budget for that many brick leaves at the steady target; with --budget
    * it caps the build-up instead */
   if (budget_mib) d.budget = (uint64_t)budget_mib << 20;
-  else if (leaves) d.budget = (uint64_t)((double)leaves * (SLOT_BYTES + KEPT * RECORD_BYTES) / (1.0 - RESERVE));
+  else if (leaves) d.budget = (uint64_t)((double)leaves * (OC_SLOT_BYTES + KEPT * OC_RECORD_BYTES) / (1.0 - RESERVE));
   else d.budget = 2048ull << 20;
   long cap_leaves = budget_mib ? leaves : 0;
   if (ocs_plan_clamp(&d, UINT64_MAX) < 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "plan: budget out of range");
@@ -167,10 +165,10 @@ int oct_bench_plan(const char *prog, int argc, char **argv) {
 
   oc_camera_pose_t here = {{47.0, 8.0, 2000.0}, 30.0, -5.0, 60.0};
   oc_camera_pose_t there = {{-47.0, -172.0, 2000.0}, 210.0, -5.0, 60.0};
-  double capacity = (double)d.budget / (SLOT_BYTES + KEPT * RECORD_BYTES);
+  double capacity = (double)d.budget / (OC_SLOT_BYTES + KEPT * OC_RECORD_BYTES);
   printf("# LOD planner re-plan: budget %.0f MiB (%.0f nodes of %d-byte slots and %d-byte records, %d kept states), "
          "reserve %.2f, split_fraction 1, 1920x1080, fov 60°, one core, median of %ld\n\n",
-         d.budget / 1048576.0, capacity, SLOT_BYTES, RECORD_BYTES, KEPT, d.reserve, repeat);
+         d.budget / 1048576.0, capacity, OC_SLOT_BYTES, OC_RECORD_BYTES, KEPT, d.reserve, repeat);
   double build_s;
   int rc = settle(&r, here, cap_leaves, 400, &build_s);
   if (rc < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "plan: %s", oc_strerror(rc));

@@ -34,8 +34,6 @@
 #include "oc_state.h"
 #include "stress.h"
 
-#define SV_SLOT_BYTES 2048u  /* 8³ × 2 channels × 2 bytes: what overcast-view's atlas spends per brick */
-#define SV_RECORD_BYTES 32u  /* one node record */
 #define SV_MIB (1024.0 * 1024.0)
 
 double stress_now(void) {
@@ -263,7 +261,7 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   }
   v->bricks_last = v->fp_new.n; /* brick records: a lean state carries no brick payloads */
   const stress_footprint_t *win[3] = {&v->fp_new, &v->fp[0], &v->fp[1]};
-  uint64_t resident = sv_resident(win, 1 + v->nfp, SV_SLOT_BYTES, SV_RECORD_BYTES);
+  uint64_t resident = sv_resident(win, 1 + v->nfp, OC_SLOT_BYTES, OC_RECORD_BYTES);
   stress_footprint_t spare = {0};
   if (v->nfp == keep) spare = v->fp[keep - 1];
   else v->nfp++;
@@ -476,8 +474,8 @@ void *stress_viewer_main(void *arg) {
   char why[1024] = "";
   /* lean (the default): the session verifies each state by its digest checksum and keeps 12 bytes
    * a brick, not 2052, so N × budget may exceed this machine's memory */
-  ocp_viewer_desc_t vd = {.role = OCP_ROLE_VIEWER, .budget = v->budget, .slot_bytes = SV_SLOT_BYTES,
-                          .record_bytes = SV_RECORD_BYTES, .max_depth = (uint8_t)v->max_depth,
+  ocp_viewer_desc_t vd = {.role = OCP_ROLE_VIEWER, .budget = v->budget, .slot_bytes = OC_SLOT_BYTES,
+                          .record_bytes = OC_RECORD_BYTES, .max_depth = (uint8_t)v->max_depth,
                           .width = (uint32_t)o->width, .height = (uint32_t)o->height,
                           .caps = o->full_sessions ? OCP_CAP_ALL : OCP_CAP_DICT, .token = o->token,
                           .lean = !o->full_sessions};
@@ -500,10 +498,10 @@ void *stress_viewer_main(void *arg) {
     goto out;
   }
   v->t_welcome = stress_now();
-  if (v->welcome.slot_bytes != SV_SLOT_BYTES || v->welcome.record_bytes != SV_RECORD_BYTES) {
+  if (v->welcome.slot_bytes != OC_SLOT_BYTES || v->welcome.record_bytes != OC_RECORD_BYTES) {
     v->protocol_errors++;
     sv_fail(v, "viewer %d: welcome grants %" PRIu32 "-byte slots and %" PRIu32 "-byte records; we declared %u and %u",
-            v->index, v->welcome.slot_bytes, v->welcome.record_bytes, SV_SLOT_BYTES, SV_RECORD_BYTES);
+            v->index, v->welcome.slot_bytes, v->welcome.record_bytes, OC_SLOT_BYTES, OC_RECORD_BYTES);
     goto out;
   }
   oc_camera_pose_t home = {{v->welcome.cam_lat, v->welcome.cam_lon, v->welcome.cam_alt}, v->welcome.cam_heading,

@@ -12,7 +12,7 @@
 
 #define OCV__NO_SLOT 0xFFFFFFFFu
 
-/*! ocv__gl_build() : leaf records (OCV_GL_LEAF_BYTES each) and pointer octree of s, bricks placed
+/*! ocv__gl_build() : leaf records (OC_RECORD_BYTES each) and pointer octree of s, bricks placed
  *  by slot_of(); malloc'd outputs. @return 0, OC_ENOMEM or OC_ECORRUPT (with why). */
 int ocv__gl_build(const oc_state_t *s, uint32_t (*slot_of)(void *ctx, const oc_state_t *s, uint32_t id), void *ctx,
                   void **rec_out, uint32_t **tree_out, uint32_t *inner_out, char *why, size_t why_len);

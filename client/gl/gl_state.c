@@ -23,7 +23,7 @@ typedef struct {
   float range[4];   /* σt lo, hi, τ lo, hi */
   uint32_t info[4]; /* kind, atlas slot (OCV__NO_SLOT unless a brick), level, 0 */
 } ocv__leaf_rec_t;
-_Static_assert(sizeof(ocv__leaf_rec_t) == OCV_GL_LEAF_BYTES, "leaf record is 32 bytes");
+_Static_assert(sizeof(ocv__leaf_rec_t) == OC_RECORD_BYTES, "leaf record is 32 bytes");
 
 typedef struct {
   uint32_t *w; /* word 0: root reference; then 8 words per interior node */
@@ -233,7 +233,7 @@ int ocv_gl_state_upload(ocv_gl_state_t *gs, const oc_state_t *s, char *why, size
     const oc_brick_t *b = &s->bricks[k];
     ocv__gl_put_brick(gs->atlas, gs->atlas_bricks, k, &b->codes, texels);
   }
-  gs->resident_bytes = (uint64_t)bx * by * bz * OCV_GL_SLOT_BYTES + (uint64_t)s->node_count * OCV_GL_LEAF_BYTES +
+  gs->resident_bytes = (uint64_t)bx * by * bz * OC_SLOT_BYTES + (uint64_t)s->node_count * OC_RECORD_BYTES +
                        gs->tree_bytes;
   GLenum err = glGetError();
   if (err != GL_NO_ERROR) {

@@ -27,6 +27,7 @@ typedef struct {
 struct ocv_gl_store_s {
   GLuint atlas;
   int bricks[3];
+  oc_budget_t grant; /* sizes the atlas; its slot and record bytes count resident bytes */
   uint32_t capacity;
   uint32_t *free_slots, nfree;
   ocv__entry_t *map;
@@ -98,11 +99,20 @@ static void ocv__drop_kept(ocv_gl_store_t *st, ocv__kept_t *k) {
   memset(k, 0, sizeof *k);
 }
 
-ocv_gl_store_t *ocv_gl_store_create(uint32_t slots, int kept, char *why, size_t why_len) {
-  if (slots == 0 || kept < 1 || kept > 3) {
-    (void)oc_errorf(0, why, why_len, "gl store: need at least one slot and 1..3 kept states");
+ocv_gl_store_t *ocv_gl_store_create(const oc_budget_t *grant, char *why, size_t why_len) {
+  if (!grant || grant->kept_states < 2 || grant->kept_states > 3) {
+    (void)oc_errorf(0, why, why_len, "gl store: the grant's kept states must be 2 or 3, not %d", grant ? grant->kept_states : 0);
     return NULL;
   }
+  uint32_t slots = oc_budget_slots(grant);
+  if (slots == 0) {
+    (void)oc_errorf(0, why, why_len,
+                    "gl store: a budget of %llu bytes holds no window of %d states (%u-byte slots, %u-byte records)",
+                    (unsigned long long)grant->budget, grant->kept_states, grant->slot_bytes, grant->record_bytes);
+    return NULL;
+  }
+  if (slots > 0x7FFFFFFFu) slots = 0x7FFFFFFFu;
+  int kept = grant->kept_states - 1;
   int shape[3];
   if (ocv__gl_atlas_shape(slots, shape, "gl store", why, why_len) < 0) return NULL;
   uint32_t bx = (uint32_t)shape[0], by = (uint32_t)shape[1], bz = (uint32_t)shape[2];
@@ -120,6 +130,7 @@ ocv_gl_store_t *ocv_gl_store_create(uint32_t slots, int kept, char *why, size_t 
     ocv_gl_store_free(st);
     return NULL;
   }
+  st->grant = *grant;
   st->capacity = slots;
   st->map_mask = mapn - 1;
   st->max_kept = kept;
@@ -189,12 +200,12 @@ int ocv_gl_store_pump(ocv_gl_store_t *st, uint64_t max_bytes, char *why, size_t 
   if (!st || !st->staged) return 0;
   const oc_state_t *s = st->staged;
   uint64_t sent = 0;
-  while (st->pending_pos < st->npending && (sent == 0 || sent + OCV_GL_SLOT_BYTES <= max_bytes)) {
+  while (st->pending_pos < st->npending && (sent == 0 || sent + OC_SLOT_BYTES <= max_bytes)) {
     const oc_brick_t *b = &s->bricks[st->pending[st->pending_pos++]];
     ocv__entry_t *e = ocv__find(st, b->id);
     ocv__gl_put_brick(st->atlas, st->bricks, e->slot, &b->codes, st->texels);
     e->uploaded = 1;
-    sent += OCV_GL_SLOT_BYTES;
+    sent += OC_SLOT_BYTES;
     st->uploaded_bricks++;
   }
   st->uploaded_bytes += sent;
@@ -223,7 +234,7 @@ int ocv_gl_store_pump(ocv_gl_store_t *st, uint64_t max_bytes, char *why, size_t 
   k.gs.brick_count = s->brick_count;
   k.gs.sun_dir = s->sun_dir;
   ocv__gl_buffers(&k.gs, rec, s->node_count, tree, inner);
-  k.gs.resident_bytes = (uint64_t)s->node_count * OCV_GL_LEAF_BYTES + k.gs.tree_bytes;
+  k.gs.resident_bytes = (uint64_t)s->node_count * OC_RECORD_BYTES + k.gs.tree_bytes;
   free(rec);
   free(tree);
   st->staged = NULL; /* its references now belong to the kept state */
@@ -251,10 +262,10 @@ void ocv_gl_store_stats(const ocv_gl_store_t *st, ocv_gl_store_stats_t *out) {
   out->uploaded_bricks = st->uploaded_bricks;
   out->uploaded_bytes = st->uploaded_bytes;
   uint64_t records = st->staged ? st->staged->node_count : 0;
-  out->gpu_bytes = (uint64_t)st->bricks[0] * st->bricks[1] * st->bricks[2] * OCV_GL_SLOT_BYTES;
+  out->gpu_bytes = (uint64_t)st->bricks[0] * st->bricks[1] * st->bricks[2] * OC_SLOT_BYTES;
   for (int i = 0; i < st->nkept; i++) {
     records += st->kept[i].nodes;
     out->gpu_bytes += st->kept[i].gs.resident_bytes;
   }
-  out->resident_bytes = (uint64_t)out->used * OCV_GL_SLOT_BYTES + records * OCV_GL_LEAF_BYTES;
+  out->resident_bytes = (uint64_t)out->used * st->grant.slot_bytes + records * st->grant.record_bytes;
 }

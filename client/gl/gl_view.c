@@ -26,8 +26,8 @@ struct ocv_gl_view_s {
 };
 
 ocv_gl_view_t *ocv_gl_view_create(ocv_gl_renderer_t *r, const ocv_gl_view_desc_t *d, char *why, size_t why_len) {
-  if (!r || !d || d->budget < OCV_GL_SLOT_BYTES || d->kept < 1 || d->kept > 2) {
-    (void)oc_errorf(0, why, why_len, "gl view: need a renderer, a budget of at least one brick and 1..2 kept states");
+  if (!r || !d) {
+    (void)oc_errorf(0, why, why_len, "gl view: need a renderer and a grant");
     return NULL;
   }
   ocv_gl_view_t *v = calloc(1, sizeof *v);
@@ -38,9 +38,8 @@ ocv_gl_view_t *ocv_gl_view_create(ocv_gl_renderer_t *r, const ocv_gl_view_desc_t
   v->r = r;
   v->d = *d;
   if (!v->d.upload_per_frame) v->d.upload_per_frame = 4u << 20;
-  uint64_t slots = d->budget / OCV_GL_SLOT_BYTES;
   /* the store keeps the shown states and stages one more: K states in all, as the budget counts */
-  v->store = ocv_gl_store_create(slots > 0x7FFFFFFF ? 0x7FFFFFFF : (uint32_t)slots, d->kept, why, why_len);
+  v->store = ocv_gl_store_create(&d->grant, why, why_len);
   if (!v->store) {
     free(v);
     return NULL;
@@ -116,6 +115,7 @@ int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now
   s.uploaded_bytes = after.uploaded_bytes - before.uploaded_bytes;
   s.pending = after.pending;
   s.resident_bytes = after.resident_bytes;
+  s.bricks = after.used;
   int rc = 0;
   const ocv_gl_state_t *gs = ocv_gl_store_state(v->store, 0);
   if (gs && v->have_shown) {

@@ -12,6 +12,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "oc_budget.h" /* oc_budget_t, OC_SLOT_BYTES, OC_RECORD_BYTES */
 #include "oc_render.h" /* oc_render_desc_t, oc_image_t, oc_state_t */
 #include "interp.h"    /* ocv_interp_t (client/) */
 
@@ -93,13 +94,12 @@ GLuint ocv_gl_compute_program(const char *kernel, const char *defines, char *why
 
 /* ---- GPU state (gl_state.c) ------------------------------------------------------------------------- */
 
-/*! GPU bytes per node record (std430 leaf record) and per interior node of the pointer octree. */
-#define OCV_GL_LEAF_BYTES 32u
+/*! GPU bytes per node record are OC_RECORD_BYTES (the std430 leaf record, oc_budget.h); per interior
+ *  node of the pointer octree: */
 #define OCV_GL_INNER_BYTES 32u
 /*! Deepest octree-map level (64³ references): see gl_state.c. */
 #define OCV_GL_MAP_MAX_LEVEL 6
-/*! GPU bytes per brick slot in the atlas: 8³ texels of RG16UI. */
-#define OCV_GL_SLOT_BYTES (512u * 4u)
+/* GPU bytes per brick slot in the atlas (8³ texels of RG16UI) are OC_SLOT_BYTES (oc_budget.h). */
 
 typedef struct {
   GLuint atlas;         /**< GL_TEXTURE_3D, RG16UI: (σt code, τ code) per sample; 0 without bricks */
@@ -140,13 +140,15 @@ typedef struct {
   uint32_t ready;                    /**< complete states kept */
   uint64_t uploaded_bricks, uploaded_bytes;
   uint64_t resident_bytes;           /**< the Conventions' measure: distinct bricks of the kept and the
-                                          staged states × OCV_GL_SLOT_BYTES + their records × OCV_GL_LEAF_BYTES */
+                                          staged states × the grant's slot bytes + their records × its
+                                          record bytes: what the server counts */
   uint64_t gpu_bytes;                /**< what is allocated: the atlas, trees and leaf buffers */
 } ocv_gl_store_stats_t;
 
-/*! ocv_gl_store_create() : an atlas of `slots` bricks (budget / slot bytes) and room for `kept`
- *  complete states (the K−1 of the Conventions: 2 animated, 1 static). NULL with why on failure. */
-ocv_gl_store_t *ocv_gl_store_create(uint32_t slots, int kept, char *why, size_t why_len);
+/*! ocv_gl_store_create() : an atlas of oc_budget_slots(grant) bricks (the most a window within the
+ *  grant can hold: its records taken off), and K − 1 complete states kept beside the staged one
+ *  (2 animated, 1 static). NULL with why on failure (a grant below oc_budget_min(), K not 2..3). */
+ocv_gl_store_t *ocv_gl_store_create(const oc_budget_t *grant, char *why, size_t why_len);
 void ocv_gl_store_free(ocv_gl_store_t *st);
 /*! ocv_gl_store_stage() : s (validated; it must stay unchanged until it is ready) becomes the state
  *  being uploaded, replacing one still staged. @return 0, or OC_ETOOBIG (its new bricks do not fit
@@ -254,8 +256,8 @@ GLuint ocv_gl_history_output(const ocv_gl_history_t *hs);
 typedef struct ocv_gl_view_s ocv_gl_view_t;
 
 typedef struct {
-  uint64_t budget;             /**< the granted budget, bytes: the atlas holds budget / OCV_GL_SLOT_BYTES bricks */
-  int kept;                    /**< complete states kept: K − 1 (2 animated, 1 static) */
+  oc_budget_t grant;           /**< WELCOME's grant: the store (ocv_gl_store_create()) is sized from it
+                                    and keeps K − 1 complete states (2 animated, 1 static) */
   int animated;                /**< time interpolation (else only splits and merges cross-fade) */
   double epoch_period;         /**< s; the blend lasts the wall time between the two states'
                                     epochs (ocv_interp_blend_seconds; ≤ 0: no blend) */
@@ -268,6 +270,7 @@ typedef struct {
   uint32_t pending;      /**< bricks of the staged state still to upload */
   uint64_t uploaded_bytes; /**< this frame */
   uint64_t resident_bytes; /**< the Conventions' measure (ocv_gl_store_stats) */
+  uint32_t bricks;       /**< atlas slots in use */
   ocv_gl_frame_stats_t frame;
   int shown;             /**< 1 when a state was rendered */
 } ocv_gl_view_stats_t;

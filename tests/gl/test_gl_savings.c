@@ -46,7 +46,7 @@ static void test_gl_savings__same_image(void **state) {
     printf("view %d: %u leaves, %u inner, deepest level %d: map level %d (%llu KiB)\n", v, gs.leaf_count, gs.inner_count,
            deepest, gs.map_level, (unsigned long long)(map_bytes >> 10));
     assert_true(gs.map_level >= 1 && gs.map_level <= OCV_GL_MAP_MAX_LEVEL && gs.map_level <= deepest);
-    assert_true(map_bytes <= 4 * (1 + 8ull * gs.inner_count) + (uint64_t)gs.leaf_count * OCV_GL_LEAF_BYTES);
+    assert_true(map_bytes <= 4 * (1 + 8ull * gs.inner_count) + (uint64_t)gs.leaf_count * OC_RECORD_BYTES);
     oc_render_desc_t d = const_bg_desc(cam, W, H);
     oc_image_t a = {0}, b = {0};
     assert_int_equal(oc_image_alloc(&a, W, H), 0);

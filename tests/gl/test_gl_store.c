@@ -99,14 +99,19 @@ static void test_gl_store__epochs(void **state) {
   refresh(&s2, &s1, 10);
   make_state(&s3, &cam3, -0.08, 1000000);
   uint32_t slots = distinct_bricks(&s1, &s2) + s3.brick_count; /* room for two kept and one staged */
-  ocv_gl_store_t *st = ocv_gl_store_create(slots, 2, why, sizeof why);
+  /* a grant of exactly that many bricks once the records are taken off (K = 3: 2 kept, 1 staged) */
+  oc_budget_t g = {.budget = (uint64_t)slots * (OC_SLOT_BYTES + OC_RECORD_BYTES) + OC_RECORD_BYTES,
+                   .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
+  ocv_gl_store_t *st = ocv_gl_store_create(&g, why, sizeof why);
   if (!st) fail_msg("%s", why);
   ocv_gl_store_stats_t ss;
+  ocv_gl_store_stats(st, &ss);
+  assert_int_equal(ss.capacity, slots);
 
   /* 1. the first state arrives in bounded pieces: 16 bricks a call */
   assert_int_equal(ocv_gl_store_stage(st, &s1, why, sizeof why), 0);
   int calls = 0, r;
-  while ((r = ocv_gl_store_pump(st, 16 * OCV_GL_SLOT_BYTES, why, sizeof why)) == 0) {
+  while ((r = ocv_gl_store_pump(st, 16 * OC_SLOT_BYTES, why, sizeof why)) == 0) {
     calls++;
     assert_null(ocv_gl_store_state(st, 0)); /* nothing to render until it is complete */
   }
@@ -124,7 +129,7 @@ static void test_gl_store__epochs(void **state) {
   assert_int_equal(ss.uploaded_bricks, s1.brick_count + 10);
   assert_int_equal(ss.ready, 2);
   const oc_state_t *both[2] = {&s2, &s1};
-  assert_int_equal(ss.resident_bytes, oc_resident_bytes(both, 2, OCV_GL_SLOT_BYTES, OCV_GL_LEAF_BYTES));
+  assert_int_equal(ss.resident_bytes, oc_resident_bytes(both, 2, OC_SLOT_BYTES, OC_RECORD_BYTES));
   expect_same_image(ocv_gl_store_state(st, 0), &s2, cam);
   expect_same_image(ocv_gl_store_state(st, 1), &s1, cam);
 
@@ -134,8 +139,8 @@ static void test_gl_store__epochs(void **state) {
   ocv_gl_store_stats(st, &ss);
   assert_int_equal(ss.used, s2.brick_count + s3.brick_count);
   const oc_state_t *kept[2] = {&s3, &s2};
-  assert_int_equal(ss.resident_bytes, oc_resident_bytes(kept, 2, OCV_GL_SLOT_BYTES, OCV_GL_LEAF_BYTES));
-  assert_true(ss.resident_bytes <= (uint64_t)slots * OCV_GL_SLOT_BYTES + (uint64_t)(s2.node_count + s3.node_count) * OCV_GL_LEAF_BYTES);
+  assert_int_equal(ss.resident_bytes, oc_resident_bytes(kept, 2, OC_SLOT_BYTES, OC_RECORD_BYTES));
+  assert_true(ss.resident_bytes <= (uint64_t)slots * OC_SLOT_BYTES + (uint64_t)(s2.node_count + s3.node_count) * OC_RECORD_BYTES);
   expect_same_image(ocv_gl_store_state(st, 0), &s3, cam3);
   printf("store: %u slots, %u used, %llu bricks uploaded for 3 states of %u, %u, %u bricks\n", ss.capacity, ss.used,
          (unsigned long long)ss.uploaded_bricks, s1.brick_count, s2.brick_count, s3.brick_count);
@@ -157,7 +162,7 @@ static void test_gl_store__epochs(void **state) {
   oc_state_t s5;
   refresh(&s5, &s3, 5);
   assert_int_equal(ocv_gl_store_stage(st, &s5, why, sizeof why), 0);
-  assert_int_equal(ocv_gl_store_pump(st, OCV_GL_SLOT_BYTES, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_store_pump(st, OC_SLOT_BYTES, why, sizeof why), 0);
   assert_int_equal(ocv_gl_store_stage(st, &s5, why, sizeof why), 0); /* staged again from scratch */
   assert_int_equal(ocv_gl_store_pump(st, UINT64_MAX, why, sizeof why), 1);
   ocv_gl_store_stats(st, &ss);
@@ -172,7 +177,41 @@ static void test_gl_store__epochs(void **state) {
   oc_state_free(&s5);
 }
 
+/* The atlas follows the grant, not the budget alone: other slot and record bytes, another K, give
+ * another number of slots (oc_budget_slots()), resident bytes are counted in the granted sizes,
+ * and a grant too small for a window is refused by name. */
+static void test_gl_store__sized_from_the_grant(void **state) {
+  (void)state;
+  char why[512];
+  oc_budget_t g = {.budget = 1u << 20, .slot_bytes = 4096, .record_bytes = 64, .kept_states = 2};
+  ocv_gl_store_t *st = ocv_gl_store_create(&g, why, sizeof why);
+  if (!st) fail_msg("%s", why);
+  ocv_gl_store_stats_t ss;
+  ocv_gl_store_stats(st, &ss);
+  assert_int_equal(ss.capacity, (1u << 20) / (4096 + 64)); /* 252, not 1 MiB / 2048 = 512 */
+  assert_int_equal(ss.capacity, oc_budget_slots(&g));
+  oc_state_t s1;
+  oc_camera_t cam;
+  make_state(&s1, &cam, -0.09, 0);
+  if (s1.brick_count <= ss.capacity) {
+    assert_int_equal(ocv_gl_store_stage(st, &s1, why, sizeof why), 0);
+    assert_int_equal(ocv_gl_store_pump(st, UINT64_MAX, why, sizeof why), 1);
+    ocv_gl_store_stats(st, &ss);
+    const oc_state_t *one[1] = {&s1};
+    assert_int_equal(ss.resident_bytes, oc_resident_bytes(one, 1, 4096, 64));
+  }
+  ocv_gl_store_free(st);
+  oc_state_free(&s1);
+  oc_budget_t tiny = {.budget = 100, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
+  assert_null(ocv_gl_store_create(&tiny, why, sizeof why));
+  assert_non_null(strstr(why, "holds no window of 3 states"));
+  oc_budget_t k4 = {.budget = 1u << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 4};
+  assert_null(ocv_gl_store_create(&k4, why, sizeof why));
+  assert_non_null(strstr(why, "kept states must be 2 or 3"));
+}
+
 int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_store__epochs)};
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_store__epochs),
+                                     cmocka_unit_test(test_gl_store__sized_from_the_grant)};
   return cmocka_run_group_tests(tests, setup, teardown);
 }

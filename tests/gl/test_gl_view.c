@@ -57,9 +57,12 @@ static void test_gl_view__epochs(void **state) {
   render_direct(&s2, &d, &r2);
   assert_int_equal(oc_image_alloc(&img, W, H), 0);
 
-  uint64_t budget = (uint64_t)(s1.brick_count + s2.brick_count + 8) * OCV_GL_SLOT_BYTES;
-  ocv_gl_view_desc_t vd = {.budget = budget, .kept = 2, .animated = 1, .epoch_period = 1.0,
-                           .upload_per_frame = 32 * OCV_GL_SLOT_BYTES};
+  /* a grant of room for both states' bricks and 8 more, records taken off (K = 3) */
+  uint32_t nslots = s1.brick_count + s2.brick_count + 8;
+  uint64_t budget = (uint64_t)nslots * (OC_SLOT_BYTES + OC_RECORD_BYTES);
+  oc_budget_t g = {.budget = budget, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
+  ocv_gl_view_desc_t vd = {.grant = g, .animated = 1, .epoch_period = 1.0,
+                           .upload_per_frame = 32 * OC_SLOT_BYTES};
   ocv_gl_view_t *v = ocv_gl_view_create(ren, &vd, why, sizeof why);
   if (!v) fail_msg("%s", why);
   ocv_gl_view_stats_t st;
@@ -71,7 +74,7 @@ static void test_gl_view__epochs(void **state) {
   int frames = 0;
   do {
     assert_int_equal(ocv_gl_view_frame(v, &d, 0.1 * frames, 0, &img, &st, why, sizeof why), 0);
-    assert_true(st.uploaded_bytes <= 32 * OCV_GL_SLOT_BYTES);
+    assert_true(st.uploaded_bytes <= 32 * OC_SLOT_BYTES);
     frames++;
   } while (!st.shown);
   assert_int_equal(frames, (int)((s1.brick_count + 31) / 32));
@@ -83,7 +86,7 @@ static void test_gl_view__epochs(void **state) {
   double now = 10.0;
   do {
     assert_int_equal(ocv_gl_view_frame(v, &d, now, 0, &img, &st, why, sizeof why), 0);
-    assert_true(st.resident_bytes <= budget + (uint64_t)(s1.node_count + s2.node_count) * OCV_GL_LEAF_BYTES);
+    assert_true(st.resident_bytes <= budget + (uint64_t)(s1.node_count + s2.node_count) * OC_RECORD_BYTES);
   } while (st.epoch != 2);
   assert_true(st.t == 0.0f);
   double at0 = rmse(&img, &r1), p12 = rmse(&r1, &r2);
@@ -104,7 +107,7 @@ static void test_gl_view__epochs(void **state) {
   /* over the budget: refused, the shown state stays */
   oc_state_t big;
   make_state(&big, oc_camera_from_pose((oc_camera_pose_t){{0.0, -0.03, 3000.0}, 90.0, 0.0, 40.0}), 2000000, 3);
-  if (big.brick_count > (uint32_t)(budget / OCV_GL_SLOT_BYTES) - s2.brick_count) {
+  if (big.brick_count > nslots - s2.brick_count) {
     assert_int_equal(ocv_gl_view_push(v, &big, why, sizeof why), OC_ETOOBIG);
     assert_int_equal(ocv_gl_view_frame(v, &d, now + 30, 0, &img, &st, why, sizeof why), 0);
     assert_int_equal(st.epoch, 2);
@@ -168,8 +171,9 @@ static void fly(const oc_state_t *states, const int *merges, double period, path
   char why[512];
   uint32_t most = 0;
   for (int k = 0; k < PATH_E; k++) most = states[k].brick_count > most ? states[k].brick_count : most;
-  ocv_gl_view_desc_t vd = {.budget = (uint64_t)(3 * most + 8) * OCV_GL_SLOT_BYTES, .kept = 1, .animated = 0,
-                           .epoch_period = period};
+  oc_budget_t g = {.budget = (uint64_t)(3 * most + 8) * (OC_SLOT_BYTES + OC_RECORD_BYTES),
+                   .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 2};
+  ocv_gl_view_desc_t vd = {.grant = g, .animated = 0, .epoch_period = period};
   ocv_gl_view_t *v = ocv_gl_view_create(ren, &vd, why, sizeof why);
   if (!v) fail_msg("%s", why);
   oc_render_desc_t d;
