@@ -156,6 +156,11 @@ static void ocv__on_control_reply(void *ctx, const ocp_control_t *m) {
   if (c->user.control_reply) c->user.control_reply(c->user.ctx, m);
 }
 
+static void ocv__on_budget(void *ctx, const oc_budget_t *grant) {
+  ocv_conn_t *c = ctx;
+  if (c->user.budget) c->user.budget(c->user.ctx, grant);
+}
+
 static void ocv__on_closed(void *ctx, uint32_t code, const char *text) {
   ocv_conn_t *c = ctx;
   c->server_closed = 1;
@@ -229,7 +234,8 @@ int ocv_conn_create(ocv_conn_t **out, const char *host, int port, const ocp_view
   c->port = port;
   snprintf(c->addr, sizeof c->addr, strchr(host, ':') ? "[%s]:%d" : "%s:%d", host, port);
   if (ev) c->user = *ev;
-  ocp_viewer_events_t mine = {c, ocv__on_welcome, ocv__on_state, ocv__on_stats, ocv__on_control_reply, ocv__on_closed};
+  ocp_viewer_events_t mine = {c,           ocv__on_welcome, ocv__on_state, ocv__on_stats, ocv__on_control_reply,
+                              ocv__on_closed, ocv__on_budget};
   int r = vd ? ocp_viewer_create(&c->v, vd, &mine) : OC_EINVAL;
   if (r < 0) {
     (void)oc_errorf(0, why, why_len, "%s: %s", c->addr,
@@ -692,6 +698,15 @@ static void ocv__net_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
   pthread_mutex_unlock(&n->mu);
 }
 
+/* BUDGET: the grant in force changes in the one place the HUD reads it (the status' WELCOME). */
+static void ocv__net_budget(void *ctx, const oc_budget_t *grant) {
+  ocv_net_t *n = ctx;
+  pthread_mutex_lock(&n->mu);
+  n->st.welcome.grant = *grant;
+  n->st.budgets++;
+  pthread_mutex_unlock(&n->mu);
+}
+
 static void ocv__net_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   ocv_net_t *n = ctx;
   (void)bricks;
@@ -878,7 +893,7 @@ int ocv_net_start(ocv_net_t **out, const ocv_net_desc_t *d) {
       ocv__net_free(n);
       return OC_EIO;
     }
-  ocp_viewer_events_t ev = {n, ocv__net_welcome, ocv__net_state, ocv__net_stats, NULL, NULL};
+  ocp_viewer_events_t ev = {n, ocv__net_welcome, ocv__net_state, ocv__net_stats, NULL, NULL, ocv__net_budget};
   char why[256];
   int r = ocv_conn_create(&n->c, n->host, n->d.port, &n->d.viewer, &ev, why, sizeof why);
   if (r < 0) {

@@ -173,7 +173,9 @@ typedef struct {
 typedef struct {
   int connected;                /**< WELCOME received on the current connection */
   int have_welcome;
-  ocp_welcome_t welcome;        /**< the last WELCOME (valid when have_welcome) */
+  ocp_welcome_t welcome;        /**< the last WELCOME (valid when have_welcome); its grant is the
+                                     one in force, BUDGET messages included */
+  uint64_t budgets;             /**< budget changes taken into force (BUDGET, version 3) */
   int have_stats;
   ocp_stats_t server_stats;     /**< the server's STATS of the last epoch */
   ocp_viewer_stats_t viewer;    /**< the session's counters */

@@ -489,7 +489,8 @@ static int run_window(view_win_t *v) {
   ocv_gl_view_stats_t vs = {0};
   oc_atmo_t *atmo = NULL;
   int scene_ready = !v->net; /* with --connect: once the WELCOME brought features and optics */
-  uint64_t welcomes_seen = 0;
+  uint64_t welcomes_seen = 0, budgets_seen = 0;
+  int repush = 0; /* a store resized for BUDGET takes the newest state again */
   if (scene_ready && make_atmo(v->sc, v->o.threads, &atmo) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
     goto out;
@@ -536,6 +537,20 @@ static int run_window(view_win_t *v) {
         scene_ready = have_gs = 0;
       }
       welcomes_seen = ns.welcomes;
+      if (scene_ready && ns.budgets != budgets_seen) {
+        /* BUDGET took effect (a raise at once, a lowering once the old budget's states have left
+         * the window): the store is sized again from the grant now in force, and takes the newest
+         * state again at once */
+        oc_log_info("%s: budget now %.1f MiB: the GPU store is resized", v->net_opts->host,
+                    (double)ns.welcome.grant.budget / 1048576.0);
+        ocv_gl_view_free(view);
+        view = NULL;
+        oc_atmo_free(atmo);
+        atmo = NULL;
+        repush = have_gs;
+        scene_ready = have_gs = 0;
+      }
+      budgets_seen = ns.budgets;
       if (!scene_ready && ns.have_welcome) {
         const ocp_welcome_t *w = &ns.welcome;
         scene_from_welcome(v->sc, w);
@@ -556,6 +571,8 @@ static int run_window(view_win_t *v) {
         }
         scene_ready = 1;
         cam_dirty = 1;
+        if (repush && ocv_gl_view_push(view, v->st, why, sizeof why) == 0) have_gs = 1;
+        repush = 0;
       }
       uint64_t e;
       if (view && ocv_net_take_state(v->net, v->st, &e) == 1) {

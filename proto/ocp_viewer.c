@@ -43,7 +43,10 @@ struct ocp_viewer_s {
   uint32_t asked_session; /* resume session named in this connection's HELLO */
   oc_state_t *held[OCP__HELD_MAX]; /* newest first; lean: records only */
   oc_brick_digests_t hdig[OCP__HELD_MAX]; /* lean: held[i]'s bricks as (id, digest) */
+  uint64_t hbudget[OCP__HELD_MAX];        /* the budget held[i] was planned under */
   int nheld;
+  int have_pend;     /* a lowering (BUDGET) waits for the old budget's states to leave the window */
+  ocp_budget_t pend;
   int have_camera;
   ocp_camera_t camera; /* the latest: sent after every WELCOME */
   int phase;           /* OCP__EP_* */
@@ -214,6 +217,18 @@ void ocp_viewer_connected(ocp_viewer_t *v, oc_buf_t *out) {
 
 /*-*** Frames ***/
 
+/* A pending lowering takes effect once no held state was planned under the old budget: the
+ * window (the held states and the one arriving next, which is planned under the new one) then
+ * fits the new budget, and the store may shrink. */
+static void ocp__budget_settle(ocp_viewer_t *v) {
+  if (!v->have_pend) return;
+  for (int i = 0; i < v->nheld; i++)
+    if (v->held[i]->epoch < v->pend.epoch) return;
+  v->have_pend = 0;
+  v->welcome.budget = v->pend.budget;
+  if (v->ev.budget) v->ev.budget(v->ev.ctx, &v->welcome.grant);
+}
+
 static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
                            size_t why_len) {
   char reason[OCP_TEXT_MAX + 1];
@@ -241,6 +256,9 @@ static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t
   v->version = (uint8_t)w.version;
   /* a new session: nothing held is valid any more (its bricks' ids mean other content) */
   ocp__drop_held(v, resumed ? ocp__keep(v) : 0);
+  /* WELCOME names the budget in force; a BUDGET still pending is sent again after it */
+  v->have_pend = 0;
+  for (int i = 0; i < v->nheld; i++) v->hbudget[i] = w.budget;
   if (resumed) v->st.resumed++;
   if (v->ev.welcome) v->ev.welcome(v->ev.ctx, &v->welcome, resumed);
   if (v->have_camera && v->desc.role == OCP_ROLE_VIEWER) ocp_put_camera(out, v->version, &v->camera);
@@ -302,19 +320,66 @@ static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8
                           : oc_resident_bytes(window, v->nheld + 1, v->welcome.slot_bytes, v->welcome.record_bytes);
   v->st.resident_bytes = resident;
   if (resident > v->st.resident_peak) v->st.resident_peak = resident;
-  if (resident > v->welcome.budget) v->st.over_budget++;
+  /* the window's budget: the largest its states were planned under (an old one stays reserved
+   * until its states have left) */
+  uint64_t planned = v->have_pend && m.epoch >= v->pend.epoch ? v->pend.budget : v->welcome.budget, allowed = planned;
+  for (int i = 0; i < v->nheld && i < ocp__keep(v); i++)
+    if (v->hbudget[i] > allowed) allowed = v->hbudget[i];
+  if (resident > allowed) v->st.over_budget++;
   /* push as newest; the oldest of the window goes */
   ocp__drop_held(v, ocp__keep(v) - 1);
   memmove(&v->held[1], &v->held[0], (size_t)v->nheld * sizeof v->held[0]);
   memmove(&v->hdig[1], &v->hdig[0], (size_t)v->nheld * sizeof v->hdig[0]);
+  memmove(&v->hbudget[1], &v->hbudget[0], (size_t)v->nheld * sizeof v->hbudget[0]);
   v->held[0] = s;
   v->hdig[0] = dig;
+  v->hbudget[0] = planned;
   v->nheld++;
+  ocp__budget_settle(v);
   v->st.states++;
   v->st.bricks_in += v->begin.bricks_sent;
   ocp_ack_t ack = {m.epoch, m.checksum};
   ocp_put_ack(out, v->version, &ack);
   if (v->ev.state) v->ev.state(v->ev.ctx, s, v->begin.bricks_sent);
+  return 0;
+}
+
+/* BUDGET (version 3): between epochs, at least the minimum, for an epoch after the newest held. */
+static int ocp__on_budget(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
+                          size_t why_len) {
+  char reason[OCP_TEXT_MAX + 1];
+  if (v->desc.role != OCP_ROLE_VIEWER) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
+  if (v->version < OCP_VERSION_BUDGET)
+    return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_UNEXPECTED, why, why_len, "budget: not in protocol version %u",
+                      (unsigned)v->version);
+  if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
+  ocp_budget_t m;
+  int e = ocp_get_budget(p, h->length, &m, reason, sizeof reason);
+  if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
+  uint64_t mn = oc_budget_min(&v->welcome.grant);
+  if (m.budget < mn)
+    return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
+                      "budget: %" PRIu64 " bytes is below the minimum %" PRIu64 " (K = %d)", m.budget, mn,
+                      v->welcome.kept_states);
+  uint64_t newest = v->nheld ? v->held[0]->epoch : 0;
+  if (v->nheld && m.epoch <= newest)
+    return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
+                      "budget: effective epoch %" PRIu64 " is not after the newest state's %" PRIu64, m.epoch, newest);
+  if (v->have_pend && m.epoch < v->pend.epoch)
+    return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
+                      "budget: effective epoch %" PRIu64 " is before the pending one's %" PRIu64, m.epoch, v->pend.epoch);
+  v->st.budgets++;
+  if (m.budget >= v->welcome.budget && !v->have_pend) { /* a raise holds at once: the old states fit it */
+    v->welcome.budget = m.budget;
+    if (v->ev.budget) v->ev.budget(v->ev.ctx, &v->welcome.grant);
+    return 0;
+  }
+  /* a lowering (or a change while one is pending): the largest budget stays in force until the
+   * states planned under it have left */
+  if (v->have_pend && v->pend.budget > v->welcome.budget) v->welcome.budget = v->pend.budget;
+  v->have_pend = 1;
+  v->pend = m;
+  ocp__budget_settle(v); /* nothing held: at once */
   return 0;
 }
 
@@ -383,6 +448,8 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
       if (v->ev.stats) v->ev.stats(v->ev.ctx, &s);
       return 0;
     }
+    case OCP_MSG_BUDGET:
+      return ocp__on_budget(v, h, p, out, why, why_len);
     case OCP_MSG_CONTROL_REPLY: {
       if (viewer) return ocp__unexpected(v, out, h, "for a viewer", why, why_len);
       ocp_control_t c;

@@ -58,12 +58,19 @@ typedef struct {
   void (*control_reply)(void *ctx, const ocp_control_t *c);
   /*! The server said goodbye or sent an error (the connection should be closed; code OCP_CODE_*). */
   void (*closed)(void *ctx, uint32_t code, const char *text);
+  /*! The budget in force changed (BUDGET, version 3): a raise at once, a lowering once every state
+   *  planned under the old budget has left the window; `grant` is the WELCOME's grant with the
+   *  budget now in force: a GPU store may be resized to it. */
+  void (*budget)(void *ctx, const oc_budget_t *grant);
 } ocp_viewer_events_t;
 
 typedef struct {
   uint64_t states, bytes_in, frames_in, bricks_in;
   uint64_t resident_bytes, resident_peak; /**< counted by the session itself */
-  uint64_t over_budget;                   /**< states after which resident > granted budget (never) */
+  uint64_t over_budget;                   /**< states after which resident > granted budget (never); with
+                                               a BUDGET pending, the larger of the budgets its window's
+                                               states were planned under */
+  uint64_t budgets;                       /**< BUDGET messages taken */
   uint64_t reconnects, resumed;
   uint64_t held_bytes; /**< bytes of the arrays of the kept states in this process (records, and
                             bricks or digests): not the budget measure, what the session costs */

@@ -20,6 +20,7 @@
 #define OCP__WELCOME_BYTES 178
 #define OCP__CAMERA_BYTES 88
 #define OCP__ACK_BYTES 16
+#define OCP__BUDGET_BYTES 16
 #define OCP__TEXT_BYTES 6
 #define OCP__EPOCH_BEGIN_BYTES 64
 #define OCP__EPOCH_END_BYTES 16
@@ -247,6 +248,13 @@ void ocp_put_ack(oc_buf_t *b, uint8_t version, const ocp_ack_t *m) {
   size_t h = ocp_frame_begin(b, version, OCP_MSG_ACK);
   oc_buf_u64(b, m->epoch);
   oc_buf_u64(b, m->checksum);
+  ocp_frame_end(b, h);
+}
+
+void ocp_put_budget(oc_buf_t *b, uint8_t version, const ocp_budget_t *m) {
+  size_t h = ocp_frame_begin(b, version, OCP_MSG_BUDGET);
+  oc_buf_u64(b, m->budget);
+  oc_buf_u64(b, m->epoch);
   ocp_frame_end(b, h);
 }
 
@@ -539,6 +547,16 @@ int ocp_get_ack(const uint8_t *p, size_t n, ocp_ack_t *m, char *why, size_t why_
   OC_TRY(ocp__exact("ack", n, OCP__ACK_BYTES, why, why_len));
   m->epoch = oc_get_u64(p);
   m->checksum = oc_get_u64(p + 8);
+  return 0;
+}
+
+int ocp_get_budget(const uint8_t *p, size_t n, ocp_budget_t *m, char *why, size_t why_len) {
+  ocp__why_clear(why, why_len);
+  memset(m, 0, sizeof *m);
+  OC_TRY(ocp__exact("budget", n, OCP__BUDGET_BYTES, why, why_len));
+  m->budget = oc_get_u64(p);
+  m->epoch = oc_get_u64(p + 8);
+  if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "budget: budget is 0");
   return 0;
 }
 

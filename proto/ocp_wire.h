@@ -22,7 +22,8 @@
 #define OCP_MAGIC0 0x4F /* 'O' */
 #define OCP_MAGIC1 0x57 /* 'W' */
 #define OCP_VERSION_MIN 1 /**< versions this build speaks */
-#define OCP_VERSION_MAX 2
+#define OCP_VERSION_MAX 3
+#define OCP_VERSION_BUDGET 3 /**< the first version with BUDGET (0x89) */
 #define OCP_HEADER_BYTES 8
 /*! Largest payload either side ever sends (epoch chunks are at most OCP_CHUNK_RAW_MAX raw). */
 #define OCP_MAX_PAYLOAD (4u << 20)
@@ -49,7 +50,8 @@
   XX(EPOCH_END, 0x85, "epoch-end")         \
   XX(STATS, 0x86, "stats")                 \
   XX(CONTROL_REPLY, 0x87, "control-reply") \
-  XX(DICT, 0x88, "dictionary")
+  XX(DICT, 0x88, "dictionary")             \
+  XX(BUDGET, 0x89, "budget")
 
 typedef enum {
 #define OCP__MSG_ENUM(name, val, str) OCP_MSG_##name = (val),
@@ -187,6 +189,12 @@ typedef struct {
   uint64_t epoch, checksum;
 } ocp_ack_t;
 
+/*! BUDGET (version 3): the viewer's budget from epoch `epoch` on (docs/protocol.md, "BUDGET"). */
+typedef struct {
+  uint64_t budget; /**< bytes, ≠ 0; the grant's slot bytes, record bytes and K stay */
+  uint64_t epoch;  /**< the first epoch planned under it */
+} ocp_budget_t;
+
 typedef struct {
   uint32_t code; /**< OCP_CODE_* */
   char text[OCP_TEXT_MAX + 1];
@@ -252,6 +260,7 @@ void ocp_put_epoch_begin(oc_buf_t *b, uint8_t version, const ocp_epoch_begin_t *
 void ocp_put_epoch_end(oc_buf_t *b, uint8_t version, const ocp_epoch_end_t *m);
 void ocp_put_stats(oc_buf_t *b, uint8_t version, const ocp_stats_t *m);
 void ocp_put_control(oc_buf_t *b, uint8_t version, uint8_t type, const ocp_control_t *m); /* CONTROL, CONTROL_REPLY */
+void ocp_put_budget(oc_buf_t *b, uint8_t version, const ocp_budget_t *m);
 
 /*! Decoders: one frame's payload. @return 0 or OC_ECORRUPT with a one-line reason in why (which
  *  names the message and the field). */
@@ -259,6 +268,9 @@ int ocp_get_hello(const uint8_t *p, size_t n, ocp_hello_t *m, char *why, size_t 
 int ocp_get_welcome(const uint8_t *p, size_t n, ocp_welcome_t *m, char *why, size_t why_len);
 int ocp_get_camera(const uint8_t *p, size_t n, ocp_camera_t *m, char *why, size_t why_len);
 int ocp_get_ack(const uint8_t *p, size_t n, ocp_ack_t *m, char *why, size_t why_len);
+/*! ocp_get_budget() : 16 bytes, budget ≠ 0. What depends on the session (the minimum, the epoch
+ *  against the states held, the version) is the viewer's to check (ocp_viewer.c). */
+int ocp_get_budget(const uint8_t *p, size_t n, ocp_budget_t *m, char *why, size_t why_len);
 int ocp_get_text(const uint8_t *p, size_t n, ocp_text_msg_t *m, char *why, size_t why_len);
 int ocp_get_empty(const uint8_t *p, size_t n, char *why, size_t why_len);
 int ocp_get_epoch_begin(const uint8_t *p, size_t n, ocp_epoch_begin_t *m, char *why, size_t why_len);

@@ -67,6 +67,14 @@ static void check_frame(const ocp_header_t *h, const uint8_t *payload) {
       }
       break;
     }
+    case OCP_MSG_BUDGET: {
+      ocp_budget_t m;
+      if (ocp_get_budget(p, n, &m, why, sizeof why) == 0) {
+        ocp_put_budget(&b, h->version, &m);
+        check_same(&b, p, n);
+      }
+      break;
+    }
     case OCP_MSG_GOODBYE:
     case OCP_MSG_ERROR: {
       ocp_text_msg_t m;
@@ -202,7 +210,7 @@ static void fuzz_viewer(const uint8_t *data, size_t size, int role, int kept, si
   d.caps = lean ? OCP_CAP_DICT : OCP_CAP_ALL;
   d.lean = lean;
   ocp_viewer_t *v, *lean_v = NULL;
-  ocp_viewer_events_t ev = {&lean_v, NULL, on_state, NULL, NULL, NULL};
+  ocp_viewer_events_t ev = {&lean_v, NULL, on_state, NULL, NULL, NULL, NULL};
   if (ocp_viewer_create(&v, &d, &ev) != 0) return;
   if (lean && role == OCP_ROLE_VIEWER) lean_v = v;
   oc_buf_t out = {0}, w = {0};

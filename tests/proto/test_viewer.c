@@ -46,10 +46,13 @@ static void evolve(const oc_state_t *prev, oc_state_t *next, uint32_t id) {
 
 /*-*** A hand-driven server ***/
 
+/* the version of the hand-driven server's frames (1 but in the BUDGET tests) */
+static uint8_t g_version = 1;
+
 static void put_welcome(oc_buf_t *b, int kept, int resumed, uint32_t session, uint64_t budget) {
   ocp_welcome_t w;
   memset(&w, 0, sizeof w);
-  w.version = 1;
+  w.version = g_version;
   w.flags = resumed ? OCP_WELCOME_RESUMED : 0;
   w.kept_states = (uint8_t)kept;
   w.session = session;
@@ -67,7 +70,7 @@ static void put_welcome(oc_buf_t *b, int kept, int resumed, uint32_t session, ui
   w.ms_octaves = 4;
   w.cam_fov = 60.0;
   snprintf(w.name, sizeof w.name, "test scene");
-  ocp_put_welcome(b, 1, &w);
+  ocp_put_welcome(b, g_version, &w);
 }
 
 /* The frames of one epoch (and its STATS): `lacking` are the bricks sent, every other brick must be
@@ -80,7 +83,7 @@ static void put_epoch(oc_buf_t *b, const oc_state_t *s, const oc_state_t *base, 
   assert_int_equal(ocp_epoch_enc_create(&e, &d), 0);
   assert_int_equal(ocp_epoch_enc_begin(e, s, base, lacking, n), 0);
   int r;
-  while ((r = ocp_epoch_enc_next(e, 1, b)) == 1) {
+  while ((r = ocp_epoch_enc_next(e, g_version, b)) == 1) {
   }
   assert_int_equal(r, 0);
   ocp_epoch_enc_free(e);
@@ -88,7 +91,7 @@ static void put_epoch(oc_buf_t *b, const oc_state_t *s, const oc_state_t *base, 
   memset(&st, 0, sizeof st);
   st.epoch = s->epoch;
   st.leaves = s->node_count;
-  ocp_put_stats(b, 1, &st);
+  ocp_put_stats(b, g_version, &st);
 }
 
 /* Every brick of s, ascending (a viewer that holds nothing). */
@@ -100,7 +103,8 @@ static uint32_t all_bricks(const oc_state_t *s, uint32_t *ids) {
 /*-*** Events ***/
 
 typedef struct {
-  int welcomes, states, stats, replies, closes;
+  int welcomes, states, stats, replies, closes, budgets;
+  uint64_t last_budget;
   int last_resumed;
   uint32_t last_bricks, close_code;
   uint64_t last_epoch, last_checksum, last_stats_epoch;
@@ -140,6 +144,12 @@ static void on_closed(void *ctx, uint32_t code, const char *text) {
   snprintf(e->close_text, sizeof e->close_text, "%s", text);
 }
 
+static void on_budget(void *ctx, const oc_budget_t *g) {
+  events_t *e = ctx;
+  e->budgets++;
+  e->last_budget = g->budget;
+}
+
 static ocp_viewer_t *make_viewer(events_t *ev, int role) {
   memset(ev, 0, sizeof *ev);
   ocp_viewer_desc_t d;
@@ -150,7 +160,7 @@ static ocp_viewer_t *make_viewer(events_t *ev, int role) {
   d.width = 640, d.height = 480;
   d.caps = OCP_CAP_ALL;
   d.token = "sesame";
-  ocp_viewer_events_t cb = {ev, on_welcome, on_state, on_stats, on_reply, on_closed};
+  ocp_viewer_events_t cb = {ev, on_welcome, on_state, on_stats, on_reply, on_closed, on_budget};
   ocp_viewer_t *v = NULL;
   assert_int_equal(ocp_viewer_create(&v, &d, &cb), 0);
   return v;
@@ -722,6 +732,128 @@ static void test_viewer__over_budget_and_close(void **state) {
   ocp_viewer_free(v);
 }
 
+/*-*** BUDGET (version 3) ***/
+
+static void put_budget(oc_buf_t *b, uint64_t budget, uint64_t epoch) {
+  ocp_budget_t m = {budget, epoch};
+  ocp_put_budget(b, g_version, &m);
+}
+
+/* One epoch fed; the viewer's counters after it. */
+static ocp_viewer_stats_t feed_epoch(ocp_viewer_t *v, const oc_state_t *s, const oc_state_t *base, uint32_t lack) {
+  oc_buf_t in = {0}, out = {0};
+  char why[256];
+  uint32_t ids[8];
+  if (base) put_epoch(&in, s, base, &lack, 1);
+  else put_epoch(&in, s, NULL, ids, all_bricks(s, ids));
+  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
+  ocp_viewer_stats_t st;
+  ocp_viewer_stats(v, &st);
+  oc_buf_free(&in);
+  oc_buf_free(&out);
+  return st;
+}
+
+/* A lowering: the old budget counts for every window that still holds a state planned under it;
+ * once they have left the window (K = 3: two states of the new epoch held) the new one is in force,
+ * the event says so, and a window over it is counted. A raise holds at once. */
+static void test_viewer__budget_lowered_then_raised(void **state) {
+  (void)state;
+  g_version = OCP_VERSION_BUDGET;
+  events_t ev;
+  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
+  oc_buf_t out = {0}, in = {0};
+  char why[256];
+  oc_state_t s[5];
+  golden_state(&s[0]); /* epoch 42: 3 bricks, 15 records */
+  for (int i = 1; i < 5; i++) evolve(&s[i - 1], &s[i], 43 + (uint32_t)i - 1);
+  handshake(v, 3, &out); /* 1 MiB */
+  assert_int_equal(feed_epoch(v, &s[0], NULL, 0).over_budget, 0);
+  /* 10000 bytes from epoch 43: above the minimum (3 × 2080), below the 3-state windows here (11680) */
+  put_budget(&in, 10000, 43);
+  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
+  assert_int_equal(out.len, 0);
+  assert_int_equal(ev.budgets, 0); /* not yet: epoch 42, planned under 1 MiB, is held */
+  assert_int_equal(feed_epoch(v, &s[1], &s[0], 43).over_budget, 0);
+  assert_int_equal(ev.budgets, 0);
+  ocp_viewer_stats_t st = feed_epoch(v, &s[2], &s[1], 44); /* window 42..44: 11680, 42's 1 MiB counts */
+  assert_int_equal(st.resident_bytes, 5 * 2048 + 45 * 32);
+  assert_int_equal(st.over_budget, 0);
+  assert_int_equal(ev.budgets, 1); /* 42 has left: 43 and 44 held, the next one planned under 10000 */
+  assert_int_equal(ev.last_budget, 10000);
+  assert_int_equal(st.budgets, 1);
+  st = feed_epoch(v, &s[3], &s[2], 45); /* window 43..45: 11680 > 10000 */
+  assert_int_equal(st.over_budget, 1);
+  /* a raise: at once */
+  in.len = 0;
+  put_budget(&in, 2u << 20, 47);
+  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
+  assert_int_equal(ev.budgets, 2);
+  assert_int_equal(ev.last_budget, 2u << 20);
+  assert_int_equal(feed_epoch(v, &s[4], &s[3], 46).over_budget, 1);
+  for (int i = 0; i < 5; i++) oc_state_free(&s[i]);
+  oc_buf_free(&in);
+  oc_buf_free(&out);
+  ocp_viewer_free(v);
+  g_version = 1;
+}
+
+/* Each bad BUDGET closes the session with an ERROR whose text names the fault. */
+static void expect_budget_refused(int version, int role, void (*put)(oc_buf_t *), uint32_t code, const char *text) {
+  g_version = (uint8_t)version;
+  events_t ev;
+  ocp_viewer_t *v = make_viewer(&ev, role);
+  oc_buf_t out = {0}, in = {0};
+  char why[256];
+  handshake(v, role == OCP_ROLE_VIEWER ? 3 : 0, &out);
+  oc_state_t s1;
+  golden_state(&s1);
+  if (role == OCP_ROLE_VIEWER) feed_epoch(v, &s1, NULL, 0);
+  put(&in);
+  assert_true(feed(v, &in, &out, why, sizeof why) < 0);
+  expect_error_frame(&out, code);
+  if (!strstr(why, text)) fail_msg("\"%s\" does not say \"%s\"", why, text);
+  oc_state_free(&s1);
+  oc_buf_free(&in);
+  oc_buf_free(&out);
+  ocp_viewer_free(v);
+  g_version = 1;
+}
+
+static void put_short(oc_buf_t *b) {
+  size_t h = ocp_frame_begin(b, g_version, OCP_MSG_BUDGET);
+  oc_buf_u64(b, 1u << 20);
+  oc_buf_u32(b, 50);
+  ocp_frame_end(b, h);
+}
+static void put_zero(oc_buf_t *b) { put_budget(b, 0, 50); }
+static void put_small(oc_buf_t *b) { put_budget(b, 6239, 50); }
+static void put_stale(oc_buf_t *b) { put_budget(b, 1u << 20, 42); }
+static void put_good(oc_buf_t *b) { put_budget(b, 1u << 20, 50); }
+static void put_mid_epoch(oc_buf_t *b) {
+  oc_state_t s2;
+  golden_state(&s2);
+  s2.epoch = 50;
+  ocp_epoch_begin_t m = {.epoch = 50, .time = s2.time, .sun_dir = s2.sun_dir, .base_epoch = OCP_NO_BASE,
+                         .node_count = s2.node_count, .brick_count = s2.brick_count, .bricks_sent = s2.brick_count};
+  ocp_put_epoch_begin(b, g_version, &m);
+  put_good(b);
+  oc_state_free(&s2);
+}
+
+static void test_viewer__budget_refused(void **state) {
+  (void)state;
+  expect_budget_refused(3, OCP_ROLE_VIEWER, put_short, OCP_CODE_MALFORMED, "budget: payload is 12 bytes, expected 16");
+  expect_budget_refused(3, OCP_ROLE_VIEWER, put_zero, OCP_CODE_MALFORMED, "budget: budget is 0");
+  expect_budget_refused(3, OCP_ROLE_VIEWER, put_small, OCP_CODE_MALFORMED, "below the minimum 6240 (K = 3)");
+  expect_budget_refused(3, OCP_ROLE_VIEWER, put_stale, OCP_CODE_MALFORMED, "effective epoch 42 is not after the newest state's 42");
+  expect_budget_refused(3, OCP_ROLE_VIEWER, put_mid_epoch, OCP_CODE_UNEXPECTED, "budget: not valid inside an epoch");
+  expect_budget_refused(3, OCP_ROLE_CONTROL, put_good, OCP_CODE_UNEXPECTED, "budget: not valid for a control client");
+  /* versions 1 and 2 have no BUDGET: a server must never send it there */
+  expect_budget_refused(1, OCP_ROLE_VIEWER, put_good, OCP_CODE_UNEXPECTED, "budget: not in protocol version 1");
+  expect_budget_refused(2, OCP_ROLE_VIEWER, put_good, OCP_CODE_UNEXPECTED, "budget: not in protocol version 2");
+}
+
 static void test_viewer__control(void **state) {
   (void)state;
   events_t ev;
@@ -915,7 +1047,7 @@ static ocp_viewer_t *make_lean_viewer(events_t *ev) {
   d.width = 640, d.height = 480;
   d.caps = OCP_CAP_DICT;
   d.lean = 1;
-  ocp_viewer_events_t cb = {ev, on_welcome, on_state, on_stats, on_reply, on_closed};
+  ocp_viewer_events_t cb = {ev, on_welcome, on_state, on_stats, on_reply, on_closed, on_budget};
   ocp_viewer_t *v = NULL;
   assert_int_equal(ocp_viewer_create(&v, &d, &cb), 0);
   return v;
@@ -1232,6 +1364,27 @@ static void build_seed(int i, oc_buf_t *b, int *viewer_ok, int *control_ok, int 
       *lean_ok = 1;
       break;
     }
+    case 6: /* version 3: an epoch, BUDGET lowering from the next, two more epochs (it takes effect) */
+      golden_state(&s1);
+      evolve(&s1, &s2, 43);
+      put_epoch(b, &s1, NULL, ids, all_bricks(&s1, ids));
+      put_budget(b, 1u << 19, 43);
+      {
+        uint32_t lack[] = {43};
+        put_epoch(b, &s2, &s1, lack, 1);
+        oc_state_t s3;
+        evolve(&s2, &s3, 44);
+        lack[0] = 44;
+        put_epoch(b, &s3, &s2, lack, 1);
+        oc_state_free(&s3);
+      }
+      oc_state_free(&s1);
+      oc_state_free(&s2);
+      *viewer_ok = 1; /* full checksums: not a lean viewer's */
+      break;
+    case 7: /* version 3: a BUDGET four bytes short, for the decoder and the viewer's refusal */
+      put_short(b);
+      break;
     case 4: { /* a WELCOME and STATS, then the server's error */
       put_welcome(b, 3, 0, SESSION, 1u << 20);
       ocp_stats_t st;
@@ -1262,11 +1415,12 @@ static int seed_accepted(const uint8_t *p, size_t n, int role, int lean) {
 
 static void test_viewer__fuzz_seeds(void **state) {
   (void)state;
-  static const char *names[] = {"epochs.bin",  "dict_epoch.bin",    "control.bin",
-                                "client_msgs.bin", "welcome_error.bin", "lean_epochs.bin"};
+  static const char *names[] = {"epochs.bin",      "dict_epoch.bin",    "control.bin",     "client_msgs.bin",
+                                "welcome_error.bin", "lean_epochs.bin", "budget_v3.bin", "budget_short_v3.bin"};
   const char *out = getenv("OC_FUZZ_WIRE_CORPUS_OUT"), *src = getenv("OC_SOURCE_DIR");
   char path[1024];
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < 8; i++) {
+    g_version = i >= 6 ? OCP_VERSION_BUDGET : 1; /* the BUDGET seeds speak version 3 */
     oc_buf_t b = {0};
     int viewer_ok, control_ok, lean_ok;
     build_seed(i, &b, &viewer_ok, &control_ok, &lean_ok);
@@ -1296,6 +1450,7 @@ static void test_viewer__fuzz_seeds(void **state) {
     }
     oc_buf_free(&b);
   }
+  g_version = 1;
 }
 
 int main(void) {
@@ -1309,6 +1464,8 @@ int main(void) {
       cmocka_unit_test(test_viewer__byte_at_a_time),
       cmocka_unit_test(test_viewer__over_budget_and_close),
       cmocka_unit_test(test_viewer__control),
+      cmocka_unit_test(test_viewer__budget_lowered_then_raised),
+      cmocka_unit_test(test_viewer__budget_refused),
       cmocka_unit_test(test_viewer__create_rejects),
       cmocka_unit_test(test_viewer__lean_matches_full),
       cmocka_unit_test(test_viewer__lean_detects),
