@@ -225,6 +225,7 @@ static void ocp__budget_settle(ocp_viewer_t *v) {
   for (int i = 0; i < v->nheld; i++)
     if (v->held[i]->epoch < v->pend.epoch) return;
   v->have_pend = 0;
+  if (v->welcome.budget == v->pend.budget) return; /* a raise, in force already */
   v->welcome.budget = v->pend.budget;
   if (v->ev.budget) v->ev.budget(v->ev.ctx, &v->welcome.grant);
 }
@@ -369,14 +370,13 @@ static int ocp__on_budget(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t 
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
                       "budget: effective epoch %" PRIu64 " is before the pending one's %" PRIu64, m.epoch, v->pend.epoch);
   v->st.budgets++;
-  if (m.budget >= v->welcome.budget && !v->have_pend) { /* a raise holds at once: the old states fit it */
+  if (m.budget > v->welcome.budget) { /* a raise holds at once: the store must take states planned under it */
     v->welcome.budget = m.budget;
     if (v->ev.budget) v->ev.budget(v->ev.ctx, &v->welcome.grant);
-    return 0;
   }
-  /* a lowering (or a change while one is pending): the largest budget stays in force until the
-   * states planned under it have left */
-  if (v->have_pend && v->pend.budget > v->welcome.budget) v->welcome.budget = v->pend.budget;
+  if (m.budget == v->welcome.budget && !v->have_pend) return 0;
+  /* a lowering, or any change while one is pending: the budget in force stays until the states
+   * planned under the larger one have left */
   v->have_pend = 1;
   v->pend = m;
   ocp__budget_settle(v); /* nothing held: at once */

@@ -791,6 +791,14 @@ static void test_viewer__budget_lowered_then_raised(void **state) {
   assert_int_equal(ev.budgets, 2);
   assert_int_equal(ev.last_budget, 2u << 20);
   assert_int_equal(feed_epoch(v, &s[4], &s[3], 46).over_budget, 1);
+  /* a lowering pending, then a raise from a later epoch: the store grows at once, and the raise is
+   * not undone when the lowering's states leave */
+  in.len = 0;
+  put_budget(&in, 20000, 47);
+  put_budget(&in, 3u << 20, 48);
+  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
+  assert_int_equal(ev.budgets, 3);
+  assert_int_equal(ev.last_budget, 3u << 20);
   for (int i = 0; i < 5; i++) oc_state_free(&s[i]);
   oc_buf_free(&in);
   oc_buf_free(&out);
