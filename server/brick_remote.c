@@ -34,10 +34,18 @@ static void ocs__fetch_done(ocs__fetch_t *f, int outcome, const uint8_t *content
   free(f);
 }
 
+/* SET NX GET answers with the lease's holder before the call: nil (it was free, now ours), this
+ * front-end (ours already: looked up again at a later tick) or another (busy). */
 static void ocs__on_lease(void *ctx, int status, const redisReply *r) {
   ocs__fetch_t *f = ctx;
-  if (status != OCS_REDIS_OK || !r || r->type == REDIS_REPLY_ERROR) ocs__fetch_done(f, OCS_REMOTE_UNAVAILABLE, NULL, 0);
-  else ocs__fetch_done(f, r->type == REDIS_REPLY_STATUS ? OCS_REMOTE_LEASED : OCS_REMOTE_BUSY, NULL, 0); /* OK, or nil */
+  char id[24];
+  snprintf(id, sizeof id, "%016" PRIx64, f->t->o.frontend_id);
+  if (status != OCS_REDIS_OK || !r || (r->type != REDIS_REPLY_NIL && r->type != REDIS_REPLY_STRING))
+    ocs__fetch_done(f, OCS_REMOTE_UNAVAILABLE, NULL, 0);
+  else if (r->type == REDIS_REPLY_NIL || (r->len == strlen(id) && !memcmp(r->str, id, r->len)))
+    ocs__fetch_done(f, OCS_REMOTE_LEASED, NULL, 0);
+  else
+    ocs__fetch_done(f, OCS_REMOTE_BUSY, NULL, 0);
 }
 
 static int ocs__lease(ocs__fetch_t *f) {
@@ -45,10 +53,10 @@ static int ocs__lease(ocs__fetch_t *f) {
   ocs_bkey_text(&f->key, "oc:l:", name);
   snprintf(id, sizeof id, "%016" PRIx64, f->t->o.frontend_id);
   snprintf(ms, sizeof ms, "%u", f->t->o.lease_ms);
-  const char *argv[] = {"SET", name, id, "NX", "PX", ms};
-  size_t lens[6];
-  for (int i = 0; i < 6; i++) lens[i] = strlen(argv[i]);
-  return ocs_redis_command(f->t->redis, f->t->o.deadline_ms, ocs__on_lease, f, 6, argv, lens);
+  const char *argv[] = {"SET", name, id, "NX", "PX", ms, "GET"}; /* NX with GET: Redis ≥ 7.0 */
+  size_t lens[7];
+  for (int i = 0; i < 7; i++) lens[i] = strlen(argv[i]);
+  return ocs_redis_command(f->t->redis, f->t->o.deadline_ms, ocs__on_lease, f, 7, argv, lens);
 }
 
 static void ocs__on_get(void *ctx, int status, const redisReply *r) {
@@ -129,10 +137,26 @@ int ocs_remote_store(ocs_remote_t *t, const ocs_bkey_t *key, const void *content
     return r;
   }
   t->st.stores++;
-  const char *del[] = {"DEL", lease};
-  size_t del_lens[] = {3, strlen(lease)};
-  if (ocs_redis_command(t->redis, t->o.deadline_ms, ocs__on_stored, t, 2, del, del_lens) < 0) t->st.store_failures++;
+  ocs_remote_release(t, key);
   return 0;
+}
+
+/* Deletes a lease only if this front-end holds it: one that expired may be another's now. */
+static const char ocs__release_lua[] =
+    "if redis.call('get', KEYS[1]) == ARGV[1] then return redis.call('del', KEYS[1]) end return 0";
+
+int ocs_remote_release(ocs_remote_t *t, const ocs_bkey_t *key) {
+  if (!t || !key) return OC_EINVAL;
+  char lease[OCS_BKEY_TEXT], id[24];
+  ocs_bkey_text(key, "oc:l:", lease);
+  snprintf(id, sizeof id, "%016" PRIx64, t->o.frontend_id);
+  const char *argv[] = {"EVAL", ocs__release_lua, "1", lease, id};
+  size_t lens[5];
+  for (int i = 0; i < 5; i++) lens[i] = strlen(argv[i]);
+  int r = ocs_redis_command(t->redis, t->o.deadline_ms, ocs__on_stored, t, 5, argv, lens);
+  if (r < 0) t->st.store_failures++;
+  else t->st.releases++;
+  return r;
 }
 
 void ocs_remote_stats(const ocs_remote_t *t, ocs_remote_stats_t *out) {

@@ -9,7 +9,9 @@
  *
  * Names in Redis: "oc:b:<key>" holds a value packed by brick_value.h; "oc:l:<key>" a lease, whose
  * value is the front-end's id and which expires by itself (PX), so a front-end that dies while
- * producing only delays the others by the lease time.
+ * producing only delays the others by the lease time. A front-end that looks a brick up again
+ * while it holds the lease gets it again (SET NX GET, Redis ≥ 7.0); one that did not make a leased
+ * brick gives the lease back (compare and delete, a two-line Lua script).
  *
  * Every function runs on the loop's thread (redis_client.h). */
 #ifndef OC_SERVER_BRICK_REMOTE_H
@@ -39,7 +41,7 @@ typedef struct {
 typedef struct {
   uint64_t fetches, hits, leased, busy, unavailable;
   uint64_t rejected;  /* values that failed a check (brick_value.h): discarded, produced again */
-  uint64_t stores, store_failures;
+  uint64_t stores, store_failures, releases;
 } ocs_remote_stats_t;
 
 typedef struct ocs_remote_s ocs_remote_t;
@@ -59,6 +61,10 @@ int ocs_remote_fetch(ocs_remote_t *t, const ocs_bkey_t *key, ocs_remote_cb cb, v
  *  the lease. Fire and forget: a failure is counted, the brick is simply made again elsewhere.
  *  @return 0, OC_EIO (down), OC_ETOOBIG, OC_ENOMEM. */
 int ocs_remote_store(ocs_remote_t *t, const ocs_bkey_t *key, const void *content, size_t n);
+/*! ocs_remote_release() : gives a lease this front-end holds back (it did not make the brick after
+ *  all), so that another may make it at once instead of after the lease's time. Fire and forget.
+ *  @return 0, OC_EIO (down), OC_EINVAL. */
+int ocs_remote_release(ocs_remote_t *t, const ocs_bkey_t *key);
 /*! ocs_remote_stats() : the counters so far. */
 void ocs_remote_stats(const ocs_remote_t *t, ocs_remote_stats_t *out);
 

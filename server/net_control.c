@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "net_internal.h"
+#include "net_share.h"
 #include "oc_err.h"
 #include "oc_log.h"
 #include "oc_planet.h"
@@ -25,7 +26,8 @@ int ocs_server_reload(ocs_server_t *srv, char *why, size_t why_len) {
   }
   if (r < 0) return r;
   ocs_world_t *w = NULL;
-  r = ocs_world_create(&w, &sc, &srv->desc.world, why, why_len);
+  r = ocs_share_content_id(srv, &sc, &srv->desc.world.content_id, why, why_len); /* the files may have changed */
+  if (r >= 0) r = ocs_world_create(&w, &sc, &srv->desc.world, why, why_len);
   if (r < 0) {
     oc_scene_free(&sc);
     return r;
@@ -38,6 +40,7 @@ int ocs_server_reload(ocs_server_t *srv, char *why, size_t why_len) {
   }
   ocs_world_free(srv->world);
   srv->world = w;
+  ocs_share_world_changed(srv);
   oc_scene_free(&srv->scene);
   srv->scene = sc;
   if (srv->desc.epoch_period < 0) srv->period = sc.epoch_period;

@@ -21,6 +21,7 @@
 #include <time.h>
 
 #include "net_internal.h"
+#include "net_share.h"
 #include "oc_err.h"
 #include "oc_log.h"
 
@@ -231,6 +232,7 @@ static void finish_production(ocs_server_t *srv) {
     oc_log_warn("production: %s (asked again at the next tick)", oc_strerror(srv->produce_rc));
   } else {
     srv->bricks_made += (uint64_t)ocs_world_produce_end(srv->world);
+    ocs_share_store_made(srv); /* for the other front-ends */
   }
   remove_doomed(srv);
   ocs_world_stats_t ws;
@@ -266,6 +268,31 @@ static void produce_done(uv_work_t *req, int status) {
   else finish_production(srv);
 }
 
+/* Shared bricks (--redis): production in two parts, with the queue looked up in the shared store
+ * on the loop between them (net_share.c); a tick waits meanwhile, at most the lookup's deadline. */
+static void produce_run_work(uv_work_t *req) {
+  ocs_server_t *srv = req->data;
+  if (srv->produce_rc < 0) return;
+  atomic_store(&srv->overlap, 1);
+  uv_async_send(&srv->taken_async);
+  ocs_world_produce_run(srv->world);
+}
+
+static void launch_run(ocs_server_t *srv) {
+  uv_queue_work(&srv->loop, &srv->produce_work, produce_run_work, produce_done);
+}
+
+static void produce_begin_work(uv_work_t *req) {
+  ocs_server_t *srv = req->data;
+  srv->produce_rc = ocs_world_produce_begin(srv->world, srv->produce_s, 0);
+}
+
+static void produce_begin_done(uv_work_t *req, int status) {
+  ocs_server_t *srv = req->data;
+  (void)status;
+  if (srv->produce_rc < 0 || !ocs_share_lookup(srv, launch_run)) launch_run(srv);
+}
+
 /* What the last tick's plans wait for is made until shortly before the next build instant, on the
  * producer pool; the world is busy meanwhile (input that needs it waits, as during a step). */
 static void start_production(ocs_server_t *srv) {
@@ -276,7 +303,8 @@ static void start_production(ocs_server_t *srv) {
   srv->stepping = srv->producing = 1;
   srv->production_epoch = ocs_world_epoch(srv->world);
   srv->produce_work.data = srv;
-  uv_queue_work(&srv->loop, &srv->produce_work, produce_work, produce_done);
+  if (srv->share) uv_queue_work(&srv->loop, &srv->produce_work, produce_begin_work, produce_begin_done);
+  else uv_queue_work(&srv->loop, &srv->produce_work, produce_work, produce_done);
 }
 
 /* A step of epoch n (clocked), or of the next one (a "step" request: on the clock the newest due

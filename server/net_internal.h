@@ -9,6 +9,8 @@
  *   net_session.c    a session's lifetime (close, lost, linger within caps) and output (send,
  *                    pump, stream)
  *   net_admit.c      fair admission: budgets, lingering sessions giving theirs back first
+ *   net_share.c      bricks shared with other front-ends through Redis, looked up before
+ *                    production and stored after it
  *   net_epoch.c      ticks on the epoch timer, steps on the thread pool, new states streamed
  *   net_handshake.c  HELLO: version, tokens (constant time; viewer and control), resume, WELCOME
  *   net_stats.c      the server's figures, gathered once for the stats reply and for /metrics
@@ -30,6 +32,7 @@
 
 #include "histogram.h"
 #include "net_proxy.h" /* ocs_proxy_addr_t */
+#include "net_share.h" /* ocs_share_stats_t */
 #include "ocs_server.h"
 #include "ocp_epoch.h"
 #include "ocp_wire.h"
@@ -140,6 +143,7 @@ struct ocs_server_s {
   int ntrusted;
   FILE *audit;                   /* --audit-log, appended; NULL: none */
   struct ocs_metrics_s *metrics; /* the /metrics endpoint (net_metrics.c); NULL: none */
+  struct ocs_share_s *share;     /* bricks shared through Redis (net_share.c); NULL: none */
   char metrics_address[96];
   oc_scene_t scene;
   ocs_world_t *world;
@@ -298,6 +302,7 @@ typedef struct {
   uint64_t lingering_budget, total_budget, max_budget;
   ocs_hist_view_t tick_lateness;
   uint64_t rss;                    /* the process's resident memory, bytes (0: unknown) */
+  ocs_share_stats_t share;         /* bricks shared through Redis (enabled 0: not) */
   ocs_stats_session_t *sessions;
   size_t nsessions;
 } ocs_stats_t;

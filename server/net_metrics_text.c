@@ -94,11 +94,32 @@ static void viewers(oc_buf_t *b, const ocs_stats_t *st) {
   }
 }
 
+/* Bricks shared through Redis (only with --redis). */
+static void sharing(oc_buf_t *b, const ocs_share_stats_t *s) {
+  if (!s->enabled) return;
+  gauge(b, "overcast_redis_up", "1 while the connection to the shared brick store is up.", s->up);
+  ocs_prom_family(b, "overcast_shared_lookups_total", "counter",
+                  "Bricks looked up in the shared store before production, by what was found.");
+  const struct {
+    const char *outcome;
+    uint64_t v;
+  } f[] = {{"hit", s->hits}, {"leased", s->leased}, {"busy", s->busy}, {"unavailable", s->unavailable}};
+  for (size_t i = 0; i < sizeof f / sizeof f[0]; i++)
+    ocs_prom_sample(b, "overcast_shared_lookups_total", "outcome", f[i].outcome, (double)f[i].v);
+  counter(b, "overcast_shared_bricks_taken_total", "Bricks another front-end made, taken into the cache.", (double)s->taken);
+  counter(b, "overcast_shared_bricks_stored_total", "Bricks made here and stored for the others.", (double)s->stored);
+  counter(b, "overcast_shared_values_rejected_total", "Stored values that failed their checks (made again).",
+          (double)(s->rejected + s->refused));
+  counter(b, "overcast_shared_lookups_cut_short_total", "Productions that started before every lookup was answered.",
+          (double)s->cut_short);
+}
+
 void ocs_metrics_text(const ocs_stats_t *st, oc_buf_t *out) {
   ticks(out, st);
   production(out, st);
   budgets(out, st);
   connections(out, st);
   viewers(out, st);
+  sharing(out, &st->share);
   gauge(out, "process_resident_memory_bytes", "Resident memory size in bytes.", (double)st->rss);
 }

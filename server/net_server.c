@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "net_internal.h"
+#include "net_share.h"
 #include "server_config.h" /* ocs_config_is_loopback */
 #include "oc_err.h"
 #include "oc_log.h"
@@ -87,6 +88,7 @@ void ocs_server_stop(ocs_server_t *srv) {
   }
   close_quiet((uv_handle_t *)&srv->listener);
   ocs_metrics_close(srv);
+  ocs_share_close(srv);
   close_quiet((uv_handle_t *)&srv->epoch_timer);
   close_quiet((uv_handle_t *)&srv->send_timer);
   close_quiet((uv_handle_t *)&srv->stop_async);
@@ -162,7 +164,8 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
     clock_gettime(CLOCK_REALTIME, &t);
     d->world.start_utc = (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
   }
-  if ((r = ocs_world_create(&srv->world, &srv->scene, &d->world, why, why_len)) < 0) {
+  if ((r = ocs_share_content_id(srv, &srv->scene, &d->world.content_id, why, why_len)) < 0 ||
+      (r = ocs_world_create(&srv->world, &srv->scene, &d->world, why, why_len)) < 0) {
     ocs_server_free(srv);
     return r;
   }
@@ -172,7 +175,8 @@ int ocs_server_create(ocs_server_t **out, const oc_scene_t *scene, const ocs_ser
     ocs_server_free(srv); /* nothing of the loop to close: the listener is not initialised */
     return OC_EIO;
   }
-  if ((r = ocs_listener_open(srv, why, why_len)) < 0 || (r = ocs_metrics_open(srv, why, why_len)) < 0) {
+  if ((r = ocs_listener_open(srv, why, why_len)) < 0 || (r = ocs_metrics_open(srv, why, why_len)) < 0 ||
+      (r = ocs_share_open(srv, why, why_len)) < 0) {
     ocs_server_free(srv);
     return r;
   }
@@ -214,6 +218,7 @@ static void walk_close(uv_handle_t *h, void *arg) {
 void ocs_server_free(ocs_server_t *srv) {
   if (!srv) return;
   ocs_metrics_close(srv);
+  ocs_share_close(srv); /* its handles close through its own callbacks, before the walk below */
   if (srv->listener.type) {
     /* Close every handle and let the callbacks run (sessions free themselves in on_closed). */
     for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {

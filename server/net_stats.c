@@ -71,6 +71,7 @@ int ocs_stats_gather(ocs_server_t *srv, ocs_stats_t *st) {
   st->total_budget = ocs_world_total_budget(srv->world);
   ocs_hist_read(&srv->tick_lateness, &st->tick_lateness);
   st->rss = resident_bytes();
+  ocs_share_stats(srv, &st->share);
   return 0;
 }
 
@@ -105,6 +106,23 @@ static void add_limits(cJSON *o, const ocs_server_t *srv, const ocs_stats_t *st)
   cJSON_AddNumberToObject(l, "linger_budget", (double)d->linger_budget);
   cJSON_AddNumberToObject(l, "max_budget", (double)st->max_budget);
   cJSON_AddNumberToObject(l, "total_budget", (double)st->total_budget);
+}
+
+/* Bricks shared with the other front-ends (net_share.h), when --redis is given. */
+static void add_share(cJSON *o, const ocs_share_stats_t *s) {
+  if (!s->enabled) return;
+  cJSON *j = cJSON_AddObjectToObject(o, "share");
+  cJSON_AddBoolToObject(j, "redis_up", s->up);
+  const struct {
+    const char *key;
+    uint64_t v;
+  } f[] = {{"lookups", s->lookups},   {"looked_up", s->looked_up},     {"hits", s->hits},
+           {"taken", s->taken},       {"leased", s->leased},           {"busy", s->busy},
+           {"held", s->held},         {"unavailable", s->unavailable}, {"rejected", s->rejected},
+           {"refused", s->refused},   {"skipped", s->skipped},         {"cut_short", s->cut_short},
+           {"stored", s->stored},     {"not_stored", s->not_stored},   {"store_failures", s->store_failures},
+           {"released", s->released}};
+  for (size_t i = 0; i < sizeof f / sizeof f[0]; i++) cJSON_AddNumberToObject(j, f[i].key, (double)f[i].v);
 }
 
 cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st) {
@@ -147,6 +165,7 @@ cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st) {
   cJSON_AddNumberToObject(o, "lingering_budget", (double)st->lingering_budget);
   cJSON_AddNumberToObject(o, "admitted", st->admitted);
   cJSON_AddNumberToObject(o, "resident_bytes", (double)st->rss);
+  add_share(o, &st->share);
   return o;
 }
 

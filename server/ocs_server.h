@@ -59,6 +59,11 @@ typedef struct {
   int zstd_level;          /**< 0 → OCP_LEVEL_DEFAULT */
   int deltas;              /**< < 0 → off; otherwise on for viewers that accept them */
   const char *scene_path;  /**< re-read by the "reload" control request; NULL: the built-in planet */
+  const char *redis_host;  /**< share bricks with other front-ends through Redis there (clocked
+                                epochs only; docs/scale-out.md); NULL: none */
+  int redis_port;
+  int redis_deadline_ms;    /**< each Redis command's deadline, and the most production waits for
+                                a lookup; 0 → 200, production waiting at most a tenth of the period */
   ocs_world_desc_t world;
 } ocs_server_desc_t;
 

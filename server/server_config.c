@@ -54,6 +54,17 @@ static int parse_metrics_listen(const char *p, const oc_cli_opt_t *o, const char
   return parse_address(p, o, text, c->metrics_host, sizeof c->metrics_host, &c->desc.metrics_port);
 }
 
+static int parse_redis(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  ocs_config_t *c = base;
+  if (parse_address(p, o, text, c->redis_host, sizeof c->redis_host, &c->desc.redis_port) < 0) return -1;
+  if (c->desc.redis_port == 0) {
+    oc_cli_fail(p, 0, "--%s: Redis needs a port (1..65535), got \"%s\"", o->name, text);
+    return -1;
+  }
+  c->desc.redis_host = c->redis_host;
+  return 0;
+}
+
 /* --queue-limits: "SOFT,HARD" in MiB. */
 static int parse_queue(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
   ocs_config_t *c = base;
@@ -183,6 +194,14 @@ static const oc_cli_opt_t opts[] = {
      .group = SERVE,
      .help = "append one JSON line per control request that changes the world (weather, time, pause, resume, sun, "
              "step, reload, disconnect): when, who, what, and the outcome"},
+    {.name = "redis", .type = OC_CLI_CUSTOM, .parse = parse_redis, .arg = "HOST:PORT", .def_note = "none",
+     .group = SERVE,
+     .help = "share bricks with the other front-ends of this world through Redis there (epochs on the clock; "
+             "docs/scale-out.md): what one made, the others do not make; while Redis is down or slow, every brick "
+             "is made here"},
+    {.name = "redis-deadline", .type = OC_CLI_INT, .offset = AT(desc.redis_deadline_ms), .arg = "MS", .lo = 1,
+     .hi = 60000, .def_note = "200, and production waits at most a tenth of the epoch period", .group = SERVE,
+     .help = "each Redis command's deadline, and how long production waits for a lookup's answers"},
     {.name = "epoch-period", .type = OC_CLI_DOUBLE, .offset = AT(desc.epoch_period), .arg = "S", .lo = 0, .hi = 60,
      .def_note = "the scene's, 1", .group = SERVE,
      .help = "seconds between epochs; 0: epochs are stepped only by control requests (overcast-ctl step)"},

@@ -46,6 +46,7 @@ typedef struct {
   char host[64];             /**< --listen's address */
   const char *listen;        /**< --listen as given, or the default */
   char metrics_host[64];     /**< --metrics-listen's address */
+  char redis_host[64];       /**< --redis's address */
   const char *metrics_listen; /**< --metrics-listen as given; NULL: no metrics */
   const char *scene_path;    /**< NULL: the built-in procedural planet */
   int check, json, quiet;

@@ -166,7 +166,8 @@ struct ocs_world_s {
   ocs_clock_t clock; /* the control history: world time from the instant */
   double utc, time;  /* the last epoch's instant and world time */
   oc_dvec3 sun;
-  uint64_t sun_version;
+  uint64_t sun_version; /* the sun direction's bits, hashed (sun_hash): content, not a counter, so
+                           that front-ends that agree on the sun agree on every stamp */
   ocs_tau_desc_t tau;
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], stamp[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1];
   double rate[OC_KEY_MAX_LEVEL + 1];
@@ -229,6 +230,16 @@ static uint64_t mix(uint64_t h, uint64_t v) {
   h ^= v + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
   h *= 0xBF58476D1CE4E5B9ull;
   return h ^ (h >> 31);
+}
+
+static uint64_t sun_hash(oc_dvec3 sun) {
+  uint64_t h = 0, b;
+  const double c[3] = {sun.x, sun.y, sun.z};
+  for (int i = 0; i < 3; i++) {
+    memcpy(&b, &c[i], 8);
+    h = mix(h, b);
+  }
+  return h;
 }
 
 static ocs_cache_key_t ckey(const ocs_world_t *w, int type, uint64_t a, uint64_t b, uint64_t c) {
@@ -397,7 +408,10 @@ static int held_back(ocs_world_t *w, oc_key_t key, uint64_t stamp);
 
 static int produce_brick_timed(prod_t *p, req_t *q) {
   ocs_world_t *w = p->w;
-  if (atomic_load_explicit(&w->nhold, memory_order_relaxed) && held_back(w, q->key, q->stamp)) return 0; /* stays queued */
+  /* production between ticks skips what another front-end is making (it stays queued); a step
+   * never does: its states need every request's entry */
+  if (p == &w->producing && atomic_load_explicit(&w->nhold, memory_order_relaxed) && held_back(w, q->key, q->stamp))
+    return 0;
   ocs_cache_key_t k = ckey(w, T_BRICK, q->key, q->stamp, 0);
   int r = ocs_cache_acquire(w->cache, &k, &q->entry);
   if (r < 0) {
@@ -586,7 +600,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;
   ocs_clock_init(&w->clock, w->utc, w->time);
   w->sun = w->scene.sun_dir;
-  w->sun_version = 1;
+  w->sun_version = sun_hash(w->sun);
   w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .sun_dir = w->sun, .stats = &w->tau_stats};
   clock_update(w);
   *out = w;
@@ -624,7 +638,7 @@ int ocs_world_set_sun(ocs_world_t *w, oc_dvec3 sun) {
   if (!w || !isfinite(l) || !(l > 0.0)) return OC_EINVAL;
   w->sun = oc_dscale(sun, 1.0 / l);
   w->tau.sun_dir = w->sun;
-  w->sun_version++;
+  w->sun_version = sun_hash(w->sun);
   clock_update(w);
   return 0;
 }
@@ -1813,14 +1827,7 @@ int ocs_world_plan_offline(ocs_world_t *w, const ocs_plan_desc_t *req, const ocs
 #define SHARE_HEAD (1 + 8 * OC_CHANNELS)
 
 ocs_bkey_t ocs_world_brick_id(const ocs_world_t *w, oc_key_t key, uint64_t stamp) {
-  uint64_t sun = 0;
-  for (int i = 0; i < 3; i++) {
-    uint64_t b;
-    double c = i == 0 ? w->sun.x : i == 1 ? w->sun.y : w->sun.z;
-    memcpy(&b, &c, 8);
-    sun = mix(sun, b);
-  }
-  ocs_bkey_in_t in = {.scene = w->d.content_id, .weather = w->weather_hist, .sun = sun, .stamp = stamp, .node = key,
+  ocs_bkey_in_t in = {.scene = w->d.content_id, .weather = w->weather_hist, .sun = w->sun_version, .stamp = stamp, .node = key,
                       .channel = OCS_SHARE_CHANNEL_BRICK};
   return ocs_bkey_make(&in);
 }

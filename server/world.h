@@ -8,7 +8,7 @@
  * coalesced and counted) and its next plan is sized from the bricks it absorbed per epoch.
  *
  * Content is a pure function of (node key, stamp): the stamp of level L hashes the field's time
- * steps of levels 0..L (τ marches through coarser levels), the sun version and the shadows flag.
+ * steps of levels 0..L (τ marches through coarser levels), the sun direction (its bits, hashed) and the shadows flag.
  * Static fields have constant stamps: nothing is ever produced twice for a viewer.
  *
  * Production of a brick: σt from the field (cache entry "sigma", keyed by key and the field's time
