@@ -2,7 +2,8 @@
  * two servers of one scene and a real redis-server on loopback. A viewer of the second front-end
  * gets, verified, what the first one made, and the second makes almost none of it; while Redis is
  * gone both serve from their own production, every state verified; when it is back, sharing
- * resumes. */
+ * resumes. Then scripts/cluster.sh's cluster (redis-server, two front-ends, HAProxy with PROXY v2):
+ * a viewer whose front-end dies reconnects through HAProxy to the other one. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -145,10 +146,107 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   redis_stop(&r);
 }
 
+/*-*** scripts/cluster.sh: redis-server, front-ends and HAProxy ***/
+
+static char cluster_dir[64];
+
+static void cluster(const char *cmd, const char *args) {
+  char line[8192];
+  snprintf(line, sizeof line, "bash %s/scripts/cluster.sh %s --dir %s --bin %s %s >> %s/cluster.txt 2>&1",
+           getenv("OC_SOURCE_DIR"), cmd, cluster_dir, getenv("OC_BIN_DIR"), args, cluster_dir);
+  if (system(line) != 0) fail_msg("%s failed: see %s/cluster.txt", line, cluster_dir);
+}
+
+static int cluster_teardown(void **state) {
+  (void)state;
+  if (cluster_dir[0]) cluster("stop", "");
+  return 0;
+}
+
+/* The port and process id of front-end i (1-based), from the files cluster.sh writes. */
+static void front_end(int i, int *port, pid_t *pid) {
+  char path[128], name[16], want[16];
+  snprintf(want, sizeof want, "front%d", i);
+  long v;
+  *port = 0;
+  *pid = 0;
+  snprintf(path, sizeof path, "%s/ports", cluster_dir);
+  FILE *f = fopen(path, "r");
+  assert_non_null(f);
+  while (fscanf(f, "%15s %ld", name, &v) == 2)
+    if (!strcmp(name, want)) *port = (int)v;
+  fclose(f);
+  snprintf(path, sizeof path, "%s/pids", cluster_dir);
+  assert_non_null(f = fopen(path, "r"));
+  while (fscanf(f, "%15s %ld", name, &v) == 2)
+    if (!strcmp(name, want)) *pid = (pid_t)v;
+  fclose(f);
+  assert_true(*port > 0 && *pid > 0);
+}
+
+/* Viewer sessions a front-end serves now. */
+static int viewers_on(int port) {
+  int32_t status;
+  char *r = control(port, NULL, "{\"op\":\"sessions\"}", &status);
+  assert_int_equal(status, 0);
+  int n = 0;
+  for (const char *p = r; (p = strstr(p, "\"viewer\"")) != NULL; p++) n++;
+  free(r);
+  return n;
+}
+
+/* A viewer behind HAProxy whose front-end dies reconnects through HAProxy, lands on the other
+ * front-end as a new session (sessions live in one process: docs/scale-out.md) and goes on
+ * receiving states, each verified. */
+static void test_cluster__failover_behind_haproxy(void **state) {
+  (void)state;
+  snprintf(cluster_dir, sizeof cluster_dir, "/tmp/oc_cluster_XXXXXX");
+  assert_non_null(mkdtemp(cluster_dir));
+  char args[4200];
+  int hport = redis_free_port();
+  snprintf(args, sizeof args, "-n 2 --port %d -- --scene %s --epoch-period 0.25 --threads 1 --handshake-rate 1000", hport,
+           scene_sphere);
+  cluster("start", args);
+  viewer_t v;
+  viewer_open(&v, hport, 4u << 20, NULL);
+  assert_int_equal(viewer_wait(&v, 4, 120.0), 0);
+  int p1, p2;
+  pid_t k1, k2;
+  front_end(1, &p1, &k1);
+  front_end(2, &p2, &k2);
+  int on1 = viewers_on(p1), on2 = viewers_on(p2);
+  assert_int_equal(on1 + on2, 1);
+  int survivor = on1 ? p2 : p1;
+  kill(on1 ? k1 : k2, SIGKILL); /* its front-end dies */
+  char why[512];
+  int r = 0;
+  for (int i = 0; i < 200 && r == 0; i++) r = ocv_conn_poll(v.c, 0.05, why, sizeof why);
+  assert_true(r != 0); /* the viewer saw it */
+  int states = v.states;
+  r = -1;
+  for (int i = 0; i < 20 && r != 0; i++) { /* HAProxy's health check marks it down within a second or two */
+    r = ocv_conn_reconnect(v.c, 5.0, why, sizeof why);
+    if (r != 0) redis_sleep_ms(250);
+  }
+  assert_int_equal(r, 0);
+  ocp_camera_t cam = sphere_camera(160, 90);
+  assert_int_equal(ocv_conn_camera(v.c, &cam), 0);
+  assert_int_equal(viewer_wait(&v, states + 4, 120.0), 0);
+  assert_int_equal(v.welcomes, 2);
+  assert_int_equal(v.resumed, 0); /* a new session on the other front-end */
+  assert_int_equal(viewers_on(survivor), 1);
+  ocv_conn_close(v.c);
+  cluster("stop", "");
+  cluster_dir[0] = 0;
+}
+
 int main(void) {
   signal(SIGPIPE, SIG_IGN);
   const char *src = getenv("OC_SOURCE_DIR");
   snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
-  const struct CMUnitTest tests[] = {cmocka_unit_test_teardown(test_cluster__made_once_then_without_redis, teardown)};
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test_teardown(test_cluster__made_once_then_without_redis, teardown),
+      cmocka_unit_test_teardown(test_cluster__failover_behind_haproxy, cluster_teardown),
+  };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
