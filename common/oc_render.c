@@ -207,7 +207,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
   double air_step = cx->have_atmo && air_len > 0.0 ? air_len / d->air_steps : INFINITY;
 
   oc__leaf_t lf = {.idx = -2};
-  int exited = 0;
+  int exited = 0, chord = 0; /* chord: past the early exit, measuring the run's depth only */
   double t = t0;
   while (in_cube && t < t1) {
     oc_dvec3 p = oc_dmad(o, dir, t);
@@ -220,7 +220,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     int cloudy = lf.n && lf.n->range[OC_CH_SIGMA].hi > 0.0f;
     double te = t1;
     if (lf.n) te = fmin(te, t + fmax(oc__node_exit(&lf, p, dir), OC__LOCATE_EPS));
-    if (cloudy) te = fmin(te, t + d->step_factor * lf.size / 7.0);
+    if (cloudy) te = fmin(te, t + d->step_factor * lf.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0));
     else if (lf.n) st->skipped_nodes++;
     if (cx->have_atmo) te = fmin(te, t + oc__air_step(cx, p, dir, air_step));
     double seg = te - t;
@@ -230,33 +230,46 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     if (lf.n && lf.n->kind != OC_NODE_EMPTY) {
       ocg_vec3 u = oc__leaf_local(&lf, pm);
       if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, u);
-      tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
+      if (!chord) tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
+    }
+    if (chord) {
+      st->samples++;
+      t = te;
+      if (!ocg_march_chord(&m, sig, (float)seg)) break;
+      continue;
     }
     double r = oc_dlen(pm);
     float mu_s = (float)(oc_ddot(pm, sun) / r);
     ocg_vec3 Esun = ocg_mul3(cx->sun_e, oc__sun_transmittance(cx, r, mu_s));
     ocg_vec3 sigma_t = ocg_v3s(sig);
-    ocg_vec3 J = ocg_v3s(0.0f); /* Σ σs·S per unit length */
+    ocg_vec3 J = ocg_v3s(0.0f), Jms = ocg_v3s(0.0f); /* Σ σs·S per unit length: now, and at the run's end */
     if (sig > 0.0f) {
       ocg_vec3 F = ocg_v3s(0.0f);
       if (cx->have_atmo && !(d->flags & OC_RF_NO_AMBIENT)) F = ocg_mul3(cx->sun_e, oc_atmo_sky_fluence(d->atmo, r, mu_s));
-      J = ocg_cloud_source(cx->cm, sig, tau, mu, Esun, F);
+      else if (d->background == OC_BG_CONSTANT && !(d->flags & OC_RF_NO_AMBIENT))
+        F = ocg_v3s(4.0f * OCG_PI * d->background_radiance); /* a uniform sky */
+      J = ocg_cloud_source(cx->cm, sig, tau, m.tau_run, mu, Esun, F);
+      Jms = ocg_cloud_source_ms(cx->cm, sig, tau, mu, Esun);
+    } else {
+      ocg_march_end_run(&m, cx->cm);
     }
     if (cx->have_atmo && r < cx->air_top) {
       float rf = (float)r;
       sigma_t = ocg_add3(sigma_t, ocg_atmo_extinction(cx->atm, rf));
       J = ocg_add3(J, ocg_air_source(cx->atm, rf, mu, Esun, tau, ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s))));
     }
-    ocg_march_segment(&m, sigma_t, sig, J, (float)seg);
+    ocg_march_segment(&m, sigma_t, sig, J, Jms, (float)seg);
     st->samples++;
     t = te;
     if (ocg_march_done(m, (float)d->exit_t)) {
       st->early_exits++;
       exited = 1;
-      break;
+      if (!ocg_march_wants_chord(m, cx->cm)) break;
+      chord = 1;
     }
   }
 
+  ocg_march_end_run(&m, cx->cm);
   if (!exited) {
     if (hit_ground) {
       oc_dvec3 pg = oc_dmad(o, dir, t1);
@@ -328,9 +341,17 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   if (d->flags & OC_RF_NO_EARLY_EXIT) d->exit_t = -1.0;
   if (d->ms_octaves == 0) d->ms_octaves = OC_RENDER_DEFAULT_MS_OCTAVES;
   if (d->ms_octaves < 1 || d->ms_octaves > 16) return oc__bad("ms_octaves [1, 16]");
-  if (d->ms_a == 0.0f) d->ms_a = 0.5f;
-  if (d->ms_b == 0.0f) d->ms_b = 0.5f;
-  if (d->ms_c == 0.0f) d->ms_c = 0.5f;
+  if (d->ms_a == 0.0f) d->ms_a = OC_RENDER_DEFAULT_MS_A;
+  if (d->ms_b == 0.0f) d->ms_b = OC_RENDER_DEFAULT_MS_B;
+  if (d->ms_c == 0.0f) d->ms_c = OC_RENDER_DEFAULT_MS_C;
+  if (!(d->ms_a > 0.0f && d->ms_a <= 1.0f)) return oc__bad("ms_a (0, 1]");
+  if (!(d->ms_b > 0.0f && d->ms_b <= 1.0f)) return oc__bad("ms_b (0, 1]");
+  if (!(d->ms_c > 0.0f && d->ms_c <= 1.0f)) return oc__bad("ms_c (0, 1]");
+  if (d->ms_model != OC_MS_MODEL_DEPTH && d->ms_model != OC_MS_MODEL_OCTAVES) return oc__bad("ms_model");
+  if (d->ms_fit && !(d->ms_fit[0] > 0.0f && d->ms_fit[0] < 1e6f && d->ms_fit[1] >= 0.0f && d->ms_fit[1] < 1e3f &&
+                     d->ms_fit[2] >= 0.0f && d->ms_fit[2] < 1e3f && d->ms_fit[3] >= 0.0f &&
+                     d->ms_fit[3] < 1e3f && d->ms_fit[4] >= 0.0f && d->ms_fit[4] < 1e3f))
+    return oc__bad("ms_fit");
   if (d->albedo == 0.0f) d->albedo = 1.0f;
   if (d->albedo_zero) d->albedo = 0.0f;
   if (!(d->albedo >= 0.0f && d->albedo <= 1.0f)) return oc__bad("albedo [0, 1]");
@@ -343,6 +364,12 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   cx.cm.ms_b = d->ms_b;
   cx.cm.ms_c = d->ms_c;
   cx.cm.ms_n = d->ms_octaves;
+  cx.cm.legacy = d->ms_model == OC_MS_MODEL_OCTAVES;
+  cx.cm.chord_half = d->ms_fit ? d->ms_fit[0] : OCG_MS_CHORD_HALF;
+  cx.cm.albedo_power = d->ms_fit ? d->ms_fit[1] : OCG_MS_ALBEDO_POWER;
+  cx.cm.ambient_k = d->ms_fit ? d->ms_fit[2] : OCG_AMBIENT_DEPTH_K;
+  cx.cm.diffuse_b = d->ms_fit ? d->ms_fit[3] : OCG_MS_DIFFUSE_B;
+  cx.cm.diffuse_a = d->ms_fit ? d->ms_fit[4] : OCG_MS_DIFFUSE_A;
   cx.have_atmo = d->background != OC_BG_CONSTANT && !(d->flags & OC_RF_NO_ATMOSPHERE);
   if (cx.have_atmo && !d->atmo) return oc__bad("atmo (required with an atmosphere)");
   cx.air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;

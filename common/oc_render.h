@@ -30,6 +30,16 @@
 #define OC_RENDER_DEFAULT_EXIT_T 1e-3      /**< early exit when max RGB transmittance drops below */
 #define OC_RENDER_DEFAULT_MS_OCTAVES 4
 #define OC_RENDER_DEFAULT_EXPOSURE 10.0
+/* The octave factors fitted with march.h's constants to the Monte Carlo truth (docs/numerics.md). */
+#define OC_RENDER_DEFAULT_MS_A 0.482f      /**< octave extinction factor a */
+#define OC_RENDER_DEFAULT_MS_B 0.9755f     /**< octave contribution factor b */
+#define OC_RENDER_DEFAULT_MS_C 0.9783f     /**< octave eccentricity factor c */
+
+/*! The cloud multiple-scattering model (shaders/march.h). */
+typedef enum {
+  OC_MS_MODEL_DEPTH = 0,  /**< default: octaves weighted by the run's chord depth and albedo, occluded ambient */
+  OC_MS_MODEL_OCTAVES = 1 /**< Wrenninge's octaves alone, unoccluded ambient (the model before the truth fit) */
+} oc_ms_model_t;
 
 typedef enum {
   OC_BG_DEFAULT = 0, /**< atmosphere, planet and sun disc as the flags say; black space */
@@ -60,12 +70,15 @@ typedef struct {
   int air_steps;         /**< default OC_RENDER_DEFAULT_AIR_STEPS */
   double exit_t;         /**< default OC_RENDER_DEFAULT_EXIT_T; negative disables early exit */
   int ms_octaves;        /**< default OC_RENDER_DEFAULT_MS_OCTAVES; 1 = single scattering */
-  float ms_a, ms_b, ms_c;/**< octave attenuation, contribution, eccentricity; default 0.5 each */
+  float ms_a, ms_b, ms_c;/**< octave attenuation, contribution, eccentricity, each (0, 1]; default OC_RENDER_DEFAULT_MS_* */
+  int ms_model;          /**< oc_ms_model_t; default OC_MS_MODEL_DEPTH */
+  const float *ms_fit;   /**< NULL, or 5 overrides of march.h's fitted constants (chord half-depth, albedo
+                              power, ambient depth factor, diffuse weight, diffuse decay): only for fitting */
   float albedo;          /**< cloud single-scattering albedo; default 1 (0 is valid via flags: use albedo_zero) */
   int albedo_zero;       /**< non-zero: albedo 0 (pure absorber; analytic transmittance tests) */
   float sun_irradiance;  /**< scale of the atmosphere's solar irradiance; default 1 */
   oc_background_t background;
-  float background_radiance; /**< for OC_BG_CONSTANT */
+  float background_radiance; /**< for OC_BG_CONSTANT: also a uniform sky lighting the clouds (unless OC_RF_NO_AMBIENT) */
   uint32_t flags;        /**< oc_render_flags_t */
   uint32_t frame;        /**< jitter sequence index */
   int debug_view;        /**< OC_DEBUG_*: the GL renderer's debug views; the CPU reference renders

@@ -31,7 +31,10 @@
 #define OC__DEF_CAM_FOV 60.0
 #define OC__DEF_ALBEDO 1.0
 #define OC__DEF_MS_OCTAVES 4
-#define OC__DEF_MS_ABC 0.5
+/* Octave factors fitted to the Monte Carlo truth with shaders/march.h's constants (docs/numerics.md). */
+#define OC__DEF_MS_A 0.482
+#define OC__DEF_MS_B 0.9755
+#define OC__DEF_MS_C 0.9783
 #define OC__DEF_VDB_FRAME_RATE 24.0
 
 #define OC__MAX_SEED 9007199254740991.0 /* 2^53 - 1: the largest integer a JSON number holds exactly */
@@ -430,9 +433,9 @@ static int oc__parse_optics(oc__ctx_t *c, const cJSON *o, oc_scene_optics_t *op)
   else OC_TRY(oc__check_keys(c, o, keys));
   OC_TRY(oc__num(c, o, "albedo", 0, 1, 0, OC__DEF_ALBEDO, &op->albedo));
   OC_TRY(oc__int(c, o, "ms_octaves", 1, 8, 0, OC__DEF_MS_OCTAVES, &op->ms_octaves));
-  OC_TRY(oc__num(c, o, "ms_a", 0, 1, OC__LO_OPEN | OC__HI_OPEN, OC__DEF_MS_ABC, &op->ms_a));
-  OC_TRY(oc__num(c, o, "ms_b", 0, 1, OC__LO_OPEN | OC__HI_OPEN, OC__DEF_MS_ABC, &op->ms_b));
-  OC_TRY(oc__num(c, o, "ms_c", 0, 1, OC__LO_OPEN | OC__HI_OPEN, OC__DEF_MS_ABC, &op->ms_c));
+  OC_TRY(oc__num(c, o, "ms_a", 0, 1, OC__LO_OPEN | OC__HI_OPEN, OC__DEF_MS_A, &op->ms_a));
+  OC_TRY(oc__num(c, o, "ms_b", 0, 1, OC__LO_OPEN | OC__HI_OPEN, OC__DEF_MS_B, &op->ms_b));
+  OC_TRY(oc__num(c, o, "ms_c", 0, 1, OC__LO_OPEN | OC__HI_OPEN, OC__DEF_MS_C, &op->ms_c));
   return 0;
 }
 
@@ -879,7 +882,9 @@ void oc_scene_default(oc_scene_t *out) {
   out->camera.fov = OC__DEF_CAM_FOV;
   out->optics.albedo = OC__DEF_ALBEDO;
   out->optics.ms_octaves = OC__DEF_MS_OCTAVES;
-  out->optics.ms_a = out->optics.ms_b = out->optics.ms_c = OC__DEF_MS_ABC;
+  out->optics.ms_a = OC__DEF_MS_A;
+  out->optics.ms_b = OC__DEF_MS_B;
+  out->optics.ms_c = OC__DEF_MS_C;
   out->nsources = 1;
   out->sources[0].type = OC_SOURCE_PROCEDURAL;
   out->sources[0].procedural.preset = OC_PRESET_FAIR;

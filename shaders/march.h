@@ -29,13 +29,39 @@ struct ocg_march {
 #else
 typedef struct ocg_march {
 #endif
-  ocg_vec3 L;  /**< radiance gathered so far */
-  ocg_vec3 T;  /**< transmittance from the camera (clouds and air, RGB) */
-  ocg_real Tc; /**< transmittance of the clouds alone: the alpha channel */
+  ocg_vec3 L;       /**< radiance gathered so far */
+  ocg_vec3 T;       /**< transmittance from the camera (clouds and air, RGB) */
+  ocg_real Tc;      /**< transmittance of the clouds alone: the alpha channel */
+  ocg_vec3 L_ms;    /**< multiply scattered radiance of the current cloud run, before its chord factor */
+  ocg_real tau_run; /**< cloud optical depth crossed so far in the current run (0 outside clouds) */
 #if defined(OC_GLSL)
 };
 #else
 } ocg_march;
+#endif
+
+/* ---- The multiple-scattering model's fitted constants ----------------------------------------------
+ * Fitted to the Monte Carlo truth (tools/bench_truth.c, docs/numerics.md "The real-time model
+ * against the truth"); the CPU reference can override them (oc_render_desc_t.ms_fit) to fit them. */
+/*! Chord depth at which a run's multiple scattering reaches half its thick-cloud value. */
+#ifndef OCG_MS_CHORD_HALF
+#define OCG_MS_CHORD_HALF OCG_R(23.44)
+#endif
+/*! Octave i is weighted by (b·ω^q)^i: each octave stands for about q more bounces, each ×ω. */
+#ifndef OCG_MS_ALBEDO_POWER
+#define OCG_MS_ALBEDO_POWER OCG_R(0.0053)
+#endif
+/*! Sky ambient falls as exp(−k·κ_d·min(τ, τ_run)), κ_d the diffusion constant (occluded ambient). */
+#ifndef OCG_AMBIENT_DEPTH_K
+#define OCG_AMBIENT_DEPTH_K OCG_R(21.62)
+#endif
+/*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
+ *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
+#ifndef OCG_MS_DIFFUSE_B
+#define OCG_MS_DIFFUSE_B OCG_R(1.854)
+#endif
+#ifndef OCG_MS_DIFFUSE_A
+#define OCG_MS_DIFFUSE_A OCG_R(0.1286)
 #endif
 
 /* The cloud model's parameters (oc_render_desc_t; the scene's optics). */
@@ -49,6 +75,12 @@ typedef struct ocg_cloud_model {
   ocg_real ms_b;   /**< octave contribution factor, (0, 1] */
   ocg_real ms_c;   /**< octave eccentricity factor, (0, 1] */
   ocg_int ms_n;    /**< octaves; 1 = single scattering */
+  ocg_int legacy;  /**< 1: plain Wrenninge octaves, unoccluded ambient (the model before the fit) */
+  ocg_real chord_half;   /**< OCG_MS_CHORD_HALF */
+  ocg_real albedo_power; /**< OCG_MS_ALBEDO_POWER */
+  ocg_real ambient_k;    /**< OCG_AMBIENT_DEPTH_K */
+  ocg_real diffuse_b;    /**< OCG_MS_DIFFUSE_B */
+  ocg_real diffuse_a;    /**< OCG_MS_DIFFUSE_A */
 #if defined(OC_GLSL)
 };
 #else
@@ -60,6 +92,8 @@ OC_INLINE ocg_march ocg_march_begin(void) {
   m.L = ocg_v3s(OCG_R(0.0));
   m.T = ocg_v3s(OCG_R(1.0));
   m.Tc = OCG_R(1.0);
+  m.L_ms = ocg_v3s(OCG_R(0.0));
+  m.tau_run = OCG_R(0.0);
   return m;
 }
 
@@ -73,15 +107,64 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
   return ocg_min(air_step, ocg_max(lim, air_step / OCG_R(16.0)));
 }
 
-/* ---- Sources: radiance scattered toward the camera per metre ---------------------------------------
- * Cloud: $J_c = a\,\sigma_c\,[E_{sun}\,M(\tau, \mu) + E\,F/(4\pi)]$, M the multiple-scattering
- * octaves Σ_{i<n} b^i e^{−a^i τ} p_HGD(μ; c^i) (n = 1: single scattering), F the sky fluence per unit
- * solar irradiance (0 without a sky). Domain: σ_c ≥ 0, τ ≥ 0, μ ∈ [−1, 1]. */
-OC_INLINE ocg_vec3 ocg_cloud_source(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real mu, ocg_vec3 e_sun,
-                                    ocg_vec3 e_fluence) {
-  ocg_real ms = ocg_ms_octaves(tau, mu, cm.ms_a, cm.ms_b, cm.ms_c, cm.ms_n);
-  ocg_vec3 s = ocg_add3(ocg_scale3(e_sun, ms), ocg_scale3(e_fluence, OCG_INV_4PI));
+/* ---- Cloud sources: radiance scattered toward the camera per metre ------------------------------------
+ * A cloud sample sees three lights. Single scattering is exact given the τ channel; multiple
+ * scattering and the sky are modelled:
+ *
+ * $J_c = \omega\,\sigma_c\,[E_{sun} e^{-\tau} p(\mu) + E\,\frac{F}{4\pi}\,A]$ now, and
+ * $J_{ms} = \omega\,\sigma_c\,E_{sun} \sum_{i=1}^{n-1} (b\,\omega^q)^i e^{-a^i \tau} p(\mu; c^i)$ deferred:
+ * the march weights a run's J_ms by $G(D) = D/(D + D_{1/2})$ once it knows the run's chord optical depth
+ * D (where the ray leaves the cloud, or stops). The octaves alone (Wrenninge) give a thin cloud as
+ * much multiple scattering as a thick one; G brings in how much cloud there is to scatter in, and the
+ * ω^{qi} factor that each octave is several more bounces, each losing 1 − ω.
+ *
+ * Occluded ambient: the sky fluence F reaches a sample through the cloud around it. In a
+ * conservative cloud (ω = 1) the diffuse field under a uniform sky is the sky itself at every depth
+ * (radiative equilibrium), so A = 1; with absorption it decays over the diffusion length,
+ * $A = e^{-k\,\kappa_d\,d}$, $\kappa_d = \sqrt{3(1 - \omega)(1 - \omega \bar g)}$ with the phase function's
+ * mean cosine ḡ = 0.864, and d = min(τ, τ_run), the sample's depth toward the sun and toward the
+ * camera (the sky comes from all sides; the nearer boundary dominates).
+ *
+ * legacy = 1 is the model before the fit: Σ_{i<n} b^i e^{−a^i τ} p(μ; c^i) now, unoccluded ambient.
+ * Domain: σ_c ≥ 0, τ ≥ 0, μ ∈ [−1, 1], ω ∈ [0, 1], a, b, c ∈ (0, 1]. */
+#define OCG_PHASE_MEAN_COS OCG_R(0.864)
+OC_INLINE ocg_real ocg_ambient_occlusion(OC_IN(ocg_cloud_model) cm, ocg_real tau, ocg_real tau_run) {
+  if (cm.legacy != 0) return OCG_R(1.0);
+  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
+  ocg_real kd = ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+  return ocg_exp(-cm.ambient_k * kd * ocg_max(ocg_min(tau, tau_run), OCG_R(0.0)));
+}
+
+OC_INLINE ocg_vec3 ocg_cloud_source(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real tau_run, ocg_real mu,
+                                    ocg_vec3 e_sun, ocg_vec3 e_fluence) {
+  ocg_real n = cm.legacy != 0 ? ocg_ms_octaves(tau, mu, cm.ms_a, cm.ms_b, cm.ms_c, cm.ms_n)
+                              : ocg_exp(-ocg_max(tau, OCG_R(0.0))) * ocg_phase_hg_draine(mu);
+  ocg_real amb = OCG_INV_4PI * ocg_ambient_occlusion(cm, tau, tau_run);
+  ocg_vec3 s = ocg_add3(ocg_scale3(e_sun, n), ocg_scale3(e_fluence, amb));
   return ocg_scale3(s, cm.albedo * sig);
+}
+
+OC_INLINE ocg_vec3 ocg_cloud_source_ms(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real mu, ocg_vec3 e_sun) {
+  if (cm.legacy != 0 || cm.ms_n < 2) return ocg_v3s(OCG_R(0.0));
+  ocg_real t = ocg_max(tau, OCG_R(0.0));
+  ocg_real wq = cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
+  ocg_real bw = cm.ms_b * wq;
+  ocg_real sum = cm.diffuse_b * wq * OCG_INV_4PI / (OCG_R(1.0) + cm.diffuse_a * t), ai = cm.ms_a, bi = bw, ci = cm.ms_c;
+  for (ocg_int i = 1; i < cm.ms_n; ++i) {
+    sum += bi / (OCG_R(1.0) + ai * t) * ocg_phase_hg_draine_scaled(mu, ci);
+    ai *= cm.ms_a;
+    bi *= bw;
+    ci *= cm.ms_c;
+  }
+  return ocg_scale3(e_sun, sum * cm.albedo * sig);
+}
+
+/* The chord factor G(D) = D/(D + D½) of a run of chord optical depth D ≥ 0. */
+OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d) {
+  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
+  ocg_real kd = ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+  ocg_real de = kd * d > OCG_R(1e-3) ? (OCG_R(1.0) - ocg_exp(-kd * d)) / kd : d;
+  return de / (de + cm.chord_half);
 }
 
 /* Air at radius r: $J_a = (\beta_R p_R(\mu) + \beta_M p_{CS}(\mu, g_M))\,E_{sun} e^{-\tau}
@@ -101,11 +184,45 @@ OC_INLINE ocg_vec3 ocg_air_source(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_rea
  * $L \mathrel{+}= T\,J\,\frac{1 - e^{-\sigma_t d}}{\sigma_t}$, then $T \mathrel{*}= e^{-\sigma_t d}$ and
  * $T_c \mathrel{*}= e^{-\sigma_c d}$. Exact for a homogeneous segment at any length; the weight's series
  * (optics.h) keeps σ_t → 0 finite. */
-OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_real sig, ocg_vec3 j, ocg_real d) {
+OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_real sig, ocg_vec3 j, ocg_vec3 j_ms,
+                                  ocg_real d) {
   ocg_vec3 w = ocg_segment_weight3(sigma_t, d);
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j, w)));
+  OC_DEREF(m).L_ms = ocg_add3(OC_DEREF(m).L_ms, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_ms, w)));
+  OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
   OC_DEREF(m).T = ocg_mul3(OC_DEREF(m).T, ocg_exp3(ocg_scale3(sigma_t, -d)));
   OC_DEREF(m).Tc = OC_DEREF(m).Tc * ocg_exp(-sig * d);
+}
+
+/* The end of a cloud run (a cloud-free segment, the ground, the end or the early exit): its multiple
+ * scattering joins L with the chord factor of the depth crossed. */
+OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
+  if (OC_DEREF(m).tau_run > OCG_R(0.0))
+    OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(OC_DEREF(m).L_ms, ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run)));
+  OC_DEREF(m).L_ms = ocg_v3s(OCG_R(0.0));
+  OC_DEREF(m).tau_run = OCG_R(0.0);
+}
+
+/*! Past the early exit the march goes on through the current cloud run only to measure its chord
+ *  depth D (one σ_t lookup per step, steps OCG_MS_CHORD_STEP times longer, no lighting), up to
+ *  OCG_MS_CHORD_MAX: the lit face of a thick cloud is bright because of the cloud behind it. */
+#ifndef OCG_MS_CHORD_STEP
+#define OCG_MS_CHORD_STEP 8.0
+#endif
+#ifndef OCG_MS_CHORD_MAX
+#define OCG_MS_CHORD_MAX OCG_R(40.0)
+#endif
+
+/* Whether a march past its early exit measures the chord at all: only the fitted model uses it. */
+OC_INLINE ocg_atmo_bool ocg_march_wants_chord(OC_IN(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
+  return cm.legacy == 0 && cm.ms_n > 1 && m.tau_run > OCG_R(0.0);
+}
+
+/* One chord-only step of length d: @return whether to go on (still in cloud, D below the cap). */
+OC_INLINE ocg_atmo_bool ocg_march_chord(OC_INOUT(ocg_march) m, ocg_real sig, ocg_real d) {
+  ocg_atmo_bool in_cloud = sig > OCG_R(0.0);
+  if (in_cloud) OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
+  return in_cloud && OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX;
 }
 
 /* Early exit: every channel of T below exit_t (exit_t ≤ 0: never). What is left is at most exit_t of

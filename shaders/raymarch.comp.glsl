@@ -72,6 +72,7 @@ layout(location = 32) uniform float u_t;         /* blend parameter: mix(previou
 layout(location = 33) uniform ivec3 u_pool_bricks;
 layout(location = 34) uniform int u_map_level;   /* octree map: 0 none, else its level (gl_state.c) */
 layout(location = 35) uniform uint u_map_offset; /* its first word in oc_tree */
+layout(location = 36) uniform int u_ms_model;    /* oc_ms_model_t: 0 fitted depth model, 1 legacy octaves */
 
 /* Shader variants (client/gl/gl_render.c): the renderer compiles one program per combination of the
  * features a frame uses, defining each of these as a constant, so the compiler drops the code of the
@@ -301,7 +302,8 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   float b = dot(u_cam_hi, dir) + dot(u_cam_lo, dir); /* o·d without the 0.5 m rounding of a float o */
   vec3 o = u_cam_frac;
   ocg_march m = ocg_march_begin();
-  ocg_cloud_model cm = ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves);
+  ocg_cloud_model cm = ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves, u_ms_model, OCG_MS_CHORD_HALF,
+                                       OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A);
 
   float t0 = 0.0, t1 = 0.0, a0, a1;
   vec3 box_lo = vec3(-u_cam_cell) * u_cell, box_hi = vec3(ivec3(OCV_CELLS21) - u_cam_cell) * u_cell;
@@ -339,7 +341,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   lf.cells = 0; /* matches no cell: the first step locates */
   lf.origin = vec3(0.0);
   lf.size = 0.0;
-  bool exited = false;
+  bool exited = false, chord = false; /* chord: past the early exit, measuring the run's depth only */
   float t = t0;
   for (int it = 0; in_cube && t < t1 && it < OCV_MAX_STEPS; it++) {
     /* The look-ahead that puts a point on a shared face into the node being entered: CPU's 1e-4 m,
@@ -365,7 +367,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     }
     float te = t1;
     if (has) te = min(te, t + max(ocv_node_exit(box, p, dir), eps));
-    if (cloudy) te = min(te, t + u_step_factor * box.size / 7.0);
+    if (cloudy) te = min(te, t + u_step_factor * box.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0));
     if (OCV_ATMO) te = min(te, t + ocv_air_step(b, t, air_step));
     te = max(te, t + eps);
     float seg = te - t;
@@ -379,6 +381,11 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       if (cloudy) sig = st.x;
       tau = st.y;
     }
+    if (chord) {
+      t = te;
+      if (!ocg_march_chord(m, sig, seg)) break;
+      continue;
+    }
     if (OCV_DEBUG && sig > 0.0) {
       if (u_debug == OCV_DEBUG_LOD) return vec4(ocv_level_color(oc_leaf[lf.idx].info.z), 0.0);
       if (u_debug == OCV_DEBUG_TAU) return vec4(vec3(0.3 * exp(-tau)), 0.0);
@@ -388,26 +395,32 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     float mu_s = (u_sun_o + tm * mu) / r;
     vec3 Esun = u_sun_e * ocv_sun_transmittance(r, mu_s);
     vec3 sigma_t = vec3(sig);
-    vec3 J = vec3(0.0);
+    vec3 J = vec3(0.0), Jms = vec3(0.0);
     if (sig > 0.0) {
       vec3 F = vec3(0.0);
       if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s);
-      J = ocg_cloud_source(cm, sig, tau, mu, Esun, F);
+      else if (u_bg_constant != 0 && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = vec3(4.0 * OCG_PI * u_bg_radiance);
+      J = ocg_cloud_source(cm, sig, tau, m.tau_run, mu, Esun, F);
+      Jms = ocg_cloud_source_ms(cm, sig, tau, mu, Esun);
+    } else {
+      ocg_march_end_run(m, cm);
     }
     if (OCV_ATMO && r < u_atm.top_radius) {
       sigma_t += ocg_atmo_extinction(u_atm, r);
       J += ocg_air_source(u_atm, r, mu, Esun, tau, u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
     }
     bool above = max(m.T.x, max(m.T.y, m.T.z)) >= 0.5;
-    ocg_march_segment(m, sigma_t, sig, J, seg);
+    ocg_march_segment(m, sigma_t, sig, J, Jms, seg);
     if (above && max(m.T.x, max(m.T.y, m.T.z)) < 0.5 && depth == OCV_FAR) depth = tm;
     t = te;
     if (ocg_march_done(m, u_exit_t)) {
       exited = true;
-      break;
+      if (!ocg_march_wants_chord(m, cm)) break;
+      chord = true;
     }
   }
 
+  ocg_march_end_run(m, cm);
   if (!exited) {
     if (hit_ground) {
       if (depth == OCV_FAR) depth = t1;

@@ -51,6 +51,8 @@ int oct_bench_sweep(const char *prog, int argc, char **argv);
 void oct_bench_sweep_usage(FILE *f);
 int oct_bench_truth(const char *prog, int argc, char **argv);
 void oct_bench_truth_usage(FILE *f);
+int oct_bench_model(const char *prog, int argc, char **argv);
+void oct_bench_model_usage(FILE *f);
 int oct_bench_stability(const char *prog, int argc, char **argv);
 void oct_bench_stability_usage(FILE *f);
 /* bench_features.c: each feature a scene uses, turned off alone: memory and time saved. */

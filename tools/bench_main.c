@@ -23,6 +23,7 @@ void oct_bench_usage(FILE *f) {
           "  wire       epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary\n"
           "  sweep      error against run time: quality knobs swept, RMSE/PSNR against the best setting\n"
           "  truth      Monte Carlo ground truth (delta tracking, every scattering order) for small views\n"
+          "  model      the cloud model against stored truth images (truth --save): errors, fit objective\n"
           "  stability  stiff and extreme cases end to end (server, protocol, renderers): finite, bounded, known answers\n"
           "  features   each feature a scene uses turned off alone: server time, bricks, wire, memory, tables, render\n"
           "\n"
@@ -95,6 +96,7 @@ void oct_bench_usage(FILE *f) {
           "\n");
   oct_bench_sweep_usage(f);
   oct_bench_truth_usage(f);
+  oct_bench_model_usage(f);
   oct_bench_stability_usage(f);
   oct_bench_features_usage(f);
   fprintf(f,
@@ -169,6 +171,7 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "wire")) return oct_bench_wire(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "sweep")) return oct_bench_sweep(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "truth")) return oct_bench_truth(prog, argc - 1, argv + 1);
+  if (!strcmp(argv[1], "model")) return oct_bench_model(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "stability")) return oct_bench_stability(prog, argc - 1, argv + 1);
   if (!strcmp(argv[1], "features")) return oct_bench_features(prog, argc - 1, argv + 1);
   return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown command \"%s\" (see --help)", argv[1]);

@@ -26,6 +26,7 @@
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "oc_scene_voxelize.h"
+#include "oc_truth.h" /* oc_truth_source_length, oc_truth_source_sigma */
 #include "optics.h" /* ocg_phase_hg_draine for the sampler check */
 
 #define OCT_TRUTH_MAX_TAUS 16
@@ -52,6 +53,8 @@ void oct_bench_truth_usage(FILE *f) {
           "                      by one-sample MIS (default 0.02; 0: plain phase sampling)\n"
           "  --png-prefix P      write P-tauT-truth.png, P-tauT-reference.png, P-tauT-error.png\n"
           "  --csv FILE          one row per optical depth and reference setting\n"
+          "  --save P            write P-tauT.txt: the case's parameters and the truth's per-pixel mean\n"
+          "                      radiance and standard error (text; tests/data holds such files)\n"
           "  --check-slab        run only the transport checks (published slab, single scattering,\n"
           "                      energy, phase sampling); they also run before every truth run\n"
           "  --slab-photons N    photons per slab case (default 1000000)\n"
@@ -318,24 +321,9 @@ static int oct__check_slab(long photons, uint64_t seed, int threads) {
 
 /* ---- Scene scaling ------------------------------------------------------------------------------------------ */
 
-/* The length across which --tau is measured: a sphere's diameter, a slab's thickness, a box's height. */
-static double oct__source_length(const oc_source_t *src) {
-  switch (src->type) {
-    case OC_SOURCE_SPHERE: return 2.0 * src->sphere.radius;
-    case OC_SOURCE_BOX: return src->box.size[2];
-    case OC_SOURCE_SLAB: return src->slab.top - src->slab.base;
-    default: return 0.0;
-  }
-}
-
-static double *oct__source_sigma(oc_source_t *src) {
-  switch (src->type) {
-    case OC_SOURCE_SPHERE: return &src->sphere.sigma_t;
-    case OC_SOURCE_BOX: return &src->box.sigma_t;
-    case OC_SOURCE_SLAB: return &src->slab.sigma_t;
-    default: return NULL;
-  }
-}
+/* The length across which --tau is measured and the σt it scales: oc_truth_source_length/_sigma. */
+#define oct__source_length oc_truth_source_length
+#define oct__source_sigma oc_truth_source_sigma
 
 /* ---- The truth image ---------------------------------------------------------------------------------------- */
 
@@ -700,10 +688,35 @@ static int oct__run_pngs(oct__run_t *r, const char *prefix) {
   return OC_EXIT_OK;
 }
 
+/* PREFIX-tauT.txt: what tests/common/test_truth.c and `overcast-bench truth --model` read back —
+ * "key value" lines (the scene file, τ, size, paths, seed, albedo, background, the camera if not the
+ * scene's, the image mean ± SE, the image mean of the radiance per unit uniform-sky radiance ± SE), then "pixels" and one "radiance se" line per pixel, row-major from
+ * the top. 6 significant digits: far below the Monte Carlo noise. */
+static int oct__run_save(const oct__run_t *r, const char *prefix, const char *camera_text) {
+  char path[1024];
+  snprintf(path, sizeof path, "%s-tau%g.txt", prefix, r->tau);
+  FILE *f = fopen(path, "w");
+  if (!f) return oc_cli_fail(r->prog, OC_EXIT_RUNTIME, "%s: cannot write", path);
+  size_t n = (size_t)r->w * (size_t)r->h;
+  double mean, mean_se;
+  oct__image_mean(r->job->L, r->job->L_se, n, &mean, &mean_se);
+  fprintf(f, "# overcast-bench truth: Monte Carlo radiance per pixel (delta sun of irradiance 1, OC_BG_CONSTANT)\n");
+  fprintf(f, "scene %s\ntau %.9g\nsize %d %d\npaths %ld\nseed %llu\nalbedo %.9g\nbackground %.9g\n", r->scene_path,
+          r->tau, r->w, r->h, r->job->paths, (unsigned long long)r->job->seed, r->sc->optics.albedo, r->background);
+  if (camera_text) fprintf(f, "camera %s\n", camera_text);
+  double env, env_se;
+  oct__image_mean(r->job->env, r->job->env_se, n, &env, &env_se);
+  fprintf(f, "mean %.6g %.6g\nenv %.6g %.6g\npixels\n", mean, mean_se, env, env_se);
+  for (size_t i = 0; i < n; i++) fprintf(f, "%.6g %.3g\n", r->job->L[i], r->job->L_se[i]);
+  if (fclose(f) != 0) return oc_cli_fail(r->prog, OC_EXIT_RUNTIME, "%s: write failed", path);
+  return OC_EXIT_OK;
+}
+
 /* One optical depth: voxelize, trace the truth, render the references, print and write the
  * comparison. @return 0 or an exit status. */
 static int oct__truth_one(oct__run_t *r, long paths, uint64_t seed, long max_bounces, double sun_lobe,
-                          const char *png_prefix, FILE *csv, oct__summary_t *sum) {
+                          const char *png_prefix, const char *save, const char *camera_text, FILE *csv,
+                          oct__summary_t *sum) {
   static oct__truth_job_t job; /* large (per-thread counters); one optical depth at a time */
   memset(&job, 0, sizeof job);
   job.seed = seed;
@@ -714,6 +727,7 @@ static int oct__truth_one(oct__run_t *r, long paths, uint64_t seed, long max_bou
   if (rc == OC_EXIT_OK) {
     oct__run_report(r, &sum->mc_mean, &sum->mc_se);
     if (png_prefix) rc = oct__run_pngs(r, png_prefix);
+    if (save && rc == OC_EXIT_OK) rc = oct__run_save(r, save, camera_text);
     for (int k = 0; k < r->nref && csv; k++) {
       const oct__score_t *s = &r->score[k];
       fprintf(csv, "%s,%g,%.9g,%d,%d,%ld,%g,%d,%g,%.9g,%.9g,%.9g,%.6f,%.6f,%.9g,%.9g,%.4f,%.6f,%.3f\n", r->scene_path,
@@ -754,7 +768,7 @@ static int oct__parse_doubles(const char *prog, const char *opt, const char *tex
 int oct_bench_truth(const char *prog, int argc, char **argv) {
   enum {
     O_SCENE = 256, O_CAMERA, O_SIZE, O_TAU, O_SCALE, O_PATHS, O_SEED, O_THREADS, O_STEP, O_BG, O_BOUNCES, O_PNG, O_CSV,
-    O_CHECK, O_PHOTONS, O_NOCHECK, O_ALBEDO, O_LOBE, O_HELP
+    O_CHECK, O_PHOTONS, O_NOCHECK, O_ALBEDO, O_LOBE, O_SAVE, O_HELP
   };
   static const struct option opts[] = {
       {"scene", required_argument, 0, O_SCENE},        {"camera", required_argument, 0, O_CAMERA},
@@ -766,8 +780,10 @@ int oct_bench_truth(const char *prog, int argc, char **argv) {
       {"csv", required_argument, 0, O_CSV},            {"check-slab", no_argument, 0, O_CHECK},
       {"slab-photons", required_argument, 0, O_PHOTONS}, {"no-slab-check", no_argument, 0, O_NOCHECK},
       {"albedo", required_argument, 0, O_ALBEDO},     {"sun-lobe", required_argument, 0, O_LOBE},
-      {"help", no_argument, 0, O_HELP},                {0, 0, 0, 0}};
-  const char *scene_path = "scenes/analytic_sphere.json", *camera_text = NULL, *tau_text = NULL, *png = NULL, *csv_path = NULL;
+      {"save", required_argument, 0, O_SAVE},         {"help", no_argument, 0, O_HELP},
+      {0, 0, 0, 0}};
+  const char *scene_path = "scenes/analytic_sphere.json", *camera_text = NULL, *tau_text = NULL, *png = NULL, *csv_path = NULL,
+             *save = NULL;
   int w = 64, h = 36, check_only = 0, no_check = 0, have_scale = 0;
   long paths = 1024, seed = 1, threads = sysconf(_SC_NPROCESSORS_ONLN), max_bounces = 1000000, photons = 1000000;
   double step = 0.25, background = 0.0, sigma_scale = 1.0, albedo = -1.0, sun_lobe = 0.02;
@@ -794,6 +810,7 @@ int oct_bench_truth(const char *prog, int argc, char **argv) {
       case O_BOUNCES: if (oc_cli_int(prog, "--max-bounces", optarg, 1, 1000000000, &max_bounces)) return OC_EXIT_USAGE; break;
       case O_PNG: png = optarg; break;
       case O_CSV: csv_path = optarg; break;
+      case O_SAVE: save = optarg; break;
       case O_CHECK: check_only = 1; break;
       case O_PHOTONS: if (oc_cli_int(prog, "--slab-photons", optarg, 1000, 1000000000, &photons)) return OC_EXIT_USAGE; break;
       case O_NOCHECK: no_check = 1; break;
@@ -875,7 +892,7 @@ int oct_bench_truth(const char *prog, int argc, char **argv) {
     }
     oct__run_t run = {.prog = prog, .scene_path = scene_path, .sc = &sc, .cam = cam, .w = w, .h = h,
                       .threads = (int)threads, .tau = taus[k], .step = step, .background = background};
-    rc = oct__truth_one(&run, paths, (uint64_t)seed, max_bounces, sun_lobe, png, csv, &sums[k]);
+    rc = oct__truth_one(&run, paths, (uint64_t)seed, max_bounces, sun_lobe, png, save, camera_text, csv, &sums[k]);
     if (rc == OC_EXIT_OK) done++;
   }
   if (done > 1) {

@@ -178,9 +178,14 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   if (d.flags & OC_RF_NO_EARLY_EXIT) d.exit_t = -1.0;
   if (d.ms_octaves == 0) d.ms_octaves = OC_RENDER_DEFAULT_MS_OCTAVES;
   if (d.ms_octaves < 1 || d.ms_octaves > 16) return ocv__bad(why, why_len, "ms_octaves [1, 16]");
-  if (d.ms_a == 0.0f) d.ms_a = 0.5f;
-  if (d.ms_b == 0.0f) d.ms_b = 0.5f;
-  if (d.ms_c == 0.0f) d.ms_c = 0.5f;
+  if (d.ms_a == 0.0f) d.ms_a = OC_RENDER_DEFAULT_MS_A;
+  if (d.ms_b == 0.0f) d.ms_b = OC_RENDER_DEFAULT_MS_B;
+  if (d.ms_c == 0.0f) d.ms_c = OC_RENDER_DEFAULT_MS_C;
+  if (!(d.ms_a > 0.0f && d.ms_a <= 1.0f)) return ocv__bad(why, why_len, "ms_a (0, 1]");
+  if (!(d.ms_b > 0.0f && d.ms_b <= 1.0f)) return ocv__bad(why, why_len, "ms_b (0, 1]");
+  if (!(d.ms_c > 0.0f && d.ms_c <= 1.0f)) return ocv__bad(why, why_len, "ms_c (0, 1]");
+  if (d.ms_model != OC_MS_MODEL_DEPTH && d.ms_model != OC_MS_MODEL_OCTAVES) return ocv__bad(why, why_len, "ms_model");
+  if (d.ms_fit) return ocv__bad(why, why_len, "ms_fit (CPU reference only: the shader compiles march.h's constants)");
   if (d.albedo == 0.0f) d.albedo = 1.0f;
   if (d.albedo_zero) d.albedo = 0.0f;
   if (!(d.albedo >= 0.0f && d.albedo <= 1.0f)) return ocv__bad(why, why_len, "albedo [0, 1]");
@@ -257,6 +262,7 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   glProgramUniform3i(p, 33, blend ? r->prev->pool_bricks[0] : 1, blend ? r->prev->pool_bricks[1] : 1, 1);
   glProgramUniform1i(p, 34, r->no_map ? 0 : gs->map_level);
   glProgramUniform1ui(p, 35, gs->map_offset);
+  glProgramUniform1i(p, 36, d.ms_model);
   glUseProgram(p);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);

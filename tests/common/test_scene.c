@@ -141,7 +141,7 @@ static void test_defaults(void **state) {
   assert_true(s.camera.pos.lat == 45 && s.camera.pos.lon == 0 && s.camera.pos.alt == 2000);
   assert_true(s.camera.heading == 260 && s.camera.pitch == -5 && s.camera.fov == 60);
   assert_true(s.optics.albedo == 1.0 && s.optics.ms_octaves == 4);
-  assert_true(s.optics.ms_a == 0.5 && s.optics.ms_b == 0.5 && s.optics.ms_c == 0.5);
+  assert_true(s.optics.ms_a == 0.482 && s.optics.ms_b == 0.9755 && s.optics.ms_c == 0.9783);
   assert_int_equal(s.nsources, 0);
   oc_scene_free(&s);
 
@@ -293,6 +293,10 @@ static void test_error_out_of_range(void **state) {
   expect_error("{\"optics\": {\"ms_octaves\": 9}}", OC_ESCENE, "optics.ms_octaves: 9 is out of range [1, 8]", NULL);
   expect_error("{\"optics\": {\"ms_a\": 1}}", OC_ESCENE, "optics.ms_a: 1 is out of range (0, 1)", NULL);
   expect_error("{\"optics\": {\"albedo\": 1.01}}", OC_ESCENE, "optics.albedo: 1.01 is out of range [0, 1]", NULL);
+  expect_error("{\"optics\": {\"albedo\": -0.5}}", OC_ESCENE, "optics.albedo: -0.5 is out of range [0, 1]", NULL);
+  expect_error("{\"optics\": {\"ms_b\": 0}}", OC_ESCENE, "optics.ms_b: 0 is out of range (0, 1)", NULL);
+  expect_error("{\"optics\": {\"ms_c\": -2}}", OC_ESCENE, "optics.ms_c: -2 is out of range (0, 1)", NULL);
+  expect_error("{\"optics\": {\"ms_a\": 1e999}}", OC_ESCENE, "optics.ms_a:", NULL);
   expect_error("{\"sources\": [{\"type\": \"sphere\", \"alt\": 3000, \"radius\": 2000, \"sigma_t\": -0.1}]}", OC_ESCENE,
                "sources[0].sigma_t: -0.1 is out of range [0, 1e+09]", NULL);
   expect_error("{\"sources\": [{\"type\": \"sphere\", \"alt\": 3000, \"radius\": 0, \"sigma_t\": 1}]}", OC_ESCENE,

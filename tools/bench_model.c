@@ -1,0 +1,259 @@
+/* bench_model.c — `overcast-bench model`: the real-time cloud model against stored Monte Carlo
+ * truth images (`overcast-bench truth --save`), one row per case, old and new model side by side,
+ * and the sum the fit minimises (--search: Nelder-Mead over the six numbers). The truth itself is not re-traced: a few
+ * milliseconds per case, so a fit can render every case hundreds of times. */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bench.h"
+#include "oc_cli.h"
+#include "march.h" /* OCG_MS_CHORD_HALF, … : the fitted constants a search starts from */
+#include "oc_truth.h"
+
+void oct_bench_model_usage(FILE *f) {
+  fprintf(f, "model options (the cloud model against stored truth images; FILE... from `truth --save`):\n"
+             "  --fit D,Q,K,BD,AD   override march.h's fitted constants: chord half-depth, albedo power, ambient depth,\n"
+             "                      diffuse weight, diffuse decay\n"
+             "  --abc A,B,C         octave factors (default: the scene's)\n"
+             "  --legacy            also score the plain octaves (the model before the fit)\n"
+             "  --quiet             only the summary and the fit objective\n"
+             "  --search N          N Nelder-Mead iterations on the eight numbers from the given (or default) start;\n"
+             "                      prints the best --abc and --fit, then scores the cases with them\n");
+}
+
+typedef struct {
+  float fit[5];
+  int have_fit, have_abc, legacy, quiet, search;
+  double abc[3];
+} oct__model_opts_t;
+
+/* Renders one case with one model; @return 0 or an exit status. */
+static int oct__model_case(const char *prog, const oc_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam,
+                           const oc_state_t *st, const oct__model_opts_t *o, int legacy, oc_truth_score_t *s) {
+  oc_render_desc_t d = oc_truth_case_desc(c, sc, cam);
+  d.ms_model = legacy ? OC_MS_MODEL_OCTAVES : OC_MS_MODEL_DEPTH;
+  if (!legacy && o->have_fit) d.ms_fit = o->fit;
+  if (!legacy && o->have_abc) {
+    d.ms_a = (float)o->abc[0];
+    d.ms_b = (float)o->abc[1];
+    d.ms_c = (float)o->abc[2];
+  }
+  if (legacy) { /* the model before the fit: its 0.5 defaults; it lit no cloud from a constant background */
+    d.ms_a = d.ms_b = d.ms_c = 0.5f;
+    d.flags |= OC_RF_NO_AMBIENT;
+  }
+  oc_image_t img = {0};
+  if (oc_image_alloc(&img, c->w, c->h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  int rc = oc_render_state(st, &d, &img, NULL) < 0 || oc_truth_score(c, &img, s) < 0;
+  oc_image_free(&img);
+  return rc ? oc_cli_fail(prog, OC_EXIT_RUNTIME, "model: render failed") : OC_EXIT_OK;
+}
+
+/* The fit's objective per case: the image-mean error in units of the ±10 % target and the RMSE in
+ * units of its bound max(6, 2 × the truth's seed-to-seed RMSE), squared and summed. */
+static double oct__model_cost(const oc_truth_score_t *s) {
+  double r = s->rel / 0.1, e = s->rmse8 / fmax(6.0, 2.0 * s->noise8);
+  return r * r + e * e;
+}
+
+/* Every case loaded and voxelized once. */
+typedef struct {
+  oc_truth_case_t tc;
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  const char *name;
+} oct__mcase_t;
+
+/* Scores every case with o's numbers; prints a row per case unless quiet. @return the objective, or
+ * NaN when a render failed. */
+static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oct__model_opts_t *o, int print) {
+  double cost = 0.0, worst_rel = 0.0, worst_rmse = 0.0, worst_amb = 0.0;
+  int pass = 0;
+  for (int i = 0; i < n; i++) {
+    oct__mcase_t *m = &cs[i];
+    oc_truth_score_t old = {0}, s;
+    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, &old) : OC_EXIT_OK;
+    if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, &s);
+    if (rc != OC_EXIT_OK) return NAN;
+    double amb_new = 0.0, amb_old = 0.0; /* image mean under a uniform sky alone, against tc.env */
+    if (m->tc.env > 0.0 && m->tc.albedo < 1.0) {
+      oc_render_desc_t d = oc_truth_case_desc(&m->tc, &m->sc, m->cam);
+      if (o->have_fit) d.ms_fit = o->fit;
+      if (oc_truth_ambient(&m->tc, &m->st, d, &amb_new) < 0) return NAN;
+      d.ms_model = OC_MS_MODEL_OCTAVES;
+      d.ms_fit = NULL;
+      d.ms_a = d.ms_b = d.ms_c = 0.5f;
+      if (print && oc_truth_ambient(&m->tc, &m->st, d, &amb_old) < 0) return NAN;
+      amb_new = amb_new / m->tc.env - 1.0;
+      amb_old = amb_old / m->tc.env - 1.0;
+      cost += (amb_new / 0.05) * (amb_new / 0.05);
+      worst_amb = fmax(worst_amb, fabs(amb_new));
+    }
+    double bound = fmax(6.0, 2.0 * s.noise8), lim = m->tc.tau > 20.0 ? 0.2 : 0.1;
+    int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
+    cost += oct__model_cost(&s);
+    worst_rel = fmax(worst_rel, fabs(s.rel));
+    worst_rmse = fmax(worst_rmse, s.rmse8 / bound);
+    pass += ok;
+    if (print && !o->quiet) {
+      printf("| %s | %g | %g | %.4g ± %.1f %% | %.2f | ", m->name, m->tc.tau, m->tc.albedo, m->tc.mean, 100.0 * s.rel_se,
+             s.noise8);
+      if (o->legacy) printf("%+.1f %% | %.1f | ", 100.0 * old.rel, old.rmse8);
+      printf("%+.1f %% | %.1f | %.1f%s | %+.2f %% (%+.2f %%) |\n", 100.0 * s.rel, s.rmse8, bound, ok ? "" : " ✗",
+             100.0 * amb_new, 100.0 * amb_old);
+    }
+  }
+  if (print)
+    printf("\n%d cases, %d within bounds; worst |mean error| %.1f %%, worst RMSE / bound %.2f, worst uniform-sky error "
+           "%.1f %%\nCOST %.6g\n", n, pass, 100.0 * worst_rel, worst_rmse, 100.0 * worst_amb, cost);
+  return cost;
+}
+
+/* The eight numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
+static void oct__model_unpack(const double x[8], oct__model_opts_t *o) {
+  for (int i = 0; i < 3; i++) o->abc[i] = fmin(1.0 / (1.0 + exp(-x[i])), 0.999);
+  for (int i = 0; i < 5; i++) o->fit[i] = (float)fmin(exp(x[3 + i]), 999.0);
+  o->have_abc = o->have_fit = 1;
+}
+
+static double oct__model_eval(const char *prog, oct__mcase_t *cs, int n, oct__model_opts_t *o, const double x[8]) {
+  oct__model_unpack(x, o);
+  double c = oct__model_all(prog, cs, n, o, 0);
+  return isnan(c) ? 1e300 : c;
+}
+
+/* Nelder-Mead (reflection 1, expansion 2, contraction ½, shrink ½) from the start in o. */
+static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__model_opts_t *o, int iters) {
+  enum { N = 8 };
+  double p[N + 1][N], v[N + 1];
+  const double fit0[5] = {OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A};
+  for (int j = 0; j < 3; j++) {
+    double a = o->have_abc ? o->abc[j] : 0.5;
+    p[0][j] = log(a / (1.0 - a));
+  }
+  for (int j = 0; j < 5; j++) p[0][3 + j] = log(fmax(o->have_fit ? o->fit[j] : fit0[j], 1e-6));
+  for (int i = 1; i <= N; i++) {
+    memcpy(p[i], p[0], sizeof p[0]);
+    p[i][i - 1] += 0.7;
+  }
+  for (int i = 0; i <= N; i++) v[i] = oct__model_eval(prog, cs, n, o, p[i]);
+  for (int it = 0; it < iters; it++) {
+    for (int i = 1; i <= N; i++) /* sort: best first */
+      for (int k = i; k > 0 && v[k] < v[k - 1]; k--) {
+        double t[N], tv = v[k];
+        memcpy(t, p[k], sizeof t);
+        memcpy(p[k], p[k - 1], sizeof t);
+        memcpy(p[k - 1], t, sizeof t);
+        v[k] = v[k - 1];
+        v[k - 1] = tv;
+      }
+    double c[N] = {0}, xr[N], xe[N], xc[N];
+    for (int i = 0; i < N; i++)
+      for (int j = 0; j < N; j++) c[j] += p[i][j] / N;
+    for (int j = 0; j < N; j++) xr[j] = 2.0 * c[j] - p[N][j];
+    double fr = oct__model_eval(prog, cs, n, o, xr);
+    if (fr < v[0]) {
+      for (int j = 0; j < N; j++) xe[j] = 3.0 * c[j] - 2.0 * p[N][j];
+      double fe = oct__model_eval(prog, cs, n, o, xe);
+      memcpy(p[N], fe < fr ? xe : xr, sizeof xe);
+      v[N] = fe < fr ? fe : fr;
+    } else if (fr < v[N - 1]) {
+      memcpy(p[N], xr, sizeof xr);
+      v[N] = fr;
+    } else {
+      for (int j = 0; j < N; j++) xc[j] = 0.5 * (c[j] + p[N][j]);
+      double fc = oct__model_eval(prog, cs, n, o, xc);
+      if (fc < v[N]) {
+        memcpy(p[N], xc, sizeof xc);
+        v[N] = fc;
+      } else {
+        for (int i = 1; i <= N; i++) {
+          for (int j = 0; j < N; j++) p[i][j] = 0.5 * (p[0][j] + p[i][j]);
+          v[i] = oct__model_eval(prog, cs, n, o, p[i]);
+        }
+      }
+    }
+    if (it % 10 == 0) fprintf(stderr, "search: iteration %d, objective %.4g\n", it, v[0]);
+  }
+  int best = 0;
+  for (int i = 1; i <= N; i++)
+    if (v[i] < v[best]) best = i;
+  oct__model_unpack(p[best], o);
+  printf("search: %d iterations, objective %.6g: --abc %.4f,%.4f,%.4f --fit %.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters, v[best],
+         o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1], o->fit[2], o->fit[3], o->fit[4]);
+}
+
+int oct_bench_model(const char *prog, int argc, char **argv) {
+  enum { O_FIT = 256, O_ABC, O_LEGACY, O_QUIET, O_SEARCH, O_HELP };
+  static const struct option opts[] = {{"fit", required_argument, 0, O_FIT},   {"abc", required_argument, 0, O_ABC},
+                                       {"legacy", no_argument, 0, O_LEGACY},   {"quiet", no_argument, 0, O_QUIET},
+                                       {"search", required_argument, 0, O_SEARCH}, {"help", no_argument, 0, O_HELP},
+                                       {0, 0, 0, 0}};
+  oct__model_opts_t o = {0};
+  int c;
+  long iters = 0;
+  opterr = 0;
+  optind = 1;
+  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+    double v[5];
+    switch (c) {
+      case O_FIT:
+      case O_ABC:
+        if (sscanf(optarg, "%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4]) != (c == O_FIT ? 5 : 3))
+          return oc_cli_fail(prog, OC_EXIT_USAGE, "model: %s wants %d comma-separated numbers", argv[optind - 1],
+                             c == O_FIT ? 5 : 3);
+        if (c == O_FIT) {
+          for (int i = 0; i < 5; i++) o.fit[i] = (float)v[i];
+          o.have_fit = 1;
+        } else {
+          memcpy(o.abc, v, sizeof o.abc);
+          o.have_abc = 1;
+        }
+        break;
+      case O_LEGACY: o.legacy = 1; break;
+      case O_QUIET: o.quiet = 1; break;
+      case O_SEARCH: if (oc_cli_int(prog, "--search", optarg, 1, 100000, &iters)) return OC_EXIT_USAGE; break;
+      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
+      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "model: unknown or incomplete option \"%s\"", argv[optind - 1]);
+    }
+  }
+  int n = argc - optind;
+  if (n <= 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "model: give truth files (overcast-bench truth --save)");
+  oct__mcase_t *cs = calloc((size_t)n, sizeof *cs);
+  if (!cs) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  int loaded = 0, rc = OC_EXIT_OK;
+  for (; loaded < n; loaded++) {
+    oct__mcase_t *m = &cs[loaded];
+    char why[1024];
+    const char *path = argv[optind + loaded], *slash = strrchr(path, '/');
+    m->name = slash ? slash + 1 : path;
+    if (oc_truth_case_load(&m->tc, path, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      break;
+    }
+    if (oc_truth_case_state(&m->tc, NULL, &m->sc, &m->cam, &m->st, why, sizeof why) < 0) {
+      oc_truth_case_free(&m->tc);
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+      break;
+    }
+  }
+  if (rc == OC_EXIT_OK) {
+    if (iters > 0) oct__model_search(prog, cs, n, &o, (int)iters);
+    if (!o.quiet)
+      printf("| case | τ | albedo | truth mean ± rel. SE | seed RMSE | %snew: mean error | RMSE 0–255 | bound | uniform sky: "
+             "new (unoccluded) |\n|---|---:|---:|---:|---:|%s---:|---:|---:|---:|\n",
+             o.legacy ? "old: mean error | RMSE 0–255 | " : "", o.legacy ? "---:|---:|" : "");
+    if (isnan(oct__model_all(prog, cs, n, &o, 1))) rc = OC_EXIT_RUNTIME;
+  }
+  for (int i = 0; i < loaded; i++) {
+    oc_state_free(&cs[i].st);
+    oc_scene_free(&cs[i].sc);
+    oc_truth_case_free(&cs[i].tc);
+  }
+  free(cs);
+  return rc;
+}
