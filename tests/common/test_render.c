@@ -401,6 +401,43 @@ static void test_render__rejects_bad_descriptions(void **st) {
   bad = d;
   bad.ms_octaves = 99;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  /* The cloud model's domain: albedo [0, 1], octave factors (0, 1], the model enum, fit overrides. */
+  const float outside[] = {-0.1f, 1.5f, NAN, INFINITY};
+  for (int i = 0; i < 4; i++) {
+    bad = d;
+    bad.albedo = outside[i];
+    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+    bad = d;
+    bad.ms_a = outside[i];
+    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+    bad = d;
+    bad.ms_b = outside[i];
+    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+    bad = d;
+    bad.ms_c = outside[i];
+    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  }
+  bad = d;
+  bad.ms_model = 7;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  const float fit_bad[5] = {0.0f, 1.0f, 1.0f, 1.0f, 1.0f}, fit_nan[5] = {1.0f, NAN, 1.0f, 1.0f, 1.0f};
+  bad = d;
+  bad.ms_fit = fit_bad;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  bad.ms_fit = fit_nan;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  /* The edges of the domain draw finite pictures: every factor 1 with 16 octaves, albedo 1e-30 and 1. */
+  oc_render_desc_t edge = d;
+  edge.ms_a = edge.ms_b = edge.ms_c = 1.0f;
+  edge.ms_octaves = 16;
+  edge.background_radiance = 1.0f;
+  for (int k = 0; k < 2; k++) {
+    edge.albedo = k ? 1.0f : 1e-30f;
+    oc_render_stats_t rs;
+    assert_int_equal(oc_render_state(&s, &edge, &img, &rs), 0);
+    assert_int_equal(rs.nonfinite, 0);
+    for (int i = 0; i < 4 * img.w * img.h; i++) assert_true(isfinite(img.px[i]));
+  }
   assert_int_equal(oc_render_state(&s, &d, &img, NULL), 0);
   oc_image_free(&img);
   oc_state_free(&s);
