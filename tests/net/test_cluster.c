@@ -146,6 +146,39 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   redis_stop(&r);
 }
 
+/* A Redis that stops answering (SIGSTOP: it still accepts connections) costs a front-end with the
+ * default deadline (200 ms, a tenth of the period) nothing but that: production starts at the
+ * deadline, or without a lookup once the connection is judged stuck; the viewer's states go on. */
+static void test_cluster__redis_stopped(void **state) {
+  (void)state;
+  redis_proc_t r;
+  assert_int_equal(redis_start(&r, 0), 0);
+  children[0] = r.pid;
+  char addr[64];
+  snprintf(addr, sizeof addr, "127.0.0.1:%d", r.port);
+  const char *extra[] = {"--scene", scene_sphere, "--epoch-period", "0.25", "--redis", addr, "--handshake-rate", "1000", NULL};
+  server_t a;
+  start_server(&a, extra);
+  children[1] = a.pid;
+  for (int i = 0; i < 200 && !redis_up(a.port); i++) redis_sleep_ms(100);
+  viewer_t v;
+  viewer_open(&v, a.port, 4u << 20, NULL);
+  assert_int_equal(viewer_wait(&v, 2, 120.0), 0);
+  kill(r.pid, SIGSTOP);
+  double made = stat_of(a.port, "bricks_produced");
+  assert_int_equal(viewer_wait(&v, v.states + 8, 120.0), 0); /* states go on, each verified */
+  assert_true(stat_of(a.port, "bricks_produced") > made);
+  assert_true(share_of(a.port, "cut_short") + share_of(a.port, "skipped") > 0);
+  kill(r.pid, SIGCONT);
+  for (int i = 0; i < 300 && !redis_up(a.port); i++) redis_sleep_ms(100);
+  assert_true(redis_up(a.port));
+  ocv_conn_close(v.c);
+  children[1] = 0;
+  assert_int_equal(stop_server(&a), 0);
+  children[0] = 0;
+  redis_stop(&r);
+}
+
 /*-*** scripts/cluster.sh: redis-server, front-ends and HAProxy ***/
 
 static char cluster_dir[64];
@@ -246,6 +279,7 @@ int main(void) {
   snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_cluster__made_once_then_without_redis, teardown),
+      cmocka_unit_test_teardown(test_cluster__redis_stopped, teardown),
       cmocka_unit_test_teardown(test_cluster__failover_behind_haproxy, cluster_teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
