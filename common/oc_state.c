@@ -445,24 +445,6 @@ void oc_brick_digests_free(oc_brick_digests_t *b) {
   memset(b, 0, sizeof *b);
 }
 
-int oc_brick_digests_of(oc_brick_digests_t *out, const oc_state_t *s) {
-  if (!out || !s) return OC_EINVAL;
-  oc_brick_digests_free(out);
-  if (!s->brick_count) return 0;
-  out->ids = malloc((size_t)s->brick_count * sizeof *out->ids);
-  out->digests = malloc((size_t)s->brick_count * sizeof *out->digests);
-  if (!out->ids || !out->digests) {
-    oc_brick_digests_free(out);
-    return OC_ENOMEM;
-  }
-  for (uint32_t i = 0; i < s->brick_count; i++) {
-    out->ids[i] = s->bricks[i].id;
-    out->digests[i] = oc_brick_digest(&s->bricks[i].codes);
-  }
-  out->count = s->brick_count;
-  return 0;
-}
-
 int64_t oc_brick_digests_find(const oc_brick_digests_t *b, uint32_t id) {
   if (!b || !b->count) return -1;
   oc__ids_t v = oc__ids_lean(b);

@@ -184,6 +184,25 @@ uint64_t oc_brick_digest(const oc_brick_codes_t *c) {
 #endif
 }
 
+/* Here, beside the digest it applies, so that oc_state.c calls nothing of this file. */
+int oc_brick_digests_of(oc_brick_digests_t *out, const oc_state_t *s) {
+  if (!out || !s) return OC_EINVAL;
+  oc_brick_digests_free(out);
+  if (!s->brick_count) return 0;
+  out->ids = malloc((size_t)s->brick_count * sizeof *out->ids);
+  out->digests = malloc((size_t)s->brick_count * sizeof *out->digests);
+  if (!out->ids || !out->digests) {
+    oc_brick_digests_free(out);
+    return OC_ENOMEM;
+  }
+  for (uint32_t i = 0; i < s->brick_count; i++) {
+    out->ids[i] = s->bricks[i].id;
+    out->digests[i] = oc_brick_digest(&s->bricks[i].codes);
+  }
+  out->count = s->brick_count;
+  return 0;
+}
+
 static uint64_t oc__digest_checksum(const oc_state_t *s, const oc_brick_digests_t *b) {
   XXH3_state_t st;
   XXH3_64bits_reset(&st);
