@@ -30,6 +30,7 @@
 
 #include "oc_atmo.h"
 #include "oc_camera.h"
+#include "oc_err.h" /* OC_EINVAL */
 #include "oc_image.h"
 #include "oc_key.h"
 #include "oc_planet.h"
@@ -210,6 +211,38 @@ static void test_gl_render__constant_background(void **state) {
   d.background = OC_BG_CONSTANT;
   d.background_radiance = 0.02f;
   compare("constant_background", &st, &d, CMP_RMSE, CMP_MAX);
+  oc_state_free(&st);
+  oc_scene_free(&sc);
+}
+
+/* The model before the truth fit matches the CPU as the fitted one does; optics outside their domain
+ * are refused by name, never drawn as NaN. */
+static void test_gl_render__cloud_model(void **state) {
+  (void)state;
+  require_gl();
+  oc_scene_t sc;
+  oc_state_t st;
+  oc_camera_t cam;
+  make_scene(&sc, &st, &cam, NULL, NULL);
+  oc_render_desc_t d = base_desc(&sc, cam);
+  d.ms_model = OC_MS_MODEL_OCTAVES;
+  d.ms_a = d.ms_b = d.ms_c = 0.5f;
+  compare("octaves_before_fit", &st, &d, CMP_RMSE, CMP_MAX);
+  ocv_gl_state_t gs;
+  char why[1024] = "";
+  if (ocv_gl_state_upload(&gs, &st, why, sizeof why)) fail_msg("upload: %s", why);
+  oc_image_t img = {0};
+  assert_int_equal(oc_image_alloc(&img, W, H), 0);
+  oc_render_desc_t bad = base_desc(&sc, cam);
+  bad.ms_b = NAN;
+  assert_int_equal(ocv_gl_render_state(fx.r, &gs, &bad, &img, why, sizeof why), OC_EINVAL);
+  assert_non_null(strstr(why, "ms_b"));
+  bad = base_desc(&sc, cam);
+  bad.albedo = 1.5f;
+  assert_int_equal(ocv_gl_render_state(fx.r, &gs, &bad, &img, why, sizeof why), OC_EINVAL);
+  assert_non_null(strstr(why, "albedo"));
+  oc_image_free(&img);
+  ocv_gl_state_free(&gs);
   oc_state_free(&st);
   oc_scene_free(&sc);
 }
@@ -505,6 +538,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gl_render__constant_background),
       cmocka_unit_test(test_gl_render__atmosphere),
+      cmocka_unit_test(test_gl_render__cloud_model),
       cmocka_unit_test(test_gl_render__camera_inside),
       cmocka_unit_test(test_gl_render__low_sun),
       cmocka_unit_test(test_gl_render__jitter),
