@@ -211,7 +211,7 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     ocs_world_desc_t wd = {.threads = 2, .time = world_time};
     ocs_world_t *world = NULL;
     if (ocs_world_create(&world, &sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
-    ocs_plan_desc_t pd = {.budget = 64u << 20, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21, .split_fraction = 0.5};
+    ocs_plan_desc_t pd = {.budget = 64u << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21, .split_fraction = 0.5};
     ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, w, h};
     int r = ocs_world_plan_offline(world, &pd, &view, 8, &st, why, sizeof why);
     ocs_world_free(world);

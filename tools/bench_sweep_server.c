@@ -51,7 +51,7 @@ int octs_server_run(const oc_scene_t *sc, const octs_server_desc_t *d, oc_camera
   int r = ocs_world_create(&w, sc, &wd, why, why_len);
   if (r < 0) return r;
   ocs_viewer_t *v = NULL;
-  ocs_plan_desc_t req = {.budget = d->budget, .slot_bytes = 2048, .record_bytes = 32, .max_depth = d->max_depth,
+  ocs_plan_desc_t req = {.budget = d->budget, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = d->max_depth,
                          .split_fraction = d->split_fraction, .reserve = d->reserve};
   ocp_epoch_enc_t *enc = NULL;
   ocp_enc_desc_t ed = {.level = OCP_LEVEL_DEFAULT, .deltas = 1};

@@ -251,7 +251,7 @@ int oct_bench_wire(const char *prog, int argc, char **argv) {
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   }
   ocs_viewer_t *v = NULL;
-  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21}, granted;
+  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21}, granted;
   if (ocs_world_add_viewer(w, &req, &v, &granted, why, sizeof why) < 0) {
     ocs_world_free(w);
     oc_scene_free(&sc);

@@ -86,7 +86,7 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
   }
   ocs_viewer_t *v[64];
   for (long i = 0; i < viewers; i++) {
-    ocs_plan_desc_t d = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = 2048, .record_bytes = 32, .max_depth = 21,
+    ocs_plan_desc_t d = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21,
                          .split_fraction = split};
     if (ocs_world_add_viewer(w, &d, &v[i], NULL, why, sizeof why) < 0) {
       ocs_world_free(w);
