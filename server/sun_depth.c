@@ -64,6 +64,11 @@ typedef struct {
   int32_t slot; /* -1: none */
 } ocs__cur_t;
 
+/*! Entries per level of the "current node" cache: the 512 rays of a direct march climb through
+ *  the same few nodes one after the other, and one entry per level thrashed between them (each
+ *  miss made a key and probed the memo). Direct-mapped on the node's coordinates. */
+#define OCS__CUR_WAYS 16
+
 /* One call's state: the memo, the march parameters and a per-level "current node" cache. */
 typedef struct {
   const ocs__desc_t *d;
@@ -79,14 +84,16 @@ typedef struct {
   double h0;    /* first step, m */
   double cell_k[OC_KEY_MAX_LEVEL + 1], cell_n[OC_KEY_MAX_LEVEL + 1]; /* 2^L / 2S, 2^L */
   double step_up[OC_KEY_MAX_LEVEL + 2]; /* h0·2^(j+1): a step this long samples one level coarser */
-  ocs__cur_t cur[OC_KEY_MAX_LEVEL + 1];
+  double size[OC_KEY_MAX_LEVEL + 1];   /* oc_key_size(L), once: node_exit asked it per node */
+  ocs__cur_t cur[OC_KEY_MAX_LEVEL + 1][OCS__CUR_WAYS];
   /* The last node (at a step's level) whose whole ancestry down from level_lo was found non-empty. */
   int chk_level;
   uint32_t chk_ix, chk_iy, chk_iz;
 } ocs__ctx_t;
 
 static void ocs__cur_reset(ocs__ctx_t *c) {
-  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) c->cur[l].slot = -1;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
+    for (int i = 0; i < OCS__CUR_WAYS; i++) c->cur[l][i].slot = -1;
   c->chk_level = -1;
 }
 
@@ -119,6 +126,7 @@ static int ocs__ctx_init(ocs__ctx_t *c, const ocs__desc_t *d, int node_level) {
     c->cell_n[l] = ldexp(1.0, l);
     c->cell_k[l] = c->cell_n[l] / (2.0 * OCS__S);
     c->step_up[l] = ldexp(c->h0, l + 1);
+    c->size[l] = oc_key_size(l);
   }
   c->step_up[OC_KEY_MAX_LEVEL + 1] = INFINITY;
   ocs__cur_reset(c);
@@ -228,11 +236,11 @@ static const float *ocs__brick(ocs__ctx_t *c, int32_t slot) {
 
 /* The slot of node (ix, iy, iz) of `level` through the per-level "current node" cache; -1 on error. */
 static int32_t ocs__slot(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
-  ocs__cur_t *cu = &c->cur[level];
+  uint32_t way = (ix ^ iy * 3u ^ iz * 5u) & (OCS__CUR_WAYS - 1);
+  ocs__cur_t *cu = &c->cur[level][way];
   if (cu->slot >= 0 && cu->ix == ix && cu->iy == iy && cu->iz == iz) return cu->slot;
   int32_t slot = ocs__lookup(c, oc_key_make(level, ix, iy, iz));
-  if (slot < 0) return -1;
-  cu = &c->cur[level]; /* a grow may have reset it */
+  if (slot < 0) return -1; /* a grow reset the cache (slots moved); cu is still this entry */
   cu->ix = ix, cu->iy = iy, cu->iz = iz, cu->slot = slot;
   return slot;
 }
@@ -317,8 +325,8 @@ static void ocs__cps_const(ocs__cps_t *q, double upto, double t, double sum, dou
 
 /* Distance along the ray p + t·dir (pv = p + S per axis, idv = 1/dir or 0) to where it leaves the
  * node (ix, iy, iz) of `level`. */
-static double ocs__node_exit(const double pv[3], const int sg[3], const double idv[3], int level, const uint32_t n[3]) {
-  double size = oc_key_size(level), t = INFINITY;
+static double ocs__node_exit(const double pv[3], const int sg[3], const double idv[3], double size, const uint32_t n[3]) {
+  double t = INFINITY;
   for (int a = 0; a < 3; a++) {
     double f = sg[a] > 0 ? ((double)n[a] + 1.0) * size : (double)n[a] * size;
     if (sg[a] != 0) t = fmin(t, (f - pv[a]) * idv[a]);
@@ -363,7 +371,7 @@ static double ocs__walk(ocs__ctx_t *c, oc_dvec3 p, double ta, double tb, int lev
     if (le >= 0) { /* jump over the coarsest empty node */
       int sh = level - le;
       uint32_t ne[3] = {n[0] >> sh, n[1] >> sh, n[2] >> sh};
-      double te = ocs__node_exit(pv, sg, idv, le, ne);
+      double te = ocs__node_exit(pv, sg, idv, c->size[le], ne);
       if (!(te > t)) te = t + eta; /* rounding: never stall */
       if (te > tb) te = tb;
       ocs__cps_const(q, te, t, sum, 0.0);
@@ -374,7 +382,7 @@ static double ocs__walk(ocs__ctx_t *c, oc_dvec3 p, double ta, double tb, int lev
     if (slot < 0) break;
     const ocs__ent_t *e = &c->tab[slot];
     if (e->smin == e->smax) { /* uniform: v·length */
-      double te = ocs__node_exit(pv, sg, idv, level, n), val = e->smin;
+      double te = ocs__node_exit(pv, sg, idv, c->size[level], n), val = e->smin;
       if (!(te > t)) te = t + eta;
       if (te > tb) te = tb;
       ocs__cps_const(q, te, t, sum, val);
