@@ -1,5 +1,5 @@
 /* net_control.c — control requests (docs/protocol.md, "CONTROL and CONTROL_REPLY"): weather,
- * world time, sun, stepping, reload, sessions, stats, disconnect, drain. Requests and replies are JSON
+ * world time, sun, stepping, reload, sessions, stats, disconnect, drain, a viewer's budget. Requests and replies are JSON
  * objects (cJSON); they run on the loop thread and never while a step runs (net_input.c holds
  * them). Each op is a row of one table, which also says whether it changes the world: those go to
  * the audit log (net_audit.c) with their outcome. */
@@ -188,6 +188,35 @@ static int op_disconnect(ctl_t *c) {
   return 0;
 }
 
+/* A viewer's budget by hand: "session" and "bytes". The world puts it in force (a raise at the
+ * viewer's next plan, a lowering once its newest state fits it) and the viewer hears of it by
+ * BUDGET, which only protocol version 3 has. */
+static int op_budget(ctl_t *c) {
+  double id = num(c->j, "session"), bytes = num(c->j, "bytes");
+  if (!(id >= 0 && id == floor(id))) return refuse(c, "budget: \"session\" must be a session id");
+  if (!(bytes >= 1 && bytes <= 9.0e15 && bytes == floor(bytes)))
+    return refuse(c, "budget: \"bytes\" must be a whole number of bytes in 1..9e15");
+  ocs_session_t *t = NULL;
+  for (ocs_session_t *q = c->s->srv->sessions; q; q = q->next)
+    if (id == (double)q->id) t = q;
+  if (!t) return refuse(c, "budget: no session %.0f", id);
+  if (t->role != OCP_ROLE_VIEWER) return refuse(c, "budget: session %.0f is a control session", id);
+  if (!t->viewer || t->state != OCS_SS_READY)
+    return refuse(c, "budget: session %.0f has no viewer connected (it lingers or is closing)", id);
+  if (t->version < OCP_VERSION_BUDGET)
+    return refuse(c, "budget: session %.0f: this viewer speaks protocol version %u: BUDGET needs %u", id, (unsigned)t->version,
+                  OCP_VERSION_BUDGET);
+  char why[300];
+  ocs_viewer_stats_t was;
+  ocs_viewer_stats(t->viewer, &was);
+  if (ocs_world_set_budget(c->s->srv->world, t->viewer, (uint64_t)bytes, why, sizeof why) < 0)
+    return refuse(c, "budget: session %.0f: %s", id, why);
+  cJSON_AddNumberToObject(c->o, "session", id);
+  cJSON_AddNumberToObject(c->o, "was", (double)was.budget);
+  cJSON_AddNumberToObject(c->o, "budget", bytes);
+  return 0;
+}
+
 /* Replies before the server stops: the stop comes from the housekeeper (net_house.c), later. */
 static int op_drain(ctl_t *c) {
   ocs_server_t *srv = c->s->srv;
@@ -208,7 +237,7 @@ static const struct {
     {"weather", op_weather, 1}, {"time", op_time, 1},         {"pause", op_pause, 1},
     {"resume", op_resume, 1},   {"sun", op_sun, 1},           {"step", op_step, 1},
     {"reload", op_reload, 1},   {"sessions", op_sessions, 0}, {"disconnect", op_disconnect, 1},
-    {"stats", add_world, 0},    {"drain", op_drain, 1},
+    {"stats", add_world, 0},    {"drain", op_drain, 1},       {"budget", op_budget, 1},
 };
 #define NOPS (sizeof ops / sizeof ops[0])
 

@@ -107,6 +107,13 @@ static int try_resume(ocs_session_t *s, ocs_session_t *old, const ocp_hello_t *h
   }
   srv->resumes++;
   s->state = OCS_SS_READY;
+  /* WELCOME names the largest budget its window may still use (the viewer counts its held states
+   * against it); a lowering in force is told again after it */
+  ocs_viewer_stats_t vs;
+  ocs_viewer_stats(s->viewer, &vs);
+  s->granted.budget = vs.reserved;
+  ocs_viewer_budget_changes(s->viewer, s->version >= OCP_VERSION_BUDGET);
+  if (s->version >= OCP_VERSION_BUDGET) ocs_viewer_budget_resend(s->viewer);
   send_welcome(s, 1);
   oc_log_info("session %" PRIu32 " (viewer %s): resumed at epoch %" PRIu64, s->id, s->addr, h->held_epoch);
   if (have0 && in_flight) ocs_viewer_ack(s->viewer, h0->epoch); /* it arrived; the ACK was lost */
@@ -163,6 +170,7 @@ void ocs_handshake_hello(ocs_session_t *s, const uint8_t *p, size_t n) {
       ocs_session_close(old, OCP_CODE_OK, "superseded by a new session");
   }
   if (ocs_admit_viewer(s, &h) < 0) return;
+  ocs_viewer_budget_changes(s->viewer, s->version >= OCP_VERSION_BUDGET); /* v1/v2: its grant is fixed */
   s->state = OCS_SS_READY;
   send_welcome(s, 0);
   oc_log_info("session %" PRIu32 " (viewer %s): welcomed, budget %" PRIu64 " bytes (asked %" PRIu64 "), depth %d", s->id,

@@ -117,6 +117,7 @@ struct ocs_session_s {
   ocp_stats_t stats_msg; /* the STATS sent after the epoch being streamed */
   double linger_since, linger_until, stream_started;
   uint64_t epochs, acks;
+  uint64_t budgets_sent; /* BUDGET messages */
   double ack_latency_sum, ack_latency_max;
   /* Control: a "step" request answered when its epochs are done. */
   int step_waiting;
@@ -157,6 +158,7 @@ struct ocs_server_s {
   int stepping, step_rc, stopping; /* stepping: the world is busy (ticking or producing) */
   int ticking;                      /* a step runs */
   uint64_t steps_queued, steps_done, late_ticks;
+  uint64_t budget_lowerings; /* viewers lowered by admission to make room (net_admit.c) */
   ocs_hist_t tick_lateness; /* s: clocked ticks' first frames after their due instants (0: on time) */
   uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
   uint64_t tick_epoch;  /* the due epoch the last tick asked for */
@@ -296,6 +298,7 @@ typedef struct {
   double utc, time;                /* now: the server's clock and the world time */
   uint64_t ticks, late_ticks;      /* steps done; due ticks skipped */
   uint64_t queue, bricks_made;     /* the production queue; bricks made between ticks */
+  uint64_t budget_lowerings; /* viewers admission lowered to make room */
   uint64_t accepted, refused, closed_errors, resumes;
   uint64_t refusals[OCS_REFUSE_COUNT];
   int connections, admitted, lingering, by_state[OCS_SS_COUNT];

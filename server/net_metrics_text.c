@@ -55,6 +55,8 @@ static void connections(oc_buf_t *b, const ocs_stats_t *st) {
   counter(b, "overcast_connections_accepted_total", "Connections accepted by the listener.", (double)st->accepted);
   counter(b, "overcast_connections_closed_errors_total", "Connections closed for an error.", (double)st->closed_errors);
   counter(b, "overcast_resumes_total", "Viewers that resumed a session.", (double)st->resumes);
+  counter(b, "overcast_budget_lowerings_total", "Viewers admission lowered to a fair share to make room (BUDGET).",
+          (double)st->budget_lowerings);
   ocs_prom_family(b, "overcast_refusals_total", "counter", "Connections and HELLOs refused, by reason.");
   for (int i = 0; i < OCS_REFUSE_COUNT; i++)
     ocs_prom_sample(b, "overcast_refusals_total", "reason", ocs_refusal_key((ocs_refusal_t)i), (double)st->refusals[i]);
@@ -67,6 +69,7 @@ static double sent_bytes(const ocs_stats_session_t *t) { return (double)t->bytes
 static double epochs(const ocs_stats_session_t *t) { return (double)t->vs.epochs_sent; }
 static double coalesced(const ocs_stats_session_t *t) { return (double)t->vs.coalesced; }
 static double budget(const ocs_stats_session_t *t) { return (double)t->vs.budget; }
+static double reserved(const ocs_stats_session_t *t) { return (double)t->vs.reserved; }
 static double resident(const ocs_stats_session_t *t) { return (double)t->vs.resident_bytes; }
 
 /* Families with one sample per session that has a viewer, labelled with its id. */
@@ -77,7 +80,10 @@ static const struct {
     {"overcast_viewer_sent_bytes_total", "counter", "Bytes written to each viewer's connection.", sent_bytes},
     {"overcast_viewer_epochs_total", "counter", "States sent to each viewer.", epochs},
     {"overcast_viewer_coalesced_epochs_total", "counter", "Due epochs each viewer got no state of.", coalesced},
-    {"overcast_viewer_budget_bytes", "gauge", "Each viewer's granted budget.", budget},
+    {"overcast_viewer_budget_bytes", "gauge", "Each viewer's budget its plans are made under (BUDGET changes it).", budget},
+    {"overcast_viewer_budget_reserved_bytes", "gauge",
+     "Each viewer's part of overcast_budget_granted_bytes: its budget, or a lowered one's old budget until its states left.",
+     reserved},
     {"overcast_viewer_resident_bytes", "gauge", "Each viewer's resident bytes (the budget measure).", resident},
 };
 

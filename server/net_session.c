@@ -340,8 +340,24 @@ int ocs_session_encode(ocs_session_t *s, const oc_state_t *base) {
   return 0;
 }
 
+/* A budget put in force goes out before the first state planned under it (BUDGET, version 3;
+ * the world changes budgets only of viewers that speak it). */
+static void tell_budget(ocs_session_t *s) {
+  ocp_budget_t m;
+  if (!ocs_viewer_budget_news(s->viewer, &m.budget, &m.epoch)) return;
+  if (s->version < OCP_VERSION_BUDGET) return;
+  oc_buf_t b = {0};
+  ocp_put_budget(&b, s->version, &m);
+  ocs_session_send(s, &b);
+  oc_log_info("session %" PRIu32 " (viewer %s): budget %" PRIu64 " bytes from epoch %" PRIu64 " (was %" PRIu64 ")", s->id,
+              s->addr, m.budget, m.epoch, s->granted.budget);
+  s->granted.budget = m.budget;
+  s->budgets_sent++;
+}
+
 void ocs_session_go(ocs_session_t *s) {
   if (!s->prepared) return;
+  tell_budget(s);
   s->prepared = 0;
   s->streaming = 1;
   s->awaiting_ack = 0;

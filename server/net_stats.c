@@ -60,6 +60,7 @@ int ocs_stats_gather(ocs_server_t *srv, ocs_stats_t *st) {
   st->refused = srv->refused;
   st->closed_errors = srv->closed_errors;
   st->resumes = srv->resumes;
+  st->budget_lowerings = srv->budget_lowerings;
   memcpy(st->refusals, srv->refusals, sizeof st->refusals);
   st->connections = srv->nconnected;
   st->admitted = srv->nadmitted;
@@ -156,6 +157,7 @@ cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st) {
   cJSON_AddNumberToObject(o, "refused", (double)st->refused);
   cJSON_AddNumberToObject(o, "closed_errors", (double)st->closed_errors);
   cJSON_AddNumberToObject(o, "resumes", (double)st->resumes);
+  cJSON_AddNumberToObject(o, "budget_lowerings", (double)st->budget_lowerings);
   add_limits(o, srv, st);
   cJSON *rf = cJSON_AddObjectToObject(o, "refusals"); /* by reason: connections and HELLOs refused */
   for (int i = 0; i < OCS_REFUSE_COUNT; i++) cJSON_AddNumberToObject(rf, ocs_refusal_key((ocs_refusal_t)i), (double)st->refusals[i]);
@@ -182,6 +184,7 @@ static cJSON *session_json(const ocs_stats_session_t *t) {
   cJSON_AddNumberToObject(o, "bytes_in", (double)t->bytes_in);
   if (t->has_viewer) {
     cJSON_AddNumberToObject(o, "budget", (double)t->vs.budget);
+    cJSON_AddNumberToObject(o, "budget_reserved", (double)t->vs.reserved);
     cJSON_AddNumberToObject(o, "epochs", (double)t->vs.epochs_sent);
     cJSON_AddNumberToObject(o, "coalesced", (double)t->vs.coalesced);
     cJSON_AddNumberToObject(o, "resident", (double)t->vs.resident_bytes);

@@ -48,6 +48,7 @@ typedef struct {
   uint32_t n;
   uint32_t *ids;   /* ascending brick ids */
   uint32_t nids;
+  uint64_t budget; /* the budget it was planned under (a window counts against its largest) */
 } snap_t;
 
 typedef struct {
@@ -81,6 +82,7 @@ struct ocs_planner_s {
   /* per-epoch */
   const ocs_plan_input_t *in;
   double C[OCS_PLAN_MAX_KEPT], T, target;
+  uint64_t aim; /* a lower budget the steady target heads for before it is in force; 0: none */
   double cost_c[OC_KEY_MAX_LEVEL + 1]; /* slot multiplier per level in T */
   uint32_t new_bricks;
 };
@@ -349,6 +351,30 @@ static double held_bytes(const ocs_planner_t *p, int m) {
 
 uint64_t ocs_plan_resident(const ocs_planner_t *p) { return (uint64_t)held_bytes(p, p->K); }
 
+/*-*** Budget changes ***/
+
+int ocs_plan_fits(const ocs_planner_t *p, uint64_t budget) {
+  const snap_t *s = &p->snap[0];
+  return (double)p->K * s->n * p->d.record_bytes + (double)s->nids * p->d.slot_bytes <= (double)budget;
+}
+
+int ocs_plan_set_budget(ocs_planner_t *p, uint64_t budget) {
+  if (!p || budget < ocs_plan_min_budget(&p->d) || (budget < p->d.budget && !ocs_plan_fits(p, budget))) return OC_EINVAL;
+  ocs_plan_abandon(p); /* a plan not sent was made under the old budget */
+  p->d.budget = budget;
+  p->aim = 0;
+  return 0;
+}
+
+void ocs_plan_aim(ocs_planner_t *p, uint64_t budget) { p->aim = budget < p->d.budget ? budget : 0; }
+
+uint64_t ocs_plan_reserved(const ocs_planner_t *p) {
+  uint64_t b = p->d.budget;
+  for (int i = 0; i < p->K - 1; i++) /* the window of any later plan: these and new ones */
+    if (p->snap[i].rec && p->snap[i].budget > b) b = p->snap[i].budget;
+  return b;
+}
+
 /*-*** Content and costs ***/
 
 int ocs_plan_ground_tau(oc_key_t key) { return oc_key_level(key) >= OCS_GROUND_TAU_LEVEL && oc_key_meets_ground(key); }
@@ -428,9 +454,19 @@ static void leaf_cost(const ocs_planner_t *p, const pn_t *n, int level, double c
   *t = p->K * R + (brick ? S * p->cost_c[level] : 0.0);
 }
 
+/* The budget window j counts against (C_j: the K-1-j newest held states and N repeated): the
+ * largest its states were planned under, as the viewer counts it (ocp_viewer.c). After a change,
+ * a window still holding states of an older, larger budget may use it. */
+static double window_budget(const ocs_planner_t *p, int j) {
+  uint64_t b = p->d.budget;
+  for (int i = 0; i < p->K - 1 - j; i++)
+    if (p->snap[i].budget > b) b = p->snap[i].budget;
+  return (double)b;
+}
+
 static int fits(const ocs_planner_t *p, const double dc[OCS_PLAN_MAX_KEPT]) {
   for (int j = 0; j < p->K; j++)
-    if (p->C[j] + dc[j] > (double)p->d.budget) return 0;
+    if (p->C[j] + dc[j] > window_budget(p, j)) return 0;
   return 1;
 }
 
@@ -741,7 +777,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   if (rc < 0) return epoch_fail(p, rc);
 
   /* Pass 3: Pettersson's split/merge loop. */
-  p->target = (1.0 - p->d.reserve) * (double)p->d.budget;
+  p->target = (1.0 - p->d.reserve) * (double)(p->aim && p->aim < p->d.budget ? p->aim : p->d.budget);
   double capacity = (double)p->d.budget / ((double)p->d.slot_bytes + K * (double)p->d.record_bytes);
   double max_new_nodes = fmax(8.0, p->d.split_fraction * capacity * (in->split_scale > 1.0 ? in->split_scale : 1.0));
   double created = 0.0;
@@ -931,6 +967,7 @@ int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick
   }
   snap_free(&p->snap[p->K - 1]);
   memmove(&p->snap[1], &p->snap[0], (size_t)(p->K - 1) * sizeof p->snap[0]);
+  s.budget = p->d.budget;
   p->snap[0] = s;
   p->pending = 0;
   p->commits++;

@@ -158,6 +158,26 @@ void ocs_plan_abandon(ocs_planner_t *p);
 /*! ocs_plan_resident() : resident bytes of the held states (the window ending at the newest). */
 uint64_t ocs_plan_resident(const ocs_planner_t *p);
 
+/* Budget changes (BUDGET, docs/architecture.md "Budget changes"). Each held state remembers the
+ * budget it was planned under, and window j of the limits above counts against the largest budget
+ * of the states in it (the new plan's and the held ones'): the viewer's own rule (ocp_viewer.c).
+ * A raise may be put in force at once. A lowering to B is put in force only once the newest held
+ * state N fits B on its own (K·records(N) + bricks(N) ≤ B, ocs_plan_fits()): then "N repeated"
+ * meets every window's limit, the invariant above holds under the new limits, and from the K-th
+ * state planned under B on every window fits B. Until then ocs_plan_aim() lowers the steady
+ * target, so that merges bring the tree there. */
+/*! ocs_plan_fits() : the newest committed state, repeated K times, fits `budget` (1) or not (0). */
+int ocs_plan_fits(const ocs_planner_t *p, uint64_t budget);
+/*! ocs_plan_set_budget() : plans from the next on are planned under `budget` (a pending plan is
+ *  abandoned). @return 0, or OC_EINVAL (below the minimum, or a lowering the newest state does not
+ *  fit). */
+int ocs_plan_set_budget(ocs_planner_t *p, uint64_t budget);
+/*! ocs_plan_aim() : the steady target heads for `budget` (when below the one in force; else none). */
+void ocs_plan_aim(ocs_planner_t *p, uint64_t budget);
+/*! ocs_plan_reserved() : what any later window may use: the largest of the budget in force and
+ *  those the K−1 newest held states were planned under (the oldest leaves as the next comes). */
+uint64_t ocs_plan_reserved(const ocs_planner_t *p);
+
 /*! Coarsest level whose empty ground nodes carry τ: a 6 km node, 880 m voxels. Coarser ground
  *  nodes are far from any camera that sees their shadows at that resolution. */
 #define OCS_GROUND_TAU_LEVEL 11

@@ -1,6 +1,7 @@
 /* world.c — epochs: plan every ready viewer, produce what the plans lack once, emit states. */
 #include "world.h"
 
+#include <inttypes.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
@@ -146,6 +147,13 @@ struct ocs_viewer_s {
   int has_steady_view;
   uint32_t produced, produced_last; /* bricks made for it since its last state; before that state */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /* of its newest state */
+  /* budget changes (docs/architecture.md "Budget changes") */
+  int changeable;           /* its protocol has BUDGET: it may be lowered and raised */
+  uint64_t ask;             /* its request clamped to the per-viewer maximum: what raises may give */
+  uint64_t want;            /* the budget asked for it (set_budget, raises); 0: none */
+  uint64_t reserved;        /* its part of w->granted: ocs_plan_reserved(), or `want` when larger */
+  int news;                 /* a budget put in force, not yet told (ocs_viewer_budget_news) */
+  uint64_t news_budget, news_epoch;
   /* during a step */
   const ocs_plan_leaf_t *leaves;
   uint32_t nleaves;
@@ -717,6 +725,8 @@ int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_
   }
   ocs_plan_desc_t d = *req;
   d.kept_states = w->K;
+  ocs_plan_desc_t full = d; /* what it would get with room: a later raise may give it */
+  uint64_t ask = ocs_plan_clamp(&full, w->d.max_budget) == 0 ? full.budget : 0;
   uint64_t left = w->d.viewer_bytes - w->granted;
   uint64_t cap = left < w->d.max_budget ? left : w->d.max_budget;
   int r = ocs_plan_clamp(&d, cap);
@@ -747,6 +757,8 @@ int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_
     return r;
   }
   w->viewers[w->nviewers++] = v;
+  v->ask = ask > d.budget ? ask : d.budget;
+  v->reserved = d.budget;
   w->granted += d.budget;
   if (granted) *granted = d;
   *out = v;
@@ -762,7 +774,7 @@ void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v) {
         if (w->producing.who[j] == v) w->producing.who[j] = NULL;
       memmove(&w->viewers[i], &w->viewers[i + 1], (size_t)(w->nviewers - i - 1) * sizeof *w->viewers);
       w->nviewers--;
-      w->granted -= v->desc.budget;
+      w->granted -= v->reserved;
       break;
     }
   ocs_planner_free(v->planner);
@@ -805,6 +817,7 @@ void ocs_viewer_stats(const ocs_viewer_t *v, ocs_viewer_stats_t *out) {
   out->coalesced = v->coalesced;
   out->acked = v->acked;
   out->budget = v->desc.budget;
+  out->reserved = v->reserved;
   out->produced = v->produced_last;
   memcpy(out->age_p50, v->age_p50, sizeof out->age_p50);
   memcpy(out->age_p99, v->age_p99, sizeof out->age_p99);
@@ -1242,6 +1255,85 @@ static int wish_target(const ocs_world_t *w, ocs_viewer_t *v, const ocs_plan_inp
   return 0;
 }
 
+/*-*** Budget changes (planner.h; docs/architecture.md "Budget changes") ***/
+
+/* Before a viewer's plan: a budget asked for is put in force when the planner can (a raise at
+ * once, a lowering once its newest state fits it); the epoch being planned is the first under it,
+ * which the network layer tells the viewer (BUDGET) before that state. Until a lowering can be put
+ * in force, the planner's steady target heads for it. Per viewer only: plans run in parallel. */
+static void budget_switch(const ocs_world_t *w, ocs_viewer_t *v) {
+  if (!v->want || v->want == v->desc.budget) return;
+  if (ocs_plan_set_budget(v->planner, v->want) < 0) {
+    ocs_plan_aim(v->planner, v->want);
+    return;
+  }
+  v->desc.budget = v->want;
+  v->news = 1;
+  v->news_budget = v->want;
+  v->news_epoch = w->epoch;
+}
+
+/* A viewer's reservation follows its window: the old budget of a lowering stays counted until
+ * the states planned under it have left the K kept ones. */
+static void viewer_reserve(ocs_world_t *w, ocs_viewer_t *v) {
+  uint64_t r = ocs_plan_reserved(v->planner);
+  if (v->want > r) r = v->want;
+  w->granted = w->granted - v->reserved + r;
+  v->reserved = r;
+}
+
+/* After a step: reservations follow the windows, then room that lowerings freed goes to viewers
+ * that were admitted with less than they asked (and may be raised), in admission order. */
+static void budgets_settle(ocs_world_t *w) {
+  for (int i = 0; i < w->nviewers; i++) viewer_reserve(w, w->viewers[i]);
+  for (int i = 0; i < w->nviewers; i++) {
+    ocs_viewer_t *v = w->viewers[i];
+    uint64_t now = v->want ? v->want : v->desc.budget, left = w->d.viewer_bytes - w->granted;
+    if (!v->changeable || v->ask <= now || now < v->desc.budget || !left) continue; /* a lowering is pending */
+    uint64_t give = v->reserved + left;
+    v->want = give < v->ask ? give : v->ask;
+    if (v->want <= now) continue;
+    viewer_reserve(w, v);
+  }
+}
+
+int ocs_world_set_budget(ocs_world_t *w, ocs_viewer_t *v, uint64_t budget, char *why, size_t why_len) {
+  if (!w || !v) return OC_EINVAL;
+  uint64_t mn = ocs_plan_min_budget(&v->desc), left = w->d.viewer_bytes - w->granted;
+  if (budget < mn)
+    return oc_errorf(OC_ERANGE, why, why_len, "%" PRIu64 " bytes is below the minimum %" PRIu64
+                     " (the root in each of the %d kept states)", budget, mn, w->K);
+  if (budget > w->d.max_budget)
+    return oc_errorf(OC_ERANGE, why, why_len, "%" PRIu64 " bytes is above the per-viewer maximum %" PRIu64, budget,
+                     w->d.max_budget);
+  if (budget > v->reserved + left)
+    return oc_errorf(OC_ERANGE, why, why_len, "%" PRIu64 " bytes is above what admission can give it: %" PRIu64
+                     " (its %" PRIu64 " and the %" PRIu64 " not granted)", budget, v->reserved + left, v->reserved, left);
+  v->want = budget;
+  v->ask = budget; /* not raised back by budgets_settle() */
+  viewer_reserve(w, v);
+  return 0;
+}
+
+void ocs_viewer_budget_changes(ocs_viewer_t *v, int on) {
+  if (v) v->changeable = on;
+}
+
+int ocs_viewer_budget_news(ocs_viewer_t *v, uint64_t *budget, uint64_t *epoch) {
+  if (!v || !v->news) return 0;
+  v->news = 0;
+  *budget = v->news_budget;
+  *epoch = v->news_epoch;
+  return 1;
+}
+
+void ocs_viewer_budget_resend(ocs_viewer_t *v) {
+  if (!v || v->desc.budget >= v->reserved) return;
+  v->news = 1;
+  v->news_budget = v->desc.budget;
+  v->news_epoch = v->w->epoch + 1;
+}
+
 /* One viewer's plan of a tick (the viewers' plans are independent: on the tick pool). */
 typedef struct {
   ocs_world_t *w;
@@ -1262,6 +1354,7 @@ static int plan_one(void *arg, size_t i, int worker) {
   if (in.ready) in.split_scale = split_scale(j->w, v);
   j->ctx[i] = (plan_ctx_t){j->w, (uint32_t)vi};
   in.ctx = &j->ctx[i];
+  budget_switch(j->w, v);
   j->rc[i] = ocs_plan_epoch(v->planner, &v->view, &in, &v->leaves, &v->nleaves, &v->plan);
   return 0;
 }
@@ -1512,6 +1605,7 @@ static int step(ocs_world_t *w) {
   }
   w->produce_seconds = now_s() - t1;
   if (rc >= 0) rc = emit_states(w);
+  budgets_settle(w);
   if (rc < 0)
     for (int vi = 0; vi < w->nviewers; vi++)
       if (w->viewers[vi]->planned) {

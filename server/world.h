@@ -97,7 +97,9 @@ typedef struct {
   uint64_t epochs_sent, coalesced; /**< states produced for it; due ticks it got none of (unacknowledged, or skipped by the clock) */
   uint64_t acked;                  /**< newest acknowledged epoch (UINT64_MAX: none) */
   uint64_t resident_bytes;         /**< of the states it keeps (the budget measure) */
-  uint64_t budget;
+  uint64_t budget;                 /**< the budget its plans are made under now */
+  uint64_t reserved;               /**< what admission counts for it: `budget`, or a larger one its
+                                        kept states were planned under, or a raise asked for */
   uint32_t produced;               /**< bricks made for it (clocked: that it wished for) between its
                                         two newest states */
   uint8_t age_p50[OC_KEY_MAX_LEVEL + 1], age_p99[OC_KEY_MAX_LEVEL + 1]; /**< per level, the content age of
@@ -134,6 +136,23 @@ int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_
                          char *why, size_t why_len);
 /*! ocs_world_remove_viewer() : frees everything of the viewer (NULL ok). */
 void ocs_world_remove_viewer(ocs_world_t *w, ocs_viewer_t *v);
+/* Budget changes (planner.h, "Budget changes"; docs/architecture.md). */
+/*! ocs_world_set_budget() : the viewer's budget from its next possible plan on: a raise at its
+ *  next plan, a lowering once its newest state fits it (its steady target heads there meanwhile).
+ *  A raise is reserved at once; a lowering's old budget stays reserved until the states planned
+ *  under it have left its K kept states. Only for viewers whose protocol has BUDGET.
+ *  @return 0, or OC_ERANGE with a reason (below the minimum, above the per-viewer maximum, above
+ *  its reservation and what is not granted). */
+int ocs_world_set_budget(ocs_world_t *w, ocs_viewer_t *v, uint64_t budget, char *why, size_t why_len);
+/*! ocs_viewer_budget_changes() : on: the viewer's protocol has BUDGET; room freed later raises it
+ *  toward what it asked when admitted with less. Off (the default): its budget is fixed. */
+void ocs_viewer_budget_changes(ocs_viewer_t *v, int on);
+/*! ocs_viewer_budget_news() : a budget put in force and not told yet: 1 with it and the first
+ *  epoch planned under it (to be sent before that epoch's state), else 0. */
+int ocs_viewer_budget_news(ocs_viewer_t *v, uint64_t *budget, uint64_t *epoch);
+/*! ocs_viewer_budget_resend() : a resumed viewer was welcomed with its reservation: a lowering in
+ *  force that its window still holds older states of is told again, from the next epoch. */
+void ocs_viewer_budget_resend(ocs_viewer_t *v);
 /*! ocs_viewer_set_view() : the latest camera; the next epoch plans with it. @return 0 / OC_EINVAL. */
 int ocs_viewer_set_view(ocs_viewer_t *v, const ocs_view_t *view);
 /*! ocs_viewer_ack() : the viewer applied state `epoch`. @return 0, OC_EINVAL (not the epoch in

@@ -41,6 +41,8 @@ static void usage(FILE *f) {
           "  reload                         re-read the scene file; viewers reconnect\n"
           "  sessions                       list the sessions\n"
           "  disconnect ID                  close a session (GOODBYE KICKED)\n"
+          "  budget ID MIB                  set a viewer's budget (protocol version 3 viewers, BUDGET); a\n"
+          "                                 lowering holds once the states of the old one have left\n"
           "  stats                          world and server statistics\n"
           "  drain                          stop admitting viewers, tell each GOODBYE RECONNECT; the server\n"
           "                                 exits once they have left (or after its --drain-timeout)\n"
@@ -134,6 +136,22 @@ static int parse_vec3(const char *text, double v[3]) {
   return 0;
 }
 
+/* "budget ID MIB": the session and the budget in bytes. @return 0, or -1 after a message. */
+static int budget_args(cJSON *j, const char *pos[2]) {
+  long id;
+  double mib;
+  if (!pos[0] || !pos[1]) {
+    oc_cli_fail(prog, 0, "budget: give the session ID and the budget in MiB, e.g. budget 3 16 (see: overcast-ctl sessions)");
+    return -1;
+  }
+  if (oc_cli_int(prog, "budget ID", pos[0], 1, UINT32_MAX, &id) ||
+      oc_cli_double(prog, "budget MIB", pos[1], 1.0 / 1024, 1 << 23, &mib))
+    return -1;
+  cJSON_AddNumberToObject(j, "session", (double)id);
+  cJSON_AddNumberToObject(j, "bytes", floor(mib * 1048576.0));
+  return 0;
+}
+
 /* Builds the request object from the command and its arguments (argv[first..argc)), consuming
  * global options found among them. @return the object, or NULL after a usage message. */
 static cJSON *build_request(ctl_opts_t *o, int argc, char **argv, int first) {
@@ -141,9 +159,11 @@ static cJSON *build_request(ctl_opts_t *o, int argc, char **argv, int first) {
   const char *pos[2] = {NULL, NULL}; /* positional arguments */
   int npos = 0;
   const char *seconds = NULL, *set = NULL, *scale = NULL, *lat = NULL, *lon = NULL, *dir = NULL;
-  int takes_pos = !strcmp(cmd, "weather") || !strcmp(cmd, "step") || !strcmp(cmd, "disconnect") || !strcmp(cmd, "raw");
-  static const char *known[] = {"weather", "time", "pause", "resume", "sun", "step",
-                                "reload", "sessions", "disconnect", "stats", "drain", "raw"};
+  int takes_pos = !strcmp(cmd, "weather") || !strcmp(cmd, "step") || !strcmp(cmd, "disconnect") || !strcmp(cmd, "raw") ||
+                  !strcmp(cmd, "budget");
+  int max_pos = !strcmp(cmd, "budget") ? 2 : 1;
+  static const char *known[] = {"weather", "time",       "pause", "resume", "sun",    "step", "reload",
+                                "sessions", "disconnect", "stats", "drain",  "budget", "raw"};
   int ok = 0;
   for (size_t k = 0; k < sizeof known / sizeof known[0]; k++) ok |= !strcmp(cmd, known[k]);
   if (!ok) {
@@ -168,7 +188,7 @@ static cJSON *build_request(ctl_opts_t *o, int argc, char **argv, int first) {
     } else if (a[0] == '-' && a[1] == '-' && strcmp(cmd, "raw") != 0) {
       oc_cli_fail(prog, 0, "%s: unknown option \"%s\" (see --help)", cmd, a);
       return NULL;
-    } else if (takes_pos && npos < 1) {
+    } else if (takes_pos && npos < max_pos) {
       pos[npos++] = a;
     } else {
       oc_cli_fail(prog, 0, "%s: unexpected argument \"%s\" (see --help)", cmd, a);
@@ -252,6 +272,8 @@ static cJSON *build_request(ctl_opts_t *o, int argc, char **argv, int first) {
     }
     if (oc_cli_int(prog, "disconnect ID", pos[0], 1, UINT32_MAX, &l)) goto bad;
     cJSON_AddNumberToObject(j, "session", (double)l);
+  } else if (!strcmp(cmd, "budget") && budget_args(j, pos) < 0) {
+    goto bad;
   }
   return j;
 bad:

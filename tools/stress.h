@@ -70,6 +70,8 @@ typedef struct {
   uint64_t fault_budget_mib;/* budget of the misbehaving viewers */
   long restart_at;          /* the step after which the server is killed (0: the middle) */
   int restart_drain;        /* --restart-by drain: SIGTERM (a drain), not SIGKILL */
+  long rebalance_at;        /* --rebalance-at S MIB: after step S, viewer 0's budget set to MIB (0: none) */
+  long rebalance_mib;
   double fault_rss_slack;   /* MiB */
   int full_sessions;        /* keep brick codes (a full session) instead of digests */
   double verify_content;    /* --verify-content F: fraction of received bricks re-produced (0: off) */
@@ -339,7 +341,11 @@ typedef struct {
   ocp_stats_t last_stats;
   uint64_t stats_msgs;
   uint64_t resident_last, resident_max, server_resident_max;
-  uint64_t violations;        /* states after which resident > granted budget */
+  uint64_t violations;        /* states after which resident > the budget in force (ocp_viewer's:
+                                 WELCOME's, changed by BUDGET: a raise at once, a lowering once the
+                                 old budget's states have left) */
+  uint64_t budgets;           /* budgets put in force by BUDGET */
+  uint64_t budget_before;     /* the budget in force when the last state began */
   uint64_t resident_mismatch; /* our count differs from the session's */
   uint64_t checksum_failures, protocol_errors;
   uint64_t nodes_last, bricks_last, bricks_in;

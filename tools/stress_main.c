@@ -122,6 +122,9 @@ static void usage(FILE *f) {
           "                        stall, drop, garbage, restart, or all\n"
           "  --fault-every N       steps between rounds of misbehaving connections (default 1)\n"
           "  --fault-budget MIB    their budget (default 16)\n"
+          "  --rebalance-at S:MIB  stepped: after step S, set viewer 0's budget to MIB (a control \"budget\",\n"
+          "                        BUDGET to the viewer); every state is checked against the budget in force\n"
+          "                        as the session defines it, and at the end MIB must be in force\n"
           "  --restart-at STEP     restart: kill the server (SIGKILL) right after this step's reply and\n"
           "                        start it again on the same port (default: the middle of the run)\n"
           "  --restart-by HOW      kill (the default) or drain: SIGTERM, so that the server tells every\n"
@@ -420,6 +423,54 @@ static int restart_server(stress_run_t *run, ocv_conn_t **ctl, fault_ctx_t *fx, 
   return 0;
 }
 
+/* --rebalance-at S:MIB: after step S, viewer 0's budget is set by a control "budget" request; the
+ * viewers then check every state against the budget in force as their sessions define it. */
+static int rebalance(stress_run_t *run, ocv_conn_t *ctl, stress_summary_t *sum) {
+  const stress_opts_t *o = run->o;
+  char req[160], why[600];
+  pthread_mutex_lock(&run->mu);
+  uint32_t id = run->v[0].welcome.session;
+  pthread_mutex_unlock(&run->mu);
+  snprintf(req, sizeof req, "{\"op\":\"budget\",\"session\":%" PRIu32 ",\"bytes\":%ld}", id, o->rebalance_mib << 20);
+  cJSON *reply = NULL;
+  if (control(ctl, req, o->timeout, &reply, why, sizeof why) < 0) {
+    snprintf(sum->error, sizeof sum->error, "--rebalance-at: %.400s", why);
+    return -1;
+  }
+  cJSON_Delete(reply);
+  if (o->verbose)
+    fprintf(stderr, "overcast-stress: viewer 0 (session %" PRIu32 "): budget set to %ld MiB\n", id, o->rebalance_mib);
+  return 0;
+}
+
+/* After the viewers stopped: viewer 0's session must have put the new budget in force. */
+static void rebalance_verdict(const stress_opts_t *o, const stress_run_t *run, stress_summary_t *sum) {
+  if (!o->rebalance_at || !run->nv) return;
+  const stress_viewer_t *v = &run->v[0];
+  uint64_t want = (uint64_t)o->rebalance_mib << 20;
+  printf("rebalance: viewer 0's budget in force %.3f MiB after %" PRIu64 " BUDGET, resident max %.3f MiB, %" PRIu64
+         " violations\n", (double)v->welcome.budget / 1048576.0, v->budgets, (double)v->resident_max / 1048576.0, v->violations);
+  if (v->welcome.budget != want && !sum->error[0])
+    snprintf(sum->error, sizeof sum->error,
+             "--rebalance-at: viewer 0's budget in force is %" PRIu64 " bytes at the end, not %" PRIu64, v->welcome.budget, want);
+}
+
+/* "S:MIB" of --rebalance-at. @return 0 or -1 after a message. */
+static int parse_rebalance(stress_opts_t *o, const char *arg) {
+  char step[32];
+  const char *colon = strchr(arg, ':');
+  if (!colon || (size_t)(colon - arg) >= sizeof step) {
+    oc_cli_fail(prog, 0, "--rebalance-at: give STEP:MIB, e.g. 3:2 (got \"%s\")", arg);
+    return -1;
+  }
+  memcpy(step, arg, (size_t)(colon - arg));
+  step[colon - arg] = 0;
+  if (oc_cli_int(prog, "--rebalance-at STEP", step, 1, STRESS_MAX_STEPS, &o->rebalance_at) ||
+      oc_cli_int(prog, "--rebalance-at MIB", colon + 1, 1, 65536, &o->rebalance_mib))
+    return -1;
+  return 0;
+}
+
 /* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
  * once the server has gone quiet for 2 s after the step's reply (a viewer skipped by this step
  * gets nothing more), or after the timeout. */
@@ -451,6 +502,7 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
     }
     cJSON_Delete(reply);
     sum->steps = k;
+    if (o->rebalance_at && k == (uint64_t)o->rebalance_at && rebalance(run, ctl, sum) < 0) break;
     if ((o->faults & STRESS_FAULT_RESTART) && k == (uint64_t)o->restart_at) {
       if (restart_server(run, ctlp, fx, k, sum) < 0) break;
       continue; /* this step's epoch died with the server */
@@ -489,6 +541,10 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
 static void run_period(stress_run_t *run, ocv_conn_t *ctl, double period, stress_summary_t *sum) {
   const stress_opts_t *o = run->o;
   double limit = o->duration > 0 ? o->duration : o->timeout + 3.0 * (double)o->epochs * period;
+  if (o->rebalance_at) {
+    snprintf(sum->error, sizeof sum->error, "--rebalance-at needs a stepped server (--epoch-period 0)");
+    return;
+  }
   pthread_mutex_lock(&run->mu);
   while (!g_interrupted && !all_done(run)) {
     pthread_mutex_unlock(&run->mu);
@@ -947,7 +1003,7 @@ int main(int argc, char **argv) {
   enum { O_SPAWN = 256, O_SERVER, O_SCENE, O_PERIOD, O_SRV_THREADS, O_CONNECT, O_PID, O_TOKEN, O_VIEWERS, O_PATHS,
          O_BUDGET, O_DEPTH, O_SIZE, O_SEED, O_TICK, O_STEP_S, O_TELEPORT, O_DIVE, O_EPOCHS, O_DURATION, O_TIMEOUT,
          O_JSON, O_HELP, O_VERSION, O_RAMP, O_RAMP_FROM, O_RAMP_MAX, O_RAMP_S, O_RAMP_WARM, O_SW_B, O_SW_D, O_FAULTS,
-         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE, O_VERIFY, O_SHARE,
+         O_FAULT_EVERY, O_FAULT_BUDGET, O_RESTART_AT, O_REBALANCE, O_FAULT_SLACK, O_SERVER_ARG, O_FULL, O_SOURCE, O_VERIFY, O_SHARE,
          O_PLOT, O_NO_REF, O_REF_TELE, O_DETAIL_REF, O_RAMP_ALL, O_TSCALE, O_VQUEUE, O_VDRAIN, O_RESTART_BY };
   static const struct option opts[] = {
       {"spawn", no_argument, 0, O_SPAWN},           {"server", required_argument, 0, O_SERVER},
@@ -968,6 +1024,7 @@ int main(int argc, char **argv) {
       {"sweep-budgets", required_argument, 0, O_SW_B}, {"sweep-depths", required_argument, 0, O_SW_D},
       {"faults", required_argument, 0, O_FAULTS},   {"fault-every", required_argument, 0, O_FAULT_EVERY},
       {"fault-budget", required_argument, 0, O_FAULT_BUDGET}, {"restart-at", required_argument, 0, O_RESTART_AT},
+      {"rebalance-at", required_argument, 0, O_REBALANCE},
       {"restart-by", required_argument, 0, O_RESTART_BY},
       {"fault-rss-slack", required_argument, 0, O_FAULT_SLACK}, {"server-arg", required_argument, 0, O_SERVER_ARG},
       {"full-sessions", no_argument, 0, O_FULL},    {"source-address", required_argument, 0, O_SOURCE},
@@ -1082,6 +1139,7 @@ int main(int argc, char **argv) {
           return oc_cli_fail(prog, OC_EXIT_USAGE, "--restart-by \"%s\": kill or drain", optarg);
         o.restart_drain = !strcmp(optarg, "drain");
         break;
+      case O_REBALANCE: if (parse_rebalance(&o, optarg) < 0) return OC_EXIT_USAGE; break;
       case O_RESTART_AT: if (oc_cli_int(prog, "--restart-at", optarg, 1, STRESS_MAX_STEPS, &o.restart_at)) return OC_EXIT_USAGE; break;
       case O_FAULT_SLACK: if (oc_cli_double(prog, "--fault-rss-slack", optarg, 0, 1 << 20, &o.fault_rss_slack)) return OC_EXIT_USAGE; break;
       case O_SERVER_ARG:
@@ -1382,6 +1440,7 @@ int main(int argc, char **argv) {
    * read, then its statistics (a request waits for a step in progress, which must not count). */
   sum.wall_s = stress_now() - run.t0;
   stop_viewers(&run);
+  rebalance_verdict(&o, &run, &sum);
   if (o.faults) { /* the last garbage must still be answered; then the memory once more */
     stress_faults_stop(&run, &sum.fault_conns);
     if (ctl) fault_sample(&run, ctl, &fx, &sum);

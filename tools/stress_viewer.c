@@ -270,12 +270,17 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
   v->fp_new = spare;
   v->resident_last = resident;
   if (resident > v->resident_max) v->resident_max = resident;
-  if (resident > v->welcome.budget) {
+  /* The budget in force as the session defines it (ocp_viewer.c): a lowering that settles with
+   * this state still had the old budget's last state in this window, so the window counts against
+   * the budget in force before it or after it, the larger. */
+  uint64_t allowed = v->budget_before > v->welcome.budget ? v->budget_before : v->welcome.budget;
+  v->budget_before = v->welcome.budget;
+  if (resident > allowed) {
     v->violations++;
     fprintf(stderr,
             "overcast-stress: BUDGET VIOLATION: viewer %d (%s), epoch %" PRIu64 ": resident %" PRIu64
-            " bytes (%.3f MiB) > granted %" PRIu64 " bytes (%.3f MiB)\n",
-            v->index, sv_name(v), s->epoch, resident, resident / SV_MIB, v->welcome.budget, v->welcome.budget / SV_MIB);
+            " bytes (%.3f MiB) > the budget in force %" PRIu64 " bytes (%.3f MiB)\n",
+            v->index, sv_name(v), s->epoch, resident, resident / SV_MIB, allowed, allowed / SV_MIB);
   }
   ocp_viewer_stats_t ss;
   ocp_viewer_stats(ocv_conn_session(v->conn), &ss);
@@ -340,7 +345,19 @@ static void sv_on_welcome(void *ctx, const ocp_welcome_t *w, int resumed) {
     v->have_prev = 0;
   }
   v->welcome = *w;
+  v->budget_before = w->budget;
   v->have_welcome = 1;
+}
+
+/* BUDGET: the budget in force changed as the session defines it (a raise at once, a lowering once
+ * no kept state was planned under the old one); every later state is checked against it. */
+static void sv_on_budget(void *ctx, const oc_budget_t *grant) {
+  stress_viewer_t *v = ctx;
+  if (v->run->o->verbose)
+    fprintf(stderr, "overcast-stress: viewer %d (%s): budget in force %" PRIu64 " -> %" PRIu64 " bytes\n", v->index,
+            sv_name(v), v->welcome.budget, grant->budget);
+  v->welcome.budget = grant->budget;
+  v->budgets++;
 }
 
 /*-*** The thread ***/
@@ -479,7 +496,8 @@ void *stress_viewer_main(void *arg) {
                           .width = (uint32_t)o->width, .height = (uint32_t)o->height,
                           .caps = o->full_sessions ? OCP_CAP_ALL : OCP_CAP_DICT, .token = o->token,
                           .lean = !o->full_sessions};
-  ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats};
+  ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats,
+                            .budget = sv_on_budget};
   /* created, then connected: --source-address applies to the first connect and every reconnect */
   int r = ocv_conn_create(&v->conn, run->host, run->port, &vd, &ev, why, sizeof why);
   if (r == 0) ocv_conn_set_tap(v->conn, sv_tap, v);

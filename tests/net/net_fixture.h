@@ -243,6 +243,7 @@ static inline void step(int port, int n) {
     char why[512];
     snprintf(why, sizeof why, "%s", r ? r : "?");
     free(r);
+    r = NULL; /* fail_msg() does not return, which gcc cannot see: no "use after free" */
     fail_msg("step %d: status %d: %s", n, (int)st, why);
   }
   free(r);
