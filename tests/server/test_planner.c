@@ -1224,6 +1224,58 @@ static void test_planner__clocked_costs_what_was_made(void **state) {
   assert_true(steady[1] < steady[0]); /* the same tree, its new content empty: cheaper */
 }
 
+/* BUDGET (planner.h, "Budget changes"), as the world drives it: a lowering to a fifth is refused
+ * while the newest state does not fit it (the target aims there meanwhile), put in force within a
+ * few epochs, and a raise back at once. Every epoch the sim checks the window (resident and each
+ * C_j) against the largest budget its states were planned under, and from the K-th state planned
+ * under the lowered budget on, against that budget alone; ocs_plan_reserved() is that largest. */
+static void budget_change_run(int K, int animated) {
+  ocs_plan_desc_t d = desc_make(2048, 32, K, 4000, 0.1);
+  sim_t s;
+  sim_init(&s, &d, animated, 0.1, 0xB0D6E7ull + (uint64_t)K);
+  const uint64_t high = d.budget, low = d.budget / 5;
+  uint64_t in_force = high, want = high, sb[OCS_PLAN_MAX_KEPT] = {0}; /* sb[i]: st[i]'s budget */
+  int lowered_at = -1, refused = 0;
+  pose_t cam = {47.0, 8.0, 2000.0, 30.0, -10.0, 60.0, 1280, 720};
+  for (int e = 0; e < 40; e++) {
+    if (e == 12) want = low;
+    if (e == 30) want = high;
+    if (want != in_force) {
+      if (ocs_plan_set_budget(s.p, want) == 0) {
+        in_force = want;
+        if (want == low) lowered_at = e;
+        else assert_int_equal(e, 30); /* a raise: at once */
+      } else {
+        assert_true(want < in_force && !ocs_plan_fits(s.p, want));
+        refused++;
+        ocs_plan_aim(s.p, want);
+      }
+    }
+    uint64_t allowed = in_force;
+    for (int i = 0; i < K - 1 && i < s.nst; i++) allowed = sb[i] > allowed ? sb[i] : allowed;
+    assert_true(ocs_plan_reserved(s.p) == allowed);
+    s.d.budget = allowed; /* what sim_step checks the window and C_j against */
+    ocs_view_t v = view_of(cam);
+    sim_step(&s, &v);
+    memmove(&sb[1], &sb[0], (size_t)(K - 1) * sizeof sb[0]);
+    sb[0] = in_force;
+    if (lowered_at >= 0 && e >= lowered_at + K - 1 && e < 30) assert_true(ocs_plan_resident(s.p) <= low);
+    path_step(&cam);
+  }
+  printf("K=%d %s: lowering to %llu of %llu refused %d times (the tree was merging toward it), in force at epoch %d\n", K,
+         animated ? "animated" : "static", (unsigned long long)low, (unsigned long long)high, refused, lowered_at);
+  assert_true(refused >= 1);
+  assert_true(lowered_at >= 12 && lowered_at <= 20);
+  sim_free(&s);
+}
+
+static void test_planner__budget_lowered_and_raised(void **state) {
+  (void)state;
+  rng_state = 0x5EED00B6ull;
+  budget_change_run(2, 0);
+  budget_change_run(3, 1);
+}
+
 static void test_planner__abandon_restores(void **state) {
   (void)state;
   rng_state = 0x5EED0006ull;
@@ -1290,6 +1342,7 @@ int main(void) {
       cmocka_unit_test(test_planner__never_splits_what_it_must_not),
       cmocka_unit_test(test_planner__clamp_and_views),
       cmocka_unit_test(test_planner__abandon_restores),
+      cmocka_unit_test(test_planner__budget_lowered_and_raised),
       cmocka_unit_test(test_planner__refresh_worth_its_change),
       cmocka_unit_test(test_planner__clocked_costs_what_was_made),
       cmocka_unit_test(test_planner__out_of_memory_keeps_the_tree),
