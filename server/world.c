@@ -1328,7 +1328,8 @@ int ocs_viewer_budget_news(ocs_viewer_t *v, uint64_t *budget, uint64_t *epoch) {
 }
 
 void ocs_viewer_budget_resend(ocs_viewer_t *v) {
-  if (!v || v->desc.budget >= v->reserved) return;
+  /* not while a raise waits for its plan: that one's news follows (and WELCOME named it) */
+  if (!v || v->desc.budget >= v->reserved || v->want > v->desc.budget) return;
   v->news = 1;
   v->news_budget = v->desc.budget;
   v->news_epoch = v->w->epoch + 1;
