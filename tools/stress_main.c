@@ -471,9 +471,21 @@ static int parse_rebalance(stress_opts_t *o, const char *arg) {
   return 0;
 }
 
+/* The server's bricks produced so far (stats), or -1: production under way is not quiet. */
+static double server_bricks(ocv_conn_t *ctl, double timeout) {
+  char why[256];
+  cJSON *reply = NULL;
+  if (control(ctl, "{\"op\":\"stats\"}", timeout, &reply, why, sizeof why) < 0) return -1;
+  double n = world_num(reply, "bricks_produced");
+  cJSON_Delete(reply);
+  return isfinite(n) ? n : -1;
+}
+
 /* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
  * once the server has gone quiet for 2 s after the step's reply (a viewer skipped by this step
- * gets nothing more), or after the timeout. */
+ * gets nothing more), or after the timeout. Quiet means nothing reached a viewer and the server
+ * made no brick: a cold server's first epoch (after a restart, under ASan) may make bricks for
+ * seconds before it sends a byte, and stepping on then would coalesce a viewer's epoch. */
 static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, stress_summary_t *sum) {
   const stress_opts_t *o = run->o;
   char why[1024];
@@ -507,7 +519,8 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
       if (restart_server(run, ctlp, fx, k, sum) < 0) break;
       continue; /* this step's epoch died with the server */
     }
-    double replied = stress_now();
+    double replied = stress_now(), made = -1, asked_at = 0;
+    int still = 0; /* two readings of the server's bricks 0.5 s apart were equal */
     uint64_t target = run->epoch0 + (k - run->step0);
     pthread_mutex_lock(&run->mu);
     for (;;) {
@@ -520,7 +533,20 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
       }
       if (!missing) break;
       now = stress_now();
-      if ((now - replied >= 2.0 && now - last_in >= 2.0) || now - run->step_at[k] > o->timeout || g_interrupted) {
+      int silent = now - replied >= 2.0 && now - last_in >= 2.0;
+      if (!silent) {
+        still = 0;
+        made = -1;
+      }
+      if (silent && !still && now - asked_at >= 0.5) { /* still making bricks? then not quiet */
+        pthread_mutex_unlock(&run->mu);
+        double n = server_bricks(ctl, o->timeout);
+        pthread_mutex_lock(&run->mu);
+        asked_at = now = stress_now();
+        still = n < 0 || n == made; /* no figure: judge by the silence alone, as before */
+        made = n;
+      }
+      if ((silent && still) || now - run->step_at[k] > o->timeout || g_interrupted) {
         sum->steps_incomplete++;
         if (o->verbose)
           fprintf(stderr, "overcast-stress: step %llu: %d viewer%s without its state\n", (unsigned long long)k, missing,
