@@ -275,6 +275,14 @@ static void test_metrics__promtool_and_stats(void **state) {
   assert_true(metric(text, sample) == jnum(v1, "budget") && metric(text, sample) == (double)a.granted);
   snprintf(sample, sizeof sample, "overcast_viewer_resident_bytes{session=\"%.0f\"}", id);
   assert_true(metric(text, sample) == jnum(v1, "resident"));
+  /* the HUD's figures (client/view_main.c): the grant, what the kept states hold, the bytes in */
+  ocp_viewer_stats_t hud;
+  ocp_viewer_stats(ocv_conn_session(a.c), &hud);
+  assert_true(metric(text, sample) == (double)hud.resident_bytes);
+  snprintf(sample, sizeof sample, "overcast_viewer_sent_bytes_total{session=\"%.0f\"}", id);
+  double hud_sent = metric(text, sample); /* the same bytes; a keepalive may be on the way */
+  if (!((double)hud.bytes_in <= hud_sent && hud_sent - (double)hud.bytes_in < 64))
+    fail_msg("the HUD counts %.0f bytes in, the metrics %.0f out", (double)hud.bytes_in, hud_sent);
   assert_true(metric(text, "process_resident_memory_bytes") > 0);
   free(text);
   cJSON_Delete(w1), cJSON_Delete(w2), cJSON_Delete(s1), cJSON_Delete(s2);
