@@ -29,6 +29,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "bench_epoch.h"
 #include "oc_atmo.h"
 #include "oc_camera.h"

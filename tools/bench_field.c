@@ -14,13 +14,14 @@
  * brick's CPU is timed and split by whether it ends up empty (σt and τ all 0): the wasted share.
  * The τ counters (sun_depth.h, ocs_tau_stats_t) say how many direct marches were proven clear and
  * how many of those were marched anyway (--march-clear: the state before the clear-sky lever). */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "oc_cli.h"
 #include "oc_err.h"
 #include "oc_scene.h"
@@ -73,202 +74,252 @@ static uint64_t oct__fnv(uint64_t h, const void *data, size_t n) {
   return h;
 }
 
-int oct_bench_field(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_LEVELS, O_BLOCK, O_ALT, O_AT, O_TIME, O_MARCH_CLEAR, O_EXACT, O_HELP };
-  static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE}, {"levels", required_argument, 0, O_LEVELS},
-                                       {"block", required_argument, 0, O_BLOCK}, {"alt", required_argument, 0, O_ALT},
-                                       {"at", required_argument, 0, O_AT},
-                                       {"time", required_argument, 0, O_TIME},   {"help", no_argument, 0, O_HELP},
-                                       {"march-clear", no_argument, 0, O_MARCH_CLEAR},
-                                       {"exact", no_argument, 0, O_EXACT},
-                                       {0, 0, 0, 0}};
-  const char *scene_path = NULL, *levels_text = "10,13,16";
-  long block = 6;
-  double alt = 2000.0, t = 0.0, at[2];
-  int have_at = 0, march_clear = 0, exact = 0;
-  int c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SCENE: scene_path = optarg; break;
-      case O_LEVELS: levels_text = optarg; break;
-      case O_BLOCK: if (oc_cli_int(prog, "--block", optarg, 1, 64, &block)) return OC_EXIT_USAGE; break;
-      case O_ALT: if (oc_cli_double(prog, "--alt", optarg, -1e4, 1e5, &alt)) return OC_EXIT_USAGE; break;
-      case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &t)) return OC_EXIT_USAGE; break;
-      case O_MARCH_CLEAR: march_clear = 1; break;
-      case O_EXACT: exact = 1; break;
-      case O_AT:
-        if (oct_parse_at(prog, optarg, at)) return OC_EXIT_USAGE;
-        have_at = 1;
-        break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "field: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "field: unexpected argument \"%s\"", argv[optind]);
-  long levels[22];
-  int nlevels = 0;
-  if (oct_parse_list(prog, "--levels", levels_text, 0, 21, levels, 22, &nlevels)) return OC_EXIT_USAGE;
+/*-*** Options ***/
 
-  char why[1024];
-  static oc_scene_t sc;
-  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
-  ocs_field_t *f = NULL;
-  double tc = oct_now();
-  if (ocs_field_create(&f, &sc, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  tc = oct_now() - tc;
-  oc_geo_t g = {have_at ? at[0] : sc.camera.pos.lat, have_at ? at[1] : sc.camera.pos.lon, alt};
-  oc_dvec3 centre = oc_geo_to_xyz(g);
-  printf("# field sources of %s (%d source(s), built in %.3f s), %ld³ nodes per level around %.3f°, %.3f°, %.0f m, "
-         "t = %g s, one thread\n\n",
-         scene_path ? scene_path : "the built-in planet", sc.nsources, tc, block, g.lat, g.lon, alt, t);
-  int shadows = oc_scene_has(&sc, OC_FEATURE_SHADOWS);
-  int ground_tau = shadows && oc_scene_has(&sc, OC_FEATURE_PLANET_SURFACE);
-  printf("| level | node size (m) | nodes | classified by bound | sampled | bricks/s per core | µs per brick | non-empty samples |"
-         " non-empty bricks | non-empty bricks/s per core | anchor bricks/s per core | sampled / anchor | non-empty / anchor |\n");
-  printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-  char tau_rows[22][512], exact_rows[22][256];
-  float *s = malloc(sizeof(float) * OC_BRICK_VOXELS);
-  oc_key_t *keys = malloc(sizeof(oc_key_t) * (size_t)(block * block * block));
-  oc_key_t *skeys = malloc(sizeof(oc_key_t) * (size_t)(block * block * block));
-  float *e = malloc(sizeof(float) * OC_BRICK_VOXELS);
-  if (!s || !keys || !skeys || !e) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-  double sink = 0.0;
-  uint64_t dig_s = 0xcbf29ce484222325ull, dig_t = dig_s;
-  for (int li = 0; li < nlevels; li++) {
-    int level = (int)levels[li];
-    oc_key_t k0 = oc_key_from_point(level, centre);
-    long nodes = 0, classified = 0, sampled = 0, nonempty = 0, nonempty_bricks = 0;
-    double ts = 0.0;
-    for (long z = 0; z < block; z++)
-      for (long y = 0; y < block; y++)
-        for (long x = 0; x < block; x++) {
-          oc_key_t k = oc_key_neighbor(k0, (int)(x - block / 2), (int)(y - block / 2), (int)(z - block / 2));
-          if (k == OC_KEY_INVALID) continue;
-          keys[nodes++] = k;
-          float lo, hi;
-          double t0 = oct_now();
-          ocs_field_bound(f, k, t, &lo, &hi);
-          if (lo == hi) {
-            classified++;
-            ts += oct_now() - t0;
-            nonempty_bricks += hi > 0.0f;
-            continue;
-          }
-          if (ocs_field_sample(f, k, t, s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
-          ts += oct_now() - t0;
-          skeys[sampled++] = k;
-          dig_s = oct__fnv(dig_s, s, sizeof(float) * OC_BRICK_VOXELS);
-          int any = 0;
-          for (int i = 0; i < OC_BRICK_VOXELS; i++) nonempty += s[i] > 0.0f, any |= s[i] > 0.0f;
-          nonempty_bricks += any;
-        }
-    double ta = oct__anchor(keys, nodes, &sink), anchor = nodes / ta;
-    fprintf(stderr, "\r\033[K");
-    printf("| %d | %.1f | %ld | %.1f %% | %ld | %.0f | %.1f | %.1f %% | %ld | %.0f | %.0f | %.2f× | %.2f× |\n", level, oc_key_size(level), nodes,
-           100.0 * classified / nodes, sampled, sampled ? sampled / ts : 0.0, sampled ? 1e6 * ts / sampled : 0.0,
-           sampled ? 100.0 * nonempty / (sampled * 512.0) : 0.0, nonempty_bricks, nonempty_bricks / ts, anchor,
-           sampled ? sampled / ts / anchor : 0.0, nonempty_bricks / ts / anchor);
-    fflush(stdout);
-    exact_rows[li][0] = 0;
-    if (exact) { /* the same sampled nodes through the exact box filter: its cost, and the fast one's error */
-      double tf = 0.0, tx = 0.0, sf = 0.0, sx = 0.0, sq = 0.0;
-      long withc = 0;
-      for (long q = 0; q < sampled; q++) {
+typedef struct {
+  const char *scene;
+  oct_list_t levels;
+  int block, march_clear, exact;
+  oct_at_t at;
+  double alt, time;
+} field_opts_t;
+
+static const oc_cli_opt_t field_opts[] = {
+    OCT_OPT_SCENE(field_opts_t),
+    {.name = "levels", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = offsetof(field_opts_t, levels),
+     .arg = "LIST", .lo = 0, .hi = 21, .def = "10,13,16", .help = "octree levels"},
+    {.name = "block", .type = OC_CLI_INT, .offset = offsetof(field_opts_t, block), .arg = "N", .lo = 1, .hi = 64,
+     .def = "6", .help = "N³ nodes per level around the scene camera"},
+    OCT_OPT_AT(field_opts_t),
+    OCT_OPT_ALT(field_opts_t),
+    OCT_OPT_TIME(field_opts_t),
+    {.name = "march-clear", .type = OC_CLI_FLAG, .offset = offsetof(field_opts_t, march_clear),
+     .help = "march τ even where the sun column is proven clear (the state before the clear-sky shortcut; the "
+             "same bits, counted as clear marched)"},
+    {.name = "exact", .type = OC_CLI_FLAG, .offset = offsetof(field_opts_t, exact),
+     .help = "also sample the same nodes through the sources' exact box filter: its µs per brick beside the fast "
+             "filter's, and the fast one's error"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_field_spec = {
+    .prog = "overcast-bench field",
+    .about = "Brick production of a scene's field sources: bricks/s per core, bound classification.\n\noptions:\n",
+    .epilog = "Prints the anchor beside each level: a scalar 6-octave Perlin fBm once per voxel, bricks/s per core,\n"
+              "and the ratios to it; with shadows, σt + τ as the world makes them, the CPU on bricks that end up\n"
+              "empty, and the τ direct marches proven clear.\n",
+    .opts = field_opts};
+
+/*-*** The bench ***/
+
+#define NLEVELS 22
+
+typedef struct {
+  const char *prog;
+  const field_opts_t *o;
+  ocs_field_t *f;
+  oc_key_t *keys, *skeys; /* a level's nodes; those sampled */
+  long nodes, sampled;
+  float *s, *e;
+  uint64_t dig_s, dig_t; /* FNV-1a of sampled σt and of τ */
+  char tau_rows[NLEVELS][512], exact_rows[NLEVELS][256];
+} field_run_t;
+
+/* One level's block: bounds, samples, the row of the main table; *anchor: the anchor's bricks/s.
+ * @return 0, or -1 after printing the error. */
+static int field_level(field_run_t *R, int level, oc_dvec3 centre, double *sink, double *anchor) {
+  const long block = R->o->block;
+  const double t = R->o->time;
+  oc_key_t k0 = oc_key_from_point(level, centre);
+  long classified = 0, nonempty = 0, nonempty_bricks = 0;
+  double ts = 0.0;
+  R->nodes = R->sampled = 0;
+  for (long z = 0; z < block; z++)
+    for (long y = 0; y < block; y++)
+      for (long x = 0; x < block; x++) {
+        oc_key_t k = oc_key_neighbor(k0, (int)(x - block / 2), (int)(y - block / 2), (int)(z - block / 2));
+        if (k == OC_KEY_INVALID) continue;
+        R->keys[R->nodes++] = k;
+        float lo, hi;
         double t0 = oct_now();
-        ocs_field_set_exact(f, 0);
-        if (ocs_field_sample(f, skeys[q], t, s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
-        double t1 = oct_now();
-        ocs_field_set_exact(f, 1);
-        if (ocs_field_sample(f, skeys[q], t, e) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "exact sampling failed");
-        tx += oct_now() - t1, tf += t1 - t0;
-        double mx = 0.0, d2 = 0.0;
-        for (int i = 0; i < OC_BRICK_VOXELS; i++) {
-          sf += s[i], sx += e[i], mx = fmax(mx, (double)e[i]);
-          d2 += ((double)s[i] - e[i]) * ((double)s[i] - e[i]);
+        ocs_field_bound(R->f, k, t, &lo, &hi);
+        if (lo == hi) {
+          classified++;
+          ts += oct_now() - t0;
+          nonempty_bricks += hi > 0.0f;
+          continue;
         }
-        if (mx > 0.0) sq += d2 / (OC_BRICK_VOXELS * mx * mx), withc++;
+        if (ocs_field_sample(R->f, k, t, R->s) < 0) return oc_cli_fail(R->prog, -1, "sampling failed");
+        ts += oct_now() - t0;
+        R->skeys[R->sampled++] = k;
+        R->dig_s = oct__fnv(R->dig_s, R->s, sizeof(float) * OC_BRICK_VOXELS);
+        int any = 0;
+        for (int i = 0; i < OC_BRICK_VOXELS; i++) nonempty += R->s[i] > 0.0f, any |= R->s[i] > 0.0f;
+        nonempty_bricks += any;
       }
-      ocs_field_set_exact(f, 0);
-      snprintf(exact_rows[li], sizeof exact_rows[li], "| %d | %ld | %.1f | %.1f | %.1f× | %+.2f %% | %.2f %% |\n", level, sampled,
-               sampled ? 1e6 * tx / sampled : 0.0, sampled ? 1e6 * tf / sampled : 0.0, tf > 0.0 ? tx / tf : 0.0,
-               sx > 0.0 ? 100.0 * (sf / sx - 1.0) : 0.0, withc ? 100.0 * sqrt(sq / withc) : 0.0);
+  long nodes = R->nodes, sampled = R->sampled;
+  double ta = oct__anchor(R->keys, nodes, sink);
+  *anchor = nodes / ta;
+  fprintf(stderr, "\r\033[K");
+  printf("| %d | %.1f | %ld | %.1f %% | %ld | %.0f | %.1f | %.1f %% | %ld | %.0f | %.0f | %.2f× | %.2f× |\n", level,
+         oc_key_size(level), nodes, 100.0 * classified / nodes, sampled, sampled ? sampled / ts : 0.0,
+         sampled ? 1e6 * ts / sampled : 0.0, sampled ? 100.0 * nonempty / (sampled * 512.0) : 0.0, nonempty_bricks,
+         nonempty_bricks / ts, *anchor, sampled ? sampled / ts / *anchor : 0.0, nonempty_bricks / ts / *anchor);
+  fflush(stdout);
+  return 0;
+}
+
+/* --exact: the same sampled nodes through the exact box filter: its cost, and the fast one's error. */
+static int field_exact(field_run_t *R, int level, char *row, size_t cap) {
+  double tf = 0.0, tx = 0.0, sf = 0.0, sx = 0.0, sq = 0.0;
+  long withc = 0, sampled = R->sampled;
+  float *s = R->s, *e = R->e;
+  for (long q = 0; q < sampled; q++) {
+    double t0 = oct_now();
+    ocs_field_set_exact(R->f, 0);
+    if (ocs_field_sample(R->f, R->skeys[q], R->o->time, s) < 0) return oc_cli_fail(R->prog, -1, "sampling failed");
+    double t1 = oct_now();
+    ocs_field_set_exact(R->f, 1);
+    if (ocs_field_sample(R->f, R->skeys[q], R->o->time, e) < 0) return oc_cli_fail(R->prog, -1, "exact sampling failed");
+    tx += oct_now() - t1, tf += t1 - t0;
+    double mx = 0.0, d2 = 0.0;
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) {
+      sf += s[i], sx += e[i], mx = fmax(mx, (double)e[i]);
+      d2 += ((double)s[i] - e[i]) * ((double)s[i] - e[i]);
     }
-    if (!shadows) continue;
-    /* σt + τ as the world makes them, each brick timed, over a cold brick cache */
-    oct_fcache_t cache = {.f = f, .t = t};
-    ocs_tau_stats_t st = {0};
-    ocs_tau_desc_t d = {.sigma = oct_fcache_sigma, .bound = oct_fcache_bound, .ctx = &cache, .sun_dir = sc.sun_dir,
-                        .march_clear = march_clear, .stats = &st};
-    int vcap = (int)((block / 4 + 2) * (block / 4 + 2) * (block / 4 + 2)), nvols = 0;
-    oct__vol_t *vols = malloc(sizeof *vols * (size_t)vcap);
-    if (!vols) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-    long ne = 0, ground = 0, with_tau = 0;
-    double t_all = 0.0, t_empty = 0.0, t_tau = 0.0;
-    float tau[OC_BRICK_VOXELS];
-    for (long q = 0; q < nodes; q++) {
-      oc_key_t k = keys[q];
-      double t0 = oct_now();
-      float lo, hi;
-      oct_fcache_bound(&cache, k, &lo, &hi);
-      int any = 0, tany = 0;
-      if (hi > 0.0f) {
-        if (oct_fcache_sigma(&cache, k, s) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "sampling failed");
-        for (int i = 0; i < OC_BRICK_VOXELS; i++) any |= s[i] > 0.0f;
-      }
-      int gt = !any && ground_tau && ocs_plan_ground_tau(k);
-      if (any || gt) {
-        double t1 = oct_now();
-        if (oct__tau(&d, vols, &nvols, vcap, k, tau) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "τ failed");
-        for (int i = 0; i < OC_BRICK_VOXELS; i++) tany |= tau[i] > 0.0f;
-        dig_t = oct__fnv(dig_t, tau, sizeof tau);
-        with_tau++;
-        ground += gt;
-        t_tau += oct_now() - t1;
-      }
-      double dt = oct_now() - t0;
-      t_all += dt;
-      if (!any && !tany) t_empty += dt;
-      ne += any;
-    }
-    for (int i = 0; i < nvols; i++) free(vols[i].vol);
-    free(vols);
-    oct_fcache_free(&cache);
-    snprintf(tau_rows[li], sizeof tau_rows[li], "| %d | %ld | %ld | %ld | %d | %.1f | %.1f | %.0f | %.2f× | %.1f %% | %ld | %ld | %ld |\n", level, ne,
-             with_tau, ground, nvols, 1e3 * t_all, 1e3 * t_tau, ne / t_all, ne / t_all / anchor, t_all > 0.0 ? 100.0 * t_empty / t_all : 0.0,
-             (long)atomic_load(&st.direct), (long)atomic_load(&st.clear_proven), (long)atomic_load(&st.clear_marched));
+    if (mx > 0.0) sq += d2 / (OC_BRICK_VOXELS * mx * mx), withc++;
   }
-  if (exact) {
+  ocs_field_set_exact(R->f, 0);
+  snprintf(row, cap, "| %d | %ld | %.1f | %.1f | %.1f× | %+.2f %% | %.2f %% |\n", level, sampled,
+           sampled ? 1e6 * tx / sampled : 0.0, sampled ? 1e6 * tf / sampled : 0.0, tf > 0.0 ? tx / tf : 0.0,
+           sx > 0.0 ? 100.0 * (sf / sx - 1.0) : 0.0, withc ? 100.0 * sqrt(sq / withc) : 0.0);
+  return 0;
+}
+
+/* σt + τ as the world makes them, each brick timed, over a cold brick cache. */
+static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anchor, char *row, size_t cap) {
+  const long block = R->o->block;
+  int ground_tau = oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE);
+  oct_fcache_t cache = {.f = R->f, .t = R->o->time};
+  ocs_tau_stats_t st = {0};
+  ocs_tau_desc_t d = {.sigma = oct_fcache_sigma, .bound = oct_fcache_bound, .ctx = &cache, .sun_dir = sc->sun_dir,
+                      .march_clear = R->o->march_clear, .stats = &st};
+  int vcap = (int)((block / 4 + 2) * (block / 4 + 2) * (block / 4 + 2)), nvols = 0, rc = 0;
+  oct__vol_t *vols = malloc(sizeof *vols * (size_t)vcap);
+  if (!vols) return oc_cli_fail(R->prog, -1, "out of memory");
+  long ne = 0, ground = 0, with_tau = 0;
+  double t_all = 0.0, t_empty = 0.0, t_tau = 0.0;
+  float tau[OC_BRICK_VOXELS], *s = R->s;
+  for (long q = 0; q < R->nodes && !rc; q++) {
+    oc_key_t k = R->keys[q];
+    double t0 = oct_now();
+    float lo, hi;
+    oct_fcache_bound(&cache, k, &lo, &hi);
+    int any = 0, tany = 0;
+    if (hi > 0.0f) {
+      if (oct_fcache_sigma(&cache, k, s) < 0) rc = oc_cli_fail(R->prog, -1, "sampling failed");
+      for (int i = 0; i < OC_BRICK_VOXELS; i++) any |= s[i] > 0.0f;
+    }
+    int gt = !any && ground_tau && ocs_plan_ground_tau(k);
+    if (!rc && (any || gt)) {
+      double t1 = oct_now();
+      if (oct__tau(&d, vols, &nvols, vcap, k, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
+      for (int i = 0; i < OC_BRICK_VOXELS; i++) tany |= tau[i] > 0.0f;
+      R->dig_t = oct__fnv(R->dig_t, tau, sizeof tau);
+      with_tau++;
+      ground += gt;
+      t_tau += oct_now() - t1;
+    }
+    double dt = oct_now() - t0;
+    t_all += dt;
+    if (!any && !tany) t_empty += dt;
+    ne += any;
+  }
+  for (int i = 0; i < nvols; i++) free(vols[i].vol);
+  free(vols);
+  oct_fcache_free(&cache);
+  snprintf(row, cap, "| %d | %ld | %ld | %ld | %d | %.1f | %.1f | %.0f | %.2f× | %.1f %% | %ld | %ld | %ld |\n", level,
+           ne, with_tau, ground, nvols, 1e3 * t_all, 1e3 * t_tau, ne / t_all, ne / t_all / anchor,
+           t_all > 0.0 ? 100.0 * t_empty / t_all : 0.0, (long)atomic_load(&st.direct),
+           (long)atomic_load(&st.clear_proven), (long)atomic_load(&st.clear_marched));
+  return rc;
+}
+
+/* The tables after the main one, and the bound cache's and the digests' lines. */
+static void field_tail(const field_run_t *R, int shadows) {
+  const int n = R->o->levels.n;
+  if (R->o->exact) {
     printf("\nThe fast box filter (what bricks hold) against the exact one (--exact), the same sampled nodes:\n\n"
            "| level | nodes | exact µs per brick | fast µs per brick | speed-up | sum of means, fast vs exact | voxel RMS "
            "difference (of each brick's largest) |\n|---:|---:|---:|---:|---:|---:|---:|\n");
-    for (int li = 0; li < nlevels; li++) fputs(exact_rows[li], stdout);
+    for (int li = 0; li < n; li++) fputs(R->exact_rows[li], stdout);
   }
   if (shadows) {
     printf("\nσt + τ together, as the world produces them (cold brick cache per level; %s):\n\n"
            "| level | non-empty bricks | with τ | of which empty ground | τ volumes | CPU ms | of which τ ms | non-empty bricks/s per core | / anchor |"
            " CPU on bricks that end up empty | τ direct marches | proven clear | clear marched |\n"
            "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
-           march_clear ? "--march-clear: provably clear columns marched anyway" : "clear columns skipped");
-    for (int li = 0; li < nlevels; li++) fputs(tau_rows[li], stdout);
+           R->o->march_clear ? "--march-clear: provably clear columns marched anyway" : "clear columns skipped");
+    for (int li = 0; li < n; li++) fputs(R->tau_rows[li], stdout);
   }
-  {
-    ocs_field_stats_t fs;
-    ocs_field_stats(f, &fs);
-    printf("\nfield bounds: %llu calls, bound cache %llu hits / %llu misses (hit rate %.3f%s)\n",
-           (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
-           fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0,
-           fs.bound_hits + fs.bound_misses ? "" : "; OCS_FIELD_BOUND_CACHE=0 or no cacheable source");
+  ocs_field_stats_t fs;
+  ocs_field_stats(R->f, &fs);
+  printf("\nfield bounds: %llu calls, bound cache %llu hits / %llu misses (hit rate %.3f%s)\n",
+         (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
+         fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0,
+         fs.bound_hits + fs.bound_misses ? "" : "; OCS_FIELD_BOUND_CACHE=0 or no cacheable source");
+  printf("digest (FNV-1a of the bytes): sampled σt %016llx, τ %016llx\n", (unsigned long long)R->dig_s,
+         (unsigned long long)R->dig_t);
+}
+
+/* Every level of the block; 0, or -1 after printing the error. */
+static int field_run(field_run_t *R, const oc_scene_t *sc, oc_geo_t g) {
+  char why[1024];
+  const field_opts_t *o = R->o;
+  double tc = oct_now();
+  if (ocs_field_create(&R->f, sc, why, sizeof why) < 0) return oc_cli_fail(R->prog, -1, "%s", why);
+  tc = oct_now() - tc;
+  printf("# field sources of %s (%d source(s), built in %.3f s), %d³ nodes per level around %.3f°, %.3f°, %.0f m, "
+         "t = %g s, one thread\n\n",
+         o->scene ? o->scene : "the built-in planet", sc->nsources, tc, o->block, g.lat, g.lon, o->alt, o->time);
+  int shadows = oc_scene_has(sc, OC_FEATURE_SHADOWS);
+  printf("| level | node size (m) | nodes | classified by bound | sampled | bricks/s per core | µs per brick | non-empty samples |"
+         " non-empty bricks | non-empty bricks/s per core | anchor bricks/s per core | sampled / anchor | non-empty / anchor |\n");
+  printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  double sink = 0.0, anchor = 0.0;
+  oc_dvec3 centre = oc_geo_to_xyz(g);
+  for (int li = 0; li < o->levels.n; li++) {
+    int level = (int)o->levels.v[li];
+    if (field_level(R, level, centre, &sink, &anchor)) return -1;
+    R->exact_rows[li][0] = 0;
+    if (o->exact && field_exact(R, level, R->exact_rows[li], sizeof R->exact_rows[li])) return -1;
+    if (shadows && field_tau(R, sc, level, anchor, R->tau_rows[li], sizeof R->tau_rows[li])) return -1;
   }
-  printf("digest (FNV-1a of the bytes): sampled σt %016llx, τ %016llx\n", (unsigned long long)dig_s,
-         (unsigned long long)dig_t);
+  field_tail(R, shadows);
   if (sink == 1234.5) printf("\n"); /* keeps the anchor's sum alive */
-  free(keys);
-  free(skeys);
-  free(e);
-  free(s);
-  ocs_field_free(f);
+  return 0;
+}
+
+int oct_bench_field(const char *prog, int argc, char **argv) {
+  field_opts_t o = {0};
+  static oc_scene_t sc;
+  int rc = oct_begin(&oct_bench_field_spec, argc, argv, &o, &o.scene, NULL, &sc, NULL);
+  if (rc != OCT_GO) return rc;
+  oc_geo_t g = {o.at.given ? o.at.lat : sc.camera.pos.lat, o.at.given ? o.at.lon : sc.camera.pos.lon, o.alt};
+  size_t nk = (size_t)o.block * (size_t)o.block * (size_t)o.block;
+  static field_run_t R;
+  R = (field_run_t){.prog = prog, .o = &o, .dig_s = 0xcbf29ce484222325ull, .dig_t = 0xcbf29ce484222325ull};
+  R.s = malloc(sizeof(float) * OC_BRICK_VOXELS);
+  R.e = malloc(sizeof(float) * OC_BRICK_VOXELS);
+  R.keys = malloc(sizeof(oc_key_t) * nk);
+  R.skeys = malloc(sizeof(oc_key_t) * nk);
+  if (!R.s || !R.e || !R.keys || !R.skeys) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  else rc = field_run(&R, &sc, g) ? OC_EXIT_RUNTIME : OC_EXIT_OK;
+  free(R.keys);
+  free(R.skeys);
+  free(R.e);
+  free(R.s);
+  ocs_field_free(R.f);
   oc_scene_free(&sc);
-  return OC_EXIT_OK;
+  return rc;
 }

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "oc_cli.h"
 #include "march.h" /* OCG_MS_CHORD_HALF, … : the fitted constants a search starts from */
 #include "oc_truth.h"

@@ -17,6 +17,7 @@
 #include <time.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "oc_camera.h"
 #include "oc_cli.h"
 #include "oc_err.h"

@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "oc_atmo.h"
 #include "oc_scene_render.h"
 #include "oc_cli.h"

@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "net.h" /* client: ocv_fetch */
 #include "oc_analytic.h"
 #include "oc_camera.h"

@@ -31,6 +31,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "bench_sweep_int.h"
 #include "oc_analytic.h"
 #include "oc_atmo.h"

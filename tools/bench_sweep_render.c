@@ -19,6 +19,7 @@
 #include <time.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "bench_sweep_int.h"
 #include "oc_err.h"
 #ifdef OC_HAVE_GL

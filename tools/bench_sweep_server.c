@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "bench_sweep_int.h"
 #include "oc_err.h"
 #include "ocp_epoch.h"

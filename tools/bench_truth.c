@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "bench_mc.h"
 #include "oc_cli.h"
 #include "oc_image.h"

@@ -22,6 +22,7 @@
 #include <zstd.h> /* the plain baseline only */
 
 #include "bench.h"
+#include "bench_util.h"
 #include "bench_epoch.h"
 #include "oc_camera.h"
 #include "oc_cli.h"

@@ -12,6 +12,7 @@
 #include <sys/resource.h>
 
 #include "bench.h"
+#include "bench_util.h"
 #include "oc_camera.h"
 #include "oc_cli.h"
 #include "oc_err.h"

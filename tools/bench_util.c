@@ -1,0 +1,166 @@
+/* bench_util.c — what the overcast-bench subcommands share (bench_util.h). */
+#include "bench_util.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "oc_err.h"
+
+double oct_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+int oct_parse_list(const char *p, const char *opt, const char *text, long lo, long hi, long *out, int cap, int *n) {
+  char buf[256];
+  *n = 0;
+  snprintf(buf, sizeof buf, "%s", text);
+  for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
+    if (*n == cap) {
+      oc_cli_fail(p, 0, "%s: at most %d entries", opt, cap);
+      return -1;
+    }
+    if (oc_cli_int(p, opt, tok, lo, hi, &out[(*n)++])) return -1;
+  }
+  if (*n == 0) {
+    oc_cli_fail(p, 0, "%s: empty list", opt);
+    return -1;
+  }
+  return 0;
+}
+
+int oct_load_scene(const char *p, const char *path, oc_scene_t *sc) {
+  char why[1024];
+  if (!path) {
+    oc_scene_default(sc);
+    return 0;
+  }
+  if (oc_scene_load(sc, path, why, sizeof why) < 0) {
+    oc_cli_fail(p, 0, "%s", why);
+    return -1;
+  }
+  return 0;
+}
+
+/*-*** Option parsers ***/
+
+int oct_opt_list(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  oct_list_t *l = oc_cli_field(o, base);
+  char opt[80];
+  long span = (long)o->hi - (long)o->lo + 1;
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  return oct_parse_list(p, opt, text, (long)o->lo, (long)o->hi, l->v, span < OCT_LIST_MAX ? (int)span : OCT_LIST_MAX,
+                        &l->n);
+}
+
+int oct_opt_at(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  oct_at_t *at = oc_cli_field(o, base);
+  if (sscanf(text, "%lf,%lf", &at->lat, &at->lon) != 2 ||
+      !(at->lat >= -90 && at->lat <= 90 && at->lon >= -360 && at->lon <= 360)) {
+    oc_cli_fail(p, 0, "--%s: expected LAT,LON in degrees, got \"%s\"", o->name, text);
+    return -1;
+  }
+  at->given = 1;
+  return 0;
+}
+
+int oct_opt_size(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  int *wh = oc_cli_field(o, base);
+  char opt[80];
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  return oc_cli_size(p, opt, text, &wh[0], &wh[1]);
+}
+
+/*-*** The preamble ***/
+
+int oct_begin(const oc_cli_spec_t *spec, int argc, char **argv, void *opts, const char *const *scene,
+              const char *const *camera, oc_scene_t *sc, oc_camera_pose_t *pose) {
+  int r = oc_cli_parse(spec, argc, argv, opts, NULL, NULL);
+  if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
+  if (!sc) return OCT_GO;
+  if (oct_load_scene(spec->prog, scene ? *scene : NULL, sc)) return OC_EXIT_RUNTIME;
+  if (!pose) return OCT_GO;
+  char why[512];
+  *pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
+  if (camera && *camera && oc_camera_parse(*camera, pose, why, sizeof why) < 0) {
+    oc_scene_free(sc);
+    return oc_cli_fail(spec->prog, OC_EXIT_USAGE, "--camera: %s", why);
+  }
+  return OCT_GO;
+}
+
+/*-*** A single-threaded brick cache in front of the field ***/
+
+static oct_fcache_ent_t *fcache_find(oct_fcache_t *c, oc_key_t key) {
+  if ((c->n + 1) * 2 > c->cap) {
+    size_t ncap = c->cap ? c->cap * 2 : 4096;
+    oct_fcache_ent_t *nt = calloc(ncap, sizeof *nt);
+    if (!nt) return NULL;
+    for (size_t i = 0; i < c->cap; i++) {
+      if (!c->tab[i].key) continue;
+      size_t h = (size_t)((c->tab[i].key * 0x9E3779B97F4A7C15ull) >> 24) & (ncap - 1);
+      while (nt[h].key) h = (h + 1) & (ncap - 1);
+      nt[h] = c->tab[i];
+    }
+    free(c->tab);
+    c->tab = nt;
+    c->cap = ncap;
+  }
+  size_t h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 24) & (c->cap - 1);
+  while (c->tab[h].key && c->tab[h].key != key) h = (h + 1) & (c->cap - 1);
+  if (!c->tab[h].key) {
+    c->tab[h].key = key;
+    c->n++;
+  }
+  return &c->tab[h];
+}
+
+int oct_fcache_sigma(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+  oct_fcache_t *c = ctx;
+  c->sigma_calls++;
+  oct_fcache_ent_t *e = fcache_find(c, key);
+  if (!e) return OC_ENOMEM;
+  if (!e->brick) {
+    if (c->nb == c->pool_cap) {
+      size_t ncap = c->pool_cap ? c->pool_cap * 2 : 256;
+      float *np = realloc(c->pool, ncap * OC_BRICK_VOXELS * sizeof(float));
+      if (!np) return OC_ENOMEM;
+      c->pool = np;
+      c->pool_cap = ncap;
+    }
+    float *b = c->pool + c->nb * OC_BRICK_VOXELS;
+    OC_TRY(ocs_field_sample(c->f, key, c->t, b));
+    oc_sanitize(b, OC_BRICK_VOXELS, NULL);
+    e->brick = (int)(++c->nb);
+    c->sigma_fetches++;
+  }
+  memcpy(out, c->pool + (size_t)(e->brick - 1) * OC_BRICK_VOXELS, sizeof(float) * OC_BRICK_VOXELS);
+  return 0;
+}
+
+void oct_fcache_bound(void *ctx, oc_key_t key, float *lo, float *hi) {
+  oct_fcache_t *c = ctx;
+  c->bound_calls++;
+  oct_fcache_ent_t *e = fcache_find(c, key);
+  if (!e) { /* out of memory: say "anything" (the sample will fail the same way) */
+    *lo = 0.0f, *hi = INFINITY;
+    return;
+  }
+  if (!e->has_bound) {
+    ocs_field_bound(c->f, key, c->t, &e->lo, &e->hi);
+    e->has_bound = 1;
+    c->bound_fetches++;
+  }
+  *lo = e->lo, *hi = e->hi;
+}
+
+void oct_fcache_free(oct_fcache_t *c) {
+  free(c->tab);
+  free(c->pool);
+  c->tab = NULL, c->pool = NULL;
+  c->cap = c->n = c->nb = c->pool_cap = 0;
+}

@@ -1,0 +1,105 @@
+/* bench_util.h — what the overcast-bench subcommands share (bench_util.c): a clock, option rows and
+ * their parsers, the preamble every subcommand begins with (its options, then its scene and camera),
+ * and a brick cache in front of a field. bench_main.c only dispatches; it does not define these.
+ * Not part of the project's API: tools/ only. */
+#ifndef OC_TOOLS_BENCH_UTIL_H
+#define OC_TOOLS_BENCH_UTIL_H
+
+#include <stddef.h>
+
+#include "oc_brick.h"
+#include "oc_camera.h"
+#include "oc_cli.h"
+#include "oc_scene.h"
+#include "ocs_field.h"
+
+/*! oct_now() : monotonic seconds. */
+double oct_now(void);
+/*! oct_parse_list() : "a,b,c" of integers in [lo, hi]; 0, or -1 after printing the error. */
+int oct_parse_list(const char *prog, const char *opt, const char *text, long lo, long hi, long *out, int cap, int *n);
+/*! oct_load_scene() : the scene at path, or the built-in planet when path is NULL; 0, or -1 after
+ *  printing the error. */
+int oct_load_scene(const char *prog, const char *path, oc_scene_t *sc);
+
+/*-*** Option rows (common/oc_cli.h) shared by the subcommands' tables ***/
+
+/*! oct_list_t : an integer list option ("10,13,16"), filled by oct_opt_list(): at most
+ *  min(OCT_LIST_MAX, hi - lo + 1) entries, each in the row's [lo, hi]. */
+#define OCT_LIST_MAX 32
+typedef struct {
+  long v[OCT_LIST_MAX];
+  int n;
+} oct_list_t;
+int oct_opt_list(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
+
+/*! oct_at_t : --at LAT,LON in degrees (oct_opt_at()); given is 0 until the option is seen. */
+typedef struct {
+  double lat, lon;
+  int given;
+} oct_at_t;
+int oct_opt_at(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
+
+/*! oct_opt_size() : "WxH" into an int[2] (oc_cli_size()). */
+int oct_opt_size(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
+
+/* Rows that mean the same in every subcommand; T is the subcommand's options struct. */
+#define OCT_OPT_SCENE(T)                                                                                         \
+  {.name = "scene", .type = OC_CLI_STRING, .offset = offsetof(T, scene), .arg = "FILE",                          \
+   .def_note = "the built-in procedural planet", .help = "scene"}
+#define OCT_OPT_CAMERA(T)                                                                                        \
+  {.name = "camera", .type = OC_CLI_STRING, .offset = offsetof(T, camera), .arg = "LAT,LON,ALT,HEADING,PITCH,FOV", \
+   .def_note = "the scene's camera", .help = "the viewer's camera"}
+#define OCT_OPT_AT(T)                                                                                            \
+  {.name = "at", .type = OC_CLI_CUSTOM, .parse = oct_opt_at, .offset = offsetof(T, at), .arg = "LAT,LON",        \
+   .def_note = "the scene camera", .help = "centre of the block, in degrees"}
+#define OCT_OPT_ALT(T)                                                                                           \
+  {.name = "alt", .type = OC_CLI_DOUBLE, .offset = offsetof(T, alt), .arg = "M", .lo = -1e4, .hi = 1e5,          \
+   .def = "2000", .help = "altitude of the block's centre in metres"}
+#define OCT_OPT_TIME(T)                                                                                          \
+  {.name = "time", .type = OC_CLI_DOUBLE, .offset = offsetof(T, time), .arg = "T", .lo = -1e12, .hi = 1e12,      \
+   .def = "0", .help = "world time in seconds"}
+#define OCT_OPT_THREADS(T)                                                                                       \
+  {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(T, threads), .arg = "N", .lo = 0, .hi = 64,         \
+   .def_note = "all cores", .help = "producer threads; 0: all cores"}
+#define OCT_OPT_HELP {.name = "help", .type = OC_CLI_HELP, .help = "print this and exit"}
+
+/*-*** The preamble ***/
+
+/*! OCT_GO : oct_begin() says "go on" (any other value is the exit status to return). */
+#define OCT_GO (-1)
+
+/*! oct_begin() : what every subcommand begins with. Parses argv (argv[0] the subcommand's name) by
+ *  spec into opts; then, when sc is not NULL, loads the scene *scene names (oct_load_scene(); NULL:
+ *  the built-in planet); then, when pose is not NULL, the camera: the scene's, or *camera parsed
+ *  (oc_camera_parse(); the scene is freed on error).
+ *  @return OCT_GO, or the exit status: OC_EXIT_OK after --help, OC_EXIT_USAGE after a usage error,
+ *  OC_EXIT_RUNTIME when the scene does not load. */
+int oct_begin(const oc_cli_spec_t *spec, int argc, char **argv, void *opts, const char *const *scene,
+              const char *const *camera, oc_scene_t *sc, oc_camera_pose_t *pose);
+
+/*-*** A single-threaded brick cache in front of a field ***/
+
+/*! oct_fcache_t : a single-threaded brick cache in front of a field at time t (what the server's
+ *  shared cache gives the τ callbacks): oct_fcache_sigma() and oct_fcache_bound() are
+ *  ocs_tau_desc_t callbacks with ctx an oct_fcache_t; zero-initialise with f and t set, release
+ *  with oct_fcache_free(). */
+typedef struct {
+  oc_key_t key;
+  int has_bound, brick; /* brick: index + 1 into the pool, 0: not sampled */
+  float lo, hi;
+} oct_fcache_ent_t;
+typedef struct {
+  const ocs_field_t *f;
+  double t;
+  oct_fcache_ent_t *tab;
+  size_t cap, n;
+  float *pool;
+  size_t nb, pool_cap;
+  long sigma_calls, bound_calls, sigma_fetches, bound_fetches; /* callback calls; field work */
+  int err;
+} oct_fcache_t;
+int oct_fcache_sigma(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]);
+void oct_fcache_bound(void *ctx, oc_key_t key, float *lo, float *hi);
+void oct_fcache_free(oct_fcache_t *c);
+
+#endif /* OC_TOOLS_BENCH_UTIL_H */
