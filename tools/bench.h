@@ -17,6 +17,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_tau_spec;
 int oct_bench_plan(const char *prog, int argc, char **argv);
 int oct_bench_world(const char *prog, int argc, char **argv);
+extern const oc_cli_spec_t oct_bench_world_spec;
 /* bench_sweep.c: error against run time; bench_truth.c: Monte Carlo ground truth. Each prints its
  * own options section of --help. */
 int oct_bench_sweep(const char *prog, int argc, char **argv);

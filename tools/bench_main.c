@@ -31,18 +31,6 @@ static void legacy_usage(FILE *f) {
           "                      stops the build-up at N leaves\n"
           "  --repeat N          re-plans timed per case; the median counts (default 5)\n"
           "\n"
-          "world options:\n"
-          "  --scene FILE        scene (default: the built-in procedural planet)\n"
-          "  --viewers N         viewers, spread around the camera's heading when orbiting (default 1)\n"
-          "  --epochs N          epochs to step (default 20)\n"
-          "  --budget MIB        each viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
-          "  --threads N         producer threads (default: all cores)\n"
-          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera)\n"
-          "  --orbit DEG         heading change per epoch (default 0: a still camera)\n"
-          "  --split-fraction X  planner split cap per epoch as a fraction of capacity (default 0.1)\n"
-          "  --clocked S         clocked epochs: each tick shows only content that exists, then production\n"
-          "                      runs S seconds (0: none); plan-ms includes the target plans (target-ms)\n"
-          "\n"
           "wire options (the built-in procedural planet, one viewer at its camera; every decode is checked):\n"
           "  --epochs N          epochs to step (default 8)\n"
           "  --budget MIB        the viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
@@ -73,7 +61,7 @@ static const cmd_t cmds[] = {
     {"plan", "LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core",
      oct_bench_plan, NULL},
     {"world", "the server core stepped for some epochs: plans, production, cache, refresh savings", oct_bench_world,
-     NULL},
+     &oct_bench_world_spec},
     {"wire", "epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary", oct_bench_wire, NULL},
     {"sweep", "error against run time: quality knobs swept, RMSE/PSNR against the best setting", oct_bench_sweep,
      NULL},

@@ -4,8 +4,8 @@
  * and acknowledged. Reports per epoch the plan and production times, the bricks produced and the
  * cache hit rate, and over the run the leaves refreshed against refreshing every leaf every epoch, with the error that saving costs: how much a brick's σt can change
  * within one of its level's time steps (the most stale content can be off by), relative L1. */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,114 +40,102 @@ static double step_change(const ocs_field_t *f, oc_key_t key, double t, double *
   return num;
 }
 
-int oct_bench_world(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_VIEWERS, O_EPOCHS, O_BUDGET, O_THREADS, O_CAMERA, O_ORBIT, O_SPLIT, O_CLOCKED, O_HELP };
-  static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},     {"viewers", required_argument, 0, O_VIEWERS},
-                                       {"epochs", required_argument, 0, O_EPOCHS},   {"budget", required_argument, 0, O_BUDGET},
-                                       {"threads", required_argument, 0, O_THREADS}, {"camera", required_argument, 0, O_CAMERA},
-                                       {"orbit", required_argument, 0, O_ORBIT},     {"split-fraction", required_argument, 0, O_SPLIT},
-                                       {"clocked", required_argument, 0, O_CLOCKED}, {"help", no_argument, 0, O_HELP},
-                                       {0, 0, 0, 0}};
-  const char *scene_path = NULL, *camera_text = NULL;
-  long viewers = 1, epochs = 20, budget_mib = 64, threads = 0;
-  double orbit = 0.0, split = 0.0, clocked = -1.0;
-  int c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SCENE: scene_path = optarg; break;
-      case O_VIEWERS: if (oc_cli_int(prog, "--viewers", optarg, 1, 64, &viewers)) return OC_EXIT_USAGE; break;
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &epochs)) return OC_EXIT_USAGE; break;
-      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 0, 64, &threads)) return OC_EXIT_USAGE; break;
-      case O_CAMERA: camera_text = optarg; break;
-      case O_ORBIT: if (oc_cli_double(prog, "--orbit", optarg, -180, 180, &orbit)) return OC_EXIT_USAGE; break;
-      case O_SPLIT: if (oc_cli_double(prog, "--split-fraction", optarg, 0.001, 1, &split)) return OC_EXIT_USAGE; break;
-      case O_CLOCKED: if (oc_cli_double(prog, "--clocked", optarg, 0, 3600, &clocked)) return OC_EXIT_USAGE; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "world: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "world: unexpected argument \"%s\"", argv[optind]);
+/*-*** Options ***/
 
-  char why[1024];
-  static oc_scene_t sc;
-  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
-  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
-  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
-  }
-  ocs_world_desc_t wd = {.threads = (int)threads, .cache_bytes = 1ull << 30, .clocked = clocked >= 0};
-  ocs_world_t *w = NULL;
-  if (ocs_world_create(&w, &sc, &wd, why, sizeof why) < 0) {
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  }
+typedef struct {
+  const char *scene, *camera;
+  int viewers, epochs, budget, threads;
+  double orbit, split, clocked;
+} world_opts_t;
+
+static const oc_cli_opt_t world_opts[] = {
+    OCT_OPT_SCENE(world_opts_t),
+    {.name = "viewers", .type = OC_CLI_INT, .offset = offsetof(world_opts_t, viewers), .arg = "N", .lo = 1, .hi = 64,
+     .def = "1", .help = "viewers, spread around the camera's heading when orbiting"},
+    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(world_opts_t, epochs), .arg = "N", .lo = 1,
+     .hi = 100000, .def = "20", .help = "epochs to step"},
+    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(world_opts_t, budget), .arg = "MIB", .lo = 1,
+     .hi = 1 << 20, .def = "64", .help = "each viewer's budget (2048-byte slots, 32-byte records)"},
+    OCT_OPT_THREADS(world_opts_t),
+    OCT_OPT_CAMERA(world_opts_t),
+    {.name = "orbit", .type = OC_CLI_DOUBLE, .offset = offsetof(world_opts_t, orbit), .arg = "DEG", .lo = -180,
+     .hi = 180, .def = "0", .help = "heading change per epoch; 0: a still camera"},
+    {.name = "split-fraction", .type = OC_CLI_DOUBLE, .offset = offsetof(world_opts_t, split), .arg = "X",
+     .lo = 0.001, .hi = 1, .def_note = "the planner's, 0.1", .help = "planner split cap per epoch as a fraction of capacity"},
+    {.name = "clocked", .type = OC_CLI_DOUBLE, .offset = offsetof(world_opts_t, clocked), .arg = "S", .lo = 0,
+     .hi = 3600, .def_note = "off",
+     .help = "clocked epochs: each tick shows only content that exists, then production runs S seconds; plan-ms "
+             "includes the target plans (target-ms)"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_world_spec = {
+    .prog = "overcast-bench world",
+    .about = "The server core stepped for some epochs: plans, production, cache, refresh savings.\n\noptions:\n",
+    .opts = world_opts};
+
+/*-*** The bench ***/
+
+typedef struct {
+  const world_opts_t *o;
+  ocs_world_t *w;
   ocs_viewer_t *v[64];
-  for (long i = 0; i < viewers; i++) {
-    ocs_plan_desc_t d = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21,
-                         .split_fraction = split};
-    if (ocs_world_add_viewer(w, &d, &v[i], NULL, why, sizeof why) < 0) {
-      ocs_world_free(w);
-      oc_scene_free(&sc);
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-    }
+  oc_camera_pose_t pose;
+  uint64_t refresh_all, refreshed, last_produced;
+} world_run_t;
+
+/* Viewer 0's output; zeroes when it has none (clocked: no state until the root exists). */
+static ocs_epoch_out_t first_output(const world_run_t *R) {
+  ocs_epoch_out_t o;
+  memset(&o, 0, sizeof o);
+  if (ocs_viewer_output(R->v[0], &o) < 0) memset(&o, 0, sizeof o);
+  return o;
+}
+
+/* Epoch e: the views, the step, the acks, and its line. @return 0 or a negative error. */
+static int world_epoch(world_run_t *R, long e) {
+  const world_opts_t *opt = R->o;
+  for (long i = 0; i < opt->viewers; i++) {
+    oc_camera_pose_t p = R->pose;
+    p.heading += opt->orbit * (double)e + 360.0 * (double)i / (double)opt->viewers * (opt->orbit != 0.0);
+    oc_camera_t cam = oc_camera_from_pose(p);
+    ocs_view_t view = {cam.pos, cam.forward, cam.up, p.fov, 1280, 720};
+    ocs_viewer_set_view(R->v[i], &view);
   }
-  printf("scene %s, %ld viewer(s), budget %ld MiB each, %d producer threads, %s field\n", sc.name, viewers, budget_mib,
-         (int)wd.threads, ocs_field_animated(ocs_world_field(w)) ? "animated" : "static");
-  if (wd.clocked)
-    printf("clocked: each tick builds its states from content that exists, then production runs %.3g s\n", clocked);
-  printf("epoch  leaves  splits merges refreshed deferred  produced  hit-rate  plan-ms target-ms produce-ms  queue\n");
-  uint64_t refresh_all = 0, refreshed = 0, last_produced = 0, produced_after_first = 0;
-  int rc = 0;
-  for (long e = 0; e < epochs && rc == 0; e++) {
-    for (long i = 0; i < viewers; i++) {
-      oc_camera_pose_t p = pose;
-      p.heading += orbit * (double)e + 360.0 * (double)i / (double)viewers * (orbit != 0.0);
-      oc_camera_t cam = oc_camera_from_pose(p);
-      ocs_view_t view = {cam.pos, cam.forward, cam.up, p.fov, 1280, 720};
-      ocs_viewer_set_view(v[i], &view);
-    }
-    uint32_t leaves_before = 0;
-    {
-      ocs_epoch_out_t o;
-      if (ocs_viewer_output(v[0], &o) == 0) leaves_before = o.state->node_count;
-    }
-    if ((rc = ocs_world_step(w)) < 0) break;
-    ocs_world_stats_t ws;
-    ocs_world_stats(w, &ws);
-    double plan_s = ws.plan_seconds, target_s = ws.target_seconds;
-    size_t queue = ocs_world_queue_length(w);
-    if (wd.clocked && (rc = ocs_world_produce(w, clocked, 0)) < 0) break;
-    rc = 0;
-    ocs_world_stats(w, &ws);
+  uint32_t leaves_before = 0;
+  {
     ocs_epoch_out_t o;
-    memset(&o, 0, sizeof o);
-    if (ocs_viewer_output(v[0], &o) < 0) memset(&o, 0, sizeof o); /* clocked: no state until the root exists */
-    for (long i = 0; i < viewers; i++) {
-      ocs_epoch_out_t oi;
-      if (ocs_viewer_output(v[i], &oi) == 0) ocs_viewer_ack(v[i], oi.state->epoch);
-    }
-    if (e > 0) {
-      refresh_all += leaves_before;
-      refreshed += o.plan.refreshed;
-      produced_after_first += ws.bricks_produced - last_produced;
-    }
-    printf("%5ld %7u %7u %6u %9u %8u %9llu %9.3f %8.1f %9.1f %10.1f %6zu\n", e, o.plan.leaves, o.plan.splits, o.plan.merges,
-           o.plan.refreshed, o.plan.deferred, (unsigned long long)(ws.bricks_produced - last_produced), ws.cache_hit_rate,
-           1e3 * plan_s, 1e3 * target_s, 1e3 * ws.produce_seconds, queue);
-    fflush(stdout);
-    last_produced = ws.bricks_produced;
+    if (ocs_viewer_output(R->v[0], &o) == 0) leaves_before = o.state->node_count;
   }
-  if (rc < 0) {
-    ocs_world_free(w);
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "epoch failed: %s", oc_strerror(rc));
-  }
+  int rc;
+  if ((rc = ocs_world_step(R->w)) < 0) return rc;
   ocs_world_stats_t ws;
-  ocs_world_stats(w, &ws);
+  ocs_world_stats(R->w, &ws);
+  double plan_s = ws.plan_seconds, target_s = ws.target_seconds;
+  size_t queue = ocs_world_queue_length(R->w);
+  if (opt->clocked >= 0 && (rc = ocs_world_produce(R->w, opt->clocked, 0)) < 0) return rc;
+  ocs_world_stats(R->w, &ws);
+  ocs_epoch_out_t o = first_output(R);
+  for (long i = 0; i < opt->viewers; i++) {
+    ocs_epoch_out_t oi;
+    if (ocs_viewer_output(R->v[i], &oi) == 0) ocs_viewer_ack(R->v[i], oi.state->epoch);
+  }
+  if (e > 0) {
+    R->refresh_all += leaves_before;
+    R->refreshed += o.plan.refreshed;
+  }
+  printf("%5ld %7u %7u %6u %9u %8u %9llu %9.3f %8.1f %9.1f %10.1f %6zu\n", e, o.plan.leaves, o.plan.splits,
+         o.plan.merges, o.plan.refreshed, o.plan.deferred, (unsigned long long)(ws.bricks_produced - R->last_produced),
+         ws.cache_hit_rate, 1e3 * plan_s, 1e3 * target_s, 1e3 * ws.produce_seconds, queue);
+  fflush(stdout);
+  R->last_produced = ws.bricks_produced;
+  return 0;
+}
+
+/* The run's totals: production, wasted work, bounds and CPU. */
+static void world_totals(const world_run_t *R) {
+  ocs_world_stats_t ws;
+  ocs_world_stats(R->w, &ws);
   printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings, %llu τ volumes, "
          "%llu single-node τ (%llu proven clear toward the sun: no march)\n",
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
@@ -157,43 +145,85 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
          "(%.1f %%; per-brick timers on the producer threads)\n",
          (unsigned long long)ws.bricks_empty, (unsigned long long)ws.bricks_produced, ws.brick_cpu_empty, ws.brick_cpu,
          ws.brick_cpu > 0.0 ? 100.0 * ws.brick_cpu_empty / ws.brick_cpu : 0.0);
-  {
-    ocs_field_stats_t fs;
-    struct rusage ru;
-    ocs_field_stats(ocs_world_field(w), &fs);
-    getrusage(RUSAGE_SELF, &ru);
-    double cpu = (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec + 1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-    printf("bounds: %llu field bounds, cache %llu hits / %llu misses (hit rate %.3f); process CPU %.1f s (%.2f s per epoch)\n",
-           (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
-           fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0, cpu,
-           epochs > 0 ? cpu / (double)epochs : 0.0);
+  ocs_field_stats_t fs;
+  struct rusage ru;
+  ocs_field_stats(ocs_world_field(R->w), &fs);
+  getrusage(RUSAGE_SELF, &ru);
+  double cpu = (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
+               1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  int epochs = R->o->epochs;
+  printf("bounds: %llu field bounds, cache %llu hits / %llu misses (hit rate %.3f); process CPU %.1f s (%.2f s per epoch)\n",
+         (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
+         fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0, cpu,
+         epochs > 0 ? cpu / (double)epochs : 0.0);
+}
+
+/* Animated fields: the refresh savings, and the error of not refreshing within a step: how far
+ * content moves in one step, per level. */
+static void world_refresh(const world_run_t *R) {
+  printf("refresh (viewer 0, epochs 1..%d): %llu leaves refreshed; refreshing every leaf every epoch: %llu "
+         "(%.1f%% of it, %.1fx fewer)\n",
+         R->o->epochs - 1, (unsigned long long)R->refreshed, (unsigned long long)R->refresh_all,
+         R->refresh_all ? 100.0 * R->refreshed / R->refresh_all : 0.0,
+         R->refreshed ? (double)R->refresh_all / R->refreshed : INFINITY);
+  ocs_epoch_out_t o = first_output(R);
+  double num[22] = {0}, den[22] = {0};
+  int n[22] = {0};
+  for (uint32_t i = 0; i < o.state->node_count; i++) {
+    const oc_node_t *nd = &o.state->nodes[i];
+    int l = oc_key_level(nd->key);
+    if (nd->kind != OC_NODE_BRICK || !(nd->range[OC_CH_SIGMA].hi > 0.0f) || n[l] >= 32) continue;
+    double dn = 0.0, d = step_change(ocs_world_field(R->w), nd->key, o.state->time, &dn);
+    if (!isfinite(d)) continue;
+    num[l] += d;
+    den[l] += dn;
+    n[l]++;
   }
-  if (ocs_field_animated(ocs_world_field(w)) && epochs > 1) {
-    printf("refresh (viewer 0, epochs 1..%ld): %llu leaves refreshed; refreshing every leaf every epoch: %llu "
-           "(%.1f%% of it, %.1fx fewer)\n",
-           epochs - 1, (unsigned long long)refreshed, (unsigned long long)refresh_all,
-           refresh_all ? 100.0 * refreshed / refresh_all : 0.0, refreshed ? (double)refresh_all / refreshed : INFINITY);
-    /* the error of not refreshing within a step: how far content moves in one step, per level */
-    ocs_epoch_out_t o;
-    memset(&o, 0, sizeof o);
-    if (ocs_viewer_output(v[0], &o) < 0) memset(&o, 0, sizeof o); /* clocked: no state until the root exists */
-    double num[22] = {0}, den[22] = {0};
-    int n[22] = {0};
-    for (uint32_t i = 0; i < o.state->node_count; i++) {
-      const oc_node_t *nd = &o.state->nodes[i];
-      int l = oc_key_level(nd->key);
-      if (nd->kind != OC_NODE_BRICK || !(nd->range[OC_CH_SIGMA].hi > 0.0f) || n[l] >= 32) continue;
-      double dn = 0.0, d = step_change(ocs_world_field(w), nd->key, o.state->time, &dn);
-      if (!isfinite(d)) continue;
-      num[l] += d;
-      den[l] += dn;
-      n[l]++;
-    }
-    printf("level  nodes  σt change within one of the level's time steps (L1, relative to the level's L1)\n");
-    for (int l = 0; l < 22; l++)
-      if (n[l] && den[l] > 0.0) printf("%5d %6d %10.4f\n", l, n[l], num[l] / den[l]);
+  printf("level  nodes  σt change within one of the level's time steps (L1, relative to the level's L1)\n");
+  for (int l = 0; l < 22; l++)
+    if (n[l] && den[l] > 0.0) printf("%5d %6d %10.4f\n", l, n[l], num[l] / den[l]);
+}
+
+/* The world and its viewers. */
+static int world_setup(world_run_t *R, const char *prog, const oc_scene_t *sc) {
+  char why[1024];
+  const world_opts_t *o = R->o;
+  ocs_world_desc_t wd = {.threads = o->threads, .cache_bytes = 1ull << 30, .clocked = o->clocked >= 0};
+  if (ocs_world_create(&R->w, sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, -1, "%s", why);
+  for (long i = 0; i < o->viewers; i++) {
+    ocs_plan_desc_t d = {.budget = (uint64_t)o->budget << 20, .slot_bytes = OC_SLOT_BYTES,
+                         .record_bytes = OC_RECORD_BYTES, .max_depth = 21, .split_fraction = o->split};
+    if (ocs_world_add_viewer(R->w, &d, &R->v[i], NULL, why, sizeof why) < 0) return oc_cli_fail(prog, -1, "%s", why);
   }
-  ocs_world_free(w);
+  printf("scene %s, %d viewer(s), budget %d MiB each, %d producer threads, %s field\n", sc->name, o->viewers,
+         o->budget, (int)wd.threads, ocs_field_animated(ocs_world_field(R->w)) ? "animated" : "static");
+  if (wd.clocked)
+    printf("clocked: each tick builds its states from content that exists, then production runs %.3g s\n", o->clocked);
+  return 0;
+}
+
+int oct_bench_world(const char *prog, int argc, char **argv) {
+  world_opts_t o = {.clocked = -1.0};
+  static oc_scene_t sc;
+  world_run_t R = {.o = &o};
+  int rc = oct_begin(&oct_bench_world_spec, argc, argv, &o, &o.scene, &o.camera, &sc, &R.pose);
+  if (rc != OCT_GO) return rc;
+  if (world_setup(&R, prog, &sc) < 0) {
+    rc = OC_EXIT_RUNTIME;
+    goto out;
+  }
+  printf("epoch  leaves  splits merges refreshed deferred  produced  hit-rate  plan-ms target-ms produce-ms  queue\n");
+  int r = 0;
+  for (long e = 0; e < o.epochs && r == 0; e++) r = world_epoch(&R, e);
+  if (r < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "epoch failed: %s", oc_strerror(r));
+    goto out;
+  }
+  world_totals(&R);
+  if (ocs_field_animated(ocs_world_field(R.w)) && o.epochs > 1) world_refresh(&R);
+  rc = OC_EXIT_OK;
+out:
+  ocs_world_free(R.w);
   oc_scene_free(&sc);
-  return OC_EXIT_OK;
+  return rc;
 }
