@@ -31,12 +31,6 @@ static void legacy_usage(FILE *f) {
           "                      stops the build-up at N leaves\n"
           "  --repeat N          re-plans timed per case; the median counts (default 5)\n"
           "\n"
-          "wire options (the built-in procedural planet, one viewer at its camera; every decode is checked):\n"
-          "  --epochs N          epochs to step (default 8)\n"
-          "  --budget MIB        the viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
-          "  --level N           zstd level of every variant, 1..19 (default 3)\n"
-          "  --threads N         producer threads (default: all cores)\n"
-          "  --csv FILE          also write one row per epoch and variant\n"
           "\n"
           "\n");
   oct_bench_sweep_usage(f);
@@ -62,7 +56,7 @@ static const cmd_t cmds[] = {
      oct_bench_plan, NULL},
     {"world", "the server core stepped for some epochs: plans, production, cache, refresh savings", oct_bench_world,
      &oct_bench_world_spec},
-    {"wire", "epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary", oct_bench_wire, NULL},
+    {"wire", "epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary", oct_bench_wire, &oct_bench_wire_spec},
     {"sweep", "error against run time: quality knobs swept, RMSE/PSNR against the best setting", oct_bench_sweep,
      NULL},
     {"truth", "Monte Carlo ground truth (delta tracking, every scattering order) for small views", oct_bench_truth,

@@ -13,8 +13,8 @@
  * record, the same figure for every variant) over one core's encode or decode wall time.
  *
  * The plain baseline links zstd directly: it measures what ocp_epoch.c saves over it. */
-#include <getopt.h>
 #include <inttypes.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,9 +32,6 @@
 #include "ocp_wire.h"
 #include "ocs_field.h"
 #include "world.h"
-
-/* Prototype here rather than in bench.h (shared); bench_main.c declares it likewise. */
-int oct_bench_wire(const char *prog, int argc, char **argv);
 
 enum { W_PLAIN, W_BATCH, W_DELTA, W_DICT, W_N };
 static const char *const wname[W_N] = {"plain", "batch", "delta", "dict"};
@@ -218,202 +215,159 @@ static int epoch_encode(ocp_epoch_enc_t *e, const oc_state_t *s, const oc_state_
 
 /*-*** The subcommand ***/
 
-int oct_bench_wire(const char *prog, int argc, char **argv) {
-  enum { O_EPOCHS = 256, O_BUDGET, O_LEVEL, O_THREADS, O_CSV, O_HELP };
-  static const struct option opts[] = {{"epochs", required_argument, 0, O_EPOCHS}, {"budget", required_argument, 0, O_BUDGET},
-                                       {"level", required_argument, 0, O_LEVEL},   {"threads", required_argument, 0, O_THREADS},
-                                       {"csv", required_argument, 0, O_CSV},       {"help", no_argument, 0, O_HELP},
-                                       {0, 0, 0, 0}};
-  long epochs = 8, budget_mib = 64, level = OCP_LEVEL_DEFAULT, threads = 0;
-  const char *csv_path = NULL;
-  int c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &epochs)) return OC_EXIT_USAGE; break;
-      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
-      case O_LEVEL: if (oc_cli_int(prog, "--level", optarg, 1, 19, &level)) return OC_EXIT_USAGE; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 0, 64, &threads)) return OC_EXIT_USAGE; break;
-      case O_CSV: csv_path = optarg; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "wire: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "wire: unexpected argument \"%s\"", argv[optind]);
+typedef struct {
+  int epochs, budget, level, threads;
+  const char *csv;
+} wire_opts_t;
 
-  char why[1024];
-  static oc_scene_t sc;
-  oc_scene_default(&sc);
-  ocs_world_desc_t wd = {.threads = (int)threads, .cache_bytes = 1ull << 30};
-  ocs_world_t *w = NULL;
-  if (ocs_world_create(&w, &sc, &wd, why, sizeof why) < 0) {
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  }
-  ocs_viewer_t *v = NULL;
-  ocs_plan_desc_t req = {.budget = (uint64_t)budget_mib << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21}, granted;
-  if (ocs_world_add_viewer(w, &req, &v, &granted, why, sizeof why) < 0) {
-    ocs_world_free(w);
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-  }
-  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
-  oc_camera_t cam = oc_camera_from_pose(pose);
-  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, 1280, 720};
-  ocs_viewer_set_view(v, &view);
-  int animated = ocs_field_animated(ocs_world_field(w));
+static const oc_cli_opt_t wire_opts[] = {
+    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(wire_opts_t, epochs), .arg = "N", .lo = 1, .hi = 100000,
+     .def = "8", .help = "epochs to step"},
+    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(wire_opts_t, budget), .arg = "MIB", .lo = 1,
+     .hi = 1 << 20, .def = "64", .help = "the viewer's budget (2048-byte slots, 32-byte records)"},
+    {.name = "level", .type = OC_CLI_INT, .offset = offsetof(wire_opts_t, level), .arg = "N", .lo = 1, .hi = 19,
+     .def = OC_CLI_STR(OCP_LEVEL_DEFAULT), .help = "zstd level of every variant"},
+    OCT_OPT_THREADS(wire_opts_t),
+    {.name = "csv", .type = OC_CLI_STRING, .offset = offsetof(wire_opts_t, csv), .arg = "FILE",
+     .help = "also write one row per epoch and variant"},
+    OCT_OPT_HELP,
+    {0}};
 
-  FILE *csv = NULL;
-  if (csv_path && !(csv = fopen(csv_path, "w"))) {
-    ocs_world_free(w);
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot open '%s'", csv_path);
-  }
-  if (csv) fprintf(csv, "epoch,variant,records,bricks_sent,content_bytes,wire_bytes,brick_bytes,encode_s,decode_s,delta_channels,full_channels\n");
+const oc_cli_spec_t oct_bench_wire_spec = {
+    .prog = "overcast-bench wire",
+    .about = "Epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary (the built-in procedural\n"
+             "planet, one viewer at its camera; every decode is checked).\n\noptions:\n",
+    .opts = wire_opts};
 
+typedef struct {
+  const char *prog;
+  const wire_opts_t *o;
+  int animated;
+  FILE *csv;
   wvar_t var[W_N];
-  memset(var, 0, sizeof var);
-  held_t held = {.n = 0, .keep = granted.kept_states - 1};
-  if (held.keep < 1) held.keep = 1;
-  if (held.keep > W_HELD_MAX) held.keep = W_HELD_MAX;
+  held_t held;
   oc_state_t prev; /* the server's previous state: the base of each difference */
-  oc_state_init(&prev);
-  ZSTD_CCtx *cc = ZSTD_createCCtx();
-  ZSTD_DCtx *dc = ZSTD_createDCtx();
-  uint8_t *scratch = NULL;
-  size_t scratch_cap = 0;
-  double train_s = 0.0;
-  size_t dict_len = 0;
-  int rc = OC_EXIT_OK;
+  ZSTD_CCtx *cc;
+  ZSTD_DCtx *dc;
+  uint8_t *scratch;
+  size_t scratch_cap;
+  double train_s;
+  size_t dict_len;
+} wire_run_t;
+
+/* The dictionary: trained on the first epoch's bricks, sent before its first BRICKS. */
+static void wire_train(wire_run_t *R, const oc_state_t *s, const ocs_epoch_out_t *o) {
+  wvar_t *x = &R->var[W_DICT];
+  const oc_brick_codes_t **smp = malloc(sizeof *smp * ((size_t)o->nlacking + 1));
+  oc_buf_t dict = {0};
+  double t0 = oct_now();
+  int tr = smp ? 0 : OC_ENOMEM;
+  for (uint32_t k = 0; smp && k < o->nlacking; k++) smp[k] = &oc_state_find_brick(s, o->lacking[k])->codes;
+  if (tr == 0) tr = ocp_dict_train(smp, o->nlacking, W_DICT_BYTES, &dict);
+  R->train_s = oct_now() - t0;
+  free(smp);
+  ocp_enc_desc_t d = {.level = R->o->level, .deltas = 1, .dict_id = W_DICT_ID, .dict = dict.data, .dict_len = dict.len};
+  if (tr < 0 || ocp_epoch_enc_create(&x->enc, &d) < 0) {
+    printf("(no dictionary: training on %u bricks failed: %s)\n", o->nlacking, oc_strerror(tr < 0 ? tr : OC_ENOMEM));
+    x->enabled = 0;
+  } else {
+    R->dict_len = dict.len;
+    ocp_put_dict(&x->buf, W_VERSION, W_DICT_ID, dict.data, dict.len); /* counted in epoch 0 */
+  }
+  oc_buf_free(&dict);
+}
+
+/* Variant i of epoch e: encoded, decoded by the viewer, checked against the server's checksum.
+ * @return 0, or -1 after printing the error. */
+static int wire_variant(wire_run_t *R, int i, long e, const ocs_epoch_out_t *o, uint64_t content) {
+  wvar_t *x = &R->var[i];
+  const oc_state_t *s = o->state, *base = R->prev.node_count ? &R->prev : NULL;
+  char why[1024];
+  if (!(i == W_DICT && e == 0)) x->buf.len = 0;
+  x->brick_bytes = 0;
+  double t0 = oct_now();
+  int r = i == W_PLAIN ? plain_encode(R->cc, R->o->level, s, o->lacking, o->nlacking, &x->buf, R->scratch, &x->brick_bytes)
+                       : epoch_encode(x->enc, s, base, o->lacking, o->nlacking, &x->buf, &x->brick_bytes);
+  x->enc_s = oct_now() - t0;
+  if (r < 0) return oc_cli_fail(R->prog, -1, "wire: epoch %ld, %s: encoding failed", e, wname[i]);
+  x->wire = x->buf.len;
+  x->delta_ch = x->full_ch = 0;
+  if (x->enc) {
+    ocp_enc_stats_t st;
+    ocp_epoch_enc_stats(x->enc, &st);
+    x->delta_ch = st.delta_channels, x->full_ch = st.full_channels;
+  }
+  why[0] = '\0';
+  const oc_state_t *held_ptr[W_HELD_MAX];
+  for (int k = 0; k < R->held.n; k++) held_ptr[k] = &R->held.s[k];
+  t0 = oct_now();
+  r = i == W_PLAIN ? plain_decode(R->dc, &x->buf, &R->held, &x->out, R->scratch, R->scratch_cap, why, sizeof why)
+                   : oct_epoch_decode(x->dec, &x->buf, held_ptr, R->held.n, &x->out, why, sizeof why);
+  x->dec_s = oct_now() - t0;
+  if (r < 0) return oc_cli_fail(R->prog, -1, "wire: epoch %ld, %s: DECODE FAILED: %s", e, wname[i], why);
+  uint64_t checksum = oc_state_checksum(s), got = oc_state_checksum(&x->out);
+  if (got != checksum)
+    return oc_cli_fail(R->prog, -1, "wire: epoch %ld, %s: ROUND TRIP MISMATCH: server %016" PRIx64 ", decoded %016" PRIx64,
+                       e, wname[i], checksum, got);
+  x->t_wire += x->wire, x->t_brick_bytes += x->brick_bytes, x->t_bricks += o->nlacking, x->t_content += content;
+  x->t_enc += x->enc_s, x->t_dec += x->dec_s;
+  if (e > 0 && R->animated) x->anim_delta += x->delta_ch, x->anim_full += x->full_ch;
+  if (R->csv)
+    fprintf(R->csv, "%ld,%s,%u,%u,%" PRIu64 ",%" PRIu64 ",%" PRIu64 ",%.6f,%.6f,%u,%u\n", e, wname[i], s->node_count,
+            o->nlacking, content, x->wire, x->brick_bytes, x->enc_s, x->dec_s, x->delta_ch, x->full_ch);
+  return 0;
+}
+
+/* Epoch e: stepped, every variant, its line; the viewer and the server then hold its state. */
+static int wire_epoch(wire_run_t *R, ocs_world_t *w, ocs_viewer_t *v, long e) {
+  int r;
+  ocs_epoch_out_t o;
+  if ((r = ocs_world_step(w)) < 0 || (r = ocs_viewer_output(v, &o)) < 0)
+    return oc_cli_fail(R->prog, -1, "wire: epoch %ld: %s", e, oc_strerror(r));
+  const oc_state_t *s = o.state;
+  uint64_t content = (uint64_t)o.nlacking * OC_BRICK_CODE_BYTES + (uint64_t)s->node_count * OC_STATE_RECORD_BYTES;
+  size_t need = (size_t)s->node_count * OC_STATE_RECORD_BYTES;
+  if (need > R->scratch_cap) {
+    uint8_t *p = realloc(R->scratch, need);
+    if (!p) return oc_cli_fail(R->prog, -1, "wire: out of memory");
+    R->scratch = p, R->scratch_cap = need;
+  }
+  if (e == 0) wire_train(R, s, &o);
+  for (int i = 0; i < W_N; i++)
+    if (R->var[i].enabled && wire_variant(R, i, e, &o, content)) return -1;
+  printf("%5ld %7u %7u            ", e, s->node_count, o.nlacking);
   for (int i = 0; i < W_N; i++) {
-    oc_state_init(&var[i].out);
-    var[i].enabled = 1;
-    ocp_enc_desc_t d = {.level = (int)level, .deltas = i >= W_DELTA};
-    if (!cc || !dc || ocp_epoch_dec_create(&var[i].dec) < 0 || (i != W_PLAIN && i != W_DICT && ocp_epoch_enc_create(&var[i].enc, &d) < 0)) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: out of memory");
-      goto out;
-    }
+    if (R->var[i].enabled)
+      printf(" %9.1f", R->var[i].wire / 1024.0);
+    else
+      printf(" %9s", "-");
   }
+  printf("\n");
+  fflush(stdout);
+  /* the viewer now holds this state (every variant decoded it identically); the server too */
+  int keep_from = R->var[W_DICT].enabled ? W_DICT : W_DELTA;
+  held_push(&R->held, &R->var[keep_from].out);
+  for (int i = 0; i < W_N; i++) oc_state_free(&R->var[i].out);
+  if (oc_state_copy(&R->prev, s) < 0) return oc_cli_fail(R->prog, -1, "wire: out of memory");
+  ocs_viewer_ack(v, s->epoch);
+  return 0;
+}
 
-  printf("scene %s (%s), budget %ld MiB, %d kept states, zstd level %ld\n", sc.name, animated ? "animated" : "static", budget_mib,
-         granted.kept_states, level);
-  printf("epoch  leaves  bricks   wire KiB: %9s %9s %9s %9s\n", wname[0], wname[1], wname[2], wname[3]);
-  for (long e = 0; e < epochs; e++) {
-    int r;
-    ocs_epoch_out_t o;
-    if ((r = ocs_world_step(w)) < 0 || (r = ocs_viewer_output(v, &o)) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld: %s", e, oc_strerror(r));
-      goto out;
-    }
-    const oc_state_t *s = o.state;
-    const oc_state_t *base = prev.node_count ? &prev : NULL;
-    uint64_t checksum = oc_state_checksum(s);
-    uint64_t content = (uint64_t)o.nlacking * OC_BRICK_CODE_BYTES + (uint64_t)s->node_count * OC_STATE_RECORD_BYTES;
-    size_t need = (size_t)s->node_count * OC_STATE_RECORD_BYTES;
-    if (need > scratch_cap) {
-      uint8_t *p = realloc(scratch, need);
-      if (!p) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: out of memory");
-        goto out;
-      }
-      scratch = p, scratch_cap = need;
-    }
-    if (e == 0) { /* the dictionary: trained on this epoch's bricks, sent before its first BRICKS */
-      wvar_t *x = &var[W_DICT];
-      const oc_brick_codes_t **smp = malloc(sizeof *smp * ((size_t)o.nlacking + 1));
-      oc_buf_t dict = {0};
-      double t0 = oct_now();
-      int tr = smp ? 0 : OC_ENOMEM;
-      for (uint32_t k = 0; smp && k < o.nlacking; k++) smp[k] = &oc_state_find_brick(s, o.lacking[k])->codes;
-      if (tr == 0) tr = ocp_dict_train(smp, o.nlacking, W_DICT_BYTES, &dict);
-      train_s = oct_now() - t0;
-      free(smp);
-      ocp_enc_desc_t d = {.level = (int)level, .deltas = 1, .dict_id = W_DICT_ID, .dict = dict.data, .dict_len = dict.len};
-      if (tr < 0 || ocp_epoch_enc_create(&x->enc, &d) < 0) {
-        printf("(no dictionary: training on %u bricks failed: %s)\n", o.nlacking, oc_strerror(tr < 0 ? tr : OC_ENOMEM));
-        x->enabled = 0;
-      } else {
-        dict_len = dict.len;
-        ocp_put_dict(&x->buf, W_VERSION, W_DICT_ID, dict.data, dict.len); /* counted in epoch 0 */
-      }
-      oc_buf_free(&dict);
-    }
-    for (int i = 0; i < W_N; i++) {
-      wvar_t *x = &var[i];
-      if (!x->enabled) continue;
-      if (!(i == W_DICT && e == 0)) x->buf.len = 0;
-      x->brick_bytes = 0;
-      double t0 = oct_now();
-      r = i == W_PLAIN ? plain_encode(cc, (int)level, s, o.lacking, o.nlacking, &x->buf, scratch, &x->brick_bytes)
-                       : epoch_encode(x->enc, s, base, o.lacking, o.nlacking, &x->buf, &x->brick_bytes);
-      x->enc_s = oct_now() - t0;
-      if (r < 0) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: encoding failed", e, wname[i]);
-        goto out;
-      }
-      x->wire = x->buf.len;
-      x->delta_ch = x->full_ch = 0;
-      if (x->enc) {
-        ocp_enc_stats_t st;
-        ocp_epoch_enc_stats(x->enc, &st);
-        x->delta_ch = st.delta_channels, x->full_ch = st.full_channels;
-      }
-      why[0] = '\0';
-      const oc_state_t *held_ptr[W_HELD_MAX];
-      for (int k = 0; k < held.n; k++) held_ptr[k] = &held.s[k];
-      t0 = oct_now();
-      r = i == W_PLAIN ? plain_decode(dc, &x->buf, &held, &x->out, scratch, scratch_cap, why, sizeof why)
-                       : oct_epoch_decode(x->dec, &x->buf, held_ptr, held.n, &x->out, why, sizeof why);
-      x->dec_s = oct_now() - t0;
-      if (r < 0) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: DECODE FAILED: %s", e, wname[i], why);
-        goto out;
-      }
-      uint64_t got = oc_state_checksum(&x->out);
-      if (got != checksum) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: epoch %ld, %s: ROUND TRIP MISMATCH: server %016" PRIx64 ", decoded %016" PRIx64,
-                         e, wname[i], checksum, got);
-        goto out;
-      }
-      x->t_wire += x->wire, x->t_brick_bytes += x->brick_bytes, x->t_bricks += o.nlacking, x->t_content += content;
-      x->t_enc += x->enc_s, x->t_dec += x->dec_s;
-      if (e > 0 && animated) x->anim_delta += x->delta_ch, x->anim_full += x->full_ch;
-      if (csv)
-        fprintf(csv, "%ld,%s,%u,%u,%" PRIu64 ",%" PRIu64 ",%" PRIu64 ",%.6f,%.6f,%u,%u\n", e, wname[i], s->node_count, o.nlacking,
-                content, x->wire, x->brick_bytes, x->enc_s, x->dec_s, x->delta_ch, x->full_ch);
-    }
-    printf("%5ld %7u %7u            ", e, s->node_count, o.nlacking);
-    for (int i = 0; i < W_N; i++) {
-      if (var[i].enabled)
-        printf(" %9.1f", var[i].wire / 1024.0);
-      else
-        printf(" %9s", "-");
-    }
-    printf("\n");
-    fflush(stdout);
-    /* the viewer now holds this state (every variant decoded it identically); the server too */
-    int keep_from = var[W_DICT].enabled ? W_DICT : W_DELTA;
-    held_push(&held, &var[keep_from].out);
-    for (int i = 0; i < W_N; i++) oc_state_free(&var[i].out);
-    if (oc_state_copy(&prev, s) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "wire: out of memory");
-      goto out;
-    }
-    ocs_viewer_ack(v, s->epoch);
-  }
-
-  printf("\nover %ld epochs (%" PRIu64 " bricks sent); MB/s of content (2048 B a brick sent + 32 B a record) on one core\n", epochs,
-         var[W_PLAIN].t_bricks);
+/* The table over the run. */
+static void wire_summary(const wire_run_t *R) {
+  const wvar_t *var = R->var;
+  int epochs = R->o->epochs;
+  printf("\nover %d epochs (%" PRIu64 " bricks sent); MB/s of content (2048 B a brick sent + 32 B a record) on one core\n",
+         epochs, var[W_PLAIN].t_bricks);
   if (var[W_DICT].enabled)
-    printf("dictionary: %zu bytes, trained in %.1f ms on epoch 0's bricks; its DICT frame is in dict's epoch-0 wire bytes\n", dict_len,
-           1e3 * train_s);
+    printf("dictionary: %zu bytes, trained in %.1f ms on epoch 0's bricks; its DICT frame is in dict's epoch-0 wire bytes\n",
+           R->dict_len, 1e3 * R->train_s);
   printf("variant  bytes/brick  wire KiB/epoch  vs plain  ratio  encode MB/s  decode MB/s  delta channels (epochs 1..)\n");
   for (int i = 0; i < W_N; i++) {
     const wvar_t *x = &var[i];
     if (!x->enabled) continue;
     char dfrac[32] = "-";
-    if (x->enc && i >= W_DELTA && animated && epochs > 1 && x->anim_delta + x->anim_full)
+    if (x->enc && i >= W_DELTA && R->animated && epochs > 1 && x->anim_delta + x->anim_full)
       snprintf(dfrac, sizeof dfrac, "%.1f%%", 100.0 * (double)x->anim_delta / (double)(x->anim_delta + x->anim_full));
     printf("%-7s %12.1f %15.1f %8.3f %6.2f %12.1f %12.1f  %s\n", wname[i],
            x->t_bricks ? (double)x->t_brick_bytes / (double)x->t_bricks : 0.0, x->t_wire / 1024.0 / (double)epochs,
@@ -421,20 +375,84 @@ int oct_bench_wire(const char *prog, int argc, char **argv) {
            x->t_enc > 0 ? x->t_content / 1e6 / x->t_enc : 0.0, x->t_dec > 0 ? x->t_content / 1e6 / x->t_dec : 0.0, dfrac);
   }
   printf("every decoded state matched the server's checksum\n");
+}
 
-out:
-  if (csv && fclose(csv) != 0 && rc == OC_EXIT_OK) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot write '%s'", csv_path);
+/* The codecs of every variant, the csv file; 0, or -1 after printing the error. */
+static int wire_open(wire_run_t *R, int kept_states) {
+  R->held = (held_t){.n = 0, .keep = kept_states - 1};
+  if (R->held.keep < 1) R->held.keep = 1;
+  if (R->held.keep > W_HELD_MAX) R->held.keep = W_HELD_MAX;
+  oc_state_init(&R->prev);
+  R->cc = ZSTD_createCCtx();
+  R->dc = ZSTD_createDCtx();
   for (int i = 0; i < W_N; i++) {
-    ocp_epoch_enc_free(var[i].enc);
-    ocp_epoch_dec_free(var[i].dec);
-    oc_buf_free(&var[i].buf);
-    oc_state_free(&var[i].out);
+    oc_state_init(&R->var[i].out);
+    R->var[i].enabled = 1;
+    ocp_enc_desc_t d = {.level = R->o->level, .deltas = i >= W_DELTA};
+    if (!R->cc || !R->dc || ocp_epoch_dec_create(&R->var[i].dec) < 0 ||
+        (i != W_PLAIN && i != W_DICT && ocp_epoch_enc_create(&R->var[i].enc, &d) < 0))
+      return oc_cli_fail(R->prog, -1, "wire: out of memory");
   }
-  for (int i = 0; i < held.n; i++) oc_state_free(&held.s[i]);
-  oc_state_free(&prev);
-  ZSTD_freeCCtx(cc);
-  ZSTD_freeDCtx(dc);
-  free(scratch);
+  if (R->o->csv && !(R->csv = fopen(R->o->csv, "w")))
+    return oc_cli_fail(R->prog, -1, "--csv: cannot open '%s'", R->o->csv);
+  if (R->csv)
+    fprintf(R->csv, "epoch,variant,records,bricks_sent,content_bytes,wire_bytes,brick_bytes,encode_s,decode_s,"
+                    "delta_channels,full_channels\n");
+  return 0;
+}
+
+/* Releases what wire_open() made; @return rc, or OC_EXIT_RUNTIME when the csv file fails. */
+static int wire_close(wire_run_t *R, int rc) {
+  if (R->csv && fclose(R->csv) != 0 && rc == OC_EXIT_OK)
+    rc = oc_cli_fail(R->prog, OC_EXIT_RUNTIME, "--csv: cannot write '%s'", R->o->csv);
+  for (int i = 0; i < W_N; i++) {
+    ocp_epoch_enc_free(R->var[i].enc);
+    ocp_epoch_dec_free(R->var[i].dec);
+    oc_buf_free(&R->var[i].buf);
+    oc_state_free(&R->var[i].out);
+  }
+  for (int i = 0; i < R->held.n; i++) oc_state_free(&R->held.s[i]);
+  oc_state_free(&R->prev);
+  ZSTD_freeCCtx(R->cc);
+  ZSTD_freeDCtx(R->dc);
+  free(R->scratch);
+  return rc;
+}
+
+int oct_bench_wire(const char *prog, int argc, char **argv) {
+  wire_opts_t opt = {0};
+  static oc_scene_t sc;
+  oc_camera_pose_t pose;
+  int rc = oct_begin(&oct_bench_wire_spec, argc, argv, &opt, NULL, NULL, &sc, &pose);
+  if (rc != OCT_GO) return rc;
+  char why[1024];
+  ocs_world_desc_t wd = {.threads = opt.threads, .cache_bytes = 1ull << 30};
+  ocs_world_t *w = NULL;
+  ocs_viewer_t *v = NULL;
+  ocs_plan_desc_t req = {.budget = (uint64_t)opt.budget << 20, .slot_bytes = OC_SLOT_BYTES,
+                         .record_bytes = OC_RECORD_BYTES, .max_depth = 21}, granted;
+  static wire_run_t R;
+  R = (wire_run_t){.prog = prog, .o = &opt};
+  if (ocs_world_create(&w, &sc, &wd, why, sizeof why) < 0 ||
+      ocs_world_add_viewer(w, &req, &v, &granted, why, sizeof why) < 0) {
+    ocs_world_free(w);
+    oc_scene_free(&sc);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  }
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, 1280, 720};
+  ocs_viewer_set_view(v, &view);
+  R.animated = ocs_field_animated(ocs_world_field(w));
+  rc = wire_open(&R, granted.kept_states) ? OC_EXIT_RUNTIME : OC_EXIT_OK;
+  if (rc == OC_EXIT_OK) {
+    printf("scene %s (%s), budget %d MiB, %d kept states, zstd level %d\n", sc.name, R.animated ? "animated" : "static",
+           opt.budget, granted.kept_states, opt.level);
+    printf("epoch  leaves  bricks   wire KiB: %9s %9s %9s %9s\n", wname[0], wname[1], wname[2], wname[3]);
+    for (long e = 0; e < opt.epochs && rc == OC_EXIT_OK; e++)
+      if (wire_epoch(&R, w, v, e)) rc = OC_EXIT_RUNTIME;
+    if (rc == OC_EXIT_OK) wire_summary(&R);
+  }
+  rc = wire_close(&R, rc);
   ocs_world_free(w);
   oc_scene_free(&sc);
   return rc;
