@@ -194,9 +194,9 @@ static int left_of(const oc_cli_opt_t *o, char *buf, size_t cap) {
   return width(buf, strlen(buf));
 }
 
-/* A bound as --help prints it: whole numbers in full below 1e9, others as %g. */
+/* A bound as --help prints it: whole numbers in full below 1e15, others as %g. */
 static int num(char *buf, size_t cap, double v) {
-  if (v == floor(v) && fabs(v) < 1e9) return snprintf(buf, cap, "%.0f", v);
+  if (v == floor(v) && fabs(v) < 1e15) return snprintf(buf, cap, "%.0f", v);
   return snprintf(buf, cap, "%g", v);
 }
 

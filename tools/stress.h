@@ -1,7 +1,8 @@
 /* stress.h — overcast-stress internals shared by its files: options, the run, one viewer, the
  * server process, and the report.
  *
- *   stress_main.c    command line, the coordinator (stepping, stopping, the final stats request)
+ *   stress_main.c    the coordinator (stepping, stopping, the final stats request)
+ *   stress_opts.c    the command line: one table of options, --help generated from it
  *   stress_viewer.c  one viewer: a thread with its own connection (client/net.h), its camera path,
  *                    and the live checks (resident bytes counted here, checksums, skipped epochs)
  *   stress_proc.c    overcast-server as a child process; RSS and CPU from /proc
@@ -88,6 +89,12 @@ typedef struct {
   int nserver_args;
   char *server_args[32];    /* --server-arg: passed on to a spawned server */
 } stress_opts_t;
+
+/*! stress_opts_parse() (stress_opts.c) : the command line into *o (zeroed first), defaults
+ *  applied and the options checked against each other.
+ *  @return 0 to go on; 1 after --help or --version (exit 0); -1 after a one-line usage error on
+ *  stderr (exit OC_EXIT_USAGE). */
+int stress_opts_parse(int argc, char **argv, stress_opts_t *o);
 
 /* Time to full detail: after a teleport the plan reacts (splits or merges: splits that only wait
  * are not a reaction, else a clocked tree waiting for a few dear coarse bricks "settled" at once,
