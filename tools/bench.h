@@ -30,8 +30,8 @@ int oct_bench_stability(const char *prog, int argc, char **argv);
 void oct_bench_stability_usage(FILE *f);
 /* bench_features.c: each feature a scene uses, turned off alone: memory and time saved. */
 int oct_bench_features(const char *prog, int argc, char **argv);
+extern const oc_cli_spec_t oct_bench_features_spec;
 int oct_bench_wire(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_wire_spec;
-void oct_bench_features_usage(FILE *f);
 
 #endif /* OC_TOOLS_BENCH_H */

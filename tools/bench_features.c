@@ -20,7 +20,6 @@
  *           (its shader variants on; alternated the same way, each timed render after an untimed one
  *           that compiles the variant and uploads the tables).
  * Times vary with the machine; bricks, bytes, K, resident bytes and checksums are deterministic. */
-#include <getopt.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -48,20 +47,6 @@
 #endif
 
 #define F_VERSION OCP_VERSION_MAX
-
-void oct_bench_features_usage(FILE *f) {
-  fprintf(f,
-          "features options (all of the scene's features, then each one it uses turned off alone):\n"
-          "  --scene FILE        scene (default: the built-in procedural planet)\n"
-          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera; held still)\n"
-          "  --epochs N          epochs to step per configuration (default 6)\n"
-          "  --budget MIB        the viewer's budget (default 64; 2048-byte slots, 32-byte records)\n"
-          "  --viewport WxH      the viewport the server plans for (default 1280x720)\n"
-          "  --size WxH          rendered image size (default 160x90)\n"
-          "  --renderer cpu|gl   renderer of the final state (default cpu; gl: headless EGL)\n"
-          "  --repeat N          table builds and renders per configuration; the fastest counts (default 3)\n"
-          "  --threads N         producer, table and CPU render threads (default: all cores)\n");
-}
 
 typedef struct {
   char label[64];
@@ -335,116 +320,88 @@ static const char *saved(char *buf, size_t cap, double all, double x) {
   return buf;
 }
 
-int oct_bench_features(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_CAMERA, O_EPOCHS, O_BUDGET, O_VIEWPORT, O_SIZE, O_RENDERER, O_REPEAT, O_THREADS, O_HELP };
-  static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},       {"camera", required_argument, 0, O_CAMERA},
-                                       {"epochs", required_argument, 0, O_EPOCHS},     {"budget", required_argument, 0, O_BUDGET},
-                                       {"viewport", required_argument, 0, O_VIEWPORT}, {"size", required_argument, 0, O_SIZE},
-                                       {"renderer", required_argument, 0, O_RENDERER}, {"repeat", required_argument, 0, O_REPEAT},
-                                       {"threads", required_argument, 0, O_THREADS},   {"help", no_argument, 0, O_HELP},
-                                       {0, 0, 0, 0}};
-  const char *scene_path = NULL, *camera_text = NULL;
-  long epochs = 6, budget_mib = 64, repeat = 3, threads = 0;
-  int w = 160, h = 90, vw = 1280, vh = 720, gl = 0;
-  int c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SCENE: scene_path = optarg; break;
-      case O_CAMERA: camera_text = optarg; break;
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &epochs)) return OC_EXIT_USAGE; break;
-      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
-      case O_VIEWPORT: if (oc_cli_size(prog, "--viewport", optarg, &vw, &vh)) return OC_EXIT_USAGE; break;
-      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_RENDERER:
-        if (!strcmp(optarg, "cpu")) gl = 0;
-        else if (!strcmp(optarg, "gl")) {
-#ifdef OC_HAVE_GL
-          gl = 1;
-#else
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer gl: this build has no GL renderer");
-#endif
-        } else
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer: expected cpu or gl, got \"%s\"", optarg);
-        break;
-      case O_REPEAT: if (oc_cli_int(prog, "--repeat", optarg, 1, 1000, &repeat)) return OC_EXIT_USAGE; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 0, 64, &threads)) return OC_EXIT_USAGE; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "features: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "features: unexpected argument \"%s\"", argv[optind]);
-  if (threads == 0) {
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    threads = n < 1 ? 1 : n > 64 ? 64 : n;
-  }
+/*-*** Options ***/
 
-  char why[1024];
-  static oc_scene_t base;
-  if (oct_load_scene(prog, scene_path, &base)) return OC_EXIT_RUNTIME;
-  oc_camera_pose_t pose = {base.camera.pos, base.camera.heading, base.camera.pitch, base.camera.fov};
-  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
-    oc_scene_free(&base);
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
-  }
-  oc_camera_t cam = oc_camera_from_pose(pose);
-  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, vw, vh};
+typedef struct {
+  const char *scene, *camera;
+  int epochs, budget, repeat, threads, gl;
+  int viewport[2], size[2];
+} feat_opts_t;
 
-  /* the configurations: all the scene's features, then each one it uses turned off alone */
-  fcfg_t *cf = calloc(OC_FEATURE_COUNT + 1, sizeof *cf);
-  int n = 0, rc = OC_EXIT_OK;
-  if (!cf) {
-    oc_scene_free(&base);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
-  }
+static const oc_cli_opt_t feat_opts[] = {
+    OCT_OPT_SCENE(feat_opts_t),
+    OCT_OPT_CAMERA(feat_opts_t),
+    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, epochs), .arg = "N", .lo = 1, .hi = 100000,
+     .def = "6", .help = "epochs to step per configuration"},
+    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, budget), .arg = "MIB", .lo = 1,
+     .hi = 1 << 20, .def = "64", .help = "the viewer's budget (2048-byte slots, 32-byte records)"},
+    {.name = "viewport", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(feat_opts_t, viewport),
+     .arg = "WxH", .def = "1280x720", .help = "the viewport the server plans for"},
+    {.name = "size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(feat_opts_t, size), .arg = "WxH",
+     .def = "160x90", .help = "rendered image size"},
+    OCT_OPT_RENDERER(feat_opts_t, "renderer of the final state (gl: headless EGL)"),
+    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, repeat), .arg = "N", .lo = 1, .hi = 1000,
+     .def = "3", .help = "table builds and renders per configuration; the fastest counts"},
+    {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, threads), .arg = "N", .lo = 0, .hi = 64,
+     .def_note = "all cores", .help = "producer, table and CPU render threads; 0: all cores"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_features_spec = {
+    .prog = "overcast-bench features",
+    .about = "Each feature a scene uses turned off alone (all of the scene's features first; the camera held still):\n"
+             "server time, bricks, wire, memory, tables, render.\n\noptions:\n",
+    .opts = feat_opts};
+
+/*-*** The subcommand ***/
+
+/* The configurations: all the scene's features, then each one it uses turned off alone. @return
+ * how many, or -1 after printing the error. */
+static int features_configs(const char *prog, const oc_scene_t *base, fcfg_t *cf) {
+  int n = 0;
   for (int f = -1; f < OC_FEATURE_COUNT; f++) {
-    if (f >= 0 && !oc_scene_has(&base, (oc_scene_feature_t)f)) continue;
+    if (f >= 0 && !oc_scene_has(base, (oc_scene_feature_t)f)) continue;
     fcfg_t *x = &cf[n++];
     x->off = f;
     oc_state_init(&x->final);
     if (f < 0) snprintf(x->label, sizeof x->label, "all the scene's features");
     else snprintf(x->label, sizeof x->label, "no %s", oc_scene_feature_name(f));
-    if (!(x->sc = calloc(1, sizeof *x->sc)) || oc_scene_copy(x->sc, &base) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
-      goto out;
+    if (!(x->sc = calloc(1, sizeof *x->sc)) || oc_scene_copy(x->sc, base) < 0) {
+      oc_cli_fail(prog, 0, "features: out of memory");
+      return -n;
     }
     if (f >= 0) x->sc->features &= ~(1u << f);
   }
+  return n;
+}
 
-  char feat[256] = "";
-  for (int f = 0; f < OC_FEATURE_COUNT; f++)
-    if (oc_scene_has(&base, (oc_scene_feature_t)f))
-      snprintf(feat + strlen(feat), sizeof feat - strlen(feat), "%s%s", feat[0] ? ", " : "", oc_scene_feature_name(f));
-  char cam_text[256];
-  oc_camera_format(pose, cam_text, sizeof cam_text);
-
-  for (int i = 0; i < n && rc == OC_EXIT_OK; i++) rc = run_server(prog, &cf[i], &view, epochs, budget_mib, (int)threads);
+/* Every configuration's server run, tables and renders. */
+static int features_measure(const char *prog, const feat_opts_t *o, fcfg_t *cf, int n, oc_camera_pose_t pose,
+                            char *info, size_t info_len) {
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, o->viewport[0], o->viewport[1]};
+  int rc = OC_EXIT_OK, w = o->size[0], h = o->size[1];
+  for (int i = 0; i < n && rc == OC_EXIT_OK; i++) rc = run_server(prog, &cf[i], &view, o->epochs, o->budget, o->threads);
   /* the tables, configurations alternated round by round */
   for (int i = 0; i < n; i++) cf[i].table_ms = cf[i].table_cpu_ms = 1e30;
-  for (long k = 0; k < repeat && rc == OC_EXIT_OK; k++)
+  for (long k = 0; k < o->repeat && rc == OC_EXIT_OK; k++)
     for (int i = 0; i < n && rc == OC_EXIT_OK; i++) {
-      fprintf(stderr, "\r\033[K%s: features: tables %ld/%ld: %s", prog, k + 1, repeat, cf[i].label);
-      rc = build_tables(prog, &cf[i], (int)threads);
+      fprintf(stderr, "\r\033[K%s: features: tables %ld/%d: %s", prog, k + 1, o->repeat, cf[i].label);
+      rc = build_tables(prog, &cf[i], o->threads);
     }
   fprintf(stderr, "\r\033[K");
-  char info[512] = "CPU reference";
-  if (rc == OC_EXIT_OK) {
+  if (rc != OC_EXIT_OK) return rc;
 #ifdef OC_HAVE_GL
-    if (gl)
-      rc = render_gl(prog, cf, n, cam, w, h, repeat, info, sizeof info);
-    else
+  if (o->gl) return render_gl(prog, cf, n, cam, w, h, o->repeat, info, info_len);
+#else
+  (void)info, (void)info_len;
 #endif
-      rc = render_cpu(prog, cf, n, cam, w, h, repeat, (int)threads);
-  }
-  if (rc != OC_EXIT_OK) goto out;
+  return render_cpu(prog, cf, n, cam, w, h, o->repeat, o->threads);
+}
 
-  printf("# overcast-bench features: %s\n\n", scene_path ? scene_path : "the built-in procedural planet");
-  printf("scene features on: %s; camera %s (still); %ld epochs, budget %ld MiB, viewport %dx%d; %ld threads;\n"
-         "renderer %s at %dx%d, best of %ld; wire: epoch encoder with deltas, zstd level %d (every decode checked)\n\n",
-         feat[0] ? feat : "none", cam_text, epochs, budget_mib, vw, vh, threads, gl ? info : "CPU reference", w, h, repeat,
-         OCP_LEVEL_DEFAULT);
-  long after = epochs - 1;
+/* The first two tables: each configuration's figures. */
+static void features_tables(const feat_opts_t *o, const fcfg_t *cf, int n) {
+  long after = o->epochs - 1;
   /* "a / b / c": epoch 0, the mean of epochs 1.., the last epoch ("a" alone with one epoch) */
   printf("| configuration | kept states | server CPU ms: epoch 0 / mean 1.. / last | bricks produced: 0 / mean 1.. / last "
          "| bricks re-sent: mean 1.. / last | wire KiB: 0 / mean 1.. / last | resident MiB | tables KiB | tables ms (CPU ms) "
@@ -469,30 +426,61 @@ int oct_bench_features(const char *prog, int argc, char **argv) {
     printf("| %s | %.1f | %" PRIu64 " | %" PRIu64 " | %u: %u / %u / %u | %u | %016" PRIx64 " | ", x->label, x->create_ms, x->bricks0,
            x->tau_volumes, x->nodes, x->kinds[OC_NODE_EMPTY], x->kinds[OC_NODE_UNIFORM], x->kinds[OC_NODE_BRICK], x->state_bricks,
            x->checksum);
-    if (gl) printf("— |\n");
+    if (o->gl) printf("— |\n");
     else printf("%" PRIu64 " |\n", x->samples);
   }
-  if (n > 1) {
-    const fcfg_t *a = &cf[0];
-    printf("\nsaved against all the scene's features (share of its figure; negative: costs more):\n\n"
-           "| turned off | server CPU, all epochs | bricks produced | wire, all epochs | wire, epochs 1.. | resident "
-           "| tables bytes | tables CPU | render | render CPU |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-    for (int i = 1; i < n; i++) {
-      const fcfg_t *x = &cf[i];
-      char s[9][32];
-      printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", oc_scene_feature_name(x->off),
-             saved(s[0], 32, a->cpu0_ms + a->cpu_after_ms, x->cpu0_ms + x->cpu_after_ms),
-             saved(s[1], 32, (double)(a->bricks0 + a->bricks_after), (double)(x->bricks0 + x->bricks_after)),
-             saved(s[2], 32, (double)(a->wire0 + a->wire_after), (double)(x->wire0 + x->wire_after)),
-             saved(s[3], 32, (double)a->wire_after, (double)x->wire_after), saved(s[4], 32, (double)a->resident, (double)x->resident),
-             saved(s[5], 32, (double)a->table_bytes, (double)x->table_bytes), saved(s[6], 32, a->table_cpu_ms, x->table_cpu_ms),
-             saved(s[7], 32, a->render_s, x->render_s), saved(s[8], 32, a->render_cpu_s, x->render_cpu_s));
-    }
-  }
-  fflush(stdout);
+}
 
+/* The last table: what turning each feature off saves against all of them. */
+static void features_saved(const fcfg_t *cf, int n) {
+  const fcfg_t *a = &cf[0];
+  printf("\nsaved against all the scene's features (share of its figure; negative: costs more):\n\n"
+         "| turned off | server CPU, all epochs | bricks produced | wire, all epochs | wire, epochs 1.. | resident "
+         "| tables bytes | tables CPU | render | render CPU |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (int i = 1; i < n; i++) {
+    const fcfg_t *x = &cf[i];
+    char s[9][32];
+    printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", oc_scene_feature_name(x->off),
+           saved(s[0], 32, a->cpu0_ms + a->cpu_after_ms, x->cpu0_ms + x->cpu_after_ms),
+           saved(s[1], 32, (double)(a->bricks0 + a->bricks_after), (double)(x->bricks0 + x->bricks_after)),
+           saved(s[2], 32, (double)(a->wire0 + a->wire_after), (double)(x->wire0 + x->wire_after)),
+           saved(s[3], 32, (double)a->wire_after, (double)x->wire_after), saved(s[4], 32, (double)a->resident, (double)x->resident),
+           saved(s[5], 32, (double)a->table_bytes, (double)x->table_bytes), saved(s[6], 32, a->table_cpu_ms, x->table_cpu_ms),
+           saved(s[7], 32, a->render_s, x->render_s), saved(s[8], 32, a->render_cpu_s, x->render_cpu_s));
+  }
+}
+
+int oct_bench_features(const char *prog, int argc, char **argv) {
+  feat_opts_t o = {0};
+  static oc_scene_t base;
+  oc_camera_pose_t pose;
+  int rc = oct_begin(&oct_bench_features_spec, argc, argv, &o, &o.scene, &o.camera, &base, &pose);
+  if (rc != OCT_GO) return rc;
+  if (o.threads == 0) {
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    o.threads = n < 1 ? 1 : n > 64 ? 64 : (int)n;
+  }
+  fcfg_t *cf = calloc(OC_FEATURE_COUNT + 1, sizeof *cf);
+  int n = cf ? features_configs(prog, &base, cf) : 0;
+  char feat[256] = "", cam_text[256], info[512] = "CPU reference";
+  if (!cf) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
+  else if (n <= 0) rc = OC_EXIT_RUNTIME, n = -n;
+  else rc = features_measure(prog, &o, cf, n, pose, info, sizeof info);
+  if (rc != OC_EXIT_OK) goto out;
+  for (int f = 0; f < OC_FEATURE_COUNT; f++)
+    if (oc_scene_has(&base, (oc_scene_feature_t)f))
+      snprintf(feat + strlen(feat), sizeof feat - strlen(feat), "%s%s", feat[0] ? ", " : "", oc_scene_feature_name(f));
+  oc_camera_format(pose, cam_text, sizeof cam_text);
+  printf("# overcast-bench features: %s\n\n", o.scene ? o.scene : "the built-in procedural planet");
+  printf("scene features on: %s; camera %s (still); %d epochs, budget %d MiB, viewport %dx%d; %d threads;\n"
+         "renderer %s at %dx%d, best of %d; wire: epoch encoder with deltas, zstd level %d (every decode checked)\n\n",
+         feat[0] ? feat : "none", cam_text, o.epochs, o.budget, o.viewport[0], o.viewport[1], o.threads,
+         o.gl ? info : "CPU reference", o.size[0], o.size[1], o.repeat, OCP_LEVEL_DEFAULT);
+  features_tables(&o, cf, n);
+  if (n > 1) features_saved(cf, n);
+  fflush(stdout);
 out:
-  for (int i = 0; i < n; i++) {
+  for (int i = 0; cf && i < n; i++) {
     oc_state_free(&cf[i].final);
     oc_atmo_free(cf[i].atmo);
     if (cf[i].sc) oc_scene_free(cf[i].sc);

@@ -37,7 +37,6 @@ static void legacy_usage(FILE *f) {
   oct_bench_truth_usage(f);
   oct_bench_model_usage(f);
   oct_bench_stability_usage(f);
-  oct_bench_features_usage(f);
 }
 
 typedef struct {
@@ -66,7 +65,7 @@ static const cmd_t cmds[] = {
     {"stability", "stiff and extreme cases end to end (server, protocol, renderers): finite, bounded, known answers",
      oct_bench_stability, NULL},
     {"features", "each feature a scene uses turned off alone: server time, bricks, wire, memory, tables, render",
-     oct_bench_features, NULL},
+     oct_bench_features, &oct_bench_features_spec},
 };
 #define NCMDS ((int)(sizeof cmds / sizeof *cmds))
 

@@ -75,6 +75,22 @@ int oct_opt_size(const char *p, const oc_cli_opt_t *o, const char *text, void *b
   return oc_cli_size(p, opt, text, &wh[0], &wh[1]);
 }
 
+int oct_opt_renderer(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  int *gl = oc_cli_field(o, base);
+  if (strcmp(text, "cpu") && strcmp(text, "gl")) {
+    oc_cli_fail(p, 0, "--%s: expected cpu or gl, got \"%s\"", o->name, text);
+    return -1;
+  }
+  *gl = !strcmp(text, "gl");
+#ifndef OC_HAVE_GL
+  if (*gl) {
+    oc_cli_fail(p, 0, "--%s gl: this build has no GL renderer (libepoxy was not found)", o->name);
+    return -1;
+  }
+#endif
+  return 0;
+}
+
 /*-*** The preamble ***/
 
 int oct_begin(const oc_cli_spec_t *spec, int argc, char **argv, void *opts, const char *const *scene,

@@ -42,6 +42,10 @@ int oct_opt_at(const char *prog, const oc_cli_opt_t *o, const char *text, void *
 /*! oct_opt_size() : "WxH" into an int[2] (oc_cli_size()). */
 int oct_opt_size(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
 
+/*! oct_opt_renderer() : "cpu" or "gl" into an int (1: gl); gl is refused where the build has no GL
+ *  renderer. */
+int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
+
 /* Rows that mean the same in every subcommand; T is the subcommand's options struct. */
 #define OCT_OPT_SCENE(T)                                                                                         \
   {.name = "scene", .type = OC_CLI_STRING, .offset = offsetof(T, scene), .arg = "FILE",                          \
@@ -61,6 +65,9 @@ int oct_opt_size(const char *prog, const oc_cli_opt_t *o, const char *text, void
 #define OCT_OPT_THREADS(T)                                                                                       \
   {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(T, threads), .arg = "N", .lo = 0, .hi = 64,         \
    .def_note = "all cores", .help = "producer threads; 0: all cores"}
+#define OCT_OPT_RENDERER(T, text)                                                                                \
+  {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = oct_opt_renderer, .offset = offsetof(T, gl), .arg = "cpu|gl", \
+   .def = "cpu", .help = text}
 #define OCT_OPT_HELP {.name = "help", .type = OC_CLI_HELP, .help = "print this and exit"}
 
 /*-*** The preamble ***/
