@@ -514,6 +514,16 @@ typedef struct {
   stress_fault_mem_t fault_mem;
 } stress_summary_t;
 
+/* Quantiles of pooled samples (nearest-rank); NAN when there are none. */
+typedef struct {
+  double p50, p99, max;
+  size_t n;
+} stress_q_t;
+/*! stress_pool() (stress_report.c) : quantiles of a copy of the samples at byte offset `off` of
+ *  stress_viewer_t (a stress_samples_t, e.g. offsetof(stress_viewer_t, m_detail)), pooled over
+ *  every viewer of run, or of viewer `only` alone (only >= 0). */
+stress_q_t stress_pool(const stress_run_t *run, size_t off, int only);
+
 /*! stress_report() : prints the table on stdout and (o->json) writes the JSON file.
  *  @return 1 when every check passed, 0 otherwise (-1: the JSON file could not be written, with
  *  a message on stderr). */

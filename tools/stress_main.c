@@ -8,6 +8,7 @@
 #include <inttypes.h>
 #include <math.h>
 #include <signal.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -617,42 +618,37 @@ static void stepped_reference(const stress_opts_t *o, const char *exe, long budg
   out->seconds = stress_now() - t0;
 }
 
-/* The largest of the viewers' value of f (NAN ignored), or NAN. */
-static double worst_of(const double *x, int n) {
-  double w = NAN;
-  for (int i = 0; i < n; i++)
-    if (isfinite(x[i]) && !(x[i] <= w)) w = x[i];
-  return w;
+/* *w becomes x when x is finite and larger (NAN: nothing yet). */
+static void keep_worst(double *w, double x) {
+  if (isfinite(x) && !(x <= *w)) *w = x;
 }
 
-/* One ramp phase of n viewers, all at run->o's one budget, on the running server: warm-up,
- * measured window, stop, the verifier drained, figures, and the sustained rule (stress.h). */
-static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double period, int n, const stress_ref_t *ref,
-                       stress_ramp_phase_t *ph) {
-  const stress_opts_t *o = run->o;
+/* The stepped figure the ramp's rule compares time to full detail with (stress.h, the rule). */
+static double detail_reference(const stress_opts_t *o, const stress_ref_t *ref, double period) {
+  if (!ref) return NAN;
+  double on_clock = ref->detail_epochs_p50 * period;
+  if (o->detail_ref == STRESS_DETAIL_REF_SECONDS) return ref->detail_p50;
+  if (o->detail_ref == STRESS_DETAIL_REF_EPOCHS) return on_clock;
+  return ref->detail_p50 > on_clock || isnan(on_clock) ? ref->detail_p50 : on_clock;
+}
+
+/* A phase before anything is measured: every figure NAN (ages -1). */
+static void ramp_phase_init(stress_ramp_phase_t *ph, int n, long budget_mib, double refv) {
   memset(ph, 0, sizeof *ph);
   ph->n = n;
-  ph->budget_mib = o->budgets_mib[0];
+  ph->budget_mib = budget_mib;
   ph->itv_p50 = ph->itv_p99 = ph->worst_median = ph->cpu_pct = ph->rss_mib = ph->hwm_mib = NAN;
   ph->mbps_p50 = ph->mbps_p99 = NAN;
   ph->late_p50 = ph->late_p99 = ph->late_max = ph->late_worst_p99 = ph->coalesced_frac = ph->coalesced_worst = NAN;
   ph->detail_p50 = ph->detail_p99 = ph->detail_worst_ratio = ph->detail_lower_s = NAN;
-  /* the stepped figure the rule compares with (stress.h, the rule) */
-  double on_clock = ref ? ref->detail_epochs_p50 * period : NAN;
-  double refv = !ref                                            ? NAN
-                : o->detail_ref == STRESS_DETAIL_REF_SECONDS     ? ref->detail_p50
-                : o->detail_ref == STRESS_DETAIL_REF_EPOCHS      ? on_clock
-                : ref->detail_p50 > on_clock || isnan(on_clock) ? ref->detail_p50
-                                                                 : on_clock;
   ph->detail_ref = refv;
   ph->age_p99 = ph->age_worst_p99 = ph->server_age_p99 = -1;
-  run->v = calloc((size_t)n, sizeof *run->v);
-  if (!run->v) {
-    snprintf(ph->why, sizeof ph->why, "out of memory");
-    ph->failed = 1;
-    return;
-  }
-  run->nv = n;
+}
+
+/* The phase's viewers (run->v, run->nv zeroed): started, warmed up, measured, stopped, and the
+ * verifier's backlog drained; the server's CPU and RSS over the measured window. */
+static void ramp_measure(stress_run_t *run, ocv_conn_t *ctl, long pid, stress_ramp_phase_t *ph) {
+  const stress_opts_t *o = run->o;
   atomic_store(&run->stop, 0);
   pthread_mutex_lock(&run->mu);
   run->measure_from = INFINITY; /* a ramp, not measuring yet (the warm-up starts when all are in) */
@@ -683,123 +679,107 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
     ph->rss_mib = p1.rss_mib;
     ph->hwm_mib = p1.hwm_mib;
   }
-  size_t total = 0, total_late = 0, total_det = 0;
-  for (int i = 0; i < n; i++) {
-    total += run->v[i].m_interval.n;
-    total_late += run->v[i].m_ticks.lateness.n;
-    total_det += run->v[i].m_detail.n;
-  }
-  double *all = malloc((total + 1) * sizeof *all), *rates = malloc(((size_t)n + 1) * sizeof *rates);
-  double *late = malloc((total_late + 1) * sizeof *late), *det = malloc((total_det + 1) * sizeof *det);
-  double *w_late = malloc(((size_t)n + 1) * sizeof *w_late), *w_coal = malloc(((size_t)n + 1) * sizeof *w_coal);
-  double *w_ratio = malloc(((size_t)n + 1) * sizeof *w_ratio);
-  if (!all || !rates || !late || !det || !w_late || !w_coal || !w_ratio) {
-    snprintf(ph->why, sizeof ph->why, "out of memory");
-    ph->failed = 1;
-    n = 0;
-  }
-  size_t k = 0, kl = 0, kd = 0, nr = 0;
-  int short_viewer = -1, why_viewer = -1;
+}
+
+/* One viewer's figures over the measured window, as the rule judges them. */
+typedef struct {
+  double late99, coalesced, median, detail50, ratio;
+  int age99;
+} ramp_viewer_t;
+
+/* Why viewer v breaks the rule (stress.h), in why; "" when it keeps it. */
+static void ramp_rule(const stress_viewer_t *v, const ramp_viewer_t *f, double refv, double period, char *why, size_t cap) {
+  double limit = refv > 0 ? STRESS_DETAIL_FACTOR * refv : NAN;
+  why[0] = 0;
+  if (f->late99 > STRESS_LATE_P99)
+    snprintf(why, cap, "viewer %d: lateness p99 %.0f ms > %.0f ms", v->index, 1e3 * f->late99, 1e3 * STRESS_LATE_P99);
+  else if (f->coalesced > STRESS_COALESCED_MAX)
+    snprintf(why, cap, "viewer %d: %.1f %% of ticks coalesced > %.0f %%", v->index, 100.0 * f->coalesced,
+             100.0 * STRESS_COALESCED_MAX);
+  else if (f->age99 > STRESS_AGE_ALLOWED && f->age99 > STRESS_AGE_MAX)
+    snprintf(why, cap, "viewer %d: verified content age p99 beyond every stamp tried (> %d steps)", v->index, STRESS_AGE_MAX);
+  else if (f->age99 > STRESS_AGE_ALLOWED)
+    snprintf(why, cap, "viewer %d: verified content age p99 %d > %d steps", v->index, f->age99, STRESS_AGE_ALLOWED);
+  else if (isfinite(f->ratio) && f->ratio > STRESS_DETAIL_FACTOR)
+    snprintf(why, cap, "viewer %d: time to full detail %.2f s > %.2f x stepped %.2f s", v->index, f->detail50,
+             STRESS_DETAIL_FACTOR, refv);
+  else if (isfinite(limit) && (v->m_unreached || v->m_open_s > limit))
+    snprintf(why, cap, "viewer %d: a teleport did not reach full detail within %.2f x stepped %.2f s", v->index,
+             STRESS_DETAIL_FACTOR, refv);
+  else if (isfinite(f->median) && f->median > STRESS_RAMP_INTERVAL * period)
+    snprintf(why, cap, "viewer %d: median interval %.2f s > %.1f x %g s", v->index, f->median, STRESS_RAMP_INTERVAL, period);
+}
+
+/* Viewer v's counts summed into the phase; its own figures into *f. */
+static void ramp_add_viewer(stress_ramp_phase_t *ph, const stress_viewer_t *v, double teleport_every, ramp_viewer_t *f) {
+  ph->states += v->m_states;
+  ph->skipped += v->m_skipped;
+  ph->violations += v->violations;
+  ph->checksum += v->checksum_failures;
+  ph->protocol += v->protocol_errors;
+  ph->mismatch += v->resident_mismatch;
+  ph->failed += v->failed != 0;
+  ph->due += stress_ticks_due(&v->m_ticks);
+  ph->coalesced += v->m_ticks.coalesced;
+  ph->coalesced_server += v->last_stats.coalesced;
+  ph->teleports += v->m_teleports;
+  ph->unreached += v->m_unreached;
+  stress_age_merge(&ph->age, &v->m_age);
+  if (v->m_unreached && !(ph->detail_lower_s >= teleport_every)) ph->detail_lower_s = teleport_every;
+  if (v->m_open_s > 0 && !(ph->detail_lower_s >= v->m_open_s)) ph->detail_lower_s = v->m_open_s;
+  for (int l = 0; l < OCP_STATS_LEVELS; l++)
+    if (v->stats_msgs && v->last_stats.age_p99[l] != 255 && v->last_stats.age_p99[l] > ph->server_age_p99)
+      ph->server_age_p99 = v->last_stats.age_p99[l];
+  if (v->failed && !ph->why[0]) snprintf(ph->why, sizeof ph->why, "%.150s", v->error);
+  /* quantiles sort in place: the viewer's own order does not matter */
+  f->median = stress_quantile(v->m_interval.v, v->m_interval.n, 0.5);
+  keep_worst(&ph->worst_median, f->median);
+  f->late99 = stress_quantile(v->m_ticks.lateness.v, v->m_ticks.lateness.n, 0.99);
+  f->coalesced = stress_ticks_coalesced_frac(&v->m_ticks);
+  f->age99 = stress_age_quantile(&v->m_age, -1, 0.99);
+  if (f->age99 > ph->age_worst_p99) ph->age_worst_p99 = f->age99;
+  f->detail50 = stress_quantile(v->m_detail.v, v->m_detail.n, 0.5);
+  f->ratio = isfinite(f->detail50) && ph->detail_ref > 0 ? f->detail50 / ph->detail_ref : NAN;
+  keep_worst(&ph->late_worst_p99, f->late99);
+  keep_worst(&ph->coalesced_worst, f->coalesced);
+  keep_worst(&ph->detail_worst_ratio, f->ratio);
+}
+
+/* The phase's figures from its viewers, and the verdict (stress.h, the rule). */
+static void ramp_judge(const stress_run_t *run, double period, stress_ramp_phase_t *ph) {
+  const stress_opts_t *o = run->o;
+  int short_viewer = -1;
   char vwhy[200] = "";
-  for (int i = 0; i < n; i++) {
-    stress_viewer_t *v = &run->v[i];
-    ph->states += v->m_states;
-    ph->skipped += v->m_skipped;
-    ph->violations += v->violations;
-    ph->checksum += v->checksum_failures;
-    ph->protocol += v->protocol_errors;
-    ph->mismatch += v->resident_mismatch;
-    ph->failed += v->failed != 0;
-    ph->due += stress_ticks_due(&v->m_ticks);
-    ph->coalesced += v->m_ticks.coalesced;
-    ph->coalesced_server += v->last_stats.coalesced;
-    ph->teleports += v->m_teleports;
-    ph->unreached += v->m_unreached;
-    stress_age_merge(&ph->age, &v->m_age);
-    if (v->m_unreached && !(ph->detail_lower_s >= o->teleport_every)) ph->detail_lower_s = o->teleport_every;
-    if (v->m_open_s > 0 && !(ph->detail_lower_s >= v->m_open_s)) ph->detail_lower_s = v->m_open_s;
-    for (int l = 0; l < OCP_STATS_LEVELS; l++)
-      if (v->stats_msgs && v->last_stats.age_p99[l] != 255 && v->last_stats.age_p99[l] > ph->server_age_p99)
-        ph->server_age_p99 = v->last_stats.age_p99[l];
-    if (v->failed && !ph->why[0]) snprintf(ph->why, sizeof ph->why, "%.150s", v->error);
-    double med = stress_quantile(v->m_interval.v, v->m_interval.n, 0.5);
-    if (!isfinite(med)) {
-      if (short_viewer < 0) short_viewer = v->index;
-    } else if (!(med <= ph->worst_median)) {
-      ph->worst_median = med;
-    }
-    if (v->m_interval.n) memcpy(all + k, v->m_interval.v, v->m_interval.n * sizeof *all);
-    k += v->m_interval.n;
-    if (v->m_ticks.lateness.n) memcpy(late + kl, v->m_ticks.lateness.v, v->m_ticks.lateness.n * sizeof *late);
-    kl += v->m_ticks.lateness.n;
-    if (v->m_detail.n) memcpy(det + kd, v->m_detail.v, v->m_detail.n * sizeof *det);
-    kd += v->m_detail.n;
+  double *rates = malloc(((size_t)run->nv + 1) * sizeof *rates);
+  size_t nr = 0;
+  for (int i = 0; i < run->nv; i++) {
+    const stress_viewer_t *v = &run->v[i];
+    ramp_viewer_t f;
+    ramp_add_viewer(ph, v, o->teleport_every, &f);
+    if (!isfinite(f.median) && short_viewer < 0) short_viewer = v->index;
     double span = v->t_end - v->m_t0;
-    if (v->m_states && span > 0) rates[nr++] = (double)(v->session.bytes_in - v->m_bytes0) / span / 1e6;
-    /* the viewer's own figures, against the rule */
-    w_late[i] = stress_quantile(v->m_ticks.lateness.v, v->m_ticks.lateness.n, 0.99);
-    w_coal[i] = stress_ticks_coalesced_frac(&v->m_ticks);
-    int age99 = stress_age_quantile(&v->m_age, -1, 0.99);
-    if (age99 > ph->age_worst_p99) ph->age_worst_p99 = age99;
-    double d50 = stress_quantile(v->m_detail.v, v->m_detail.n, 0.5);
-    w_ratio[i] = isfinite(d50) && refv > 0 ? d50 / refv : NAN;
-    double limit = refv > 0 ? STRESS_DETAIL_FACTOR * refv : NAN;
-    if (why_viewer >= 0) continue;
-    why_viewer = v->index;
-    if (w_late[i] > STRESS_LATE_P99)
-      snprintf(vwhy, sizeof vwhy, "viewer %d: lateness p99 %.0f ms > %.0f ms", v->index, 1e3 * w_late[i], 1e3 * STRESS_LATE_P99);
-    else if (w_coal[i] > STRESS_COALESCED_MAX)
-      snprintf(vwhy, sizeof vwhy, "viewer %d: %.1f %% of ticks coalesced > %.0f %%", v->index, 100.0 * w_coal[i],
-               100.0 * STRESS_COALESCED_MAX);
-    else if (age99 > STRESS_AGE_ALLOWED && age99 > STRESS_AGE_MAX)
-      snprintf(vwhy, sizeof vwhy, "viewer %d: verified content age p99 beyond every stamp tried (> %d steps)", v->index,
-               STRESS_AGE_MAX);
-    else if (age99 > STRESS_AGE_ALLOWED)
-      snprintf(vwhy, sizeof vwhy, "viewer %d: verified content age p99 %d > %d steps", v->index, age99, STRESS_AGE_ALLOWED);
-    else if (isfinite(w_ratio[i]) && w_ratio[i] > STRESS_DETAIL_FACTOR)
-      snprintf(vwhy, sizeof vwhy, "viewer %d: time to full detail %.2f s > %.2f x stepped %.2f s", v->index, d50,
-               STRESS_DETAIL_FACTOR, refv);
-    else if (isfinite(limit) && (v->m_unreached || v->m_open_s > limit))
-      snprintf(vwhy, sizeof vwhy, "viewer %d: a teleport did not reach full detail within %.2f x stepped %.2f s", v->index,
-               STRESS_DETAIL_FACTOR, refv);
-    else if (isfinite(med) && med > STRESS_RAMP_INTERVAL * period)
-      snprintf(vwhy, sizeof vwhy, "viewer %d: median interval %.2f s > %.1f x %g s", v->index, med, STRESS_RAMP_INTERVAL, period);
-    else
-      why_viewer = -1;
+    if (rates && v->m_states && span > 0) rates[nr++] = (double)(v->session.bytes_in - v->m_bytes0) / span / 1e6;
+    if (!vwhy[0]) ramp_rule(v, &f, ph->detail_ref, period, vwhy, sizeof vwhy);
   }
-  if (k) {
-    ph->itv_p50 = stress_quantile(all, k, 0.5);
-    ph->itv_p99 = stress_quantile(all, k, 0.99);
-  }
+  stress_q_t itv = stress_pool(run, offsetof(stress_viewer_t, m_interval), -1);
+  stress_q_t late = stress_pool(run, offsetof(stress_viewer_t, m_ticks.lateness), -1);
+  stress_q_t det = stress_pool(run, offsetof(stress_viewer_t, m_detail), -1);
+  ph->itv_p50 = itv.p50;
+  ph->itv_p99 = itv.p99;
+  ph->late_p50 = late.p50;
+  ph->late_p99 = late.p99;
+  ph->late_max = late.max;
+  ph->detail_p50 = det.p50;
+  ph->detail_p99 = det.p99;
+  ph->detail_n = det.n;
   if (nr) {
     ph->mbps_p50 = stress_quantile(rates, nr, 0.5);
     ph->mbps_p99 = stress_quantile(rates, nr, 0.99);
   }
-  if (kl) {
-    ph->late_p50 = stress_quantile(late, kl, 0.5);
-    ph->late_p99 = stress_quantile(late, kl, 0.99);
-    ph->late_max = late[kl - 1];
-  }
-  if (kd) {
-    ph->detail_p50 = stress_quantile(det, kd, 0.5);
-    ph->detail_p99 = stress_quantile(det, kd, 0.99);
-  }
-  ph->detail_n = kd;
-  if (n) {
-    ph->late_worst_p99 = worst_of(w_late, n);
-    ph->coalesced_worst = worst_of(w_coal, n);
-    ph->detail_worst_ratio = worst_of(w_ratio, n);
-  }
+  free(rates);
   ph->coalesced_frac = ph->due ? (double)ph->coalesced / (double)ph->due : NAN;
   ph->age_p99 = stress_age_quantile(&ph->age, -1, 0.99);
   ph->age_mismatch = stress_age_mismatches(&ph->age, -1);
-  free(all);
-  free(rates);
-  free(late);
-  free(det);
-  free(w_late);
-  free(w_coal);
-  free(w_ratio);
   ph->skipped_frac = ph->states + ph->skipped ? (double)ph->skipped / (double)(ph->states + ph->skipped) : NAN;
   if (ph->failed || ph->violations || ph->checksum || ph->protocol || ph->mismatch || ph->age_mismatch) {
     if (!ph->why[0] && ph->age_mismatch)
@@ -808,281 +788,327 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
     if (!ph->why[0]) snprintf(ph->why, sizeof ph->why, "a check failed");
   } else if (short_viewer >= 0) {
     snprintf(ph->why, sizeof ph->why, "viewer %d: fewer than 2 states in the measured window", short_viewer);
-  } else if (why_viewer >= 0) {
+  } else if (vwhy[0]) {
     snprintf(ph->why, sizeof ph->why, "%s", vwhy);
   } else {
     ph->sustained = 1;
   }
+}
+
+/* One ramp phase of n viewers, all at run->o's one budget, on the running server: warm-up,
+ * measured window, stop, the verifier drained, figures, and the sustained rule (stress.h). */
+static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double period, int n, const stress_ref_t *ref,
+                       stress_ramp_phase_t *ph) {
+  ramp_phase_init(ph, n, run->o->budgets_mib[0], detail_reference(run->o, ref, period));
+  run->v = calloc((size_t)n, sizeof *run->v);
+  if (!run->v) {
+    snprintf(ph->why, sizeof ph->why, "out of memory");
+    ph->failed = 1;
+    return;
+  }
+  run->nv = n;
+  ramp_measure(run, ctl, pid, ph);
+  ramp_judge(run, period, ph);
   for (int i = 0; i < run->nv; i++) stress_viewer_free(&run->v[i]);
   free(run->v);
   run->v = NULL;
   run->nv = 0;
 }
 
-int main(int argc, char **argv) {
-  static stress_opts_t o;
-  int r = stress_opts_parse(argc, argv, &o);
-  if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
+/* The coordinator's state for one invocation: the server, the control connection, the run. */
+typedef struct {
+  stress_opts_t *o;
+  stress_summary_t sum;
+  stress_child_t child;
+  char exe[4096];   /* kept: a restart (and the ramp's stepped reference) runs the same server */
+  server_argv_t sa; /* kept: a restart runs the same command */
+  fault_ctx_t fx;
+  stress_run_t run;
+  ocv_conn_t *ctl;
+  long pid;         /* the server's, for /proc (0: none) */
+  double cpu0, wall0, period;
+} coord_t;
 
+static void on_signals(void) {
   signal(SIGPIPE, SIG_IGN);
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
-  oc_log_set_level(o.verbose ? OC_LOG_INFO : OC_LOG_WARN);
+}
 
-  stress_summary_t sum;
-  memset(&sum, 0, sizeof sum);
-  sum.server_exit = -1;
-  sum.server_cpu_s = NAN;
-  sum.cache_hit_rate = NAN;
-  sum.bricks_produced = sum.brick_requests = sum.late_ticks = sum.cache_bytes = NAN;
-  sum.spawned = o.spawn;
+/* --spawn: the server beside this program (or --server), started on 127.0.0.1:0.
+ * @return OC_EXIT_OK, or an exit status after a message. */
+static int spawn_server(coord_t *c) {
+  stress_opts_t *o = c->o;
+  char why[1024], dir[4000];
+  if (o->server_path) {
+    snprintf(c->exe, sizeof c->exe, "%s", o->server_path);
+  } else {
+    if (stress_exe_dir(dir, sizeof dir) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot read /proc/self/exe");
+    snprintf(c->exe, sizeof c->exe, "%s/overcast-server", dir);
+  }
+  if (access(c->exe, X_OK) != 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", c->exe);
+  server_argv(o, c->exe, o->epoch_period, &c->sa);
+  c->fx.listen = c->sa.listen;
+  if (stress_server_spawn(c->sa.argv, o->timeout, &c->child, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  snprintf(o->host, sizeof o->host, "%s", c->child.host);
+  o->port = c->child.port;
+  c->fx.argv = c->sa.argv;
+  snprintf(c->fx.listen_addr, sizeof c->fx.listen_addr, "%s:%d", c->child.host, c->child.port);
+  return OC_EXIT_OK;
+}
+
+/* --verify-content: the verifier's world, the scene the server runs. @return 0 or -1 (why). */
+static int start_verifier(coord_t *c, char *why, size_t cap) {
+  const stress_opts_t *o = c->o;
+  oc_scene_t *sc = calloc(1, sizeof *sc);
+  int r = sc ? 0 : OC_ENOMEM;
+  if (sc && o->scene) r = oc_scene_load(sc, o->scene, why, cap);
+  else if (sc) oc_scene_default(sc);
+  if (r == 0) r = stress_verify_start(&c->run.verify, sc, (size_t)o->verify_queue, why, cap);
+  else if (r == OC_ENOMEM) snprintf(why, cap, "out of memory");
+  if (sc) oc_scene_free(sc);
+  free(sc);
+  return r < 0 ? -1 : 0;
+}
+
+/* The control connection (steps and statistics), the server's period and epoch, --time-scale, the
+ * verifier, and the run's arrays. @return OC_EXIT_OK, or an exit status after a message. */
+static int open_control(coord_t *c) {
+  stress_opts_t *o = c->o;
+  stress_run_t *run = &c->run;
   char why[1024];
-  static stress_child_t child = {.pid = -1, .out_fd = -1};
-  static char exe[4096]; /* kept: a restart (and the ramp's stepped reference) runs the same server */
-  static fault_ctx_t fx;
-
-  /* The server. */
-  if (o.spawn) {
-    static char dir[4000];
-    if (o.server_path) {
-      snprintf(exe, sizeof exe, "%s", o.server_path);
-    } else {
-      if (stress_exe_dir(dir, sizeof dir) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot read /proc/self/exe");
-      snprintf(exe, sizeof exe, "%s/overcast-server", dir);
-    }
-    if (access(exe, X_OK) != 0)
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", exe);
-    static server_argv_t sa; /* kept: a restart runs the same command */
-    server_argv(&o, exe, o.epoch_period, &sa);
-    char **sargv = sa.argv;
-    fx.listen = sa.listen;
-    if (stress_server_spawn(sargv, o.timeout, &child, why, sizeof why) < 0)
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-    snprintf(o.host, sizeof o.host, "%s", child.host);
-    o.port = child.port;
-    fx.argv = sargv;
-    snprintf(fx.listen_addr, sizeof fx.listen_addr, "%s:%d", child.host, child.port);
-  }
-  fx.child = &child;
-  long pid = o.spawn ? (long)child.pid : o.server_pid;
-  stress_proc_sample(pid, &sum.server_start);
-  double cpu0 = stress_self_cpu(), wall0 = stress_now();
-
-  /* The control connection: steps and statistics. */
-  int rc = OC_EXIT_OK;
-  ocv_conn_t *ctl = NULL;
   cJSON *reply = NULL;
-  stress_run_t run;
-  memset(&run, 0, sizeof run);
-  pthread_mutex_init(&run.mu, NULL);
-  pthread_cond_init(&run.cv, NULL);
-  run.o = &o;
-  snprintf(run.host, sizeof run.host, "%s", o.host);
-  run.port = o.port;
-  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL, .token = o.token};
-  if (ocv_conn_open(&ctl, o.host, o.port, &cd, NULL, o.timeout, why, sizeof why) < 0 ||
-      control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) < 0) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-    goto out;
-  }
+  ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL, .token = o->token};
+  if (ocv_conn_open(&c->ctl, o->host, o->port, &cd, NULL, o->timeout, why, sizeof why) < 0 ||
+      control(c->ctl, "{\"op\":\"stats\"}", o->timeout, &reply, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   double period = world_num(reply, "epoch_period"), e0 = world_num(reply, "epoch");
   cJSON_Delete(reply);
-  reply = NULL;
-  run.epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
-  run.world_dt = period; /* a world second per second, until two states say otherwise */
-  if (o.time_scale >= 0) { /* before any viewer: every state runs at this scale */
+  c->period = c->sum.epoch_period = period;
+  c->sum.stepped = period == 0;
+  run->epoch0 = isfinite(e0) && e0 >= 0 ? (uint64_t)e0 : 0;
+  run->world_dt = period; /* a world second per second, until two states say otherwise */
+  if (o->time_scale >= 0) { /* before any viewer: every state runs at this scale */
     char req[96];
-    snprintf(req, sizeof req, "{\"op\":\"time\",\"scale\":%.17g}", o.time_scale);
-    if (control(ctl, req, o.timeout, &reply, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--time-scale: %s", why);
-      goto out;
-    }
+    snprintf(req, sizeof req, "{\"op\":\"time\",\"scale\":%.17g}", o->time_scale);
+    if (control(c->ctl, req, o->timeout, &reply, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--time-scale: %s", why);
     cJSON_Delete(reply);
-    reply = NULL;
-    run.world_dt = period * o.time_scale;
+    run->world_dt = period * o->time_scale;
   }
-  sum.stepped = period == 0;
-  if (o.verify_content > 0) { /* the verifier's world: the scene the server runs */
-    oc_scene_t *sc = calloc(1, sizeof *sc);
-    int r = sc ? 0 : OC_ENOMEM;
-    if (sc && o.scene) r = oc_scene_load(sc, o.scene, why, sizeof why);
-    else if (sc) oc_scene_default(sc);
-    if (r == 0) r = stress_verify_start(&run.verify, sc, (size_t)o.verify_queue, why, sizeof why);
-    else if (r == OC_ENOMEM) snprintf(why, sizeof why, "out of memory");
-    if (sc) oc_scene_free(sc);
-    free(sc);
-    if (r < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      goto out;
-    }
-  }
-  sum.epoch_period = period;
-  size_t nsteps = (size_t)(o.epochs && !(o.duration > 0) ? o.epochs : STRESS_MAX_STEPS) + 2;
-  run.step_at = calloc(nsteps, sizeof *run.step_at);
-  run.v = calloc((size_t)o.viewers, sizeof *run.v);
-  if (!run.step_at || !run.v) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-    goto out;
-  }
+  if (o->verify_content > 0 && start_verifier(c, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  size_t nsteps = (size_t)(o->epochs && !(o->duration > 0) ? o->epochs : STRESS_MAX_STEPS) + 2;
+  run->step_at = calloc(nsteps, sizeof *run->step_at);
+  run->v = calloc((size_t)o->viewers, sizeof *run->v);
+  if (!run->step_at || !run->v) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  return OC_EXIT_OK;
+}
 
-  if (o.ramp) {
-    if (!(period > 0)) {
-      rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp needs a period: the scene's is %g (give --epoch-period)", period);
-      goto out;
-    }
-    free(run.v); /* each phase has its own */
-    run.v = NULL;
-    int maxph = 64 * o.nbudgets;
-    stress_ramp_phase_t *ph = calloc((size_t)maxph, sizeof *ph);
-    stress_ref_t refs[64];
-    int nph = 0, nrefs = 0, largest[64] = {0};
-    if (!ph) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-      goto out;
-    }
-    /* the viewer whose path the stepped reference flies: the first on the teleport path */
-    int tele = -1;
-    for (int i = 0; i < o.npaths && tele < 0; i++)
-      if (o.paths[i] == STRESS_TELEPORT) tele = i;
-    static stress_opts_t ob; /* one budget's ramp: every viewer at it */
-    for (int b = 0; b < o.nbudgets && !g_interrupted; b++) {
-      ob = o;
-      ob.nbudgets = 1;
-      ob.budgets_mib[0] = o.budgets_mib[b];
-      run.o = &ob;
-      const stress_ref_t *ref = NULL;
-      if (o.reference && tele >= 0) {
-        fprintf(stderr, "overcast-stress: ramp: %ld MiB: time to full detail on a stepped server (reference)\n", o.budgets_mib[b]);
-        stepped_reference(&ob, exe, o.budgets_mib[b], o.share_paths ? 0 : tele, period, &refs[nrefs]);
-        ref = &refs[nrefs++];
-        if (ref->error[0]) fprintf(stderr, "overcast-stress: ramp: %s\n", ref->error);
-        else
-          fprintf(stderr, "overcast-stress: ramp: %ld MiB: stepped: full detail p50 %.2f s (%" PRIu64 " of %" PRIu64 " teleports)\n",
-                  o.budgets_mib[b], ref->detail_p50, ref->settled, ref->teleports);
-        if (!(ref->detail_p50 > 0)) ref = NULL;
-      }
-      int stopped = 0; /* a phase was not sustained: larger N are measured with --ramp-all only */
-      for (long n = o.ramp_from; n <= o.ramp_max && nph < maxph && !g_interrupted; n *= 2) {
-        ramp_phase(&run, ctl, pid, period, (int)n, ref, &ph[nph]);
-        const stress_ramp_phase_t *p = &ph[nph++];
-        fprintf(stderr, "overcast-stress: ramp: %ld MiB, %d viewer%s: %s%s\n", p->budget_mib, p->n, p->n == 1 ? "" : "s",
-                p->sustained ? "sustained" : "not sustained: ", p->sustained ? "" : p->why);
-        if (!p->sustained) stopped = 1;
-        if (!stopped) largest[b] = p->n;
-        if (stopped && !o.ramp_all) break;
-      }
-    }
-    run.o = &o;
-    if (g_interrupted) snprintf(sum.error, sizeof sum.error, "interrupted");
-    sum.wall_s = stress_now() - wall0;
-    ocv_conn_close(ctl);
-    ctl = NULL;
-    sum.server_exit = stress_server_stop(&child, STRESS_STOP_S);
-    child.pid = -1;
-    if (sum.server_exit != 0 && !sum.error[0])
-      snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
-    stress_proc_sample((long)getpid(), &sum.tool);
-    int pass = stress_ramp_report(&o, o.scene ? o.scene : "planet (built in)", period, ph, nph, largest, refs, nrefs, &sum);
-    stress_verify_stop(run.verify);
-    free(ph);
-    free(run.step_at);
-    pthread_cond_destroy(&run.cv);
-    pthread_mutex_destroy(&run.mu);
-    return pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
+/* The measured run: the viewers connect, the epochs are stepped or come by the clock, the viewers
+ * stop (their bytes/s end then), then the server's CPU and RSS are read, then its statistics (a
+ * request waits for a step in progress, which must not count). */
+static void run_measured(coord_t *c) {
+  const stress_opts_t *o = c->o;
+  stress_run_t *run = &c->run;
+  stress_summary_t *sum = &c->sum;
+  char why[1024];
+  cJSON *reply = NULL;
+  run->nv = o->viewers;
+  start_viewers(run, c->ctl);
+  run->t0 = stress_now();
+  if (sum->stepped) run_stepped(run, &c->ctl, &c->fx, sum);
+  else run_period(run, c->ctl, c->period, sum);
+  if (g_interrupted && !sum->error[0]) snprintf(sum->error, sizeof sum->error, "interrupted");
+  sum->wall_s = stress_now() - run->t0;
+  stop_viewers(run);
+  rebalance_verdict(o, run, sum);
+  if (o->faults) { /* the last garbage must still be answered; then the memory once more */
+    stress_faults_stop(run, &sum->fault_conns);
+    if (c->ctl) fault_sample(run, c->ctl, &c->fx, sum);
   }
-
-  if (o.faults) {
-    if (!sum.stepped) {
-      rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--faults needs a stepped server: %s:%d has a period of %g s", o.host, o.port, period);
-      goto out;
-    }
-    if (control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      goto out;
-    }
-    const cJSON *lim = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(reply, "world"), "limits");
-    double hs = num_at(lim, "handshake_s"), ss = num_at(lim, "stall_s");
+  if (o->spawn) c->pid = (long)c->child.pid; /* a restart made a new one */
+  stress_proc_sample(c->pid, &sum->server_end);
+  sum->tool_cpu_s = stress_self_cpu() - c->cpu0;
+  sum->cpu_span_s = stress_now() - c->wall0;
+  if (c->ctl && control(c->ctl, "{\"op\":\"stats\"}", o->timeout, &reply, why, sizeof why) == 0) {
+    sum->cache_hit_rate = world_num(reply, "cache_hit_rate");
+    sum->bricks_produced = world_num(reply, "bricks_produced");
+    sum->brick_requests = world_num(reply, "brick_requests");
+    sum->late_ticks = world_num(reply, "late_ticks");
+    sum->cache_bytes = world_num(reply, "cache_bytes");
     cJSON_Delete(reply);
-    reply = NULL;
-    if (stress_faults_start(&run, isfinite(hs) ? hs : 10.0, isfinite(ss) ? ss : 0.0) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot start the faults thread");
-      goto out;
-    }
-  }
-
-  /* The viewers: each connects, gets its WELCOME, sends its first camera. */
-  run.nv = o.viewers;
-  start_viewers(&run, ctl);
-  run.t0 = stress_now();
-
-  if (sum.stepped) run_stepped(&run, &ctl, &fx, &sum);
-  else run_period(&run, ctl, period, &sum);
-  if (g_interrupted && !sum.error[0]) snprintf(sum.error, sizeof sum.error, "interrupted");
-
-  /* The run ends here: the viewers stop (their bytes/s end now), then the server's CPU and RSS are
-   * read, then its statistics (a request waits for a step in progress, which must not count). */
-  sum.wall_s = stress_now() - run.t0;
-  stop_viewers(&run);
-  rebalance_verdict(&o, &run, &sum);
-  if (o.faults) { /* the last garbage must still be answered; then the memory once more */
-    stress_faults_stop(&run, &sum.fault_conns);
-    if (ctl) fault_sample(&run, ctl, &fx, &sum);
-  }
-  if (o.spawn) pid = (long)child.pid; /* a restart made a new one */
-  stress_proc_sample(pid, &sum.server_end);
-  sum.tool_cpu_s = stress_self_cpu() - cpu0;
-  sum.cpu_span_s = stress_now() - wall0;
-  if (ctl && control(ctl, "{\"op\":\"stats\"}", o.timeout, &reply, why, sizeof why) == 0) {
-    sum.cache_hit_rate = world_num(reply, "cache_hit_rate");
-    sum.bricks_produced = world_num(reply, "bricks_produced");
-    sum.brick_requests = world_num(reply, "brick_requests");
-    sum.late_ticks = world_num(reply, "late_ticks");
-    sum.cache_bytes = world_num(reply, "cache_bytes");
-    cJSON_Delete(reply);
-    reply = NULL;
-  } else if (!sum.error[0]) {
-    snprintf(sum.error, sizeof sum.error, "final stats: %.400s", why);
+  } else if (!sum->error[0]) {
+    snprintf(sum->error, sizeof sum->error, "final stats: %.400s", why);
   }
   /* what the verifier has left is verified now, after the measurements (the control connection
    * is done with) */
-  sum.verify_left = stress_verify_drain(run.verify, o.verify_drain_s);
-  if (run.verify) stress_verify_work(run.verify, &sum.verify_s, &sum.verify_reproduced);
+  sum->verify_left = stress_verify_drain(run->verify, o->verify_drain_s);
+  if (run->verify) stress_verify_work(run->verify, &sum->verify_s, &sum->verify_reproduced);
+}
 
-out:
-  stop_viewers(&run);
-  stress_faults_stop(&run, &sum.fault_conns);
-  if (!sum.server_end.ok) {
-    stress_proc_sample(pid, &sum.server_end);
-    sum.tool_cpu_s = stress_self_cpu() - cpu0;
-    sum.cpu_span_s = stress_now() - wall0;
+/* The end, however the run went: everything stopped, the last figures, the report (when rc is
+ * OC_EXIT_OK), everything freed. @return the exit status. */
+static int finish(coord_t *c, int rc) {
+  const stress_opts_t *o = c->o;
+  stress_run_t *run = &c->run;
+  stress_summary_t *sum = &c->sum;
+  stop_viewers(run);
+  stress_faults_stop(run, &sum->fault_conns);
+  if (!sum->server_end.ok) {
+    stress_proc_sample(c->pid, &sum->server_end);
+    sum->tool_cpu_s = stress_self_cpu() - c->cpu0;
+    sum->cpu_span_s = stress_now() - c->wall0;
   }
-  if (sum.server_start.ok && sum.server_end.ok) sum.server_cpu_s = sum.server_end.cpu_s - sum.server_start.cpu_s;
-  stress_proc_sample((long)getpid(), &sum.tool);
-  if (sum.wall_s <= 0) sum.wall_s = stress_now() - wall0;
-  for (int i = 0; run.v && i < run.nv; i++)
-    if (run.v[i].have_welcome) {
-      snprintf(sum.scene, sizeof sum.scene, "%s", run.v[i].welcome.name);
-      sum.kept_states = run.v[i].welcome.kept_states;
+  if (sum->server_start.ok && sum->server_end.ok) sum->server_cpu_s = sum->server_end.cpu_s - sum->server_start.cpu_s;
+  stress_proc_sample((long)getpid(), &sum->tool);
+  if (sum->wall_s <= 0) sum->wall_s = stress_now() - c->wall0;
+  for (int i = 0; run->v && i < run->nv; i++)
+    if (run->v[i].have_welcome) {
+      snprintf(sum->scene, sizeof sum->scene, "%s", run->v[i].welcome.name);
+      sum->kept_states = run->v[i].welcome.kept_states;
       break;
     }
-  ocv_conn_close(ctl);
-  if (o.spawn && child.pid > 0) {
-    sum.server_exit = stress_server_stop(&child, STRESS_STOP_S);
-    if (sum.server_exit != 0 && rc == OC_EXIT_OK && !sum.error[0])
-      snprintf(sum.error, sizeof sum.error, "overcast-server exited with status %d", sum.server_exit);
+  ocv_conn_close(c->ctl);
+  if (o->spawn && c->child.pid > 0) {
+    sum->server_exit = stress_server_stop(&c->child, STRESS_STOP_S);
+    if (sum->server_exit != 0 && rc == OC_EXIT_OK && !sum->error[0])
+      snprintf(sum->error, sizeof sum->error, "overcast-server exited with status %d", sum->server_exit);
   }
-  if (rc == OC_EXIT_OK) {
-    int pass = stress_report(&o, &run, &sum);
-    rc = pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
-  }
-  stress_verify_stop(run.verify); /* after the report: the viewers' ages are counted by it */
-  for (int i = 0; run.v && i < run.nv; i++) stress_viewer_free(&run.v[i]);
-  free(run.v);
-  free(run.step_at);
-  pthread_cond_destroy(&run.cv);
-  pthread_mutex_destroy(&run.mu);
+  if (rc == OC_EXIT_OK) rc = stress_report(o, run, sum) == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
+  stress_verify_stop(run->verify); /* after the report: the viewers' ages are counted by it */
+  for (int i = 0; run->v && i < run->nv; i++) stress_viewer_free(&run->v[i]);
+  free(run->v);
+  free(run->step_at);
+  pthread_cond_destroy(&run->cv);
+  pthread_mutex_destroy(&run->mu);
   return rc;
+}
+
+/* One budget's ramp (run->o has that one budget): its stepped reference, then phases of
+ * --ramp-from, ×2, .. viewers until one is not sustained (--ramp-all: to --ramp-max). */
+static void ramp_budget(coord_t *c, int b, int tele, stress_ramp_phase_t *ph, int maxph, int *nph, stress_ref_t *refs,
+                        int *nrefs, int *largest) {
+  const stress_opts_t *o = c->o;
+  long mib = o->budgets_mib[b];
+  const stress_ref_t *ref = NULL;
+  if (o->reference && tele >= 0) {
+    fprintf(stderr, "overcast-stress: ramp: %ld MiB: time to full detail on a stepped server (reference)\n", mib);
+    stepped_reference(c->run.o, c->exe, mib, o->share_paths ? 0 : tele, c->period, &refs[*nrefs]);
+    ref = &refs[(*nrefs)++];
+    if (ref->error[0])
+      fprintf(stderr, "overcast-stress: ramp: %s\n", ref->error);
+    else
+      fprintf(stderr, "overcast-stress: ramp: %ld MiB: stepped: full detail p50 %.2f s (%" PRIu64 " of %" PRIu64 " teleports)\n",
+              mib, ref->detail_p50, ref->settled, ref->teleports);
+    if (!(ref->detail_p50 > 0)) ref = NULL;
+  }
+  int stopped = 0; /* a phase was not sustained: larger N are measured with --ramp-all only */
+  for (long n = o->ramp_from; n <= o->ramp_max && *nph < maxph && !g_interrupted; n *= 2) {
+    ramp_phase(&c->run, c->ctl, c->pid, c->period, (int)n, ref, &ph[*nph]);
+    const stress_ramp_phase_t *p = &ph[(*nph)++];
+    fprintf(stderr, "overcast-stress: ramp: %ld MiB, %d viewer%s: %s%s\n", p->budget_mib, p->n, p->n == 1 ? "" : "s",
+            p->sustained ? "sustained" : "not sustained: ", p->sustained ? "" : p->why);
+    if (!p->sustained) stopped = 1;
+    if (!stopped) largest[b] = p->n;
+    if (stopped && !o->ramp_all) break;
+  }
+}
+
+/* --ramp (c->period > 0): every budget's phases on the spawned server, then its report; the run
+ * freed. @return the exit status. */
+static int run_ramp(coord_t *c) {
+  stress_opts_t *o = c->o;
+  stress_summary_t *sum = &c->sum;
+  free(c->run.v); /* each phase has its own */
+  c->run.v = NULL;
+  int maxph = 64 * o->nbudgets, nph = 0, nrefs = 0, largest[64] = {0};
+  stress_ramp_phase_t *ph = calloc((size_t)maxph, sizeof *ph);
+  static stress_ref_t refs[64];
+  if (!ph) return finish(c, oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory"));
+  /* the viewer whose path the stepped reference flies: the first on the teleport path */
+  int tele = -1;
+  for (int i = 0; i < o->npaths && tele < 0; i++)
+    if (o->paths[i] == STRESS_TELEPORT) tele = i;
+  static stress_opts_t ob; /* one budget's ramp: every viewer at it */
+  for (int b = 0; b < o->nbudgets && !g_interrupted; b++) {
+    ob = *o;
+    ob.nbudgets = 1;
+    ob.budgets_mib[0] = o->budgets_mib[b];
+    c->run.o = &ob;
+    ramp_budget(c, b, tele, ph, maxph, &nph, refs, &nrefs, largest);
+  }
+  c->run.o = o;
+  if (g_interrupted) snprintf(sum->error, sizeof sum->error, "interrupted");
+  sum->wall_s = stress_now() - c->wall0;
+  ocv_conn_close(c->ctl);
+  c->ctl = NULL;
+  sum->server_exit = stress_server_stop(&c->child, STRESS_STOP_S);
+  c->child.pid = -1;
+  if (sum->server_exit != 0 && !sum->error[0])
+    snprintf(sum->error, sizeof sum->error, "overcast-server exited with status %d", sum->server_exit);
+  stress_proc_sample((long)getpid(), &sum->tool);
+  int pass = stress_ramp_report(o, o->scene ? o->scene : "planet (built in)", c->period, ph, nph, largest, refs, nrefs, sum);
+  stress_verify_stop(c->run.verify);
+  free(ph);
+  free(c->run.step_at);
+  pthread_cond_destroy(&c->run.cv);
+  pthread_mutex_destroy(&c->run.mu);
+  return pass == 1 ? OC_EXIT_OK : OC_EXIT_RUNTIME;
+}
+
+/* --faults: the server's limits, and the thread of misbehaving connections.
+ * @return OC_EXIT_OK, or an exit status after a message. */
+static int start_faults(coord_t *c) {
+  const stress_opts_t *o = c->o;
+  char why[1024];
+  cJSON *reply = NULL;
+  if (!c->sum.stepped)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--faults needs a stepped server: %s:%d has a period of %g s", o->host, o->port,
+                       c->period);
+  if (control(c->ctl, "{\"op\":\"stats\"}", o->timeout, &reply, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  const cJSON *lim = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(reply, "world"), "limits");
+  double hs = num_at(lim, "handshake_s"), ss = num_at(lim, "stall_s");
+  cJSON_Delete(reply);
+  if (stress_faults_start(&c->run, isfinite(hs) ? hs : 10.0, isfinite(ss) ? ss : 0.0) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot start the faults thread");
+  return OC_EXIT_OK;
+}
+
+int main(int argc, char **argv) {
+  static stress_opts_t o;
+  static coord_t c = {.child = {.pid = -1, .out_fd = -1}};
+  int rc = stress_opts_parse(argc, argv, &o);
+  if (rc) return rc > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
+  on_signals();
+  oc_log_set_level(o.verbose ? OC_LOG_INFO : OC_LOG_WARN);
+  c.o = &o;
+  c.sum.server_exit = -1;
+  c.sum.server_cpu_s = c.sum.cache_hit_rate = NAN;
+  c.sum.bricks_produced = c.sum.brick_requests = c.sum.late_ticks = c.sum.cache_bytes = NAN;
+  c.sum.spawned = o.spawn;
+  if (o.spawn && (rc = spawn_server(&c)) != OC_EXIT_OK) return rc;
+  c.fx.child = &c.child;
+  c.pid = o.spawn ? (long)c.child.pid : o.server_pid;
+  stress_proc_sample(c.pid, &c.sum.server_start);
+  c.cpu0 = stress_self_cpu();
+  c.wall0 = stress_now();
+  stress_run_t *run = &c.run;
+  pthread_mutex_init(&run->mu, NULL);
+  pthread_cond_init(&run->cv, NULL);
+  run->o = &o;
+  snprintf(run->host, sizeof run->host, "%s", o.host);
+  run->port = o.port;
+  if ((rc = open_control(&c)) == OC_EXIT_OK && o.ramp) {
+    if (c.period > 0) return run_ramp(&c);
+    rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--ramp needs a period: the scene's is %g (give --epoch-period)", c.period);
+  }
+  if (rc == OC_EXIT_OK && o.faults) rc = start_faults(&c);
+  if (rc == OC_EXIT_OK) run_measured(&c);
+  return finish(&c, rc);
 }

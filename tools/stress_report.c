@@ -7,6 +7,7 @@
 #include <cjson/cJSON.h>
 #include <inttypes.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,12 +16,6 @@
 #include "stress.h"
 
 #define SR_MIB (1024.0 * 1024.0)
-
-typedef struct {
-  double p50, p99, max;
-  size_t n;
-} sr_q_t;
-
 
 /* Writes j (consumed) to path, pretty-printed. @return 0, or -1 after saying why on stderr. */
 static int sr_write_json(cJSON *j, const char *path) {
@@ -37,38 +32,17 @@ static int sr_write_json(cJSON *j, const char *path) {
   return ok ? 0 : -1;
 }
 
-static const stress_samples_t *sr_which(const stress_viewer_t *v, int which) {
-  switch (which) {
-    case 0: return &v->latency;
-    case 1: return &v->transfer;
-    case 2: return &v->detail;
-    case 3: return &v->detail_epochs;
-    case 5: return &v->ticks.lateness;
-    default: return &v->interval;
-  }
-}
-
-/* Quantiles of a copy of the pooled samples of every viewer (which = 0 latency, 1 transfer,
- * 2 detail, 3 detail epochs, 4 interval, 5 lateness) or of one viewer (only >= 0). */
-static sr_q_t sr_pool(const stress_run_t *run, int which, int only) {
-  sr_q_t q = {NAN, NAN, NAN, 0};
-  size_t n = 0;
-  for (int i = 0; i < run->nv; i++) {
-    if (only >= 0 && i != only) continue;
-    const stress_viewer_t *v = &run->v[i];
-    const stress_samples_t *s = sr_which(v, which);
-    n += s->n;
-  }
-  if (!n) return q;
-  double *a = malloc(n * sizeof *a);
+stress_q_t stress_pool(const stress_run_t *run, size_t off, int only) {
+  stress_q_t q = {NAN, NAN, NAN, 0};
+  size_t n = 0, k = 0;
+  for (int i = 0; i < run->nv; i++)
+    if (only < 0 || i == only) n += ((const stress_samples_t *)((const char *)&run->v[i] + off))->n;
+  double *a = n ? malloc(n * sizeof *a) : NULL;
   if (!a) return q;
-  size_t k = 0;
   for (int i = 0; i < run->nv; i++) {
-    if (only >= 0 && i != only) continue;
-    const stress_viewer_t *v = &run->v[i];
-    const stress_samples_t *s = sr_which(v, which);
-    if (s->n) memcpy(a + k, s->v, s->n * sizeof *a);
-    k += s->n;
+    const stress_samples_t *s = (const stress_samples_t *)((const char *)&run->v[i] + off);
+    if ((only < 0 || i == only) && s->n) memcpy(a + k, s->v, s->n * sizeof *a);
+    if (only < 0 || i == only) k += s->n;
   }
   q.p50 = stress_quantile(a, n, 0.5);
   q.p99 = stress_quantile(a, n, 0.99);
@@ -77,6 +51,9 @@ static sr_q_t sr_pool(const stress_run_t *run, int which, int only) {
   free(a);
   return q;
 }
+
+/* The pooled samples of viewer field f (a stress_samples_t): every viewer's, or viewer `only`'s. */
+#define SR_POOL(run, f, only) stress_pool(run, offsetof(stress_viewer_t, f), only)
 
 static const char *sr_age(char *buf, size_t cap, int age);
 static cJSON *sr_age_json(const stress_age_t *a);
@@ -99,7 +76,7 @@ static void sr_add_num(cJSON *o, const char *k, double x) {
   else cJSON_AddNullToObject(o, k);
 }
 
-static cJSON *sr_q_json(sr_q_t q) {
+static cJSON *sr_q_json(stress_q_t q) {
   cJSON *o = cJSON_CreateObject();
   sr_add_num(o, "p50", q.p50);
   sr_add_num(o, "p99", q.p99);
@@ -237,8 +214,8 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
   }
   double rate_p50 = rates ? stress_quantile(rates, nrates, 0.5) : NAN, rate_p99 = rates ? stress_quantile(rates, nrates, 0.99) : NAN;
   free(rates);
-  sr_q_t lat = sr_pool(run, 0, -1), tra = sr_pool(run, 1, -1), det = sr_pool(run, 2, -1), dep = sr_pool(run, 3, -1),
-         itv = sr_pool(run, 4, -1);
+  stress_q_t lat = SR_POOL(run, latency, -1), tra = SR_POOL(run, transfer, -1), det = SR_POOL(run, detail, -1), dep = SR_POOL(run, detail_epochs, -1),
+         itv = SR_POOL(run, interval, -1);
   /* --sweep: detail (the deepest level reached) must not drop with a bigger budget or a deeper
    * limit; fewer leaves is only noted (a deeper tree can hold fewer, smaller leaves). */
   uint64_t coarser = 0, fewer = 0;
@@ -274,7 +251,7 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
     stress_age_merge(&ages, &run->v[i].age);
     stress_age_merge(&ages, &run->v[i].m_age);
   }
-  sr_q_t late = sr_pool(run, 5, -1);
+  stress_q_t late = SR_POOL(run, ticks.lateness, -1);
   uint64_t content_mismatch = stress_age_mismatches(&ages, -1);
   int pass = !violations && !checksum && !protocol && !mismatch && !failed && !empty && !coarser && !content_mismatch &&
              !s->error[0];
@@ -293,7 +270,7 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
   printf("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (int i = 0; i < run->nv; i++) {
     const stress_viewer_t *v = &run->v[i];
-    sr_q_t vl = sr_pool(run, 0, i), vd = sr_pool(run, 2, i);
+    stress_q_t vl = SR_POOL(run, latency, i), vd = SR_POOL(run, detail, i);
     double granted = v->have_welcome ? (double)v->welcome.budget / SR_MIB : NAN;
     char extra[160];
     {
@@ -462,18 +439,18 @@ int stress_report(const stress_opts_t *o, const stress_run_t *run, const stress_
       cJSON_AddNumberToObject(x, "depth_max", v->depth_max);
       sr_add_num(x, "seconds", v->have_welcome ? v->t_end - v->t_welcome : NAN);
       sr_add_num(x, "bytes_per_s", sr_rate(v));
-      cJSON_AddItemToObject(x, "latency_s", sr_q_json(sr_pool(run, 0, i)));
-      cJSON_AddItemToObject(x, "transfer_s", sr_q_json(sr_pool(run, 1, i)));
-      cJSON_AddItemToObject(x, "interval_s", sr_q_json(sr_pool(run, 4, i)));
+      cJSON_AddItemToObject(x, "latency_s", sr_q_json(SR_POOL(run, latency, i)));
+      cJSON_AddItemToObject(x, "transfer_s", sr_q_json(SR_POOL(run, transfer, i)));
+      cJSON_AddItemToObject(x, "interval_s", sr_q_json(SR_POOL(run, interval, i)));
       if (v->path == STRESS_TELEPORT) {
-        cJSON_AddItemToObject(x, "full_detail_s", sr_q_json(sr_pool(run, 2, i)));
-        cJSON_AddItemToObject(x, "full_detail_epochs", sr_q_json(sr_pool(run, 3, i)));
+        cJSON_AddItemToObject(x, "full_detail_s", sr_q_json(SR_POOL(run, detail, i)));
+        cJSON_AddItemToObject(x, "full_detail_epochs", sr_q_json(SR_POOL(run, detail_epochs, i)));
         cJSON_AddNumberToObject(x, "teleports", (double)v->teleports);
         cJSON_AddNumberToObject(x, "full_detail_unreached", (double)v->detail_unreached);
       }
       if (!s->stepped) {
         stress_samples_t lt = v->ticks.lateness;
-        sr_q_t q = {NAN, NAN, NAN, lt.n};
+        stress_q_t q = {NAN, NAN, NAN, lt.n};
         q.p50 = stress_quantile(lt.v, lt.n, 0.5); /* sorts: the max is the last one after it */
         q.p99 = stress_quantile(lt.v, lt.n, 0.99);
         q.max = lt.n ? lt.v[lt.n - 1] : NAN;
