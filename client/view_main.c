@@ -1,5 +1,6 @@
-/* overcast-view — the viewer. Sources: a saved state (--state), a scene's analytic sources voxelized
- * locally (--scene), or the states received from overcast-server (--connect; client/net.h).
+/* overcast-view — the viewer. Sources: a saved state (--state), a scene served by the overcast-server
+ * next to this program, which it starts on 127.0.0.1:0 (--scene; client/child.h), or the states
+ * received from an overcast-server (--connect; client/net.h). The viewer generates no content.
  * Renderers: the GL compute renderer (client/gl, ocv_gl_render_state) or the CPU reference
  * (oc_render_state); both produce the same linear image, tone-mapped by the same code.
  * Modes: --headless writes PNG frames (EGL, no display needed); --window opens a GLFW window
@@ -15,6 +16,7 @@
 #include <pthread.h>
 
 #include "camera_path.h"
+#include "child.h"
 #include "hud.h"
 #include "oc_atmo.h"
 #include "oc_camera.h"
@@ -26,7 +28,6 @@
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "oc_scene_render.h"
-#include "oc_scene_voxelize.h"
 #include "oc_state.h"
 #include "net.h"
 #include "ocp_viewer.h"
@@ -45,11 +46,13 @@ static void usage(FILE *f) {
           "\n"
           "source (one of):\n"
           "  --state FILE          render a saved state file (what a viewer held)\n"
-          "  --scene FILE          voxelize the scene's analytic sources locally (default: scenes/analytic_sphere.json\n"
-          "                        when no --state or --connect is given)\n"
+          "  --scene FILE          start the overcast-server next to this program on 127.0.0.1:0 with the\n"
+          "                        scene, and render its states as with --connect (headless: its epochs are\n"
+          "                        stepped, as with --step); default: scenes/analytic_sphere.json when no\n"
+          "                        --state or --connect is given\n"
           "  --connect HOST:PORT   receive states from overcast-server and render the newest; the scene's\n"
           "                        features, optics and default camera come from the server\n"
-          "network (with --connect):\n"
+          "network (with --connect or --scene):\n"
           "  --token TEXT          the server's token, if it has one\n"
           "  --budget MIB          memory budget asked for (default 64)\n"
           "  --max-depth N         deepest octree level asked for, 0..21 (default 21)\n"
@@ -81,8 +84,8 @@ static void usage(FILE *f) {
           "  --exposure X          (default 10)\n"
           "  --ms-octaves N        multiple-scattering octaves 1..8 (default: the scene's)\n"
           "  --jitter              per-pixel ray-start jitter\n"
-          "  --threads N           render threads of the CPU renderer, voxelizer and tables (default 2)\n"
-          "  --max-level N         deepest octree level for --scene (default 16)\n"
+          "  --threads N           render threads of the CPU renderer and tables, and --scene's server's\n"
+          "                        producer threads (default 2)\n"
           "  --save-state FILE     headless: also write the state that was rendered\n"
           "  --path FILE           headless: a recorded camera path (lines \"T LAT,LON,ALT,HEADING,PITCH,FOV\");\n"
           "                        frame f is its pose at f / --fps s (frames: the path's length, unless\n"
@@ -158,6 +161,25 @@ static int net_receive(const view_net_opts_t *o, const oc_camera_pose_t *pose_in
   int r = ocv_fetch(&fd, st, &w, pose_out, why, why_len);
   if (r == 0) scene_from_welcome(sc, &w);
   return r;
+}
+
+/* --scene: the overcast-server next to this program serving the scene on 127.0.0.1:0, its epochs
+ * stepped by us when `stepped` (headless); net is set to connect to it. */
+static int scene_server_start(const char *scene, long threads, int stepped, ocv_child_t *child, view_net_opts_t *net,
+                              char *why, size_t why_len) {
+  char dir[4000], exe[4096], thr[24];
+  if (ocv_exe_dir(dir, sizeof dir) < 0) return oc_errorf(OC_EIO, why, why_len, "cannot read /proc/self/exe");
+  snprintf(exe, sizeof exe, "%s/overcast-server", dir);
+  snprintf(thr, sizeof thr, "%ld", threads < 64 ? threads : 64);
+  char *argv[] = {exe, "--scene", (char *)scene, "--listen", "127.0.0.1:0", "--threads", thr, "-q",
+                  stepped ? "--epoch-period" : NULL, "0", NULL};
+  int r = ocv_child_spawn(argv, net->timeout, child, why, why_len);
+  if (r < 0) return r;
+  net->connect = 1;
+  net->step = stepped;
+  snprintf(net->host, sizeof net->host, "%s", child->host);
+  net->port = child->port;
+  return 0;
 }
 
 /*-*** What every renderer and mode shares ***/
@@ -722,7 +744,7 @@ out:
 
 int main(int argc, char **argv) {
   enum { O_STATE = 256, O_SCENE, O_CAMERA, O_CAMERA_FROM, O_SIZE, O_FRAMES, O_OUT, O_RENDERER, O_STEP, O_EXPOSURE,
-         O_OCTAVES, O_JITTER, O_THREADS, O_MAXLEVEL, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
+         O_OCTAVES, O_JITTER, O_THREADS, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
          O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS, O_RECORD, O_PATH, O_FPS, O_HUD };
   static const struct option opts[] = {
       {"state", required_argument, 0, O_STATE},       {"scene", required_argument, 0, O_SCENE},
@@ -731,8 +753,8 @@ int main(int argc, char **argv) {
       {"out", required_argument, 0, O_OUT},           {"renderer", required_argument, 0, O_RENDERER},
       {"step-factor", required_argument, 0, O_STEP},  {"exposure", required_argument, 0, O_EXPOSURE},
       {"ms-octaves", required_argument, 0, O_OCTAVES}, {"jitter", no_argument, 0, O_JITTER},
-      {"threads", required_argument, 0, O_THREADS},   {"max-level", required_argument, 0, O_MAXLEVEL},
-      {"save-state", required_argument, 0, O_SAVE},   {"quiet", no_argument, 0, 'q'},
+      {"threads", required_argument, 0, O_THREADS},   {"save-state", required_argument, 0, O_SAVE},
+      {"quiet", no_argument, 0, 'q'},
       {"help", no_argument, 0, O_HELP},               {"version", no_argument, 0, O_VERSION},
       {"connect", required_argument, 0, O_CONNECT},   {"token", required_argument, 0, O_TOKEN},
       {"budget", required_argument, 0, O_BUDGET},     {"max-depth", required_argument, 0, O_MAXDEPTH},
@@ -746,7 +768,7 @@ int main(int argc, char **argv) {
   const char *state_path = NULL, *scene_path = NULL, *camera_text = NULL, *camera_png = NULL;
   const char *save_path = NULL;
   int w = 640, h = 360;
-  long frames = 1, max_level = 16;
+  long frames = 1;
   view_opts_t vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2, .fps = 30.0};
   const char *record_path = NULL, *path_file = NULL;
   int frames_given = 0;
@@ -780,7 +802,6 @@ int main(int argc, char **argv) {
       case O_OCTAVES: if (oc_cli_int(prog, "--ms-octaves", optarg, 1, 8, &vo.octaves)) return OC_EXIT_USAGE; break;
       case O_JITTER: vo.jitter = 1; break;
       case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &vo.threads)) return OC_EXIT_USAGE; break;
-      case O_MAXLEVEL: if (oc_cli_int(prog, "--max-level", optarg, 0, 21, &max_level)) return OC_EXIT_USAGE; break;
       case O_SAVE: save_path = optarg; batch_opts = 1; break;
       case O_CONNECT:
         if (ocv_parse_address(optarg, net.host, sizeof net.host, &net.port) < 0)
@@ -811,8 +832,9 @@ int main(int argc, char **argv) {
   if (state_path && scene_path) return oc_cli_fail(prog, OC_EXIT_USAGE, "--state and --scene exclude each other");
   if (net.connect && (state_path || scene_path))
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect excludes --state and --scene");
-  if (net_opts && !net.connect)
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--token, --budget, --max-depth, --epochs, --step and --timeout go with --connect");
+  if (net_opts && state_path)
+    return oc_cli_fail(prog, OC_EXIT_USAGE,
+                       "--token, --budget, --max-depth, --epochs, --step and --timeout go with --connect or --scene");
   if (camera_text && camera_png) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera and --camera-from exclude each other");
   if (path_file && (camera_text || camera_png)) return oc_cli_fail(prog, OC_EXIT_USAGE, "--path gives the camera: no --camera or --camera-from");
   if (record_path && want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--record records a window's flight: not with --headless");
@@ -835,6 +857,7 @@ int main(int argc, char **argv) {
   oc_state_t st;
   oc_state_init(&st);
   oc_atmo_t *atmo = NULL;
+  ocv_child_t server = {.pid = -1, .out_fd = -1}; /* --scene */
 #ifdef OC_HAVE_GL
   ocv_window_t *win = NULL;
 #endif
@@ -892,6 +915,10 @@ int main(int argc, char **argv) {
 
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
+  if (!state_path && !net.connect && scene_server_start(scene_path, vo.threads, !window, &server, &net, why, sizeof why) < 0) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--scene %s: %s", scene_path, why);
+    goto out;
+  }
   if (net.connect && !window) {
     net.width = w;
     net.height = h;
@@ -903,12 +930,6 @@ int main(int argc, char **argv) {
   if (state_path) {
     if (oc_state_load(&st, state_path, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      goto out;
-    }
-  } else if (!net.connect) {
-    oc_scene_voxelize_desc_t vd = {oc_camera_from_pose(pose), h, 2.0, (int)max_level, 0, (int)vo.threads};
-    if (oc_scene_voxelize(&st, sc, &vd, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
       goto out;
     }
   }
@@ -970,6 +991,7 @@ out:
 #endif
   oc_atmo_free(atmo);
   oc_state_free(&st);
+  ocv_child_stop(&server, 5.0);
   oc_scene_free(sc);
   free(sc);
   return rc;

@@ -1,4 +1,4 @@
-#include "oc_analytic.h"
+#include "analytic.h"
 
 #include <math.h>
 #include <string.h>
@@ -10,11 +10,11 @@
 static int oc__finite_geo(oc_geo_t g) { return isfinite(g.lat) && isfinite(g.lon) && isfinite(g.alt); }
 static int oc__sigma_ok(double s) { return isfinite(s) && s >= 0.0; }
 
-int oc_prim_sphere(oc_prim_t *out, oc_geo_t centre, double radius, double sigma_t) {
+int ocs_prim_sphere(ocs_prim_t *out, oc_geo_t centre, double radius, double sigma_t) {
   OC_RETURN_IF(!out || !oc__finite_geo(centre) || !isfinite(radius) || !(radius > 0.0) || !oc__sigma_ok(sigma_t),
                OC_EINVAL);
   memset(out, 0, sizeof *out);
-  out->kind = OC_PRIM_SPHERE;
+  out->kind = OCS_PRIM_SPHERE;
   out->sigma_t = sigma_t;
   out->sphere.centre = centre;
   out->sphere.radius = radius;
@@ -22,13 +22,13 @@ int oc_prim_sphere(oc_prim_t *out, oc_geo_t centre, double radius, double sigma_
   return 0;
 }
 
-int oc_prim_box(oc_prim_t *out, oc_geo_t base, double size_e, double size_n, double size_u, double heading_deg,
+int ocs_prim_box(ocs_prim_t *out, oc_geo_t base, double size_e, double size_n, double size_u, double heading_deg,
                 double sigma_t) {
   OC_RETURN_IF(!out || !oc__finite_geo(base) || !isfinite(heading_deg) || !oc__sigma_ok(sigma_t), OC_EINVAL);
   OC_RETURN_IF(!isfinite(size_e) || !isfinite(size_n) || !isfinite(size_u), OC_EINVAL);
   OC_RETURN_IF(!(size_e > 0.0) || !(size_n > 0.0) || !(size_u > 0.0), OC_EINVAL);
   memset(out, 0, sizeof *out);
-  out->kind = OC_PRIM_BOX;
+  out->kind = OCS_PRIM_BOX;
   out->sigma_t = sigma_t;
   out->box.base = base;
   out->box.size[0] = size_e;
@@ -48,11 +48,11 @@ int oc_prim_box(oc_prim_t *out, oc_geo_t base, double size_e, double size_n, dou
   return 0;
 }
 
-int oc_prim_slab(oc_prim_t *out, double base_alt, double top_alt, double sigma_t) {
+int ocs_prim_slab(ocs_prim_t *out, double base_alt, double top_alt, double sigma_t) {
   OC_RETURN_IF(!out || !isfinite(base_alt) || !isfinite(top_alt) || !oc__sigma_ok(sigma_t), OC_EINVAL);
   OC_RETURN_IF(!(top_alt > base_alt) || base_alt < -OC_PLANET_RADIUS, OC_EINVAL);
   memset(out, 0, sizeof *out);
-  out->kind = OC_PRIM_SLAB;
+  out->kind = OCS_PRIM_SLAB;
   out->sigma_t = sigma_t;
   out->slab.base = base_alt;
   out->slab.top = top_alt;
@@ -64,24 +64,24 @@ int oc_prim_slab(oc_prim_t *out, double base_alt, double top_alt, double sigma_t
 /* ---- Point queries --------------------------------------------------------------------------- */
 
 /* Box-frame coordinates of a planet-frame offset from the box centre. */
-static inline void oc__box_local(const oc_prim_t *pr, oc_dvec3 o, double l[3]) {
+static inline void oc__box_local(const ocs_prim_t *pr, oc_dvec3 o, double l[3]) {
   for (int k = 0; k < 3; k++) l[k] = oc_ddot(o, pr->box.axis[k]);
 }
 
-double oc_prim_sigma_t(const oc_prim_t *pr, oc_dvec3 p) {
+double ocs_prim_sigma_t(const ocs_prim_t *pr, oc_dvec3 p) {
   switch (pr->kind) {
-  case OC_PRIM_SPHERE: {
+  case OCS_PRIM_SPHERE: {
     oc_dvec3 o = oc_dsub(p, pr->sphere.c);
     return oc_ddot(o, o) <= pr->sphere.radius * pr->sphere.radius ? pr->sigma_t : 0.0;
   }
-  case OC_PRIM_BOX: {
+  case OCS_PRIM_BOX: {
     double l[3];
     oc__box_local(pr, oc_dsub(p, pr->box.c), l);
     for (int k = 0; k < 3; k++)
       if (!(fabs(l[k]) <= pr->box.half[k])) return 0.0;
     return pr->sigma_t;
   }
-  case OC_PRIM_SLAB: {
+  case OCS_PRIM_SLAB: {
     double r = oc_dlen(p);
     return (r >= pr->slab.r_in && r <= pr->slab.r_out) ? pr->sigma_t : 0.0;
   }
@@ -116,7 +116,7 @@ static double oc__ball_chord(oc_dvec3 o, oc_dvec3 d, double r, double tmax) {
 }
 
 /* oc__box_chord() : the slab method in the box frame; o is the origin relative to the box centre. */
-static double oc__box_chord(const oc_prim_t *pr, oc_dvec3 o, oc_dvec3 d, double tmax) {
+static double oc__box_chord(const ocs_prim_t *pr, oc_dvec3 o, oc_dvec3 d, double tmax) {
   double lo[3], ld[3];
   oc__box_local(pr, o, lo);
   oc__box_local(pr, d, ld);
@@ -136,17 +136,17 @@ static double oc__box_chord(const oc_prim_t *pr, oc_dvec3 o, oc_dvec3 d, double 
   return tf - tn;
 }
 
-double oc_prim_chord(const oc_prim_t *pr, oc_dvec3 p, oc_dvec3 d, double tmax) {
+double ocs_prim_chord(const ocs_prim_t *pr, oc_dvec3 p, oc_dvec3 d, double tmax) {
   if (!(tmax > 0.0)) return 0.0;
   double dl = oc_dlen(d);
   if (!(dl > 0.0) || !isfinite(dl)) return 0.0;
   d = oc_dscale(d, 1.0 / dl);
   switch (pr->kind) {
-  case OC_PRIM_SPHERE:
+  case OCS_PRIM_SPHERE:
     return oc__ball_chord(oc_dsub(p, pr->sphere.c), d, pr->sphere.radius, tmax);
-  case OC_PRIM_BOX:
+  case OCS_PRIM_BOX:
     return oc__box_chord(pr, oc_dsub(p, pr->box.c), d, tmax);
-  case OC_PRIM_SLAB: {
+  case OCS_PRIM_SLAB: {
     /* The inner ball lies inside the outer one, so the shell's part of [0, tmax] is the outer
      * ball's part minus the inner ball's part. This covers origins inside the inner ball, inside
      * the shell and outside, and rays that graze either sphere. */
@@ -160,15 +160,15 @@ double oc_prim_chord(const oc_prim_t *pr, oc_dvec3 p, oc_dvec3 d, double tmax) {
 
 /* ---- Bounds ---------------------------------------------------------------------------------- */
 
-void oc_prim_bounds(const oc_prim_t *pr, oc_dvec3 *lo, oc_dvec3 *hi) {
+void ocs_prim_bounds(const ocs_prim_t *pr, oc_dvec3 *lo, oc_dvec3 *hi) {
   switch (pr->kind) {
-  case OC_PRIM_SPHERE: {
+  case OCS_PRIM_SPHERE: {
     double r = pr->sphere.radius;
     *lo = oc_dsub(pr->sphere.c, oc_dv3(r, r, r));
     *hi = oc_dadd(pr->sphere.c, oc_dv3(r, r, r));
     return;
   }
-  case OC_PRIM_BOX: {
+  case OCS_PRIM_BOX: {
     double e[3] = {0, 0, 0};
     for (int k = 0; k < 3; k++) {
       oc_dvec3 a = pr->box.axis[k];
@@ -181,7 +181,7 @@ void oc_prim_bounds(const oc_prim_t *pr, oc_dvec3 *lo, oc_dvec3 *hi) {
     *hi = oc_dadd(pr->box.c, oc_dv3(e[0], e[1], e[2]));
     return;
   }
-  case OC_PRIM_SLAB: {
+  case OCS_PRIM_SLAB: {
     double r = pr->slab.r_out;
     *lo = oc_dv3(-r, -r, -r);
     *hi = oc_dv3(r, r, r);
@@ -199,7 +199,7 @@ static inline double oc__clampd(double v, double lo, double hi) { return v < lo 
 /* Separating-axis test of an oriented box against an axis-aligned one (Ericson, Real-Time
  * Collision Detection §4.4.1): 3 + 3 face axes and 9 edge-cross axes; EPS keeps near-parallel
  * edge pairs (whose cross product vanishes) from separating boxes that meet. */
-static int oc__obb_meets_aabb(const oc_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi) {
+static int oc__obb_meets_aabb(const ocs_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi) {
   const double EPS = 1e-12;
   double a[3] = {0.5 * (hi.x - lo.x), 0.5 * (hi.y - lo.y), 0.5 * (hi.z - lo.z)};
   oc_dvec3 ac = oc_dv3(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), 0.5 * (lo.z + hi.z));
@@ -238,18 +238,18 @@ static int oc__obb_meets_aabb(const oc_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi) {
   return 1;
 }
 
-int oc_prim_intersects_box(const oc_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi) {
+int ocs_prim_intersects_box(const ocs_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi) {
   switch (pr->kind) {
-  case OC_PRIM_SPHERE: {
+  case OCS_PRIM_SPHERE: {
     oc_dvec3 c = pr->sphere.c;
     /* The closest point of the box to the centre, as an offset from the centre. */
     oc_dvec3 q = oc_dv3(oc__clampd(c.x, lo.x, hi.x) - c.x, oc__clampd(c.y, lo.y, hi.y) - c.y,
                         oc__clampd(c.z, lo.z, hi.z) - c.z);
     return oc_ddot(q, q) <= pr->sphere.radius * pr->sphere.radius;
   }
-  case OC_PRIM_BOX:
+  case OCS_PRIM_BOX:
     return oc__obb_meets_aabb(pr, lo, hi);
-  case OC_PRIM_SLAB: {
+  case OCS_PRIM_SLAB: {
     /* Nearest and farthest points of the box from the planet centre. */
     oc_dvec3 n = oc_dv3(oc__clampd(0.0, lo.x, hi.x), oc__clampd(0.0, lo.y, hi.y), oc__clampd(0.0, lo.z, hi.z));
     oc_dvec3 f = oc_dv3(fmax(fabs(lo.x), fabs(hi.x)), fmax(fabs(lo.y), fabs(hi.y)), fmax(fabs(lo.z), fabs(hi.z)));
@@ -262,49 +262,49 @@ int oc_prim_intersects_box(const oc_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi) {
 
 /* ---- Media ----------------------------------------------------------------------------------- */
 
-void oc_medium_init(oc_medium_t *m) { memset(m, 0, sizeof *m); }
+void ocs_medium_init(ocs_medium_t *m) { memset(m, 0, sizeof *m); }
 
-int oc_medium_add(oc_medium_t *m, const oc_prim_t *pr) {
+int ocs_medium_add(ocs_medium_t *m, const ocs_prim_t *pr) {
   OC_RETURN_IF(!m || !pr, OC_EINVAL);
-  OC_RETURN_IF(pr->kind != OC_PRIM_SPHERE && pr->kind != OC_PRIM_BOX && pr->kind != OC_PRIM_SLAB, OC_EINVAL);
-  OC_RETURN_IF(m->count < 0 || m->count >= OC_MEDIUM_MAX_PRIMS, OC_ENOBUFS);
+  OC_RETURN_IF(pr->kind != OCS_PRIM_SPHERE && pr->kind != OCS_PRIM_BOX && pr->kind != OCS_PRIM_SLAB, OC_EINVAL);
+  OC_RETURN_IF(m->count < 0 || m->count >= OCS_MEDIUM_MAX_PRIMS, OC_ENOBUFS);
   m->prims[m->count++] = *pr;
   return 0;
 }
 
-static inline int oc__count(const oc_medium_t *m) {
-  return m->count < 0 ? 0 : (m->count > OC_MEDIUM_MAX_PRIMS ? OC_MEDIUM_MAX_PRIMS : m->count);
+static inline int oc__count(const ocs_medium_t *m) {
+  return m->count < 0 ? 0 : (m->count > OCS_MEDIUM_MAX_PRIMS ? OCS_MEDIUM_MAX_PRIMS : m->count);
 }
 
-double oc_medium_sigma_t(const oc_medium_t *m, oc_dvec3 p) {
+double ocs_medium_sigma_t(const ocs_medium_t *m, oc_dvec3 p) {
   double s = 0.0;
   int n = oc__count(m);
-  for (int i = 0; i < n; i++) s += oc_prim_sigma_t(&m->prims[i], p);
+  for (int i = 0; i < n; i++) s += ocs_prim_sigma_t(&m->prims[i], p);
   return s;
 }
 
-double oc_medium_optical_depth(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 dir, double tmax) {
+double ocs_medium_optical_depth(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 dir, double tmax) {
   double tau = 0.0;
   int n = oc__count(m);
   for (int i = 0; i < n; i++) {
-    const oc_prim_t *pr = &m->prims[i];
+    const ocs_prim_t *pr = &m->prims[i];
     if (pr->sigma_t == 0.0) continue;
-    tau += pr->sigma_t * oc_prim_chord(pr, p, dir, tmax);
+    tau += pr->sigma_t * ocs_prim_chord(pr, p, dir, tmax);
   }
   return tau;
 }
 
-double oc_medium_tau_sun(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 sun_dir) {
-  return oc_medium_optical_depth(m, p, sun_dir, INFINITY);
+double ocs_medium_tau_sun(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 sun_dir) {
+  return ocs_medium_optical_depth(m, p, sun_dir, INFINITY);
 }
 
-int oc_medium_bounds(const oc_medium_t *m, oc_dvec3 *lo, oc_dvec3 *hi) {
+int ocs_medium_bounds(const ocs_medium_t *m, oc_dvec3 *lo, oc_dvec3 *hi) {
   int n = oc__count(m), any = 0;
   oc_dvec3 l = {0, 0, 0}, h = {0, 0, 0};
   for (int i = 0; i < n; i++) {
-    if (m->prims[i].kind == OC_PRIM_NONE) continue;
+    if (m->prims[i].kind == OCS_PRIM_NONE) continue;
     oc_dvec3 a, b;
-    oc_prim_bounds(&m->prims[i], &a, &b);
+    ocs_prim_bounds(&m->prims[i], &a, &b);
     if (!any) {
       l = a;
       h = b;

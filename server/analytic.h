@@ -1,8 +1,8 @@
-/* oc_analytic.h — closed-form homogeneous media placed on the planet (test oracles).
+/* analytic.h — closed-form homogeneous media placed on the planet (test oracles).
  *
- * A medium is a list of at most OC_MEDIUM_MAX_PRIMS homogeneous primitives; where primitives
+ * A medium is a list of at most OCS_MEDIUM_MAX_PRIMS homogeneous primitives; where primitives
  * overlap their extinctions add. Everything is exact up to double rounding, so the voxelizer
- * (oc_voxelize.h) and the CPU reference renderer can be compared against it:
+ * (voxelize.h) and the CPU reference renderer can be compared against it:
  *   - σt at a point (point-in-primitive tests);
  *   - optical depth along a ray segment, σt × chord length summed over primitives (sphere: the
  *     stable quadratic relative to the sphere's centre; box: the slab method in the box frame;
@@ -18,26 +18,26 @@
  * (no subtraction of nearly equal numbers). A chord entirely inside [0, tmax] is returned as 2h.
  * The remaining error is the intrinsic one of the ray origin itself: δh ≈ r·ulp(|o|)/h, i.e.
  * ~1e-8 m for non-grazing rays, growing as 1/h for rays that graze a surface. */
-#ifndef OC_COMMON_ANALYTIC_H
-#define OC_COMMON_ANALYTIC_H
+#ifndef OCS_ANALYTIC_H
+#define OCS_ANALYTIC_H
 
 #include "oc_math.h"   /* oc_dvec3 */
 #include "oc_planet.h" /* oc_geo_t */
 
 /*! Most primitives in one medium. */
-#define OC_MEDIUM_MAX_PRIMS 64
+#define OCS_MEDIUM_MAX_PRIMS 64
 
 typedef enum {
-  OC_PRIM_NONE = 0,   /**< an unused slot: contributes nothing */
-  OC_PRIM_SPHERE = 1, /**< ball: centre, radius */
-  OC_PRIM_BOX = 2,    /**< oriented box standing on the local horizontal plane at its base centre */
-  OC_PRIM_SLAB = 3    /**< spherical shell between two altitudes, around the whole planet */
-} oc_prim_kind_t;
+  OCS_PRIM_NONE = 0,   /**< an unused slot: contributes nothing */
+  OCS_PRIM_SPHERE = 1, /**< ball: centre, radius */
+  OCS_PRIM_BOX = 2,    /**< oriented box standing on the local horizontal plane at its base centre */
+  OCS_PRIM_SLAB = 3    /**< spherical shell between two altitudes, around the whole planet */
+} ocs_prim_kind_t;
 
-/* A primitive. Build it with oc_prim_sphere() / oc_prim_box() / oc_prim_slab(), which fill the
+/* A primitive. Build it with ocs_prim_sphere() / ocs_prim_box() / ocs_prim_slab(), which fill the
  * derived planet-frame fields (c, axis, half, r_in, r_out) from the geodetic parameters. */
 typedef struct {
-  oc_prim_kind_t kind;
+  ocs_prim_kind_t kind;
   double sigma_t; /**< extinction inside, m⁻¹, finite, ≥ 0 */
   union {
     struct {
@@ -58,56 +58,56 @@ typedef struct {
       double r_in, r_out; /**< derived: R + base, R + top */
     } slab;
   };
-} oc_prim_t;
+} ocs_prim_t;
 
 typedef struct {
-  int count;                               /**< 0..OC_MEDIUM_MAX_PRIMS */
-  oc_prim_t prims[OC_MEDIUM_MAX_PRIMS];
-} oc_medium_t;
+  int count;                               /**< 0..OCS_MEDIUM_MAX_PRIMS */
+  ocs_prim_t prims[OCS_MEDIUM_MAX_PRIMS];
+} ocs_medium_t;
 
-/*! oc_prim_sphere() : a homogeneous ball centred at a geodetic point.
+/*! ocs_prim_sphere() : a homogeneous ball centred at a geodetic point.
  *  @return 0, or OC_EINVAL for a non-finite input, radius ≤ 0 or σt < 0. */
-int oc_prim_sphere(oc_prim_t *out, oc_geo_t centre, double radius, double sigma_t);
-/*! oc_prim_box() : a homogeneous box whose bottom face is centred at `base` and lies in the local
+int ocs_prim_sphere(ocs_prim_t *out, oc_geo_t centre, double radius, double sigma_t);
+/*! ocs_prim_box() : a homogeneous box whose bottom face is centred at `base` and lies in the local
  *  horizontal (east-north) plane there; its edges run along east, north and up rotated by
  *  `heading_deg` clockwise (seen from above) about the local up: at heading 90 its "north" edge
  *  (size_n) points east. The box is Euclidean (it does not bend with the planet).
  *  @return 0, or OC_EINVAL for a non-finite input, a size ≤ 0 or σt < 0. */
-int oc_prim_box(oc_prim_t *out, oc_geo_t base, double size_e, double size_n, double size_u, double heading_deg,
+int ocs_prim_box(ocs_prim_t *out, oc_geo_t base, double size_e, double size_n, double size_u, double heading_deg,
                 double sigma_t);
-/*! oc_prim_slab() : a homogeneous spherical shell R + base ≤ |p| ≤ R + top.
+/*! ocs_prim_slab() : a homogeneous spherical shell R + base ≤ |p| ≤ R + top.
  *  @return 0, or OC_EINVAL for a non-finite input, top ≤ base, base < −R or σt < 0. */
-int oc_prim_slab(oc_prim_t *out, double base_alt, double top_alt, double sigma_t);
+int ocs_prim_slab(ocs_prim_t *out, double base_alt, double top_alt, double sigma_t);
 
-/*! oc_prim_sigma_t() : σt of one primitive at p (its σt inside, 0 outside; the boundary is inside). */
-double oc_prim_sigma_t(const oc_prim_t *pr, oc_dvec3 p);
-/*! oc_prim_chord() : length of the part of the segment p + t·d, t in [0, tmax], inside the
+/*! ocs_prim_sigma_t() : σt of one primitive at p (its σt inside, 0 outside; the boundary is inside). */
+double ocs_prim_sigma_t(const ocs_prim_t *pr, oc_dvec3 p);
+/*! ocs_prim_chord() : length of the part of the segment p + t·d, t in [0, tmax], inside the
  *  primitive. d is normalised here (a zero d gives 0); tmax may be INFINITY; tmax ≤ 0 gives 0.
  *  A ray that only touches the surface (tangent) has chord 0. */
-double oc_prim_chord(const oc_prim_t *pr, oc_dvec3 p, oc_dvec3 d, double tmax);
-/*! oc_prim_bounds() : axis-aligned bounding box of the primitive, planet frame (slab: ±R_out). */
-void oc_prim_bounds(const oc_prim_t *pr, oc_dvec3 *lo, oc_dvec3 *hi);
-/*! oc_prim_intersects_box() : true when the closed axis-aligned box [lo, hi] meets the primitive.
+double ocs_prim_chord(const ocs_prim_t *pr, oc_dvec3 p, oc_dvec3 d, double tmax);
+/*! ocs_prim_bounds() : axis-aligned bounding box of the primitive, planet frame (slab: ±R_out). */
+void ocs_prim_bounds(const ocs_prim_t *pr, oc_dvec3 *lo, oc_dvec3 *hi);
+/*! ocs_prim_intersects_box() : true when the closed axis-aligned box [lo, hi] meets the primitive.
  *  Exact for spheres and slabs; for boxes the separating-axis test (15 axes, with a relative
  *  epsilon so near-parallel edges never separate wrongly: it may answer true for boxes closer than
  *  ~1e-9 of their size, never false for boxes that meet). */
-int oc_prim_intersects_box(const oc_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi);
+int ocs_prim_intersects_box(const ocs_prim_t *pr, oc_dvec3 lo, oc_dvec3 hi);
 
-/*! oc_medium_init() : an empty medium. */
-void oc_medium_init(oc_medium_t *m);
-/*! oc_medium_add() : appends a copy of a primitive. @return 0, OC_ENOBUFS when the medium holds
- *  OC_MEDIUM_MAX_PRIMS already, or OC_EINVAL for a primitive of unknown kind. */
-int oc_medium_add(oc_medium_t *m, const oc_prim_t *pr);
-/*! oc_medium_sigma_t() : σt at p, m⁻¹: the sum over the primitives that contain p. */
-double oc_medium_sigma_t(const oc_medium_t *m, oc_dvec3 p);
-/*! oc_medium_optical_depth() : ∫ σt ds over p + t·d, t in [0, tmax] (d normalised here; tmax in
+/*! ocs_medium_init() : an empty medium. */
+void ocs_medium_init(ocs_medium_t *m);
+/*! ocs_medium_add() : appends a copy of a primitive. @return 0, OC_ENOBUFS when the medium holds
+ *  OCS_MEDIUM_MAX_PRIMS already, or OC_EINVAL for a primitive of unknown kind. */
+int ocs_medium_add(ocs_medium_t *m, const ocs_prim_t *pr);
+/*! ocs_medium_sigma_t() : σt at p, m⁻¹: the sum over the primitives that contain p. */
+double ocs_medium_sigma_t(const ocs_medium_t *m, oc_dvec3 p);
+/*! ocs_medium_optical_depth() : ∫ σt ds over p + t·d, t in [0, tmax] (d normalised here; tmax in
  *  metres, may be INFINITY): Σ σt_i × chord_i, exact up to rounding (see the file comment). */
-double oc_medium_optical_depth(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 dir, double tmax);
-/*! oc_medium_tau_sun() : optical depth from p toward the sun to infinity, without the planet's
+double ocs_medium_optical_depth(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 dir, double tmax);
+/*! ocs_medium_tau_sun() : optical depth from p toward the sun to infinity, without the planet's
  *  shadow (design.md, Conventions). sun_dir points toward the sun (normalised here). */
-double oc_medium_tau_sun(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 sun_dir);
-/*! oc_medium_bounds() : union of the primitives' bounding boxes; @return 0, or OC_ENOENT (lo, hi
+double ocs_medium_tau_sun(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 sun_dir);
+/*! ocs_medium_bounds() : union of the primitives' bounding boxes; @return 0, or OC_ENOENT (lo, hi
  *  untouched) for a medium without primitives. */
-int oc_medium_bounds(const oc_medium_t *m, oc_dvec3 *lo, oc_dvec3 *hi);
+int ocs_medium_bounds(const ocs_medium_t *m, oc_dvec3 *lo, oc_dvec3 *hi);
 
-#endif /* OC_COMMON_ANALYTIC_H */
+#endif /* OCS_ANALYTIC_H */

@@ -213,7 +213,7 @@ static frustum_t frustum_make(const ocs_view_t *v, double out_w) {
   return fr;
 }
 
-/* Node box: origin o, edge s. Priority = voxel pixels at the nearest point (oc_lod_pixels' measure)
+/* Node box: origin o, edge s. Priority = voxel pixels at the nearest point (ocs_lod_pixels' measure)
  * times out_w when the bounding sphere is outside the frustum. */
 static inline double clampd(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 

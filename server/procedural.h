@@ -19,7 +19,7 @@
 
 /*-*** Tuning knobs ***/
 
-/*! Fewest strata per axis of the box filter: 4³ = 64 points per sample (oc_voxelize's default),
+/*! Fewest strata per axis of the box filter: 4³ = 64 points per sample (ocs_voxelize's default),
  *  all a fine level needs. */
 #ifndef OCS_PROC_SUB
 #define OCS_PROC_SUB 4

@@ -105,7 +105,7 @@ static void ocs__flush(const ocs__proc_t *P, const ocs__frame_t *F, ocs__ws_t *w
   for (int i = 0; i < ws->n; i++) ws->sig[i] = 0.0;
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
     if (F->mask >> l & 1u) ocs__layer_batch(P, F, l, ws);
-  /* In point order: each voxel's points are contiguous and in oc_brick_sample()'s order. */
+  /* In point order: each voxel's points are contiguous and in ocs_brick_sample()'s order. */
   for (int i = 0; i < ws->n; i++) ws->sum[ws->vox[i]] += ws->sig[i];
   ws->n = 0;
 }
@@ -211,7 +211,7 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
             band_lo = fmin(band_lo, P->L[l].band_lo);
             band_hi = fmax(band_hi, P->L[l].band_hi);
           }
-        if (n[va] == sub_h) { /* isotropic: oc_brick_sample()'s order, so the sums are its bits */
+        if (n[va] == sub_h) { /* isotropic: ocs_brick_sample()'s order, so the sums are its bits */
           for (int mz = 0; mz < sub_h; mz++) {
             double z = -OC_ROOT_HALF + (gg[2] + off_h[mz]) * u;
             for (int my = 0; my < sub_h; my++) {

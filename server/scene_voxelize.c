@@ -1,27 +1,27 @@
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 
 #include <math.h>
 #include <stdio.h>
 
 #include "oc_err.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 
-int oc_scene_medium(const oc_scene_t *sc, oc_medium_t *m, char *why, size_t why_len) {
-  oc_medium_init(m);
+int ocs_scene_medium(const oc_scene_t *sc, ocs_medium_t *m, char *why, size_t why_len) {
+  ocs_medium_init(m);
   for (int i = 0; i < sc->nsources; i++) {
     const oc_source_t *src = &sc->sources[i];
-    oc_prim_t p;
+    ocs_prim_t p;
     int r;
     switch (src->type) {
       case OC_SOURCE_SPHERE:
-        r = oc_prim_sphere(&p, src->sphere.centre, src->sphere.radius, src->sphere.sigma_t);
+        r = ocs_prim_sphere(&p, src->sphere.centre, src->sphere.radius, src->sphere.sigma_t);
         break;
       case OC_SOURCE_BOX:
-        r = oc_prim_box(&p, src->box.base, src->box.size[0], src->box.size[1], src->box.size[2], src->box.heading,
+        r = ocs_prim_box(&p, src->box.base, src->box.size[0], src->box.size[1], src->box.size[2], src->box.heading,
                         src->box.sigma_t);
         break;
       case OC_SOURCE_SLAB:
-        r = oc_prim_slab(&p, src->slab.base, src->slab.top, src->slab.sigma_t);
+        r = ocs_prim_slab(&p, src->slab.base, src->slab.top, src->slab.sigma_t);
         break;
       default:
         if (why)
@@ -29,7 +29,7 @@ int oc_scene_medium(const oc_scene_t *sc, oc_medium_t *m, char *why, size_t why_
                    i, oc_scene_source_type_name(src->type));
         return OC_ESCENE;
     }
-    if (r == 0) r = oc_medium_add(m, &p);
+    if (r == 0) r = ocs_medium_add(m, &p);
     if (r < 0) {
       if (why) snprintf(why, why_len, "sources[%d]: %s", i, oc_strerror(r));
       return OC_ESCENE;
@@ -39,13 +39,13 @@ int oc_scene_medium(const oc_scene_t *sc, oc_medium_t *m, char *why, size_t why_
 }
 
 typedef struct {
-  oc_medium_ctx_t mc;
+  ocs_medium_ctx_t mc;
   oc_dvec3 eye;
   double k; /**< pixels per (metre / metre): viewport_height / (2 tan(fov/2)) */
   double pixels;
 } oc__lod_t;
 
-double oc_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian) {
+double ocs_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian) {
   oc_dvec3 o;
   double size;
   oc_key_bounds(key, &o, &size);
@@ -57,20 +57,20 @@ double oc_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian) {
 /* Split while the node's voxel spans more than `pixels` pixels, and only where the medium is. */
 static int oc__lod_refine(void *ctx, oc_key_t key) {
   const oc__lod_t *l = ctx;
-  if (oc_lod_pixels(key, l->eye, l->k) <= l->pixels) return 0;
-  return oc_medium_refine_cb((void *)&l->mc, key);
+  if (ocs_lod_pixels(key, l->eye, l->k) <= l->pixels) return 0;
+  return ocs_medium_refine_cb((void *)&l->mc, key);
 }
 
-int oc_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const oc_scene_voxelize_desc_t *d, char *why,
+int ocs_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const ocs_scene_voxelize_desc_t *d, char *why,
                       size_t why_len) {
-  oc_medium_t m;
-  OC_TRY(oc_scene_medium(sc, &m, why, why_len));
+  ocs_medium_t m;
+  OC_TRY(ocs_scene_medium(sc, &m, why, why_len));
   int vh = d->viewport_height > 0 ? d->viewport_height : 360;
   oc__lod_t lod = {{&m, sc->sun_dir, 0.0}, d->camera.pos, vh / (2.0 * tan(0.5 * d->camera.vfov_deg * OC_DEG)),
                    d->pixels > 0.0 ? d->pixels : 2.0};
-  oc_voxelize_desc_t vd = {0};
-  vd.sigma = oc_medium_sigma_cb;
-  vd.tau = oc_scene_has(sc, OC_FEATURE_SHADOWS) ? oc_medium_tau_cb : NULL;
+  ocs_voxelize_desc_t vd = {0};
+  vd.sigma = ocs_medium_sigma_cb;
+  vd.tau = oc_scene_has(sc, OC_FEATURE_SHADOWS) ? ocs_medium_tau_cb : NULL;
   vd.ctx = &lod.mc;
   vd.min_level = 2;
   vd.max_level = d->max_level > 0 ? d->max_level : 16;
@@ -79,7 +79,7 @@ int oc_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const oc_scene_voxe
   vd.sun_dir = sc->sun_dir;
   vd.threads = d->threads > 0 ? d->threads : 1;
   vd.max_nodes = d->max_nodes > 0 ? d->max_nodes : 500000;
-  int r = oc_voxelize(out, &vd);
+  int r = ocs_voxelize(out, &vd);
   if (r < 0 && why)
     snprintf(why, why_len, "voxelizing the scene: %s%s", oc_strerror(r),
              r == OC_ETOOBIG ? " (lower --max-level or raise the node limit)" : "");

@@ -1,16 +1,17 @@
-/* oc_scene_voxelize.h — a state built locally from a scene's analytic sources.
+/* scene_voxelize.h — a whole state built at once from a scene's analytic sources, without a planner.
  *
- * Until the server exists, programs (overcast-view's local mode, overcast-bench) build the state
- * themselves: the scene's spheres, boxes and slabs become an analytic medium (oc_analytic.h),
- * voxelized with nodes refined where a voxel would look larger than `pixels` pixels from the
- * camera — a projected-size criterion, the same measure the server's planner will use. */
-#ifndef OC_COMMON_SCENE_VOXELIZE_H
-#define OC_COMMON_SCENE_VOXELIZE_H
+ * The reference states of the benches (overcast-bench) and of the renderers' tests: the scene's
+ * spheres, boxes and slabs become an analytic medium (analytic.h), voxelized with nodes refined
+ * where a voxel would look larger than `pixels` pixels from the camera — a projected-size
+ * criterion, the measure the planner (planner.h) uses too. The viewer never builds states: its
+ * --scene mode starts overcast-server. */
+#ifndef OCS_SCENE_VOXELIZE_H
+#define OCS_SCENE_VOXELIZE_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "oc_analytic.h" /* oc_medium_t */
+#include "analytic.h" /* ocs_medium_t */
 #include "oc_camera.h"   /* oc_camera_t */
 #include "oc_scene.h"    /* oc_scene_t */
 #include "oc_state.h"    /* oc_state_t */
@@ -22,19 +23,19 @@ typedef struct {
   int max_level;        /**< deepest level; default 0 → 16 */
   uint32_t max_nodes;   /**< default 0 → 500 000 leaves */
   int threads;          /**< default 0 → 1 */
-} oc_scene_voxelize_desc_t;
+} ocs_scene_voxelize_desc_t;
 
-/*! oc_lod_pixels() : how many pixels a voxel (node size / 7) of `key` spans at its nearest point
+/*! ocs_lod_pixels() : how many pixels a voxel (node size / 7) of `key` spans at its nearest point
  *  to `eye`, for a viewport of `pixels_per_radian` = height / (2·tan(fov/2)): the projected-size
  *  refinement measure. */
-double oc_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian);
+double ocs_lod_pixels(oc_key_t key, oc_dvec3 eye, double pixels_per_radian);
 
-/*! oc_scene_medium() : the scene's analytic sources as a medium. @return 0, or OC_ESCENE when the
+/*! ocs_scene_medium() : the scene's analytic sources as a medium. @return 0, or OC_ESCENE when the
  *  scene has a source that is not analytic (procedural, vdb: served by overcast-server), with the
  *  reason in why. */
-int oc_scene_medium(const oc_scene_t *sc, oc_medium_t *m, char *why, size_t why_len);
-/*! oc_scene_voxelize() : builds the state (epoch 0, time 0, the scene's sun). */
-int oc_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const oc_scene_voxelize_desc_t *d, char *why,
+int ocs_scene_medium(const oc_scene_t *sc, ocs_medium_t *m, char *why, size_t why_len);
+/*! ocs_scene_voxelize() : builds the state (epoch 0, time 0, the scene's sun). */
+int ocs_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const ocs_scene_voxelize_desc_t *d, char *why,
                       size_t why_len);
 
-#endif /* OC_COMMON_SCENE_VOXELIZE_H */
+#endif /* OCS_SCENE_VOXELIZE_H */

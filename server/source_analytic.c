@@ -2,15 +2,15 @@
  * for the whole pipeline). Spheres and boxes are box-filtered with OCS_ANALYTIC_SUB³ (or more)
  * sub-samples per sample; slabs exactly, from the volume of the sample's cube between the shell's
  * two spheres taken as planes across the cube (ocs__slab_fraction); the
- * bound is exact in the sense of oc_prim_intersects_box (0 outside, σt where the box meets it, and
+ * bound is exact in the sense of ocs_prim_intersects_box (0 outside, σt where the box meets it, and
  * σt as the minimum only when the primitive contains the whole box). */
 #include <stdio.h>
 #include <math.h>
 #include <stdlib.h>
 
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_err.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 #include "ocs_field.h"
 
 /*! Fewest sub-samples per axis of the box filter (4³ = 64 points per sample). */
@@ -18,7 +18,7 @@
 #define OCS_ANALYTIC_SUB 4
 #endif
 /*! Sub-samples are added until their spacing is at most the primitive's feature size (radius,
- *  smallest half-size, thickness) / OCS_ANALYTIC_FEATURE_DIV, up to OC_VOXELIZE_MAX_SUB per axis:
+ *  smallest half-size, thickness) / OCS_ANALYTIC_FEATURE_DIV, up to OCS_VOXELIZE_MAX_SUB per axis:
  *  a hard edge met by a coarse voxel needs that many to keep the box average's error small. */
 #ifndef OCS_ANALYTIC_FEATURE_DIV
 #define OCS_ANALYTIC_FEATURE_DIV 32.0
@@ -26,7 +26,7 @@
 
 typedef struct {
   ocs_source_t base;
-  oc_medium_t medium; /* one primitive */
+  ocs_medium_t medium; /* one primitive */
   double feature;     /* m: the primitive's smallest dimension */
 } ocs__analytic_t;
 
@@ -34,7 +34,7 @@ typedef struct {
  *  v²/(8R) ≤ 7.9 m. A coarser voxel is split into n³ such cubes (n ≤ 16), each exact to that. */
 #define OCS_SLAB_EXACT_MAX_VOXEL 20000.0
 
-static double ocs__analytic_fn(void *ctx, oc_dvec3 p) { return oc_medium_sigma_t(ctx, p); }
+static double ocs__analytic_fn(void *ctx, oc_dvec3 p) { return ocs_medium_sigma_t(ctx, p); }
 
 static double ocs__pos3(double x) { return x > 0.0 ? x * x * x : 0.0; }
 static double ocs__pos2(double x) { return x > 0.0 ? x * x : 0.0; }
@@ -69,7 +69,7 @@ static double ocs__cube_below(double a, double b, double c, double s) {
 }
 
 /* A slab's exact box average at one sample (cube of edge v centred at p). */
-static double ocs__slab_fraction(const oc_prim_t *pr, oc_dvec3 p, double v) {
+static double ocs__slab_fraction(const ocs_prim_t *pr, oc_dvec3 p, double v) {
   double r = oc_dlen(p);
   if (!(r > 0.0)) return 0.0;
   oc_dvec3 n = oc_dscale(p, 1.0 / r);
@@ -80,8 +80,8 @@ static double ocs__slab_fraction(const oc_prim_t *pr, oc_dvec3 p, double v) {
 /* The box lies inside a sphere or box when its 8 corners do (both are convex). The slab's shell is
  * not convex: the box is inside it when its closest point to the planet centre is beyond r_in and
  * its farthest corner within r_out. */
-static int ocs__box_inside(const oc_prim_t *p, oc_dvec3 lo, oc_dvec3 hi) {
-  if (p->kind == OC_PRIM_SLAB) {
+static int ocs__box_inside(const ocs_prim_t *p, oc_dvec3 lo, oc_dvec3 hi) {
+  if (p->kind == OCS_PRIM_SLAB) {
     oc_dvec3 q = oc_dv3(fmax(lo.x, fmin(0.0, hi.x)), fmax(lo.y, fmin(0.0, hi.y)), fmax(lo.z, fmin(0.0, hi.z)));
     double far = 0.0;
     for (int c = 0; c < 8; c++)
@@ -90,15 +90,15 @@ static int ocs__box_inside(const oc_prim_t *p, oc_dvec3 lo, oc_dvec3 hi) {
   }
   for (int c = 0; c < 8; c++) {
     oc_dvec3 q = oc_dv3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
-    if (oc_prim_sigma_t(p, q) <= 0.0) return 0;
+    if (ocs_prim_sigma_t(p, q) <= 0.0) return 0;
   }
   return 1;
 }
 
 static void ocs__analytic_bound(const ocs_source_t *s, oc_dvec3 lo, oc_dvec3 hi, double t, float *smin, float *smax) {
   (void)t;
-  const oc_prim_t *p = &((const ocs__analytic_t *)s)->medium.prims[0];
-  int meets = oc_prim_intersects_box(p, lo, hi);
+  const ocs_prim_t *p = &((const ocs__analytic_t *)s)->medium.prims[0];
+  int meets = ocs_prim_intersects_box(p, lo, hi);
   *smax = meets ? (float)p->sigma_t : 0.0f;
   *smin = meets && ocs__box_inside(p, lo, hi) ? (float)p->sigma_t : 0.0f;
 }
@@ -118,14 +118,14 @@ static int ocs__analytic_sample(const ocs_source_t *s, oc_key_t key, double t, f
     for (int i = 0; i < OC_BRICK_VOXELS; i++) out[i] += smax;
     return 0;
   }
-  const oc_prim_t *pr = &a->medium.prims[0];
+  const ocs_prim_t *pr = &a->medium.prims[0];
   double spacing = a->feature / OCS_ANALYTIC_FEATURE_DIV, voxel = size / 7.0;
-  if (pr->kind == OC_PRIM_SLAB) {
+  if (pr->kind == OCS_PRIM_SLAB) {
     int n = (int)ceil(voxel / OCS_SLAB_EXACT_MAX_VOXEL);
-    n = n < 1 ? 1 : (n > OC_VOXELIZE_MAX_SUB ? OC_VOXELIZE_MAX_SUB : n);
+    n = n < 1 ? 1 : (n > OCS_VOXELIZE_MAX_SUB ? OCS_VOXELIZE_MAX_SUB : n);
     double e = voxel / n;
     for (int i = 0; i < OC_BRICK_VOXELS; i++) {
-      oc_dvec3 c = oc_brick_sample_pos(key, i & 7, (i >> 3) & 7, i >> 6);
+      oc_dvec3 c = ocs_brick_sample_pos(key, i & 7, (i >> 3) & 7, i >> 6);
       double f = 0.0;
       for (int m = 0; m < n * n * n; m++) {
         oc_dvec3 q = oc_dv3(c.x + ((m % n) + 0.5 - 0.5 * n) * e, c.y + (((m / n) % n) + 0.5 - 0.5 * n) * e,
@@ -137,8 +137,8 @@ static int ocs__analytic_sample(const ocs_source_t *s, oc_key_t key, double t, f
     return 0;
   }
   int sub = (int)ceil(voxel / spacing);
-  sub = sub < OCS_ANALYTIC_SUB ? OCS_ANALYTIC_SUB : sub > OC_VOXELIZE_MAX_SUB ? OC_VOXELIZE_MAX_SUB : sub;
-  oc_brick_sample(key, ocs__analytic_fn, (void *)&a->medium, sub, tmp);
+  sub = sub < OCS_ANALYTIC_SUB ? OCS_ANALYTIC_SUB : sub > OCS_VOXELIZE_MAX_SUB ? OCS_VOXELIZE_MAX_SUB : sub;
+  ocs_brick_sample(key, ocs__analytic_fn, (void *)&a->medium, sub, tmp);
   for (int i = 0; i < OC_BRICK_VOXELS; i++) out[i] += tmp[i];
   return 0;
 }
@@ -150,7 +150,7 @@ static uint64_t ocs__analytic_step(const ocs_source_t *s, int level, double t) {
 
 static double ocs__analytic_point(const ocs_source_t *s, oc_dvec3 p, double t) {
   (void)t;
-  return oc_medium_sigma_t(&((const ocs__analytic_t *)s)->medium, p);
+  return ocs_medium_sigma_t(&((const ocs__analytic_t *)s)->medium, p);
 }
 
 static void ocs__analytic_destroy(ocs_source_t *s) { free(s); }
@@ -163,25 +163,25 @@ int ocs_source_analytic_create(ocs_source_t **out, const oc_source_t *d, char *w
   *out = NULL;
   ocs__analytic_t *a = calloc(1, sizeof *a);
   if (!a) return OC_ENOMEM;
-  oc_prim_t p;
+  ocs_prim_t p;
   int r;
   switch (d->type) {
-    case OC_SOURCE_SPHERE: r = oc_prim_sphere(&p, d->sphere.centre, d->sphere.radius, d->sphere.sigma_t); break;
+    case OC_SOURCE_SPHERE: r = ocs_prim_sphere(&p, d->sphere.centre, d->sphere.radius, d->sphere.sigma_t); break;
     case OC_SOURCE_BOX:
-      r = oc_prim_box(&p, d->box.base, d->box.size[0], d->box.size[1], d->box.size[2], d->box.heading, d->box.sigma_t);
+      r = ocs_prim_box(&p, d->box.base, d->box.size[0], d->box.size[1], d->box.size[2], d->box.heading, d->box.sigma_t);
       break;
-    case OC_SOURCE_SLAB: r = oc_prim_slab(&p, d->slab.base, d->slab.top, d->slab.sigma_t); break;
+    case OC_SOURCE_SLAB: r = ocs_prim_slab(&p, d->slab.base, d->slab.top, d->slab.sigma_t); break;
     default: r = OC_EINVAL; break;
   }
-  oc_medium_init(&a->medium);
-  if (r == 0) r = oc_medium_add(&a->medium, &p);
+  ocs_medium_init(&a->medium);
+  if (r == 0) r = ocs_medium_add(&a->medium, &p);
   if (r < 0) {
     if (why) snprintf(why, why_len, "invalid analytic primitive: %s", oc_strerror(r));
     free(a);
     return r;
   }
-  a->feature = p.kind == OC_PRIM_SPHERE ? p.sphere.radius
-               : p.kind == OC_PRIM_BOX    ? fmin(p.box.half[0], fmin(p.box.half[1], p.box.half[2]))
+  a->feature = p.kind == OCS_PRIM_SPHERE ? p.sphere.radius
+               : p.kind == OCS_PRIM_BOX    ? fmin(p.box.half[0], fmin(p.box.half[1], p.box.half[2]))
                                           : p.slab.r_out - p.slab.r_in;
   a->base.vt = &ocs__analytic_vt;
   a->base.animated = 0;

@@ -15,7 +15,7 @@
  * in the advected frame (evolution). Weather presets and transitions live in weather.c.
  *
  * Bricks follow the Conventions' filter: each sample is the mean of the finest σt over its
- * footprint, estimated at stratified midpoints (the points of oc_brick_sample()); at coarse levels
+ * footprint, estimated at stratified midpoints (the points of ocs_brick_sample()); at coarse levels
  * the axis closest to the local vertical gets many more strata than the others, because the cloud
  * shell is far thinner than a coarse voxel. The batch noise evaluates the sub-samples of a brick;
  * points that cannot hold cloud are skipped by exact tests (zero stays zero), so a sample is bit

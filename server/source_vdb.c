@@ -549,7 +549,7 @@ static int ocs__vdb_sample(const ocs_source_t *src, oc_key_t key, double t, floa
   int n, l;
   ocs__plan(fr, size / 7.0, &n, &l);
   {
-    /* Global lattice coordinates, as oc_brick_sample: −S + (g + f)·u, the same from any node, so
+    /* Global lattice coordinates, as ocs_brick_sample: −S + (g + f)·u, the same from any node, so
      * shared face samples agree bit for bit. Per axis, its contribution to the index position. */
     uint32_t ic[3];
     oc_key_coords(key, &ic[0], &ic[1], &ic[2]);

@@ -7,7 +7,7 @@
 
 #include "brick.h" /* ocg_brick_base, ocg_brick_frac, ocg_brick_base_voxel, ocg_trilerp */
 #include "oc_err.h"
-#include "oc_voxelize.h" /* oc_brick_sample_pos */
+#include "voxelize.h" /* ocs_brick_sample_pos */
 #include "sun_depth.h"
 
 #define OCS__S OC_ROOT_HALF
@@ -607,7 +607,7 @@ int ocs_tau_direct(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VO
   c.err = 0; /* a failed proof (out of memory in its memo) leaves the march to find out */
   for (int k = 0; k < 8 && !c.err; k++)
     for (int j = 0; j < 8; j++)
-      for (int i = 0; i < 8; i++) tau[i + 8 * j + 64 * k] = ocs__to_float(ocs__tau_point(&c, oc_brick_sample_pos(key, i, j, k), 0.0));
+      for (int i = 0; i < 8; i++) tau[i + 8 * j + 64 * k] = ocs__to_float(ocs__tau_point(&c, ocs_brick_sample_pos(key, i, j, k), 0.0));
   int err = c.err;
   ocs__ctx_free(&c);
   if (err) memset(tau, 0, sizeof(float) * OC_BRICK_VOXELS);

@@ -33,7 +33,7 @@
  *     τ = 0, and σt outside the atmosphere sphere counts as 0.
  *
  * Two methods give the same quantity:
- *   - ocs_tau_direct(): the reference. Each of the 512 samples (oc_brick_sample_pos) is marched on
+ *   - ocs_tau_direct(): the reference. Each of the 512 samples (ocs_brick_sample_pos) is marched on
  *     its own.
  *   - The group volume: nodes of one level that share the ancestor `group_levels` up (default 2:
  *     4³ = 64 nodes) share one sun-aligned optical-depth grid. Columns run along the sun, one voxel

@@ -1,4 +1,4 @@
-#include "oc_voxelize.h"
+#include "voxelize.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -17,7 +17,7 @@
  * all levels are nested: sample g of level L sits exactly where sample 2g of level L+1 does. */
 static inline double oc__spacing(int level) { return ldexp(2.0 * OC_ROOT_HALF / 7.0, -level); }
 
-oc_dvec3 oc_brick_sample_pos(oc_key_t key, int i, int j, int k) {
+oc_dvec3 ocs_brick_sample_pos(oc_key_t key, int i, int j, int k) {
   int level = oc_key_level(key);
   uint32_t ix, iy, iz;
   oc_key_coords(key, &ix, &iy, &iz);
@@ -26,19 +26,19 @@ oc_dvec3 oc_brick_sample_pos(oc_key_t key, int i, int j, int k) {
                 -OC_ROOT_HALF + (double)(7 * (int64_t)iz + k) * u);
 }
 
-/* oc_brick_sample() : every coordinate is −S + (g + f)·u with g the integer lattice index of the
+/* ocs_brick_sample() : every coordinate is −S + (g + f)·u with g the integer lattice index of the
  * sample and f the sub-sample offset; both are the same whichever node computes them, and the
  * evaluation order of the sub-samples is fixed, so shared face samples agree bit for bit. */
-void oc_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub, float out[512]) {
+void ocs_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub, float out[512]) {
   if (sub < 1) sub = 1;
-  if (sub > OC_VOXELIZE_MAX_SUB) sub = OC_VOXELIZE_MAX_SUB;
+  if (sub > OCS_VOXELIZE_MAX_SUB) sub = OCS_VOXELIZE_MAX_SUB;
   int level = oc_key_level(key);
   uint32_t ic[3];
   oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
   double u = oc__spacing(level);
-  double off[OC_VOXELIZE_MAX_SUB];
+  double off[OCS_VOXELIZE_MAX_SUB];
   for (int m = 0; m < sub; m++) off[m] = ((double)m + 0.5) / (double)sub - 0.5;
-  double pos[3][8][OC_VOXELIZE_MAX_SUB]; /* [axis][sample][sub-sample] */
+  double pos[3][8][OCS_VOXELIZE_MAX_SUB]; /* [axis][sample][sub-sample] */
   for (int a = 0; a < 3; a++)
     for (int i = 0; i < 8; i++) {
       double g = (double)(7 * (int64_t)ic[a] + i);
@@ -60,13 +60,13 @@ void oc_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ct
 /* ---- Refinement ------------------------------------------------------------------------------ */
 
 typedef struct {
-  oc_field_fn sigma, tau;
+  ocs_field_fn sigma, tau;
   void *ctx;
   int min_level, max_level;
-  const oc_aabb_t *aabbs;
+  const ocs_aabb_t *aabbs;
   int aabb_count;
   double margin;
-  oc_refine_fn refine;
+  ocs_refine_fn refine;
   void *refine_ctx;
   int sub_sigma, sub_tau;
   int threads;
@@ -85,7 +85,7 @@ static int oc__wants_split(const oc__vox_t *v, oc_key_t key, int level) {
     oc_dvec3 lo = oc_dv3(o.x - g, o.y - g, o.z - g), hi = oc_dv3(o.x + size + g, o.y + size + g, o.z + size + g);
     int any = 0;
     for (int i = 0; i < v->aabb_count && !any; i++) {
-      const oc_aabb_t *b = &v->aabbs[i];
+      const ocs_aabb_t *b = &v->aabbs[i];
       any = lo.x <= b->hi.x && hi.x >= b->lo.x && lo.y <= b->hi.y && hi.y >= b->lo.y && lo.z <= b->hi.z &&
             hi.z >= b->lo.z;
     }
@@ -167,8 +167,8 @@ static int oc__build_leaves(const oc__vox_t *v, oc__keys_t *leaves) {
 /* ---- Sampling workers ------------------------------------------------------------------------ */
 
 /*! Leaves per work item: small enough to balance, large enough to keep the atomics cold. */
-#ifndef OC_VOXELIZE_CHUNK
-#define OC_VOXELIZE_CHUNK 16
+#ifndef OCS_VOXELIZE_CHUNK
+#define OCS_VOXELIZE_CHUNK 16
 #endif
 
 typedef struct {
@@ -205,12 +205,12 @@ static void *oc__worker(void *arg) {
     uint32_t c = atomic_fetch_add(&job->next_chunk, 1u);
     if (c >= job->nchunks) break;
     oc__chunk_t *ch = &job->chunks[c];
-    uint32_t end = (c + 1) * OC_VOXELIZE_CHUNK < job->n ? (c + 1) * OC_VOXELIZE_CHUNK : job->n;
-    for (uint32_t li = c * OC_VOXELIZE_CHUNK; li < end; li++) {
+    uint32_t end = (c + 1) * OCS_VOXELIZE_CHUNK < job->n ? (c + 1) * OCS_VOXELIZE_CHUNK : job->n;
+    for (uint32_t li = c * OCS_VOXELIZE_CHUNK; li < end; li++) {
       oc_key_t key = job->leaves[li];
-      oc_brick_sample(key, v->sigma, v->ctx, v->sub_sigma, sigma);
+      ocs_brick_sample(key, v->sigma, v->ctx, v->sub_sigma, sigma);
       if (v->tau)
-        oc_brick_sample(key, v->tau, v->ctx, v->sub_tau, tau);
+        ocs_brick_sample(key, v->tau, v->ctx, v->sub_tau, tau);
       else
         memset(tau, 0, sizeof tau);
       oc_sanitize_stats_t s1 = {0}, s2 = {0};
@@ -245,7 +245,7 @@ static void *oc__worker(void *arg) {
 }
 
 static int oc__sample_all(oc__job_t *job, int threads) {
-  pthread_t tid[OC_VOXELIZE_MAX_THREADS];
+  pthread_t tid[OCS_VOXELIZE_MAX_THREADS];
   int started = 0;
   for (int t = 1; t < threads; t++) {
     if (pthread_create(&tid[started], NULL, oc__worker, job) != 0) break; /* fewer threads, same bytes */
@@ -264,23 +264,23 @@ static double oc__now(void) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static int oc__resolve(const oc_voxelize_desc_t *d, oc__vox_t *v, oc_dvec3 *sun) {
+static int oc__resolve(const ocs_voxelize_desc_t *d, oc__vox_t *v, oc_dvec3 *sun) {
   OC_RETURN_IF(!d->sigma, OC_EINVAL);
   OC_RETURN_IF(d->min_level < 0 || d->min_level > OC_KEY_MAX_LEVEL, OC_EINVAL);
   int max_level = d->max_level == 0 ? d->min_level : d->max_level;
   OC_RETURN_IF(max_level < d->min_level || max_level > OC_KEY_MAX_LEVEL, OC_EINVAL);
   OC_RETURN_IF(d->aabb_count < 0 || (d->aabb_count > 0 && !d->aabbs), OC_EINVAL);
   for (int i = 0; i < d->aabb_count; i++) {
-    const oc_aabb_t *b = &d->aabbs[i];
+    const ocs_aabb_t *b = &d->aabbs[i];
     OC_RETURN_IF(!isfinite(b->lo.x) || !isfinite(b->lo.y) || !isfinite(b->lo.z) || !isfinite(b->hi.x) ||
                      !isfinite(b->hi.y) || !isfinite(b->hi.z),
                  OC_EINVAL);
     OC_RETURN_IF(b->lo.x > b->hi.x || b->lo.y > b->hi.y || b->lo.z > b->hi.z, OC_EINVAL);
   }
   OC_RETURN_IF(!isfinite(d->margin) || d->margin < 0.0, OC_EINVAL);
-  OC_RETURN_IF(d->sub_sigma < 0 || d->sub_sigma > OC_VOXELIZE_MAX_SUB, OC_EINVAL);
-  OC_RETURN_IF(d->sub_tau < 0 || d->sub_tau > OC_VOXELIZE_MAX_SUB, OC_EINVAL);
-  OC_RETURN_IF(d->threads < 0 || d->threads > OC_VOXELIZE_MAX_THREADS, OC_EINVAL);
+  OC_RETURN_IF(d->sub_sigma < 0 || d->sub_sigma > OCS_VOXELIZE_MAX_SUB, OC_EINVAL);
+  OC_RETURN_IF(d->sub_tau < 0 || d->sub_tau > OCS_VOXELIZE_MAX_SUB, OC_EINVAL);
+  OC_RETURN_IF(d->threads < 0 || d->threads > OCS_VOXELIZE_MAX_THREADS, OC_EINVAL);
   OC_RETURN_IF(!isfinite(d->time), OC_EINVAL);
   double sl = oc_dlen(d->sun_dir);
   OC_RETURN_IF(!isfinite(sl) || !(sl > 0.0), OC_EINVAL);
@@ -303,7 +303,7 @@ static int oc__resolve(const oc_voxelize_desc_t *d, oc__vox_t *v, oc_dvec3 *sun)
   return 0;
 }
 
-int oc_voxelize(oc_state_t *out, const oc_voxelize_desc_t *d) {
+int ocs_voxelize(oc_state_t *out, const ocs_voxelize_desc_t *d) {
   OC_RETURN_IF(!out || !d, OC_EINVAL);
   double t0 = oc__now();
   oc__vox_t v;
@@ -326,7 +326,7 @@ int oc_voxelize(oc_state_t *out, const oc_voxelize_desc_t *d) {
   job.v = &v;
   job.leaves = leaves.k;
   job.n = leaves.n;
-  job.nchunks = (leaves.n + OC_VOXELIZE_CHUNK - 1) / OC_VOXELIZE_CHUNK;
+  job.nchunks = (leaves.n + OCS_VOXELIZE_CHUNK - 1) / OCS_VOXELIZE_CHUNK;
   job.nodes = malloc((size_t)leaves.n * sizeof *job.nodes);
   job.chunks = calloc(job.nchunks, sizeof *job.chunks);
   atomic_init(&job.next_chunk, 0u);
@@ -362,9 +362,9 @@ int oc_voxelize(oc_state_t *out, const oc_voxelize_desc_t *d) {
   oc_sanitize_stats_t san = {0};
   for (uint32_t c = 0; c < job.nchunks && rc == 0; c++) {
     oc__chunk_t *ch = &job.chunks[c];
-    uint32_t end = (c + 1) * OC_VOXELIZE_CHUNK < job.n ? (c + 1) * OC_VOXELIZE_CHUNK : job.n;
+    uint32_t end = (c + 1) * OCS_VOXELIZE_CHUNK < job.n ? (c + 1) * OCS_VOXELIZE_CHUNK : job.n;
     uint32_t bi = 0;
-    for (uint32_t li = c * OC_VOXELIZE_CHUNK; li < end && rc == 0; li++) {
+    for (uint32_t li = c * OCS_VOXELIZE_CHUNK; li < end && rc == 0; li++) {
       oc_node_t *nd = &job.nodes[li];
       if (nd->kind == OC_NODE_BRICK) {
         nd->brick_id = id;
@@ -385,7 +385,7 @@ int oc_voxelize(oc_state_t *out, const oc_voxelize_desc_t *d) {
   }
 
   if (d->stats) {
-    oc_voxelize_stats_t *st = d->stats;
+    ocs_voxelize_stats_t *st = d->stats;
     memset(st, 0, sizeof *st);
     st->leaves = s.node_count;
     st->bricks = s.brick_count;
@@ -418,46 +418,46 @@ done:
 
 /* ---- Analytic media -------------------------------------------------------------------------- */
 
-double oc_medium_sigma_cb(void *ctx, oc_dvec3 p) {
-  const oc_medium_ctx_t *c = ctx;
-  return oc_medium_sigma_t(c->medium, p);
+double ocs_medium_sigma_cb(void *ctx, oc_dvec3 p) {
+  const ocs_medium_ctx_t *c = ctx;
+  return ocs_medium_sigma_t(c->medium, p);
 }
 
-double oc_medium_tau_cb(void *ctx, oc_dvec3 p) {
-  const oc_medium_ctx_t *c = ctx;
-  return oc_medium_tau_sun(c->medium, p, c->sun_dir);
+double ocs_medium_tau_cb(void *ctx, oc_dvec3 p) {
+  const ocs_medium_ctx_t *c = ctx;
+  return ocs_medium_tau_sun(c->medium, p, c->sun_dir);
 }
 
-int oc_medium_refine_cb(void *ctx, oc_key_t key) {
-  const oc_medium_ctx_t *c = ctx;
+int ocs_medium_refine_cb(void *ctx, oc_key_t key) {
+  const ocs_medium_ctx_t *c = ctx;
   oc_dvec3 o;
   double size;
   oc_key_bounds(key, &o, &size);
   double g = c->margin + size / 14.0;
   oc_dvec3 lo = oc_dv3(o.x - g, o.y - g, o.z - g), hi = oc_dv3(o.x + size + g, o.y + size + g, o.z + size + g);
-  const oc_medium_t *m = c->medium;
-  int n = m->count < 0 ? 0 : (m->count > OC_MEDIUM_MAX_PRIMS ? OC_MEDIUM_MAX_PRIMS : m->count);
+  const ocs_medium_t *m = c->medium;
+  int n = m->count < 0 ? 0 : (m->count > OCS_MEDIUM_MAX_PRIMS ? OCS_MEDIUM_MAX_PRIMS : m->count);
   for (int i = 0; i < n; i++) {
-    const oc_prim_t *pr = &m->prims[i];
-    if (pr->kind != OC_PRIM_NONE && pr->sigma_t > 0.0 && oc_prim_intersects_box(pr, lo, hi)) return 1;
+    const ocs_prim_t *pr = &m->prims[i];
+    if (pr->kind != OCS_PRIM_NONE && pr->sigma_t > 0.0 && ocs_prim_intersects_box(pr, lo, hi)) return 1;
   }
   return 0;
 }
 
-int oc_voxelize_medium(oc_state_t *out, const oc_medium_t *m, int max_level, int sub, oc_dvec3 sun_dir, int threads) {
+int ocs_voxelize_medium(oc_state_t *out, const ocs_medium_t *m, int max_level, int sub, oc_dvec3 sun_dir, int threads) {
   OC_RETURN_IF(!out || !m, OC_EINVAL);
-  oc_medium_ctx_t ctx = {m, sun_dir, 0.0};
+  ocs_medium_ctx_t ctx = {m, sun_dir, 0.0};
   double sl = oc_dlen(sun_dir);
   if (isfinite(sl) && sl > 0.0) ctx.sun_dir = oc_dscale(sun_dir, 1.0 / sl);
-  oc_voxelize_desc_t d = {0};
-  d.sigma = oc_medium_sigma_cb;
-  d.tau = oc_medium_tau_cb;
+  ocs_voxelize_desc_t d = {0};
+  d.sigma = ocs_medium_sigma_cb;
+  d.tau = ocs_medium_tau_cb;
   d.ctx = &ctx;
   d.min_level = 0;
   d.max_level = max_level;
-  d.refine = oc_medium_refine_cb;
+  d.refine = ocs_medium_refine_cb;
   d.sub_sigma = sub;
   d.sun_dir = sun_dir;
   d.threads = threads;
-  return oc_voxelize(out, &d);
+  return ocs_voxelize(out, &d);
 }

@@ -1,4 +1,4 @@
-/* oc_voxelize.h — box-filtered brick sampling and a state builder for fields given as callbacks.
+/* voxelize.h — box-filtered brick sampling and a state builder for fields given as callbacks.
  *
  * Sampling follows design.md (Conventions: bricks and codes; filtering): sample (i, j, k) of a node
  * sits at origin + (i, j, k)·size/7 and holds the box average of the field over the cube of edge
@@ -8,44 +8,44 @@
  * offset in (−½, ½), so a face sample evaluates exactly the same points from either of the two
  * nodes that share it, and its value is bit-identical in both bricks.
  *
- * The builder, oc_voxelize(), refines the root to min_level everywhere and further to max_level
+ * The builder, ocs_voxelize(), refines the root to min_level everywhere and further to max_level
  * where asked (AABB list and/or a callback), samples every leaf — σt box-filtered, τ normally
  * point-sampled — and returns a canonical, validated state. Output bytes do not depend on the
- * thread count. oc_voxelize_medium() does this for an analytic medium (oc_analytic.h). */
-#ifndef OC_COMMON_VOXELIZE_H
-#define OC_COMMON_VOXELIZE_H
+ * thread count. ocs_voxelize_medium() does this for an analytic medium (analytic.h). */
+#ifndef OCS_VOXELIZE_H
+#define OCS_VOXELIZE_H
 
 #include <stdint.h>
 
-#include "oc_analytic.h" /* oc_medium_t */
+#include "analytic.h" /* ocs_medium_t */
 #include "oc_key.h"      /* oc_key_t */
 #include "oc_math.h"     /* oc_dvec3 */
 #include "oc_state.h"    /* oc_state_t */
 
 /*! Most sub-samples per axis accepted by the builder (sub³ field evaluations per sample). */
-#define OC_VOXELIZE_MAX_SUB 16
+#define OCS_VOXELIZE_MAX_SUB 16
 /*! Most worker threads used by the builder. */
-#define OC_VOXELIZE_MAX_THREADS 64
+#define OCS_VOXELIZE_MAX_THREADS 64
 
 /* A scalar field: a value at a planet-frame point (metres). Must be thread-safe (called from
  * several threads at once with the same ctx) and deterministic. */
-typedef double (*oc_field_fn)(void *ctx, oc_dvec3 p);
-/* A refinement predicate: nonzero to split `key` (see oc_voxelize_desc_t for when it is asked). */
-typedef int (*oc_refine_fn)(void *ctx, oc_key_t key);
+typedef double (*ocs_field_fn)(void *ctx, oc_dvec3 p);
+/* A refinement predicate: nonzero to split `key` (see ocs_voxelize_desc_t for when it is asked). */
+typedef int (*ocs_refine_fn)(void *ctx, oc_key_t key);
 
 typedef struct {
   oc_dvec3 lo, hi; /**< planet frame, metres, lo ≤ hi */
-} oc_aabb_t;
+} ocs_aabb_t;
 
-/*! oc_brick_sample_pos() : position of sample (i, j, k) (each 0..7) of a node, planet frame; the
- *  sub = 1 sampling point of oc_brick_sample(), bit-identical for a face sample from either node. */
-oc_dvec3 oc_brick_sample_pos(oc_key_t key, int i, int j, int k);
-/*! oc_brick_sample() : the 8³ box-filtered samples of fn over a valid node, x fastest
+/*! ocs_brick_sample_pos() : position of sample (i, j, k) (each 0..7) of a node, planet frame; the
+ *  sub = 1 sampling point of ocs_brick_sample(), bit-identical for a face sample from either node. */
+oc_dvec3 ocs_brick_sample_pos(oc_key_t key, int i, int j, int k);
+/*! ocs_brick_sample() : the 8³ box-filtered samples of fn over a valid node, x fastest
  *  (out[i + 8j + 64k]). Each is the mean of fn at sub³ stratified midpoints of the cube of edge
  *  size/7 centred on the sample (offsets ((m + ½)/sub − ½)·size/7 per axis, m = 0..sub−1), summed
- *  in double in a fixed order; sub < 1 is taken as 1, sub > OC_VOXELIZE_MAX_SUB as that. Samples
+ *  in double in a fixed order; sub < 1 is taken as 1, sub > OCS_VOXELIZE_MAX_SUB as that. Samples
  *  on a face shared with a neighbour of the same level are bit-identical to the neighbour's. */
-void oc_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub, float out[512]);
+void ocs_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub, float out[512]);
 
 typedef struct {
   uint32_t leaves;             /**< node records */
@@ -54,9 +54,9 @@ typedef struct {
   uint32_t per_level[22];      /**< leaves per level */
   oc_sanitize_stats_t sanitize; /**< values oc_sanitize() replaced, summed over both channels */
   double seconds;              /**< wall time of the whole call */
-} oc_voxelize_stats_t;
+} ocs_voxelize_stats_t;
 
-/* What oc_voxelize() builds. Zero-initialise (oc_voxelize_desc_t d = {0};) and set what you need;
+/* What ocs_voxelize() builds. Zero-initialise (ocs_voxelize_desc_t d = {0};) and set what you need;
  * every default is the zero value's meaning given per field.
  *
  * Refinement: a node of level L is split when L < min_level, or when min_level ≤ L < max_level
@@ -67,15 +67,15 @@ typedef struct {
  * leaf's samples never see what lies inside an AABB. Leaves outside every AABB stay at min_level
  * and are sampled like any other (their τ may well be non-zero). */
 typedef struct {
-  oc_field_fn sigma;  /**< required: σt, m⁻¹ (negative, NaN, Inf are sanitised and counted) */
-  oc_field_fn tau;    /**< optional: sun optical depth τ; default NULL: τ = 0 everywhere */
+  ocs_field_fn sigma;  /**< required: σt, m⁻¹ (negative, NaN, Inf are sanitised and counted) */
+  ocs_field_fn tau;    /**< optional: sun optical depth τ; default NULL: τ = 0 everywhere */
   void *ctx;          /**< passed to sigma and tau; default NULL */
   int min_level;      /**< 0..21; default 0 (the root) */
   int max_level;      /**< min_level..21; default 0, which means min_level (no refinement) */
-  const oc_aabb_t *aabbs; /**< optional regions to refine; default none */
+  const ocs_aabb_t *aabbs; /**< optional regions to refine; default none */
   int aabb_count;         /**< entries in aabbs; default 0 */
   double margin;          /**< metres added around every AABB; default 0 */
-  oc_refine_fn refine;    /**< optional refinement criterion; default none. Called from the
+  ocs_refine_fn refine;    /**< optional refinement criterion; default none. Called from the
                                calling thread only, twice per node (a counting pass, then a
                                placing pass): it must give the same answer both times */
   void *refine_ctx;       /**< passed to refine; default NULL, which means ctx */
@@ -93,46 +93,46 @@ typedef struct {
   int threads;        /**< worker threads, 1..64; default 0 → 1. Output is identical for any count */
   uint32_t max_nodes; /**< refuse (OC_ETOOBIG) when the tree would have more leaves than this;
                            default 0 → OC_STATE_MAX_NODES, also the ceiling */
-  oc_voxelize_stats_t *stats; /**< optional out: counts and timing; default NULL */
-} oc_voxelize_desc_t;
+  ocs_voxelize_stats_t *stats; /**< optional out: counts and timing; default NULL */
+} ocs_voxelize_desc_t;
 
-/*! oc_voxelize() : builds a complete state from field callbacks. `out` must be initialised
+/*! ocs_voxelize() : builds a complete state from field callbacks. `out` must be initialised
  *  (oc_state_init); on success its previous content is freed and replaced by a canonical state that
  *  passed oc_state_validate(); on error `out` is left empty.
- *  Every leaf: both channels sampled (oc_brick_sample), oc_sanitize(), oc_brick_encode(); bricks get
+ *  Every leaf: both channels sampled (ocs_brick_sample), oc_sanitize(), oc_brick_encode(); bricks get
  *  ids first_brick_id, first_brick_id + 1, ... in ascending key order.
  *  @return 0; OC_EINVAL for a bad desc (or a refine callback that changed its answers);
  *  OC_ETOOBIG when the tree would exceed max_nodes leaves (found by a counting pass, before
  *  anything is allocated or sampled) or OC_STATE_MAX_BRICKS bricks (found while sampling, which
  *  then stops); OC_ERANGE when the brick ids would pass UINT32_MAX; OC_ENOMEM; OC_ECORRUPT if the
  *  result fails oc_state_validate() (a bug). */
-int oc_voxelize(oc_state_t *out, const oc_voxelize_desc_t *d);
+int ocs_voxelize(oc_state_t *out, const ocs_voxelize_desc_t *d);
 
 /* Context of the medium callbacks below. */
 typedef struct {
-  const oc_medium_t *medium;
-  oc_dvec3 sun_dir; /**< toward the sun, for oc_medium_tau_cb */
-  double margin;    /**< metres, for oc_medium_refine_cb */
-} oc_medium_ctx_t;
+  const ocs_medium_t *medium;
+  oc_dvec3 sun_dir; /**< toward the sun, for ocs_medium_tau_cb */
+  double margin;    /**< metres, for ocs_medium_refine_cb */
+} ocs_medium_ctx_t;
 
-/*! oc_medium_sigma_cb() / oc_medium_tau_cb() : oc_medium_sigma_t() and oc_medium_tau_sun() as
- *  oc_field_fn (ctx: const oc_medium_ctx_t*). */
-double oc_medium_sigma_cb(void *ctx, oc_dvec3 p);
-double oc_medium_tau_cb(void *ctx, oc_dvec3 p);
-/*! oc_medium_refine_cb() : oc_refine_fn (ctx: const oc_medium_ctx_t*): nonzero when the node's
+/*! ocs_medium_sigma_cb() / ocs_medium_tau_cb() : ocs_medium_sigma_t() and ocs_medium_tau_sun() as
+ *  ocs_field_fn (ctx: const ocs_medium_ctx_t*). */
+double ocs_medium_sigma_cb(void *ctx, oc_dvec3 p);
+double ocs_medium_tau_cb(void *ctx, oc_dvec3 p);
+/*! ocs_medium_refine_cb() : ocs_refine_fn (ctx: const ocs_medium_ctx_t*): nonzero when the node's
  *  box, grown by its footprint half-width size/14 plus ctx->margin, meets any primitive with
- *  σt > 0 (oc_prim_intersects_box). Tighter than the primitives' AABBs for spheres, rotated boxes
+ *  σt > 0 (ocs_prim_intersects_box). Tighter than the primitives' AABBs for spheres, rotated boxes
  *  and slabs. */
-int oc_medium_refine_cb(void *ctx, oc_key_t key);
+int ocs_medium_refine_cb(void *ctx, oc_key_t key);
 
-/*! oc_voxelize_medium() : oc_voxelize() of an analytic medium: σt = oc_medium_sigma_t box-filtered
- *  with sub³ sub-samples (0 → 4), τ = oc_medium_tau_sun toward sun_dir point-sampled, min_level 0,
- *  nodes refined to max_level where oc_medium_refine_cb says (margin 0), epoch 0, time 0, first
+/*! ocs_voxelize_medium() : ocs_voxelize() of an analytic medium: σt = ocs_medium_sigma_t box-filtered
+ *  with sub³ sub-samples (0 → 4), τ = ocs_medium_tau_sun toward sun_dir point-sampled, min_level 0,
+ *  nodes refined to max_level where ocs_medium_refine_cb says (margin 0), epoch 0, time 0, first
  *  brick id 1, `threads` workers (0 → 1).
  *  A slab covers the whole planet, so refining it to a high level exceeds OC_STATE_MAX_NODES
- *  (OC_ETOOBIG). For a slab, call oc_voxelize() with an AABB list to limit the region and
- *  refine = oc_medium_refine_cb (the AABBs and the callback must both agree to split).
- *  @return as oc_voxelize(). */
-int oc_voxelize_medium(oc_state_t *out, const oc_medium_t *m, int max_level, int sub, oc_dvec3 sun_dir, int threads);
+ *  (OC_ETOOBIG). For a slab, call ocs_voxelize() with an AABB list to limit the region and
+ *  refine = ocs_medium_refine_cb (the AABBs and the callback must both agree to split).
+ *  @return as ocs_voxelize(). */
+int ocs_voxelize_medium(oc_state_t *out, const ocs_medium_t *m, int max_level, int sub, oc_dvec3 sun_dir, int threads);
 
-#endif /* OC_COMMON_VOXELIZE_H */
+#endif /* OCS_VOXELIZE_H */

@@ -26,7 +26,7 @@
 #include "oc_err.h"
 #include "oc_scene.h"
 #include "oc_noise.h"
-#include "oc_voxelize.h" /* oc_brick_sample_pos */
+#include "voxelize.h" /* ocs_brick_sample_pos */
 #include "ocs_field.h"
 #include "planner.h" /* ocs_plan_ground_tau */
 #include "sun_depth.h"
@@ -39,7 +39,7 @@ static double oct__anchor(const oc_key_t *keys, long n, double *sink) {
     for (int k = 0; k < 8; k++)
       for (int j = 0; j < 8; j++)
         for (int i = 0; i < 8; i++) {
-          oc_dvec3 p = oc_brick_sample_pos(keys[q], i, j, k);
+          oc_dvec3 p = ocs_brick_sample_pos(keys[q], i, j, k);
           acc += oc_fbm3(p.x * 1e-3, p.y * 1e-3, p.z * 1e-3, &fb);
         }
   *sink += acc;

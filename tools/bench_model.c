@@ -12,7 +12,7 @@
 #include "bench_util.h"
 #include "oc_cli.h"
 #include "march.h" /* OCG_MS_CHORD_HALF, … : the fitted constants a search starts from */
-#include "oc_truth.h"
+#include "truth.h"
 
 void oct_bench_model_usage(FILE *f) {
   fprintf(f, "model options (the cloud model against stored truth images; FILE... from `truth --save`):\n"
@@ -32,9 +32,9 @@ typedef struct {
 } oct__model_opts_t;
 
 /* Renders one case with one model; @return 0 or an exit status. */
-static int oct__model_case(const char *prog, const oc_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam,
-                           const oc_state_t *st, const oct__model_opts_t *o, int legacy, oc_truth_score_t *s) {
-  oc_render_desc_t d = oc_truth_case_desc(c, sc, cam);
+static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam,
+                           const oc_state_t *st, const oct__model_opts_t *o, int legacy, oct_truth_score_t *s) {
+  oc_render_desc_t d = oct_truth_case_desc(c, sc, cam);
   d.ms_model = legacy ? OC_MS_MODEL_OCTAVES : OC_MS_MODEL_DEPTH;
   if (!legacy && o->have_fit) d.ms_fit = o->fit;
   if (!legacy && o->have_abc) {
@@ -48,21 +48,21 @@ static int oct__model_case(const char *prog, const oc_truth_case_t *c, const oc_
   }
   oc_image_t img = {0};
   if (oc_image_alloc(&img, c->w, c->h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-  int rc = oc_render_state(st, &d, &img, NULL) < 0 || oc_truth_score(c, &img, s) < 0;
+  int rc = oc_render_state(st, &d, &img, NULL) < 0 || oct_truth_score(c, &img, s) < 0;
   oc_image_free(&img);
   return rc ? oc_cli_fail(prog, OC_EXIT_RUNTIME, "model: render failed") : OC_EXIT_OK;
 }
 
 /* The fit's objective per case: the image-mean error in units of the ±10 % target and the RMSE in
  * units of its bound max(6, 2 × the truth's seed-to-seed RMSE), squared and summed. */
-static double oct__model_cost(const oc_truth_score_t *s) {
+static double oct__model_cost(const oct_truth_score_t *s) {
   double r = s->rel / 0.1, e = s->rmse8 / fmax(6.0, 2.0 * s->noise8);
   return r * r + e * e;
 }
 
 /* Every case loaded and voxelized once. */
 typedef struct {
-  oc_truth_case_t tc;
+  oct_truth_case_t tc;
   oc_scene_t sc;
   oc_state_t st;
   oc_camera_t cam;
@@ -76,19 +76,19 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
   int pass = 0;
   for (int i = 0; i < n; i++) {
     oct__mcase_t *m = &cs[i];
-    oc_truth_score_t old = {0}, s;
+    oct_truth_score_t old = {0}, s;
     int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, &old) : OC_EXIT_OK;
     if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, &s);
     if (rc != OC_EXIT_OK) return NAN;
     double amb_new = 0.0, amb_old = 0.0; /* image mean under a uniform sky alone, against tc.env */
     if (m->tc.env > 0.0 && m->tc.albedo < 1.0) {
-      oc_render_desc_t d = oc_truth_case_desc(&m->tc, &m->sc, m->cam);
+      oc_render_desc_t d = oct_truth_case_desc(&m->tc, &m->sc, m->cam);
       if (o->have_fit) d.ms_fit = o->fit;
-      if (oc_truth_ambient(&m->tc, &m->st, d, &amb_new) < 0) return NAN;
+      if (oct_truth_ambient(&m->tc, &m->st, d, &amb_new) < 0) return NAN;
       d.ms_model = OC_MS_MODEL_OCTAVES;
       d.ms_fit = NULL;
       d.ms_a = d.ms_b = d.ms_c = 0.5f;
-      if (print && oc_truth_ambient(&m->tc, &m->st, d, &amb_old) < 0) return NAN;
+      if (print && oct_truth_ambient(&m->tc, &m->st, d, &amb_old) < 0) return NAN;
       amb_new = amb_new / m->tc.env - 1.0;
       amb_old = amb_old / m->tc.env - 1.0;
       cost += (amb_new / 0.05) * (amb_new / 0.05);
@@ -232,12 +232,12 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
     char why[1024];
     const char *path = argv[optind + loaded], *slash = strrchr(path, '/');
     m->name = slash ? slash + 1 : path;
-    if (oc_truth_case_load(&m->tc, path, why, sizeof why) < 0) {
+    if (oct_truth_case_load(&m->tc, path, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       break;
     }
-    if (oc_truth_case_state(&m->tc, NULL, &m->sc, &m->cam, &m->st, why, sizeof why) < 0) {
-      oc_truth_case_free(&m->tc);
+    if (oct_truth_case_state(&m->tc, NULL, &m->sc, &m->cam, &m->st, why, sizeof why) < 0) {
+      oct_truth_case_free(&m->tc);
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       break;
     }
@@ -253,7 +253,7 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
   for (int i = 0; i < loaded; i++) {
     oc_state_free(&cs[i].st);
     oc_scene_free(&cs[i].sc);
-    oc_truth_case_free(&cs[i].tc);
+    oct_truth_case_free(&cs[i].tc);
   }
   free(cs);
   return rc;

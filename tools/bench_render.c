@@ -17,7 +17,7 @@
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "world.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include <math.h>
 #ifdef OC_HAVE_GL
 
@@ -204,10 +204,10 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
   oc_camera_t cam = oc_camera_from_pose(pose);
   oc_state_t st;
   oc_state_init(&st);
-  oc_medium_t medium;
-  if (oc_scene_medium(&sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
-    oc_scene_voxelize_desc_t vd = {cam, h, 2.0, 16, 0, 2};
-    if (oc_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
+  ocs_medium_t medium;
+  if (ocs_scene_medium(&sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
+    ocs_scene_voxelize_desc_t vd = {cam, h, 2.0, 16, 0, 2};
+    if (ocs_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
   } else { /* procedural or VDB: the state the server core plans for a viewer at this camera */
     ocs_world_desc_t wd = {.threads = 2, .time = world_time};
     ocs_world_t *world = NULL;

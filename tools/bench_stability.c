@@ -22,7 +22,7 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "net.h" /* client: ocv_fetch */
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_camera.h"
 #include "oc_cli.h"
 #include "oc_err.h"
@@ -33,7 +33,7 @@
 #include "oc_render.h"
 #include "oc_scene.h"
 #include "oc_scene_render.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "ocs_server.h"
 #include "vdb_shim.h"
 #ifdef OC_HAVE_GL
@@ -192,10 +192,10 @@ static st_check_t st_check(const char *renderer, const oc_image_t *img, double t
 /* e^−τ along the ray of pixel (w/2, h/2), τ from the closed-form chords of the scene's analytic
  * sources; −1 when the scene has any other source. */
 static double st_exact_t(const oc_scene_t *sc, oc_camera_t cam, int w, int h) {
-  oc_medium_t m;
-  if (oc_scene_medium(sc, &m, NULL, 0) < 0) return -1.0;
+  ocs_medium_t m;
+  if (ocs_scene_medium(sc, &m, NULL, 0) < 0) return -1.0;
   oc_dvec3 dir = oc_camera_ray(&cam, w, h, w / 2, h / 2);
-  return exp(-oc_medium_optical_depth(&m, cam.pos, dir, 1e9));
+  return exp(-ocs_medium_optical_depth(&m, cam.pos, dir, 1e9));
 }
 
 typedef struct {

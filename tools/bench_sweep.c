@@ -12,7 +12,7 @@
  * 0–255 scale and PSNR per view; a setting's figure pools the views' squared errors (sqrt of the
  * mean MSE). On analytic scenes (only spheres, boxes, slabs) each image's cloud transmittance
  * (alpha) is also compared with the closed form e^−τ along every pixel's ray, τ the exact optical
- * depth of the analytic medium up to the ground (common/oc_analytic.h): mean and max |ΔT|.
+ * depth of the analytic medium up to the ground (server/analytic.h): mean and max |ΔT|.
  *
  * Cost: render ms (the CPU reference's process CPU time over its threads, which other jobs on a
  * shared machine do not inflate; the GL renderer's GPU timer queries on a GPU, its wall time
@@ -33,12 +33,12 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_sweep_int.h"
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_atmo.h"
 #include "oc_cli.h"
 #include "oc_err.h"
 #include "oc_image.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #ifdef OC_HAVE_GL
 #include "camera_path.h"
 #endif
@@ -271,7 +271,7 @@ static void write_report(FILE *f, const report_t *R) {
 
   if (R->analytic)
     fprintf(f, "Closed form (analytic scene): mean and max |ΔT| of each image's cloud transmittance (alpha) against e^−τ, "
-               "τ the exact optical depth of the medium along the pixel's ray up to the ground (common/oc_analytic.h); "
+               "τ the exact optical depth of the medium along the pixel's ray up to the ground (server/analytic.h); "
                "the max comes from pixels grazing a surface, which the box-filtered voxels soften over a voxel.\n\n");
 
   /* Table 6.1 form: one table per combination of the other knobs (when budget × step is a grid) */
@@ -563,8 +563,8 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
     oc_scene_free(&sc);
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer %s: %s", gl ? "gl" : "cpu", why);
   }
-  oc_medium_t medium;
-  R.analytic = oc_scene_medium(&sc, &medium, NULL, 0) == 0;
+  ocs_medium_t medium;
+  R.analytic = ocs_scene_medium(&sc, &medium, NULL, 0) == 0;
   size_t npx = (size_t)w * (size_t)h;
   float *truth = NULL; /* per view: e^−τ of each pixel's ray */
   uint8_t *ref_rgb = NULL, *rgb = NULL;
@@ -589,7 +589,7 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
         for (int x = 0; x < w; x++) {
           oc_dvec3 dir = oc_camera_ray(&cam, w, h, x, y);
           double tmax = ground ? ground_hit(cam.pos, dir, OC_PLANET_RADIUS) : INFINITY;
-          truth[(size_t)v * npx + (size_t)y * w + x] = (float)exp(-oc_medium_optical_depth(&medium, cam.pos, dir, tmax));
+          truth[(size_t)v * npx + (size_t)y * w + x] = (float)exp(-ocs_medium_optical_depth(&medium, cam.pos, dir, tmax));
         }
     }
   }

@@ -26,8 +26,8 @@
 #include "oc_image.h"
 #include "oc_render.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
-#include "oc_truth.h" /* oc_truth_source_length, oc_truth_source_sigma */
+#include "scene_voxelize.h"
+#include "truth.h" /* oct_truth_source_length, oct_truth_source_sigma */
 #include "optics.h" /* ocg_phase_hg_draine for the sampler check */
 
 #define OCT_TRUTH_MAX_TAUS 16
@@ -322,9 +322,9 @@ static int oct__check_slab(long photons, uint64_t seed, int threads) {
 
 /* ---- Scene scaling ------------------------------------------------------------------------------------------ */
 
-/* The length across which --tau is measured and the σt it scales: oc_truth_source_length/_sigma. */
-#define oct__source_length oc_truth_source_length
-#define oct__source_sigma oc_truth_source_sigma
+/* The length across which --tau is measured and the σt it scales: oct_truth_source_length/_sigma. */
+#define oct__source_length oct_truth_source_length
+#define oct__source_sigma oct_truth_source_sigma
 
 /* ---- The truth image ---------------------------------------------------------------------------------------- */
 
@@ -524,8 +524,8 @@ static int oct__run_setup(oct__run_t *r) {
   char why[1024];
   size_t n = (size_t)r->w * (size_t)r->h;
   oc_state_init(&r->st);
-  oc_scene_voxelize_desc_t vd = {r->cam, r->h, 2.0, 16, 0, r->threads};
-  if (oc_scene_voxelize(&r->st, r->sc, &vd, why, sizeof why) < 0)
+  ocs_scene_voxelize_desc_t vd = {r->cam, r->h, 2.0, 16, 0, r->threads};
+  if (ocs_scene_voxelize(&r->st, r->sc, &vd, why, sizeof why) < 0)
     return oc_cli_fail(r->prog, OC_EXIT_RUNTIME, "%s: %s", r->scene_path, why);
   r->buf = calloc(9 * n, sizeof *r->buf);
   r->rgb_t = malloc(3 * n);
@@ -689,7 +689,7 @@ static int oct__run_pngs(oct__run_t *r, const char *prefix) {
   return OC_EXIT_OK;
 }
 
-/* PREFIX-tauT.txt: what tests/common/test_truth.c and `overcast-bench truth --model` read back —
+/* PREFIX-tauT.txt: what tests/tools/test_truth.c and `overcast-bench truth --model` read back —
  * "key value" lines (the scene file, τ, size, paths, seed, albedo, background, the camera if not the
  * scene's, the image mean ± SE, the image mean of the radiance per unit uniform-sky radiance ± SE), then "pixels" and one "radiance se" line per pixel, row-major from
  * the top. 6 significant digits: far below the Monte Carlo noise. */
@@ -837,8 +837,8 @@ int oct_bench_truth(const char *prog, int argc, char **argv) {
   char why[512];
   static oc_scene_t sc;
   if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
-  oc_medium_t medium;
-  if (oc_scene_medium(&sc, &medium, why, sizeof why) < 0) {
+  ocs_medium_t medium;
+  if (ocs_scene_medium(&sc, &medium, why, sizeof why) < 0) {
     oc_scene_free(&sc);
     return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: analytic scenes only: %s", why);
   }

@@ -20,6 +20,7 @@
 #include <stdint.h>
 #include <sys/types.h>
 
+#include "child.h" /* ocv_child_t */
 #include "net.h"
 #include "stress_path.h"
 #include "world.h" /* ocs_brick_out_t, for --verify-content */
@@ -158,7 +159,7 @@ enum { STRESS_FK_STALL, STRESS_FK_DROP, STRESS_FK_GARBAGE, STRESS_FK_COUNT };
 #define STRESS_FAULT_WELCOME_WAIT 120.0
 /* seconds past the server's stall timeout by which a viewer that stopped reading must be let go */
 #define STRESS_FAULT_STALL_GRACE 5.0
-/* a spawned server's --drain-timeout, s, and how long stress_server_stop() waits for its exit:
+/* a spawned server's --drain-timeout, s, and how long ocv_child_stop() waits for its exit:
  * the drain's longest, plus room for a step in progress (SIGKILL only after that) */
 #define STRESS_DRAIN_S 5.0
 #define STRESS_STOP_S (STRESS_DRAIN_S + 25.0)
@@ -457,14 +458,7 @@ void stress_faults_restarted(stress_run_t *run);
 void stress_faults_stop(stress_run_t *run, stress_fault_conns_t *out);
 const char *stress_fault_kind_name(int kind);
 
-/*-*** The server process ***/
-
-typedef struct {
-  pid_t pid;
-  int out_fd; /* its stdout (kept open, never read after the address) */
-  char host[OCV_HOST_MAX];
-  int port;
-} stress_child_t;
+/*-*** The server process (started with client/child.h's ocv_child_spawn) ***/
 
 typedef struct {
   int ok;
@@ -472,20 +466,10 @@ typedef struct {
   double cpu_s;            /* user + system */
 } stress_proc_t;
 
-/*! stress_server_spawn() : runs argv[0] with argv (its stdout to a pipe, stderr shared, killed if we
- *  die) and reads its "listening on HOST:PORT" within timeout_s. @return 0 or OC_EIO with a reason. */
-int stress_server_spawn(char *const argv[], double timeout_s, stress_child_t *c, char *why, size_t why_len);
-/*! stress_server_stop() : SIGTERM, waits up to timeout_s (then SIGKILL). @return its exit status,
- *  128 + signal when killed by one, or -1. */
-int stress_server_stop(stress_child_t *c, double timeout_s);
-/*! stress_server_kill() : SIGKILL (a crash, as far as its clients can tell) and wait. @return as above. */
-int stress_server_kill(stress_child_t *c);
 /*! stress_proc_sample() : VmRSS, VmHWM and CPU seconds of a process (ok = 0 when unreadable). */
 void stress_proc_sample(long pid, stress_proc_t *out);
 /*! stress_self_cpu() : this process's user + system CPU seconds (getrusage). */
 double stress_self_cpu(void);
-/*! stress_exe_dir() : the folder of this program (/proc/self/exe). @return 0 or -1. */
-int stress_exe_dir(char *buf, size_t cap);
 
 /*-*** The report ***/
 

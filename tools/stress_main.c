@@ -87,7 +87,7 @@ static int all_done(const stress_run_t *run) {
 /*-*** Faults: the coordinator's part (the misbehaving connections are stress_fault.c's) ***/
 
 typedef struct {
-  stress_child_t *child;   /* spawned: the server, restarted in place */
+  ocv_child_t *child;   /* spawned: the server, restarted in place */
   char **argv;             /* its command line; argv[listen] is rewritten to keep the port */
   int listen;
   char listen_addr[OCV_HOST_MAX + 16];
@@ -167,7 +167,7 @@ static int restart_server(stress_run_t *run, ocv_conn_t **ctl, fault_ctx_t *fx, 
   double t_kill = stress_now();
   if (o->restart_drain) {
     /* SIGTERM: every viewer is told GOODBYE RECONNECT and leaves; the server exits 0 */
-    int st = stress_server_stop(fx->child, STRESS_STOP_S);
+    int st = ocv_child_stop(fx->child, STRESS_STOP_S);
     fprintf(stderr, "overcast-stress: faults: drained the server after step %llu (exit %d in %.2f s); starting it again on %s\n",
             (unsigned long long)k, st, stress_now() - t_kill, fx->listen_addr);
     if (st != 0) {
@@ -175,14 +175,14 @@ static int restart_server(stress_run_t *run, ocv_conn_t **ctl, fault_ctx_t *fx, 
       return -1;
     }
   } else {
-    stress_server_kill(fx->child);
+    ocv_child_kill(fx->child);
     fprintf(stderr, "overcast-stress: faults: killed the server after step %llu; starting it again on %s\n",
             (unsigned long long)k, fx->listen_addr);
   }
   fx->argv[fx->listen] = fx->listen_addr;
   int r = -1;
   for (int attempt = 0; attempt < 50 && r < 0; attempt++) { /* the port may take a moment to be free */
-    r = stress_server_spawn(fx->argv, o->timeout, fx->child, why, sizeof why);
+    r = ocv_child_spawn(fx->argv, o->timeout, fx->child, why, sizeof why);
     if (r < 0) {
       struct timespec ts = {0, 100000000};
       nanosleep(&ts, NULL);
@@ -476,7 +476,7 @@ static void server_argv(const stress_opts_t *o, const char *exe, double period, 
   argv[n++] = sa->peraddr;
   argv[n++] = "--handshake-rate";
   argv[n++] = "1000";
-  /* a drain (our SIGTERM) ends within STRESS_DRAIN_S, inside stress_server_stop()'s wait */
+  /* a drain (our SIGTERM) ends within STRESS_DRAIN_S, inside ocv_child_stop()'s wait */
   snprintf(sa->drain, sizeof sa->drain, "%g", STRESS_DRAIN_S);
   argv[n++] = "--drain-timeout";
   argv[n++] = sa->drain;
@@ -558,10 +558,10 @@ static void stepped_reference(const stress_opts_t *o, const char *exe, long budg
   if (ro.epochs < 2) ro.epochs = 2;
   server_argv_t sa;
   server_argv(&ro, exe, 0, &sa);
-  stress_child_t child = {.pid = -1, .out_fd = -1};
+  ocv_child_t child = {.pid = -1, .out_fd = -1};
   char why[1024];
   double t0 = stress_now();
-  if (stress_server_spawn(sa.argv, o->timeout, &child, why, sizeof why) < 0) {
+  if (ocv_child_spawn(sa.argv, o->timeout, &child, why, sizeof why) < 0) {
     snprintf(out->error, sizeof out->error, "stepped reference: %.150s", why);
     return;
   }
@@ -610,7 +610,7 @@ static void stepped_reference(const stress_opts_t *o, const char *exe, long budg
   }
   cJSON_Delete(reply);
   ocv_conn_close(ctl);
-  stress_server_stop(&child, STRESS_STOP_S);
+  ocv_child_stop(&child, STRESS_STOP_S);
   free(run.v);
   free(run.step_at);
   pthread_cond_destroy(&run.cv);
@@ -819,7 +819,7 @@ static void ramp_phase(stress_run_t *run, ocv_conn_t *ctl, long pid, double peri
 typedef struct {
   stress_opts_t *o;
   stress_summary_t sum;
-  stress_child_t child;
+  ocv_child_t child;
   char exe[4096];   /* kept: a restart (and the ramp's stepped reference) runs the same server */
   server_argv_t sa; /* kept: a restart runs the same command */
   fault_ctx_t fx;
@@ -846,14 +846,14 @@ static int spawn_server(coord_t *c) {
   if (o->server_path) {
     snprintf(c->exe, sizeof c->exe, "%s", o->server_path);
   } else {
-    if (stress_exe_dir(dir, sizeof dir) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot read /proc/self/exe");
+    if (ocv_exe_dir(dir, sizeof dir) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot read /proc/self/exe");
     snprintf(c->exe, sizeof c->exe, "%s/overcast-server", dir);
   }
   if (access(c->exe, X_OK) != 0)
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: not an executable (give --server PATH, or --connect)", c->exe);
   server_argv(o, c->exe, o->epoch_period, &c->sa);
   c->fx.listen = c->sa.listen;
-  if (stress_server_spawn(c->sa.argv, o->timeout, &c->child, why, sizeof why) < 0)
+  if (ocv_child_spawn(c->sa.argv, o->timeout, &c->child, why, sizeof why) < 0)
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   snprintf(o->host, sizeof o->host, "%s", c->child.host);
   o->port = c->child.port;
@@ -975,7 +975,7 @@ static int finish(coord_t *c, int rc) {
     }
   ocv_conn_close(c->ctl);
   if (o->spawn && c->child.pid > 0) {
-    sum->server_exit = stress_server_stop(&c->child, STRESS_STOP_S);
+    sum->server_exit = ocv_child_stop(&c->child, STRESS_STOP_S);
     if (sum->server_exit != 0 && rc == OC_EXIT_OK && !sum->error[0])
       snprintf(sum->error, sizeof sum->error, "overcast-server exited with status %d", sum->server_exit);
   }
@@ -1047,7 +1047,7 @@ static int run_ramp(coord_t *c) {
   sum->wall_s = stress_now() - c->wall0;
   ocv_conn_close(c->ctl);
   c->ctl = NULL;
-  sum->server_exit = stress_server_stop(&c->child, STRESS_STOP_S);
+  sum->server_exit = ocv_child_stop(&c->child, STRESS_STOP_S);
   c->child.pid = -1;
   if (sum->server_exit != 0 && !sum->error[0])
     snprintf(sum->error, sizeof sum->error, "overcast-server exited with status %d", sum->server_exit);

@@ -1,5 +1,5 @@
-/* oc_truth.c — stored truth images read back and scored (oc_truth.h). */
-#include "oc_truth.h"
+/* truth.c — stored truth images read back and scored (truth.h). */
+#include "truth.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -7,10 +7,10 @@
 #include <string.h>
 
 #include "oc_err.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "optics.h" /* ocg_aces_fit, ocg_srgb_encode: the tone map of oc_image_tonemap */
 
-double oc_truth_source_length(const oc_source_t *src) {
+double oct_truth_source_length(const oc_source_t *src) {
   switch (src->type) {
     case OC_SOURCE_SPHERE: return 2.0 * src->sphere.radius;
     case OC_SOURCE_BOX: return src->box.size[2];
@@ -19,7 +19,7 @@ double oc_truth_source_length(const oc_source_t *src) {
   }
 }
 
-double *oc_truth_source_sigma(oc_source_t *src) {
+double *oct_truth_source_sigma(oc_source_t *src) {
   switch (src->type) {
     case OC_SOURCE_SPHERE: return &src->sphere.sigma_t;
     case OC_SOURCE_BOX: return &src->box.sigma_t;
@@ -28,21 +28,21 @@ double *oc_truth_source_sigma(oc_source_t *src) {
   }
 }
 
-void oc_truth_case_free(oc_truth_case_t *c) {
+void oct_truth_case_free(oct_truth_case_t *c) {
   free(c->L);
   free(c->se);
   memset(c, 0, sizeof *c);
 }
 
-static int oc__truth_bad(FILE *f, oc_truth_case_t *c, char *why, size_t why_len, const char *path, const char *what) {
+static int oc__truth_bad(FILE *f, oct_truth_case_t *c, char *why, size_t why_len, const char *path, const char *what) {
   snprintf(why, why_len, "%s: %s", path, what);
   if (f) fclose(f);
-  oc_truth_case_free(c);
+  oct_truth_case_free(c);
   return OC_EINVAL;
 }
 
 /* "key value" lines up to "pixels", then w·h "radiance se" lines. */
-int oc_truth_case_load(oc_truth_case_t *c, const char *path, char *why, size_t why_len) {
+int oct_truth_case_load(oct_truth_case_t *c, const char *path, char *why, size_t why_len) {
   memset(c, 0, sizeof *c);
   FILE *f = fopen(path, "r");
   if (!f) return oc__truth_bad(NULL, c, why, why_len, path, "cannot open");
@@ -78,7 +78,7 @@ int oc_truth_case_load(oc_truth_case_t *c, const char *path, char *why, size_t w
   return 0;
 }
 
-int oc_truth_case_state(const oc_truth_case_t *c, const char *root, oc_scene_t *sc, oc_camera_t *cam, oc_state_t *st,
+int oct_truth_case_state(const oct_truth_case_t *c, const char *root, oc_scene_t *sc, oc_camera_t *cam, oc_state_t *st,
                         char *why, size_t why_len) {
   char path[1100];
   snprintf(path, sizeof path, "%s%s%s", root ? root : "", root ? "/" : "", c->scene);
@@ -86,7 +86,7 @@ int oc_truth_case_state(const oc_truth_case_t *c, const char *root, oc_scene_t *
   if (rc < 0) return rc;
   double len = 0.0, *first = NULL;
   for (int i = 0; i < sc->nsources && !first; i++)
-    if ((len = oc_truth_source_length(&sc->sources[i])) > 0.0) first = oc_truth_source_sigma(&sc->sources[i]);
+    if ((len = oct_truth_source_length(&sc->sources[i])) > 0.0) first = oct_truth_source_sigma(&sc->sources[i]);
   if (!first || !(*first > 0.0)) {
     snprintf(why, why_len, "%s: the first source has no extinction to scale", path);
     oc_scene_free(sc);
@@ -94,7 +94,7 @@ int oc_truth_case_state(const oc_truth_case_t *c, const char *root, oc_scene_t *
   }
   double f = c->tau / (*first * len); /* every source scaled alike, as the bench does */
   for (int i = 0; i < sc->nsources; i++) {
-    double *s = oc_truth_source_sigma(&sc->sources[i]);
+    double *s = oct_truth_source_sigma(&sc->sources[i]);
     if (s) *s *= f;
   }
   sc->optics.albedo = c->albedo;
@@ -105,15 +105,15 @@ int oc_truth_case_state(const oc_truth_case_t *c, const char *root, oc_scene_t *
   }
   *cam = oc_camera_from_pose(pose);
   oc_state_init(st);
-  oc_scene_voxelize_desc_t vd = {*cam, c->h, 2.0, 16, 0, 1};
-  if ((rc = oc_scene_voxelize(st, sc, &vd, why, why_len)) < 0) {
+  ocs_scene_voxelize_desc_t vd = {*cam, c->h, 2.0, 16, 0, 1};
+  if ((rc = ocs_scene_voxelize(st, sc, &vd, why, why_len)) < 0) {
     oc_state_free(st);
     oc_scene_free(sc);
   }
   return rc < 0 ? rc : 0;
 }
 
-oc_render_desc_t oc_truth_case_desc(const oc_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam) {
+oc_render_desc_t oct_truth_case_desc(const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam) {
   oc_render_desc_t d = {0};
   d.width = c->w;
   d.height = c->h;
@@ -134,10 +134,10 @@ oc_render_desc_t oc_truth_case_desc(const oc_truth_case_t *c, const oc_scene_t *
 
 /* One grey value through the benches' tone map (exposure 10, ACES fit, sRGB), 0–255, unrounded. */
 static double oc__tone(double v) {
-  return 255.0 * ocg_srgb_encode(ocg_aces_fit(ocg_v3s((float)v * OC_TRUTH_EXPOSURE)).x);
+  return 255.0 * ocg_srgb_encode(ocg_aces_fit(ocg_v3s((float)v * OCT_TRUTH_EXPOSURE)).x);
 }
 
-int oc_truth_score(const oc_truth_case_t *c, const oc_image_t *img, oc_truth_score_t *s) {
+int oct_truth_score(const oct_truth_case_t *c, const oc_image_t *img, oct_truth_score_t *s) {
   size_t n = (size_t)c->w * (size_t)c->h;
   oc_image_t t = {0};
   uint8_t *a = malloc(3 * n), *b = malloc(3 * n);
@@ -154,8 +154,8 @@ int oc_truth_score(const oc_truth_case_t *c, const oc_image_t *img, oc_truth_sco
     double dn = oc__tone(c->L[i] + c->se[i]) - oc__tone(fmax(c->L[i] - c->se[i], 0.0)); /* ≈ 2·SE·slope */
     noise2 += 2.0 * (0.5 * dn) * (0.5 * dn); /* two seeds differ by √2·SE */
   }
-  oc_image_tonemap(&t, OC_TRUTH_EXPOSURE, a);
-  oc_image_tonemap(img, OC_TRUTH_EXPOSURE, b);
+  oc_image_tonemap(&t, OCT_TRUTH_EXPOSURE, a);
+  oc_image_tonemap(img, OCT_TRUTH_EXPOSURE, b);
   s->mean = sum / (double)n;
   s->rel = c->mean > 0.0 ? (s->mean - c->mean) / c->mean : 0.0;
   s->rel_se = c->mean > 0.0 ? c->mean_se / c->mean : 0.0;
@@ -167,7 +167,7 @@ int oc_truth_score(const oc_truth_case_t *c, const oc_image_t *img, oc_truth_sco
   return 0;
 }
 
-int oc_truth_ambient(const oc_truth_case_t *c, const oc_state_t *st, oc_render_desc_t d, double *mean) {
+int oct_truth_ambient(const oct_truth_case_t *c, const oc_state_t *st, oc_render_desc_t d, double *mean) {
   oc_image_t img = {0};
   int rc = oc_image_alloc(&img, c->w, c->h);
   if (rc < 0) return rc;

@@ -1,9 +1,9 @@
-/* oc_truth.h — stored Monte Carlo truth images (`overcast-bench truth --save`) read back, the case's
+/* truth.h — stored Monte Carlo truth images (`overcast-bench truth --save`) read back, the case's
  * state rebuilt, and the real-time model scored against them: one implementation for the bench that
  * fits and reports the model (`overcast-bench model`) and the CI test that holds it to its bounds
- * (tests/common/test_truth.c, the cases under tests/data/truth). */
-#ifndef OC_COMMON_TRUTH_H
-#define OC_COMMON_TRUTH_H
+ * (tests/tools/test_truth.c, the cases under tests/data/truth). */
+#ifndef OCT_TRUTH_H
+#define OCT_TRUTH_H
 
 #include <stddef.h>
 
@@ -13,7 +13,7 @@
 #include "oc_scene.h"  /* oc_scene_t, oc_source_t */
 #include "oc_state.h"  /* oc_state_t */
 
-#define OC_TRUTH_EXPOSURE 10.0f /**< the exposure every bench tone-maps with before an RMSE 0–255 */
+#define OCT_TRUTH_EXPOSURE 10.0f /**< the exposure every bench tone-maps with before an RMSE 0–255 */
 
 typedef struct {
   char scene[512];   /**< the scene file, as given to the bench (relative to the repository root) */
@@ -25,7 +25,7 @@ typedef struct {
   double mean, mean_se; /**< the truth's image mean and its standard error */
   double env, env_se;   /**< image mean of the radiance per unit uniform-sky radiance (no sun); 0: not stored */
   double *L, *se;       /**< per pixel, row-major from the top */
-} oc_truth_case_t;
+} oct_truth_case_t;
 
 typedef struct {
   double mean;     /**< the model's image mean */
@@ -33,32 +33,32 @@ typedef struct {
   double rel_se;   /**< the truth's relative standard error of the mean */
   double rmse8;    /**< RMSE 0–255 after tone mapping (exposure 10) */
   double noise8;   /**< the RMSE 0–255 two truth seeds would show: √2 × each pixel's SE through the tone map */
-} oc_truth_score_t;
+} oct_truth_score_t;
 
-/*! oc_truth_source_length() : the length across which τ is measured (sphere diameter, box height,
- *  slab thickness); 0 for other sources. oc_truth_source_sigma() : its σt field, or NULL. */
-double oc_truth_source_length(const oc_source_t *src);
-double *oc_truth_source_sigma(oc_source_t *src);
+/*! oct_truth_source_length() : the length across which τ is measured (sphere diameter, box height,
+ *  slab thickness); 0 for other sources. oct_truth_source_sigma() : its σt field, or NULL. */
+double oct_truth_source_length(const oc_source_t *src);
+double *oct_truth_source_sigma(oc_source_t *src);
 
-/*! oc_truth_case_load() : reads a file of `overcast-bench truth --save`. @return 0 or OC_EINVAL (why). */
-int oc_truth_case_load(oc_truth_case_t *c, const char *path, char *why, size_t why_len);
-void oc_truth_case_free(oc_truth_case_t *c);
+/*! oct_truth_case_load() : reads a file of `overcast-bench truth --save`. @return 0 or OC_EINVAL (why). */
+int oct_truth_case_load(oct_truth_case_t *c, const char *path, char *why, size_t why_len);
+void oct_truth_case_free(oct_truth_case_t *c);
 
-/*! oc_truth_case_state() : the case's scene (σt scaled so the first source has optical depth tau;
+/*! oct_truth_case_state() : the case's scene (σt scaled so the first source has optical depth tau;
  *  its albedo), camera and state, voxelized as the truth was (root prefixes the scene path; NULL:
  *  as stored). The caller frees sc and st. @return 0 or a negative OC_E* (why). */
-int oc_truth_case_state(const oc_truth_case_t *c, const char *root, oc_scene_t *sc, oc_camera_t *cam, oc_state_t *st,
+int oct_truth_case_state(const oct_truth_case_t *c, const char *root, oc_scene_t *sc, oc_camera_t *cam, oc_state_t *st,
                         char *why, size_t why_len);
 
-/*! oc_truth_case_desc() : the reference render the truth was made for: OC_BG_CONSTANT, no atmosphere,
+/*! oct_truth_case_desc() : the reference render the truth was made for: OC_BG_CONSTANT, no atmosphere,
  *  the scene's octaves and albedo, step factor 0.25, the case's size. */
-oc_render_desc_t oc_truth_case_desc(const oc_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam);
+oc_render_desc_t oct_truth_case_desc(const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam);
 
-/*! oc_truth_ambient() : the model's image mean lit by a uniform sky of radiance 1 alone (no sun):
+/*! oct_truth_ambient() : the model's image mean lit by a uniform sky of radiance 1 alone (no sun):
  *  what the truth's env line measures. @return 0 or a negative OC_E*. */
-int oc_truth_ambient(const oc_truth_case_t *c, const oc_state_t *st, oc_render_desc_t d, double *mean);
+int oct_truth_ambient(const oct_truth_case_t *c, const oc_state_t *st, oc_render_desc_t d, double *mean);
 
-/*! oc_truth_score() : the model image img against the case's truth. @return 0 or OC_ENOMEM. */
-int oc_truth_score(const oc_truth_case_t *c, const oc_image_t *img, oc_truth_score_t *s);
+/*! oct_truth_score() : the model image img against the case's truth. @return 0 or OC_ENOMEM. */
+int oct_truth_score(const oct_truth_case_t *c, const oc_image_t *img, oct_truth_score_t *s);
 
-#endif /* OC_COMMON_TRUTH_H */
+#endif /* OCT_TRUTH_H */

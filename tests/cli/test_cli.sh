@@ -45,7 +45,7 @@ check "view: size out of range" 2 "--size: 0x5: each side" -- "$V" --size 0x5
 check "view: bad camera" 2 "camera fov 500 outside" -- "$V" --camera 0,0,100,0,0,500
 check "view: bad renderer" 2 "--renderer bogus: expected gl or cpu" -- "$V" --renderer bogus
 check "view: stray argument" 2 "unexpected argument" -- "$V" extra
-check "view: --wait-epochs needs --connect" 2 "go with --connect" -- "$V" --wait-epochs 3
+check "view: --wait-epochs needs a server" 2 "go with --connect or --scene" -- "$V" --state "$tmp/none.ocst" --wait-epochs 3
 check "view: --wait-epochs range" 2 "--epochs: 0 is outside" -- "$V" --connect 127.0.0.1:1 --wait-epochs 0
 check "view: missing state" 1 "/nonexistent.ocst" -- "$V" --state /nonexistent.ocst --out "$tmp"
 echo "garbage" >"$tmp/bad.ocst"
@@ -53,7 +53,7 @@ check "view: corrupt state" 1 "bad.ocst" -- "$V" --state "$tmp/bad.ocst" --out "
 echo '{"sources": [{"type": "sphere", "sigmat": 1}]}' >"$tmp/bad.json"
 check "view: bad scene key" 1 "sigmat" -- "$V" --scene "$tmp/bad.json" --out "$tmp"
 check "view: missing scene" 1 "nope.json" -- "$V" --scene "$tmp/nope.json" --out "$tmp"
-check "view: procedural scene locally" 1 "needs overcast-server" -- "$V" --scene scenes/planet.json --out "$tmp"
+check "view: procedural scene, served by the overcast-server it starts" 0 "" -- "$V" --scene scenes/planet.json --size 32x18 --renderer cpu --headless --out "$tmp/planet" -q
 check "view: camera-from a non-PNG" 1 "not a PNG" -- "$V" --camera-from "$tmp/bad.json" --out "$tmp"
 
 # A real render, a state round trip through --save-state / --state, and --camera-from.
@@ -210,7 +210,7 @@ if [ -x "$X" ]; then
   check "stress: connection refused" 1 "^overcast-stress: 127\.0\.0\.1:1: cannot connect" -- "$X" --connect 127.0.0.1:1 --timeout 5
 fi
 check "view: --connect with --state" 2 "--connect excludes --state and --scene" -- "$V" --connect 127.0.0.1:1 --state "$tmp/s.ocst"
-check "view: --step without --connect" 2 "go with --connect" -- "$V" --step
+check "view: --step with --state" 2 "go with --connect or --scene" -- "$V" --state "$tmp/s.ocst" --step
 check "view: bad --connect" 2 "--connect: expected HOST:PORT" -- "$V" --connect "[::1"
 check "view: connection refused" 1 "^overcast-view: 127\.0\.0\.1:1: cannot connect" -- "$V" --connect 127.0.0.1:1 --timeout 5 --out "$tmp"
 

@@ -20,7 +20,7 @@
 #include "oc_key.h"
 #include "oc_render.h"     /* oc_render_sample_state */
 #include "oc_state.h"
-#include "oc_voxelize.h"   /* oc_brick_sample_pos */
+#include "voxelize.h"   /* ocs_brick_sample_pos */
 #include "state_fixture.h" /* child, node, golden_codes, golden_state */
 #include "test_util.h"     /* oc_test_node_mean */
 
@@ -124,7 +124,7 @@ static void check_parent(const ocv_interp_t *ip, const oc_state_t *P, const oc_s
   assert_true(a >= 0);
   assert_true(oc_key_is_ancestor(P->nodes[a].key, key));
   for (int q = 0; q < 512; q++) {
-    oc_dvec3 p = oc_brick_sample_pos(key, q & 7, (q >> 3) & 7, q >> 6);
+    oc_dvec3 p = ocs_brick_sample_pos(key, q & 7, (q >> 3) & 7, q >> 6);
     for (int ch = 0; ch < 2; ch++)
       expect_close(prev_sample(ip, i, ch, q), ref_channel(P, a, p, ch), P->nodes[a].range[ch].hi, "parent", i, q);
   }
@@ -132,7 +132,7 @@ static void check_parent(const ocv_interp_t *ip, const oc_state_t *P, const oc_s
 
 /* Position of sample q of sub-brick c of a merged leaf: sample q of child c (the lattice of octant
  * c, u = (c_axis + i/7)/2 of the leaf). */
-static oc_dvec3 sub_pos(oc_key_t key, int c, int q) { return oc_brick_sample_pos(child(key, c), q & 7, (q >> 3) & 7, q >> 6); }
+static oc_dvec3 sub_pos(oc_key_t key, int c, int q) { return ocs_brick_sample_pos(child(key, c), q & 7, (q >> 3) & 7, q >> 6); }
 
 /* CHILDREN leaf i of N: a fine value unless uniform (then all 8 sub-bricks the same constant);
  * each sample of each sub-brick against the reference of the one P descendant inside that octant
@@ -292,7 +292,7 @@ static void test_interp__split_ramp(void **state) {
       assert_true(fabs(t - et) <= (2.0 * bound[1] + 1e-6) * et);
       /* Renderer: the root's faces belong to the root here, so its locator agrees everywhere. */
       float rs, rt;
-      oc_render_sample_state(&P, oc_brick_sample_pos(N.nodes[i].key, q & 7, (q >> 3) & 7, q >> 6), &rs, &rt);
+      oc_render_sample_state(&P, ocs_brick_sample_pos(N.nodes[i].key, q & 7, (q >> 3) & 7, q >> 6), &rs, &rt);
       expect_close(s, rs, P.nodes[0].range[0].hi, "renderer sigma", i, q);
       expect_close(t, rt, P.nodes[0].range[1].hi, "renderer tau", i, q);
     }
@@ -826,7 +826,7 @@ static void test_interp__random_consistency(void **state) {
         for (int c = 0; c < 8; c++) one_level_total += oc_state_find_node(&P, child(key, c)) >= 0;
       } else { /* OWN: P's record, sampled at its own sample positions */
         for (int q = 0; q < 512; q++) {
-          oc_dvec3 p = oc_brick_sample_pos(key, q & 7, (q >> 3) & 7, q >> 6);
+          oc_dvec3 p = ocs_brick_sample_pos(key, q & 7, (q >> 3) & 7, q >> 6);
           for (int ch = 0; ch < 2; ch++)
             expect_close(prev_sample(&ip, i, ch, q), ref_channel(&P, same, p, ch), P.nodes[same].range[ch].hi, "own", i, q);
         }

@@ -10,23 +10,23 @@
 
 #include <cmocka.h>
 
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_atmo.h"
 #include "oc_camera.h"
 #include "oc_err.h"
 #include "oc_render.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 #include "optics.h"
 #include "report.h"
 
 /* A sphere of radius 2 km at 3 km altitude, σt 0.05 m⁻¹, voxelized to level 15 (395 m nodes). */
-static oc_medium_t sphere_medium(double sigma) {
-  oc_medium_t m;
-  oc_prim_t p;
-  oc_medium_init(&m);
+static ocs_medium_t sphere_medium(double sigma) {
+  ocs_medium_t m;
+  ocs_prim_t p;
+  ocs_medium_init(&m);
   oc_geo_t c = {10.0, 20.0, 3000.0};
-  assert_int_equal(oc_prim_sphere(&p, c, 2000.0, sigma), 0);
-  assert_int_equal(oc_medium_add(&m, &p), 0);
+  assert_int_equal(ocs_prim_sphere(&p, c, 2000.0, sigma), 0);
+  assert_int_equal(ocs_medium_add(&m, &p), 0);
   return m;
 }
 
@@ -46,11 +46,11 @@ static oc_camera_t sphere_camera(void) {
  * softens the surface over one voxel, 56 m, which grazing rays feel most). */
 static void test_render__sphere_transmittance_matches_closed_form(void **st) {
   (void)st;
-  oc_medium_t m = sphere_medium(0.0005); /* τ through the centre: 2 */
+  ocs_medium_t m = sphere_medium(0.0005); /* τ through the centre: 2 */
   oc_state_t s;
   oc_state_init(&s);
   oc_dvec3 c = m.prims[0].sphere.c;
-  assert_int_equal(oc_voxelize_medium(&s, &m, 15, 4, sun_from(c, 45, 0), 2), 0);
+  assert_int_equal(ocs_voxelize_medium(&s, &m, 15, 4, sun_from(c, 45, 0), 2), 0);
   oc_render_desc_t d = {0};
   d.width = 48;
   d.height = 48;
@@ -75,7 +75,7 @@ static void test_render__sphere_transmittance_matches_closed_form(void **st) {
         oc_dvec3 oc = oc_dsub(c, d.camera.pos);
         double along = oc_ddot(oc, dir);
         double perp = oc_dlen(oc_dsub(oc, oc_dscale(dir, along)));
-        double truth = exp(-oc_medium_optical_depth(&m, d.camera.pos, dir, 1e9));
+        double truth = exp(-ocs_medium_optical_depth(&m, d.camera.pos, dir, 1e9));
         double got = img.px[4 * (y * d.width + x)];
         if (perp < 2500.0) bin[(int)(perp / 500.0)] = fmax(bin[(int)(perp / 500.0)], fabs(got - truth));
         if (perp > 2000.0 - 400.0) continue; /* 7 voxels: the box filter blurs a curved surface */
@@ -97,7 +97,7 @@ static void test_render__sphere_transmittance_matches_closed_form(void **st) {
 
 /* Refine only near the column above the camera (the slab covers the planet). */
 typedef struct {
-  oc_medium_ctx_t mc;
+  ocs_medium_ctx_t mc;
   oc_dvec3 at;
   double radius;
 } slab_refine_t;
@@ -110,7 +110,7 @@ static int slab_refine(void *ctx, oc_key_t key) {
   oc_dvec3 q = oc_dv3(fmax(o.x, fmin(r->at.x, o.x + size)), fmax(o.y, fmin(r->at.y, o.y + size)),
                       fmax(o.z, fmin(r->at.z, o.z + size)));
   if (oc_dlen(oc_dsub(q, r->at)) > r->radius) return 0;
-  return oc_medium_refine_cb(&r->mc, key);
+  return ocs_medium_refine_cb(&r->mc, key);
 }
 
 /* Single scattering from a homogeneous slab 1–2 km (τ = 1), camera on the ground looking at the
@@ -124,17 +124,17 @@ static void test_render__slab_single_scattering_matches_closed_form(void **st) {
   oc_dvec3 ground = oc_geo_to_xyz(g);
   const double elev[3] = {90.0, 60.0, 30.0};
   for (int a = 0; a < 3; a++) {
-    oc_medium_t m;
-    oc_prim_t p;
-    oc_medium_init(&m);
-    assert_int_equal(oc_prim_slab(&p, base, top, sigma), 0);
-    assert_int_equal(oc_medium_add(&m, &p), 0);
+    ocs_medium_t m;
+    ocs_prim_t p;
+    ocs_medium_init(&m);
+    assert_int_equal(ocs_prim_slab(&p, base, top, sigma), 0);
+    assert_int_equal(ocs_medium_add(&m, &p), 0);
     oc_dvec3 sun = sun_from(ground, elev[a], 0.0);
     slab_refine_t rc = {{&m, sun, 0.0}, oc_geo_to_xyz((oc_geo_t){0, 0, 1500}), 5000.0};
-    oc_aabb_t box = {oc_dsub(rc.at, oc_dv3(6000, 6000, 6000)), oc_dadd(rc.at, oc_dv3(6000, 6000, 6000))};
-    oc_voxelize_desc_t vd = {0};
-    vd.sigma = oc_medium_sigma_cb;
-    vd.tau = oc_medium_tau_cb;
+    ocs_aabb_t box = {oc_dsub(rc.at, oc_dv3(6000, 6000, 6000)), oc_dadd(rc.at, oc_dv3(6000, 6000, 6000))};
+    ocs_voxelize_desc_t vd = {0};
+    vd.sigma = ocs_medium_sigma_cb;
+    vd.tau = ocs_medium_tau_cb;
     vd.ctx = &rc.mc;
     vd.min_level = 3;
     vd.max_level = 16;
@@ -146,7 +146,7 @@ static void test_render__slab_single_scattering_matches_closed_form(void **st) {
     vd.threads = 2;
     oc_state_t s;
     oc_state_init(&s);
-    assert_int_equal(oc_voxelize(&s, &vd), 0);
+    assert_int_equal(ocs_voxelize(&s, &vd), 0);
 
     oc_render_desc_t d = {0};
     d.width = d.height = 5;
@@ -206,10 +206,10 @@ static void render_pose(const oc_state_t *s, oc_camera_pose_t pose, int threads,
 /* Same bytes for 1, 2 and 3 threads, with jitter on (jitter depends on the pixel, not the thread). */
 static void test_render__deterministic_across_thread_counts(void **st) {
   (void)st;
-  oc_medium_t m = sphere_medium(0.05);
+  ocs_medium_t m = sphere_medium(0.05);
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize_medium(&s, &m, 14, 2, sun_from(m.prims[0].sphere.c, 30, 120), 2), 0);
+  assert_int_equal(ocs_voxelize_medium(&s, &m, 14, 2, sun_from(m.prims[0].sphere.c, 30, 120), 2), 0);
   oc_camera_pose_t pose = {{10.0 - 20000.0 / (OC_PLANET_RADIUS * OC_DEG), 20.0, 3000.0}, 0.0, 0.0, 30.0};
   oc_image_t ref, img;
   render_pose(&s, pose, 1, OC_RF_JITTER, &ref, NULL);
@@ -246,7 +246,7 @@ static img_summary_t summarize(const oc_image_t *img) {
 /* Extreme views: finite, non-negative radiance, cloud transmittance in [0, 1], and plausible. */
 static void test_render__extreme_views_are_finite_and_plausible(void **st) {
   (void)st;
-  oc_medium_t m = sphere_medium(10.0); /* a dense core: τ through it 4e4 */
+  ocs_medium_t m = sphere_medium(10.0); /* a dense core: τ through it 4e4 */
   oc_dvec3 c = m.prims[0].sphere.c;
   const struct {
     const char *name;
@@ -263,7 +263,7 @@ static void test_render__extreme_views_are_finite_and_plausible(void **st) {
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     oc_state_t s;
     oc_state_init(&s);
-    assert_int_equal(oc_voxelize_medium(&s, &m, 13, 2, sun_from(c, cases[i].sun_elev, 90.0), 2), 0);
+    assert_int_equal(ocs_voxelize_medium(&s, &m, 13, 2, sun_from(c, cases[i].sun_elev, 90.0), 2), 0);
     oc_image_t img;
     oc_render_stats_t rs;
     render_pose(&s, cases[i].pose, 2, 0, &img, &rs);
@@ -297,8 +297,8 @@ static void test_render__air_integral_converges(void **st) {
   (void)st;
   oc_state_t s;
   oc_state_init(&s);
-  oc_medium_t m = sphere_medium(0.05);
-  assert_int_equal(oc_voxelize_medium(&s, &m, 8, 1, sun_from(m.prims[0].sphere.c, 30, 60), 1), 0);
+  ocs_medium_t m = sphere_medium(0.05);
+  assert_int_equal(ocs_voxelize_medium(&s, &m, 8, 1, sun_from(m.prims[0].sphere.c, 30, 60), 1), 0);
   const oc_camera_pose_t poses[2] = {{{0.0, -0.5, 3e7}, 90.0, -89.0, 30.0}, {{0.0, 0.0, 10.0}, 90.0, 2.0, 60.0}};
   for (int i = 0; i < 2; i++) {
     oc_render_desc_t d = {0};
@@ -330,8 +330,8 @@ static void test_render__air_integral_converges(void **st) {
 /* Data with NaN, ±Inf and negative extinction: sanitised (and counted) before it reaches a brick,
  * so the integral stays finite and transmittance stays in [0, 1]. */
 static double bad_data(void *ctx, oc_dvec3 p) {
-  const oc_medium_t *m = ((const oc_medium_ctx_t *)ctx)->medium;
-  double v = oc_medium_sigma_t(m, p);
+  const ocs_medium_t *m = ((const ocs_medium_ctx_t *)ctx)->medium;
+  double v = ocs_medium_sigma_t(m, p);
   long q = lrint(p.x * 0.01) + 3 * lrint(p.y * 0.01) + 7 * lrint(p.z * 0.01);
   switch (((q % 7) + 7) % 7) {
     case 0: return NAN;
@@ -343,22 +343,22 @@ static double bad_data(void *ctx, oc_dvec3 p) {
 
 static void test_render__bad_data_sanitised(void **st) {
   (void)st;
-  oc_medium_t m = sphere_medium(0.05);
-  oc_medium_ctx_t mc = {&m, oc_dv3(0, 0, 1), 0.0};
-  oc_voxelize_stats_t vs;
-  oc_voxelize_desc_t vd = {0};
+  ocs_medium_t m = sphere_medium(0.05);
+  ocs_medium_ctx_t mc = {&m, oc_dv3(0, 0, 1), 0.0};
+  ocs_voxelize_stats_t vs;
+  ocs_voxelize_desc_t vd = {0};
   vd.sigma = bad_data;
   vd.tau = bad_data;
   vd.ctx = &mc;
   vd.min_level = 2;
   vd.max_level = 13;
-  vd.refine = oc_medium_refine_cb;
+  vd.refine = ocs_medium_refine_cb;
   vd.sun_dir = sun_from(m.prims[0].sphere.c, 40, 0);
   vd.threads = 2;
   vd.stats = &vs;
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize(&s, &vd), 0);
+  assert_int_equal(ocs_voxelize(&s, &vd), 0);
   printf("sanitised: %u NaN, %u Inf, %u negative\n", vs.sanitize.nan, vs.sanitize.inf, vs.sanitize.negative);
   assert_true(vs.sanitize.nan > 0 && vs.sanitize.inf > 0 && vs.sanitize.negative > 0);
   oc_image_t img;
@@ -378,8 +378,8 @@ static void test_render__rejects_bad_descriptions(void **st) {
   (void)st;
   oc_state_t s;
   oc_state_init(&s);
-  oc_medium_t m = sphere_medium(0.05);
-  assert_int_equal(oc_voxelize_medium(&s, &m, 8, 1, oc_dv3(0, 0, 1), 1), 0);
+  ocs_medium_t m = sphere_medium(0.05);
+  assert_int_equal(ocs_voxelize_medium(&s, &m, 8, 1, oc_dv3(0, 0, 1), 1), 0);
   oc_image_t img;
   assert_int_equal(oc_image_alloc(&img, 8, 8), 0);
   oc_render_desc_t d = {0};

@@ -13,7 +13,7 @@
 #include "oc_camera.h"
 #include "oc_image.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "ocv_gl.h"
 
 static ocv_gl_context_t *ctx;
@@ -51,8 +51,8 @@ static inline void sphere_state(oc_state_t *st, oc_camera_t cam, int h, uint32_t
   oc_scene_t sc;
   assert_int_equal(oc_scene_load(&sc, path, why, sizeof why), 0);
   oc_state_init(st);
-  oc_scene_voxelize_desc_t vd = {cam, h, 2.0, 0, 0, 2};
-  if (oc_scene_voxelize(st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
+  ocs_scene_voxelize_desc_t vd = {cam, h, 2.0, 0, 0, 2};
+  if (ocs_scene_voxelize(st, &sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
   for (uint32_t i = 0; i < st->node_count; i++)
     if (st->nodes[i].kind == OC_NODE_BRICK) st->nodes[i].brick_id += id_base;
   for (uint32_t b = 0; b < st->brick_count; b++) st->bricks[b].id += id_base;

@@ -22,7 +22,7 @@
 #include "oc_image.h"
 #include "oc_render.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "ocv_gl.h"
 
 #include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, rmse */

@@ -36,7 +36,7 @@
 #include "oc_planet.h"
 #include "oc_render.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "ocv_gl.h"
 
 #define W 160
@@ -102,8 +102,8 @@ static void make_scene(oc_scene_t *sc, oc_state_t *st, oc_camera_t *cam, const o
   oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
   *cam = oc_camera_from_pose(pose);
   oc_state_init(st);
-  oc_scene_voxelize_desc_t vd = {*cam, H, 2.0, 0, 0, 2};
-  if (oc_scene_voxelize(st, sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
+  ocs_scene_voxelize_desc_t vd = {*cam, H, 2.0, 0, 0, 2};
+  if (ocs_scene_voxelize(st, sc, &vd, why, sizeof why) < 0) fail_msg("voxelize: %s", why);
 }
 
 /* Mean and standard deviation of the 8-bit image (all channels). */

@@ -19,7 +19,7 @@
 #include "oc_image.h"
 #include "oc_render.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "interp.h"
 #include "ocv_gl.h"
 

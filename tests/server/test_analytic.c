@@ -1,4 +1,4 @@
-/* test_analytic.c — closed-form media (common/oc_analytic.c) against brute-force ray marching
+/* test_analytic.c — closed-form media (server/analytic.c) against brute-force ray marching
  * and independent closed forms evaluated in long double. */
 #include <math.h>
 #include <setjmp.h>
@@ -9,7 +9,7 @@
 
 #include <cmocka.h>
 
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_err.h"
 #include "oc_planet.h"
 
@@ -39,23 +39,23 @@ static oc_dvec3 rnd_dir(void) {
 
 /* Midpoint-rule optical depth over [0, tmax] with step dt: each boundary crossing costs at most
  * σt·dt, so the error is below crossings·σt·dt. */
-static double march(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 d, double tmax, double dt) {
+static double march(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 d, double tmax, double dt) {
   long n = (long)ceil(tmax / dt);
   double h = tmax / (double)n, s = 0.0;
-  for (long i = 0; i < n; i++) s += oc_medium_sigma_t(m, oc_dmad(p, d, ((double)i + 0.5) * h));
+  for (long i = 0; i < n; i++) s += ocs_medium_sigma_t(m, oc_dmad(p, d, ((double)i + 0.5) * h));
   return s * h;
 }
 
-static oc_medium_t one(const oc_prim_t *p) {
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, p), 0);
+static ocs_medium_t one(const ocs_prim_t *p) {
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, p), 0);
   return m;
 }
 
 /* ---- chords vs marching ---------------------------------------------------------------------- */
 
-static void check_random_rays(const oc_medium_t *m, oc_dvec3 around, double spread, double tmax, double dt,
+static void check_random_rays(const ocs_medium_t *m, oc_dvec3 around, double spread, double tmax, double dt,
                               double sigma_max, int rays, int crossings) {
   int hits = 0;
   for (int r = 0; r < rays; r++) {
@@ -66,7 +66,7 @@ static void check_random_rays(const oc_medium_t *m, oc_dvec3 around, double spre
       d = oc_dnorm(oc_dsub(aim, p));
     }
     double tm = (r % 3 == 0) ? tmax * (0.2 + 0.8 * rnd()) : tmax; /* some segments end inside */
-    double exact = oc_medium_optical_depth(m, p, d, tm);
+    double exact = ocs_medium_optical_depth(m, p, d, tm);
     double brute = march(m, p, d, tm, dt);
     double tol = crossings * sigma_max * dt + 1e-9;
     if (fabs(exact - brute) > tol)
@@ -78,57 +78,57 @@ static void check_random_rays(const oc_medium_t *m, oc_dvec3 around, double spre
 
 static void test_chord__sphere_vs_march(void **state) {
   (void)state;
-  oc_prim_t s;
-  assert_int_equal(oc_prim_sphere(&s, (oc_geo_t){45, 10, 3000}, 1500, 0.02), 0);
-  oc_medium_t m = one(&s);
+  ocs_prim_t s;
+  assert_int_equal(ocs_prim_sphere(&s, (oc_geo_t){45, 10, 3000}, 1500, 0.02), 0);
+  ocs_medium_t m = one(&s);
   check_random_rays(&m, s.sphere.c, 2500, 8000, 0.01, 0.02, 24, 2);
 }
 
 static void test_chord__box_vs_march(void **state) {
   (void)state;
-  oc_prim_t b;
-  assert_int_equal(oc_prim_box(&b, (oc_geo_t){-20, 130, 500}, 2000, 800, 600, 30, 0.05), 0);
-  oc_medium_t m = one(&b);
+  ocs_prim_t b;
+  assert_int_equal(ocs_prim_box(&b, (oc_geo_t){-20, 130, 500}, 2000, 800, 600, 30, 0.05), 0);
+  ocs_medium_t m = one(&b);
   check_random_rays(&m, b.box.c, 1500, 6000, 0.01, 0.05, 24, 2);
 }
 
 static void test_chord__slab_vs_march(void **state) {
   (void)state;
-  oc_prim_t sl;
-  assert_int_equal(oc_prim_slab(&sl, 1000, 2500, 0.003), 0);
-  oc_medium_t m = one(&sl);
+  ocs_prim_t sl;
+  assert_int_equal(ocs_prim_slab(&sl, 1000, 2500, 0.003), 0);
+  ocs_medium_t m = one(&sl);
   oc_dvec3 c = oc_geo_to_xyz((oc_geo_t){10, -60, 1800});
   check_random_rays(&m, c, 2000, 30000, 0.05, 0.003, 24, 4);
 }
 
 static void test_medium__overlaps_add(void **state) {
   (void)state;
-  oc_prim_t a, b, box, sl;
+  ocs_prim_t a, b, box, sl;
   oc_geo_t g = {-33, 151, 2000};
-  assert_int_equal(oc_prim_sphere(&a, g, 1200, 0.01), 0);
+  assert_int_equal(ocs_prim_sphere(&a, g, 1200, 0.01), 0);
   g.alt = 2600;
-  assert_int_equal(oc_prim_sphere(&b, g, 900, 0.03), 0);
+  assert_int_equal(ocs_prim_sphere(&b, g, 900, 0.03), 0);
   g.alt = 1000;
-  assert_int_equal(oc_prim_box(&box, g, 1500, 1500, 1000, 45, 0.02), 0);
-  assert_int_equal(oc_prim_slab(&sl, 1500, 2200, 0.001), 0);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &a), 0);
-  assert_int_equal(oc_medium_add(&m, &b), 0);
-  assert_int_equal(oc_medium_add(&m, &box), 0);
-  assert_int_equal(oc_medium_add(&m, &sl), 0);
+  assert_int_equal(ocs_prim_box(&box, g, 1500, 1500, 1000, 45, 0.02), 0);
+  assert_int_equal(ocs_prim_slab(&sl, 1500, 2200, 0.001), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &a), 0);
+  assert_int_equal(ocs_medium_add(&m, &b), 0);
+  assert_int_equal(ocs_medium_add(&m, &box), 0);
+  assert_int_equal(ocs_medium_add(&m, &sl), 0);
   oc_dvec3 pa = oc_geo_to_xyz((oc_geo_t){-33, 151, 1900}); /* inside all four */
-  assert_near(oc_medium_sigma_t(&m, pa), 0.01 + 0.03 + 0.02 + 0.001, 1e-15);
+  assert_near(ocs_medium_sigma_t(&m, pa), 0.01 + 0.03 + 0.02 + 0.001, 1e-15);
   oc_dvec3 c = oc_geo_to_xyz((oc_geo_t){-33, 151, 2000});
   check_random_rays(&m, c, 2000, 9000, 0.01, 0.061, 24, 10);
   /* The sum over prims is the sum of the single-prim depths. */
-  oc_medium_t ma = one(&a), mb = one(&b), mx = one(&box), ms = one(&sl);
+  ocs_medium_t ma = one(&a), mb = one(&b), mx = one(&box), ms = one(&sl);
   for (int r = 0; r < 16; r++) {
     oc_dvec3 p = oc_dadd(c, oc_dscale(rnd_dir(), 3000 * rnd()));
     oc_dvec3 d = rnd_dir();
-    double sum = oc_medium_tau_sun(&ma, p, d) + oc_medium_tau_sun(&mb, p, d) + oc_medium_tau_sun(&mx, p, d) +
-                 oc_medium_tau_sun(&ms, p, d);
-    assert_near(oc_medium_tau_sun(&m, p, d), sum, 1e-12 * (1 + sum));
+    double sum = ocs_medium_tau_sun(&ma, p, d) + ocs_medium_tau_sun(&mb, p, d) + ocs_medium_tau_sun(&mx, p, d) +
+                 ocs_medium_tau_sun(&ms, p, d);
+    assert_near(ocs_medium_tau_sun(&m, p, d), sum, 1e-12 * (1 + sum));
   }
 }
 
@@ -137,8 +137,8 @@ static void test_medium__overlaps_add(void **state) {
 static void test_chord__sphere_grazing(void **state) {
   (void)state;
   const double r = 1500;
-  oc_prim_t s;
-  assert_int_equal(oc_prim_sphere(&s, (oc_geo_t){37, -122, 4000}, r, 1.0), 0);
+  ocs_prim_t s;
+  assert_int_equal(ocs_prim_sphere(&s, (oc_geo_t){37, -122, 4000}, r, 1.0), 0);
   oc_enu_t enu = oc_enu_at(s.sphere.c);
   oc_dvec3 d = enu.east, n = enu.north;
   const double deltas[] = {100.0, 1.0, 1e-3, 1e-6};
@@ -150,29 +150,29 @@ static void test_chord__sphere_grazing(void **state) {
     /* The origin itself is known to ~ulp(6.4e6 m) = 1e-9 m per coordinate, so the closest
      * approach is uncertain by ~2e-9 m and the half chord by r·2e-9/h. */
     double tol = 4.0 * r * 2e-9 / (double)h + 1e-12 * expect;
-    double got = oc_prim_chord(&s, p, d, INFINITY);
+    double got = ocs_prim_chord(&s, p, d, INFINITY);
     if (fabs(got - expect) > tol) fail_msg("delta %g: chord %.15g expected %.15g tol %.3g", dl, got, expect, tol);
   }
   /* Clearly outside: nothing. */
   oc_dvec3 p = oc_dmad(oc_dmad(s.sphere.c, n, r + 1e-3), d, -5000.0);
-  assert_true(oc_prim_chord(&s, p, d, INFINITY) == 0.0);
+  assert_true(ocs_prim_chord(&s, p, d, INFINITY) == 0.0);
   /* Axis-aligned geometry at planet scale, where every coordinate is exact: a tight check. */
-  oc_prim_t t = s;
+  ocs_prim_t t = s;
   t.sphere.c = oc_dv3(6372000.0, 0.0, 0.0);
   for (double dl = 1.0; dl >= 1e-6; dl *= 1e-2) {
     double y = r - dl; /* the closest approach actually represented */
     oc_dvec3 q = oc_dv3(6372000.0, y, -7000.0);
     long double ly = y;
     double expect = (double)(2.0L * sqrtl(((long double)r - ly) * ((long double)r + ly)));
-    assert_near(oc_prim_chord(&t, q, oc_dv3(0, 0, 1), INFINITY), expect, 1e-14 * expect);
+    assert_near(ocs_prim_chord(&t, q, oc_dv3(0, 0, 1), INFINITY), expect, 1e-14 * expect);
   }
 }
 
 static void test_chord__slab_grazing(void **state) {
   (void)state;
-  oc_prim_t sl;
+  ocs_prim_t sl;
   const double base = 1000, top = 2500;
-  assert_int_equal(oc_prim_slab(&sl, base, top, 1.0), 0);
+  assert_int_equal(ocs_prim_slab(&sl, base, top, 1.0), 0);
   long double ri = OC_PLANET_RADIUS + base, ro = OC_PLANET_RADIUS + top;
   /* Horizontal rays in the x = rp plane along +y, from y = -L (outside the slab): every
    * coordinate is exact, so this checks the algorithm itself near both tangencies. */
@@ -185,7 +185,7 @@ static void test_chord__slab_grazing(void **state) {
     long double hi = lrp < ri ? sqrtl((ri - lrp) * (ri + lrp)) : 0.0L;
     double expect = (double)(2.0L * (ho - hi));
     oc_dvec3 p = oc_dv3(rp, -400000.0, 0.0);
-    double got = oc_prim_chord(&sl, p, oc_dv3(0, 1, 0), INFINITY);
+    double got = ocs_prim_chord(&sl, p, oc_dv3(0, 1, 0), INFINITY);
     /* ulp-level errors in |perp| (1e-9 m) move h by r·1e-9/h. */
     double tol = 1e-9 * (double)ro / (hi > 0 ? (double)hi : (double)ho) + 1e-12 * expect + 1e-12;
     if (fabs(got - expect) > tol)
@@ -199,7 +199,7 @@ static void test_chord__slab_grazing(void **state) {
   for (int k = -4; k <= 4; k++) {
     double rp = OC_PLANET_RADIUS + base + k * 1e-3;
     oc_dvec3 p = oc_dmad(oc_dscale(up, rp), side, -300000.0);
-    double got = oc_prim_chord(&sl, p, side, INFINITY);
+    double got = ocs_prim_chord(&sl, p, side, INFINITY);
     long double lrp = rp;
     long double ho = sqrtl((ro - lrp) * (ro + lrp)), hi = lrp < ri ? sqrtl((ri - lrp) * (ri + lrp)) : 0.0L;
     double expect = (double)(2.0L * (ho - hi));
@@ -217,9 +217,9 @@ static void test_chord__slab_grazing(void **state) {
 
 static void test_tau__inside_sphere(void **state) {
   (void)state;
-  oc_prim_t s;
-  assert_int_equal(oc_prim_sphere(&s, (oc_geo_t){-10, 45, 5000}, 2000, 0.04), 0);
-  oc_medium_t m = one(&s);
+  ocs_prim_t s;
+  assert_int_equal(ocs_prim_sphere(&s, (oc_geo_t){-10, 45, 5000}, 2000, 0.04), 0);
+  ocs_medium_t m = one(&s);
   for (int r = 0; r < 32; r++) {
     oc_dvec3 off = oc_dscale(rnd_dir(), 1999.0 * rnd());
     oc_dvec3 d = rnd_dir();
@@ -227,32 +227,32 @@ static void test_tau__inside_sphere(void **state) {
     long double c =
         (long double)off.x * off.x + (long double)off.y * off.y + (long double)off.z * off.z - 2000.0L * 2000.0L;
     double expect = (double)(0.04L * (-b + sqrtl(b * b - c)));
-    double got = oc_medium_tau_sun(&m, oc_dadd(s.sphere.c, off), d);
+    double got = ocs_medium_tau_sun(&m, oc_dadd(s.sphere.c, off), d);
     /* p = c + off rounds to ~1e-9 m, which moves the exit by up to ~(1 + |b|/h)·1e-9 m. */
     assert_near(got, expect, 1e-10 * expect + 2e-9);
     /* A finite segment that ends inside: σt·tmax. */
-    assert_near(oc_medium_optical_depth(&m, oc_dadd(s.sphere.c, off), d, 1e-3), 0.04 * 1e-3, 1e-15);
+    assert_near(ocs_medium_optical_depth(&m, oc_dadd(s.sphere.c, off), d, 1e-3), 0.04 * 1e-3, 1e-15);
   }
 }
 
 static void test_tau__inside_slab(void **state) {
   (void)state;
   const double base = 1000, top = 2500, sig = 0.002, h = 1500;
-  oc_prim_t sl;
-  assert_int_equal(oc_prim_slab(&sl, base, top, sig), 0);
-  oc_medium_t m = one(&sl);
+  ocs_prim_t sl;
+  assert_int_equal(ocs_prim_slab(&sl, base, top, sig), 0);
+  ocs_medium_t m = one(&sl);
   oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){52, 4, h});
   oc_enu_t enu = oc_enu_at(p);
   long double r = sqrtl((long double)p.x * p.x + (long double)p.y * p.y + (long double)p.z * p.z);
   long double ro = OC_PLANET_RADIUS + top, ri = OC_PLANET_RADIUS + base;
   /* Up: σt (top − h). */
-  assert_near(oc_medium_tau_sun(&m, p, enu.up), sig * (top - h), 1e-12);
+  assert_near(ocs_medium_tau_sun(&m, p, enu.up), sig * (top - h), 1e-12);
   /* Horizontal: σt √(r_out² − r²) (the inner sphere is missed). */
   double horiz = (double)(sig * sqrtl((ro - r) * (ro + r)));
-  assert_near(oc_medium_tau_sun(&m, p, enu.east), horiz, 1e-9 * horiz);
+  assert_near(ocs_medium_tau_sun(&m, p, enu.east), horiz, 1e-9 * horiz);
   /* Down: through the ground and the planet, out through the slab on the far side: no planet
    * shadow in τ (Conventions). Straight down: (h − base) + (top − base). */
-  assert_near(oc_medium_tau_sun(&m, p, oc_dscale(enu.up, -1)), sig * ((h - base) + (top - base)), 1e-9);
+  assert_near(ocs_medium_tau_sun(&m, p, oc_dscale(enu.up, -1)), sig * ((h - base) + (top - base)), 1e-9);
   (void)ri;
 }
 
@@ -261,9 +261,9 @@ static void test_tau__inside_slab(void **state) {
 static void test_tau__slab_sun_angles(void **state) {
   (void)state;
   const double base = 2000, top = 3000, sig = 0.01, h = 300;
-  oc_prim_t sl;
-  assert_int_equal(oc_prim_slab(&sl, base, top, sig), 0);
-  oc_medium_t m = one(&sl);
+  ocs_prim_t sl;
+  assert_int_equal(ocs_prim_slab(&sl, base, top, sig), 0);
+  ocs_medium_t m = one(&sl);
   oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){-5, 100, h});
   oc_enu_t enu = oc_enu_at(p);
   long double rp = sqrtl((long double)p.x * p.x + (long double)p.y * p.y + (long double)p.z * p.z);
@@ -278,7 +278,7 @@ static void test_tau__slab_sun_angles(void **state) {
     long double to = sqrtl(ro * ro - rp * rp * s2) - rp * lmu, ti = sqrtl(ri * ri - rp * rp * s2) - rp * lmu;
     double exact = (double)(sig * (to - ti));
     double flat = sig * (top - base) / mu;
-    double got = oc_medium_tau_sun(&m, p, sun);
+    double got = ocs_medium_tau_sun(&m, p, sun);
     assert_near(got, exact, 1e-9 * exact);
     if (i == 0) assert_near(got, flat, 1e-9);
     if (i == 1) assert_near(got, flat, 2e-3 * flat); /* curvature: ~tan²θ·z/R = 1.2e-3 */
@@ -288,7 +288,7 @@ static void test_tau__slab_sun_angles(void **state) {
     oc_dvec3 q = oc_geo_to_xyz((oc_geo_t){-5, 100, 2400});
     long double rq = sqrtl((long double)q.x * q.x + (long double)q.y * q.y + (long double)q.z * q.z);
     long double tq = sqrtl(ro * ro - rq * rq * s2) - rq * lmu;
-    double gq = oc_medium_tau_sun(&m, q, sun);
+    double gq = ocs_medium_tau_sun(&m, q, sun);
     assert_near(gq, (double)(sig * tq), 1e-9 * gq);
     if (i == 0) assert_near(gq, sig * (top - 2400), 1e-9);
   }
@@ -299,9 +299,9 @@ static void test_tau__slab_sun_angles(void **state) {
 static void test_box__heading(void **state) {
   (void)state;
   oc_geo_t g = {30, 20, 1000};
-  oc_prim_t b;
-  assert_int_equal(oc_prim_box(&b, g, 2000, 500, 300, 30, 0.1), 0);
-  oc_medium_t m = one(&b);
+  ocs_prim_t b;
+  assert_int_equal(ocs_prim_box(&b, g, 2000, 500, 300, 30, 0.1), 0);
+  ocs_medium_t m = one(&b);
   oc_enu_t enu = oc_enu_at(oc_geo_to_xyz(g));
   double c30 = cos(30 * OC_DEG), s30 = sin(30 * OC_DEG);
   oc_dvec3 bn = oc_dadd(oc_dscale(enu.north, c30), oc_dscale(enu.east, s30)); /* heading 30 */
@@ -318,39 +318,39 @@ static void test_box__heading(void **state) {
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     oc_dvec3 p = oc_dmad(b.box.c, cases[i].d, -3000.0);
-    assert_near(oc_medium_tau_sun(&m, p, cases[i].d), 0.1 * cases[i].len, 1e-9);
+    assert_near(ocs_medium_tau_sun(&m, p, cases[i].d), 0.1 * cases[i].len, 1e-9);
   }
   /* Point tests along true north from the centre: local n = t cos30, e = −t sin30. */
-  assert_true(oc_medium_sigma_t(&m, oc_dmad(b.box.c, enu.north, 280)) == 0.1);
-  assert_true(oc_medium_sigma_t(&m, oc_dmad(b.box.c, enu.north, 300)) == 0.0);
-  assert_true(oc_medium_sigma_t(&m, oc_dmad(b.box.c, enu.east, 490)) == 0.1);
-  assert_true(oc_medium_sigma_t(&m, oc_dmad(b.box.c, enu.east, 510)) == 0.0);
+  assert_true(ocs_medium_sigma_t(&m, oc_dmad(b.box.c, enu.north, 280)) == 0.1);
+  assert_true(ocs_medium_sigma_t(&m, oc_dmad(b.box.c, enu.north, 300)) == 0.0);
+  assert_true(ocs_medium_sigma_t(&m, oc_dmad(b.box.c, enu.east, 490)) == 0.1);
+  assert_true(ocs_medium_sigma_t(&m, oc_dmad(b.box.c, enu.east, 510)) == 0.0);
   /* Heading 90: the north edge points east. */
-  oc_prim_t b90;
-  assert_int_equal(oc_prim_box(&b90, g, 2000, 500, 300, 90, 0.1), 0);
+  ocs_prim_t b90;
+  assert_int_equal(ocs_prim_box(&b90, g, 2000, 500, 300, 90, 0.1), 0);
   assert_true(oc_dlen(oc_dsub(b90.box.axis[1], enu.east)) < 1e-12);
   assert_true(oc_dlen(oc_dsub(b90.box.axis[0], oc_dscale(enu.north, -1))) < 1e-12);
-  oc_medium_t m90 = one(&b90);
-  assert_near(oc_medium_tau_sun(&m90, oc_dmad(b90.box.c, enu.east, -3000), enu.east), 0.1 * 500, 1e-9);
-  assert_near(oc_medium_tau_sun(&m90, oc_dmad(b90.box.c, enu.north, -3000), enu.north), 0.1 * 2000, 1e-9);
+  ocs_medium_t m90 = one(&b90);
+  assert_near(ocs_medium_tau_sun(&m90, oc_dmad(b90.box.c, enu.east, -3000), enu.east), 0.1 * 500, 1e-9);
+  assert_near(ocs_medium_tau_sun(&m90, oc_dmad(b90.box.c, enu.north, -3000), enu.north), 0.1 * 2000, 1e-9);
   /* A ray parallel to a face pair, inside and outside that slab. */
-  assert_near(oc_medium_tau_sun(&m, oc_dmad(oc_dmad(b.box.c, bn, 200), be, -5000), be), 0.1 * 2000, 1e-9);
-  assert_true(oc_medium_tau_sun(&m, oc_dmad(oc_dmad(b.box.c, bn, 260), be, -5000), be) == 0.0);
+  assert_near(ocs_medium_tau_sun(&m, oc_dmad(oc_dmad(b.box.c, bn, 200), be, -5000), be), 0.1 * 2000, 1e-9);
+  assert_true(ocs_medium_tau_sun(&m, oc_dmad(oc_dmad(b.box.c, bn, 260), be, -5000), be) == 0.0);
 }
 
 /* ---- bounds and box tests -------------------------------------------------------------------- */
 
-static void check_bounds(const oc_prim_t *pr, oc_dvec3 around, double spread) {
+static void check_bounds(const ocs_prim_t *pr, oc_dvec3 around, double spread) {
   oc_dvec3 lo, hi;
-  oc_prim_bounds(pr, &lo, &hi);
+  ocs_prim_bounds(pr, &lo, &hi);
   int inside = 0;
   for (int i = 0; i < 20000; i++) {
     oc_dvec3 p = oc_dadd(around, oc_dv3(spread * (2 * rnd() - 1), spread * (2 * rnd() - 1), spread * (2 * rnd() - 1)));
     /* A small axis-aligned box around p. */
     double e = spread * 0.02 * rnd();
     oc_dvec3 blo = oc_dsub(p, oc_dv3(e, e, e)), bhi = oc_dadd(p, oc_dv3(e, e, e));
-    int meets = oc_prim_intersects_box(pr, blo, bhi);
-    if (oc_prim_sigma_t(pr, p) > 0) {
+    int meets = ocs_prim_intersects_box(pr, blo, bhi);
+    if (ocs_prim_sigma_t(pr, p) > 0) {
       inside++;
       assert_true(p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z);
       assert_true(meets); /* never false for a box that contains a point of the primitive */
@@ -365,36 +365,36 @@ static void check_bounds(const oc_prim_t *pr, oc_dvec3 around, double spread) {
 
 static void test_prim__bounds_and_box_test(void **state) {
   (void)state;
-  oc_prim_t s, b, sl;
-  assert_int_equal(oc_prim_sphere(&s, (oc_geo_t){60, -30, 2000}, 1000, 0.01), 0);
-  assert_int_equal(oc_prim_box(&b, (oc_geo_t){60, -30, 0}, 1500, 400, 700, 73, 0.01), 0);
-  assert_int_equal(oc_prim_slab(&sl, 1000, 2000, 0.01), 0);
+  ocs_prim_t s, b, sl;
+  assert_int_equal(ocs_prim_sphere(&s, (oc_geo_t){60, -30, 2000}, 1000, 0.01), 0);
+  assert_int_equal(ocs_prim_box(&b, (oc_geo_t){60, -30, 0}, 1500, 400, 700, 73, 0.01), 0);
+  assert_int_equal(ocs_prim_slab(&sl, 1000, 2000, 0.01), 0);
   check_bounds(&s, s.sphere.c, 1500);
   check_bounds(&b, b.box.c, 1200);
   check_bounds(&sl, oc_geo_to_xyz((oc_geo_t){60, -30, 1500}), 1500);
   /* Exact answers for the oriented box: a point just outside a face, a box straddling an edge. */
   double e = 1.0;
   oc_dvec3 out = oc_dmad(b.box.c, b.box.axis[0], 750 + 5);
-  assert_false(oc_prim_intersects_box(&b, oc_dsub(out, oc_dv3(e, e, e)), oc_dadd(out, oc_dv3(e, e, e))));
+  assert_false(ocs_prim_intersects_box(&b, oc_dsub(out, oc_dv3(e, e, e)), oc_dadd(out, oc_dv3(e, e, e))));
   oc_dvec3 in = oc_dmad(b.box.c, b.box.axis[0], 750 - 0.5);
-  assert_true(oc_prim_intersects_box(&b, oc_dsub(in, oc_dv3(e, e, e)), oc_dadd(in, oc_dv3(e, e, e))));
+  assert_true(ocs_prim_intersects_box(&b, oc_dsub(in, oc_dv3(e, e, e)), oc_dadd(in, oc_dv3(e, e, e))));
   /* Slab: a box inside the inner sphere (under the ground), and one in space. */
   oc_dvec3 deep = oc_geo_to_xyz((oc_geo_t){0, 0, -100000});
-  assert_false(oc_prim_intersects_box(&sl, oc_dsub(deep, oc_dv3(10, 10, 10)), oc_dadd(deep, oc_dv3(10, 10, 10))));
+  assert_false(ocs_prim_intersects_box(&sl, oc_dsub(deep, oc_dv3(10, 10, 10)), oc_dadd(deep, oc_dv3(10, 10, 10))));
   oc_dvec3 high = oc_geo_to_xyz((oc_geo_t){0, 0, 50000});
-  assert_false(oc_prim_intersects_box(&sl, oc_dsub(high, oc_dv3(10, 10, 10)), oc_dadd(high, oc_dv3(10, 10, 10))));
+  assert_false(ocs_prim_intersects_box(&sl, oc_dsub(high, oc_dv3(10, 10, 10)), oc_dadd(high, oc_dv3(10, 10, 10))));
   /* The whole root cube meets it. */
   double S = OC_ROOT_HALF;
-  assert_true(oc_prim_intersects_box(&sl, oc_dv3(-S, -S, -S), oc_dv3(S, S, S)));
-  oc_medium_t m;
-  oc_medium_init(&m);
+  assert_true(ocs_prim_intersects_box(&sl, oc_dv3(-S, -S, -S), oc_dv3(S, S, S)));
+  ocs_medium_t m;
+  ocs_medium_init(&m);
   oc_dvec3 lo, hi;
-  assert_int_equal(oc_medium_bounds(&m, &lo, &hi), OC_ENOENT);
-  assert_int_equal(oc_medium_add(&m, &s), 0);
-  assert_int_equal(oc_medium_add(&m, &b), 0);
-  assert_int_equal(oc_medium_bounds(&m, &lo, &hi), 0);
+  assert_int_equal(ocs_medium_bounds(&m, &lo, &hi), OC_ENOENT);
+  assert_int_equal(ocs_medium_add(&m, &s), 0);
+  assert_int_equal(ocs_medium_add(&m, &b), 0);
+  assert_int_equal(ocs_medium_bounds(&m, &lo, &hi), 0);
   oc_dvec3 slo, shi;
-  oc_prim_bounds(&s, &slo, &shi);
+  ocs_prim_bounds(&s, &slo, &shi);
   assert_true(lo.x <= slo.x && hi.z >= shi.z);
 }
 
@@ -402,34 +402,34 @@ static void test_prim__bounds_and_box_test(void **state) {
 
 static void test_prim__invalid(void **state) {
   (void)state;
-  oc_prim_t p;
+  ocs_prim_t p;
   oc_geo_t g = {0, 0, 1000};
-  assert_int_equal(oc_prim_sphere(&p, g, 0, 1), OC_EINVAL);
-  assert_int_equal(oc_prim_sphere(&p, g, 10, -1), OC_EINVAL);
-  assert_int_equal(oc_prim_sphere(&p, g, 10, NAN), OC_EINVAL);
+  assert_int_equal(ocs_prim_sphere(&p, g, 0, 1), OC_EINVAL);
+  assert_int_equal(ocs_prim_sphere(&p, g, 10, -1), OC_EINVAL);
+  assert_int_equal(ocs_prim_sphere(&p, g, 10, NAN), OC_EINVAL);
   g.lat = INFINITY;
-  assert_int_equal(oc_prim_sphere(&p, g, 10, 1), OC_EINVAL);
+  assert_int_equal(ocs_prim_sphere(&p, g, 10, 1), OC_EINVAL);
   g.lat = 0;
-  assert_int_equal(oc_prim_box(&p, g, 10, 0, 10, 0, 1), OC_EINVAL);
-  assert_int_equal(oc_prim_box(&p, g, 10, 10, 10, NAN, 1), OC_EINVAL);
-  assert_int_equal(oc_prim_slab(&p, 2000, 2000, 1), OC_EINVAL);
-  assert_int_equal(oc_prim_slab(&p, -7e6, 2000, 1), OC_EINVAL);
-  assert_int_equal(oc_prim_slab(&p, 0, 2000, INFINITY), OC_EINVAL);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_prim_sphere(&p, g, 10, 1), 0);
-  for (int i = 0; i < OC_MEDIUM_MAX_PRIMS; i++) assert_int_equal(oc_medium_add(&m, &p), 0);
-  assert_int_equal(oc_medium_add(&m, &p), OC_ENOBUFS);
-  oc_prim_t none = {0};
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &none), OC_EINVAL);
+  assert_int_equal(ocs_prim_box(&p, g, 10, 0, 10, 0, 1), OC_EINVAL);
+  assert_int_equal(ocs_prim_box(&p, g, 10, 10, 10, NAN, 1), OC_EINVAL);
+  assert_int_equal(ocs_prim_slab(&p, 2000, 2000, 1), OC_EINVAL);
+  assert_int_equal(ocs_prim_slab(&p, -7e6, 2000, 1), OC_EINVAL);
+  assert_int_equal(ocs_prim_slab(&p, 0, 2000, INFINITY), OC_EINVAL);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_prim_sphere(&p, g, 10, 1), 0);
+  for (int i = 0; i < OCS_MEDIUM_MAX_PRIMS; i++) assert_int_equal(ocs_medium_add(&m, &p), 0);
+  assert_int_equal(ocs_medium_add(&m, &p), OC_ENOBUFS);
+  ocs_prim_t none = {0};
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &none), OC_EINVAL);
   /* Degenerate queries. */
-  oc_medium_add(&m, &p);
-  assert_true(oc_medium_optical_depth(&m, p.sphere.c, oc_dv3(0, 0, 0), 100) == 0.0);
-  assert_true(oc_medium_optical_depth(&m, p.sphere.c, oc_dv3(1, 0, 0), 0) == 0.0);
-  assert_true(oc_medium_optical_depth(&m, p.sphere.c, oc_dv3(1, 0, 0), -5) == 0.0);
+  ocs_medium_add(&m, &p);
+  assert_true(ocs_medium_optical_depth(&m, p.sphere.c, oc_dv3(0, 0, 0), 100) == 0.0);
+  assert_true(ocs_medium_optical_depth(&m, p.sphere.c, oc_dv3(1, 0, 0), 0) == 0.0);
+  assert_true(ocs_medium_optical_depth(&m, p.sphere.c, oc_dv3(1, 0, 0), -5) == 0.0);
   /* A non-unit direction is normalised. */
-  assert_near(oc_medium_optical_depth(&m, p.sphere.c, oc_dv3(3, 0, 0), 5), 5.0, 1e-12);
+  assert_near(ocs_medium_optical_depth(&m, p.sphere.c, oc_dv3(3, 0, 0), 5), 5.0, 1e-12);
 }
 
 int main(void) {

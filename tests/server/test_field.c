@@ -13,7 +13,7 @@
 #include "oc_err.h"
 #include "oc_scene.h"
 #include "oc_planet.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 #include "ocs_field.h"
 #include "report.h"
 #include "test_util.h"
@@ -282,15 +282,15 @@ static void test_field__slab_filter_is_exact(void **st) {
     assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
     double v = oc_key_size(lvl) / 7.0;
     for (int i = 0; i < 512; i++) {
-      oc_dvec3 p = oc_brick_sample_pos(k, i & 7, (i >> 3) & 7, i >> 6);
+      oc_dvec3 p = ocs_brick_sample_pos(k, i & 7, (i >> 3) & 7, i >> 6);
       double r = oc_dlen(p), lo = fmin(1.0, fmax(0.0, (rr[1] - r) / v + 0.5)), hi = fmin(1.0, fmax(0.0, (rr[0] - r) / v + 0.5));
       worst_axis = fmax(worst_axis, fabs(s[i] - (lo - hi)));
     }
-    /* oblique: dense stratified sampling (16³ points, the most oc_brick_sample takes) near the base */
+    /* oblique: dense stratified sampling (16³ points, the most ocs_brick_sample takes) near the base */
     k = oc_key_from_point(lvl, oc_geo_to_xyz((oc_geo_t){37.0, 23.0, 2000.0}));
     assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
     float dense[512];
-    oc_brick_sample(k, slab_exact_point, (void *)rr, 16, dense);
+    ocs_brick_sample(k, slab_exact_point, (void *)rr, 16, dense);
     for (int i = 0; i < 512; i++) worst_oblique = fmax(worst_oblique, fabs(s[i] - dense[i]));
   }
   oc_report("field", "exact slab filter vs 1-D covered fraction on the axis", worst_axis, 1e-3, "σt");

@@ -20,7 +20,7 @@
 #include "oc_err.h"
 #include "oc_planet.h"
 #include "oc_scene.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 #include "ocs_field.h"
 #include "procedural.h" /* ocs__brick_begin, ocs__voxel_bounds: the per-voxel bounds' own test */
 #include "report.h"
@@ -257,7 +257,7 @@ static double point_cb(void *ctx, oc_dvec3 p) {
 }
 
 /* The exact filter. Where the strata are isotropic (4³, voxels ≤ 400 m: levels ≥ 13), a sample is bit for bit the
- * mean of the finest σt, point(), at oc_brick_sample()'s points: batch noise, skipped empty points
+ * mean of the finest σt, point(), at ocs_brick_sample()'s points: batch noise, skipped empty points
  * and the per-voxel bounds change nothing. Where the vertical axis gets more strata (a 450 m voxel
  * at level 12 gets 4×4×5), the brick mean agrees with a dense isotropic reference (12³). */
 static void test_procedural__sample_is_box_average_of_point(void **st) {
@@ -269,7 +269,7 @@ static void test_procedural__sample_is_box_average_of_point(void **st) {
     oc_key_t k = oc_key_from_point(14 + i % 2, cloudy_point(s, 0.0, 1000.0, 9000.0, &rng));
     float got[512], want[512];
     sample_exact(s, k, 0.0, got);
-    oc_brick_sample(k, point_cb, s, 4, want);
+    ocs_brick_sample(k, point_cb, s, 4, want);
     assert_memory_equal(got, want, sizeof got);
     for (int v = 0; v < 512; v++) nonzero += got[v] > 0.0f;
   }
@@ -279,7 +279,7 @@ static void test_procedural__sample_is_box_average_of_point(void **st) {
     oc_key_t k = oc_key_from_point(12, cloudy_point(s, 0.0, 1500.0, 4000.0, &rng));
     float got[512], ref[512];
     sample_exact(s, k, 0.0, got);
-    oc_brick_sample(k, point_cb, s, 12, ref);
+    ocs_brick_sample(k, point_cb, s, 12, ref);
     double mg = oc_test_node_mean(got), mr = oc_test_node_mean(ref);
     assert_true(mr > 0.0);
     double rel = fabs(mg / mr - 1.0);
@@ -570,7 +570,7 @@ static void test_procedural__voxel_bounds_are_conservative(void **st) {
         if (vmask[v]) continue;
         masked++;
         if (b[v] != 0.0f) fail_msg("level %d: voxel %d bounded empty, estimate %g", level, v, b[v]);
-        oc_dvec3 c = oc_brick_sample_pos(k, v % 8, v / 8 % 8, v / 64);
+        oc_dvec3 c = ocs_brick_sample_pos(k, v % 8, v / 8 % 8, v / 64);
         int seen = 0;
         for (int q = 0; q < 64; q++) {
           oc_dvec3 p = oc_dv3(c.x + u * ((q & 3) / 3.0 - 0.5), c.y + u * ((q >> 2 & 3) / 3.0 - 0.5),

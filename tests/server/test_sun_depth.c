@@ -16,11 +16,11 @@
 
 #include <cmocka.h>
 
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_err.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
-#include "oc_voxelize.h"
+#include "scene_voxelize.h"
+#include "voxelize.h"
 #include "ocs_field.h"
 #include "report.h"
 #include "sun_depth.h"
@@ -155,11 +155,11 @@ static double now(void) {
 
 /*-*** Analytic truth ***/
 
-static void medium_from(const char *json, oc_medium_t *m) {
+static void medium_from(const char *json, ocs_medium_t *m) {
   oc_scene_t sc;
   char why[512];
   assert_int_equal(oc_scene_parse(&sc, json, strlen(json), "test.json", why, sizeof why), 0);
-  assert_int_equal(oc_scene_medium(&sc, m, why, sizeof why), 0);
+  assert_int_equal(ocs_scene_medium(&sc, m, why, sizeof why), 0);
   oc_scene_free(&sc);
 }
 
@@ -179,9 +179,9 @@ static double enter_sphere(oc_dvec3 p, oc_dvec3 d, double r) {
 }
 
 /* The analytic τ with the march's cut: up to where the ray enters R − 10 km. */
-static double tau_truth(const oc_medium_t *m, oc_dvec3 p, oc_dvec3 sun) {
+static double tau_truth(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 sun) {
   double t = enter_sphere(p, sun, OCS_TAU_PLANET_STOP);
-  return isfinite(t) ? oc_medium_optical_depth(m, p, sun, t) : oc_medium_tau_sun(m, p, sun);
+  return isfinite(t) ? ocs_medium_optical_depth(m, p, sun, t) : ocs_medium_tau_sun(m, p, sun);
 }
 
 static double altitude(oc_dvec3 p) { return oc_dlen(p) - OC_PLANET_RADIUS; }
@@ -207,7 +207,7 @@ typedef struct {
 } slab_err_t;
 
 static double sigma_of(const char *json) { /* the slab's σt, parsed back from the JSON */
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(json, &m);
   return m.prims[0].sigma_t;
 }
@@ -220,14 +220,14 @@ static double voxel_at(int node_level, double t) {
   return v;
 }
 
-static void slab_judge(const oc_medium_t *m, const float *tau, oc_key_t key, oc_dvec3 sun, slab_err_t *e) {
-  const oc_prim_t *pr = &m->prims[0];
+static void slab_judge(const ocs_medium_t *m, const float *tau, oc_key_t key, oc_dvec3 sun, slab_err_t *e) {
+  const ocs_prim_t *pr = &m->prims[0];
   int level = oc_key_level(key);
   double fp = 1.5 * sqrt(3.0) * oc_key_size(level - 1) / 7.0; /* box (½ voxel) + trilinear (1 voxel), diagonal */
   double extra = 0.5 * sqrt(3.0) * oc_key_size(level - OCS_TAU_DEFAULT_GROUP_LEVELS); /* the volume's cone offset */
   double base = pr->slab.r_in - OC_PLANET_RADIUS, top = pr->slab.r_out - OC_PLANET_RADIUS, sum = 0.0;
   for (int v = 0; v < 512; v++) {
-    oc_dvec3 p = oc_brick_sample_pos(key, v & 7, (v >> 3) & 7, v >> 6);
+    oc_dvec3 p = ocs_brick_sample_pos(key, v & 7, (v >> 3) & 7, v >> 6);
     double h = altitude(p);
     if (fabs(h - base) < fp || fabs(h - top) < fp) continue;
     double truth = tau_truth(m, p, sun), cut = enter_sphere(p, sun, OCS_TAU_PLANET_STOP);
@@ -263,7 +263,7 @@ static void slab_judge(const oc_medium_t *m, const float *tau, oc_key_t key, oc_
  * descendant (cover_all), so nodes without σt are judged too. check_mean: also the node's mean
  * relative error (not for grazing rays from inside the slab, where a single face crossing at
  * μ ≈ 0.05 is the whole error and the same for every sample). */
-static void slab_case_cb(tcache_t *c, const oc_medium_t *m, oc_key_t key, oc_dvec3 sun, slab_err_t *ed, slab_err_t *ev,
+static void slab_case_cb(tcache_t *c, const ocs_medium_t *m, oc_key_t key, oc_dvec3 sun, slab_err_t *ed, slab_err_t *ev,
                          const char *what, int check_mean, int (*sigma)(void *, oc_key_t, float *), double kmax) {
   ocs_tau_desc_t d = desc_for(c, sun), dv;
   if (sigma) d.sigma = sigma;
@@ -290,7 +290,7 @@ static void slab_case_cb(tcache_t *c, const oc_medium_t *m, oc_key_t key, oc_dve
 #define KAPPA_MAX 0.125
 #define KAPPA_GRAZING 0.17
 
-static void slab_case(tcache_t *c, const oc_medium_t *m, oc_key_t key, oc_dvec3 sun, slab_err_t *ed, slab_err_t *ev,
+static void slab_case(tcache_t *c, const ocs_medium_t *m, oc_key_t key, oc_dvec3 sun, slab_err_t *ed, slab_err_t *ev,
                       const char *what) {
   slab_case_cb(c, m, key, sun, ed, ev, what, 1, NULL, KAPPA_MAX);
 }
@@ -320,7 +320,7 @@ static void test_sun_depth__slab_below_three_sun_angles(void **st) {
   (void)st;
   tcache_t c;
   tc_init(&c, slab_json, 0.0);
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(slab_json, &m);
   oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
   float lo, hi;
@@ -344,7 +344,7 @@ static void test_sun_depth__slab_inside(void **st) {
   (void)st;
   tcache_t c;
   tc_init(&c, slab_json, 0.0);
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(slab_json, &m);
   oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
   slab_err_t ed = {0}, ev = {0};
@@ -378,7 +378,7 @@ static int exact_slab_sigma(void *ctx, oc_key_t key, float out[512]) {
   double h = oc_key_size(oc_key_level(key)) / 7.0;
   enum { N = 16 };
   for (int v = 0; v < 512; v++) {
-    oc_dvec3 p = oc_brick_sample_pos(key, v & 7, (v >> 3) & 7, v >> 6);
+    oc_dvec3 p = ocs_brick_sample_pos(key, v & 7, (v >> 3) & 7, v >> 6);
     double sum = 0.0;
     for (int a = 0; a < N; a++)
       for (int b = 0; b < N; b++)
@@ -395,7 +395,7 @@ static void test_sun_depth__zenith_along_an_axis(void **st) {
   (void)st;
   tcache_t c;
   tc_init(&c, slab_json, 0.0);
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(slab_json, &m);
   oc_key_t pole = oc_key_from_point(14, oc_dv3(100.0, 100.0, OC_PLANET_RADIUS + 700.0));
   slab_err_t ed = {0}, ev = {0};
@@ -412,7 +412,7 @@ static void test_sun_depth__sun_below_horizon(void **st) {
   (void)st;
   tcache_t c;
   tc_init(&c, slab_json, 0.0);
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(slab_json, &m);
   oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
   slab_err_t ed = {0}, ev = {0};
@@ -442,7 +442,7 @@ static void test_sun_depth__root_cube_edge(void **st) {
                      " \"sources\": [{\"type\": \"slab\", \"base\": 80000, \"top\": 93000, \"sigma_t\": 0.001}]}";
   tcache_t c;
   tc_init(&c, json, 0.0);
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(json, &m);
   int L = 12;
   uint32_t n = 1u << L;
@@ -463,7 +463,7 @@ static void test_sun_depth__root_cube_edge(void **st) {
   assert_int_equal(ocs_tau_node(&d, edge, tv), 0);
   int outside = 0;
   for (int v = 0; v < 512; v++)
-    if (oc_dlen(oc_brick_sample_pos(edge, v & 7, (v >> 3) & 7, v >> 6)) > OC_ROOT_HALF) {
+    if (oc_dlen(ocs_brick_sample_pos(edge, v & 7, (v >> 3) & 7, v >> 6)) > OC_ROOT_HALF) {
       assert_true(td[v] == 0.0f && tv[v] == 0.0f);
       outside++;
     }
@@ -479,7 +479,7 @@ static void test_sun_depth__huge_sigma(void **st) {
                      " \"sources\": [{\"type\": \"slab\", \"base\": 2000, \"top\": 3000, \"sigma_t\": 1000}]}";
   tcache_t c;
   tc_init(&c, json, 0.0);
-  oc_medium_t m;
+  ocs_medium_t m;
   medium_from(json, &m);
   assert_true(sigma_of(json) == 1000.0);
   oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
@@ -697,7 +697,7 @@ static void test_sun_depth__quadrature_is_exact(void **st) {
   int nsamp = SIZE(16, 4), n = SIZE(400000, 100000);
   for (int k = 0; k < nsamp; k++) {
     int vi = (k * 97 + 13) % 512;
-    oc_dvec3 p = oc_brick_sample_pos(key, vi & 7, (vi >> 3) & 7, vi >> 6);
+    oc_dvec3 p = ocs_brick_sample_pos(key, vi & 7, (vi >> 3) & 7, vi >> 6);
     double h = len / n, ref = 0.0; /* midpoint rule, 0.02 m steps */
     for (int i = 0; i < n; i++) ref += rf_recon(oc_dmad(p, sun, (i + 0.5) * h));
     ref *= h;

@@ -26,7 +26,7 @@
 #include "oc_key.h"
 #include "oc_planet.h"
 #include "oc_scene.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 #include "ocs_field.h"
 #include "report.h"
 #include "vdb_shim.h"
@@ -401,7 +401,7 @@ static void test_vdb__fog_sphere_fine_levels_match_analytic(void **st) {
       for (int k = 0; k < 8; k++)
         for (int j = 0; j < 8; j++)
           for (int i = 0; i < 8; i++) {
-            oc_dvec3 x = oc_brick_sample_pos(key, i, j, k);
+            oc_dvec3 x = ocs_brick_sample_pos(key, i, j, k);
             if (oc_dlen(oc_dsub(x, c)) > (SPH_R - 1.5) * SPH_S) continue; /* the kink at r = R */
             double e = fabs(v[i + 8 * j + 64 * k] - sphere_sigma(c, x)) / SPH_SIGMA;
             worst = fmax(worst, e);
@@ -453,7 +453,7 @@ static void test_vdb__fog_sphere_coarse_levels_box_average(void **st) {
     for (int k = 0; k < 8; k++)
       for (int j = 0; j < 8; j++)
         for (int i = 0; i < 8; i++) {
-          oc_dvec3 x = oc_brick_sample_pos(key, i, j, k);
+          oc_dvec3 x = ocs_brick_sample_pos(key, i, j, k);
           double truth = sphere_box(c, x, size / 7.0), got = v[i + 8 * j + 64 * k];
           worst = fmax(worst, fabs(got - truth));
           sum += got / 512.0;

@@ -1,5 +1,5 @@
-/* test_voxelize.c — box-filtered brick sampling and the state builder (common/oc_voxelize.c)
- * against the closed-form media of common/oc_analytic.c. */
+/* test_voxelize.c — box-filtered brick sampling and the state builder (server/voxelize.c)
+ * against the closed-form media of server/analytic.c. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -11,13 +11,13 @@
 
 #include <cmocka.h>
 
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_brick.h"
 #include "oc_err.h"
 #include "oc_key.h"
 #include "oc_planet.h"
 #include "oc_state.h"
-#include "oc_voxelize.h"
+#include "voxelize.h"
 
 /* |a − b| ≤ tol, reporting both values (cmocka 1.1 has no floating-point assert). */
 #define assert_near(a, b, tol)                                                                  \
@@ -71,7 +71,7 @@ static double channel_rel_bound(oc_range_t r) {
   return oc_code_rel_error_bound(r);
 }
 
-/* ---- oc_brick_sample ------------------------------------------------------------------------- */
+/* ---- ocs_brick_sample ------------------------------------------------------------------------- */
 
 typedef struct {
   oc_dvec3 o;
@@ -97,7 +97,7 @@ static void test_sample__positions_and_filter(void **state) {
   for (int k = 0; k < 8; k += 7)
     for (int j = 0; j < 8; j += 3)
       for (int i = 0; i < 8; i++) {
-        oc_dvec3 p = oc_brick_sample_pos(key, i, j, k);
+        oc_dvec3 p = ocs_brick_sample_pos(key, i, j, k);
         assert_near(p.x, o.x + i * size / 7, 1e-8);
         assert_near(p.y, o.y + j * size / 7, 1e-8);
         assert_near(p.z, o.z + k * size / 7, 1e-8);
@@ -105,26 +105,26 @@ static void test_sample__positions_and_filter(void **state) {
   /* sub = 1: exact point samples of the field at those positions. */
   lin_t l = {o, 0.5, 1e-4, -2e-4, 3e-5};
   float out[512];
-  oc_brick_sample(key, lin_fn, &l, 1, out);
+  ocs_brick_sample(key, lin_fn, &l, 1, out);
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++)
       for (int i = 0; i < 8; i++)
-        assert_true(out[i + 8 * j + 64 * k] == (float)lin_fn(&l, oc_brick_sample_pos(key, i, j, k)));
+        assert_true(out[i + 8 * j + 64 * k] == (float)lin_fn(&l, ocs_brick_sample_pos(key, i, j, k)));
   /* A linear field's box average is its value at the centre, for any sub. */
   for (int sub = 2; sub <= 5; sub++) {
-    oc_brick_sample(key, lin_fn, &l, sub, out);
+    ocs_brick_sample(key, lin_fn, &l, sub, out);
     for (int n = 0; n < 512; n += 37) {
-      double v = lin_fn(&l, oc_brick_sample_pos(key, n % 8, (n / 8) % 8, n / 64));
+      double v = lin_fn(&l, ocs_brick_sample_pos(key, n % 8, (n / 8) % 8, n / 64));
       assert_near(out[n], v, 1e-6 * fabs(v));
     }
   }
   /* A constant stays exactly constant. */
   double c = 0.0371;
-  oc_brick_sample(key, const_fn, &c, 3, out);
+  ocs_brick_sample(key, const_fn, &c, 3, out);
   for (int n = 0; n < 512; n++) assert_true(out[n] == (float)c);
   /* A step through the middle of sample i = 3's footprint: half of the sub-samples (even sub). */
-  double xs = oc_brick_sample_pos(key, 3, 0, 0).x;
-  oc_brick_sample(key, step_fn, &xs, 4, out);
+  double xs = ocs_brick_sample_pos(key, 3, 0, 0).x;
+  ocs_brick_sample(key, step_fn, &xs, 4, out);
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++) {
       assert_true(out[2 + 8 * j + 64 * k] == 0.0f);
@@ -133,7 +133,7 @@ static void test_sample__positions_and_filter(void **state) {
     }
   /* The step exactly a quarter of the way, sub = 4: 3/4 of the sub-samples are beyond it. */
   double xq = xs - 0.25 * size / 7 + 1e-6;
-  oc_brick_sample(key, step_fn, &xq, 4, out);
+  ocs_brick_sample(key, step_fn, &xq, 4, out);
   assert_true(out[3] == 0.75f);
 }
 
@@ -169,7 +169,7 @@ static void test_sample__neighbour_faces_bit_identical(void **state) {
       oc_key_t key = oc_key_make(L, ix, iy, iz);
       assert_true(oc_key_valid(key));
       for (int sub = 1; sub <= 3; sub++) {
-        oc_brick_sample(key, bits_fn, NULL, sub, a);
+        ocs_brick_sample(key, bits_fn, NULL, sub, a);
         /* Face neighbours along each axis, both directions. */
         for (int axis = 0; axis < 3; axis++)
           for (int dir = -1; dir <= 1; dir += 2) {
@@ -177,7 +177,7 @@ static void test_sample__neighbour_faces_bit_identical(void **state) {
             d[axis] = dir;
             oc_key_t nb = oc_key_neighbor(key, d[0], d[1], d[2]);
             if (nb == OC_KEY_INVALID) continue;
-            oc_brick_sample(nb, bits_fn, NULL, sub, b);
+            ocs_brick_sample(nb, bits_fn, NULL, sub, b);
             for (int u = 0; u < 8; u++)
               for (int v = 0; v < 8; v++) {
                 int ia[3], ib[3];
@@ -202,12 +202,12 @@ static void test_sample__neighbour_faces_bit_identical(void **state) {
         /* Edge and corner neighbours. */
         oc_key_t e = oc_key_neighbor(key, 1, 1, 0);
         if (e != OC_KEY_INVALID) {
-          oc_brick_sample(e, bits_fn, NULL, sub, b);
+          ocs_brick_sample(e, bits_fn, NULL, sub, b);
           for (int k = 0; k < 8; k++) assert_true(same_bits(a[7 + 8 * 7 + 64 * k], b[0 + 0 + 64 * k]));
         }
         oc_key_t c = oc_key_neighbor(key, -1, 1, -1);
         if (c != OC_KEY_INVALID) {
-          oc_brick_sample(c, bits_fn, NULL, sub, b);
+          ocs_brick_sample(c, bits_fn, NULL, sub, b);
           assert_true(same_bits(a[0 + 8 * 7 + 0], b[7 + 0 + 64 * 7]));
         }
       }
@@ -221,8 +221,8 @@ static void test_sample__neighbour_faces_bit_identical(void **state) {
             int cs = 2 * m - 7 * bx;
             if (cs < 0 || cs > 7) continue;
             /* Along y and z take the parent's face sample 7·b, which is the child's sample 7·b. */
-            oc_dvec3 pp = oc_brick_sample_pos(key, m, 7 * by, 7 * bz);
-            oc_dvec3 pc = oc_brick_sample_pos(ch, cs, 7 * by, 7 * bz);
+            oc_dvec3 pp = ocs_brick_sample_pos(key, m, 7 * by, 7 * bz);
+            oc_dvec3 pc = ocs_brick_sample_pos(ch, cs, 7 * by, 7 * bz);
             assert_true(memcmp(&pp, &pc, sizeof pp) == 0);
           }
         }
@@ -258,24 +258,24 @@ static void grown_box(oc_key_t key, oc_dvec3 *lo, oc_dvec3 *hi) {
 static void test_voxelize__sphere_interior_and_empty(void **state) {
   (void)state;
   const double r = 4000, sig = 0.02;
-  oc_prim_t sp;
-  assert_int_equal(oc_prim_sphere(&sp, (oc_geo_t){45, 10, 5000}, r, sig), 0);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &sp), 0);
-  oc_medium_ctx_t mc = {&m, oc_dv3(0, 0, 1), 0.0};
-  oc_voxelize_stats_t st;
-  oc_voxelize_desc_t d = {0};
-  d.sigma = oc_medium_sigma_cb; /* τ left out: interior nodes are then uniform in both channels */
+  ocs_prim_t sp;
+  assert_int_equal(ocs_prim_sphere(&sp, (oc_geo_t){45, 10, 5000}, r, sig), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &sp), 0);
+  ocs_medium_ctx_t mc = {&m, oc_dv3(0, 0, 1), 0.0};
+  ocs_voxelize_stats_t st;
+  ocs_voxelize_desc_t d = {0};
+  d.sigma = ocs_medium_sigma_cb; /* τ left out: interior nodes are then uniform in both channels */
   d.ctx = &mc;
   d.max_level = 13;
-  d.refine = oc_medium_refine_cb;
+  d.refine = ocs_medium_refine_cb;
   d.sun_dir = oc_dv3(0, 0, 1);
   d.threads = 2;
   d.stats = &st;
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize(&s, &d), 0);
+  assert_int_equal(ocs_voxelize(&s, &d), 0);
   char why[200] = "";
   assert_int_equal(oc_state_validate(&s, why, sizeof why), 0);
   assert_int_equal(st.leaves, s.node_count);
@@ -310,15 +310,15 @@ static void test_voxelize__sphere_interior_and_empty(void **state) {
 static void test_voxelize__sphere_tau_matches_closed_form(void **state) {
   (void)state;
   const double r = 3000, sig = 0.03;
-  oc_prim_t sp;
-  assert_int_equal(oc_prim_sphere(&sp, (oc_geo_t){-20, 60, 4000}, r, sig), 0);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &sp), 0);
+  ocs_prim_t sp;
+  assert_int_equal(ocs_prim_sphere(&sp, (oc_geo_t){-20, 60, 4000}, r, sig), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &sp), 0);
   oc_dvec3 sun = oc_dnorm(oc_dv3(0.2, 0.9, -0.3));
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize_medium(&s, &m, 12, 2, sun, 2), 0);
+  assert_int_equal(ocs_voxelize_medium(&s, &m, 12, 2, sun, 2), 0);
   assert_int_equal(oc_state_validate(&s, NULL, 0), 0);
   float sg[512], tu[512];
   long checked = 0, nonzero = 0, empty_far = 0;
@@ -329,7 +329,7 @@ static void test_voxelize__sphere_tau_matches_closed_form(void **state) {
     int all_zero = 1;
     for (int q = 0; q < 512; q++) {
       /* τ is point-sampled: the decoded sample equals the closed form at the sample position. */
-      double t = oc_medium_tau_sun(&m, oc_brick_sample_pos(n->key, q % 8, (q / 8) % 8, q / 64), sun);
+      double t = ocs_medium_tau_sun(&m, ocs_brick_sample_pos(n->key, q % 8, (q / 8) % 8, q / 64), sun);
       double tol = (rb + 1.2e-7) * t + n->range[OC_CH_TAU].hi / OC_CODE_MAX_RATIO + 1e-30;
       if (fabs(tu[q] - t) > tol) fail_msg("node %u sample %d: tau %.9g closed form %.9g", i, q, tu[q], t);
       all_zero &= t == 0.0;
@@ -365,12 +365,12 @@ static void test_voxelize__mean_preserved(void **state) {
   const double sig = 0.05;
   oc_key_t P = oc_key_from_point(L, oc_geo_to_xyz((oc_geo_t){12, -70, 3000}));
   double size = oc_key_size(L), r = 0.3 * size;
-  oc_prim_t sp;
-  assert_int_equal(oc_prim_sphere(&sp, oc_xyz_to_geo(oc_key_center(P)), r, sig), 0);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &sp), 0);
-  oc_medium_ctx_t mc = {&m, oc_dv3(1, 0, 0), 0.0};
+  ocs_prim_t sp;
+  assert_int_equal(ocs_prim_sphere(&sp, oc_xyz_to_geo(oc_key_center(P)), r, sig), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &sp), 0);
+  ocs_medium_ctx_t mc = {&m, oc_dv3(1, 0, 0), 0.0};
   const double exact = sig * 4.0 / 3.0 * OC_PI * r * r * r;
   float v[512];
   double integ[3] = {0, 0, 0};
@@ -379,7 +379,7 @@ static void test_voxelize__mean_preserved(void **state) {
     double cs = size / (double)(1 << g);
     for (int c = 0; c < nkeys; c++) {
       oc_key_t k = g == 0 ? P : g == 1 ? oc_key_child(P, c) : oc_key_child(oc_key_child(P, c >> 3), c & 7);
-      oc_brick_sample(k, oc_medium_sigma_cb, &mc, 4, v);
+      ocs_brick_sample(k, ocs_medium_sigma_cb, &mc, 4, v);
       integ[g] += trapezoid_mean(v) * cs * cs * cs;
     }
   }
@@ -396,11 +396,11 @@ static void test_voxelize__mean_preserved(void **state) {
 
   /* The same through the builder: leaves under P down to level 13, decoded. */
   oc_dvec3 blo, bhi;
-  oc_prim_bounds(&sp, &blo, &bhi);
-  oc_aabb_t box = {blo, bhi};
-  oc_voxelize_desc_t d = {0};
-  d.sigma = oc_medium_sigma_cb;
-  d.tau = oc_medium_tau_cb;
+  ocs_prim_bounds(&sp, &blo, &bhi);
+  ocs_aabb_t box = {blo, bhi};
+  ocs_voxelize_desc_t d = {0};
+  d.sigma = ocs_medium_sigma_cb;
+  d.tau = ocs_medium_tau_cb;
   d.ctx = &mc;
   d.max_level = 13;
   d.aabbs = &box;
@@ -409,7 +409,7 @@ static void test_voxelize__mean_preserved(void **state) {
   d.threads = 2;
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize(&s, &d), 0);
+  assert_int_equal(ocs_voxelize(&s, &d), 0);
   float sg[512], tu[512];
   double total = 0.0;
   int under = 0;
@@ -431,13 +431,13 @@ static void test_voxelize__mean_preserved(void **state) {
 
 static void test_voxelize__threads_identical(void **state) {
   (void)state;
-  oc_medium_t m;
-  oc_medium_init(&m);
-  oc_prim_t p;
-  assert_int_equal(oc_prim_sphere(&p, (oc_geo_t){5, 5, 3000}, 2500, 0.02), 0);
-  assert_int_equal(oc_medium_add(&m, &p), 0);
-  assert_int_equal(oc_prim_box(&p, (oc_geo_t){5.02, 5.01, 500}, 3000, 1000, 2000, 33, 0.07), 0);
-  assert_int_equal(oc_medium_add(&m, &p), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  ocs_prim_t p;
+  assert_int_equal(ocs_prim_sphere(&p, (oc_geo_t){5, 5, 3000}, 2500, 0.02), 0);
+  assert_int_equal(ocs_medium_add(&m, &p), 0);
+  assert_int_equal(ocs_prim_box(&p, (oc_geo_t){5.02, 5.01, 500}, 3000, 1000, 2000, 33, 0.07), 0);
+  assert_int_equal(ocs_medium_add(&m, &p), 0);
   oc_dvec3 sun = oc_dnorm(oc_dv3(1, 0.3, 0.2));
   uint64_t sum[3];
   uint32_t nodes = 0, bricks = 0;
@@ -445,7 +445,7 @@ static void test_voxelize__threads_identical(void **state) {
     oc_state_t s;
     oc_state_init(&s);
     double t0 = now_s();
-    assert_int_equal(oc_voxelize_medium(&s, &m, 13, 3, sun, t), 0);
+    assert_int_equal(ocs_voxelize_medium(&s, &m, 13, 3, sun, t), 0);
     double dt = now_s() - t0;
     sum[t - 1] = oc_state_checksum(&s);
     print_message("threads %d: %u leaves, %u bricks, checksum %016llx, %.3f s\n", t, s.node_count, s.brick_count,
@@ -469,38 +469,38 @@ static void test_voxelize__threads_identical(void **state) {
 static void test_voxelize__slab_tau_closed_form(void **state) {
   (void)state;
   const double base = 2000, top = 3000, sig = 0.01;
-  oc_prim_t sl;
-  assert_int_equal(oc_prim_slab(&sl, base, top, sig), 0);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &sl), 0);
+  ocs_prim_t sl;
+  assert_int_equal(ocs_prim_slab(&sl, base, top, sig), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &sl), 0);
   oc_dvec3 p0 = oc_geo_to_xyz((oc_geo_t){-5, 100, 500});
   oc_enu_t enu = oc_enu_at(p0);
   const double zenith[3] = {0.0, 60.0, 85.0};
   for (int zi = 0; zi < 3; zi++) {
     double th = zenith[zi] * OC_DEG;
     oc_dvec3 sun = oc_dnorm(oc_dadd(oc_dscale(enu.up, cos(th)), oc_dscale(enu.east, sin(th))));
-    oc_medium_ctx_t mc = {&m, sun, 0.0};
-    oc_aabb_t region = {oc_dsub(p0, oc_dv3(3000, 3000, 3000)), oc_dadd(p0, oc_dv3(3000, 3000, 3000))};
-    oc_voxelize_desc_t d = {0};
-    d.sigma = oc_medium_sigma_cb;
-    d.tau = oc_medium_tau_cb;
+    ocs_medium_ctx_t mc = {&m, sun, 0.0};
+    ocs_aabb_t region = {oc_dsub(p0, oc_dv3(3000, 3000, 3000)), oc_dadd(p0, oc_dv3(3000, 3000, 3000))};
+    ocs_voxelize_desc_t d = {0};
+    d.sigma = ocs_medium_sigma_cb;
+    d.tau = ocs_medium_tau_cb;
     d.ctx = &mc;
     d.min_level = 3;
     d.max_level = 13;
     d.aabbs = &region; /* a slab is planet-wide: refine only here, and only near the slab */
     d.aabb_count = 1;
-    d.refine = oc_medium_refine_cb;
+    d.refine = ocs_medium_refine_cb;
     d.sub_sigma = 2;
     d.sun_dir = sun;
     d.threads = 2;
     d.epoch = 7;
-    oc_voxelize_stats_t st;
+    ocs_voxelize_stats_t st;
     d.stats = &st;
     d.time = 12.5;
     oc_state_t s;
     oc_state_init(&s);
-    assert_int_equal(oc_voxelize(&s, &d), 0);
+    assert_int_equal(ocs_voxelize(&s, &d), 0);
     assert_true(s.epoch == 7 && s.time == 12.5);
     long checked = 0;
     int in_region = 0;
@@ -517,7 +517,7 @@ static void test_voxelize__slab_tau_closed_form(void **state) {
       node_values(&s, n, sg, tu);
       double rb = channel_rel_bound(n->range[OC_CH_TAU]);
       for (int q = 0; q < 512; q++) {
-        oc_dvec3 p = oc_brick_sample_pos(n->key, q % 8, (q / 8) % 8, q / 64);
+        oc_dvec3 p = ocs_brick_sample_pos(n->key, q % 8, (q / 8) % 8, q / 64);
         long double rp = sqrtl((long double)p.x * p.x + (long double)p.y * p.y + (long double)p.z * p.z);
         if (rp >= ri || rp < 1000.0L) continue; /* below the slab (inside the planet too: no shadow) */
         long double mu = ((long double)p.x * sun.x + (long double)p.y * sun.y + (long double)p.z * sun.z) / rp;
@@ -555,8 +555,8 @@ static double blob_fn(void *ctx, oc_dvec3 p) {
 static void test_voxelize__brick_ids_and_limits(void **state) {
   (void)state;
   oc_dvec3 c = oc_geo_to_xyz((oc_geo_t){0, 0, 0});
-  oc_aabb_t box = {oc_dsub(c, oc_dv3(5000, 5000, 5000)), oc_dadd(c, oc_dv3(5000, 5000, 5000))};
-  oc_voxelize_desc_t d = {0};
+  ocs_aabb_t box = {oc_dsub(c, oc_dv3(5000, 5000, 5000)), oc_dadd(c, oc_dv3(5000, 5000, 5000))};
+  ocs_voxelize_desc_t d = {0};
   d.sigma = blob_fn;
   d.ctx = &c;
   d.min_level = 2;
@@ -568,7 +568,7 @@ static void test_voxelize__brick_ids_and_limits(void **state) {
   d.first_brick_id = 1000;
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize(&s, &d), 0);
+  assert_int_equal(ocs_voxelize(&s, &d), 0);
   assert_true(s.sun_dir.z == 1.0);
   assert_true(s.brick_count > 0);
   uint32_t next = 1000;
@@ -579,65 +579,65 @@ static void test_voxelize__brick_ids_and_limits(void **state) {
   assert_int_equal(next - 1000, s.brick_count);
   /* Ids that would pass UINT32_MAX. */
   d.first_brick_id = UINT32_MAX - 1;
-  assert_int_equal(oc_voxelize(&s, &d), OC_ERANGE);
+  assert_int_equal(ocs_voxelize(&s, &d), OC_ERANGE);
   assert_int_equal(s.node_count, 0); /* left empty */
   d.first_brick_id = 0;
   /* Too many leaves: refused while refining. */
   d.max_nodes = 100;
-  assert_int_equal(oc_voxelize(&s, &d), OC_ETOOBIG);
+  assert_int_equal(ocs_voxelize(&s, &d), OC_ETOOBIG);
   assert_int_equal(s.node_count, 0);
   d.max_nodes = 0;
-  oc_aabb_t all = {oc_dv3(-1e7, -1e7, -1e7), oc_dv3(1e7, 1e7, 1e7)};
+  ocs_aabb_t all = {oc_dv3(-1e7, -1e7, -1e7), oc_dv3(1e7, 1e7, 1e7)};
   d.aabbs = &all;
   d.min_level = 0;
   d.max_level = 9; /* 8^9 = 134M leaves > OC_STATE_MAX_NODES */
   double t0 = now_s();
-  assert_int_equal(oc_voxelize(&s, &d), OC_ETOOBIG);
+  assert_int_equal(ocs_voxelize(&s, &d), OC_ETOOBIG);
   print_message("refusing a 134M-leaf tree took %.3f s\n", now_s() - t0);
   /* The whole cube at level 3 is exactly 512 leaves. */
   d.max_level = 3;
   d.max_nodes = 512;
-  assert_int_equal(oc_voxelize(&s, &d), 0);
+  assert_int_equal(ocs_voxelize(&s, &d), 0);
   assert_int_equal(s.node_count, 512);
   d.max_nodes = 511;
-  assert_int_equal(oc_voxelize(&s, &d), OC_ETOOBIG);
+  assert_int_equal(ocs_voxelize(&s, &d), OC_ETOOBIG);
   d.max_nodes = 0;
   /* Bad descriptions. */
-  oc_voxelize_desc_t b = d;
+  ocs_voxelize_desc_t b = d;
   b.sigma = NULL;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
   b.min_level = 5;
   b.max_level = 4;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
   b.max_level = 22;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
   b.sun_dir = oc_dv3(0, 0, 0);
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
-  b.sub_sigma = OC_VOXELIZE_MAX_SUB + 1;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  b.sub_sigma = OCS_VOXELIZE_MAX_SUB + 1;
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
-  b.threads = OC_VOXELIZE_MAX_THREADS + 1;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  b.threads = OCS_VOXELIZE_MAX_THREADS + 1;
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
   b.aabb_count = 1;
   b.aabbs = NULL;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
   b = d;
   b.time = NAN;
-  assert_int_equal(oc_voxelize(&s, &b), OC_EINVAL);
-  assert_int_equal(oc_voxelize(NULL, &d), OC_EINVAL);
-  assert_int_equal(oc_voxelize(&s, NULL), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, &b), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(NULL, &d), OC_EINVAL);
+  assert_int_equal(ocs_voxelize(&s, NULL), OC_EINVAL);
   /* No refinement at all: the uniform tree at min_level. */
   b = d;
   b.aabb_count = 0;
   b.aabbs = NULL;
   b.min_level = 2;
   b.max_level = 6;
-  assert_int_equal(oc_voxelize(&s, &b), 0);
+  assert_int_equal(ocs_voxelize(&s, &b), 0);
   assert_int_equal(s.node_count, 64);
   oc_state_free(&s);
 }
@@ -650,8 +650,8 @@ static double nasty_fn(void *ctx, oc_dvec3 p) {
 
 static void test_voxelize__sanitises(void **state) {
   (void)state;
-  oc_voxelize_stats_t st;
-  oc_voxelize_desc_t d = {0};
+  ocs_voxelize_stats_t st;
+  ocs_voxelize_desc_t d = {0};
   d.sigma = nasty_fn;
   d.tau = nasty_fn;
   d.min_level = 1;
@@ -660,7 +660,7 @@ static void test_voxelize__sanitises(void **state) {
   d.stats = &st;
   oc_state_t s;
   oc_state_init(&s);
-  assert_int_equal(oc_voxelize(&s, &d), 0);
+  assert_int_equal(ocs_voxelize(&s, &d), 0);
   assert_int_equal(oc_state_validate(&s, NULL, 0), 0);
   assert_true(st.sanitize.nan > 0 && st.sanitize.negative > 0 && st.sanitize.inf > 0);
   assert_int_equal(st.leaves, 8);
@@ -671,17 +671,17 @@ static void test_voxelize__sanitises(void **state) {
 
 static void test_voxelize__timing_level14(void **state) {
   (void)state;
-  oc_prim_t sp;
-  assert_int_equal(oc_prim_sphere(&sp, (oc_geo_t){45, 10, 5000}, 4000, 0.02), 0);
-  oc_medium_t m;
-  oc_medium_init(&m);
-  assert_int_equal(oc_medium_add(&m, &sp), 0);
+  ocs_prim_t sp;
+  assert_int_equal(ocs_prim_sphere(&sp, (oc_geo_t){45, 10, 5000}, 4000, 0.02), 0);
+  ocs_medium_t m;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_medium_add(&m, &sp), 0);
   oc_dvec3 sun = oc_dnorm(oc_dv3(0.3, 0.4, 0.8));
   for (int t = 1; t <= 2; t++) {
     oc_state_t s;
     oc_state_init(&s);
     double t0 = now_s();
-    assert_int_equal(oc_voxelize_medium(&s, &m, 14, 4, sun, t), 0);
+    assert_int_equal(ocs_voxelize_medium(&s, &m, 14, 4, sun, t), 0);
     double dt = now_s() - t0;
     print_message("sphere r=4 km, max_level 14 (790 m), sub 4, %d thread(s): %u leaves, %u bricks, %.3f s "
                   "(%.2f ms/brick)\n",

@@ -12,11 +12,11 @@
 
 #include <cmocka.h>
 
-#include "oc_analytic.h"
+#include "analytic.h"
 #include "oc_camera.h"
 #include "oc_err.h"
 #include "oc_scene.h"
-#include "oc_scene_voxelize.h"
+#include "scene_voxelize.h"
 #include "report.h"
 #include "world.h"
 
@@ -199,9 +199,9 @@ static void test_world__tau_matches_slab(void **st) {
   ocs_view_t view = view_at(0.0, 0.0, 2500, 0, 0);
   ocs_viewer_set_view(v, &view);
   for (int e = 0; e < 4; e++) step_ack(w, &v, 1);
-  oc_medium_t m;
+  ocs_medium_t m;
   char why[256];
-  assert_int_equal(oc_scene_medium(ocs_world_scene(w), &m, why, sizeof why), 0);
+  assert_int_equal(ocs_scene_medium(ocs_world_scene(w), &m, why, sizeof why), 0);
   ocs_epoch_out_t o;
   ocs_viewer_output(v, &o);
   double worst = 0.0;
@@ -223,7 +223,7 @@ static void test_world__tau_matches_slab(void **st) {
       /* away from the faces by the filter footprint: a march-level voxel and the node's own */
       double margin = vm + size / 7.0;
       if (fabs(alt - 2000.0) < margin || fabs(alt - 3000.0) < margin || sg[s] <= 0.0f) continue;
-      double ref = oc_medium_tau_sun(&m, p, ocs_world_scene(w)->sun_dir);
+      double ref = ocs_medium_tau_sun(&m, p, ocs_world_scene(w)->sun_dir);
       double err = fabs(tau[s] - ref) / ref;
       if (err > worst) {
         worst = err;

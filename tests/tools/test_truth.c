@@ -15,7 +15,7 @@
 
 #include <cmocka.h>
 
-#include "oc_truth.h"
+#include "truth.h"
 
 typedef struct {
   const char *file;
@@ -35,17 +35,17 @@ static const case_t cases[] = {
 };
 enum { NCASES = sizeof cases / sizeof cases[0] };
 
-static int render_case(const char *file, int legacy, oc_truth_score_t *s) {
+static int render_case(const char *file, int legacy, oct_truth_score_t *s) {
   const char *root = getenv("OC_SOURCE_DIR");
   char path[1024], why[1024];
   snprintf(path, sizeof path, "%s/tests/data/truth/%s", root ? root : ".", file);
-  oc_truth_case_t tc;
+  oct_truth_case_t tc;
   oc_scene_t sc;
   oc_state_t st;
   oc_camera_t cam;
-  if (oc_truth_case_load(&tc, path, why, sizeof why) < 0) fail_msg("%s", why);
-  if (oc_truth_case_state(&tc, root ? root : ".", &sc, &cam, &st, why, sizeof why) < 0) fail_msg("%s", why);
-  oc_render_desc_t d = oc_truth_case_desc(&tc, &sc, cam);
+  if (oct_truth_case_load(&tc, path, why, sizeof why) < 0) fail_msg("%s", why);
+  if (oct_truth_case_state(&tc, root ? root : ".", &sc, &cam, &st, why, sizeof why) < 0) fail_msg("%s", why);
+  oc_render_desc_t d = oct_truth_case_desc(&tc, &sc, cam);
   if (legacy) { /* the model before the fit, with its defaults */
     d.ms_model = OC_MS_MODEL_OCTAVES;
     d.ms_a = d.ms_b = d.ms_c = 0.5f;
@@ -55,11 +55,11 @@ static int render_case(const char *file, int legacy, oc_truth_score_t *s) {
   oc_render_stats_t rs;
   assert_int_equal(oc_render_state(&st, &d, &img, &rs), 0);
   assert_int_equal(rs.nonfinite, 0);
-  assert_int_equal(oc_truth_score(&tc, &img, s), 0);
+  assert_int_equal(oct_truth_score(&tc, &img, s), 0);
   oc_image_free(&img);
   oc_state_free(&st);
   oc_scene_free(&sc);
-  oc_truth_case_free(&tc);
+  oct_truth_case_free(&tc);
   return 0;
 }
 
@@ -67,7 +67,7 @@ static void test_truth__model_within_measured_bounds(void **state) {
   (void)state;
   int old_fails = 0;
   for (int i = 0; i < NCASES; i++) {
-    oc_truth_score_t s, o;
+    oct_truth_score_t s, o;
     render_case(cases[i].file, 0, &s);
     render_case(cases[i].file, 1, &o);
     int old_ok = fabs(o.rel) <= cases[i].rel && o.rmse8 <= cases[i].rmse8;
@@ -83,18 +83,18 @@ static void test_truth__model_within_measured_bounds(void **state) {
 /* A stored file that is cut short or names no scene is an error, not a silent zero image. */
 static void test_truth__bad_files_rejected(void **state) {
   (void)state;
-  char path[] = "/tmp/oc_truth_XXXXXX", why[512];
+  char path[] = "/tmp/oct_truth_XXXXXX", why[512];
   int fd = mkstemp(path);
   assert_true(fd >= 0);
   FILE *f = fdopen(fd, "w");
   fprintf(f, "scene tests/data/truth/sphere_behind.json\ntau 5\nsize 2 2\nalbedo 1\nbackground 0\nmean 1 0\npixels\n1 0\n");
   fclose(f);
-  oc_truth_case_t tc;
-  assert_true(oc_truth_case_load(&tc, path, why, sizeof why) < 0);
+  oct_truth_case_t tc;
+  assert_true(oct_truth_case_load(&tc, path, why, sizeof why) < 0);
   f = fopen(path, "w");
   fprintf(f, "tau 5\nsize 1 1\nalbedo 1.5\npixels\n1 0\n");
   fclose(f);
-  assert_true(oc_truth_case_load(&tc, path, why, sizeof why) < 0);
+  assert_true(oct_truth_case_load(&tc, path, why, sizeof why) < 0);
   remove(path);
 }
 
