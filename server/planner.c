@@ -666,80 +666,80 @@ static int epoch_fail(ocs_planner_t *p, int rc) {
   return rc;
 }
 
-int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_input_t *in,
-                   const ocs_plan_leaf_t **leaves, uint32_t *count, ocs_plan_stats_t *stats) {
-  if (!p || !in || !in->classify || !leaves || !count || !ocs_view_valid(view)) return OC_EINVAL;
-  struct timespec t0, t1;
-  clock_gettime(CLOCK_MONOTONIC, &t0);
-  ocs_plan_stats_t st;
-  memset(&st, 0, sizeof st);
+/* Epoch set-up: the input, the per-level cost factor of content that is refreshed. */
+static void epoch_begin(ocs_planner_t *p, const ocs_plan_input_t *in) {
   if (p->pending) ocs_plan_abandon(p);
   if ((int64_t)p->placed * 8 > p->count / 16 && p->count > 4096) compact(p); /* best effort */
   p->in = in;
   p->gated = in->ready != NULL;
   p->new_bricks = 0;
-  const int K = p->K;
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
     double r = in->refresh_rate[l];
     r = r > 0.0 ? (r < 1.0 ? r : 1.0) : 0.0;
-    p->cost_c[l] = 1.0 + (K - 1) * r;
+    p->cost_c[l] = 1.0 + (p->K - 1) * r;
   }
-  frustum_t fr = frustum_make(view, p->d.outside_weight);
+}
 
+/* A growable list of heap entries: the stale leaves pass 1 finds. */
+typedef struct {
+  hent_t *a;
+  size_t n, cap;
+} hlist_t;
+
+static int hlist_add(hlist_t *l, hent_t e) {
+  if (l->n == l->cap) {
+    size_t nc = l->cap ? 2 * l->cap : 256;
+    hent_t *r = realloc(l->a, nc * sizeof *r);
+    if (!r) return OC_ENOMEM;
+    l->a = r;
+    l->cap = nc;
+  }
+  l->a[l->n++] = e;
+  return 0;
+}
+
+/* Pass 1: priorities, costs, candidates; a stack walk carrying exact integer coordinates. Leaves
+ * at or below min_pixels can never be split this epoch: they stay out of the heap. Stale leaves
+ * go to `refresh`. */
+static int plan_walk(ocs_planner_t *p, const frustum_t *fr, hlist_t *refresh) {
+  const int K = p->K;
   double size[OC_KEY_MAX_LEVEL + 1];
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) size[l] = oc_key_size(l);
-
-  /* Pass 1: priorities, costs, candidates; a stack walk carrying exact integer coordinates. Leaves
-   * at or below min_pixels can never be split this epoch: they stay out of the heap. */
   for (int j = 0; j < K; j++) p->C[j] = held_bytes(p, K - 1 - j);
   p->T = 0.0;
   p->split_h.n = p->merge_h.n = 0;
-  hent_t *refresh = NULL;
-  size_t nrefresh = 0, refresh_cap = 0;
-  int rc = 0;
-  {
-    walk_t stack[8 * (OC_KEY_MAX_LEVEL + 1) + 8];
-    int sp = 0;
-    stack[sp++] = (walk_t){0, 0, 0, 0, 0};
-    while (sp) {
-      walk_t w = stack[--sp];
-      pn_t *n = &p->nodes[w.idx];
-      n->flags &= (uint8_t)~(F_SPLIT | F_MERGED | F_REFRESH);
-      double s = size[w.level];
-      oc_dvec3 o = oc_dv3(-OC_ROOT_HALF + w.x * s, -OC_ROOT_HALF + w.y * s, -OC_ROOT_HALF + w.z * s);
-      n->prio = (float)prio_box(&fr, o, s);
-      if (n->child < 0) {
-        double c[OCS_PLAN_MAX_KEPT], t;
-        leaf_cost(p, n, w.level, c, &t);
-        for (int j = 0; j < K; j++) p->C[j] += c[j];
-        p->T += t;
-        if (new_brick(n)) p->new_bricks++;
-        if (n->stamp != in->stamp[w.level] || n->age == AGE_NEW) {
-          if (nrefresh == refresh_cap) {
-            size_t nc = refresh_cap ? 2 * refresh_cap : 256;
-            hent_t *r = realloc(refresh, nc * sizeof *r);
-            if (!r) { rc = OC_ENOMEM; break; }
-            refresh = r;
-            refresh_cap = nc;
-          }
-          refresh[nrefresh++] = (hent_t){w.idx, n->prio, n->key};
-        }
-        if (n->prio > p->d.min_pixels && splittable(p, n, w.level) && (rc = h_append(&p->split_h, (hent_t){w.idx, n->prio, n->key})) < 0) break;
-      } else {
-        if (children_are_leaves(p, n) && (rc = h_append(&p->merge_h, (hent_t){w.idx, n->prio, n->key})) < 0) break;
-        for (int c = 7; c >= 0; c--)
-          stack[sp++] = (walk_t){n->child + c, 2 * w.x + (c & 1), 2 * w.y + ((c >> 1) & 1), 2 * w.z + ((c >> 2) & 1), w.level + 1};
-      }
+  walk_t stack[8 * (OC_KEY_MAX_LEVEL + 1) + 8];
+  int sp = 0, rc;
+  stack[sp++] = (walk_t){0, 0, 0, 0, 0};
+  while (sp) {
+    walk_t w = stack[--sp];
+    pn_t *n = &p->nodes[w.idx];
+    n->flags &= (uint8_t)~(F_SPLIT | F_MERGED | F_REFRESH);
+    double s = size[w.level];
+    oc_dvec3 o = oc_dv3(-OC_ROOT_HALF + w.x * s, -OC_ROOT_HALF + w.y * s, -OC_ROOT_HALF + w.z * s);
+    n->prio = (float)prio_box(fr, o, s);
+    hent_t e = {w.idx, n->prio, n->key};
+    if (n->child >= 0) {
+      if (children_are_leaves(p, n) && (rc = h_append(&p->merge_h, e)) < 0) return rc;
+      for (int c = 7; c >= 0; c--)
+        stack[sp++] = (walk_t){n->child + c, 2 * w.x + (c & 1), 2 * w.y + ((c >> 1) & 1), 2 * w.z + ((c >> 2) & 1), w.level + 1};
+      continue;
     }
-  }
-  if (rc < 0) {
-    free(refresh);
-    return rc;
+    double c[OCS_PLAN_MAX_KEPT], t;
+    leaf_cost(p, n, w.level, c, &t);
+    for (int j = 0; j < K; j++) p->C[j] += c[j];
+    p->T += t;
+    if (new_brick(n)) p->new_bricks++;
+    if ((n->stamp != p->in->stamp[w.level] || n->age == AGE_NEW) && (rc = hlist_add(refresh, e)) < 0) return rc;
+    if (n->prio > p->d.min_pixels && splittable(p, n, w.level) && (rc = h_append(&p->split_h, e)) < 0) return rc;
   }
   h_heapify(&p->split_h);
   h_heapify(&p->merge_h);
+  return 0;
+}
 
-  /* Pass 2: refresh stale content, nearest first, while the hard limits allow. */
+/* Pass 2: refresh stale content, nearest first, while the hard limits allow. */
+static int plan_refresh(ocs_planner_t *p, hent_t *refresh, size_t nrefresh, ocs_plan_stats_t *st) {
   /* qsort(NULL, 0, ...) is undefined: static epochs have nothing stale */
   if (nrefresh) qsort(refresh, nrefresh, sizeof *refresh, cmp_prio_desc);
   for (size_t i = 0; i < nrefresh; i++) {
@@ -747,51 +747,94 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
     int level = oc_key_level(n->key);
     pn_t nc = *n;
     if (!new_content(p, &nc, level, 1, n->age == AGE_NEW ? 0 : n->stamp, n->age == AGE_NEW ? n->prio : refresh_gain(p, n->prio, level))) {
-      if (n->age == AGE_NEW) { /* a leaf with nothing to show (the first root): no plan yet */
-        free(refresh);
-        return epoch_fail(p, OC_EAGAIN);
-      }
-      st.deferred++;
+      if (n->age == AGE_NEW) return OC_EAGAIN; /* a leaf with nothing to show (the first root): no plan yet */
+      st->deferred++;
       continue;
     }
     double c0[OCS_PLAN_MAX_KEPT], c1[OCS_PLAN_MAX_KEPT], t0c, t1c;
     leaf_cost(p, n, level, c0, &t0c);
     leaf_cost(p, &nc, level, c1, &t1c);
-    for (int j = 0; j < K; j++) c1[j] -= c0[j];
+    for (int j = 0; j < p->K; j++) c1[j] -= c0[j];
     int dnew = new_brick(&nc) - new_brick(n);
-    if (n->age == AGE_NEW || (fits(p, c1) && new_ok(p, dnew))) {
-      apply_delta(p, c1, t1c - t0c);
-      p->new_bricks += dnew;
-      int was_new = n->age == AGE_NEW;
-      nc.flags = (uint8_t)(n->flags | (was_new ? 0 : F_REFRESH));
-      nc.prio = n->prio;
-      *n = nc;
-      if (!was_new) st.refreshed++;
-      /* a refresh can change the σt class: re-queue if it became splittable */
-      if (splittable(p, n, level) && (rc = h_push(&p->split_h, (hent_t){refresh[i].idx, n->prio, n->key})) < 0) break;
-    } else {
-      st.deferred++;
+    if (n->age != AGE_NEW && !(fits(p, c1) && new_ok(p, dnew))) {
+      st->deferred++;
+      continue;
     }
+    apply_delta(p, c1, t1c - t0c);
+    p->new_bricks += dnew;
+    int was_new = n->age == AGE_NEW;
+    nc.flags = (uint8_t)(n->flags | (was_new ? 0 : F_REFRESH));
+    nc.prio = n->prio;
+    *n = nc;
+    if (!was_new) st->refreshed++;
+    /* a refresh can change the σt class: re-queue if it became splittable */
+    int rc;
+    if (splittable(p, n, level) && (rc = h_push(&p->split_h, (hent_t){refresh[i].idx, n->prio, n->key})) < 0) return rc;
   }
-  free(refresh);
-  if (rc < 0) return epoch_fail(p, rc);
+  return 0;
+}
 
-  /* Pass 3: Pettersson's split/merge loop. */
+/* kids[] := the content of n's 8 children; @return 1 when all 8 exist. */
+static int make_kids(ocs_planner_t *p, const pn_t *n, int level, float prio, pn_t kids[8]) {
+  int all = 1;
+  for (int k = 0; k < 8; k++) {
+    memset(&kids[k], 0, sizeof kids[k]);
+    kids[k].key = oc_key_child(n->key, k);
+    all &= new_content(p, &kids[k], level + 1, recent(p, n->topo), 0, prio);
+    kids[k].topo = n->topo; /* their children can be held only if n was internal lately */
+  }
+  return all;
+}
+
+/* Cost change of splitting leaf n into kids[], children content included. */
+static void split_delta(const ocs_planner_t *p, const pn_t *n, int level, const pn_t kids[8], double dc[OCS_PLAN_MAX_KEPT],
+                        double *dt, int *dnew) {
+  double c[OCS_PLAN_MAX_KEPT], t;
+  leaf_cost(p, n, level, c, &t);
+  for (int j = 0; j < p->K; j++) dc[j] = -c[j];
+  *dt = -t;
+  *dnew = -new_brick(n);
+  for (int k = 0; k < 8; k++) {
+    leaf_cost(p, &kids[k], level + 1, c, &t);
+    for (int j = 0; j < p->K; j++) dc[j] += c[j];
+    *dt += t;
+    *dnew += new_brick(&kids[k]);
+  }
+}
+
+/* Splits leaf s (its children content in kids[]) and queues its splittable children. */
+static int apply_split(ocs_planner_t *p, hent_t s, const pn_t kids[8], const frustum_t *fr, const double dc[OCS_PLAN_MAX_KEPT],
+                       double dt, int dnew) {
+  h_pop(&p->split_h);
+  int32_t b = do_split(p, s.idx, kids, fr);
+  if (b < 0) return b;
+  apply_delta(p, dc, dt);
+  p->new_bricks += dnew;
+  int level = oc_key_level(s.key);
+  for (int k = 0; k < 8; k++) {
+    pn_t *ch = &p->nodes[b + k];
+    int rc;
+    if (splittable(p, ch, level + 1) && (rc = h_push(&p->split_h, (hent_t){b + k, ch->prio, ch->key})) < 0) return rc;
+  }
+  return 0;
+}
+
+/* Pass 3: Pettersson's split/merge loop; st->stop says why it stopped. */
+static int plan_split_merge(ocs_planner_t *p, const frustum_t *fr, ocs_plan_stats_t *st) {
   p->target = (1.0 - p->d.reserve) * (double)(p->aim && p->aim < p->d.budget ? p->aim : p->d.budget);
-  double capacity = (double)p->d.budget / ((double)p->d.slot_bytes + K * (double)p->d.record_bytes);
-  double max_new_nodes = fmax(8.0, p->d.split_fraction * capacity * (in->split_scale > 1.0 ? in->split_scale : 1.0));
+  double capacity = (double)p->d.budget / ((double)p->d.slot_bytes + p->K * (double)p->d.record_bytes);
+  double max_new_nodes = fmax(8.0, p->d.split_fraction * capacity * (p->in->split_scale > 1.0 ? p->in->split_scale : 1.0));
   double created = 0.0;
   pn_t kids[8];
   oc_key_t kids_of = OC_KEY_INVALID; /* kids[] holds this node's children content */
-  st.stop = "converged (no splittable leaf above min_pixels)";
   for (;;) {
     if (p->T > p->target) { /* over the steady target (budget lowered, content grew): merge */
-      int r = try_merge(p, INFINITY, -1, &st);
-      if (r < 0 && r != -1) { rc = r; break; }
-      if (r == 0) { st.stop = "over target, nothing mergeable"; break; }
+      int r = try_merge(p, INFINITY, -1, st);
+      if (r < 0 && r != -1) return r;
+      if (r == 0) { st->stop = "over target, nothing mergeable"; return 0; }
       continue;
     }
-    if (!p->split_h.n) { st.stop = "converged (no splittable leaf above min_pixels)"; break; }
+    if (!p->split_h.n) { st->stop = "converged (no splittable leaf above min_pixels)"; return 0; }
     hent_t s = p->split_h.a[0];
     pn_t *n = &p->nodes[s.idx];
     int level = oc_key_level(s.key);
@@ -799,65 +842,44 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
       h_pop(&p->split_h);
       continue;
     }
-    if (!(s.prio > p->d.min_pixels)) { st.stop = "converged (voxels below min_pixels)"; break; }
-    if (created + 8 > max_new_nodes) { st.stop = "split cap"; break; }
-    /* the split's cost, children content included */
-    double dc[OCS_PLAN_MAX_KEPT], dt, c[OCS_PLAN_MAX_KEPT], t;
-    leaf_cost(p, n, level, c, &t);
-    for (int j = 0; j < K; j++) dc[j] = -c[j];
-    dt = -t;
-    int dnew = -new_brick(n);
+    if (!(s.prio > p->d.min_pixels)) { st->stop = "converged (voxels below min_pixels)"; return 0; }
+    if (created + 8 > max_new_nodes) { st->stop = "split cap"; return 0; }
     if (kids_of != n->key) { /* a retry after a merge reuses it */
-      int all = 1;
-      for (int k = 0; k < 8; k++) {
-        memset(&kids[k], 0, sizeof kids[k]);
-        kids[k].key = oc_key_child(n->key, k);
-        all &= new_content(p, &kids[k], level + 1, recent(p, n->topo), 0, s.prio);
-        kids[k].topo = n->topo; /* their children can be held only if n was internal lately */
-      }
       kids_of = n->key;
-      if (!all) { /* a split comes with its 8 children or waits for them */
+      if (!make_kids(p, n, level, s.prio, kids)) { /* a split comes with its 8 children or waits for them */
         h_pop(&p->split_h);
-        st.split_backlog++;
+        st->split_backlog++;
         kids_of = OC_KEY_INVALID;
         /* Past eight times the splits an epoch may make, further waiting splits are left for later
          * ticks: each costs 8 looks into the brick cache, and behind a teleport or a budget that
          * grew faster than production, tens of thousands wait (their children are wished by the
          * target plans meanwhile). Fewer, and a teleport's ready splits further down were not
          * reached: 2× took 12-15 ticks to full detail at 4 MiB where the stepped server needs 10. */
-        if (st.split_backlog > 8 * max_new_nodes / 8) { st.stop = "split backlog (children not made yet)"; break; }
+        if (st->split_backlog > 8 * max_new_nodes / 8) { st->stop = "split backlog (children not made yet)"; return 0; }
         continue;
       }
     }
-    for (int k = 0; k < 8; k++) {
-      leaf_cost(p, &kids[k], level + 1, c, &t);
-      for (int j = 0; j < K; j++) dc[j] += c[j];
-      dt += t;
-      dnew += new_brick(&kids[k]);
-    }
-    if (!fits(p, dc) || !new_ok(p, dnew)) { st.stop = "epoch change limit (held states, throughput)"; break; }
+    double dc[OCS_PLAN_MAX_KEPT], dt;
+    int dnew;
+    split_delta(p, n, level, kids, dc, &dt, &dnew);
+    if (!fits(p, dc) || !new_ok(p, dnew)) { st->stop = "epoch change limit (held states, throughput)"; return 0; }
     if (p->T + dt <= p->target) {
-      h_pop(&p->split_h);
-      int32_t b = do_split(p, s.idx, kids, &fr);
-      if (b < 0) { rc = b; break; }
-      apply_delta(p, dc, dt);
-      p->new_bricks += dnew;
+      int rc = apply_split(p, s, kids, fr, dc, dt, dnew);
+      if (rc < 0) return rc;
       created += 8;
-      st.splits++;
-      for (int k = 0; k < 8; k++) {
-        pn_t *ch = &p->nodes[b + k];
-        if (splittable(p, ch, level + 1) && (rc = h_push(&p->split_h, (hent_t){b + k, ch->prio, ch->key})) < 0) break;
-      }
-      if (rc < 0) break;
+      st->splits++;
       continue;
     }
-    int r = try_merge(p, s.prio, n->parent, &st);
-    if (r == 0) { st.stop = "balanced (cheapest merge outweighs best split)"; break; }
-    if (r < -1) { rc = r; break; }
+    int r = try_merge(p, s.prio, n->parent, st);
+    if (r == 0) { st->stop = "balanced (cheapest merge outweighs best split)"; return 0; }
+    if (r < -1) return r;
   }
-  if (rc < 0) return epoch_fail(p, rc);
+}
 
-  /* Output: leaves in canonical order (level, then Morton: a walk in child order per level). */
+/* Output: leaves in canonical order (level, then Morton: a walk in child order per level). A
+ * target plan also wishes every new content it holds. */
+static int plan_output(ocs_planner_t *p, ocs_plan_stats_t *st) {
+  const ocs_plan_input_t *in = p->in;
   uint32_t per_level[OC_KEY_MAX_LEVEL + 2] = {0};
   uint32_t nleaves = 0;
   for (int32_t i = 0; i < p->count; i++) {
@@ -866,47 +888,68 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   }
   if (nleaves > p->out_cap) {
     ocs_plan_leaf_t *o = realloc(p->out, nleaves * sizeof *o);
-    if (!o) return epoch_fail(p, OC_ENOMEM);
+    if (!o) return OC_ENOMEM;
     p->out = o;
     int32_t *on = realloc(p->out_node, nleaves * sizeof *on);
-    if (!on) return epoch_fail(p, OC_ENOMEM);
+    if (!on) return OC_ENOMEM;
     p->out_node = on;
     p->out_cap = nleaves;
   }
   for (int l = 1; l <= OC_KEY_MAX_LEVEL + 1; l++) per_level[l] += per_level[l - 1];
-  {
-    int32_t stack[8 * (OC_KEY_MAX_LEVEL + 1) + 8];
-    int sp = 0;
-    stack[sp++] = 0;
-    while (sp) {
-      int32_t i = stack[--sp];
-      const pn_t *n = &p->nodes[i];
-      /* a target plan: every new content it holds, inner nodes too, since a clocked tick can show
-       * a node's children only once it shows the node */
-      if (!in->ready && in->want && n->age == AGE_NEW)
-        in->want(in->ctx, n->key, n->stamp, n->flags & F_REFRESH ? refresh_gain(p, n->prio, oc_key_level(n->key)) : n->prio);
-      if (n->child >= 0) {
-        for (int c = 7; c >= 0; c--) stack[sp++] = n->child + c;
-        continue;
-      }
-      int level = oc_key_level(n->key);
-      uint32_t k = per_level[level]++;
-      ocs_plan_leaf_t *o = &p->out[k];
-      o->key = n->key;
-      o->stamp = n->stamp;
-      o->kind = n->kind;
-      o->produce = n->age == AGE_NEW;
-      o->held = o->produce ? 0 : n->age;
-      o->brick_id = o->produce ? 0 : n->brick_id;
-      p->out_node[k] = i;
-      if ((uint32_t)level > st.max_level) st.max_level = (uint32_t)level;
+  int32_t stack[8 * (OC_KEY_MAX_LEVEL + 1) + 8];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp) {
+    int32_t i = stack[--sp];
+    const pn_t *n = &p->nodes[i];
+    /* a target plan: every new content it holds, inner nodes too, since a clocked tick can show
+     * a node's children only once it shows the node */
+    if (!in->ready && in->want && n->age == AGE_NEW)
+      in->want(in->ctx, n->key, n->stamp, n->flags & F_REFRESH ? refresh_gain(p, n->prio, oc_key_level(n->key)) : n->prio);
+    if (n->child >= 0) {
+      for (int c = 7; c >= 0; c--) stack[sp++] = n->child + c;
+      continue;
     }
+    int level = oc_key_level(n->key);
+    uint32_t k = per_level[level]++;
+    ocs_plan_leaf_t *o = &p->out[k];
+    o->key = n->key;
+    o->stamp = n->stamp;
+    o->kind = n->kind;
+    o->produce = n->age == AGE_NEW;
+    o->held = o->produce ? 0 : n->age;
+    o->brick_id = o->produce ? 0 : n->brick_id;
+    p->out_node[k] = i;
+    if ((uint32_t)level > st->max_level) st->max_level = (uint32_t)level;
   }
   p->out_n = nleaves;
+  return 0;
+}
+
+int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_input_t *in,
+                   const ocs_plan_leaf_t **leaves, uint32_t *count, ocs_plan_stats_t *stats) {
+  if (!p || !in || !in->classify || !leaves || !count || !ocs_view_valid(view)) return OC_EINVAL;
+  struct timespec t0, t1;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  ocs_plan_stats_t st;
+  memset(&st, 0, sizeof st);
+  epoch_begin(p, in);
+  frustum_t fr = frustum_make(view, p->d.outside_weight);
+  hlist_t refresh = {0};
+  int rc = plan_walk(p, &fr, &refresh); /* an error here has changed no tree: nothing to undo */
+  if (rc < 0) {
+    free(refresh.a);
+    return rc;
+  }
+  rc = plan_refresh(p, refresh.a, refresh.n, &st);
+  free(refresh.a);
+  if (rc >= 0) rc = plan_split_merge(p, &fr, &st);
+  if (rc >= 0) rc = plan_output(p, &st);
+  if (rc < 0) return epoch_fail(p, rc);
   p->pending = 1;
   *leaves = p->out;
-  *count = nleaves;
-  st.leaves = nleaves;
+  *count = p->out_n;
+  st.leaves = p->out_n;
   st.new_bricks = p->new_bricks;
   st.predicted_bytes = (uint64_t)p->C[0];
   st.steady_bytes = (uint64_t)p->T;
