@@ -21,7 +21,7 @@ extern const oc_cli_spec_t oct_bench_world_spec;
 /* bench_sweep.c: error against run time; bench_truth.c: Monte Carlo ground truth. Each prints its
  * own options section of --help. */
 int oct_bench_sweep(const char *prog, int argc, char **argv);
-void oct_bench_sweep_usage(FILE *f);
+extern const oc_cli_spec_t oct_bench_sweep_spec;
 int oct_bench_truth(const char *prog, int argc, char **argv);
 void oct_bench_truth_usage(FILE *f);
 int oct_bench_model(const char *prog, int argc, char **argv);

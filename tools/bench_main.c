@@ -33,7 +33,6 @@ static void legacy_usage(FILE *f) {
           "\n"
           "\n"
           "\n");
-  oct_bench_sweep_usage(f);
   oct_bench_truth_usage(f);
   oct_bench_model_usage(f);
   oct_bench_stability_usage(f);
@@ -57,7 +56,7 @@ static const cmd_t cmds[] = {
      &oct_bench_world_spec},
     {"wire", "epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary", oct_bench_wire, &oct_bench_wire_spec},
     {"sweep", "error against run time: quality knobs swept, RMSE/PSNR against the best setting", oct_bench_sweep,
-     NULL},
+     &oct_bench_sweep_spec},
     {"truth", "Monte Carlo ground truth (delta tracking, every scattering order) for small views", oct_bench_truth,
      NULL},
     {"model", "the cloud model against stored truth images (truth --save): errors, fit objective", oct_bench_model,

@@ -23,8 +23,8 @@
  *
  * Outputs: a Markdown report on stdout (and --md), --csv (one row per setting × view), --plot (RMSE
  * against render ms with the Pareto front marked). Progress on stderr. */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -49,91 +49,198 @@
 
 static const char *const onoff[2] = {"off", "on"};
 
-void oct_bench_sweep_usage(FILE *f) {
-  fprintf(f,
-          "sweep options (error against run time; the grid is the product of the lists; the reference is its\n"
-          "highest-quality setting; outputs a Markdown report on stdout, progress on stderr):\n"
-          "  --scene FILE        scene (default: the built-in procedural planet)\n"
-          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   a view (repeatable; default: the scene's camera)\n"
-          "  --views PNG[,PNG..] views from screenshots' stored cameras (overcast-camera text chunk)\n"
-          "  --path FILE         views sampled from a camera path file (overcast-view --record)\n"
-          "  --path-samples N    poses taken evenly over the path's duration (default 4)\n"
-          "  --size WxH          image size (default 160x90)\n"
-          "  --plan-size WxH     viewport the planner sizes the tree for (default: --size)\n"
-          "  --renderer cpu|gl   the CPU reference (default) or the GL compute renderer (headless EGL)\n"
-          "  --threads N         CPU reference threads (default 2); its time is process CPU time over all\n"
-          "                      threads (gl: wall time on llvmpipe, timer queries on a GPU; LP_NUM_THREADS)\n"
-          "  --repeat N          timed renders per setting; the fastest counts (default 2)\n"
-          "  --budgets LIST      viewer budgets in MiB (default 1,4,16,64)\n"
-          "  --max-depths LIST   deepest octree levels, 0..21 (default 21)\n"
-          "  --step-factors LIST step × voxel spacing (default 0.25,0.5,1,2)\n"
-          "  --ms-octaves LIST   multiple-scattering octaves, 1..8 (default: the scene's)\n"
-          "  --reprojection LIST off,on (gl only): a --frames sequence turning --motion degrees per frame,\n"
-          "                      one pixel in 16 traced; the last frame is compared (default off)\n"
-          "  --interp LIST       off,on (gl only): newest state blended with the previous at --interp-t\n"
-          "                      (default off)\n"
-          "  --frames N          reprojection sequence length (default 16)\n"
-          "  --motion DEG        heading change per frame of the sequence (default 0.1)\n"
-          "  --interp-t X        blend parameter with interpolation on, 0..1 (default 0.5)\n"
-          "  --reconstruction LIST  exact only: there is no hardware-filtered path (RG16UI atlas)\n"
-          "  --refresh LIST      stamp only: the server core has one refresh policy\n"
-          "  --epochs N          epochs stepped per server setting and view (default 8)\n"
-          "  --split-fraction X  planner split cap per epoch (default 0.5: converges in fewer epochs)\n"
-          "  --reserve X         budget fraction the planner keeps free for change (default 0.1, a viewer's)\n"
-          "  --server-threads N  producer threads (default: all cores)\n"
-          "  --time T            world time at epoch 0, s (default 0)\n"
-          "  --csv FILE          one row per setting and view\n"
-          "  --md FILE           the Markdown report (Table 6.1 form: budget × step factor → ms / RMSE)\n"
-          "  --plot FILE.png     RMSE against render ms, Pareto front marked\n"
-          "  --images DIR        also every image as a PNG (camera in its text chunk), the reference's too\n"
-          "  --reference-filter fast|exact  the reference image's bricks from the sources' fast box filter\n"
-          "                      (default, as every setting's) or their exact one (a server run of its own at\n"
-          "                      the reference's budget and depth): the RMSE column is then each setting's\n"
-          "                      error against the exact filter, the fast filter's included\n"
-          "\n");
+/*-*** Options ***/
+
+typedef struct {
+  double v[MAXK];
+  int n;
+} dlist_t;
+typedef struct {
+  long v[MAXK];
+  int n;
+} llist_t;
+
+typedef struct {
+  const char *scene, *views, *path, *csv, *md, *plot, *images;
+  const char *cameras[MAXV];
+  int ncameras;
+  int size[2], plan_size[2];
+  int gl, threads, repeat, path_n, frames, epochs, srv_threads, ref_exact;
+  dlist_t budgets, steps;
+  llist_t depths, octs, reps, ints; /* octs.n 0: the scene's */
+  double motion, interp_t, split, reserve, time;
+} sweep_opts_t;
+
+static int opt_camera(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  sweep_opts_t *x = base;
+  (void)o;
+  if (x->ncameras == MAXV) return oc_cli_fail(prog, -1, "--camera: at most %d", MAXV);
+  x->cameras[x->ncameras++] = text;
+  return 0;
 }
 
-/*-*** Options ***/
+static int opt_doubles(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  dlist_t *l = oc_cli_field(o, base);
+  char buf[512], opt[64];
+  snprintf(buf, sizeof buf, "%s", text);
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  l->n = 0;
+  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+    if (l->n == MAXK) return oc_cli_fail(prog, -1, "%s: at most %d values", opt, MAXK);
+    if (oc_cli_double(prog, opt, tok, o->lo, o->hi, &l->v[l->n++])) return -1;
+  }
+  if (l->n == 0) return oc_cli_fail(prog, -1, "%s: empty list", opt);
+  return 0;
+}
+
+static int opt_longs(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  llist_t *l = oc_cli_field(o, base);
+  char opt[64];
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  return oct_parse_list(prog, opt, text, (long)o->lo, (long)o->hi, l->v, MAXK, &l->n);
+}
+
+static int opt_onoff(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  llist_t *l = oc_cli_field(o, base);
+  char buf[128];
+  snprintf(buf, sizeof buf, "%s", text);
+  l->n = 0;
+  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+    if (l->n == 2) return oc_cli_fail(prog, -1, "--%s: at most 2 values (off,on)", o->name);
+    if (!strcmp(tok, "off") || !strcmp(tok, "0")) l->v[l->n++] = 0;
+    else if (!strcmp(tok, "on") || !strcmp(tok, "1")) l->v[l->n++] = 1;
+    else return oc_cli_fail(prog, -1, "--%s: expected off or on, got \"%s\"", o->name, tok);
+  }
+  if (l->n == 0) return oc_cli_fail(prog, -1, "--%s: empty list", o->name);
+  return 0;
+}
+
+/* A list whose only admissible value is the row's default; anything else is refused with why. */
+static int opt_only(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  static const char *const why[2] = {
+      "the brick atlas is an RG16UI integer texture (codes with a per-brick range), which GL cannot filter; the "
+      "shader reconstructs exactly (trilinear of decoded codes), as the CPU reference does",
+      "the server core has one refresh policy (a leaf whose content stamp changed is refreshed, nearest first, "
+      "within the budget's reserve; otherwise deferred) and no switch for another"};
+  char buf[128];
+  (void)base;
+  snprintf(buf, sizeof buf, "%s", text);
+  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save))
+    if (strcmp(tok, o->def))
+      return oc_cli_fail(prog, -1, "--%s %s: not available: %s", o->name, tok, why[!strcmp(o->name, "refresh")]);
+  return 0;
+}
+
+static int opt_ref_filter(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  if (strcmp(text, "fast") && strcmp(text, "exact"))
+    return oc_cli_fail(prog, -1, "--%s: \"%s\" is not fast or exact", o->name, text);
+  *(int *)oc_cli_field(o, base) = !strcmp(text, "exact");
+  return 0;
+}
+
+#define AT(f) offsetof(sweep_opts_t, f)
+#define VIEWS "Views"
+#define KNOBS "Knobs (each a list; the grid is their product)"
+#define RUN "The runs"
+#define OUT "Outputs"
+
+static const oc_cli_opt_t sweep_opts[] = {
+    {.name = "scene", .type = OC_CLI_STRING, .offset = AT(scene), .arg = "FILE",
+     .def_note = "the built-in procedural planet", .group = VIEWS, .help = "scene"},
+    {.name = "camera", .type = OC_CLI_CUSTOM, .parse = opt_camera, .arg = "LAT,LON,ALT,HEADING,PITCH,FOV",
+     .def_note = "the scene's camera", .group = VIEWS, .help = "a view (repeatable)"},
+    {.name = "views", .type = OC_CLI_STRING, .offset = AT(views), .arg = "PNG[,PNG..]", .group = VIEWS,
+     .help = "views from screenshots' stored cameras (overcast-camera text chunk)"},
+    {.name = "path", .type = OC_CLI_STRING, .offset = AT(path), .arg = "FILE", .group = VIEWS,
+     .help = "views sampled from a camera path file (overcast-view --record)"},
+    {.name = "path-samples", .type = OC_CLI_INT, .offset = AT(path_n), .arg = "N", .lo = 1, .hi = MAXV, .def = "4",
+     .group = VIEWS, .help = "poses taken evenly over the path's duration"},
+    {.name = "size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = AT(size), .arg = "WxH", .def = "160x90",
+     .group = VIEWS, .help = "image size"},
+    {.name = "plan-size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = AT(plan_size), .arg = "WxH",
+     .def_note = "--size", .group = VIEWS, .help = "viewport the planner sizes the tree for"},
+    {.name = "budgets", .type = OC_CLI_CUSTOM, .parse = opt_doubles, .offset = AT(budgets), .arg = "LIST",
+     .lo = 0.0625, .hi = 1 << 20, .def = "1,4,16,64", .group = KNOBS, .help = "viewer budgets in MiB"},
+    {.name = "max-depths", .type = OC_CLI_CUSTOM, .parse = opt_longs, .offset = AT(depths), .arg = "LIST", .lo = 0,
+     .hi = 21, .def = "21", .group = KNOBS, .help = "deepest octree levels"},
+    {.name = "step-factors", .type = OC_CLI_CUSTOM, .parse = opt_doubles, .offset = AT(steps), .arg = "LIST",
+     .lo = 1e-3, .hi = 1e3, .def = "0.25,0.5,1,2", .group = KNOBS, .help = "step × voxel spacing"},
+    {.name = "ms-octaves", .type = OC_CLI_CUSTOM, .parse = opt_longs, .offset = AT(octs), .arg = "LIST", .lo = 1,
+     .hi = 8, .def_note = "the scene's", .group = KNOBS, .help = "multiple-scattering octaves"},
+    {.name = "reprojection", .type = OC_CLI_CUSTOM, .parse = opt_onoff, .offset = AT(reps), .arg = "LIST",
+     .def = "off", .group = KNOBS,
+     .help = "off,on (gl only): a --frames sequence turning --motion degrees per frame, one pixel in 16 traced; "
+             "the last frame is compared"},
+    {.name = "interp", .type = OC_CLI_CUSTOM, .parse = opt_onoff, .offset = AT(ints), .arg = "LIST", .def = "off",
+     .group = KNOBS, .help = "off,on (gl only): newest state blended with the previous at --interp-t"},
+    {.name = "reconstruction", .type = OC_CLI_CUSTOM, .parse = opt_only, .arg = "LIST", .def = "exact",
+     .group = KNOBS, .help = "exact only: there is no hardware-filtered path (RG16UI atlas)"},
+    {.name = "refresh", .type = OC_CLI_CUSTOM, .parse = opt_only, .arg = "LIST", .def = "stamp", .group = KNOBS,
+     .help = "stamp only: the server core has one refresh policy"},
+    {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = oct_opt_renderer, .offset = AT(gl), .arg = "cpu|gl",
+     .def = "cpu", .group = RUN, .help = "the CPU reference or the GL compute renderer (headless EGL)"},
+    {.name = "threads", .type = OC_CLI_INT, .offset = AT(threads), .arg = "N", .lo = 1, .hi = 256, .def = "2",
+     .group = RUN,
+     .help = "CPU reference threads; its time is process CPU time over all threads (gl: wall time on llvmpipe, "
+             "timer queries on a GPU; LP_NUM_THREADS)"},
+    {.name = "repeat", .type = OC_CLI_INT, .offset = AT(repeat), .arg = "N", .lo = 1, .hi = 100, .def = "2",
+     .group = RUN, .help = "timed renders per setting; the fastest counts"},
+    {.name = "frames", .type = OC_CLI_INT, .offset = AT(frames), .arg = "N", .lo = 2, .hi = 1024, .def = "16",
+     .group = RUN, .help = "reprojection sequence length"},
+    {.name = "motion", .type = OC_CLI_DOUBLE, .offset = AT(motion), .arg = "DEG", .lo = -90, .hi = 90, .def = "0.1",
+     .group = RUN, .help = "heading change per frame of the sequence"},
+    {.name = "interp-t", .type = OC_CLI_DOUBLE, .offset = AT(interp_t), .arg = "X", .lo = 0, .hi = 1, .def = "0.5",
+     .group = RUN, .help = "blend parameter with interpolation on"},
+    {.name = "epochs", .type = OC_CLI_INT, .offset = AT(epochs), .arg = "N", .lo = 1, .hi = 1000, .def = "8",
+     .group = RUN, .help = "epochs stepped per server setting and view"},
+    {.name = "split-fraction", .type = OC_CLI_DOUBLE, .offset = AT(split), .arg = "X", .lo = 0.001, .hi = 1,
+     .def = "0.5", .group = RUN, .help = "planner split cap per epoch (0.5 converges in fewer epochs)"},
+    {.name = "reserve", .type = OC_CLI_DOUBLE, .offset = AT(reserve), .arg = "X", .lo = 0.001, .hi = 0.5,
+     .def = "0.1", .group = RUN, .help = "budget fraction the planner keeps free for change (0.1 is a viewer's)"},
+    {.name = "server-threads", .type = OC_CLI_INT, .offset = AT(srv_threads), .arg = "N", .lo = 0, .hi = 64,
+     .def_note = "all cores", .group = RUN, .help = "producer threads; 0: all cores"},
+    {.name = "time", .type = OC_CLI_DOUBLE, .offset = AT(time), .arg = "T", .lo = -1e12, .hi = 1e12, .def = "0",
+     .group = RUN, .help = "world time at epoch 0, s"},
+    {.name = "reference-filter", .type = OC_CLI_CUSTOM, .parse = opt_ref_filter, .offset = AT(ref_exact),
+     .arg = "fast|exact", .def = "fast", .group = RUN,
+     .help = "the reference image's bricks from the sources' fast box filter (as every setting's) or their "
+             "exact one (a server run of its own at the reference's budget and depth): the RMSE column is then "
+             "each setting's error against the exact filter, the fast filter's included"},
+    {.name = "csv", .type = OC_CLI_STRING, .offset = AT(csv), .arg = "FILE", .group = OUT,
+     .help = "one row per setting and view"},
+    {.name = "md", .type = OC_CLI_STRING, .offset = AT(md), .arg = "FILE", .group = OUT,
+     .help = "the Markdown report (Table 6.1 form: budget × step factor → ms / RMSE)"},
+    {.name = "plot", .type = OC_CLI_STRING, .offset = AT(plot), .arg = "FILE.png", .group = OUT,
+     .help = "RMSE against render ms, Pareto front marked"},
+    {.name = "images", .type = OC_CLI_STRING, .offset = AT(images), .arg = "DIR", .group = OUT,
+     .help = "also every image as a PNG (camera in its text chunk), the reference's too"},
+    {.name = "help", .type = OC_CLI_HELP, .group = OUT, .help = "print this and exit"},
+    {0}};
+
+const oc_cli_spec_t oct_bench_sweep_spec = {
+    .prog = "overcast-bench sweep",
+    .about = "Error against run time: quality knobs swept, RMSE/PSNR against the best setting. The grid is the\n"
+             "product of the lists; the reference is its highest-quality setting; outputs a Markdown report on\n"
+             "stdout, progress on stderr.\n",
+    .opts = sweep_opts};
+
+/* The checks between options; 0, or -1 after printing the error. */
+static int sweep_check(const char *prog, sweep_opts_t *o) {
+  if (!o->plan_size[0]) o->plan_size[0] = o->size[0], o->plan_size[1] = o->size[1];
+  if (!o->gl && (o->reps.v[o->reps.n - 1] || o->reps.v[0] || o->ints.v[0] || o->ints.v[o->ints.n - 1]))
+    return oc_cli_fail(prog, -1, "--reprojection on and --interp on need --renderer gl (the CPU reference has neither)");
+  if (o->path && (o->ncameras || o->views))
+    return oc_cli_fail(prog, -1, "--path gives the views: no --camera or --views with it");
+#ifndef OC_HAVE_GL
+  if (o->path) return oc_cli_fail(prog, -1, "--path: this build has no client library (camera paths)");
+#endif
+  return 0;
+}
 
 typedef struct {
   oc_camera_pose_t pose;
   char name[96];
 } view_t;
-
-static int parse_doubles(const char *prog, const char *opt, const char *text, double lo, double hi, double *out, int *n) {
-  char buf[512];
-  snprintf(buf, sizeof buf, "%s", text);
-  *n = 0;
-  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-    if (*n == MAXK) return oc_cli_fail(prog, -1, "%s: at most %d values", opt, MAXK);
-    if (oc_cli_double(prog, opt, tok, lo, hi, &out[(*n)++])) return -1;
-  }
-  if (*n == 0) return oc_cli_fail(prog, -1, "%s: empty list", opt);
-  return 0;
-}
-
-static int parse_onoff(const char *prog, const char *opt, const char *text, long *out, int *n) {
-  char buf[128];
-  snprintf(buf, sizeof buf, "%s", text);
-  *n = 0;
-  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-    if (*n == 2) return oc_cli_fail(prog, -1, "%s: at most 2 values (off,on)", opt);
-    if (!strcmp(tok, "off") || !strcmp(tok, "0")) out[(*n)++] = 0;
-    else if (!strcmp(tok, "on") || !strcmp(tok, "1")) out[(*n)++] = 1;
-    else return oc_cli_fail(prog, -1, "%s: expected off or on, got \"%s\"", opt, tok);
-  }
-  if (*n == 0) return oc_cli_fail(prog, -1, "%s: empty list", opt);
-  return 0;
-}
-
-/* A list whose only admissible value is `only`; anything else is refused with `why`. */
-static int parse_only(const char *prog, const char *opt, const char *text, const char *only, const char *why) {
-  char buf[128];
-  snprintf(buf, sizeof buf, "%s", text);
-  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save))
-    if (strcmp(tok, only)) return oc_cli_fail(prog, -1, "%s %s: not available: %s", opt, tok, why);
-  return 0;
-}
 
 static int add_view(const char *prog, view_t *v, int *nv, oc_camera_pose_t pose, const char *name) {
   if (*nv == MAXV) return oc_cli_fail(prog, -1, "at most %d views", MAXV);
@@ -326,522 +433,458 @@ static void write_report(FILE *f, const report_t *R) {
 
 /*-*** The subcommand ***/
 
-int oct_bench_sweep(const char *prog, int argc, char **argv) {
-  enum {
-    O_SCENE = 256, O_CAMERA, O_VIEWS, O_PATH, O_PATH_N, O_SIZE, O_PLAN_SIZE, O_RENDERER, O_THREADS, O_REPEAT, O_BUDGETS,
-    O_DEPTHS, O_STEPS, O_OCTS, O_REPROJ, O_INTERP, O_FRAMES, O_MOTION, O_INTERP_T, O_RECON, O_REFRESH, O_EPOCHS, O_SPLIT,
-    O_SRV_THREADS, O_RESERVE, O_TIME, O_CSV, O_MD, O_PLOT, O_IMAGES, O_REF_FILTER, O_HELP
-  };
-  static const struct option opts[] = {
-      {"scene", required_argument, 0, O_SCENE},         {"camera", required_argument, 0, O_CAMERA},
-      {"views", required_argument, 0, O_VIEWS},         {"path", required_argument, 0, O_PATH},
-      {"path-samples", required_argument, 0, O_PATH_N}, {"size", required_argument, 0, O_SIZE},
-      {"plan-size", required_argument, 0, O_PLAN_SIZE}, {"renderer", required_argument, 0, O_RENDERER},
-      {"threads", required_argument, 0, O_THREADS},     {"repeat", required_argument, 0, O_REPEAT},
-      {"budgets", required_argument, 0, O_BUDGETS},     {"max-depths", required_argument, 0, O_DEPTHS},
-      {"step-factors", required_argument, 0, O_STEPS},  {"ms-octaves", required_argument, 0, O_OCTS},
-      {"reprojection", required_argument, 0, O_REPROJ}, {"interp", required_argument, 0, O_INTERP},
-      {"frames", required_argument, 0, O_FRAMES},       {"motion", required_argument, 0, O_MOTION},
-      {"interp-t", required_argument, 0, O_INTERP_T},   {"reconstruction", required_argument, 0, O_RECON},
-      {"refresh", required_argument, 0, O_REFRESH},     {"epochs", required_argument, 0, O_EPOCHS},
-      {"split-fraction", required_argument, 0, O_SPLIT}, {"server-threads", required_argument, 0, O_SRV_THREADS},
-      {"reserve", required_argument, 0, O_RESERVE},     {"time", required_argument, 0, O_TIME},
-      {"csv", required_argument, 0, O_CSV},             {"md", required_argument, 0, O_MD},
-      {"plot", required_argument, 0, O_PLOT},           {"images", required_argument, 0, O_IMAGES},
-      {"reference-filter", required_argument, 0, O_REF_FILTER},
-      {"help", no_argument, 0, O_HELP},                 {0, 0, 0, 0}};
-  const char *scene_path = NULL, *views_text = NULL, *path_file = NULL, *csv_path = NULL, *md_path = NULL, *plot_path = NULL,
-             *images_dir = NULL;
-  const char *cameras[MAXV];
-  int ncameras = 0;
-  const char *budgets_text = "1,4,16,64", *depths_text = "21", *steps_text = "0.25,0.5,1,2", *octs_text = NULL;
-  const char *reproj_text = "off", *interp_text = "off";
-  long path_n = 4, threads = 2, repeat = 2, frames = 16, epochs = 8, srv_threads = 0;
-  double motion = 0.1, interp_t = 0.5, split = 0.5, reserve = 0.1, world_time = 0.0;
-  int ref_exact = 0;
-  int w = 160, h = 90, pw = 0, ph = 0, gl = 0, c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SCENE: scene_path = optarg; break;
-      case O_CAMERA:
-        if (ncameras == MAXV) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: at most %d", MAXV);
-        cameras[ncameras++] = optarg;
-        break;
-      case O_VIEWS: views_text = optarg; break;
-      case O_PATH: path_file = optarg; break;
-      case O_PATH_N: if (oc_cli_int(prog, "--path-samples", optarg, 1, MAXV, &path_n)) return OC_EXIT_USAGE; break;
-      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_PLAN_SIZE: if (oc_cli_size(prog, "--plan-size", optarg, &pw, &ph)) return OC_EXIT_USAGE; break;
-      case O_RENDERER:
-        if (!strcmp(optarg, "cpu")) gl = 0;
-        else if (!strcmp(optarg, "gl")) gl = 1;
-        else return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer: expected cpu or gl, got \"%s\"", optarg);
-#ifndef OC_HAVE_GL
-        if (gl) return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer gl: this build has no GL renderer (libepoxy was not found)");
-#endif
-        break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &threads)) return OC_EXIT_USAGE; break;
-      case O_REPEAT: if (oc_cli_int(prog, "--repeat", optarg, 1, 100, &repeat)) return OC_EXIT_USAGE; break;
-      case O_BUDGETS: budgets_text = optarg; break;
-      case O_DEPTHS: depths_text = optarg; break;
-      case O_STEPS: steps_text = optarg; break;
-      case O_OCTS: octs_text = optarg; break;
-      case O_REPROJ: reproj_text = optarg; break;
-      case O_INTERP: interp_text = optarg; break;
-      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 2, 1024, &frames)) return OC_EXIT_USAGE; break;
-      case O_MOTION: if (oc_cli_double(prog, "--motion", optarg, -90, 90, &motion)) return OC_EXIT_USAGE; break;
-      case O_INTERP_T: if (oc_cli_double(prog, "--interp-t", optarg, 0, 1, &interp_t)) return OC_EXIT_USAGE; break;
-      case O_RECON:
-        if (parse_only(prog, "--reconstruction", optarg, "exact",
-                       "the brick atlas is an RG16UI integer texture (codes with a per-brick range), which GL cannot "
-                       "filter; the shader reconstructs exactly (trilinear of decoded codes), as the CPU reference does"))
-          return OC_EXIT_USAGE;
-        break;
-      case O_REFRESH:
-        if (parse_only(prog, "--refresh", optarg, "stamp",
-                       "the server core has one refresh policy (a leaf whose content stamp changed is refreshed, nearest "
-                       "first, within the budget's reserve; otherwise deferred) and no switch for another"))
-          return OC_EXIT_USAGE;
-        break;
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 1000, &epochs)) return OC_EXIT_USAGE; break;
-      case O_SPLIT: if (oc_cli_double(prog, "--split-fraction", optarg, 0.001, 1, &split)) return OC_EXIT_USAGE; break;
-      case O_SRV_THREADS: if (oc_cli_int(prog, "--server-threads", optarg, 0, 64, &srv_threads)) return OC_EXIT_USAGE; break;
-      case O_RESERVE: if (oc_cli_double(prog, "--reserve", optarg, 0.001, 0.5, &reserve)) return OC_EXIT_USAGE; break;
-      case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &world_time)) return OC_EXIT_USAGE; break;
-      case O_CSV: csv_path = optarg; break;
-      case O_MD: md_path = optarg; break;
-      case O_PLOT: plot_path = optarg; break;
-      case O_IMAGES: images_dir = optarg; break;
-      case O_REF_FILTER:
-        if (strcmp(optarg, "fast") && strcmp(optarg, "exact"))
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--reference-filter: \"%s\" is not fast or exact", optarg);
-        ref_exact = !strcmp(optarg, "exact");
-        break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "sweep: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "sweep: unexpected argument \"%s\"", argv[optind]);
-  if (!pw) pw = w, ph = h;
-
+typedef struct {
+  const char *prog;
+  const sweep_opts_t *o;
   report_t R;
-  memset(&R, 0, sizeof R);
-  if (parse_doubles(prog, "--budgets", budgets_text, 0.0625, 1 << 20, R.budgets, &R.nb) ||
-      oct_parse_list(prog, "--max-depths", depths_text, 0, 21, R.depths, MAXK, &R.nd) ||
-      parse_doubles(prog, "--step-factors", steps_text, 1e-3, 1e3, R.steps, &R.ns) ||
-      parse_onoff(prog, "--reprojection", reproj_text, R.reps, &R.nr) || parse_onoff(prog, "--interp", interp_text, R.ints, &R.ni))
-    return OC_EXIT_USAGE;
-  if (!gl && (R.reps[R.nr - 1] || R.reps[0] || R.ints[0] || R.ints[R.ni - 1]))
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--reprojection on and --interp on need --renderer gl (the CPU reference has neither)");
-  if (path_file && (ncameras || views_text))
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--path gives the views: no --camera or --views with it");
-#ifndef OC_HAVE_GL
-  if (path_file) return oc_cli_fail(prog, OC_EXIT_USAGE, "--path: this build has no client library (camera paths)");
-#endif
+  oc_scene_t *sc;
+  view_t *views;
+  int nv, S, RS, done;
+  oc_atmo_t *atmo;
+  octs_renderer_t *ren;
+  char rinfo[512];
+  float *truth;      /* per view: e^−τ of each pixel's ray (analytic scenes) */
+  uint8_t *ref_rgb;  /* per view: the reference image */
+  uint8_t *rgb;
+  srv_t *srv;
+  cell_t *cell;
+  agg_t *agg;
+  oc_image_t img;
+  double t_start;
+} sweep_t;
 
+/* The views: --camera, --views, --path, or the scene's camera. @return 0 or the exit status. */
+static int sweep_views(sweep_t *W) {
+  const sweep_opts_t *o = W->o;
+  const char *prog = W->prog;
   char why[1024];
-  static oc_scene_t sc;
-  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
-  int rc = OC_EXIT_OK;
-  if (octs_text) {
-    if (oct_parse_list(prog, "--ms-octaves", octs_text, 1, 8, R.octs, MAXK, &R.no)) {
-      oc_scene_free(&sc);
-      return OC_EXIT_USAGE;
-    }
-  } else {
-    R.octs[0] = oc_scene_has(&sc, OC_FEATURE_MULTIPLE_SCATTERING) ? sc.optics.ms_octaves : 1;
-    R.no = 1;
-  }
-
-  /* the views */
-  static view_t views[MAXV];
-  int nv = 0;
-  for (int i = 0; i < ncameras; i++) {
+  for (int i = 0; i < o->ncameras; i++) {
     oc_camera_pose_t pose;
     char name[32];
-    if (oc_camera_parse(cameras[i], &pose, why, sizeof why) < 0) {
-      oc_scene_free(&sc);
+    if (oc_camera_parse(o->cameras[i], &pose, why, sizeof why) < 0)
       return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
-    }
     snprintf(name, sizeof name, "camera %d", i + 1);
-    if (add_view(prog, views, &nv, pose, name)) return OC_EXIT_USAGE;
+    if (add_view(prog, W->views, &W->nv, pose, name)) return OC_EXIT_USAGE;
   }
-  if (views_text) {
+  if (o->views) {
     char buf[4096];
-    snprintf(buf, sizeof buf, "%s", views_text);
+    snprintf(buf, sizeof buf, "%s", o->views);
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
       int iw, ih;
       uint8_t *px = NULL;
       char text[256] = "";
       oc_camera_pose_t pose;
-      if (oc_png_read(tok, &iw, &ih, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0) {
-        oc_scene_free(&sc);
+      if (oc_png_read(tok, &iw, &ih, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0)
         return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--views: %s", why);
-      }
       free(px);
-      if (!text[0]) {
-        oc_scene_free(&sc);
-        return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--views %s: no overcast-camera text chunk", tok);
-      }
-      if (oc_camera_parse(text, &pose, why, sizeof why) < 0) {
-        oc_scene_free(&sc);
+      if (!text[0]) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--views %s: no overcast-camera text chunk", tok);
+      if (oc_camera_parse(text, &pose, why, sizeof why) < 0)
         return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--views %s: %s", tok, why);
-      }
       const char *base = strrchr(tok, '/');
-      if (add_view(prog, views, &nv, pose, base ? base + 1 : tok)) return OC_EXIT_USAGE;
+      if (add_view(prog, W->views, &W->nv, pose, base ? base + 1 : tok)) return OC_EXIT_USAGE;
     }
   }
 #ifdef OC_HAVE_GL
-  if (path_file) {
+  if (o->path) {
     ocv_path_t path;
     ocv_path_init(&path);
-    if (ocv_path_load(&path, path_file, why, sizeof why) < 0 || path.count == 0) {
+    if (ocv_path_load(&path, o->path, why, sizeof why) < 0 || path.count == 0) {
       ocv_path_free(&path);
-      oc_scene_free(&sc);
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--path: %s", path.count ? why : "no poses");
     }
     double dur = ocv_path_duration(&path), t0 = path.t[0];
-    for (long i = 0; i < path_n; i++) {
-      double t = path_n == 1 ? t0 : t0 + (dur - t0) * (double)i / (double)(path_n - 1);
+    for (long i = 0; i < o->path_n; i++) {
+      double t = o->path_n == 1 ? t0 : t0 + (dur - t0) * (double)i / (double)(o->path_n - 1);
       oc_camera_pose_t pose;
       char name[48];
       ocv_path_sample(&path, t, &pose);
       snprintf(name, sizeof name, "path t=%.2f s", t);
-      add_view(prog, views, &nv, pose, name);
+      add_view(prog, W->views, &W->nv, pose, name);
     }
     ocv_path_free(&path);
   }
 #endif
-  if (nv == 0) {
-    oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
-    add_view(prog, views, &nv, pose, "scene camera");
+  if (W->nv == 0) {
+    oc_camera_pose_t pose = {W->sc->camera.pos, W->sc->camera.heading, W->sc->camera.pitch, W->sc->camera.fov};
+    add_view(prog, W->views, &W->nv, pose, "scene camera");
   }
+  return 0;
+}
 
-  /* the reference: best of every knob, first in each list's slot 0 (lists are reordered so that the
-   * reference comes first: budgets and depths descending, steps ascending, octaves descending) */
-  for (int i = 0; i < R.nb; i++) /* simple insertion sorts; lists are short */
-    for (int j = i; j > 0 && R.budgets[j] > R.budgets[j - 1]; j--) {
-      double t = R.budgets[j];
-      R.budgets[j] = R.budgets[j - 1], R.budgets[j - 1] = t;
-    }
-  for (int i = 0; i < R.nd; i++)
-    for (int j = i; j > 0 && R.depths[j] > R.depths[j - 1]; j--) {
-      long t = R.depths[j];
-      R.depths[j] = R.depths[j - 1], R.depths[j - 1] = t;
-    }
-  for (int i = 0; i < R.ns; i++)
-    for (int j = i; j > 0 && R.steps[j] < R.steps[j - 1]; j--) {
-      double t = R.steps[j];
-      R.steps[j] = R.steps[j - 1], R.steps[j - 1] = t;
-    }
-  for (int i = 0; i < R.no; i++)
-    for (int j = i; j > 0 && R.octs[j] > R.octs[j - 1]; j--) {
-      long t = R.octs[j];
-      R.octs[j] = R.octs[j - 1], R.octs[j - 1] = t;
-    }
-  if (R.nr == 2 && R.reps[0]) R.reps[0] = 0, R.reps[1] = 1;
-  if (R.ni == 2 && R.ints[0]) R.ints[0] = 0, R.ints[1] = 1;
+static int desc_d(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x < y) - (x > y);
+}
+static int asc_d(const void *a, const void *b) { return desc_d(b, a); }
+static int desc_l(const void *a, const void *b) {
+  long x = *(const long *)a, y = *(const long *)b;
+  return (x < y) - (x > y);
+}
 
-  /* the atmosphere tables, the renderer, the closed form */
-  oc_atmo_t *atmo = NULL;
-  if (oc_scene_has(&sc, OC_FEATURE_ATMOSPHERE)) {
+/* The knob lists into the report, reordered so that the reference (the best of every knob) comes
+ * first: budgets and depths descending, steps ascending, octaves descending, off before on. */
+static void sweep_knobs(sweep_t *W) {
+  const sweep_opts_t *o = W->o;
+  report_t *R = &W->R;
+  memcpy(R->budgets, o->budgets.v, sizeof R->budgets), R->nb = o->budgets.n;
+  memcpy(R->depths, o->depths.v, sizeof R->depths), R->nd = o->depths.n;
+  memcpy(R->steps, o->steps.v, sizeof R->steps), R->ns = o->steps.n;
+  memcpy(R->octs, o->octs.v, sizeof R->octs), R->no = o->octs.n;
+  memcpy(R->reps, o->reps.v, sizeof R->reps), R->nr = o->reps.n;
+  memcpy(R->ints, o->ints.v, sizeof R->ints), R->ni = o->ints.n;
+  if (!R->no) {
+    R->octs[0] = oc_scene_has(W->sc, OC_FEATURE_MULTIPLE_SCATTERING) ? W->sc->optics.ms_octaves : 1;
+    R->no = 1;
+  }
+  qsort(R->budgets, (size_t)R->nb, sizeof *R->budgets, desc_d);
+  qsort(R->depths, (size_t)R->nd, sizeof *R->depths, desc_l);
+  qsort(R->steps, (size_t)R->ns, sizeof *R->steps, asc_d);
+  qsort(R->octs, (size_t)R->no, sizeof *R->octs, desc_l);
+  if (R->nr == 2 && R->reps[0]) R->reps[0] = 0, R->reps[1] = 1;
+  if (R->ni == 2 && R->ints[0]) R->ints[0] = 0, R->ints[1] = 1;
+}
+
+/* The atmosphere tables, the renderer, the buffers, the closed form. */
+static int sweep_open(sweep_t *W) {
+  const sweep_opts_t *o = W->o;
+  const int w = o->size[0], h = o->size[1];
+  char why[1024];
+  if (oc_scene_has(W->sc, OC_FEATURE_ATMOSPHERE)) {
     ocg_atmosphere ap;
     oc_atmo_params_default(&ap);
-    if (!oc_scene_has(&sc, OC_FEATURE_OZONE)) ap.ozone_absorption = ocg_v3s(0.0f);
-    if (!(atmo = oc_atmo_create(&ap, (int)threads))) {
-      oc_scene_free(&sc);
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
-    }
+    if (!oc_scene_has(W->sc, OC_FEATURE_OZONE)) ap.ozone_absorption = ocg_v3s(0.0f);
+    if (!(W->atmo = oc_atmo_create(&ap, o->threads)))
+      return oc_cli_fail(W->prog, -1, "could not build the atmosphere tables");
   }
-  octs_render_desc_t rd = {w, h, (int)threads, (int)repeat, (int)frames, motion, (float)interp_t, &sc, atmo};
-  char rinfo[512];
-  octs_renderer_t *ren = octs_renderer_open(gl, &rd, rinfo, sizeof rinfo, why, sizeof why);
-  if (!ren) {
-    oc_atmo_free(atmo);
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer %s: %s", gl ? "gl" : "cpu", why);
-  }
+  octs_render_desc_t rd = {w, h, o->threads, o->repeat, o->frames, o->motion, (float)o->interp_t, W->sc, W->atmo};
+  if (!(W->ren = octs_renderer_open(o->gl, &rd, W->rinfo, sizeof W->rinfo, why, sizeof why)))
+    return oc_cli_fail(W->prog, -1, "--renderer %s: %s", o->gl ? "gl" : "cpu", why);
   ocs_medium_t medium;
-  R.analytic = ocs_scene_medium(&sc, &medium, NULL, 0) == 0;
-  size_t npx = (size_t)w * (size_t)h;
-  float *truth = NULL; /* per view: e^−τ of each pixel's ray */
-  uint8_t *ref_rgb = NULL, *rgb = NULL;
-  const int S = R.nb * R.nd, RS = R.ns * R.no * R.nr * R.ni;
-  srv_t *srv = calloc((size_t)S * nv, sizeof *srv);
-  cell_t *cell = calloc((size_t)S * RS * nv, sizeof *cell);
-  agg_t *agg = calloc((size_t)S * RS, sizeof *agg);
-  oc_image_t img = {0};
-  FILE *csv = NULL;
-  ref_rgb = malloc(npx * 3 * (size_t)nv);
-  rgb = malloc(npx * 3);
-  if (R.analytic) truth = malloc(sizeof *truth * npx * (size_t)nv);
-  if (!srv || !cell || !agg || !ref_rgb || !rgb || (R.analytic && !truth) || oc_image_alloc(&img, w, h) < 0) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-    goto out;
+  W->R.analytic = ocs_scene_medium(W->sc, &medium, NULL, 0) == 0;
+  size_t npx = (size_t)w * (size_t)h, nv = (size_t)W->nv;
+  W->S = W->R.nb * W->R.nd, W->RS = W->R.ns * W->R.no * W->R.nr * W->R.ni;
+  W->srv = calloc((size_t)W->S * nv, sizeof *W->srv);
+  W->cell = calloc((size_t)W->S * W->RS * nv, sizeof *W->cell);
+  W->agg = calloc((size_t)W->S * W->RS, sizeof *W->agg);
+  W->ref_rgb = malloc(npx * 3 * nv);
+  W->rgb = malloc(npx * 3);
+  if (W->R.analytic) W->truth = malloc(sizeof *W->truth * npx * nv);
+  if (!W->srv || !W->cell || !W->agg || !W->ref_rgb || !W->rgb || (W->R.analytic && !W->truth) ||
+      oc_image_alloc(&W->img, w, h) < 0)
+    return oc_cli_fail(W->prog, -1, "out of memory");
+  if (!W->R.analytic) return 0;
+  int ground = oc_scene_has(W->sc, OC_FEATURE_PLANET_SURFACE);
+  for (int v = 0; v < W->nv; v++) {
+    oc_camera_t cam = oc_camera_from_pose(W->views[v].pose);
+    for (int y = 0; y < h; y++)
+      for (int x = 0; x < w; x++) {
+        oc_dvec3 dir = oc_camera_ray(&cam, w, h, x, y);
+        double tmax = ground ? ground_hit(cam.pos, dir, OC_PLANET_RADIUS) : INFINITY;
+        W->truth[(size_t)v * npx + (size_t)y * w + x] = (float)exp(-ocs_medium_optical_depth(&medium, cam.pos, dir, tmax));
+      }
   }
-  if (R.analytic) {
-    int ground = oc_scene_has(&sc, OC_FEATURE_PLANET_SURFACE);
-    for (int v = 0; v < nv; v++) {
-      oc_camera_t cam = oc_camera_from_pose(views[v].pose);
-      for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-          oc_dvec3 dir = oc_camera_ray(&cam, w, h, x, y);
-          double tmax = ground ? ground_hit(cam.pos, dir, OC_PLANET_RADIUS) : INFINITY;
-          truth[(size_t)v * npx + (size_t)y * w + x] = (float)exp(-ocs_medium_optical_depth(&medium, cam.pos, dir, tmax));
-        }
-    }
-  }
-  if (csv_path && !(csv = fopen(csv_path, "w"))) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot open '%s'", csv_path);
-    goto out;
-  }
+  return 0;
+}
 
-  fprintf(stderr, "%s: sweep: %s, %d view(s), %d server setting(s) × %d render setting(s); %s\n", prog, sc.name, nv, S, RS, rinfo);
-  fprintf(stderr, "%s: sample reconstruction: exact only (no hardware-filtered path: the RG16UI atlas cannot be filtered); "
-                  "refresh policy: not swept (the server core has one)\n", prog);
-  double t_start = oct_now();
-  int done = 0, total = S * RS * nv;
-  for (int s = 0; s < S && rc == OC_EXIT_OK; s++) { /* s = 0 is the reference's server setting */
-    int b = s / R.nd, d = s % R.nd;
-    for (int v = 0; v < nv && rc == OC_EXIT_OK; v++) {
-      progress_t pg = {prog, "", isatty(fileno(stderr))};
-      snprintf(pg.head, sizeof pg.head, "server %d/%d: budget %g MiB, depth %ld, view %d/%d", s + 1, S, R.budgets[b],
-               R.depths[d], v + 1, nv);
-      octs_server_desc_t sd = {(uint64_t)(R.budgets[b] * 1048576.0), (int)R.depths[d], (int)epochs, (int)srv_threads, split,
-                               reserve, world_time, pw, ph, 0};
-      octs_server_out_t so;
-      double t0 = oct_now();
-      int r = octs_server_run(&sc, &sd, views[v].pose, &so, server_progress, &pg, why, sizeof why);
-      if (r < 0) {
-        if (pg.tty) fprintf(stderr, "\n");
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", pg.head, why);
-        break;
-      }
-      srv_t *sv = &srv[(size_t)s * nv + v];
-      *sv = (srv_t){so.cpu_ms_mean, so.cpu_ms_last, so.wall_ms_mean, so.wire_mean, so.wire_last, so.resident,
-                    so.newest.node_count, so.newest.brick_count, so.bricks_sent};
-      fprintf(stderr, "%s%s: %s: %u nodes, %u bricks, %.2f MiB resident, %.0f ms CPU and %.1f KiB an epoch ... %.1f s\n",
-              pg.tty ? "\r\033[K" : "", prog, pg.head, sv->nodes, sv->bricks, sv->resident / 1048576.0, sv->cpu_ms,
-              sv->wire / 1024.0, oct_now() - t0);
-      if ((r = octs_renderer_set_states(ren, &so.newest, &so.prev, so.animated, why, sizeof why)) < 0) {
-        octs_server_out_free(&so);
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", pg.head, why);
-        break;
-      }
-      if (s == 0) { /* the reference image of this view */
-        octs_render_knobs_t k = {R.steps[0], (int)R.octs[0], 0, 0};
-        octs_times_t tm;
-        octs_server_out_t ro; /* --reference-filter exact: the same setting, bricks from the exact filter */
-        if (ref_exact) {
-          sd.exact_filter = 1;
-          snprintf(pg.head, sizeof pg.head, "reference (exact filter), view %d/%d", v + 1, nv);
-          if ((r = octs_server_run(&sc, &sd, views[v].pose, &ro, server_progress, &pg, why, sizeof why)) < 0 ||
-              (r = octs_renderer_set_states(ren, &ro.newest, &ro.prev, ro.animated, why, sizeof why)) < 0) {
-            octs_server_out_free(&so);
-            rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", pg.head, why);
-            break;
-          }
-          fprintf(stderr, "%s%s: %s: %u nodes, %u bricks ... done\n", pg.tty ? "\r\033[K" : "", prog, pg.head,
-                  ro.newest.node_count, ro.newest.brick_count);
-        }
-        r = octs_render(ren, views[v].pose, &k, &img, &tm, why, sizeof why);
-        if (ref_exact) {
-          int r2 = octs_renderer_set_states(ren, &so.newest, &so.prev, so.animated, why, sizeof why);
-          octs_server_out_free(&ro);
-          if (r >= 0) r = r2;
-        }
-        if (r < 0) {
-          octs_server_out_free(&so);
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "reference, view %d: %s", v + 1, why);
-          break;
-        }
-        oc_image_tonemap(&img, EXPOSURE, ref_rgb + (size_t)v * npx * 3);
-        if (images_dir && write_image(images_dir, "reference", v, views[v].pose, w, h, ref_rgb + (size_t)v * npx * 3, why,
-                                      sizeof why) < 0) {
-          octs_server_out_free(&so);
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--images: %s", why);
-          break;
-        }
-      }
-      for (int rs = 0; rs < RS; rs++) {
-        int ip = rs % R.ni, rp = rs / R.ni % R.nr, o = rs / (R.ni * R.nr) % R.no, st = rs / (R.ni * R.nr * R.no);
-        octs_render_knobs_t k = {R.steps[st], (int)R.octs[o], (int)R.reps[rp], (int)R.ints[ip]};
-        octs_times_t tm;
-        double t1 = oct_now();
-        if ((r = octs_render(ren, views[v].pose, &k, &img, &tm, why, sizeof why)) < 0) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render: %s", why);
-          break;
-        }
-        int bad = oc_image_tonemap(&img, EXPOSURE, rgb);
-        if (bad) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render: %d non-finite pixels", bad);
-          break;
-        }
-        if (images_dir) {
-          char name[128];
-          snprintf(name, sizeof name, "b%g_d%ld_s%g_o%ld_r%ld_i%ld", R.budgets[b], R.depths[d], R.steps[st], R.octs[o], R.reps[rp],
-                   R.ints[ip]);
-          if (write_image(images_dir, name, v, views[v].pose, w, h, rgb, why, sizeof why) < 0) {
-            rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--images: %s", why);
-            break;
-          }
-        }
-        cell_t *ce = &cell[((size_t)s * RS + rs) * nv + v];
-        double e = oc_rgb8_rmse(rgb, ref_rgb + (size_t)v * npx * 3, w, h);
-        ce->ms = tm.ms, ce->wall = tm.wall, ce->cpu = tm.cpu;
-        ce->mse = e * e;
-        if (R.analytic) {
-          double sum = 0.0, mx = 0.0;
-          const float *tv = truth + (size_t)v * npx;
-          for (size_t i = 0; i < npx; i++) {
-            double dd = fabs((double)img.px[4 * i + 3] - tv[i]);
-            sum += dd;
-            mx = fmax(mx, dd);
-          }
-          ce->dt_mean = sum / (double)npx;
-          ce->dt_max = mx;
-        }
-        done++;
-        fprintf(stderr, "%s: setting %d/%d: budget %g MiB, depth %ld, step %g, octaves %ld, reprojection %s, interpolation %s, "
-                        "view %d/%d: %.1f ms (%s), RMSE %.3f ... %.1f s (%.0f s in all)\n",
-                prog, done, total, R.budgets[b], R.depths[d], R.steps[st], R.octs[o], onoff[R.reps[rp]], onoff[R.ints[ip]], v + 1,
-                nv, tm.ms, octs_renderer_timer(ren), e, oct_now() - t1, oct_now() - t_start);
-      }
-      octs_server_out_free(&so);
-    }
-  }
-  if (rc != OC_EXIT_OK) goto out;
+static void sweep_close(sweep_t *W) {
+  oc_image_free(&W->img);
+  free(W->truth);
+  free(W->ref_rgb);
+  free(W->rgb);
+  free(W->srv);
+  free(W->cell);
+  free(W->agg);
+  octs_renderer_close(W->ren);
+  oc_atmo_free(W->atmo);
+}
 
-  /* aggregate over views, the Pareto front */
+/* The reference image of view v (the renderer holds server setting 0's states, so): with
+ * --reference-filter exact, from a server run of its own. */
+static int sweep_reference(sweep_t *W, int v, octs_server_desc_t sd, const octs_server_out_t *so, progress_t *pg) {
+  const sweep_opts_t *o = W->o;
+  const char *prog = W->prog;
+  const size_t npx = (size_t)o->size[0] * (size_t)o->size[1];
+  octs_render_knobs_t k = {W->R.steps[0], (int)W->R.octs[0], 0, 0};
+  octs_times_t tm;
+  octs_server_out_t ro; /* --reference-filter exact: the same setting, bricks from the exact filter */
+  char why[1024];
+  int r;
+  if (o->ref_exact) {
+    sd.exact_filter = 1;
+    snprintf(pg->head, sizeof pg->head, "reference (exact filter), view %d/%d", v + 1, W->nv);
+    if ((r = octs_server_run(W->sc, &sd, W->views[v].pose, &ro, server_progress, pg, why, sizeof why)) < 0 ||
+        (r = octs_renderer_set_states(W->ren, &ro.newest, &ro.prev, ro.animated, why, sizeof why)) < 0)
+      return oc_cli_fail(prog, -1, "%s: %s", pg->head, why);
+    fprintf(stderr, "%s%s: %s: %u nodes, %u bricks ... done\n", pg->tty ? "\r\033[K" : "", prog, pg->head,
+            ro.newest.node_count, ro.newest.brick_count);
+  }
+  r = octs_render(W->ren, W->views[v].pose, &k, &W->img, &tm, why, sizeof why);
+  if (o->ref_exact) {
+    int r2 = octs_renderer_set_states(W->ren, &so->newest, &so->prev, so->animated, why, sizeof why);
+    octs_server_out_free(&ro);
+    if (r >= 0) r = r2;
+  }
+  if (r < 0) return oc_cli_fail(prog, -1, "reference, view %d: %s", v + 1, why);
+  uint8_t *ref = W->ref_rgb + (size_t)v * npx * 3;
+  oc_image_tonemap(&W->img, EXPOSURE, ref);
+  if (o->images && write_image(o->images, "reference", v, W->views[v].pose, o->size[0], o->size[1], ref, why, sizeof why) < 0)
+    return oc_cli_fail(prog, -1, "--images: %s", why);
+  return 0;
+}
+
+/* Render setting rs of server setting s at view v: rendered, timed, compared. */
+static int sweep_cell(sweep_t *W, int s, int rs, int v) {
+  const sweep_opts_t *o = W->o;
+  const report_t *R = &W->R;
+  const char *prog = W->prog;
+  const int w = o->size[0], h = o->size[1];
+  const size_t npx = (size_t)w * (size_t)h;
+  int b = s / R->nd, d = s % R->nd;
+  int ip = rs % R->ni, rp = rs / R->ni % R->nr, oc = rs / (R->ni * R->nr) % R->no, st = rs / (R->ni * R->nr * R->no);
+  octs_render_knobs_t k = {R->steps[st], (int)R->octs[oc], (int)R->reps[rp], (int)R->ints[ip]};
+  octs_times_t tm;
+  char why[1024];
+  double t1 = oct_now();
+  if (octs_render(W->ren, W->views[v].pose, &k, &W->img, &tm, why, sizeof why) < 0)
+    return oc_cli_fail(prog, -1, "render: %s", why);
+  int bad = oc_image_tonemap(&W->img, EXPOSURE, W->rgb);
+  if (bad) return oc_cli_fail(prog, -1, "render: %d non-finite pixels", bad);
+  if (o->images) {
+    char name[128];
+    snprintf(name, sizeof name, "b%g_d%ld_s%g_o%ld_r%ld_i%ld", R->budgets[b], R->depths[d], R->steps[st], R->octs[oc],
+             R->reps[rp], R->ints[ip]);
+    if (write_image(o->images, name, v, W->views[v].pose, w, h, W->rgb, why, sizeof why) < 0)
+      return oc_cli_fail(prog, -1, "--images: %s", why);
+  }
+  cell_t *ce = &W->cell[((size_t)s * W->RS + rs) * W->nv + v];
+  double e = oc_rgb8_rmse(W->rgb, W->ref_rgb + (size_t)v * npx * 3, w, h);
+  ce->ms = tm.ms, ce->wall = tm.wall, ce->cpu = tm.cpu;
+  ce->mse = e * e;
+  if (R->analytic) {
+    double sum = 0.0, mx = 0.0;
+    const float *tv = W->truth + (size_t)v * npx;
+    for (size_t i = 0; i < npx; i++) {
+      double dd = fabs((double)W->img.px[4 * i + 3] - tv[i]);
+      sum += dd;
+      mx = fmax(mx, dd);
+    }
+    ce->dt_mean = sum / (double)npx;
+    ce->dt_max = mx;
+  }
+  W->done++;
+  fprintf(stderr, "%s: setting %d/%d: budget %g MiB, depth %ld, step %g, octaves %ld, reprojection %s, interpolation %s, "
+                  "view %d/%d: %.1f ms (%s), RMSE %.3f ... %.1f s (%.0f s in all)\n",
+          prog, W->done, W->S * W->RS * W->nv, R->budgets[b], R->depths[d], R->steps[st], R->octs[oc], onoff[R->reps[rp]],
+          onoff[R->ints[ip]], v + 1, W->nv, tm.ms, octs_renderer_timer(W->ren), e, oct_now() - t1, oct_now() - W->t_start);
+  return 0;
+}
+
+/* Server setting s at view v: the states, then (s = 0) the reference, then every render setting. */
+static int sweep_server(sweep_t *W, int s, int v) {
+  const sweep_opts_t *o = W->o;
+  const report_t *R = &W->R;
+  const char *prog = W->prog;
+  int b = s / R->nd, d = s % R->nd;
+  char why[1024];
+  progress_t pg = {prog, "", isatty(fileno(stderr))};
+  snprintf(pg.head, sizeof pg.head, "server %d/%d: budget %g MiB, depth %ld, view %d/%d", s + 1, W->S, R->budgets[b],
+           R->depths[d], v + 1, W->nv);
+  octs_server_desc_t sd = {(uint64_t)(R->budgets[b] * 1048576.0), (int)R->depths[d], o->epochs, o->srv_threads,
+                           o->split, o->reserve, o->time, o->plan_size[0], o->plan_size[1], 0};
+  octs_server_out_t so;
+  double t0 = oct_now();
+  if (octs_server_run(W->sc, &sd, W->views[v].pose, &so, server_progress, &pg, why, sizeof why) < 0) {
+    if (pg.tty) fprintf(stderr, "\n");
+    return oc_cli_fail(prog, -1, "%s: %s", pg.head, why);
+  }
+  srv_t *sv = &W->srv[(size_t)s * W->nv + v];
+  *sv = (srv_t){so.cpu_ms_mean, so.cpu_ms_last, so.wall_ms_mean, so.wire_mean, so.wire_last, so.resident,
+                so.newest.node_count, so.newest.brick_count, so.bricks_sent};
+  fprintf(stderr, "%s%s: %s: %u nodes, %u bricks, %.2f MiB resident, %.0f ms CPU and %.1f KiB an epoch ... %.1f s\n",
+          pg.tty ? "\r\033[K" : "", prog, pg.head, sv->nodes, sv->bricks, sv->resident / 1048576.0, sv->cpu_ms,
+          sv->wire / 1024.0, oct_now() - t0);
+  int rc = 0;
+  if (octs_renderer_set_states(W->ren, &so.newest, &so.prev, so.animated, why, sizeof why) < 0)
+    rc = oc_cli_fail(prog, -1, "%s: %s", pg.head, why);
+  if (!rc && s == 0) rc = sweep_reference(W, v, sd, &so, &pg);
+  for (int rs = 0; rs < W->RS && !rc; rs++) rc = sweep_cell(W, s, rs, v);
+  octs_server_out_free(&so);
+  return rc;
+}
+
+/* Aggregates over the views, and the Pareto front. */
+static void sweep_aggregate(sweep_t *W) {
+  report_t *R = &W->R;
+  const int nv = W->nv, RS = W->RS;
   int na = 0;
-  for (int s = 0; s < S; s++)
+  for (int s = 0; s < W->S; s++)
     for (int rs = 0; rs < RS; rs++) {
-      agg_t *a = &agg[na++];
+      agg_t *a = &W->agg[na++];
       a->s = s, a->r = rs;
-      a->b = s / R.nd, a->d = s % R.nd;
-      a->ip = rs % R.ni, a->rp = rs / R.ni % R.nr, a->o = rs / (R.ni * R.nr) % R.no, a->st = rs / (R.ni * R.nr * R.no);
+      a->b = s / R->nd, a->d = s % R->nd;
+      a->ip = rs % R->ni, a->rp = rs / R->ni % R->nr, a->o = rs / (R->ni * R->nr) % R->no, a->st = rs / (R->ni * R->nr * R->no);
       double mse = 0.0;
       for (int v = 0; v < nv; v++) {
-        const cell_t *ce = &cell[((size_t)s * RS + rs) * nv + v];
-        const srv_t *sv = &srv[(size_t)s * nv + v];
+        const cell_t *ce = &W->cell[((size_t)s * RS + rs) * nv + v];
+        const srv_t *sv = &W->srv[(size_t)s * nv + v];
         a->ms += ce->ms / nv, mse += ce->mse / nv;
         a->cpu_ms += sv->cpu_ms / nv, a->wall_ms += sv->wall_ms / nv, a->wire += sv->wire / nv, a->resident += (double)sv->resident / nv;
         a->dt_mean += ce->dt_mean / nv, a->dt_max = fmax(a->dt_max, ce->dt_max);
       }
       a->rmse = sqrt(mse);
       a->psnr = psnr_of(a->rmse);
-      a->reference = s == 0 && a->st == 0 && a->o == 0 && R.reps[a->rp] == 0 && R.ints[a->ip] == 0;
+      a->reference = s == 0 && a->st == 0 && a->o == 0 && R->reps[a->rp] == 0 && R->ints[a->ip] == 0;
     }
+  agg_t *agg = W->agg;
   for (int i = 0; i < na; i++) {
     agg[i].pareto = 1;
     for (int j = 0; j < na && agg[i].pareto; j++)
       if (j != i && agg[j].ms <= agg[i].ms && agg[j].rmse <= agg[i].rmse && (agg[j].ms < agg[i].ms || agg[j].rmse < agg[i].rmse))
         agg[i].pareto = 0;
   }
-  R.agg = agg, R.nagg = na;
+  R->agg = agg, R->nagg = na;
+}
 
-  /* the command line, for the report */
+/* --csv: one row per setting and view. */
+static int sweep_csv(const sweep_t *W) {
+  const sweep_opts_t *o = W->o;
+  const report_t *R = &W->R;
+  FILE *csv = fopen(o->csv, "w");
+  if (!csv) return oc_cli_fail(W->prog, -1, "--csv: cannot open '%s'", o->csv);
+  fprintf(csv, "scene,renderer,timer,width,height,view,camera,budget_mib,max_depth,step_factor,ms_octaves,reprojection,"
+               "interpolation,reconstruction,refresh,render_ms,render_wall_ms,render_cpu_ms,render_threads,"
+               "server_cpu_ms_per_epoch,server_wall_ms_per_epoch,"
+               "server_cpu_ms_last,wire_bytes_per_epoch,wire_bytes_last,resident_bytes,nodes,bricks,bricks_sent,rmse,psnr,"
+               "analytic_mean_abs_dT,analytic_max_abs_dT,reference,pareto\n");
+  for (int i = 0; i < R->nagg; i++) {
+    const agg_t *a = &R->agg[i];
+    for (int v = 0; v < W->nv; v++) {
+      const cell_t *ce = &W->cell[((size_t)a->s * W->RS + a->r) * W->nv + v];
+      const srv_t *sv = &W->srv[(size_t)a->s * W->nv + v];
+      char cam[160], pb[32];
+      oc_camera_format(W->views[v].pose, cam, sizeof cam);
+      double e = sqrt(ce->mse);
+      fprintf(csv,
+              "%s,%s,%s,%d,%d,\"%s\",\"%s\",%g,%ld,%g,%ld,%s,%s,exact,stamp,%.3f,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.0f,%.0f,%llu,"
+              "%u,%u,%u,%.4f,%s,",
+              W->sc->name, o->gl ? "gl" : "cpu", R->timer, o->size[0], o->size[1], W->views[v].name, cam, R->budgets[a->b],
+              R->depths[a->d], R->steps[a->st], R->octs[a->o], onoff[R->reps[a->rp]], onoff[R->ints[a->ip]], ce->ms,
+              ce->wall, ce->cpu, o->gl ? 0 : o->threads, sv->cpu_ms, sv->wall_ms, sv->cpu_last, sv->wire, sv->wire_last,
+              (unsigned long long)sv->resident, sv->nodes, sv->bricks, sv->sent, e, fmt_psnr(psnr_of(e), pb, sizeof pb));
+      if (R->analytic) fprintf(csv, "%.6f,%.6f,", ce->dt_mean, ce->dt_max);
+      else fprintf(csv, ",,");
+      fprintf(csv, "%d,%d\n", a->reference, a->pareto);
+    }
+  }
+  if (fclose(csv) != 0) return oc_cli_fail(W->prog, -1, "--csv: cannot write '%s'", o->csv);
+  return 0;
+}
+
+/* A plot point's label: "4M s0.5", with " dN", " oN", " R", " I" where those knobs vary or are on. */
+static void plot_label(const report_t *R, const agg_t *a, char *buf, size_t cap) {
+  size_t n = (size_t)snprintf(buf, cap, "%gM s%g", R->budgets[a->b], R->steps[a->st]);
+  if (R->nd > 1 && n < cap) n += (size_t)snprintf(buf + n, cap - n, " d%ld", R->depths[a->d]);
+  if (R->no > 1 && n < cap) n += (size_t)snprintf(buf + n, cap - n, " o%ld", R->octs[a->o]);
+  if (R->reps[a->rp] && n < cap) n += (size_t)snprintf(buf + n, cap - n, " R");
+  if (R->ints[a->ip] && n < cap) snprintf(buf + n, cap - n, " I");
+}
+
+/* --plot: RMSE against render ms, the Pareto front marked. */
+static int sweep_plot(const sweep_t *W) {
+  const sweep_opts_t *o = W->o;
+  const report_t *R = &W->R;
+  int na = R->nagg;
+  char why[1024];
+  octs_plot_point_t *pts = calloc((size_t)na, sizeof *pts);
+  if (!pts) return oc_cli_fail(W->prog, -1, "out of memory");
+  for (int i = 0; i < na; i++) {
+    const agg_t *a = &R->agg[i];
+    pts[i].x = a->ms, pts[i].y = a->rmse, pts[i].group = a->b % OCTS_PLOT_GROUPS;
+    pts[i].pareto = a->pareto, pts[i].reference = a->reference;
+    plot_label(R, a, pts[i].label, sizeof pts[i].label);
+  }
+  char names[OCTS_PLOT_GROUPS][32], title[160], sub[256];
+  octs_plot_desc_t pd = {.title = title, .subtitle = sub,
+                         .xlabel = o->gl ? "render ms per frame" : "render CPU ms per frame (all threads)",
+                         .ylabel = "RMSE (0-255)", .ngroups = R->nb < OCTS_PLOT_GROUPS ? R->nb : OCTS_PLOT_GROUPS};
+  if (R->nr > 1 || R->ni > 1 || R->reps[0] || R->ints[0]) pd.note = "R: reprojection on\nI: interpolation on";
+  for (int g = 0; g < pd.ngroups; g++) {
+    snprintf(names[g], sizeof names[g], "%g MiB", R->budgets[g]);
+    pd.group_name[g] = names[g];
+  }
+  snprintf(title, sizeof title, "Error against render time: %s, %dx%d, %d view%s", W->sc->name, o->size[0], o->size[1],
+           W->nv, W->nv == 1 ? "" : "s");
+  snprintf(sub, sizeof sub, "times: %s; labels: budget M, step s; reference %g MiB, step %g", R->timer, R->budgets[0],
+           R->steps[0]);
+  int r = octs_plot_png(o->plot, pts, na, &pd, why, sizeof why);
+  free(pts);
+  if (r < 0) return oc_cli_fail(W->prog, -1, "--plot: %s", why);
+  return 0;
+}
+
+/* The report on stdout and --md, then --csv and --plot. */
+static int sweep_outputs(sweep_t *W, int argc, char **argv) {
+  const sweep_opts_t *o = W->o;
+  report_t *R = &W->R;
   char cmdline[2048];
   size_t cl = (size_t)snprintf(cmdline, sizeof cmdline, "overcast-bench sweep");
   for (int i = 1; i < argc && cl < sizeof cmdline; i++) cl += (size_t)snprintf(cmdline + cl, sizeof cmdline - cl, " %s", argv[i]);
-  R.prog = prog, R.scene_name = sc.name, R.renderer_info = rinfo, R.timer = octs_renderer_timer(ren), R.cmdline = cmdline;
-  R.w = w, R.h = h, R.pw = pw, R.ph = ph, R.nv = nv, R.epochs = (int)epochs, R.threads = (int)threads, R.frames = (int)frames;
-  R.repeat = (int)repeat;
-  R.motion = motion, R.interp_t = interp_t, R.split = split, R.reserve = reserve, R.views = views;
-  R.ref_exact = ref_exact;
-  fprintf(stderr, "%s: sweep done in %.1f s\n", prog, oct_now() - t_start);
-  write_report(stdout, &R);
-  if (md_path) {
-    FILE *f = fopen(md_path, "w");
-    if (!f) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--md: cannot open '%s'", md_path);
-      goto out;
-    }
-    write_report(f, &R);
-    if (fclose(f) != 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--md: cannot write '%s'", md_path);
-      goto out;
-    }
+  R->prog = W->prog, R->scene_name = W->sc->name, R->renderer_info = W->rinfo, R->timer = octs_renderer_timer(W->ren);
+  R->cmdline = cmdline;
+  R->w = o->size[0], R->h = o->size[1], R->pw = o->plan_size[0], R->ph = o->plan_size[1], R->nv = W->nv;
+  R->epochs = o->epochs, R->threads = o->threads, R->frames = o->frames, R->repeat = o->repeat;
+  R->motion = o->motion, R->interp_t = o->interp_t, R->split = o->split, R->reserve = o->reserve, R->views = W->views;
+  R->ref_exact = o->ref_exact;
+  fprintf(stderr, "%s: sweep done in %.1f s\n", W->prog, oct_now() - W->t_start);
+  write_report(stdout, R);
+  if (o->md) {
+    FILE *f = fopen(o->md, "w");
+    if (!f) return oc_cli_fail(W->prog, -1, "--md: cannot open '%s'", o->md);
+    write_report(f, R);
+    if (fclose(f) != 0) return oc_cli_fail(W->prog, -1, "--md: cannot write '%s'", o->md);
   }
-  if (csv) {
-    fprintf(csv, "scene,renderer,timer,width,height,view,camera,budget_mib,max_depth,step_factor,ms_octaves,reprojection,"
-                 "interpolation,reconstruction,refresh,render_ms,render_wall_ms,render_cpu_ms,render_threads,"
-                 "server_cpu_ms_per_epoch,server_wall_ms_per_epoch,"
-                 "server_cpu_ms_last,wire_bytes_per_epoch,wire_bytes_last,resident_bytes,nodes,bricks,bricks_sent,rmse,psnr,"
-                 "analytic_mean_abs_dT,analytic_max_abs_dT,reference,pareto\n");
-    for (int i = 0; i < na; i++) {
-      const agg_t *a = &agg[i];
-      for (int v = 0; v < nv; v++) {
-        const cell_t *ce = &cell[((size_t)a->s * RS + a->r) * nv + v];
-        const srv_t *sv = &srv[(size_t)a->s * nv + v];
-        char cam[160], pb[32];
-        oc_camera_format(views[v].pose, cam, sizeof cam);
-        double e = sqrt(ce->mse);
-        fprintf(csv,
-                "%s,%s,%s,%d,%d,\"%s\",\"%s\",%g,%ld,%g,%ld,%s,%s,exact,stamp,%.3f,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.0f,%.0f,%llu,"
-                "%u,%u,%u,%.4f,%s,",
-                sc.name, gl ? "gl" : "cpu", R.timer, w, h, views[v].name, cam, R.budgets[a->b], R.depths[a->d], R.steps[a->st],
-                R.octs[a->o], onoff[R.reps[a->rp]], onoff[R.ints[a->ip]], ce->ms, ce->wall, ce->cpu, gl ? 0 : (int)threads,
-                sv->cpu_ms, sv->wall_ms,
-                sv->cpu_last, sv->wire, sv->wire_last, (unsigned long long)sv->resident, sv->nodes, sv->bricks, sv->sent, e,
-                fmt_psnr(psnr_of(e), pb, sizeof pb));
-        if (R.analytic) fprintf(csv, "%.6f,%.6f,", ce->dt_mean, ce->dt_max);
-        else fprintf(csv, ",,");
-        fprintf(csv, "%d,%d\n", a->reference, a->pareto);
-      }
-    }
-  }
-  if (plot_path) {
-    octs_plot_point_t *pts = calloc((size_t)na, sizeof *pts);
-    if (!pts) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-      goto out;
-    }
-    for (int i = 0; i < na; i++) {
-      const agg_t *a = &agg[i];
-      pts[i].x = a->ms, pts[i].y = a->rmse, pts[i].group = a->b % OCTS_PLOT_GROUPS;
-      pts[i].pareto = a->pareto, pts[i].reference = a->reference;
-      int n = snprintf(pts[i].label, sizeof pts[i].label, "%gM s%g", R.budgets[a->b], R.steps[a->st]);
-      if (R.nd > 1 && n > 0 && n < (int)sizeof pts[i].label)
-        n += snprintf(pts[i].label + n, sizeof pts[i].label - (size_t)n, " d%ld", R.depths[a->d]);
-      if (R.no > 1 && n > 0 && n < (int)sizeof pts[i].label)
-        n += snprintf(pts[i].label + n, sizeof pts[i].label - (size_t)n, " o%ld", R.octs[a->o]);
-      if (R.reps[a->rp] && n > 0 && n < (int)sizeof pts[i].label)
-        n += snprintf(pts[i].label + n, sizeof pts[i].label - (size_t)n, " R");
-      if (R.ints[a->ip] && n > 0 && n < (int)sizeof pts[i].label) snprintf(pts[i].label + n, sizeof pts[i].label - (size_t)n, " I");
-    }
-    char names[OCTS_PLOT_GROUPS][32], title[160], sub[256];
-    octs_plot_desc_t pd = {.title = title, .subtitle = sub,
-                           .xlabel = gl ? "render ms per frame" : "render CPU ms per frame (all threads)",
-                           .ylabel = "RMSE (0-255)", .ngroups = R.nb < OCTS_PLOT_GROUPS ? R.nb : OCTS_PLOT_GROUPS};
-    if (R.nr > 1 || R.ni > 1 || R.reps[0] || R.ints[0]) pd.note = "R: reprojection on\nI: interpolation on";
-    for (int g = 0; g < pd.ngroups; g++) {
-      snprintf(names[g], sizeof names[g], "%g MiB", R.budgets[g]);
-      pd.group_name[g] = names[g];
-    }
-    snprintf(title, sizeof title, "Error against render time: %s, %dx%d, %d view%s", sc.name, w, h, nv, nv == 1 ? "" : "s");
-    snprintf(sub, sizeof sub, "times: %s; labels: budget M, step s; reference %g MiB, step %g", R.timer, R.budgets[0], R.steps[0]);
-    int r = octs_plot_png(plot_path, pts, na, &pd, why, sizeof why);
-    free(pts);
-    if (r < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--plot: %s", why);
-      goto out;
-    }
-  }
+  if (o->csv && sweep_csv(W)) return -1;
+  if (o->plot && sweep_plot(W)) return -1;
+  return 0;
+}
 
-out:
-  if (csv && fclose(csv) != 0 && rc == OC_EXIT_OK) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot write '%s'", csv_path);
-  oc_image_free(&img);
-  free(truth);
-  free(ref_rgb);
-  free(rgb);
-  free(srv);
-  free(cell);
-  free(agg);
-  octs_renderer_close(ren);
-  oc_atmo_free(atmo);
+/* The whole sweep; @return the exit status. */
+static int sweep_run(sweep_t *W, int argc, char **argv) {
+  int rc = sweep_views(W);
+  if (rc) return rc;
+  if (sweep_open(W)) return OC_EXIT_RUNTIME;
+  const char *prog = W->prog;
+  if (W->o->csv) { /* refused before the work, as the file is written after it */
+    FILE *f = fopen(W->o->csv, "w");
+    if (!f) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--csv: cannot open '%s'", W->o->csv);
+    fclose(f);
+  }
+  fprintf(stderr, "%s: sweep: %s, %d view(s), %d server setting(s) × %d render setting(s); %s\n", prog, W->sc->name,
+          W->nv, W->S, W->RS, W->rinfo);
+  fprintf(stderr, "%s: sample reconstruction: exact only (no hardware-filtered path: the RG16UI atlas cannot be filtered); "
+                  "refresh policy: not swept (the server core has one)\n", prog);
+  W->t_start = oct_now();
+  for (int s = 0; s < W->S; s++) /* s = 0 is the reference's server setting */
+    for (int v = 0; v < W->nv; v++)
+      if (sweep_server(W, s, v)) return OC_EXIT_RUNTIME;
+  sweep_aggregate(W);
+  return sweep_outputs(W, argc, argv) ? OC_EXIT_RUNTIME : OC_EXIT_OK;
+}
+
+int oct_bench_sweep(const char *prog, int argc, char **argv) {
+  static sweep_opts_t o;
+  static oc_scene_t sc;
+  static view_t views[MAXV];
+  static sweep_t W;
+  memset(&o, 0, sizeof o);
+  int rc = oct_begin(&oct_bench_sweep_spec, argc, argv, &o, NULL, NULL, NULL, NULL);
+  if (rc != OCT_GO) return rc;
+  if (sweep_check(prog, &o)) return OC_EXIT_USAGE;
+  if (oct_load_scene(prog, o.scene, &sc)) return OC_EXIT_RUNTIME;
+  W = (sweep_t){.prog = prog, .o = &o, .sc = &sc, .views = views};
+  sweep_knobs(&W);
+  rc = sweep_run(&W, argc, argv);
+  sweep_close(&W);
   oc_scene_free(&sc);
   return rc;
 }
