@@ -23,7 +23,7 @@ extern const oc_cli_spec_t oct_bench_world_spec;
 int oct_bench_sweep(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_sweep_spec;
 int oct_bench_truth(const char *prog, int argc, char **argv);
-void oct_bench_truth_usage(FILE *f);
+extern const oc_cli_spec_t oct_bench_truth_spec;
 int oct_bench_model(const char *prog, int argc, char **argv);
 void oct_bench_model_usage(FILE *f);
 int oct_bench_stability(const char *prog, int argc, char **argv);

@@ -33,7 +33,6 @@ static void legacy_usage(FILE *f) {
           "\n"
           "\n"
           "\n");
-  oct_bench_truth_usage(f);
   oct_bench_model_usage(f);
   oct_bench_stability_usage(f);
 }
@@ -58,7 +57,7 @@ static const cmd_t cmds[] = {
     {"sweep", "error against run time: quality knobs swept, RMSE/PSNR against the best setting", oct_bench_sweep,
      &oct_bench_sweep_spec},
     {"truth", "Monte Carlo ground truth (delta tracking, every scattering order) for small views", oct_bench_truth,
-     NULL},
+     &oct_bench_truth_spec},
     {"model", "the cloud model against stored truth images (truth --save): errors, fit objective", oct_bench_model,
      NULL},
     {"stability", "stiff and extreme cases end to end (server, protocol, renderers): finite, bounded, known answers",

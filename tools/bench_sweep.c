@@ -52,22 +52,13 @@ static const char *const onoff[2] = {"off", "on"};
 /*-*** Options ***/
 
 typedef struct {
-  double v[MAXK];
-  int n;
-} dlist_t;
-typedef struct {
-  long v[MAXK];
-  int n;
-} llist_t;
-
-typedef struct {
   const char *scene, *views, *path, *csv, *md, *plot, *images;
   const char *cameras[MAXV];
   int ncameras;
   int size[2], plan_size[2];
   int gl, threads, repeat, path_n, frames, epochs, srv_threads, ref_exact;
-  dlist_t budgets, steps;
-  llist_t depths, octs, reps, ints; /* octs.n 0: the scene's */
+  oct_dlist_t budgets, steps;
+  oct_list_t depths, octs, reps, ints; /* octs.n 0: the scene's */
   double motion, interp_t, split, reserve, time;
 } sweep_opts_t;
 
@@ -79,29 +70,8 @@ static int opt_camera(const char *prog, const oc_cli_opt_t *o, const char *text,
   return 0;
 }
 
-static int opt_doubles(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
-  dlist_t *l = oc_cli_field(o, base);
-  char buf[512], opt[64];
-  snprintf(buf, sizeof buf, "%s", text);
-  snprintf(opt, sizeof opt, "--%s", o->name);
-  l->n = 0;
-  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-    if (l->n == MAXK) return oc_cli_fail(prog, -1, "%s: at most %d values", opt, MAXK);
-    if (oc_cli_double(prog, opt, tok, o->lo, o->hi, &l->v[l->n++])) return -1;
-  }
-  if (l->n == 0) return oc_cli_fail(prog, -1, "%s: empty list", opt);
-  return 0;
-}
-
-static int opt_longs(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
-  llist_t *l = oc_cli_field(o, base);
-  char opt[64];
-  snprintf(opt, sizeof opt, "--%s", o->name);
-  return oct_parse_list(prog, opt, text, (long)o->lo, (long)o->hi, l->v, MAXK, &l->n);
-}
-
 static int opt_onoff(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
-  llist_t *l = oc_cli_field(o, base);
+  oct_list_t *l = oc_cli_field(o, base);
   char buf[128];
   snprintf(buf, sizeof buf, "%s", text);
   l->n = 0;
@@ -159,13 +129,13 @@ static const oc_cli_opt_t sweep_opts[] = {
      .group = VIEWS, .help = "image size"},
     {.name = "plan-size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = AT(plan_size), .arg = "WxH",
      .def_note = "--size", .group = VIEWS, .help = "viewport the planner sizes the tree for"},
-    {.name = "budgets", .type = OC_CLI_CUSTOM, .parse = opt_doubles, .offset = AT(budgets), .arg = "LIST",
+    {.name = "budgets", .type = OC_CLI_CUSTOM, .parse = oct_opt_doubles, .offset = AT(budgets), .arg = "LIST",
      .lo = 0.0625, .hi = 1 << 20, .def = "1,4,16,64", .group = KNOBS, .help = "viewer budgets in MiB"},
-    {.name = "max-depths", .type = OC_CLI_CUSTOM, .parse = opt_longs, .offset = AT(depths), .arg = "LIST", .lo = 0,
+    {.name = "max-depths", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = AT(depths), .arg = "LIST", .lo = 0,
      .hi = 21, .def = "21", .group = KNOBS, .help = "deepest octree levels"},
-    {.name = "step-factors", .type = OC_CLI_CUSTOM, .parse = opt_doubles, .offset = AT(steps), .arg = "LIST",
+    {.name = "step-factors", .type = OC_CLI_CUSTOM, .parse = oct_opt_doubles, .offset = AT(steps), .arg = "LIST",
      .lo = 1e-3, .hi = 1e3, .def = "0.25,0.5,1,2", .group = KNOBS, .help = "step × voxel spacing"},
-    {.name = "ms-octaves", .type = OC_CLI_CUSTOM, .parse = opt_longs, .offset = AT(octs), .arg = "LIST", .lo = 1,
+    {.name = "ms-octaves", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = AT(octs), .arg = "LIST", .lo = 1,
      .hi = 8, .def_note = "the scene's", .group = KNOBS, .help = "multiple-scattering octaves"},
     {.name = "reprojection", .type = OC_CLI_CUSTOM, .parse = opt_onoff, .offset = AT(reps), .arg = "LIST",
      .def = "off", .group = KNOBS,
@@ -526,6 +496,7 @@ static int desc_l(const void *a, const void *b) {
 static void sweep_knobs(sweep_t *W) {
   const sweep_opts_t *o = W->o;
   report_t *R = &W->R;
+  _Static_assert(OCT_LIST_MAX == MAXK, "the knob lists hold MAXK values");
   memcpy(R->budgets, o->budgets.v, sizeof R->budgets), R->nb = o->budgets.n;
   memcpy(R->depths, o->depths.v, sizeof R->depths), R->nd = o->depths.n;
   memcpy(R->steps, o->steps.v, sizeof R->steps), R->ns = o->steps.n;

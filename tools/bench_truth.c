@@ -10,8 +10,8 @@
  * Monte Carlo standard error, is the model's error. Before that, the kernel itself is checked on a
  * homogeneous slab against a published result (van de Hulst 1980), the exact single-scattering
  * closed form and energy conservation. Bench only: minutes of CPU, never in CI. */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -33,34 +33,6 @@
 #define OCT_TRUTH_MAX_TAUS 16
 #define OCT_TWO_PI 6.283185307179586477
 #define OCT_TRUTH_EXPOSURE 10.0f /* the exposure every bench tone-maps with */
-
-void oct_bench_truth_usage(FILE *f) {
-  fprintf(f,
-          "truth options (Monte Carlo ground truth against the CPU reference renderer; bench only):\n"
-          "  --scene FILE        analytic scene (default scenes/analytic_sphere.json)\n"
-          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera)\n"
-          "  --size WxH          image size (default 64x36)\n"
-          "  --tau LIST          optical depths of the first source across (sphere diameter, slab or box\n"
-          "                      height), comma-separated; every source's σt is scaled alike (default 1,5,20)\n"
-          "  --sigma-scale X     instead of --tau: multiply every source's σt by X\n"
-          "  --paths N           paths per pixel (default 1024)\n"
-          "  --seed N            random seed; the image does not depend on --threads (default 1)\n"
-          "  --threads N         worker threads (default: all cores)\n"
-          "  --step-factor X     the reference renderer's step factor (default 0.25)\n"
-          "  --background B      constant background radiance for both (default 0: sun only)\n"
-          "  --albedo A          single-scattering albedo for both (default: the scene's)\n"
-          "  --max-bounces N     scattering events before a path is cut and counted (default 1000000)\n"
-          "  --sun-lobe X        share of path directions drawn from the phase lobe around the sun, weighted\n"
-          "                      by one-sample MIS (default 0.02; 0: plain phase sampling)\n"
-          "  --png-prefix P      write P-tauT-truth.png, P-tauT-reference.png, P-tauT-error.png\n"
-          "  --csv FILE          one row per optical depth and reference setting\n"
-          "  --save P            write P-tauT.txt: the case's parameters and the truth's per-pixel mean\n"
-          "                      radiance and standard error (text; tests/data holds such files)\n"
-          "  --check-slab        run only the transport checks (published slab, single scattering,\n"
-          "                      energy, phase sampling); they also run before every truth run\n"
-          "  --slab-photons N    photons per slab case (default 1000000)\n"
-          "  --no-slab-check     skip those checks before the truth run\n");
-}
 
 /* ---- Parallel loops ---------------------------------------------------------------------------------
  * Items (image rows, photon chunks) go to threads through an atomic counter; every item writes only
@@ -747,172 +719,168 @@ static int oct__truth_one(oct__run_t *r, long paths, uint64_t seed, long max_bou
 }
 
 /* "a,b,c" of doubles in [lo, hi]. */
-static int oct__parse_doubles(const char *prog, const char *opt, const char *text, double lo, double hi, double *out,
-                              int cap, int *n) {
-  char buf[512];
-  *n = 0;
-  snprintf(buf, sizeof buf, "%s", text);
-  for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
-    if (*n == cap) {
-      oc_cli_fail(prog, 0, "%s: at most %d entries", opt, cap);
-      return -1;
+
+/*-*** Options ***/
+
+typedef struct {
+  const char *scene, *camera, *png, *csv, *save;
+  int size[2], paths, seed, threads, max_bounces, photons, check_only, no_check;
+  oct_dlist_t taus;
+  double sigma_scale, step, background, albedo, sun_lobe; /* sigma_scale 0: --tau */
+} truth_opts_t;
+
+#define AT(f) offsetof(truth_opts_t, f)
+static const oc_cli_opt_t truth_opts[] = {
+    {.name = "scene", .type = OC_CLI_STRING, .offset = AT(scene), .arg = "FILE", .def = "scenes/analytic_sphere.json",
+     .help = "analytic scene"},
+    OCT_OPT_CAMERA(truth_opts_t),
+    {.name = "size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = AT(size), .arg = "WxH", .def = "64x36",
+     .help = "image size"},
+    {.name = "tau", .type = OC_CLI_CUSTOM, .parse = oct_opt_doubles, .offset = AT(taus), .arg = "LIST", .lo = 1e-6,
+     .hi = 1e4, .def_note = "1,5,20",
+     .help = "optical depths of the first source across (sphere diameter, slab or box height), comma-separated; "
+             "every source's σt is scaled alike"},
+    {.name = "sigma-scale", .type = OC_CLI_DOUBLE, .offset = AT(sigma_scale), .arg = "X", .lo = 1e-9, .hi = 1e9,
+     .help = "instead of --tau: multiply every source's σt by X"},
+    {.name = "paths", .type = OC_CLI_INT, .offset = AT(paths), .arg = "N", .lo = 2, .hi = 100000000, .def = "1024",
+     .help = "paths per pixel"},
+    {.name = "seed", .type = OC_CLI_INT, .offset = AT(seed), .arg = "N", .lo = 0, .hi = 0x7fffffff, .def = "1",
+     .help = "random seed; the image does not depend on --threads"},
+    {.name = "threads", .type = OC_CLI_INT, .offset = AT(threads), .arg = "N", .lo = 1, .hi = 256,
+     .def_note = "all cores", .help = "worker threads"},
+    {.name = "step-factor", .type = OC_CLI_DOUBLE, .offset = AT(step), .arg = "X", .lo = 1e-3, .hi = 1e3,
+     .def = "0.25", .help = "the reference renderer's step factor"},
+    {.name = "background", .type = OC_CLI_DOUBLE, .offset = AT(background), .arg = "B", .lo = 0, .hi = 1e6,
+     .def = "0", .help = "constant background radiance for both; 0: sun only"},
+    {.name = "albedo", .type = OC_CLI_DOUBLE, .offset = AT(albedo), .arg = "A", .lo = 0, .hi = 1,
+     .def_note = "the scene's", .help = "single-scattering albedo for both"},
+    {.name = "max-bounces", .type = OC_CLI_INT, .offset = AT(max_bounces), .arg = "N", .lo = 1, .hi = 1000000000,
+     .def = "1000000", .help = "scattering events before a path is cut and counted"},
+    {.name = "sun-lobe", .type = OC_CLI_DOUBLE, .offset = AT(sun_lobe), .arg = "X", .lo = 0, .hi = 0.9, .def = "0.02",
+     .help = "share of path directions drawn from the phase lobe around the sun, weighted by one-sample MIS; 0: "
+             "plain phase sampling"},
+    {.name = "png-prefix", .type = OC_CLI_STRING, .offset = AT(png), .arg = "P",
+     .help = "write P-tauT-truth.png, P-tauT-reference.png, P-tauT-error.png"},
+    {.name = "csv", .type = OC_CLI_STRING, .offset = AT(csv), .arg = "FILE",
+     .help = "one row per optical depth and reference setting"},
+    {.name = "save", .type = OC_CLI_STRING, .offset = AT(save), .arg = "P",
+     .help = "write P-tauT.txt: the case's parameters and the truth's per-pixel mean radiance and standard error "
+             "(text; tests/data holds such files)"},
+    {.name = "check-slab", .type = OC_CLI_FLAG, .offset = AT(check_only),
+     .help = "run only the transport checks (published slab, single scattering, energy, phase sampling); they "
+             "also run before every truth run"},
+    {.name = "slab-photons", .type = OC_CLI_INT, .offset = AT(photons), .arg = "N", .lo = 1000, .hi = 1000000000,
+     .def = "1000000", .help = "photons per slab case"},
+    {.name = "no-slab-check", .type = OC_CLI_FLAG, .offset = AT(no_check), .help = "skip those checks before the truth run"},
+    OCT_OPT_HELP,
+    {0}};
+#undef AT
+
+const oc_cli_spec_t oct_bench_truth_spec = {
+    .prog = "overcast-bench truth",
+    .about = "Monte Carlo ground truth (delta tracking, every scattering order) for small views, against the CPU\n"
+             "reference renderer; bench only.\n\noptions:\n",
+    .opts = truth_opts};
+
+/*-*** The subcommand ***/
+
+/* --tau is measured across the first source with a length; all σt are scaled by one factor. The
+ * sources' σt into sigma0, the first length and σt; --sigma-scale's τ. @return 0, or -1 when the
+ * first source has nothing to scale. */
+static int truth_scale(oc_scene_t *sc, truth_opts_t *o, double *sigma0, double *len0, double *first_sigma) {
+  *len0 = *first_sigma = 0.0;
+  for (int i = 0; i < sc->nsources; i++) {
+    double *s = oct__source_sigma(&sc->sources[i]);
+    sigma0[i] = s ? *s : 0.0;
+    if (*len0 == 0.0 && oct__source_length(&sc->sources[i]) > 0.0) {
+      *len0 = oct__source_length(&sc->sources[i]);
+      *first_sigma = sigma0[i];
     }
-    if (oc_cli_double(prog, opt, tok, lo, hi, &out[(*n)++])) return -1;
   }
-  if (*n == 0) {
-    oc_cli_fail(prog, 0, "%s: empty list", opt);
-    return -1;
+  if (!(*first_sigma > 0.0)) return -1;
+  if (o->sigma_scale > 0.0) {
+    o->taus.v[0] = o->sigma_scale * *first_sigma * *len0;
+    o->taus.n = 1;
   }
   return 0;
 }
 
-int oct_bench_truth(const char *prog, int argc, char **argv) {
-  enum {
-    O_SCENE = 256, O_CAMERA, O_SIZE, O_TAU, O_SCALE, O_PATHS, O_SEED, O_THREADS, O_STEP, O_BG, O_BOUNCES, O_PNG, O_CSV,
-    O_CHECK, O_PHOTONS, O_NOCHECK, O_ALBEDO, O_LOBE, O_SAVE, O_HELP
-  };
-  static const struct option opts[] = {
-      {"scene", required_argument, 0, O_SCENE},        {"camera", required_argument, 0, O_CAMERA},
-      {"size", required_argument, 0, O_SIZE},          {"tau", required_argument, 0, O_TAU},
-      {"sigma-scale", required_argument, 0, O_SCALE},  {"paths", required_argument, 0, O_PATHS},
-      {"seed", required_argument, 0, O_SEED},          {"threads", required_argument, 0, O_THREADS},
-      {"step-factor", required_argument, 0, O_STEP},   {"background", required_argument, 0, O_BG},
-      {"max-bounces", required_argument, 0, O_BOUNCES}, {"png-prefix", required_argument, 0, O_PNG},
-      {"csv", required_argument, 0, O_CSV},            {"check-slab", no_argument, 0, O_CHECK},
-      {"slab-photons", required_argument, 0, O_PHOTONS}, {"no-slab-check", no_argument, 0, O_NOCHECK},
-      {"albedo", required_argument, 0, O_ALBEDO},     {"sun-lobe", required_argument, 0, O_LOBE},
-      {"save", required_argument, 0, O_SAVE},         {"help", no_argument, 0, O_HELP},
-      {0, 0, 0, 0}};
-  const char *scene_path = "scenes/analytic_sphere.json", *camera_text = NULL, *tau_text = NULL, *png = NULL, *csv_path = NULL,
-             *save = NULL;
-  int w = 64, h = 36, check_only = 0, no_check = 0, have_scale = 0;
-  long paths = 1024, seed = 1, threads = sysconf(_SC_NPROCESSORS_ONLN), max_bounces = 1000000, photons = 1000000;
-  double step = 0.25, background = 0.0, sigma_scale = 1.0, albedo = -1.0, sun_lobe = 0.02;
-  if (threads < 1) threads = 1;
-  if (threads > 256) threads = 256;
-  int c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SCENE: scene_path = optarg; break;
-      case O_CAMERA: camera_text = optarg; break;
-      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_TAU: tau_text = optarg; break;
-      case O_SCALE:
-        if (oc_cli_double(prog, "--sigma-scale", optarg, 1e-9, 1e9, &sigma_scale)) return OC_EXIT_USAGE;
-        have_scale = 1;
-        break;
-      case O_PATHS: if (oc_cli_int(prog, "--paths", optarg, 2, 100000000, &paths)) return OC_EXIT_USAGE; break;
-      case O_SEED: if (oc_cli_int(prog, "--seed", optarg, 0, 0x7fffffffL, &seed)) return OC_EXIT_USAGE; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &threads)) return OC_EXIT_USAGE; break;
-      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &step)) return OC_EXIT_USAGE; break;
-      case O_BG: if (oc_cli_double(prog, "--background", optarg, 0.0, 1e6, &background)) return OC_EXIT_USAGE; break;
-      case O_BOUNCES: if (oc_cli_int(prog, "--max-bounces", optarg, 1, 1000000000, &max_bounces)) return OC_EXIT_USAGE; break;
-      case O_PNG: png = optarg; break;
-      case O_CSV: csv_path = optarg; break;
-      case O_SAVE: save = optarg; break;
-      case O_CHECK: check_only = 1; break;
-      case O_PHOTONS: if (oc_cli_int(prog, "--slab-photons", optarg, 1000, 1000000000, &photons)) return OC_EXIT_USAGE; break;
-      case O_NOCHECK: no_check = 1; break;
-      case O_LOBE: if (oc_cli_double(prog, "--sun-lobe", optarg, 0.0, 0.9, &sun_lobe)) return OC_EXIT_USAGE; break;
-      case O_ALBEDO: if (oc_cli_double(prog, "--albedo", optarg, 0.0, 1.0, &albedo)) return OC_EXIT_USAGE; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
+static void truth_summary(const oc_scene_t *sc, const oct__summary_t *sums, int done) {
+  printf("## Summary: relative error of the image-mean radiance (the truth's relative SE beside it) and RMSE "
+         "0–255; τ channel: 1 octave against the truth's single scattering\n\n");
+  printf("| τ | σt (m⁻¹) | truth mean ± SE | %d octaves: rel. error | RMSE 0–255 | 1 octave: rel. error | RMSE 0–255 "
+         "| τ channel | MC time (s) |\n",
+         sc->optics.ms_octaves);
+  printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (int k = 0; k < done; k++) {
+    const oct__summary_t *s = &sums[k];
+    const oct__score_t *b = &s->score[s->nscores - 1];
+    printf("| %g | %.4g | %.5g ± %.2g | %+.4f ± %.4f | %.2f | %+.4f ± %.4f | %.2f | %+.4f ± %.4f | %.1f |\n", s->tau,
+           s->sigma, s->mc_mean, s->mc_se, s->score[0].rel, s->score[0].rel_se, s->score[0].rmse8, b->rel, b->rel_se,
+           b->rmse8, s->single.rel, s->single.rel_se, s->seconds);
   }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: unexpected argument \"%s\"", argv[optind]);
-  if (tau_text && have_scale) return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: --tau and --sigma-scale exclude each other");
-  if (check_only && no_check) return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: --check-slab and --no-slab-check exclude each other");
-  double taus[OCT_TRUTH_MAX_TAUS];
-  int ntaus = 0;
-  if (!have_scale && oct__parse_doubles(prog, "--tau", tau_text ? tau_text : "1,5,20", 1e-6, 1e4, taus,
-                                        OCT_TRUTH_MAX_TAUS, &ntaus))
-    return OC_EXIT_USAGE;
+  printf("\n");
+}
 
-  int failed = 0;
-  if (!no_check) failed = oct__check_slab(photons, (uint64_t)seed, (int)threads);
-  if (check_only) return failed ? OC_EXIT_RUNTIME : OC_EXIT_OK;
-
-  char why[512];
-  static oc_scene_t sc;
-  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
-  ocs_medium_t medium;
-  if (ocs_scene_medium(&sc, &medium, why, sizeof why) < 0) {
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: analytic scenes only: %s", why);
-  }
-  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
-  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
-  }
-  oc_camera_t cam = oc_camera_from_pose(pose);
-  if (albedo >= 0.0) sc.optics.albedo = albedo;
-
-  /* --tau is measured across the first source with a length; all σt are scaled by one factor. */
-  double sigma0[OC_SCENE_MAX_SOURCES] = {0}, len0 = 0.0, first_sigma = 0.0;
-  for (int i = 0; i < sc.nsources; i++) {
-    double *s = oct__source_sigma(&sc.sources[i]);
-    sigma0[i] = s ? *s : 0.0;
-    if (len0 == 0.0 && oct__source_length(&sc.sources[i]) > 0.0) {
-      len0 = oct__source_length(&sc.sources[i]);
-      first_sigma = sigma0[i];
-    }
-  }
-  if (!(first_sigma > 0.0)) {
-    oc_scene_free(&sc);
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: %s: the first source has no extinction to scale", scene_path);
-  }
-  if (have_scale) {
-    taus[0] = sigma_scale * first_sigma * len0;
-    ntaus = 1;
-  }
-
+/* Every optical depth, after the scene is loaded; @return the exit status. */
+static int truth_run(const char *prog, truth_opts_t *o, oc_scene_t *sc, oc_camera_t cam) {
+  double sigma0[OC_SCENE_MAX_SOURCES] = {0}, len0, first_sigma;
+  if (truth_scale(sc, o, sigma0, &len0, &first_sigma))
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: %s: the first source has no extinction to scale", o->scene);
   FILE *csv = NULL;
-  if (csv_path) {
-    csv = fopen(csv_path, "w");
-    if (!csv) {
-      oc_scene_free(&sc);
-      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: cannot write", csv_path);
-    }
+  if (o->csv) {
+    if (!(csv = fopen(o->csv, "w"))) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: cannot write", o->csv);
     fprintf(csv, "scene,tau,sigma_t,width,height,paths,background,ms_octaves,step_factor,mc_mean,mc_mean_se,ref_mean,"
                  "rel_err,rel_err_se,rmse_lin,rmse_lin_denoised,rmse_8bit,frac_over_3se,mc_seconds\n");
   }
   printf("# Monte Carlo truth: %s, albedo %g, HG+Draine phase, sun-lobe share %g, delta sun of irradiance 1 (no "
          "atmosphere), background %g; reference: CPU renderer, OC_BG_CONSTANT, %d octaves (a %g, b %g, c %g) and 1, step factor %g\n\n",
-         scene_path, sc.optics.albedo, sun_lobe, background, sc.optics.ms_octaves, sc.optics.ms_a, sc.optics.ms_b, sc.optics.ms_c,
-         step);
+         o->scene, sc->optics.albedo, o->sun_lobe, o->background, sc->optics.ms_octaves, sc->optics.ms_a, sc->optics.ms_b,
+         sc->optics.ms_c, o->step);
   oct__summary_t sums[OCT_TRUTH_MAX_TAUS];
   int rc = OC_EXIT_OK, done = 0;
-  for (int k = 0; k < ntaus && rc == OC_EXIT_OK; k++) {
-    double f = taus[k] / (first_sigma * len0);
-    for (int i = 0; i < sc.nsources; i++) {
-      double *s = oct__source_sigma(&sc.sources[i]);
+  for (int k = 0; k < o->taus.n && rc == OC_EXIT_OK; k++) {
+    double f = o->taus.v[k] / (first_sigma * len0);
+    for (int i = 0; i < sc->nsources; i++) {
+      double *s = oct__source_sigma(&sc->sources[i]);
       if (s) *s = sigma0[i] * f;
     }
-    oct__run_t run = {.prog = prog, .scene_path = scene_path, .sc = &sc, .cam = cam, .w = w, .h = h,
-                      .threads = (int)threads, .tau = taus[k], .step = step, .background = background};
-    rc = oct__truth_one(&run, paths, (uint64_t)seed, max_bounces, sun_lobe, png, save, camera_text, csv, &sums[k]);
+    oct__run_t run = {.prog = prog, .scene_path = o->scene, .sc = sc, .cam = cam, .w = o->size[0], .h = o->size[1],
+                      .threads = o->threads, .tau = o->taus.v[k], .step = o->step, .background = o->background};
+    rc = oct__truth_one(&run, o->paths, (uint64_t)o->seed, o->max_bounces, o->sun_lobe, o->png, o->save, o->camera, csv,
+                        &sums[k]);
     if (rc == OC_EXIT_OK) done++;
   }
-  if (done > 1) {
-    printf("## Summary: relative error of the image-mean radiance (the truth's relative SE beside it) and RMSE "
-           "0–255; τ channel: 1 octave against the truth's single scattering\n\n");
-    printf("| τ | σt (m⁻¹) | truth mean ± SE | %d octaves: rel. error | RMSE 0–255 | 1 octave: rel. error | RMSE 0–255 "
-           "| τ channel | MC time (s) |\n",
-           sc.optics.ms_octaves);
-    printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-    for (int k = 0; k < done; k++) {
-      const oct__summary_t *s = &sums[k];
-      const oct__score_t *b = &s->score[s->nscores - 1];
-      printf("| %g | %.4g | %.5g ± %.2g | %+.4f ± %.4f | %.2f | %+.4f ± %.4f | %.2f | %+.4f ± %.4f | %.1f |\n", s->tau,
-             s->sigma, s->mc_mean, s->mc_se, s->score[0].rel, s->score[0].rel_se, s->score[0].rmse8, b->rel, b->rel_se,
-             b->rmse8, s->single.rel, s->single.rel_se, s->seconds);
-    }
-    printf("\n");
-  }
+  if (done > 1) truth_summary(sc, sums, done);
   if (csv) fclose(csv);
+  return rc;
+}
+
+int oct_bench_truth(const char *prog, int argc, char **argv) {
+  long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+  truth_opts_t o = {.threads = ncpu < 1 ? 1 : ncpu > 256 ? 256 : (int)ncpu, .albedo = -1.0};
+  int rc = oct_begin(&oct_bench_truth_spec, argc, argv, &o, NULL, NULL, NULL, NULL);
+  if (rc != OCT_GO) return rc;
+  if (o.taus.n && o.sigma_scale > 0.0)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: --tau and --sigma-scale exclude each other");
+  if (o.check_only && o.no_check)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: --check-slab and --no-slab-check exclude each other");
+  if (!o.taus.n) o.taus = (oct_dlist_t){{1, 5, 20}, 3};
+  int failed = 0;
+  if (!o.no_check) failed = oct__check_slab(o.photons, (uint64_t)o.seed, o.threads);
+  if (o.check_only) return failed ? OC_EXIT_RUNTIME : OC_EXIT_OK;
+
+  char why[512];
+  static oc_scene_t sc;
+  oc_camera_pose_t pose;
+  ocs_medium_t medium;
+  if ((rc = oct_scene_camera(prog, o.scene, o.camera, &sc, &pose)) != OCT_GO) return rc;
+  if (ocs_scene_medium(&sc, &medium, why, sizeof why) < 0) {
+    oc_scene_free(&sc);
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: analytic scenes only: %s", why);
+  }
+  if (o.albedo >= 0.0) sc.optics.albedo = o.albedo;
+  rc = truth_run(prog, &o, &sc, oc_camera_from_pose(pose));
   oc_scene_free(&sc);
   if (rc == OC_EXIT_OK && failed) {
     fprintf(stderr, "%s: truth: %d transport check%s failed\n", prog, failed, failed == 1 ? "" : "s");

@@ -57,6 +57,20 @@ int oct_opt_list(const char *p, const oc_cli_opt_t *o, const char *text, void *b
                         &l->n);
 }
 
+int oct_opt_doubles(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  oct_dlist_t *l = oc_cli_field(o, base);
+  char buf[512], opt[80];
+  snprintf(buf, sizeof buf, "%s", text);
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  l->n = 0;
+  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+    if (l->n == OCT_LIST_MAX) return oc_cli_fail(p, -1, "%s: at most %d entries", opt, OCT_LIST_MAX);
+    if (oc_cli_double(p, opt, tok, o->lo, o->hi, &l->v[l->n++])) return -1;
+  }
+  if (l->n == 0) return oc_cli_fail(p, -1, "%s: empty list", opt);
+  return 0;
+}
+
 int oct_opt_at(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
   oct_at_t *at = oc_cli_field(o, base);
   if (sscanf(text, "%lf,%lf", &at->lat, &at->lon) != 2 ||
@@ -93,20 +107,24 @@ int oct_opt_renderer(const char *p, const oc_cli_opt_t *o, const char *text, voi
 
 /*-*** The preamble ***/
 
+int oct_scene_camera(const char *prog, const char *path, const char *camera, oc_scene_t *sc, oc_camera_pose_t *pose) {
+  if (oct_load_scene(prog, path, sc)) return OC_EXIT_RUNTIME;
+  if (!pose) return OCT_GO;
+  char why[512];
+  *pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
+  if (camera && oc_camera_parse(camera, pose, why, sizeof why) < 0) {
+    oc_scene_free(sc);
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+  }
+  return OCT_GO;
+}
+
 int oct_begin(const oc_cli_spec_t *spec, int argc, char **argv, void *opts, const char *const *scene,
               const char *const *camera, oc_scene_t *sc, oc_camera_pose_t *pose) {
   int r = oc_cli_parse(spec, argc, argv, opts, NULL, NULL);
   if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
   if (!sc) return OCT_GO;
-  if (oct_load_scene(spec->prog, scene ? *scene : NULL, sc)) return OC_EXIT_RUNTIME;
-  if (!pose) return OCT_GO;
-  char why[512];
-  *pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
-  if (camera && *camera && oc_camera_parse(*camera, pose, why, sizeof why) < 0) {
-    oc_scene_free(sc);
-    return oc_cli_fail(spec->prog, OC_EXIT_USAGE, "--camera: %s", why);
-  }
-  return OCT_GO;
+  return oct_scene_camera(spec->prog, scene ? *scene : NULL, camera ? *camera : NULL, sc, pose);
 }
 
 /*-*** A single-threaded brick cache in front of the field ***/

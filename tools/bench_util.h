@@ -23,14 +23,20 @@ int oct_load_scene(const char *prog, const char *path, oc_scene_t *sc);
 
 /*-*** Option rows (common/oc_cli.h) shared by the subcommands' tables ***/
 
-/*! oct_list_t : an integer list option ("10,13,16"), filled by oct_opt_list(): at most
- *  min(OCT_LIST_MAX, hi - lo + 1) entries, each in the row's [lo, hi]. */
-#define OCT_LIST_MAX 32
+/*! oct_list_t, oct_dlist_t : a list option of integers ("10,13,16") or of numbers, filled by
+ *  oct_opt_list() (at most min(OCT_LIST_MAX, hi - lo + 1) entries) or oct_opt_doubles() (at most
+ *  OCT_LIST_MAX), each in the row's [lo, hi]. */
+#define OCT_LIST_MAX 16
 typedef struct {
   long v[OCT_LIST_MAX];
   int n;
 } oct_list_t;
+typedef struct {
+  double v[OCT_LIST_MAX];
+  int n;
+} oct_dlist_t;
 int oct_opt_list(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
+int oct_opt_doubles(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
 
 /*! oct_at_t : --at LAT,LON in degrees (oct_opt_at()); given is 0 until the option is seen. */
 typedef struct {
@@ -83,6 +89,10 @@ int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, 
  *  OC_EXIT_RUNTIME when the scene does not load. */
 int oct_begin(const oc_cli_spec_t *spec, int argc, char **argv, void *opts, const char *const *scene,
               const char *const *camera, oc_scene_t *sc, oc_camera_pose_t *pose);
+/*! oct_scene_camera() : oct_begin()'s second half: the scene at path (NULL: the built-in planet)
+ *  and, when pose is not NULL, the camera (camera NULL: the scene's). @return OCT_GO or the exit
+ *  status. */
+int oct_scene_camera(const char *prog, const char *path, const char *camera, oc_scene_t *sc, oc_camera_pose_t *pose);
 
 /*-*** A single-threaded brick cache in front of a field ***/
 
