@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "camera_path.h"
 #include "oc_err.h"
 
@@ -83,8 +84,6 @@ static void test_camera_path__errors(void **state) {
   assert_int_equal(ocv_path_sample(&p, 0, &o), OC_EINVAL);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_camera_path__sample_and_round_trip),
-                                     cmocka_unit_test(test_camera_path__errors)};
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_camera_path__sample_and_round_trip),
+             cmocka_unit_test(test_camera_path__errors))

@@ -9,6 +9,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "hud.h"
 
 #define W 200
@@ -60,7 +61,5 @@ static void test_hud__format(void **state) {
   assert_null(strstr(buf, "gpu"));
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_hud__text), cmocka_unit_test(test_hud__format)};
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_hud__text), cmocka_unit_test(test_hud__format))

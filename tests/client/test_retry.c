@@ -11,6 +11,7 @@
 
 #include <string.h>
 
+#include "test_main.h"
 #include "net.h"
 
 static void test_retry__server_delay_first_then_bounded_attempts(void **state) {
@@ -68,12 +69,8 @@ static void test_retry__defaults_and_fatal_codes(void **state) {
   assert_false(ocv_retry_fatal(OCP_CODE_RECONNECT) || ocv_retry_fatal(-1) || ocv_retry_fatal(OCP_CODE_SHUTDOWN));
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_retry__server_delay_first_then_bounded_attempts),
-      cmocka_unit_test(test_retry__gives_up_on_time),
-      cmocka_unit_test(test_retry__welcome_starts_a_new_run),
-      cmocka_unit_test(test_retry__defaults_and_fatal_codes),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_retry__server_delay_first_then_bounded_attempts),
+             cmocka_unit_test(test_retry__gives_up_on_time),
+             cmocka_unit_test(test_retry__welcome_starts_a_new_run),
+             cmocka_unit_test(test_retry__defaults_and_fatal_codes))

@@ -7,6 +7,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_backoff.h"
 
 static void test_backoff__first_is_the_servers_delay_floored(void **state) {
@@ -64,11 +65,7 @@ static void test_backoff__jitter_seeded(void **state) {
   assert_true(differ > 10); /* another seed, other delays: clients spread out */
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_backoff__first_is_the_servers_delay_floored),
-      cmocka_unit_test(test_backoff__bounds_growth_and_cap),
-      cmocka_unit_test(test_backoff__jitter_seeded),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_backoff__first_is_the_servers_delay_floored),
+             cmocka_unit_test(test_backoff__bounds_growth_and_cap),
+             cmocka_unit_test(test_backoff__jitter_seeded))

@@ -10,6 +10,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "test_util.h"
 #include "report.h"
 
@@ -334,13 +335,9 @@ static void test_brick__reconstruct(void **state) {
   }
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_brick__round_trip_error),   cmocka_unit_test(test_brick__worst_case_midpoints),
-      cmocka_unit_test(test_brick__zero_exact),         cmocka_unit_test(test_brick__decode_endpoints),
-      cmocka_unit_test(test_brick__code_encode_edges),  cmocka_unit_test(test_brick__flush_below_ratio),
-      cmocka_unit_test(test_brick__classify),           cmocka_unit_test(test_brick__sanitize),
-      cmocka_unit_test(test_brick__reconstruct),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_brick__round_trip_error),   cmocka_unit_test(test_brick__worst_case_midpoints),
+             cmocka_unit_test(test_brick__zero_exact),         cmocka_unit_test(test_brick__decode_endpoints),
+             cmocka_unit_test(test_brick__code_encode_edges),  cmocka_unit_test(test_brick__flush_below_ratio),
+             cmocka_unit_test(test_brick__classify),           cmocka_unit_test(test_brick__sanitize),
+             cmocka_unit_test(test_brick__reconstruct))

@@ -7,6 +7,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_budget.h"
 
 static void test_budget__one_definition(void **state) {
@@ -55,12 +56,8 @@ static void test_budget__edges(void **state) {
   assert_int_equal(oc_budget_slots(&zero), 0);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_budget__one_definition),
-      cmocka_unit_test(test_budget__minimum_is_the_root_in_each_state),
-      cmocka_unit_test(test_budget__slots_follow_the_grant),
-      cmocka_unit_test(test_budget__edges),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_budget__one_definition),
+             cmocka_unit_test(test_budget__minimum_is_the_root_in_each_state),
+             cmocka_unit_test(test_budget__slots_follow_the_grant),
+             cmocka_unit_test(test_budget__edges))

@@ -9,6 +9,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "test_util.h"
 
 #include "oc_key.h"
@@ -287,18 +288,14 @@ static void test_key__canonical_order(void **state) {
   assert_true(oc_key_make(20, (1u << 20) - 1, (1u << 20) - 1, (1u << 20) - 1) < oc_key_make(21, 0, 0, 0));
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_key__root),
-      cmocka_unit_test(test_key__layout_matches_convention),
-      cmocka_unit_test(test_key__make_coords_round_trip),
-      cmocka_unit_test(test_key__invalid_rejected),
-      cmocka_unit_test(test_key__parent_child_ancestor),
-      cmocka_unit_test(test_key__neighbor_edges),
-      cmocka_unit_test(test_key__size_exact),
-      cmocka_unit_test(test_key__bounds_from_point_consistent),
-      cmocka_unit_test(test_key__from_point_outside),
-      cmocka_unit_test(test_key__canonical_order),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_key__root),
+             cmocka_unit_test(test_key__layout_matches_convention),
+             cmocka_unit_test(test_key__make_coords_round_trip),
+             cmocka_unit_test(test_key__invalid_rejected),
+             cmocka_unit_test(test_key__parent_child_ancestor),
+             cmocka_unit_test(test_key__neighbor_edges),
+             cmocka_unit_test(test_key__size_exact),
+             cmocka_unit_test(test_key__bounds_from_point_consistent),
+             cmocka_unit_test(test_key__from_point_outside),
+             cmocka_unit_test(test_key__canonical_order))

@@ -11,6 +11,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_noise.h"
 
@@ -582,14 +583,10 @@ static void test_lipschitz_adversarial(void **state) {
   assert_true(worst > 0.8 * OC_NOISE_LIPSCHITZ);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_golden),          cmocka_unit_test(test_batch_matches_scalar),
-      cmocka_unit_test(test_threads),         cmocka_unit_test(test_bound),
-      cmocka_unit_test(test_lattice_zero),    cmocka_unit_test(test_continuity),
-      cmocka_unit_test(test_seed_changes_field), cmocka_unit_test(test_large_coordinates),
-      cmocka_unit_test(test_fbm_mean),        cmocka_unit_test(test_args),
-      cmocka_unit_test(test_lipschitz_proven), cmocka_unit_test(test_lipschitz_adversarial),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_golden),          cmocka_unit_test(test_batch_matches_scalar),
+             cmocka_unit_test(test_threads),         cmocka_unit_test(test_bound),
+             cmocka_unit_test(test_lattice_zero),    cmocka_unit_test(test_continuity),
+             cmocka_unit_test(test_seed_changes_field), cmocka_unit_test(test_large_coordinates),
+             cmocka_unit_test(test_fbm_mean),        cmocka_unit_test(test_args),
+             cmocka_unit_test(test_lipschitz_proven), cmocka_unit_test(test_lipschitz_adversarial))

@@ -12,6 +12,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "test_util.h"
 #include "report.h"
 
@@ -477,19 +478,15 @@ static void test_doc__key_examples(void **state) {
   g_doc = NULL;
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_geo__known_points),
-      cmocka_unit_test(test_geo__lon_wrap),
-      cmocka_unit_test(test_geo__round_trip),
-      cmocka_unit_test(test_enu__orthonormal_right_handed),
-      cmocka_unit_test(test_view__known_directions),
-      cmocka_unit_test(test_view__heading_pitch_round_trip),
-      cmocka_unit_test(test_camrel__precision),
-      cmocka_unit_test(test_camrel__node_exact_offsets),
-      cmocka_unit_test(test_camrel__far_and_outside),
-      cmocka_unit_test(test_doc__camera_examples),
-      cmocka_unit_test(test_doc__key_examples),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_geo__known_points),
+             cmocka_unit_test(test_geo__lon_wrap),
+             cmocka_unit_test(test_geo__round_trip),
+             cmocka_unit_test(test_enu__orthonormal_right_handed),
+             cmocka_unit_test(test_view__known_directions),
+             cmocka_unit_test(test_view__heading_pitch_round_trip),
+             cmocka_unit_test(test_camrel__precision),
+             cmocka_unit_test(test_camrel__node_exact_offsets),
+             cmocka_unit_test(test_camrel__far_and_outside),
+             cmocka_unit_test(test_doc__camera_examples),
+             cmocka_unit_test(test_doc__key_examples))

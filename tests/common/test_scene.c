@@ -14,6 +14,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_log.h"
 #include "oc_scene.h"
@@ -537,17 +538,13 @@ static int teardown(void **state) {
   return 0;
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_all_shipped_scenes_load), cmocka_unit_test(test_planet_is_default),
-      cmocka_unit_test(test_analytic_scenes),         cmocka_unit_test(test_defaults),
-      cmocka_unit_test(test_values),                  cmocka_unit_test(test_error_unknown_key),
-      cmocka_unit_test(test_error_duplicate_key),     cmocka_unit_test(test_error_wrong_type),
-      cmocka_unit_test(test_error_out_of_range),      cmocka_unit_test(test_error_enum),
-      cmocka_unit_test(test_error_missing_required),  cmocka_unit_test(test_error_combinations),
-      cmocka_unit_test(test_error_non_finite),        cmocka_unit_test(test_error_syntax),
-      cmocka_unit_test(test_error_too_many_sources),  cmocka_unit_test(test_files),
-      cmocka_unit_test(test_unterminated_buffer),     cmocka_unit_test(test_names),
-  };
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_all_shipped_scenes_load), cmocka_unit_test(test_planet_is_default),
+             cmocka_unit_test(test_analytic_scenes),         cmocka_unit_test(test_defaults),
+             cmocka_unit_test(test_values),                  cmocka_unit_test(test_error_unknown_key),
+             cmocka_unit_test(test_error_duplicate_key),     cmocka_unit_test(test_error_wrong_type),
+             cmocka_unit_test(test_error_out_of_range),      cmocka_unit_test(test_error_enum),
+             cmocka_unit_test(test_error_missing_required),  cmocka_unit_test(test_error_combinations),
+             cmocka_unit_test(test_error_non_finite),        cmocka_unit_test(test_error_syntax),
+             cmocka_unit_test(test_error_too_many_sources),  cmocka_unit_test(test_files),
+             cmocka_unit_test(test_unterminated_buffer),     cmocka_unit_test(test_names))

@@ -16,6 +16,7 @@
 #include <cmocka.h>
 #include <xxhash.h> /* XXH3_64bits: re-sealing deliberately corrupted bytes */
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_state.h"
 #include "state_fixture.h" /* child, node, golden_codes, golden_state */
@@ -732,23 +733,19 @@ static void test_state__fuzz_seeds(void **state) {
   oc_state_free(&t);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_state__valid_and_canonical),
-      cmocka_unit_test(test_state__validate_rejects),
-      cmocka_unit_test(test_state__find),
-      cmocka_unit_test(test_state__copy),
-      cmocka_unit_test(test_state__round_trip),
-      cmocka_unit_test(test_state__checksum_sees_every_code_byte),
-      cmocka_unit_test(test_state__truncation),
-      cmocka_unit_test(test_state__bit_flips),
-      cmocka_unit_test(test_state__sealed_corruption),
-      cmocka_unit_test(test_state__golden),
-      cmocka_unit_test(test_state__digest_golden),
-      cmocka_unit_test(test_state__validate_lean),
-      cmocka_unit_test_setup_teardown(test_state__save_load, setup_tmp, teardown_tmp),
-      cmocka_unit_test(test_state__resident_bytes),
-      cmocka_unit_test(test_state__fuzz_seeds),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_state__valid_and_canonical),
+             cmocka_unit_test(test_state__validate_rejects),
+             cmocka_unit_test(test_state__find),
+             cmocka_unit_test(test_state__copy),
+             cmocka_unit_test(test_state__round_trip),
+             cmocka_unit_test(test_state__checksum_sees_every_code_byte),
+             cmocka_unit_test(test_state__truncation),
+             cmocka_unit_test(test_state__bit_flips),
+             cmocka_unit_test(test_state__sealed_corruption),
+             cmocka_unit_test(test_state__golden),
+             cmocka_unit_test(test_state__digest_golden),
+             cmocka_unit_test(test_state__validate_lean),
+             cmocka_unit_test_setup_teardown(test_state__save_load, setup_tmp, teardown_tmp),
+             cmocka_unit_test(test_state__resident_bytes),
+             cmocka_unit_test(test_state__fuzz_seeds))

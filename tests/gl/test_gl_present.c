@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "hud.h"
 #include "oc_camera.h"
 #include "oc_err.h"
@@ -117,7 +118,5 @@ static void test_gl_present__matches_cpu(void **state) {
   oc_state_free(&st);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_present__matches_cpu)};
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_gl_present__matches_cpu))

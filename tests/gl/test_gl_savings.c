@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "oc_camera.h"
 #include "oc_image.h"
 #include "oc_key.h"
@@ -71,7 +72,5 @@ static void test_gl_savings__same_image(void **state) {
   }
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_savings__same_image)};
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_gl_savings__same_image))

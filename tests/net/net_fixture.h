@@ -277,18 +277,25 @@ static inline int raw_connect_from(int host, int port) {
 
 static inline int raw_connect(int port) { return raw_connect_from(0, port); }
 
+/* Waits up to 50 ms for bytes on a raw socket and feeds them to rd: 1 fed, 0 none yet, -1 EOF. */
+static inline int raw_feed(int fd, ocp_reader_t *rd) {
+  uint8_t buf[65536];
+  struct pollfd p = {fd, POLLIN, 0};
+  if (poll(&p, 1, 50) <= 0) return 0;
+  ssize_t n = read(fd, buf, sizeof buf);
+  if (n <= 0) return -1;
+  ocp_reader_feed(rd, buf, (size_t)n);
+  return 1;
+}
+
 /* Reads frames until EOF (within timeout); returns the code of the last ERROR/GOODBYE, or -1. */
 static inline int raw_read_close_code(int fd, double timeout_s, char *text, size_t cap) {
   ocp_reader_t rd;
   ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
   int code = -1;
-  uint8_t buf[65536];
   for (int i = 0; i < (int)(timeout_s * 20); i++) {
-    struct pollfd p = {fd, POLLIN, 0};
-    if (poll(&p, 1, 50) <= 0) continue;
-    ssize_t n = read(fd, buf, sizeof buf);
-    if (n <= 0) break;
-    ocp_reader_feed(&rd, buf, (size_t)n);
+    int got = raw_feed(fd, &rd);
+    if (got < 0) break;
     ocp_header_t h;
     const uint8_t *pl;
     while (ocp_reader_next(&rd, &h, &pl) == 1)
@@ -318,15 +325,11 @@ static inline uint64_t raw_hello(int fd, uint64_t budget, int *code) {
   oc_buf_free(&b);
   ocp_reader_t rd;
   ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
-  uint8_t buf[4096];
   uint64_t granted = 0;
   *code = -1;
   for (int i = 0; i < 600 && *code < 0; i++) {
-    struct pollfd p = {fd, POLLIN, 0};
-    if (poll(&p, 1, 50) <= 0) continue;
-    ssize_t n = read(fd, buf, sizeof buf);
-    if (n <= 0) break;
-    ocp_reader_feed(&rd, buf, (size_t)n);
+    int got = raw_feed(fd, &rd);
+    if (got < 0) break;
     ocp_header_t hd;
     const uint8_t *pl;
     while (*code < 0 && ocp_reader_next(&rd, &hd, &pl) == 1) {
@@ -375,6 +378,16 @@ static inline ocv_conn_t *control_open(int port, int *replied) {
   if (ocv_conn_open(&ctl, "127.0.0.1", port, &cd, &cev, 5.0, why, sizeof why) < 0) fail_msg("control: %s", why);
   assert_int_equal(ocv_conn_wait_ready(ctl, 5.0, why, sizeof why), 0);
   return ctl;
+}
+
+/* A test program's group setup: scene_sphere from OC_SOURCE_DIR ("." when unset), and a peer that
+ * went away is an error return, not SIGPIPE. */
+static inline int net_setup(void **state) {
+  (void)state;
+  const char *src = getenv("OC_SOURCE_DIR");
+  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
+  signal(SIGPIPE, SIG_IGN);
+  return 0;
 }
 
 /* A test's teardown: the server it started is killed when the test failed before stopping it. */

@@ -10,6 +10,7 @@
 #include <cmocka.h>
 
 #include "net_fixture.h"
+#include "test_main.h"
 
 #define MIB (1ull << 20)
 #define GREEDY (1ull << 60) /* 2^40 MiB */
@@ -238,17 +239,10 @@ static void test_admission__handshake_rate(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-int main(void) {
-  const char *src = getenv("OC_SOURCE_DIR");
-  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
-  signal(SIGPIPE, SIG_IGN);
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_admission__greedy_then_vanish, net_teardown),
-      cmocka_unit_test_teardown(test_admission__lingering_give_back_then_largest_fit, net_teardown),
-      cmocka_unit_test_teardown(test_admission__greedy_connected, net_teardown),
-      cmocka_unit_test_teardown(test_admission__lingering_caps, net_teardown),
-      cmocka_unit_test_teardown(test_admission__connect_storm, net_teardown),
-      cmocka_unit_test_teardown(test_admission__handshake_rate, net_teardown),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(net_setup, NULL,
+             cmocka_unit_test_teardown(test_admission__greedy_then_vanish, net_teardown),
+             cmocka_unit_test_teardown(test_admission__lingering_give_back_then_largest_fit, net_teardown),
+             cmocka_unit_test_teardown(test_admission__greedy_connected, net_teardown),
+             cmocka_unit_test_teardown(test_admission__lingering_caps, net_teardown),
+             cmocka_unit_test_teardown(test_admission__connect_storm, net_teardown),
+             cmocka_unit_test_teardown(test_admission__handshake_rate, net_teardown))

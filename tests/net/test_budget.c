@@ -14,6 +14,7 @@
 #include <cmocka.h>
 
 #include "net_fixture.h"
+#include "test_main.h"
 
 #define MIB (1ull << 20)
 
@@ -245,14 +246,7 @@ static void test_budget__admission_lowers_greedy(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-int main(void) {
-  const char *src = getenv("OC_SOURCE_DIR");
-  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
-  signal(SIGPIPE, SIG_IGN);
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_budget__lowered_by_ctl, net_teardown),
-      cmocka_unit_test_teardown(test_budget__v1_fixed, net_teardown),
-      cmocka_unit_test_teardown(test_budget__admission_lowers_greedy, net_teardown),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(net_setup, NULL,
+             cmocka_unit_test_teardown(test_budget__lowered_by_ctl, net_teardown),
+             cmocka_unit_test_teardown(test_budget__v1_fixed, net_teardown),
+             cmocka_unit_test_teardown(test_budget__admission_lowers_greedy, net_teardown))

@@ -21,6 +21,7 @@
 #include "oc_backoff.h"
 
 #include "net_fixture.h"
+#include "test_main.h"
 
 /* Polls a viewer until the server closed it (at most 60 s); its close code. */
 static uint32_t wait_closed(viewer_t *v) {
@@ -266,17 +267,10 @@ static void test_drain__net_thread_gives_up(void **state) {
   ocv_net_stop(n);
 }
 
-int main(void) {
-  const char *src = getenv("OC_SOURCE_DIR");
-  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
-  signal(SIGPIPE, SIG_IGN);
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_drain__ctl_drain, net_teardown),
-      cmocka_unit_test_teardown(test_drain__timeout, net_teardown),
-      cmocka_unit_test_teardown(test_drain__second_sigterm, net_teardown),
-      cmocka_unit_test_teardown(test_drain__reconnect_to_restarted, net_teardown),
-      cmocka_unit_test_teardown(test_drain__net_thread_follows_restart, net_teardown),
-      cmocka_unit_test_teardown(test_drain__net_thread_gives_up, net_teardown),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(net_setup, NULL,
+             cmocka_unit_test_teardown(test_drain__ctl_drain, net_teardown),
+             cmocka_unit_test_teardown(test_drain__timeout, net_teardown),
+             cmocka_unit_test_teardown(test_drain__second_sigterm, net_teardown),
+             cmocka_unit_test_teardown(test_drain__reconnect_to_restarted, net_teardown),
+             cmocka_unit_test_teardown(test_drain__net_thread_follows_restart, net_teardown),
+             cmocka_unit_test_teardown(test_drain__net_thread_gives_up, net_teardown))

@@ -17,6 +17,7 @@
 #include <fcntl.h>
 
 #include "net_fixture.h"
+#include "test_main.h"
 
 #define MIB (1ull << 20)
 #define EPOCHS 3
@@ -207,12 +208,5 @@ static void test_haproxy__tls_and_proxy_v2(void **state) {
   assert_int_equal(system(cmd), 0);
 }
 
-int main(void) {
-  const char *src = getenv("OC_SOURCE_DIR");
-  if (!src) return 1;
-  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src);
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_haproxy__tls_and_proxy_v2, teardown),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(net_setup, NULL,
+             cmocka_unit_test_teardown(test_haproxy__tls_and_proxy_v2, teardown))

@@ -13,6 +13,7 @@
 #include <arpa/inet.h>
 
 #include "net_fixture.h"
+#include "test_main.h"
 
 #define MIB (1ull << 20)
 #define PROXY_HOST 5 /* the trusted proxy connects from 127.0.0.5 */
@@ -178,14 +179,7 @@ static void test_proxy__trusted_without_header(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-int main(void) {
-  const char *src = getenv("OC_SOURCE_DIR");
-  if (!src) return 1;
-  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src);
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_proxy__untrusted_header_refused, net_teardown),
-      cmocka_unit_test_teardown(test_proxy__trusted_address_meets_limits, net_teardown),
-      cmocka_unit_test_teardown(test_proxy__trusted_without_header, net_teardown),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(net_setup, NULL,
+             cmocka_unit_test_teardown(test_proxy__untrusted_header_refused, net_teardown),
+             cmocka_unit_test_teardown(test_proxy__trusted_address_meets_limits, net_teardown),
+             cmocka_unit_test_teardown(test_proxy__trusted_without_header, net_teardown))

@@ -32,6 +32,7 @@
 #include "state_fixture.h" /* records_equal */
 
 #include "net_fixture.h"
+#include "test_main.h"
 
 /*-*** Tests ***/
 
@@ -629,14 +630,9 @@ static void test_server__hello_during_step(void **state) {
   /* the first frame the raw peer gets is WELCOME, not ERROR TIMEOUT */
   ocp_reader_t rd;
   ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
-  uint8_t buf[4096];
   int type = -1;
   for (int i = 0; i < 100 && type < 0; i++) {
-    struct pollfd p = {fd, POLLIN, 0};
-    if (poll(&p, 1, 50) <= 0) continue;
-    ssize_t n = read(fd, buf, sizeof buf);
-    if (n <= 0) break;
-    ocp_reader_feed(&rd, buf, (size_t)n);
+    if (raw_feed(fd, &rd) < 0) break;
     ocp_header_t hd;
     const uint8_t *pl;
     if (ocp_reader_next(&rd, &hd, &pl) == 1) type = hd.type;
@@ -739,24 +735,17 @@ static void test_server__step_while_stepping(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-int main(void) {
-  const char *src = getenv("OC_SOURCE_DIR");
-  snprintf(scene_sphere, sizeof scene_sphere, "%s/scenes/analytic_sphere.json", src ? src : ".");
-  signal(SIGPIPE, SIG_IGN);
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test_teardown(test_server__two_viewers, net_teardown),
-      cmocka_unit_test_teardown(test_server__matches_offline, net_teardown),
-      cmocka_unit_test_teardown(test_server__hostile_peers, net_teardown),
-      cmocka_unit_test_teardown(test_server__token, net_teardown),
-      cmocka_unit_test_teardown(test_server__control_token, net_teardown),
-      cmocka_unit_test_teardown(test_server__resume, net_teardown),
-      cmocka_unit_test_teardown(test_server__lean_viewer, net_teardown),
-      cmocka_unit_test_teardown(test_server__slow_viewer, net_teardown),
-      cmocka_unit_test_teardown(test_server__stalled_in_kernel, net_teardown),
-      cmocka_unit_test_teardown(test_server__idle_timeout, net_teardown),
-      cmocka_unit_test_teardown(test_server__hello_during_step, net_teardown),
-      cmocka_unit_test_teardown(test_server__control, net_teardown),
-      cmocka_unit_test_teardown(test_server__step_while_stepping, net_teardown),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(net_setup, NULL,
+             cmocka_unit_test_teardown(test_server__two_viewers, net_teardown),
+             cmocka_unit_test_teardown(test_server__matches_offline, net_teardown),
+             cmocka_unit_test_teardown(test_server__hostile_peers, net_teardown),
+             cmocka_unit_test_teardown(test_server__token, net_teardown),
+             cmocka_unit_test_teardown(test_server__control_token, net_teardown),
+             cmocka_unit_test_teardown(test_server__resume, net_teardown),
+             cmocka_unit_test_teardown(test_server__lean_viewer, net_teardown),
+             cmocka_unit_test_teardown(test_server__slow_viewer, net_teardown),
+             cmocka_unit_test_teardown(test_server__stalled_in_kernel, net_teardown),
+             cmocka_unit_test_teardown(test_server__idle_timeout, net_teardown),
+             cmocka_unit_test_teardown(test_server__hello_during_step, net_teardown),
+             cmocka_unit_test_teardown(test_server__control, net_teardown),
+             cmocka_unit_test_teardown(test_server__step_while_stepping, net_teardown))

@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_state.h"
 #include "ocp_epoch.h"
@@ -1136,13 +1137,9 @@ static void test_epoch__batch_one(void **state) {
   free_pair(&p);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_epoch__full_round_trip), cmocka_unit_test(test_epoch__diff_round_trip),
-      cmocka_unit_test(test_epoch__wrong_delta_base), cmocka_unit_test(test_epoch__bad_zstd),
-      cmocka_unit_test(test_epoch__bad_order),       cmocka_unit_test(test_epoch__dictionary),
-      cmocka_unit_test(test_epoch__chunks),          cmocka_unit_test(test_epoch__batch_one),
-      cmocka_unit_test(test_epoch__lean),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_epoch__full_round_trip), cmocka_unit_test(test_epoch__diff_round_trip),
+             cmocka_unit_test(test_epoch__wrong_delta_base), cmocka_unit_test(test_epoch__bad_zstd),
+             cmocka_unit_test(test_epoch__bad_order),       cmocka_unit_test(test_epoch__dictionary),
+             cmocka_unit_test(test_epoch__chunks),          cmocka_unit_test(test_epoch__batch_one),
+             cmocka_unit_test(test_epoch__lean))

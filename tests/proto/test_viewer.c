@@ -12,6 +12,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_state.h"
 #include "ocp_epoch.h"
@@ -1461,23 +1462,19 @@ static void test_viewer__fuzz_seeds(void **state) {
   g_version = 1;
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_viewer__hello_and_welcome),
-      cmocka_unit_test(test_viewer__epochs_and_acks),
-      cmocka_unit_test(test_viewer__kept_states),
-      cmocka_unit_test(test_viewer__resume),
-      cmocka_unit_test(test_viewer__corrupt_bricks),
-      cmocka_unit_test(test_viewer__unexpected),
-      cmocka_unit_test(test_viewer__byte_at_a_time),
-      cmocka_unit_test(test_viewer__over_budget_and_close),
-      cmocka_unit_test(test_viewer__control),
-      cmocka_unit_test(test_viewer__budget_lowered_then_raised),
-      cmocka_unit_test(test_viewer__budget_refused),
-      cmocka_unit_test(test_viewer__create_rejects),
-      cmocka_unit_test(test_viewer__lean_matches_full),
-      cmocka_unit_test(test_viewer__lean_detects),
-      cmocka_unit_test(test_viewer__fuzz_seeds),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_viewer__hello_and_welcome),
+             cmocka_unit_test(test_viewer__epochs_and_acks),
+             cmocka_unit_test(test_viewer__kept_states),
+             cmocka_unit_test(test_viewer__resume),
+             cmocka_unit_test(test_viewer__corrupt_bricks),
+             cmocka_unit_test(test_viewer__unexpected),
+             cmocka_unit_test(test_viewer__byte_at_a_time),
+             cmocka_unit_test(test_viewer__over_budget_and_close),
+             cmocka_unit_test(test_viewer__control),
+             cmocka_unit_test(test_viewer__budget_lowered_then_raised),
+             cmocka_unit_test(test_viewer__budget_refused),
+             cmocka_unit_test(test_viewer__create_rejects),
+             cmocka_unit_test(test_viewer__lean_matches_full),
+             cmocka_unit_test(test_viewer__lean_detects),
+             cmocka_unit_test(test_viewer__fuzz_seeds))

@@ -12,6 +12,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_state.h"
 #include "ocp_wire.h"
@@ -955,29 +956,25 @@ static void test_wire__reader_errors(void **state) {
   oc_buf_free(&b);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_wire__names_and_codes),
-      cmocka_unit_test(test_wire__version_pick),
-      cmocka_unit_test(test_wire__golden_hello),
-      cmocka_unit_test(test_wire__golden_camera),
-      cmocka_unit_test(test_wire__round_trip_hello),
-      cmocka_unit_test(test_wire__round_trip_welcome),
-      cmocka_unit_test(test_wire__round_trip_small),
-      cmocka_unit_test(test_wire__round_trip_text),
-      cmocka_unit_test(test_wire__stats_versions),
-      cmocka_unit_test(test_wire__round_trip_control),
-      cmocka_unit_test(test_wire__exact_lengths),
-      cmocka_unit_test(test_wire__hello_fields),
-      cmocka_unit_test(test_wire__welcome_fields),
-      cmocka_unit_test(test_wire__welcome_sun_and_name),
-      cmocka_unit_test(test_wire__reserved_bytes),
-      cmocka_unit_test(test_wire__camera_fields),
-      cmocka_unit_test(test_wire__epoch_begin_fields),
-      cmocka_unit_test(test_wire__text_fields),
-      cmocka_unit_test(test_wire__header),
-      cmocka_unit_test(test_wire__reader_split),
-      cmocka_unit_test(test_wire__reader_errors),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_wire__names_and_codes),
+             cmocka_unit_test(test_wire__version_pick),
+             cmocka_unit_test(test_wire__golden_hello),
+             cmocka_unit_test(test_wire__golden_camera),
+             cmocka_unit_test(test_wire__round_trip_hello),
+             cmocka_unit_test(test_wire__round_trip_welcome),
+             cmocka_unit_test(test_wire__round_trip_small),
+             cmocka_unit_test(test_wire__round_trip_text),
+             cmocka_unit_test(test_wire__stats_versions),
+             cmocka_unit_test(test_wire__round_trip_control),
+             cmocka_unit_test(test_wire__exact_lengths),
+             cmocka_unit_test(test_wire__hello_fields),
+             cmocka_unit_test(test_wire__welcome_fields),
+             cmocka_unit_test(test_wire__welcome_sun_and_name),
+             cmocka_unit_test(test_wire__reserved_bytes),
+             cmocka_unit_test(test_wire__camera_fields),
+             cmocka_unit_test(test_wire__epoch_begin_fields),
+             cmocka_unit_test(test_wire__text_fields),
+             cmocka_unit_test(test_wire__header),
+             cmocka_unit_test(test_wire__reader_split),
+             cmocka_unit_test(test_wire__reader_errors))

@@ -16,6 +16,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "brick_cache.h"
 #include "oc_err.h"
 
@@ -666,21 +667,17 @@ static void test_brick_cache__random_stress(void **st) {
   ocs_cache_free(c);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_brick_cache__create_rejects_zero_cap),
-      cmocka_unit_test(test_brick_cache__miss_publish_then_hit),
-      cmocka_unit_test(test_brick_cache__try_acquire_never_waits),
-      cmocka_unit_test(test_brick_cache__lru_evicts_least_recent),
-      cmocka_unit_test(test_brick_cache__pinned_never_evicted),
-      cmocka_unit_test(test_brick_cache__overhead_bounds_entries),
-      cmocka_unit_test(test_brick_cache__abandon_without_waiters_removes),
-      cmocka_unit_test(test_brick_cache__abandon_hands_reservation_to_waiter),
-      cmocka_unit_test(test_brick_cache__waiters_get_published_entry),
-      cmocka_unit_test(test_brick_cache__single_flight_under_concurrency),
-      cmocka_unit_test(test_brick_cache__set_cap_lowering_evicts),
-      cmocka_unit_test(test_brick_cache__clear_keeps_pinned),
-      cmocka_unit_test(test_brick_cache__random_stress),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_brick_cache__create_rejects_zero_cap),
+             cmocka_unit_test(test_brick_cache__miss_publish_then_hit),
+             cmocka_unit_test(test_brick_cache__try_acquire_never_waits),
+             cmocka_unit_test(test_brick_cache__lru_evicts_least_recent),
+             cmocka_unit_test(test_brick_cache__pinned_never_evicted),
+             cmocka_unit_test(test_brick_cache__overhead_bounds_entries),
+             cmocka_unit_test(test_brick_cache__abandon_without_waiters_removes),
+             cmocka_unit_test(test_brick_cache__abandon_hands_reservation_to_waiter),
+             cmocka_unit_test(test_brick_cache__waiters_get_published_entry),
+             cmocka_unit_test(test_brick_cache__single_flight_under_concurrency),
+             cmocka_unit_test(test_brick_cache__set_cap_lowering_evicts),
+             cmocka_unit_test(test_brick_cache__clear_keeps_pinned),
+             cmocka_unit_test(test_brick_cache__random_stress))

@@ -8,6 +8,7 @@
 
 #include <string.h>
 
+#include "test_main.h"
 #include "brick_value.h"
 #include "oc_err.h"
 
@@ -76,10 +77,6 @@ static void test_bval__round_trip_and_damage(void **state) {
   assert_int_equal(ocs_bval_pack(&k, content, OCS_BVAL_MAX_CONTENT + 1u, v, sizeof v), 0);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_bkey__every_field_counts),
-      cmocka_unit_test(test_bval__round_trip_and_damage),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_bkey__every_field_counts),
+             cmocka_unit_test(test_bval__round_trip_and_damage))

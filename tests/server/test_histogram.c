@@ -11,6 +11,7 @@
 #include <math.h>
 #include <pthread.h>
 
+#include "test_main.h"
 #include "histogram.h"
 
 static void test_histogram__buckets_and_read(void **st) {
@@ -58,10 +59,6 @@ static void test_histogram__threads(void **st) {
   assert_true(fabs(v.sum - 0.5 * THREADS * EACH) < 1e-6);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_histogram__buckets_and_read),
-      cmocka_unit_test(test_histogram__threads),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_histogram__buckets_and_read),
+             cmocka_unit_test(test_histogram__threads))

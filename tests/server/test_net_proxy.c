@@ -12,6 +12,7 @@
 #include <netinet/in.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "net_proxy.h"
 #include "oc_err.h"
 
@@ -188,16 +189,12 @@ static void test_net_proxy__trusted_list(void **state) {
                    OC_EINVAL);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_net_proxy__v2_ipv4),
-      cmocka_unit_test(test_net_proxy__v2_ipv6_with_tlvs),
-      cmocka_unit_test(test_net_proxy__v2_local_and_unspec),
-      cmocka_unit_test(test_net_proxy__split_byte_by_byte),
-      cmocka_unit_test(test_net_proxy__v1_forms),
-      cmocka_unit_test(test_net_proxy__truncated_and_oversized),
-      cmocka_unit_test(test_net_proxy__garbage),
-      cmocka_unit_test(test_net_proxy__trusted_list),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_net_proxy__v2_ipv4),
+             cmocka_unit_test(test_net_proxy__v2_ipv6_with_tlvs),
+             cmocka_unit_test(test_net_proxy__v2_local_and_unspec),
+             cmocka_unit_test(test_net_proxy__split_byte_by_byte),
+             cmocka_unit_test(test_net_proxy__v1_forms),
+             cmocka_unit_test(test_net_proxy__truncated_and_oversized),
+             cmocka_unit_test(test_net_proxy__garbage),
+             cmocka_unit_test(test_net_proxy__trusted_list))

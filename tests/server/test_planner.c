@@ -24,6 +24,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_camera.h"
 #include "oc_err.h"
 #include "oc_key.h"
@@ -1330,22 +1331,18 @@ static void test_planner__abandon_restores(void **state) {
   }
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_planner__budget_invariant_random_paths),
-      cmocka_unit_test(test_planner__slow_viewer_gets_smaller_plans),
-      cmocka_unit_test(test_planner__deterministic),
-      cmocka_unit_test(test_planner__still_camera_converges),
-      cmocka_unit_test(test_planner__converges_to_min_pixels),
-      cmocka_unit_test(test_planner__teleport_recovers),
-      cmocka_unit_test(test_planner__priority_and_frustum),
-      cmocka_unit_test(test_planner__never_splits_what_it_must_not),
-      cmocka_unit_test(test_planner__clamp_and_views),
-      cmocka_unit_test(test_planner__abandon_restores),
-      cmocka_unit_test(test_planner__budget_lowered_and_raised),
-      cmocka_unit_test(test_planner__refresh_worth_its_change),
-      cmocka_unit_test(test_planner__clocked_costs_what_was_made),
-      cmocka_unit_test(test_planner__out_of_memory_keeps_the_tree),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_planner__budget_invariant_random_paths),
+             cmocka_unit_test(test_planner__slow_viewer_gets_smaller_plans),
+             cmocka_unit_test(test_planner__deterministic),
+             cmocka_unit_test(test_planner__still_camera_converges),
+             cmocka_unit_test(test_planner__converges_to_min_pixels),
+             cmocka_unit_test(test_planner__teleport_recovers),
+             cmocka_unit_test(test_planner__priority_and_frustum),
+             cmocka_unit_test(test_planner__never_splits_what_it_must_not),
+             cmocka_unit_test(test_planner__clamp_and_views),
+             cmocka_unit_test(test_planner__abandon_restores),
+             cmocka_unit_test(test_planner__budget_lowered_and_raised),
+             cmocka_unit_test(test_planner__refresh_worth_its_change),
+             cmocka_unit_test(test_planner__clocked_costs_what_was_made),
+             cmocka_unit_test(test_planner__out_of_memory_keeps_the_tree))

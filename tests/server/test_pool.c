@@ -9,6 +9,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "pool.h"
 
@@ -65,10 +66,6 @@ static void test_pool__bad_arguments(void **st) {
   ocs_pool_free(NULL);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_pool__every_index_once),
-      cmocka_unit_test(test_pool__bad_arguments),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_pool__every_index_once),
+             cmocka_unit_test(test_pool__bad_arguments))

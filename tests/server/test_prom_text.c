@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "prom_text.h"
 
 /* The buffer's text (NUL-terminated in place). */
@@ -97,11 +98,7 @@ static void test_prom_text__histogram(void **state) {
   oc_buf_free(&b);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_prom_text__numbers),
-      cmocka_unit_test(test_prom_text__family_and_samples),
-      cmocka_unit_test(test_prom_text__histogram),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_prom_text__numbers),
+             cmocka_unit_test(test_prom_text__family_and_samples),
+             cmocka_unit_test(test_prom_text__histogram))

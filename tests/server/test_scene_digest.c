@@ -11,6 +11,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_scene.h"
 #include "scene_digest.h"
@@ -78,7 +79,5 @@ static void test_digest__files_decide(void **st) {
   rmdir(dir);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_digest__files_decide)};
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_digest__files_decide))

@@ -12,6 +12,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_scene.h"
 #include "world.h"
@@ -124,11 +125,7 @@ static void test_clock__due_instant(void **st) {
   ocs_world_free(w);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_clock__closed_forms), cmocka_unit_test(test_clock__bad_input),
-      cmocka_unit_test(test_clock__full_history), cmocka_unit_test(test_clock__virtual),
-      cmocka_unit_test(test_clock__due_instant),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_clock__closed_forms), cmocka_unit_test(test_clock__bad_input),
+             cmocka_unit_test(test_clock__full_history), cmocka_unit_test(test_clock__virtual),
+             cmocka_unit_test(test_clock__due_instant))

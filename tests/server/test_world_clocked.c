@@ -22,6 +22,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_camera.h"
 #include "oc_err.h"
 #include "oc_scene.h"
@@ -715,19 +716,15 @@ static void test_clocked__resume_with_bricks_in_flight(void **st) {
   ocs_world_free(w);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_clocked__held_then_released),
-      cmocka_unit_test(test_clocked__deadline),
-      cmocka_unit_test(test_clocked__shared_and_dropped),
-      cmocka_unit_test(test_clocked__teleport),
-      cmocka_unit_test(test_clocked__fair_to_the_well_behaved),
-      cmocka_unit_test(test_clocked__fair_content_age),
-      cmocka_unit_test(test_clocked__producer_error_retried),
-      cmocka_unit_test(test_clocked__tick_beside_bricks_in_flight),
-      cmocka_unit_test(test_clocked__dear_bricks_start_young),
-      cmocka_unit_test(test_clocked__tau_follows_its_own_level),
-      cmocka_unit_test(test_clocked__resume_with_bricks_in_flight),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_clocked__held_then_released),
+             cmocka_unit_test(test_clocked__deadline),
+             cmocka_unit_test(test_clocked__shared_and_dropped),
+             cmocka_unit_test(test_clocked__teleport),
+             cmocka_unit_test(test_clocked__fair_to_the_well_behaved),
+             cmocka_unit_test(test_clocked__fair_content_age),
+             cmocka_unit_test(test_clocked__producer_error_retried),
+             cmocka_unit_test(test_clocked__tick_beside_bricks_in_flight),
+             cmocka_unit_test(test_clocked__dear_bricks_start_young),
+             cmocka_unit_test(test_clocked__tau_follows_its_own_level),
+             cmocka_unit_test(test_clocked__resume_with_bricks_in_flight))

@@ -12,6 +12,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_camera.h"
 #include "oc_err.h"
 #include "oc_scene.h"
@@ -202,11 +203,7 @@ static void test_share__held_back_and_damaged(void **st) {
   ocs_world_free(w);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_share__made_once_states_equal),
-      cmocka_unit_test(test_share__identity),
-      cmocka_unit_test(test_share__held_back_and_damaged),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_share__made_once_states_equal),
+             cmocka_unit_test(test_share__identity),
+             cmocka_unit_test(test_share__held_back_and_damaged))

@@ -14,6 +14,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_bytes.h"
 #include "oc_state.h"
 #include "stress.h"
@@ -276,14 +277,10 @@ static void test_stress_clock__settle(void **state) {
   assert_int_equal(d.quiet_epoch, 41);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_stress_clock__lateness_and_coalesced),
-      cmocka_unit_test(test_stress_clock__frame_scan),
-      cmocka_unit_test(test_stress_clock__stamp_scan),
-      cmocka_unit_test(test_stress_clock__match),
-      cmocka_unit_test(test_stress_clock__ages),
-      cmocka_unit_test(test_stress_clock__settle),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_stress_clock__lateness_and_coalesced),
+             cmocka_unit_test(test_stress_clock__frame_scan),
+             cmocka_unit_test(test_stress_clock__stamp_scan),
+             cmocka_unit_test(test_stress_clock__match),
+             cmocka_unit_test(test_stress_clock__ages),
+             cmocka_unit_test(test_stress_clock__settle))
