@@ -11,11 +11,13 @@ void oct_bench_usage(FILE *f);
 /* Each subcommand: its entry point (argv[0] its name) and the table of its options, which its --help
  * and overcast-bench --help print. */
 int oct_bench_render(const char *prog, int argc, char **argv);
+extern const oc_cli_spec_t oct_bench_render_spec;
 int oct_bench_field(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_field_spec;
 int oct_bench_tau(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_tau_spec;
 int oct_bench_plan(const char *prog, int argc, char **argv);
+extern const oc_cli_spec_t oct_bench_plan_spec;
 int oct_bench_world(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_world_spec;
 /* bench_sweep.c: error against run time; bench_truth.c: Monte Carlo ground truth. Each prints its

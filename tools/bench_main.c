@@ -11,26 +11,6 @@ static const char *prog = "overcast-bench";
 /* The options of the subcommands without a table yet. */
 static void legacy_usage(FILE *f) {
   fprintf(f,
-          "render options:\n"
-          "  --scene FILE        analytic scene (default scenes/analytic_sphere.json)\n"
-          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   (default: the scene's camera)\n"
-          "  --size WxH          image size (default 320x180)\n"
-          "  --threads LIST      comma-separated thread counts (default 1,2)\n"
-          "  --repeat N          renders per thread count; the fastest counts (default 3)\n"
-          "  --step-factor X     (default 0.5)\n"
-          "  --time T            world time in seconds (default 0)\n"
-          "  --png FILE          also write the first thread count's image\n"
-          "  --gl                also time the GL compute renderer (headless EGL) on the same state and give\n"
-          "                      its RMSE against the CPU image\n"
-          "  (scenes with procedural or vdb sources: the state the server core plans for a viewer at\n"
-          "   this camera, 8 epochs, 64 MiB)\n"
-          "\n"
-          "plan options:\n"
-          "  --budget MIB        viewer budget (default 2048; 2048-byte slots, 32-byte records, 2 kept states)\n"
-          "  --leaves N          target leaves: alone, sizes the budget for N brick leaves; with --budget,\n"
-          "                      stops the build-up at N leaves\n"
-          "  --repeat N          re-plans timed per case; the median counts (default 5)\n"
-          "\n"
           "\n"
           "\n");
   oct_bench_model_usage(f);
@@ -44,13 +24,13 @@ typedef struct {
 } cmd_t;
 
 static const cmd_t cmds[] = {
-    {"render", "CPU reference renderer throughput per thread count", oct_bench_render, NULL},
+    {"render", "CPU reference renderer throughput per thread count", oct_bench_render, &oct_bench_render_spec},
     {"field", "brick production of a scene's field sources: bricks/s per core, bound classification",
      oct_bench_field, &oct_bench_field_spec},
     {"tau", "sun optical depth τ: direct march vs group volume, µs per brick and the volume's error", oct_bench_tau,
      &oct_bench_tau_spec},
     {"plan", "LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core",
-     oct_bench_plan, NULL},
+     oct_bench_plan, &oct_bench_plan_spec},
     {"world", "the server core stepped for some epochs: plans, production, cache, refresh savings", oct_bench_world,
      &oct_bench_world_spec},
     {"wire", "epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary", oct_bench_wire, &oct_bench_wire_spec},

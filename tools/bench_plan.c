@@ -9,8 +9,8 @@
  * the antipode from a converged tree. Only ocs_plan_epoch() is timed; the ocs_plan_commit() that
  * must follow each plan is reported on its own. Pettersson reports about 40 ms per update at a
  * 2 GiB budget. */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -117,29 +117,38 @@ static void record(series_t *s, const run_t *r) {
 
 static void row(const char *name, series_t *s) {
   double n = s->n;
+typedef struct {
+  int budget, leaves, repeat;
+} plan_opts_t;
+
+static const oc_cli_opt_t plan_opts[] = {
+    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(plan_opts_t, budget), .arg = "MIB", .lo = 1,
+     .hi = 1 << 20, .def_note = "2048, or what --leaves needs",
+     .help = "viewer budget (2048-byte slots, 32-byte records, 2 kept states)"},
+    {.name = "leaves", .type = OC_CLI_INT, .offset = offsetof(plan_opts_t, leaves), .arg = "N", .lo = 8,
+     .hi = 100000000, .def_note = "none",
+     .help = "target leaves: alone, sizes the budget for N brick leaves; with --budget, stops the build-up at N "
+             "leaves"},
+    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(plan_opts_t, repeat), .arg = "N", .lo = 1, .hi = 64,
+     .def = "5", .help = "re-plans timed per case; the median counts"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_plan_spec = {
+    .prog = "overcast-bench plan",
+    .about = "LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core.\n\n"
+             "options:\n",
+    .opts = plan_opts};
+
   printf("| %s | %.0f | %.0f | %.0f | %.1f | %.1f | %.1f |\n", name, s->leaves / n, s->splits / n, s->merges / n,
          median(s->plan_ms, s->n), s->max_plan_ms, median(s->commit_ms, s->n));
 }
 
 int oct_bench_plan(const char *prog, int argc, char **argv) {
-  enum { O_BUDGET = 256, O_LEAVES, O_REPEAT, O_HELP };
-  static const struct option opts[] = {{"budget", required_argument, 0, O_BUDGET}, {"leaves", required_argument, 0, O_LEAVES},
-                                       {"repeat", required_argument, 0, O_REPEAT}, {"help", no_argument, 0, O_HELP},
-                                       {0, 0, 0, 0}};
-  long budget_mib = 0, leaves = 0, repeat = 5;
-  int c;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &budget_mib)) return OC_EXIT_USAGE; break;
-      case O_LEAVES: if (oc_cli_int(prog, "--leaves", optarg, 8, 100000000, &leaves)) return OC_EXIT_USAGE; break;
-      case O_REPEAT: if (oc_cli_int(prog, "--repeat", optarg, 1, 64, &repeat)) return OC_EXIT_USAGE; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "plan: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "plan: unexpected argument \"%s\"", argv[optind]);
+  plan_opts_t o = {0};
+  int orc = oct_begin(&oct_bench_plan_spec, argc, argv, &o, NULL, NULL, NULL, NULL);
+  if (orc != OCT_GO) return orc;
+  const long budget_mib = o.budget, leaves = o.leaves, repeat = o.repeat;
 
   ocs_plan_desc_t d;
   memset(&d, 0, sizeof d);

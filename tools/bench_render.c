@@ -1,7 +1,7 @@
 /* bench_render.c — `overcast-bench render`: CPU reference renderer throughput (samples/s) per
  * thread count, side by side in one run, and a check that every thread count produced the same
  * image. */
-#include <getopt.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -153,125 +153,148 @@ out:
 }
 #endif
 
-int oct_bench_render(const char *prog, int argc, char **argv) {
-  enum { O_SCENE = 256, O_CAMERA, O_SIZE, O_THREADS, O_REPEAT, O_STEP, O_PNG, O_TIME, O_GL, O_HELP };
-  static const struct option opts[] = {{"scene", required_argument, 0, O_SCENE},   {"camera", required_argument, 0, O_CAMERA},
-                                       {"size", required_argument, 0, O_SIZE},     {"threads", required_argument, 0, O_THREADS},
-                                       {"repeat", required_argument, 0, O_REPEAT}, {"step-factor", required_argument, 0, O_STEP},
-                                       {"png", required_argument, 0, O_PNG}, {"time", required_argument, 0, O_TIME},
-                                       {"gl", no_argument, 0, O_GL},
-                                       {"help", no_argument, 0, O_HELP},           {0, 0, 0, 0}};
-  const char *scene_path = "scenes/analytic_sphere.json", *camera_text = NULL, *threads_text = "1,2", *png = NULL;
-  double world_time = 0.0;
-  int w = 320, h = 180;
-  long repeat = 3;
-  double step = 0.5;
-  int c, gl = 0;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SCENE: scene_path = optarg; break;
-      case O_CAMERA: camera_text = optarg; break;
-      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_THREADS: threads_text = optarg; break;
-      case O_REPEAT: if (oc_cli_int(prog, "--repeat", optarg, 1, 1000, &repeat)) return OC_EXIT_USAGE; break;
-      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &step)) return OC_EXIT_USAGE; break;
-      case O_PNG: png = optarg; break;
-      case O_TIME: if (oc_cli_double(prog, "--time", optarg, -1e12, 1e12, &world_time)) return OC_EXIT_USAGE; break;
-      case O_GL:
+typedef struct {
+  const char *scene, *camera, *png;
+  int size[2], repeat, gl;
+  oct_list_t threads;
+  double step, time;
+} render_opts_t;
+
+/* --gl: a flag that builds without GL refuse. */
+static int opt_gl(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  (void)text;
 #ifdef OC_HAVE_GL
-        gl = 1;
-        break;
-#else
-        return oc_cli_fail(prog, OC_EXIT_USAGE, "--gl: this build has no GL renderer");
-#endif
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "render: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
+  (void)prog;
+static const oc_cli_opt_t render_opts[] = {
+    {.name = "scene", .type = OC_CLI_STRING, .offset = offsetof(render_opts_t, scene), .arg = "FILE",
+     .def = "scenes/analytic_sphere.json",
+     .help = "scene; with procedural or vdb sources, the state the server core plans for a viewer at this camera "
+             "(8 epochs, 64 MiB)"},
+    OCT_OPT_CAMERA(render_opts_t),
+    {.name = "size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(render_opts_t, size),
+     .arg = "WxH", .def = "320x180", .help = "image size"},
+    {.name = "threads", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = offsetof(render_opts_t, threads),
+     .arg = "LIST", .lo = 1, .hi = 256, .def = "1,2", .help = "comma-separated thread counts"},
+    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(render_opts_t, repeat), .arg = "N", .lo = 1, .hi = 1000,
+     .def = "3", .help = "renders per thread count; the fastest counts"},
+    {.name = "step-factor", .type = OC_CLI_DOUBLE, .offset = offsetof(render_opts_t, step), .arg = "X", .lo = 1e-3,
+     .hi = 1e3, .def = "0.5", .help = "step × voxel spacing"},
+    OCT_OPT_TIME(render_opts_t),
+    {.name = "png", .type = OC_CLI_STRING, .offset = offsetof(render_opts_t, png), .arg = "FILE",
+     .help = "also write the first thread count's image"},
+    {.name = "gl", .type = OC_CLI_CUSTOM, .parse = opt_gl, .offset = offsetof(render_opts_t, gl),
+     .help = "also time the GL compute renderer (headless EGL) on the same state and give its RMSE against the "
+             "CPU image"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_render_spec = {
+    .prog = "overcast-bench render",
+    .about = "CPU reference renderer throughput per thread count.\n\noptions:\n",
+    .opts = render_opts};
+
+/* The state to render: analytic scenes voxelized with exact τ; others as the server core plans
+ * them for a viewer at this camera. */
+static int render_state(const char *prog, const render_opts_t *o, const oc_scene_t *sc, oc_camera_pose_t pose,
+                        oc_state_t *st) {
+  *(int *)oc_cli_field(o, base) = 1;
+  oc_camera_t cam = oc_camera_from_pose(pose);
+  ocs_medium_t medium;
+  if (ocs_scene_medium(sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
+    ocs_scene_voxelize_desc_t vd = {cam, o->size[1], 2.0, 16, 0, 2};
+    if (ocs_scene_voxelize(st, sc, &vd, why, sizeof why) < 0) return oc_cli_fail(prog, -1, "%s: %s", o->scene, why);
+    return 0;
   }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "render: unexpected argument \"%s\"", argv[optind]);
-  long threads[32];
-  int nthreads = 0;
-  if (oct_parse_list(prog, "--threads", threads_text, 1, 256, threads, 32, &nthreads)) return OC_EXIT_USAGE;
+  ocs_world_desc_t wd = {.threads = 2, .time = o->time};
+  ocs_world_t *world = NULL;
+  if (ocs_world_create(&world, sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, -1, "%s: %s", o->scene, why);
+  ocs_plan_desc_t pd = {.budget = 64u << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES,
+                        .max_depth = 21, .split_fraction = 0.5};
+  ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, o->size[0], o->size[1]};
+  int r = ocs_world_plan_offline(world, &pd, &view, 8, st, why, sizeof why);
+  ocs_world_free(world);
+  if (r < 0) return oc_cli_fail(prog, -1, "%s: %s", o->scene, why);
+  return 0;
+}
+
+/* --png: the image tone-mapped, the camera in its text chunk. */
+static int render_png(const char *prog, const char *path, oc_camera_pose_t pose, const oc_image_t *img) {
+  char why[512], cam_text[256];
+  uint8_t *rgb = malloc((size_t)img->w * (size_t)img->h * 3);
+  if (!rgb) return oc_cli_fail(prog, -1, "out of memory");
+  oc_camera_format(pose, cam_text, sizeof cam_text);
+  oc_png_text_t text[1] = {{"overcast-camera", cam_text}};
+  oc_image_tonemap(img, 10.0f, rgb);
+  int r = oc_png_write(path, img->w, img->h, rgb, text, 1, why, sizeof why);
+  free(rgb);
+  if (r < 0) return oc_cli_fail(prog, -1, "%s", why);
+  return 0;
+}
+
+int oct_bench_render(const char *prog, int argc, char **argv) {
+  render_opts_t o = {0};
+  return 0;
+#else
+  (void)base;
+  return oc_cli_fail(prog, -1, "--%s: this build has no GL renderer", o->name);
+#endif
+}
 
   char why[512];
   static oc_scene_t sc;
-  if (oct_load_scene(prog, scene_path, &sc)) return OC_EXIT_RUNTIME;
-  oc_camera_pose_t pose = {sc.camera.pos, sc.camera.heading, sc.camera.pitch, sc.camera.fov};
-  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0)
-    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+  oc_camera_pose_t pose;
+  int rc = oct_begin(&oct_bench_render_spec, argc, argv, &o, &o.scene, &o.camera, &sc, &pose);
+  if (rc != OCT_GO) return rc;
+  const int w = o.size[0], h = o.size[1];
+  const long repeat = o.repeat;
+  const double step = o.step;
   oc_camera_t cam = oc_camera_from_pose(pose);
   oc_state_t st;
   oc_state_init(&st);
-  ocs_medium_t medium;
-  if (ocs_scene_medium(&sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
-    ocs_scene_voxelize_desc_t vd = {cam, h, 2.0, 16, 0, 2};
-    if (ocs_scene_voxelize(&st, &sc, &vd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
-  } else { /* procedural or VDB: the state the server core plans for a viewer at this camera */
-    ocs_world_desc_t wd = {.threads = 2, .time = world_time};
-    ocs_world_t *world = NULL;
-    if (ocs_world_create(&world, &sc, &wd, why, sizeof why) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
-    ocs_plan_desc_t pd = {.budget = 64u << 20, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = 21, .split_fraction = 0.5};
-    ocs_view_t view = {cam.pos, cam.forward, cam.up, pose.fov, w, h};
-    int r = ocs_world_plan_offline(world, &pd, &view, 8, &st, why, sizeof why);
-    ocs_world_free(world);
-    if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: %s", scene_path, why);
-  }
+  if (render_state(prog, &o, &sc, pose, &st)) return OC_EXIT_RUNTIME;
   double ta = oct_now();
   oc_atmo_t *atmo = NULL; /* none when the scene has no atmosphere */
   if (oc_scene_atmo(&sc, 2, &atmo) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
   ta = oct_now() - ta;
 
   printf("# CPU reference renderer: %s, %dx%d, step factor %g, state %u nodes / %u bricks, atmosphere tables %.3f s\n\n",
-         scene_path, w, h, step, st.node_count, st.brick_count, ta);
+         o.scene, w, h, step, st.node_count, st.brick_count, ta);
   printf("| threads | best of %ld (s) | samples | M samples/s | M rays/s | speed-up | image |\n", repeat);
   printf("|---:|---:|---:|---:|---:|---:|---|\n");
   oc_image_t ref = {0}, img = {0};
   double base = 0.0;
-  int rc = OC_EXIT_OK;
-  for (int i = 0; i < nthreads; i++) {
+  for (int i = 0; i < o.threads.n; i++) {
+    long threads = o.threads.v[i];
     oc_render_desc_t d = render_desc(&sc, cam, w, h, step, atmo);
-    d.threads = (int)threads[i];
+    d.threads = (int)threads;
     if (oc_image_alloc(&img, w, h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
     double best = 1e30;
     oc_render_stats_t rs = {0};
     for (long r = 0; r < repeat; r++) {
-      fprintf(stderr, "\r%s: render: %ld threads, run %ld/%ld ", prog, threads[i], r + 1, repeat);
+      fprintf(stderr, "\r%s: render: %ld threads, run %ld/%ld ", prog, threads, r + 1, repeat);
+      base = best;
       double t0 = oct_now();
       if (oc_render_state(&st, &d, &img, &rs) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed");
       double t = oct_now() - t0;
       if (t < best) best = t;
     }
     fprintf(stderr, "\r\033[K");
-    if (i == 0) base = best;
     const char *same = "reference";
     if (i == 0) {
       ref = img;
       img.px = NULL;
-      if (png) {
-        uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
-        char cam_text[256];
-        oc_camera_format(pose, cam_text, sizeof cam_text);
-        oc_png_text_t text[1] = {{"overcast-camera", cam_text}};
-        if (!rgb) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-        oc_image_tonemap(&ref, 10.0f, rgb);
-        int r = oc_png_write(png, w, h, rgb, text, 1, why, sizeof why);
-        free(rgb);
-        if (r < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      }
+      if (o.png && render_png(prog, o.png, pose, &ref)) return OC_EXIT_RUNTIME;
     } else {
       same = memcmp(ref.px, img.px, sizeof(float) * 4 * (size_t)w * (size_t)h) == 0 ? "identical" : "DIFFERS";
       if (same[0] == 'D') rc = OC_EXIT_RUNTIME;
       oc_image_free(&img);
     }
-    printf("| %ld | %.3f | %llu | %.2f | %.3f | %.2f | %s |\n", threads[i], best, (unsigned long long)rs.samples,
+    printf("| %ld | %.3f | %llu | %.2f | %.3f | %.2f | %s |\n", threads, best, (unsigned long long)rs.samples,
            rs.samples / best * 1e-6, (double)w * h / best * 1e-6, base / best, same);
   }
-  if (rc == OC_EXIT_OK) rc = bench_models(prog, &st, render_desc(&sc, cam, w, h, step, atmo), repeat);
-  (void)gl;
+  if (rc == OCT_GO) rc = bench_models(prog, &st, render_desc(&sc, cam, w, h, step, atmo), repeat);
 #ifdef OC_HAVE_GL
-  if (gl && rc == OC_EXIT_OK) rc = bench_gl(&st, &sc, cam, w, h, step, atmo, repeat, &ref, base);
+  if (o.gl && rc == OC_EXIT_OK) rc = bench_gl(&st, &sc, cam, w, h, step, atmo, repeat, &ref, base);
 #endif
   oc_image_free(&ref);
   oc_atmo_free(atmo);
