@@ -484,8 +484,10 @@ static int sv_should_reconnect(stress_viewer_t *v, int r) {
   return (o->faults & STRESS_FAULT_RESTART) || ocv_conn_close_code(v->conn, NULL) == OCP_CODE_RECONNECT;
 }
 
-void *stress_viewer_main(void *arg) {
-  stress_viewer_t *v = arg;
+/* Connects (--source-address applies to the first connect and every reconnect), waits for the
+ * WELCOME and checks it, starts the camera path and sends the first camera, flushed: it must be at
+ * the server before the first step. @return 0, or -1 after saying why (sv_fail). */
+static int sv_start(stress_viewer_t *v, double *t_start) {
   stress_run_t *run = v->run;
   const stress_opts_t *o = run->o;
   char why[1024] = "";
@@ -498,7 +500,6 @@ void *stress_viewer_main(void *arg) {
                           .lean = !o->full_sessions};
   ocp_viewer_events_t ev = {.ctx = v, .welcome = sv_on_welcome, .state = sv_on_state, .stats = sv_on_stats,
                             .budget = sv_on_budget};
-  /* created, then connected: --source-address applies to the first connect and every reconnect */
   int r = ocv_conn_create(&v->conn, run->host, run->port, &vd, &ev, why, sizeof why);
   if (r == 0) ocv_conn_set_tap(v->conn, sv_tap, v);
   if (r == 0 && o->source && ocv_conn_set_source(v->conn, o->source) < 0) {
@@ -508,41 +509,61 @@ void *stress_viewer_main(void *arg) {
   if (r == 0) r = ocv_conn_reconnect(v->conn, o->timeout, why, sizeof why);
   if (r < 0) {
     sv_fail(v, "viewer %d: %s", v->index, why);
-    goto out;
+    return -1;
   }
-  r = ocv_conn_wait_ready(v->conn, o->timeout, why, sizeof why);
-  if (r) {
+  if ((r = ocv_conn_wait_ready(v->conn, o->timeout, why, sizeof why))) {
     sv_poll_failed(v, r, why);
-    goto out;
+    return -1;
   }
   v->t_welcome = stress_now();
   if (v->welcome.slot_bytes != OC_SLOT_BYTES || v->welcome.record_bytes != OC_RECORD_BYTES) {
     v->protocol_errors++;
     sv_fail(v, "viewer %d: welcome grants %" PRIu32 "-byte slots and %" PRIu32 "-byte records; we declared %u and %u",
             v->index, v->welcome.slot_bytes, v->welcome.record_bytes, OC_SLOT_BYTES, OC_RECORD_BYTES);
-    goto out;
+    return -1;
   }
   oc_camera_pose_t home = {{v->welcome.cam_lat, v->welcome.cam_lon, v->welcome.cam_alt}, v->welcome.cam_heading,
                            v->welcome.cam_pitch, v->welcome.cam_fov};
   stress_path_init(&v->p, v->path, home,
                    o->seed * 0x9E3779B97F4A7C15ull + (uint64_t)(o->sweep || o->share_paths ? 0 : v->index) + 1,
                    o->teleport_every, o->dive_seconds);
-  int stepped = v->welcome.epoch_period == 0;
   v->ticks.period = v->m_ticks.period = v->welcome.epoch_period;
   v->rng = (o->seed + 1) * 0xD1B54A32D192ED03ull + (uint64_t)v->index * 0x9E3779B97F4A7C15ull + 1;
-  double t_start = stress_now();
+  *t_start = stress_now();
   v->between = 1;
-  if (sv_camera(v, 0, t_start) < 0) goto out;
-  /* the first camera must be at the server before the first step */
+  if (sv_camera(v, 0, *t_start) < 0) return -1;
   if ((r = ocv_conn_flush(v->conn, o->timeout, why, sizeof why))) {
     sv_poll_failed(v, r, why);
-    goto out;
+    return -1;
   }
-  pthread_mutex_lock(&run->mu);
-  v->ready = 1;
-  pthread_cond_broadcast(&run->cv);
-  pthread_mutex_unlock(&run->mu);
+  return 0;
+}
 
+/* Stepped: the camera for the next step goes out with the ACK, before we say we have this epoch.
+ * @return 0, 1 after a reconnect (the loop goes on), -1 when the viewer is done. */
+static int sv_answer_step(stress_viewer_t *v, double t_in) {
+  stress_run_t *run = v->run;
+  char why[1024] = "";
+  pthread_mutex_lock(&run->mu);
+  uint64_t sent = run->steps_sent;
+  pthread_mutex_unlock(&run->mu);
+  if (sv_camera(v, (double)sent * run->o->step_seconds, t_in) < 0) return -1;
+  int r = ocv_conn_flush(v->conn, run->o->timeout, why, sizeof why);
+  if (!r) return 0;
+  if (sv_should_reconnect(v, r)) {
+    sv_publish(v, t_in);
+    return sv_reconnect(v, why[0] ? why : "connection lost") < 0 ? -1 : 1;
+  }
+  sv_poll_failed(v, r, why);
+  return -1;
+}
+
+/* Reads, times and answers until the run stops or the connection is lost for good. */
+static void sv_loop(stress_viewer_t *v, double t_start) {
+  stress_run_t *run = v->run;
+  const stress_opts_t *o = run->o;
+  char why[1024] = "";
+  int stepped = v->welcome.epoch_period == 0;
   double tick = 1.0 / o->tick_hz, next_tick = t_start + tick;
   while (!atomic_load(&run->stop)) {
     double now = stress_now();
@@ -567,7 +588,7 @@ void *stress_viewer_main(void *arg) {
       marked = 1;
     }
     uint64_t before = sv_bytes_in(v);
-    r = ocv_conn_poll(v->conn, 0, why, sizeof why);
+    int r = ocv_conn_poll(v->conn, 0, why, sizeof why);
     uint64_t got = sv_bytes_in(v) - before;
     if (marked && got == OCP_HEADER_BYTES && !v->new_state) v->between = 1; /* a lone KEEPALIVE */
     if (r) {
@@ -579,24 +600,25 @@ void *stress_viewer_main(void *arg) {
       break;
     }
     if (v->new_state && stepped) {
-      /* the camera for the next step goes out with the ACK, before we say we have this epoch */
-      pthread_mutex_lock(&run->mu);
-      uint64_t sent = run->steps_sent;
-      pthread_mutex_unlock(&run->mu);
-      if (sv_camera(v, (double)sent * o->step_seconds, t_in) < 0) break;
-      if ((r = ocv_conn_flush(v->conn, o->timeout, why, sizeof why))) {
-        if (sv_should_reconnect(v, r)) {
-          sv_publish(v, t_in);
-          if (sv_reconnect(v, why[0] ? why : "connection lost") < 0) break;
-          continue;
-        }
-        sv_poll_failed(v, r, why);
-        break;
-      }
+      int a = sv_answer_step(v, t_in);
+      if (a < 0) break;
+      if (a > 0) continue;
     }
     if (got || v->new_state) sv_publish(v, got ? t_in : 0);
   }
-out:
+}
+
+void *stress_viewer_main(void *arg) {
+  stress_viewer_t *v = arg;
+  stress_run_t *run = v->run;
+  double t_start = 0;
+  if (sv_start(v, &t_start) == 0) {
+    pthread_mutex_lock(&run->mu);
+    v->ready = 1;
+    pthread_cond_broadcast(&run->cv);
+    pthread_mutex_unlock(&run->mu);
+    sv_loop(v, t_start);
+  }
   v->t_end = stress_now();
   if (v->settle.phase) { /* cut off by the end: how long it had been waiting */
     v->detail_unreached++;
