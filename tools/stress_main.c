@@ -15,9 +15,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_log.h"
+#include "oc.h"
 #include "stress.h"
 
 static const char *prog = "overcast-stress";
@@ -266,21 +264,27 @@ static void rebalance_verdict(const stress_opts_t *o, const stress_run_t *run, s
              "--rebalance-at: viewer 0's budget in force is %" PRIu64 " bytes at the end, not %" PRIu64, v->welcome.budget, want);
 }
 
-/* The server's bricks produced so far (stats), or -1: production under way is not quiet. */
-static double server_bricks(ocv_conn_t *ctl, double timeout) {
+/* What the server has done so far: its bricks (stats) and, when it is a local process we know, its
+ * CPU in clock ticks; -1 when neither can be read. Equal readings 0.5 s apart: the server is quiet.
+ * CPU counts because not all work makes bricks (σt columns and τ volumes of a cold start). */
+static double server_work(ocv_conn_t *ctl, long pid, double timeout) {
   char why[256];
   cJSON *reply = NULL;
-  if (control(ctl, "{\"op\":\"stats\"}", timeout, &reply, why, sizeof why) < 0) return -1;
-  double n = world_num(reply, "bricks_produced");
+  stress_proc_t p;
+  stress_proc_sample(pid, &p);
+  double n = -1;
+  if (control(ctl, "{\"op\":\"stats\"}", timeout, &reply, why, sizeof why) == 0) n = world_num(reply, "bricks_produced");
   cJSON_Delete(reply);
-  return isfinite(n) ? n : -1;
+  if (!isfinite(n)) n = -1;
+  if (p.ok) n = (n < 0 ? 0 : n) + 1e9 * floor(100.0 * p.cpu_s);
+  return n;
 }
 
 /* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
  * once the server has gone quiet for 2 s after the step's reply (a viewer skipped by this step
  * gets nothing more), or after the timeout. Quiet means nothing reached a viewer and the server
- * made no brick: a cold server's first epoch (after a restart, under ASan) may make bricks for
- * seconds before it sends a byte, and stepping on then would coalesce a viewer's epoch. */
+ * did no work: a cold server's first epoch (after a restart, under ASan) may work for a minute
+ * before it sends a byte, and stepping on then would coalesce a viewer's epoch. */
 static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, stress_summary_t *sum) {
   const stress_opts_t *o = run->o;
   char why[1024];
@@ -315,7 +319,8 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
       continue; /* this step's epoch died with the server */
     }
     double replied = stress_now(), made = -1, asked_at = 0;
-    int still = 0; /* two readings of the server's bricks 0.5 s apart were equal */
+    int still = 0; /* two readings of the server's work 0.5 s apart were equal */
+    long pid = fx->child && fx->child->pid > 0 ? (long)fx->child->pid : o->server_pid;
     uint64_t target = run->epoch0 + (k - run->step0);
     pthread_mutex_lock(&run->mu);
     for (;;) {
@@ -333,9 +338,9 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
         still = 0;
         made = -1;
       }
-      if (silent && !still && now - asked_at >= 0.5) { /* still making bricks? then not quiet */
+      if (silent && !still && now - asked_at >= 0.5) { /* still working? then not quiet */
         pthread_mutex_unlock(&run->mu);
-        double n = server_bricks(ctl, o->timeout);
+        double n = server_work(ctl, pid, o->timeout);
         pthread_mutex_lock(&run->mu);
         asked_at = now = stress_now();
         still = n < 0 || n == made; /* no figure: judge by the silence alone, as before */
