@@ -911,3 +911,19 @@ done:
   ocp__dec_reset(d);
   return r;
 }
+
+/*-*** Plain zstd frames ***/
+
+ocp_zcctx_t *ocp_zcctx_new(void) { return ZSTD_createCCtx(); }
+ocp_zdctx_t *ocp_zdctx_new(void) { return ZSTD_createDCtx(); }
+void ocp_zcctx_free(ocp_zcctx_t *c) { ZSTD_freeCCtx(c); }
+void ocp_zdctx_free(ocp_zdctx_t *d) { ZSTD_freeDCtx(d); }
+size_t ocp_zstd_bound(size_t n) { return ZSTD_compressBound(n); }
+unsigned ocp_zstd_is_error(size_t code) { return ZSTD_isError(code); }
+size_t ocp_zstd_compress(ocp_zcctx_t *c, void *dst, size_t cap, const void *src, size_t n, int level) {
+  return ZSTD_compressCCtx(c, dst, cap, src, n, level);
+}
+size_t ocp_zstd_decompress(ocp_zdctx_t *d, void *dst, size_t cap, const void *src, size_t n) {
+  return ZSTD_decompressDCtx(d, dst, cap, src, n);
+}
+unsigned long long ocp_zstd_content_size(const void *src, size_t n) { return ZSTD_getFrameContentSize(src, n); }

@@ -137,4 +137,19 @@ int ocp_epoch_dec_end_lean(ocp_epoch_dec_t *d, const ocp_epoch_end_t *m, oc_stat
 /*! ocp_epoch_dec_active() : 1 between begin and end. */
 int ocp_epoch_dec_active(const ocp_epoch_dec_t *d);
 
+/*-*** Plain zstd frames: the baseline `overcast-bench wire` measures the epoch coding against ***/
+/* zstd's own calls under proto's names, so that no file outside proto/ includes <zstd.h>; results as
+ * zstd's (ocp_zstd_is_error() tells an error code from a size). */
+typedef struct ZSTD_CCtx_s ocp_zcctx_t;
+typedef struct ZSTD_DCtx_s ocp_zdctx_t;
+ocp_zcctx_t *ocp_zcctx_new(void);
+ocp_zdctx_t *ocp_zdctx_new(void);
+void ocp_zcctx_free(ocp_zcctx_t *c);
+void ocp_zdctx_free(ocp_zdctx_t *d);
+size_t ocp_zstd_bound(size_t n);
+unsigned ocp_zstd_is_error(size_t code);
+size_t ocp_zstd_compress(ocp_zcctx_t *c, void *dst, size_t cap, const void *src, size_t n, int level);
+size_t ocp_zstd_decompress(ocp_zdctx_t *d, void *dst, size_t cap, const void *src, size_t n);
+unsigned long long ocp_zstd_content_size(const void *src, size_t n);
+
 #endif /* OC_PROTO_EPOCH_H */

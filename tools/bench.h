@@ -5,7 +5,7 @@
 
 #include <stdio.h>
 
-#include "oc_cli.h"
+#include "oc.h"
 
 void oct_bench_usage(FILE *f);
 /* Each subcommand: its entry point (argv[0] its name) and the table of its options, which its --help
@@ -27,7 +27,7 @@ extern const oc_cli_spec_t oct_bench_sweep_spec;
 int oct_bench_truth(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_truth_spec;
 int oct_bench_model(const char *prog, int argc, char **argv);
-void oct_bench_model_usage(FILE *f);
+extern const oc_cli_spec_t oct_bench_model_spec;
 int oct_bench_stability(const char *prog, int argc, char **argv);
 void oct_bench_stability_usage(FILE *f);
 /* bench_features.c: each feature a scene uses, turned off alone: memory and time saved. */

@@ -3,8 +3,7 @@
 
 #include <stdio.h>
 
-#include "oc_err.h"
-#include "ocp_wire.h"
+#include "ocp.h"
 
 typedef struct {
   const oc_state_t *const *s;

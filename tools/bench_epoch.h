@@ -5,9 +5,7 @@
 
 #include <stddef.h>
 
-#include "oc_bytes.h"  /* oc_buf_t */
-#include "oc_state.h"
-#include "ocp_epoch.h" /* ocp_epoch_dec_t */
+#include "ocp.h"
 
 /*! oct_epoch_decode() : feeds the frames in `in` (EPOCH_BEGIN … EPOCH_END, as ocp_epoch_enc_next()
  *  wrote them) to `d` as a viewer holding the `nheld` states `held` (any order; the epoch's base and

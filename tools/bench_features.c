@@ -30,21 +30,8 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_epoch.h"
-#include "oc_atmo.h"
-#include "oc_camera.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_image.h"
-#include "oc_render.h"
-#include "oc_scene.h"
-#include "oc_scene_render.h"
-#include "oc_state.h"
-#include "ocp_epoch.h"
-#include "ocp_wire.h"
-#include "world.h"
-#ifdef OC_HAVE_GL
-#include "ocv_gl.h"
-#endif
+#include "ocs.h"
+#include "ocv.h"
 
 #define F_VERSION OCP_VERSION_MAX
 

@@ -22,14 +22,7 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_scene.h"
-#include "oc_noise.h"
-#include "voxelize.h" /* ocs_brick_sample_pos */
-#include "ocs_field.h"
-#include "planner.h" /* ocs_plan_ground_tau */
-#include "sun_depth.h"
+#include "ocs.h"
 
 /* The anchor: 512 scalar oc_fbm3() per node, one per sample position. @return seconds. */
 static double oct__anchor(const oc_key_t *keys, long n, double *sink) {

@@ -4,7 +4,7 @@
 #include <string.h>
 
 #include "bench.h"
-#include "oc_cli.h"
+#include "oc.h"
 
 static const char *prog = "overcast-bench";
 
@@ -13,7 +13,6 @@ static void legacy_usage(FILE *f) {
   fprintf(f,
           "\n"
           "\n");
-  oct_bench_model_usage(f);
   oct_bench_stability_usage(f);
 }
 
@@ -39,7 +38,7 @@ static const cmd_t cmds[] = {
     {"truth", "Monte Carlo ground truth (delta tracking, every scattering order) for small views", oct_bench_truth,
      &oct_bench_truth_spec},
     {"model", "the cloud model against stored truth images (truth --save): errors, fit objective", oct_bench_model,
-     NULL},
+     &oct_bench_model_spec},
     {"stability", "stiff and extreme cases end to end (server, protocol, renderers): finite, bounded, known answers",
      oct_bench_stability, NULL},
     {"features", "each feature a scene uses turned off alone: server time, bricks, wire, memory, tables, render",

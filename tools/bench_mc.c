@@ -11,9 +11,7 @@
 #include <string.h>
 
 #include "brick.h" /* ocg_code_decode, ocg_brick_voxel: the decode the reconstruction uses */
-#include "oc_key.h"
-#include "oc_planet.h" /* OC_ROOT_HALF */
-#include "oc_render.h" /* oc_render_sample_state */
+#include "oc.h"
 #include "optics.h"    /* ocg_phase_hg, ocg_phase_hg_draine, OCG_HGD_* */
 
 /* Locating a leaf looks this far ahead along the ray, as the renderer does (OC__LOCATE_EPS in

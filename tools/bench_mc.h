@@ -20,8 +20,7 @@
 
 #include <stdint.h>
 
-#include "oc_math.h"  /* oc_dvec3 */
-#include "oc_state.h" /* oc_state_t */
+#include "oc.h"
 
 /* ---- Random numbers ------------------------------------------------------------------------------ */
 

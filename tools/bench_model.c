@@ -10,7 +10,7 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "oc_cli.h"
+#include "oc.h"
 #include "march.h" /* OCG_MS_CHORD_HALF, … : the fitted constants a search starts from */
 #include "truth.h"
 

@@ -18,11 +18,7 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "oc_camera.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_planet.h"
-#include "planner.h"
+#include "ocs.h"
 
 #define KEPT 2
 #define RESERVE 0.05

@@ -9,19 +9,11 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "oc_atmo.h"
-#include "oc_scene_render.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_image.h"
-#include "oc_render.h"
-#include "oc_scene.h"
-#include "world.h"
-#include "scene_voxelize.h"
+#include "ocs.h"
+#include "ocv.h"
 #include <math.h>
 #ifdef OC_HAVE_GL
 
-#include "ocv_gl.h"
 #endif
 
 /* The render description both renderers get. */

@@ -21,24 +21,8 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "net.h" /* client: ocv_fetch */
-#include "analytic.h"
-#include "oc_camera.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_image.h"
-#include "oc_key.h"
-#include "oc_log.h"
-#include "oc_planet.h"
-#include "oc_render.h"
-#include "oc_scene.h"
-#include "oc_scene_render.h"
-#include "scene_voxelize.h"
-#include "ocs_server.h"
-#include "vdb_shim.h"
-#ifdef OC_HAVE_GL
-#include "ocv_gl.h"
-#endif
+#include "ocs.h"
+#include "ocv.h"
 
 /* The analytic sphere of scenes/analytic_sphere.json: centre 3 km up over (0°, 0°), radius 2 km;
  * the default camera looks at its centre from 10 km west, so the centre ray's chord is 4 km. */

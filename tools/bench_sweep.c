@@ -33,15 +33,8 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_sweep_int.h"
-#include "analytic.h"
-#include "oc_atmo.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_image.h"
-#include "scene_voxelize.h"
-#ifdef OC_HAVE_GL
-#include "camera_path.h"
-#endif
+#include "ocs.h"
+#include "ocv.h"
 
 #define MAXV 64   /* views */
 #define MAXK 16   /* values per knob */

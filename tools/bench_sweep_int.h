@@ -10,12 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "oc_atmo.h"
-#include "oc_camera.h"
-#include "oc_image.h"
-#include "oc_render.h"
-#include "oc_scene.h"
-#include "oc_state.h"
+#include "oc.h"
 #include "plot.h"
 
 /*-*** Server side (bench_sweep_server.c) ***/

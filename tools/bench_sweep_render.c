@@ -21,11 +21,7 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_sweep_int.h"
-#include "oc_err.h"
-#ifdef OC_HAVE_GL
-#include "interp.h"
-#include "ocv_gl.h"
-#endif
+#include "ocv.h"
 
 struct octs_renderer_s {
   int gl;

@@ -10,11 +10,7 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_sweep_int.h"
-#include "oc_err.h"
-#include "ocp_epoch.h"
-#include "ocp_wire.h"
-#include "ocs_field.h"
-#include "world.h"
+#include "ocs.h"
 
 static double cpu_seconds(void) {
   struct timespec t;

@@ -18,12 +18,7 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "oc_brick.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_scene.h"
-#include "ocs_field.h"
-#include "sun_depth.h"
+#include "ocs.h"
 
 /*-*** Options ***/
 

@@ -22,11 +22,7 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_mc.h"
-#include "oc_cli.h"
-#include "oc_image.h"
-#include "oc_render.h"
-#include "oc_scene.h"
-#include "scene_voxelize.h"
+#include "ocs.h"
 #include "truth.h" /* oct_truth_source_length, oct_truth_source_sigma */
 #include "optics.h" /* ocg_phase_hg_draine for the sampler check */
 

@@ -7,7 +7,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "oc_err.h"
+#include "oc.h"
 
 double oct_now(void) {
   struct timespec t;

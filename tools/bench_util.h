@@ -7,11 +7,7 @@
 
 #include <stddef.h>
 
-#include "oc_brick.h"
-#include "oc_camera.h"
-#include "oc_cli.h"
-#include "oc_scene.h"
-#include "ocs_field.h"
+#include "ocs.h"
 
 /*! oct_now() : monotonic seconds. */
 double oct_now(void);

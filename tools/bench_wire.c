@@ -12,26 +12,18 @@
  * or the bench fails. Speeds are of the uncompressed content (2048 bytes per brick sent and 32 per
  * record, the same figure for every variant) over one core's encode or decode wall time.
  *
- * The plain baseline links zstd directly: it measures what ocp_epoch.c saves over it. */
+ * The plain baseline calls zstd itself (proto's ocp_zstd_*): it measures what ocp_epoch.c saves over it. */
 #include <inttypes.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include <zstd.h> /* the plain baseline only */
 
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_epoch.h"
-#include "oc_camera.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_scene.h"
-#include "ocp_epoch.h"
-#include "ocp_wire.h"
-#include "ocs_field.h"
-#include "world.h"
+#include "ocs.h"
 
 enum { W_PLAIN, W_BATCH, W_DELTA, W_DICT, W_N };
 static const char *const wname[W_N] = {"plain", "batch", "delta", "dict"};
@@ -95,21 +87,21 @@ static void w_pack_record(const oc_node_t *n, uint8_t *r) {
 }
 
 /* Appends one frame of `type`: `head` (0 or 4 bytes), then src zstd'd. @return 0 or -1. */
-static int plain_frame(oc_buf_t *out, uint8_t type, const uint8_t *head, size_t head_len, ZSTD_CCtx *cc, int level,
+static int plain_frame(oc_buf_t *out, uint8_t type, const uint8_t *head, size_t head_len, ocp_zcctx_t *cc, int level,
                        const void *src, size_t n) {
   size_t h = ocp_frame_begin(out, W_VERSION, type);
   oc_buf_append(out, head, head_len);
-  size_t bound = ZSTD_compressBound(n);
+  size_t bound = ocp_zstd_bound(n);
   uint8_t *dst = oc_buf_grow(out, bound);
   if (!dst) return -1;
-  size_t z = ZSTD_compressCCtx(cc, dst, bound, src, n, level);
-  if (ZSTD_isError(z)) return -1;
+  size_t z = ocp_zstd_compress(cc, dst, bound, src, n, level);
+  if (ocp_zstd_is_error(z)) return -1;
   out->len -= bound - z;
   ocp_frame_end(out, h);
   return 0;
 }
 
-static int plain_encode(ZSTD_CCtx *cc, int level, const oc_state_t *s, const uint32_t *lacking, uint32_t n, oc_buf_t *out,
+static int plain_encode(ocp_zcctx_t *cc, int level, const oc_state_t *s, const uint32_t *lacking, uint32_t n, oc_buf_t *out,
                         uint8_t *scratch, uint64_t *brick_bytes) {
   ocp_epoch_begin_t m = {s->epoch, s->time, s->sun_dir, OCP_NO_BASE, s->node_count, s->brick_count, n};
   ocp_put_epoch_begin(out, W_VERSION, &m);
@@ -136,7 +128,7 @@ static int cmp_u32(const void *a, const void *b) {
 }
 
 /* Rebuilds the state from plain frames and the held bricks. @return 0 or -1 with a reason. */
-static int plain_decode(ZSTD_DCtx *dc, const oc_buf_t *in, const held_t *held, oc_state_t *out, uint8_t *scratch, size_t scratch_cap,
+static int plain_decode(ocp_zdctx_t *dc, const oc_buf_t *in, const held_t *held, oc_state_t *out, uint8_t *scratch, size_t scratch_cap,
                         char *why, size_t why_len) {
   ocp_epoch_begin_t m = {0};
   oc_state_t recv; /* received bricks, in arrival (ascending id) order */
@@ -154,8 +146,8 @@ static int plain_decode(ZSTD_DCtx *dc, const oc_buf_t *in, const held_t *held, o
       out->epoch = m.epoch, out->time = m.time, out->sun_dir = m.sun_dir;
     } else if (h.type == OCP_MSG_RECORDS) {
       size_t want = (size_t)m.node_count * OC_STATE_RECORD_BYTES;
-      if (want > scratch_cap || ZSTD_getFrameContentSize(p, h.length) != want) goto bad;
-      if (ZSTD_decompressDCtx(dc, scratch, want, p, h.length) != want) goto bad;
+      if (want > scratch_cap || ocp_zstd_content_size(p, h.length) != want) goto bad;
+      if (ocp_zstd_decompress(dc, scratch, want, p, h.length) != want) goto bad;
       for (uint32_t i = 0; i < m.node_count; i++) {
         const uint8_t *q = scratch + (size_t)i * OC_STATE_RECORD_BYTES;
         oc_node_t n = {.key = oc_get_u64(q), .kind = q[8], .brick_id = oc_get_u32(q + 12)};
@@ -166,7 +158,7 @@ static int plain_decode(ZSTD_DCtx *dc, const oc_buf_t *in, const held_t *held, o
     } else if (h.type == OCP_MSG_BRICKS) {
       uint8_t raw[OC_BRICK_CODE_BYTES];
       oc_brick_codes_t c;
-      if (h.length < 4 || ZSTD_decompressDCtx(dc, raw, sizeof raw, p + 4, h.length - 4) != sizeof raw) goto bad;
+      if (h.length < 4 || ocp_zstd_decompress(dc, raw, sizeof raw, p + 4, h.length - 4) != sizeof raw) goto bad;
       for (int ch = 0; ch < OC_CHANNELS; ch++)
         for (int v = 0; v < OC_BRICK_VOXELS; v++) c.code[ch][v] = oc_get_u16(raw + 2 * (ch * OC_BRICK_VOXELS + v));
       if (oc_state_add_brick(&recv, oc_get_u32(p), &c) < 0) goto done;
@@ -247,8 +239,8 @@ typedef struct {
   wvar_t var[W_N];
   held_t held;
   oc_state_t prev; /* the server's previous state: the base of each difference */
-  ZSTD_CCtx *cc;
-  ZSTD_DCtx *dc;
+  ocp_zcctx_t *cc;
+  ocp_zdctx_t *dc;
   uint8_t *scratch;
   size_t scratch_cap;
   double train_s;
@@ -383,8 +375,8 @@ static int wire_open(wire_run_t *R, int kept_states) {
   if (R->held.keep < 1) R->held.keep = 1;
   if (R->held.keep > W_HELD_MAX) R->held.keep = W_HELD_MAX;
   oc_state_init(&R->prev);
-  R->cc = ZSTD_createCCtx();
-  R->dc = ZSTD_createDCtx();
+  R->cc = ocp_zcctx_new();
+  R->dc = ocp_zdctx_new();
   for (int i = 0; i < W_N; i++) {
     oc_state_init(&R->var[i].out);
     R->var[i].enabled = 1;
@@ -413,8 +405,8 @@ static int wire_close(wire_run_t *R, int rc) {
   }
   for (int i = 0; i < R->held.n; i++) oc_state_free(&R->held.s[i]);
   oc_state_free(&R->prev);
-  ZSTD_freeCCtx(R->cc);
-  ZSTD_freeDCtx(R->dc);
+  ocp_zcctx_free(R->cc);
+  ocp_zdctx_free(R->dc);
   free(R->scratch);
   return rc;
 }

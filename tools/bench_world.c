@@ -13,12 +13,7 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "oc_camera.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_scene.h"
-#include "ocs_field.h"
-#include "world.h"
+#include "ocs.h"
 
 /* L1 change of a node's σt over one of its level's time steps starting at t (sum over samples),
  * and the L1 of its σt (den), so a level's figure is a ratio of sums. */

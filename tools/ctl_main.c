@@ -9,11 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "net.h"
-#include "oc_cli.h"
-#include "oc_err.h"
-#include "oc_scene.h"
-#include "ocp_wire.h"
+#include "ocv.h"
 
 static const char *prog = "overcast-ctl";
 

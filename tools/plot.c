@@ -10,8 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "oc_err.h"
-#include "oc_image.h"
+#include "oc.h"
 #include "plot.h"
 
 #if defined(__has_include)

@@ -20,10 +20,9 @@
 #include <stdint.h>
 #include <sys/types.h>
 
-#include "child.h" /* ocv_child_t */
-#include "net.h"
+#include "ocs.h"
+#include "ocv.h"
 #include "stress_path.h"
-#include "world.h" /* ocs_brick_out_t, for --verify-content */
 
 #define STRESS_MAX_VIEWERS 1024
 #define STRESS_MAX_STEPS 100000

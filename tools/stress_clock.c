@@ -14,9 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "oc_bytes.h"
-#include "oc_err.h"
-#include "oc_state.h" /* oc_brick_digest */
+#include "oc.h"
 #include "stress.h"
 
 /*-*** Samples ***/

@@ -41,8 +41,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "oc_err.h"
-#include "ocp_viewer.h"
+#include "ocp.h"
 #include "stress.h"
 
 #define SF_MAX_CONNS STRESS_FAULT_MAX_CONNS

@@ -4,7 +4,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "oc_planet.h"
+#include "oc.h"
 
 #define SP_PI 3.14159265358979323846
 #define SP_ORBIT_RADIUS 2000.0 /* m */

@@ -18,7 +18,7 @@
 
 #include <stdint.h>
 
-#include "oc_camera.h" /* oc_camera_pose_t */
+#include "oc.h"
 
 typedef enum { STRESS_ORBIT = 0, STRESS_DIVE, STRESS_CRUISE, STRESS_TELEPORT, STRESS_RANDOM, STRESS_PATH_COUNT } stress_path_kind_t;
 

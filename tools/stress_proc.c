@@ -13,7 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "oc_err.h"
+#include "oc.h"
 #include "stress.h"
 
 void stress_proc_sample(long pid, stress_proc_t *out) {

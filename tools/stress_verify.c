@@ -17,7 +17,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "oc_err.h"
+#include "oc.h"
 #include "stress.h"
 
 struct stress_verify_s {

@@ -30,8 +30,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "oc_err.h"
-#include "oc_state.h"
+#include "oc.h"
 #include "stress.h"
 
 #define SV_MIB (1024.0 * 1024.0)

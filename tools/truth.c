@@ -6,8 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "oc_err.h"
-#include "scene_voxelize.h"
+#include "ocs.h"
 #include "optics.h" /* ocg_aces_fit, ocg_srgb_encode: the tone map of oc_image_tonemap */
 
 double oct_truth_source_length(const oc_source_t *src) {

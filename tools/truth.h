@@ -7,11 +7,7 @@
 
 #include <stddef.h>
 
-#include "oc_camera.h" /* oc_camera_t */
-#include "oc_image.h"  /* oc_image_t */
-#include "oc_render.h" /* oc_render_desc_t */
-#include "oc_scene.h"  /* oc_scene_t, oc_source_t */
-#include "oc_state.h"  /* oc_state_t */
+#include "oc.h"
 
 #define OCT_TRUTH_EXPOSURE 10.0f /**< the exposure every bench tone-maps with before an RMSE 0–255 */
 
