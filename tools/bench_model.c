@@ -2,8 +2,8 @@
  * truth images (`overcast-bench truth --save`), one row per case, old and new model side by side,
  * and the sum the fit minimises (--search: Nelder-Mead over the six numbers). The truth itself is not re-traced: a few
  * milliseconds per case, so a fit can render every case hundreds of times. */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,17 +13,6 @@
 #include "oc.h"
 #include "march.h" /* OCG_MS_CHORD_HALF, … : the fitted constants a search starts from */
 #include "truth.h"
-
-void oct_bench_model_usage(FILE *f) {
-  fprintf(f, "model options (the cloud model against stored truth images; FILE... from `truth --save`):\n"
-             "  --fit D,Q,K,BD,AD   override march.h's fitted constants: chord half-depth, albedo power, ambient depth,\n"
-             "                      diffuse weight, diffuse decay\n"
-             "  --abc A,B,C         octave factors (default: the scene's)\n"
-             "  --legacy            also score the plain octaves (the model before the fit)\n"
-             "  --quiet             only the summary and the fit objective\n"
-             "  --search N          N Nelder-Mead iterations on the eight numbers from the given (or default) start;\n"
-             "                      prints the best --abc and --fit, then scores the cases with them\n");
-}
 
 typedef struct {
   float fit[5];
@@ -188,41 +177,54 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
          o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1], o->fit[2], o->fit[3], o->fit[4]);
 }
 
-int oct_bench_model(const char *prog, int argc, char **argv) {
-  enum { O_FIT = 256, O_ABC, O_LEGACY, O_QUIET, O_SEARCH, O_HELP };
-  static const struct option opts[] = {{"fit", required_argument, 0, O_FIT},   {"abc", required_argument, 0, O_ABC},
-                                       {"legacy", no_argument, 0, O_LEGACY},   {"quiet", no_argument, 0, O_QUIET},
-                                       {"search", required_argument, 0, O_SEARCH}, {"help", no_argument, 0, O_HELP},
-                                       {0, 0, 0, 0}};
-  oct__model_opts_t o = {0};
-  int c;
-  long iters = 0;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    double v[5];
-    switch (c) {
-      case O_FIT:
-      case O_ABC:
-        if (sscanf(optarg, "%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4]) != (c == O_FIT ? 5 : 3))
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "model: %s wants %d comma-separated numbers", argv[optind - 1],
-                             c == O_FIT ? 5 : 3);
-        if (c == O_FIT) {
-          for (int i = 0; i < 5; i++) o.fit[i] = (float)v[i];
-          o.have_fit = 1;
-        } else {
-          memcpy(o.abc, v, sizeof o.abc);
-          o.have_abc = 1;
-        }
-        break;
-      case O_LEGACY: o.legacy = 1; break;
-      case O_QUIET: o.quiet = 1; break;
-      case O_SEARCH: if (oc_cli_int(prog, "--search", optarg, 1, 100000, &iters)) return OC_EXIT_USAGE; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "model: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
+/* --fit D,Q,K,BD,AD and --abc A,B,C: five or three numbers. */
+static int opt_numbers(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  oct__model_opts_t *m = base;
+  int fit = !strcmp(o->name, "fit"), want = fit ? 5 : 3;
+  double v[5];
+  if (sscanf(text, "%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4]) != want)
+    return oc_cli_fail(prog, -1, "model: --%s wants %d comma-separated numbers", o->name, want);
+  if (fit) {
+    for (int i = 0; i < 5; i++) m->fit[i] = (float)v[i];
+    m->have_fit = 1;
+  } else {
+    memcpy(m->abc, v, sizeof m->abc);
+    m->have_abc = 1;
   }
-  int n = argc - optind;
+  return 0;
+}
+
+static const oc_cli_opt_t model_opts[] = {
+    {.name = "fit", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "D,Q,K,BD,AD", .def_note = "march.h's",
+     .help = "override march.h's fitted constants: chord half-depth, albedo power, ambient depth, diffuse weight, "
+             "diffuse decay"},
+    {.name = "abc", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "A,B,C", .def_note = "the scene's",
+     .help = "octave factors"},
+    {.name = "legacy", .type = OC_CLI_FLAG, .offset = offsetof(oct__model_opts_t, legacy),
+     .help = "also score the plain octaves (the model before the fit)"},
+    {.name = "quiet", .type = OC_CLI_FLAG, .offset = offsetof(oct__model_opts_t, quiet),
+     .help = "only the summary and the fit objective"},
+    {.name = "search", .type = OC_CLI_INT, .offset = offsetof(oct__model_opts_t, search), .arg = "N", .lo = 1,
+     .hi = 100000, .def_note = "none",
+     .help = "N Nelder-Mead iterations on the eight numbers from the given (or default) start; prints the best "
+             "--abc and --fit, then scores the cases with them"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_model_spec = {
+    .prog = "overcast-bench model",
+    .synopsis = "[options] FILE...",
+    .about = "The cloud model against stored truth images (FILE... from `overcast-bench truth --save`): errors, fit\n"
+             "objective.\n\noptions:\n",
+    .opts = model_opts};
+
+int oct_bench_model(const char *prog, int argc, char **argv) {
+  oct__model_opts_t o = {0};
+  int first = argc; /* the first truth file */
+  int r = oc_cli_parse(&oct_bench_model_spec, argc, argv, &o, NULL, &first);
+  if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
+  const long iters = o.search;
+  int n = argc - first;
   if (n <= 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "model: give truth files (overcast-bench truth --save)");
   oct__mcase_t *cs = calloc((size_t)n, sizeof *cs);
   if (!cs) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
@@ -230,7 +232,7 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
   for (; loaded < n; loaded++) {
     oct__mcase_t *m = &cs[loaded];
     char why[1024];
-    const char *path = argv[optind + loaded], *slash = strrchr(path, '/');
+    const char *path = argv[first + loaded], *slash = strrchr(path, '/');
     m->name = slash ? slash + 1 : path;
     if (oct_truth_case_load(&m->tc, path, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
