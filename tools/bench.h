@@ -3,11 +3,8 @@
 #ifndef OC_TOOLS_BENCH_H
 #define OC_TOOLS_BENCH_H
 
-#include <stdio.h>
-
 #include "oc.h"
 
-void oct_bench_usage(FILE *f);
 /* Each subcommand: its entry point (argv[0] its name) and the table of its options, which its --help
  * and overcast-bench --help print. */
 int oct_bench_render(const char *prog, int argc, char **argv);
@@ -20,8 +17,6 @@ int oct_bench_plan(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_plan_spec;
 int oct_bench_world(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_world_spec;
-/* bench_sweep.c: error against run time; bench_truth.c: Monte Carlo ground truth. Each prints its
- * own options section of --help. */
 int oct_bench_sweep(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_sweep_spec;
 int oct_bench_truth(const char *prog, int argc, char **argv);
@@ -29,8 +24,7 @@ extern const oc_cli_spec_t oct_bench_truth_spec;
 int oct_bench_model(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_model_spec;
 int oct_bench_stability(const char *prog, int argc, char **argv);
-void oct_bench_stability_usage(FILE *f);
-/* bench_features.c: each feature a scene uses, turned off alone: memory and time saved. */
+extern const oc_cli_spec_t oct_bench_stability_spec;
 int oct_bench_features(const char *prog, int argc, char **argv);
 extern const oc_cli_spec_t oct_bench_features_spec;
 int oct_bench_wire(const char *prog, int argc, char **argv);

@@ -8,18 +8,10 @@
 
 static const char *prog = "overcast-bench";
 
-/* The options of the subcommands without a table yet. */
-static void legacy_usage(FILE *f) {
-  fprintf(f,
-          "\n"
-          "\n");
-  oct_bench_stability_usage(f);
-}
-
 typedef struct {
   const char *name, *summary;
   int (*run)(const char *prog, int argc, char **argv);
-  const oc_cli_spec_t *spec; /* its options (NULL: legacy_usage()) */
+  const oc_cli_spec_t *spec; /* its options */
 } cmd_t;
 
 static const cmd_t cmds[] = {
@@ -40,29 +32,27 @@ static const cmd_t cmds[] = {
     {"model", "the cloud model against stored truth images (truth --save): errors, fit objective", oct_bench_model,
      &oct_bench_model_spec},
     {"stability", "stiff and extreme cases end to end (server, protocol, renderers): finite, bounded, known answers",
-     oct_bench_stability, NULL},
+     oct_bench_stability, &oct_bench_stability_spec},
     {"features", "each feature a scene uses turned off alone: server time, bricks, wire, memory, tables, render",
      oct_bench_features, &oct_bench_features_spec},
 };
 #define NCMDS ((int)(sizeof cmds / sizeof *cmds))
 
-void oct_bench_usage(FILE *f) {
+/* --help: the commands, then each one's options (its own --help, from its table). */
+static void usage(FILE *f) {
   fprintf(f, "usage: %s COMMAND [options]\n\ncommands:\n", prog);
   for (int i = 0; i < NCMDS; i++) fprintf(f, "  %-10s %s\n", cmds[i].name, cmds[i].summary);
-  for (int i = 0; i < NCMDS; i++)
-    if (cmds[i].spec) {
-      fputc('\n', f);
-      oc_cli_help(f, cmds[i].spec);
-    }
-  fputc('\n', f);
-  legacy_usage(f);
+  for (int i = 0; i < NCMDS; i++) {
+    fputc('\n', f);
+    oc_cli_help(f, cmds[i].spec);
+  }
   fprintf(f, "\n  --help, --version\n\nexit status: 0 ok, 1 runtime error, 2 usage error\n");
 }
 
 int main(int argc, char **argv) {
   if (argc < 2) return oc_cli_fail(prog, OC_EXIT_USAGE, "missing command (see --help for usage)");
   if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
-    oct_bench_usage(stdout);
+    usage(stdout);
     return OC_EXIT_OK;
   }
   if (!strcmp(argv[1], "--version")) {

@@ -11,8 +11,8 @@
  *
  * The verdict column is what the case asserts; a row that fails makes the command exit 1. The
  * Markdown table goes into docs/numerics.md ("End to end: stiff and extreme cases"). */
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -185,6 +185,8 @@ static double st_exact_t(const oc_scene_t *sc, oc_camera_t cam, int w, int h) {
 typedef struct {
   int w, h, threads, epochs;
   int want_cpu, want_gl;
+  int big;        /* --big */
+  const char *md; /* --md */
 #ifdef OC_HAVE_GL
   ocv_gl_renderer_t *gl;
 #endif
@@ -274,58 +276,108 @@ out:
 
 /*-*** The subcommand ***/
 
-void oct_bench_stability_usage(FILE *f) {
-  fprintf(f,
-          "\n"
-          "stability options (each case through a server on 127.0.0.1, the wire protocol and the renderers):\n"
-          "  --size WxH          image size (default 64x36; even sides, the centre pixel is checked)\n"
-          "  --renderer LIST     cpu, gl or cpu,gl (default cpu,gl when a GL context can be made)\n"
-          "  --epochs N          states each case waits for (default 3)\n"
-          "  --threads N         server producer and CPU render threads (default 2)\n"
-          "  --big               also the multi-GiB budget case (plans for a 4 GiB viewer)\n"
-          "  --md FILE           also write the table as Markdown\n");
+/* --size WxH: even sides 2..4096 (the centre pixel is checked). */
+static int opt_even_size(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  st_opts_t *x = base;
+  (void)o;
+  if (sscanf(text, "%dx%d", &x->w, &x->h) != 2 || x->w < 2 || x->h < 2 || x->w > 4096 || x->h > 4096 || (x->w | x->h) & 1)
+    return oc_cli_fail(prog, -1, "--size: expected WxH with even sides 2..4096, got \"%s\"", text);
+  return 0;
+}
+
+/* --renderer cpu, gl or cpu,gl. */
+static int opt_renderers(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  st_opts_t *x = base;
+  (void)o;
+  x->want_cpu = strstr(text, "cpu") != NULL;
+  x->want_gl = strstr(text, "gl") != NULL;
+  if (!x->want_cpu && !x->want_gl) return oc_cli_fail(prog, -1, "--renderer: expected cpu, gl or cpu,gl");
+  return 0;
+}
+
+static const oc_cli_opt_t st_opts[] = {
+    {.name = "size", .type = OC_CLI_CUSTOM, .parse = opt_even_size, .arg = "WxH", .def = "64x36",
+     .help = "image size; even sides, the centre pixel is checked"},
+    {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = opt_renderers, .arg = "LIST",
+     .def_note = "cpu,gl when a GL context can be made", .help = "cpu, gl or cpu,gl"},
+    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(st_opts_t, epochs), .arg = "N", .lo = 1, .hi = 100,
+     .def = "3", .help = "states each case waits for"},
+    {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(st_opts_t, threads), .arg = "N", .lo = 1, .hi = 64,
+     .def = "2", .help = "server producer and CPU render threads"},
+    {.name = "big", .type = OC_CLI_FLAG, .offset = offsetof(st_opts_t, big),
+     .help = "also the multi-GiB budget case (plans for a 4 GiB viewer)"},
+    {.name = "md", .type = OC_CLI_STRING, .offset = offsetof(st_opts_t, md), .arg = "FILE",
+     .help = "also write the table as Markdown"},
+    OCT_OPT_HELP,
+    {0}};
+
+const oc_cli_spec_t oct_bench_stability_spec = {
+    .prog = "overcast-bench stability",
+    .about = "Stiff and extreme cases end to end, each through a server on 127.0.0.1, the wire protocol and the\n"
+             "renderers: finite, bounded, known answers.\n\noptions:\n",
+    .opts = st_opts};
+
+/* One case's rows (to stdout and md); @return the rows that failed. */
+static int st_case_rows(const char *prog, const st_case_t *k, int i, st_opts_t *o, const char *tmpdir, FILE *md) {
+  char why[2048];
+  fprintf(stderr, "\r\033[K%s: stability: case %d/%d: %s ...", prog, i + 1, ST_NCASES, k->name);
+  st_state_info_t info;
+  st_check_t ch[2];
+  int n = 0, failed = 0;
+  double t0 = oct_now();
+  int r = st_run_case(k, o, tmpdir, &info, ch, &n, why, sizeof why);
+  fprintf(stderr, " %.1f s", oct_now() - t0);
+  if (r < 0) {
+    char line[4096];
+    snprintf(line, sizeof line, "| %s | — | — | — | — | — | — | — | — | — | FAILED: %s |\n", k->name, why);
+    printf("%s", line);
+    if (md) fputs(line, md);
+    return 1;
+  }
+  for (int j = 0; j < n; j++) {
+    char exact[64] = "—", line[2048];
+    if (ch[j].t_exact >= 0 && k->t_bound > 0) snprintf(exact, sizeof exact, "%.4g (±%g)", ch[j].t_exact, k->t_bound);
+    else if (ch[j].t_exact >= 0) snprintf(exact, sizeof exact, "%.4g (not bounded)", ch[j].t_exact);
+    snprintf(line, sizeof line, "| %s | %u | %u | %d | %.3g | %s | %llu | %.4g … %.4g | %.4g | %s | %s |\n",
+             j ? "″" : k->name, info.leaves, info.bricks, info.deepest, info.granted_mib, ch[j].renderer,
+             (unsigned long long)ch[j].nonfinite, ch[j].t_min, ch[j].t_max, ch[j].t_centre, exact,
+             ch[j].ok ? "pass" : "FAIL");
+    printf("%s", line);
+    if (md) fputs(line, md);
+    if (!ch[j].ok) failed++;
+  }
+  fflush(stdout);
+  return failed;
+}
+
+/* Every case, in a temporary folder; @return the rows that failed, or -1 after printing the error. */
+static int st_all(const char *prog, st_opts_t *o) {
+  char tmpdir[] = "/tmp/overcast_stability_XXXXXX";
+  if (!mkdtemp(tmpdir)) return oc_cli_fail(prog, -1, "cannot make a temporary folder");
+  oc_log_set_level(OC_LOG_WARN); /* the servers' connection chatter */
+  FILE *md = o->md ? fopen(o->md, "w") : NULL;
+  if (o->md && !md) return oc_cli_fail(prog, -1, "%s: cannot create", o->md);
+  const char *head = "| case | leaves | bricks | deepest level | granted MiB | renderer | non-finite pixels | T range | "
+                     "centre T | closed form | verdict |\n|---|---:|---:|---:|---:|---|---:|---|---:|---:|---|\n";
+  printf("%s", head);
+  if (md) fputs(head, md);
+  int failed = 0;
+  for (int i = 0; i < ST_NCASES; i++)
+    if (!st_cases[i].big || o->big) failed += st_case_rows(prog, &st_cases[i], i, o, tmpdir, md);
+  fprintf(stderr, "\r\033[K");
+  if (md) fclose(md);
+  char cmd[256];
+  snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+  if (system(cmd) != 0) fprintf(stderr, "%s: could not remove %s\n", prog, tmpdir);
+  return failed;
 }
 
 int oct_bench_stability(const char *prog, int argc, char **argv) {
-  enum { O_SIZE = 256, O_RENDERER, O_EPOCHS, O_THREADS, O_BIG, O_MD, O_HELP };
-  static const struct option opts[] = {{"size", required_argument, 0, O_SIZE},     {"renderer", required_argument, 0, O_RENDERER},
-                                       {"epochs", required_argument, 0, O_EPOCHS}, {"threads", required_argument, 0, O_THREADS},
-                                       {"big", no_argument, 0, O_BIG},             {"md", required_argument, 0, O_MD},
-                                       {"help", no_argument, 0, O_HELP},           {0, 0, 0, 0}};
-  st_opts_t o = {.w = 64, .h = 36, .threads = 2, .epochs = 3, .want_cpu = 1, .want_gl = -1};
-  int big = 0, c;
-  long v;
-  const char *md_path = NULL;
-  opterr = 0;
-  optind = 1;
-  while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-    switch (c) {
-      case O_SIZE:
-        if (sscanf(optarg, "%dx%d", &o.w, &o.h) != 2 || o.w < 2 || o.h < 2 || o.w > 4096 || o.h > 4096 || (o.w | o.h) & 1)
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--size: expected WxH with even sides 2..4096, got \"%s\"", optarg);
-        break;
-      case O_RENDERER:
-        o.want_cpu = strstr(optarg, "cpu") != NULL;
-        o.want_gl = strstr(optarg, "gl") != NULL;
-        if (!o.want_cpu && !o.want_gl) return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer: expected cpu, gl or cpu,gl");
-        break;
-      case O_EPOCHS:
-        if (oc_cli_int(prog, "--epochs", optarg, 1, 100, &v)) return OC_EXIT_USAGE;
-        o.epochs = (int)v;
-        break;
-      case O_THREADS:
-        if (oc_cli_int(prog, "--threads", optarg, 1, 64, &v)) return OC_EXIT_USAGE;
-        o.threads = (int)v;
-        break;
-      case O_BIG: big = 1; break;
-      case O_MD: md_path = optarg; break;
-      case O_HELP: oct_bench_usage(stdout); return OC_EXIT_OK;
-      default: return oc_cli_fail(prog, OC_EXIT_USAGE, "stability: unknown or incomplete option \"%s\"", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "stability: unexpected argument \"%s\"", argv[optind]);
-  char why[2048];
+  st_opts_t o = {.want_cpu = 1, .want_gl = -1};
+  int rc = oct_begin(&oct_bench_stability_spec, argc, argv, &o, NULL, NULL, NULL, NULL);
+  if (rc != OCT_GO) return rc;
 #ifdef OC_HAVE_GL
+  char why[2048];
   ocv_gl_context_t *ctx = NULL;
   if (o.want_gl) {
     ctx = ocv_gl_context_init(why, sizeof why);
@@ -339,57 +391,12 @@ int oct_bench_stability(const char *prog, int argc, char **argv) {
 #else
   if (o.want_gl == 1) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--renderer gl: this build has no GL renderer");
 #endif
-  char tmpdir[] = "/tmp/overcast_stability_XXXXXX";
-  if (!mkdtemp(tmpdir)) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "cannot make a temporary folder");
-  oc_log_set_level(OC_LOG_WARN); /* the servers' connection chatter */
-  FILE *md = md_path ? fopen(md_path, "w") : NULL;
-  if (md_path && !md) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s: cannot create", md_path);
-  const char *head = "| case | leaves | bricks | deepest level | granted MiB | renderer | non-finite pixels | T range | "
-                     "centre T | closed form | verdict |\n|---|---:|---:|---:|---:|---|---:|---|---:|---:|---|\n";
-  printf("%s", head);
-  if (md) fputs(head, md);
-  int failed = 0;
-  for (int i = 0; i < ST_NCASES; i++) {
-    const st_case_t *k = &st_cases[i];
-    if (k->big && !big) continue;
-    fprintf(stderr, "\r\033[K%s: stability: case %d/%d: %s ...", prog, i + 1, ST_NCASES, k->name);
-    st_state_info_t info;
-    st_check_t ch[2];
-    int n = 0;
-    double t0 = oct_now();
-    int r = st_run_case(k, &o, tmpdir, &info, ch, &n, why, sizeof why);
-    fprintf(stderr, " %.1f s", oct_now() - t0);
-    if (r < 0) {
-      failed++;
-      char line[4096];
-      snprintf(line, sizeof line, "| %s | — | — | — | — | — | — | — | — | — | FAILED: %s |\n", k->name, why);
-      printf("%s", line);
-      if (md) fputs(line, md);
-      continue;
-    }
-    for (int j = 0; j < n; j++) {
-      char exact[64] = "—", line[2048];
-      if (ch[j].t_exact >= 0 && k->t_bound > 0) snprintf(exact, sizeof exact, "%.4g (±%g)", ch[j].t_exact, k->t_bound);
-      else if (ch[j].t_exact >= 0) snprintf(exact, sizeof exact, "%.4g (not bounded)", ch[j].t_exact);
-      snprintf(line, sizeof line, "| %s | %u | %u | %d | %.3g | %s | %llu | %.4g … %.4g | %.4g | %s | %s |\n",
-               j ? "″" : k->name, info.leaves, info.bricks, info.deepest, info.granted_mib, ch[j].renderer,
-               (unsigned long long)ch[j].nonfinite, ch[j].t_min, ch[j].t_max, ch[j].t_centre, exact,
-               ch[j].ok ? "pass" : "FAIL");
-      printf("%s", line);
-      if (md) fputs(line, md);
-      if (!ch[j].ok) failed++;
-    }
-    fflush(stdout);
-  }
-  fprintf(stderr, "\r\033[K");
-  if (md) fclose(md);
-  char cmd[256];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-  if (system(cmd) != 0) fprintf(stderr, "%s: could not remove %s\n", prog, tmpdir);
+  int failed = st_all(prog, &o);
 #ifdef OC_HAVE_GL
   ocv_gl_renderer_free(o.gl);
   ocv_gl_context_free(ctx);
 #endif
+  if (failed < 0) return OC_EXIT_RUNTIME;
   if (failed) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "stability: %d row(s) failed", failed);
   printf("\nall cases passed\n");
   return OC_EXIT_OK;
