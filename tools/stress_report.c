@@ -698,11 +698,32 @@ static void sr_age_levels(const stress_age_t *a) {
   if (none) printf("; mismatches (matched no stamp): %" PRIu64, none);
 }
 
+/* PREFIX-NAME.png from np points (none: no file). @return 0, or -1 after a message. */
+static int sr_plot(const char *prefix, const char *name, const octs_plot_point_t *pts, int np, const octs_plot_desc_t *d) {
+  char path[4096], why[512];
+  if (!np) return 0;
+  snprintf(path, sizeof path, "%s-%s.png", prefix, name);
+  if (octs_plot_png(path, pts, np, d, why, sizeof why) < 0) {
+    fprintf(stderr, "overcast-stress: %s: %s\n", path, why);
+    return -1;
+  }
+  printf("plot: %s\n", path);
+  return 0;
+}
+
+/* The plot group of a budget: its index among the first nb of o->budgets_mib, or -1. */
+static int sr_budget_group(const stress_opts_t *o, int nb, long budget_mib) {
+  int g = -1;
+  for (int b = 0; b < nb; b++)
+    if (o->budgets_mib[b] == budget_mib) g = b;
+  return g;
+}
+
 /* Plots of a ramp: content age p99 and time to full detail against N, one line per budget. */
 static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double period, const stress_ramp_phase_t *ph, int nph) {
   int nb = o->nbudgets < OCTS_PLOT_GROUPS / 3 ? o->nbudgets : OCTS_PLOT_GROUPS / 3;
   octs_plot_point_t *pts = calloc((size_t)(3 * nph + 1), sizeof *pts);
-  char names[OCTS_PLOT_GROUPS][48], path[4096], sub[256], why[512];
+  char names[OCTS_PLOT_GROUPS][48], sub[256];
   if (!pts) return -1;
   int rc = 0;
   snprintf(sub, sizeof sub, "%s, epoch period %g s, %s paths, %.0f s measured per phase", scene, period,
@@ -710,9 +731,7 @@ static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double perio
   /* content age */
   int np = 0;
   for (int i = 0; i < nph; i++) {
-    int g = -1;
-    for (int b = 0; b < nb; b++)
-      if (o->budgets_mib[b] == ph[i].budget_mib) g = b;
+    int g = sr_budget_group(o, nb, ph[i].budget_mib);
     if (g < 0 || ph[i].age_p99 < 0) continue;
     pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].age_p99 > STRESS_AGE_MAX ? STRESS_AGE_MAX + 1 : ph[i].age_p99, .group = g};
   }
@@ -723,19 +742,11 @@ static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double perio
     snprintf(names[b], sizeof names[b], "%ld MiB", o->budgets_mib[b]);
     d.group_name[b] = names[b];
   }
-  snprintf(path, sizeof path, "%s-age.png", o->plot);
-  if (np && octs_plot_png(path, pts, np, &d, why, sizeof why) < 0) {
-    fprintf(stderr, "overcast-stress: %s: %s\n", path, why);
-    rc = -1;
-  } else if (np) {
-    printf("plot: %s\n", path);
-  }
+  if (sr_plot(o->plot, "age", pts, np, &d) < 0) rc = -1;
   /* time to full detail, the stepped reference drawn as a line across the same N */
   np = 0;
   for (int i = 0; i < nph; i++) {
-    int g = -1;
-    for (int b = 0; b < nb; b++)
-      if (o->budgets_mib[b] == ph[i].budget_mib) g = b;
+    int g = sr_budget_group(o, nb, ph[i].budget_mib);
     if (g < 0) continue;
     pts[np++] = (octs_plot_point_t){.x = ph[i].n, .y = ph[i].detail_p50, .group = g};
     if (isfinite(ph[i].detail_lower_s) && !isfinite(ph[i].detail_p50)) /* none settled: a lower bound */
@@ -752,13 +763,7 @@ static int sr_ramp_plots(const stress_opts_t *o, const char *scene, double perio
     e.group_name[b] = names[b];
     e.group_name[nb + b] = names[nb + b];
   }
-  snprintf(path, sizeof path, "%s-detail.png", o->plot);
-  if (np && octs_plot_png(path, pts, np, &e, why, sizeof why) < 0) {
-    fprintf(stderr, "overcast-stress: %s: %s\n", path, why);
-    rc = -1;
-  } else if (np) {
-    printf("plot: %s\n", path);
-  }
+  if (sr_plot(o->plot, "detail", pts, np, &e) < 0) rc = -1;
   free(pts);
   return rc;
 }
@@ -833,25 +838,45 @@ static void sr_ramp_ages(const stress_ramp_phase_t *ph, int nph) {
 static cJSON *sr_phase_json(const stress_opts_t *o, const stress_ramp_phase_t *p) {
 #define P(key, field, kind) SR_ROW(stress_ramp_phase_t, key, field, kind)
   static const sr_field_t rows[] = {
-      P("budget_mib", budget_mib, SR_LONG), P("viewers", n, SR_INT), P("seconds", seconds, SR_DBL),
-      P("interval_p50_s", itv_p50, SR_DBL), P("interval_p99_s", itv_p99, SR_DBL),
-      P("worst_viewer_median_s", worst_median, SR_DBL), P("states", states, SR_U64), P("skipped", skipped, SR_U64),
-      P("skipped_fraction", skipped_frac, SR_DBL), P("lateness_p50_s", late_p50, SR_DBL),
-      P("lateness_p99_s", late_p99, SR_DBL), P("lateness_max_s", late_max, SR_DBL),
-      P("lateness_worst_viewer_p99_s", late_worst_p99, SR_DBL), P("ticks_due", due, SR_U64),
-      P("ticks_coalesced", coalesced, SR_U64), P("coalesced_fraction", coalesced_frac, SR_DBL),
-      P("coalesced_worst_viewer_fraction", coalesced_worst, SR_DBL), P("coalesced_server", coalesced_server, SR_U64),
-      P("verify_left", verify_left, SR_U64), P("full_detail_p50_s", detail_p50, SR_DBL),
-      P("full_detail_p99_s", detail_p99, SR_DBL), P("full_detail_stepped_p50_s", detail_ref, SR_DBL),
+      P("budget_mib", budget_mib, SR_LONG),
+      P("viewers", n, SR_INT),
+      P("seconds", seconds, SR_DBL),
+      P("interval_p50_s", itv_p50, SR_DBL),
+      P("interval_p99_s", itv_p99, SR_DBL),
+      P("worst_viewer_median_s", worst_median, SR_DBL),
+      P("states", states, SR_U64),
+      P("skipped", skipped, SR_U64),
+      P("skipped_fraction", skipped_frac, SR_DBL),
+      P("lateness_p50_s", late_p50, SR_DBL),
+      P("lateness_p99_s", late_p99, SR_DBL),
+      P("lateness_max_s", late_max, SR_DBL),
+      P("lateness_worst_viewer_p99_s", late_worst_p99, SR_DBL),
+      P("ticks_due", due, SR_U64),
+      P("ticks_coalesced", coalesced, SR_U64),
+      P("coalesced_fraction", coalesced_frac, SR_DBL),
+      P("coalesced_worst_viewer_fraction", coalesced_worst, SR_DBL),
+      P("coalesced_server", coalesced_server, SR_U64),
+      P("verify_left", verify_left, SR_U64),
+      P("full_detail_p50_s", detail_p50, SR_DBL),
+      P("full_detail_p99_s", detail_p99, SR_DBL),
+      P("full_detail_stepped_p50_s", detail_ref, SR_DBL),
       P("full_detail_worst_ratio", detail_worst_ratio, SR_DBL),
-      P("full_detail_unsettled_at_least_s", detail_lower_s, SR_DBL), P("teleports", teleports, SR_U64),
-      P("teleports_settled", detail_n, SR_U64), P("teleports_unreached", unreached, SR_U64),
-      P("server_cpu_percent", cpu_pct, SR_DBL), P("server_rss_mib", rss_mib, SR_DBL),
-      P("server_peak_rss_mib", hwm_mib, SR_DBL), P("mb_per_s_per_viewer_p50", mbps_p50, SR_DBL),
-      P("mb_per_s_per_viewer_p99", mbps_p99, SR_DBL), P("budget_violations", violations, SR_U64),
-      P("checksum_failures", checksum, SR_U64), P("protocol_errors", protocol, SR_U64),
-      P("resident_mismatch", mismatch, SR_U64), P("content_mismatches", age_mismatch, SR_U64),
-      P("viewers_failed", failed, SR_U64)};
+      P("full_detail_unsettled_at_least_s", detail_lower_s, SR_DBL),
+      P("teleports", teleports, SR_U64),
+      P("teleports_settled", detail_n, SR_U64),
+      P("teleports_unreached", unreached, SR_U64),
+      P("server_cpu_percent", cpu_pct, SR_DBL),
+      P("server_rss_mib", rss_mib, SR_DBL),
+      P("server_peak_rss_mib", hwm_mib, SR_DBL),
+      P("mb_per_s_per_viewer_p50", mbps_p50, SR_DBL),
+      P("mb_per_s_per_viewer_p99", mbps_p99, SR_DBL),
+      P("budget_violations", violations, SR_U64),
+      P("checksum_failures", checksum, SR_U64),
+      P("protocol_errors", protocol, SR_U64),
+      P("resident_mismatch", mismatch, SR_U64),
+      P("content_mismatches", age_mismatch, SR_U64),
+      P("viewers_failed", failed, SR_U64),
+  };
 #undef P
   cJSON *x = cJSON_CreateObject();
   SR_ADD_FIELDS(x, p, rows);
