@@ -195,15 +195,24 @@ static int oc__same_content(const oc_node_t *a, const oc_node_t *b) {
   return 1;
 }
 
-/* OWN: P's record pi decoded. */
-static int oc__fill_own(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi) {
+/* P's record pi decoded into cx->leaf: a uniform one is set in e (*dst NULL), otherwise *dst is
+ * the pool entry to fill. @return 0 or OC_ECORRUPT (the pool is full). */
+static int oc__decode_prev(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi, float **dst) {
+  *dst = NULL;
   oc__leaf_decode(cx->leaf, cx->p, pi);
   if (cx->leaf->uniform) {
     oc__set_uniform(e, cx->leaf->value);
     return 0;
   }
-  float *dst = oc__pool_take(cx->ip, 1);
-  if (!dst) return OC_ECORRUPT;
+  *dst = oc__pool_take(cx->ip, 1);
+  return *dst ? 0 : OC_ECORRUPT;
+}
+
+/* OWN: P's record pi decoded. */
+static int oc__fill_own(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi) {
+  float *dst;
+  int rc = oc__decode_prev(cx, e, pi, &dst);
+  if (rc < 0 || !dst) return rc;
   memcpy(dst, cx->leaf->v, sizeof cx->leaf->v);
   oc__pool_commit(cx->ip, e, 1);
   return 0;
@@ -211,13 +220,9 @@ static int oc__fill_own(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi) {
 
 /* PARENT: P ancestor pi (level la) reconstructed at the samples of N leaf nkey (level ln > la). */
 static int oc__fill_parent(oc__ctx_t *cx, ocv_interp_prev_t *e, uint32_t pi, int la, oc_key_t nkey, int ln) {
-  oc__leaf_decode(cx->leaf, cx->p, pi);
-  if (cx->leaf->uniform) {
-    oc__set_uniform(e, cx->leaf->value);
-    return 0;
-  }
-  float *dst = oc__pool_take(cx->ip, 1);
-  if (!dst) return OC_ECORRUPT;
+  float *dst;
+  int rc = oc__decode_prev(cx, e, pi, &dst);
+  if (rc < 0 || !dst) return rc;
   int D = ln - la;
   uint32_t n[3], a[3];
   oc_key_coords(nkey, &n[0], &n[1], &n[2]);

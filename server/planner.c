@@ -680,28 +680,10 @@ static void epoch_begin(ocs_planner_t *p, const ocs_plan_input_t *in) {
   }
 }
 
-/* A growable list of heap entries: the stale leaves pass 1 finds. */
-typedef struct {
-  hent_t *a;
-  size_t n, cap;
-} hlist_t;
-
-static int hlist_add(hlist_t *l, hent_t e) {
-  if (l->n == l->cap) {
-    size_t nc = l->cap ? 2 * l->cap : 256;
-    hent_t *r = realloc(l->a, nc * sizeof *r);
-    if (!r) return OC_ENOMEM;
-    l->a = r;
-    l->cap = nc;
-  }
-  l->a[l->n++] = e;
-  return 0;
-}
-
 /* Pass 1: priorities, costs, candidates; a stack walk carrying exact integer coordinates. Leaves
  * at or below min_pixels can never be split this epoch: they stay out of the heap. Stale leaves
- * go to `refresh`. */
-static int plan_walk(ocs_planner_t *p, const frustum_t *fr, hlist_t *refresh) {
+ * go to `refresh` (a list, not yet a heap). */
+static int plan_walk(ocs_planner_t *p, const frustum_t *fr, heap_t *refresh) {
   const int K = p->K;
   double size[OC_KEY_MAX_LEVEL + 1];
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) size[l] = oc_key_size(l);
@@ -730,7 +712,7 @@ static int plan_walk(ocs_planner_t *p, const frustum_t *fr, hlist_t *refresh) {
     for (int j = 0; j < K; j++) p->C[j] += c[j];
     p->T += t;
     if (new_brick(n)) p->new_bricks++;
-    if ((n->stamp != p->in->stamp[w.level] || n->age == AGE_NEW) && (rc = hlist_add(refresh, e)) < 0) return rc;
+    if ((n->stamp != p->in->stamp[w.level] || n->age == AGE_NEW) && (rc = h_append(refresh, e)) < 0) return rc;
     if (n->prio > p->d.min_pixels && splittable(p, n, w.level) && (rc = h_append(&p->split_h, e)) < 0) return rc;
   }
   h_heapify(&p->split_h);
@@ -888,9 +870,8 @@ static int plan_output(ocs_planner_t *p, ocs_plan_stats_t *st) {
   }
   if (nleaves > p->out_cap) {
     ocs_plan_leaf_t *o = realloc(p->out, nleaves * sizeof *o);
-    if (!o) return OC_ENOMEM;
-    p->out = o;
-    int32_t *on = realloc(p->out_node, nleaves * sizeof *on);
+    if (o) p->out = o;
+    int32_t *on = o ? realloc(p->out_node, nleaves * sizeof *on) : NULL;
     if (!on) return OC_ENOMEM;
     p->out_node = on;
     p->out_cap = nleaves;
@@ -935,7 +916,7 @@ int ocs_plan_epoch(ocs_planner_t *p, const ocs_view_t *view, const ocs_plan_inpu
   memset(&st, 0, sizeof st);
   epoch_begin(p, in);
   frustum_t fr = frustum_make(view, p->d.outside_weight);
-  hlist_t refresh = {0};
+  heap_t refresh = {0};
   int rc = plan_walk(p, &fr, &refresh); /* an error here has changed no tree: nothing to undo */
   if (rc < 0) {
     free(refresh.a);

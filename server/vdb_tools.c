@@ -43,6 +43,16 @@ static void ocs__tool_progress(void *ctx, uint64_t done, uint64_t total) {
   fflush(stderr);
 }
 
+/* The shim's functions, or NULL with *rc its code and why "path: reason". */
+static const ocs_vdb_api_t *ocs__tool_api(const char *path, char *why, size_t why_len, int *rc) {
+  char sub[1536];
+  const ocs_vdb_api_t *api;
+  *rc = ocs_vdb_load(&api, sub, sizeof sub);
+  if (*rc >= 0) return api;
+  snprintf(why, why_len, "%s: %s", path, sub);
+  return NULL;
+}
+
 /* ---- Inspect ----------------------------------------------------------------------------------- */
 
 static const char *ocs__type_name(int t) {
@@ -180,12 +190,9 @@ int ocs_vdb_inspect(const char *path, int json, FILE *out, char *why, size_t why
     snprintf(why, why_len, "inspect: no file");
     return OC_EINVAL;
   }
-  const ocs_vdb_api_t *api;
-  int r = ocs_vdb_load(&api, sub, sizeof sub);
-  if (r < 0) {
-    snprintf(why, why_len, "%s: %s", path, sub);
-    return r;
-  }
+  int r;
+  const ocs_vdb_api_t *api = ocs__tool_api(path, why, why_len, &r);
+  if (!api) return r;
   ocs__tool_progress_t prog = {path, -1, 0};
   struct stat st;
   int show = isatty(2) && stat(path, &st) == 0 && st.st_size >= (4 << 20);
@@ -292,12 +299,9 @@ int ocs_vdb_export(const ocs_field_t *f, double t, oc_dvec3 lo, oc_dvec3 hi, int
              path, level, (unsigned long long)OCS_VDB_EXPORT_MAX_VOXELS);
     return OC_ETOOBIG;
   }
-  const ocs_vdb_api_t *api;
-  int r = ocs_vdb_load(&api, sub, sizeof sub);
-  if (r < 0) {
-    snprintf(why, why_len, "%s: %s", path, sub);
-    return r;
-  }
+  int r;
+  const ocs_vdb_api_t *api = ocs__tool_api(path, why, why_len, &r);
+  if (!api) return r;
   /* Frame: local Y-up at the centre C of the region: rows of Q are east, up, -north. */
   oc_dvec3 C = oc_dscale(oc_dadd(lo, hi), 0.5);
   oc_enu_t enu = oc_enu_at(C);
