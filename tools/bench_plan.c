@@ -113,6 +113,10 @@ static void record(series_t *s, const run_t *r) {
 
 static void row(const char *name, series_t *s) {
   double n = s->n;
+  printf("| %s | %.0f | %.0f | %.0f | %.1f | %.1f | %.1f |\n", name, s->leaves / n, s->splits / n, s->merges / n,
+         median(s->plan_ms, s->n), s->max_plan_ms, median(s->commit_ms, s->n));
+}
+
 typedef struct {
   int budget, leaves, repeat;
 } plan_opts_t;
@@ -135,10 +139,6 @@ const oc_cli_spec_t oct_bench_plan_spec = {
     .about = "LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core.\n\n"
              "options:\n",
     .opts = plan_opts};
-
-  printf("| %s | %.0f | %.0f | %.0f | %.1f | %.1f | %.1f |\n", name, s->leaves / n, s->splits / n, s->merges / n,
-         median(s->plan_ms, s->n), s->max_plan_ms, median(s->commit_ms, s->n));
-}
 
 int oct_bench_plan(const char *prog, int argc, char **argv) {
   plan_opts_t o = {0};

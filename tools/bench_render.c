@@ -157,6 +157,14 @@ static int opt_gl(const char *prog, const oc_cli_opt_t *o, const char *text, voi
   (void)text;
 #ifdef OC_HAVE_GL
   (void)prog;
+  *(int *)oc_cli_field(o, base) = 1;
+  return 0;
+#else
+  (void)base;
+  return oc_cli_fail(prog, -1, "--%s: this build has no GL renderer", o->name);
+#endif
+}
+
 static const oc_cli_opt_t render_opts[] = {
     {.name = "scene", .type = OC_CLI_STRING, .offset = offsetof(render_opts_t, scene), .arg = "FILE",
      .def = "scenes/analytic_sphere.json",
@@ -189,7 +197,7 @@ const oc_cli_spec_t oct_bench_render_spec = {
  * them for a viewer at this camera. */
 static int render_state(const char *prog, const render_opts_t *o, const oc_scene_t *sc, oc_camera_pose_t pose,
                         oc_state_t *st) {
-  *(int *)oc_cli_field(o, base) = 1;
+  char why[512];
   oc_camera_t cam = oc_camera_from_pose(pose);
   ocs_medium_t medium;
   if (ocs_scene_medium(sc, &medium, NULL, 0) == 0) { /* analytic: exact τ */
@@ -225,14 +233,6 @@ static int render_png(const char *prog, const char *path, oc_camera_pose_t pose,
 
 int oct_bench_render(const char *prog, int argc, char **argv) {
   render_opts_t o = {0};
-  return 0;
-#else
-  (void)base;
-  return oc_cli_fail(prog, -1, "--%s: this build has no GL renderer", o->name);
-#endif
-}
-
-  char why[512];
   static oc_scene_t sc;
   oc_camera_pose_t pose;
   int rc = oct_begin(&oct_bench_render_spec, argc, argv, &o, &o.scene, &o.camera, &sc, &pose);
@@ -264,7 +264,6 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     oc_render_stats_t rs = {0};
     for (long r = 0; r < repeat; r++) {
       fprintf(stderr, "\r%s: render: %ld threads, run %ld/%ld ", prog, threads, r + 1, repeat);
-      base = best;
       double t0 = oct_now();
       if (oc_render_state(&st, &d, &img, &rs) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed");
       double t = oct_now() - t0;
@@ -273,6 +272,7 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     fprintf(stderr, "\r\033[K");
     const char *same = "reference";
     if (i == 0) {
+      base = best;
       ref = img;
       img.px = NULL;
       if (o.png && render_png(prog, o.png, pose, &ref)) return OC_EXIT_RUNTIME;
