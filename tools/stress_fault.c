@@ -173,24 +173,17 @@ static void sf_resolve(stress_faults_t *f, sf_conn_t *c, int by_server, double n
   sf_conn_free(c, !by_server && k == STRESS_FK_DROP);
 }
 
-static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
+/* c's socket: a small receive window for a stall, bound to --source-address, connected to the
+ * server, non-blocking. @return 0, or -1 (socket and c freed; refused or failed is counted). */
+static int sf_connect(stress_faults_t *f, sf_conn_t *c) {
   stress_run_t *run = f->run;
-  if (f->n >= SF_MAX_CONNS) return;
-  sf_conn_t *c = calloc(1, sizeof *c);
-  if (!c) {
-    sf_fail(f, "out of memory");
-    return;
-  }
-  f->c[f->n] = c;
-  c->kind = kind;
-  c->variant = variant;
-  c->opened = now;
+  int kind = c->kind, variant = c->variant;
   c->fd = socket(AF_INET, SOCK_STREAM, 0);
   f->st.opened[kind]++;
   if (c->fd < 0) {
     sf_fail(f, "%s %d: socket: %s", sf_kind_names[kind], variant, strerror(errno));
     free(c);
-    return;
+    return -1;
   }
   if (kind == STRESS_FK_STALL) { /* a small window: the server's socket stops draining at once */
     int sz = 4096;
@@ -205,7 +198,7 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
       sf_fail(f, "%s %d: cannot bind to the source address %s: %s", sf_kind_names[kind], variant, run->o->source, err);
       close(c->fd);
       free(c);
-      return;
+      return -1;
     }
   }
   struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)run->port)};
@@ -214,11 +207,69 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
     f->st.refused[kind]++;
     close(c->fd);
     free(c);
-    return;
+    return -1;
   }
   int one = 1;
   setsockopt(c->fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
   fcntl(c->fd, F_SETFL, fcntl(c->fd, F_GETFL) | O_NONBLOCK);
+  return 0;
+}
+
+/* Garbage before any HELLO, variant 0..3: random bytes (never the magic), a 4 GiB frame, a short
+ * HELLO, a stalled header. */
+static void sf_garbage(stress_faults_t *f, sf_conn_t *c) {
+  uint8_t b[64];
+  size_t len = 0;
+  if (c->variant == 0) {
+    for (size_t i = 0; i < sizeof b; i++) b[i] = (uint8_t)sf_rand(f);
+    b[0] = 0xEE; /* never the magic */
+    len = sizeof b;
+  } else if (c->variant == 1) {
+    uint8_t h[8] = {OCP_MAGIC0, OCP_MAGIC1, OCP_VERSION_MAX, OCP_MSG_HELLO, 0xF0, 0xFF, 0xFF, 0xFF};
+    memcpy(b, h, 8);
+    len = 8;
+  } else if (c->variant == 2) {
+    uint8_t h[11] = {OCP_MAGIC0, OCP_MAGIC1, OCP_VERSION_MAX, OCP_MSG_HELLO, 3, 0, 0, 0, 1, 2, 3};
+    memcpy(b, h, sizeof h);
+    len = sizeof h;
+  } else {
+    uint8_t h[3] = {OCP_MAGIC0, OCP_MAGIC1, OCP_VERSION_MAX};
+    memcpy(b, h, sizeof h);
+    len = sizeof h;
+  }
+  oc_buf_append(&c->out, b, len);
+}
+
+/* Drop variants 0 and 1: reset at once, or after half a HELLO. */
+static void sf_drop_now(sf_conn_t *c) {
+  if (c->variant == 1) {
+    ocp_hello_t h = {.min_version = OCP_VERSION_MIN, .max_version = OCP_VERSION_MAX, .role = OCP_ROLE_VIEWER,
+                     .budget = 1u << 20, .max_depth = 21, .width = 64, .height = 64, .caps = OCP_CAP_ALL};
+    oc_buf_t tmp = {0};
+    ocp_put_hello(&tmp, &h);
+    oc_buf_append(&c->out, tmp.data, tmp.len / 2);
+    oc_buf_free(&tmp);
+    sf_flush(c);
+  }
+  sf_reset(c->fd);
+  c->fd = -1;
+  sf_conn_free(c, 0);
+  free(c);
+}
+
+static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
+  stress_run_t *run = f->run;
+  if (f->n >= SF_MAX_CONNS) return;
+  sf_conn_t *c = calloc(1, sizeof *c);
+  if (!c) {
+    sf_fail(f, "out of memory");
+    return;
+  }
+  c->kind = kind;
+  c->variant = variant;
+  c->opened = now;
+  if (sf_connect(f, c) < 0) return;
+  f->c[f->n] = c;
   ocp_reader_init(&c->rd, OCP_MAX_PAYLOAD);
   f->n++;
   if (kind == STRESS_FK_GARBAGE) c->deadline = now + f->st.handshake_s + STRESS_FAULT_GRACE;
@@ -239,42 +290,11 @@ static void sf_open(stress_faults_t *f, int kind, int variant, double now) {
     ocp_viewer_connected(c->sess, &c->out);
     /* a camera the server accepts: the WELCOME's default is sent once it is known (below) */
   } else if (kind == STRESS_FK_DROP) {
-    if (variant == 1) {
-      ocp_hello_t h = {.min_version = OCP_VERSION_MIN, .max_version = OCP_VERSION_MAX, .role = OCP_ROLE_VIEWER,
-                       .budget = 1u << 20, .max_depth = 21, .width = 64, .height = 64, .caps = OCP_CAP_ALL};
-      oc_buf_t tmp = {0};
-      ocp_put_hello(&tmp, &h);
-      oc_buf_append(&c->out, tmp.data, tmp.len / 2);
-      oc_buf_free(&tmp);
-      sf_flush(c);
-    }
-    sf_reset(c->fd); /* variants 0 and 1 end here */
-    c->fd = -1;
-    sf_conn_free(c, 0);
-    free(c);
+    sf_drop_now(c); /* variants 0 and 1 end here */
     f->n--;
     return;
-  } else { /* garbage before any HELLO */
-    uint8_t b[64];
-    size_t len = 0;
-    if (variant == 0) {
-      for (size_t i = 0; i < sizeof b; i++) b[i] = (uint8_t)sf_rand(f);
-      b[0] = 0xEE; /* never the magic */
-      len = sizeof b;
-    } else if (variant == 1) {
-      uint8_t h[8] = {OCP_MAGIC0, OCP_MAGIC1, OCP_VERSION_MAX, OCP_MSG_HELLO, 0xF0, 0xFF, 0xFF, 0xFF};
-      memcpy(b, h, 8);
-      len = 8;
-    } else if (variant == 2) {
-      uint8_t h[11] = {OCP_MAGIC0, OCP_MAGIC1, OCP_VERSION_MAX, OCP_MSG_HELLO, 3, 0, 0, 0, 1, 2, 3};
-      memcpy(b, h, sizeof h);
-      len = sizeof h;
-    } else {
-      uint8_t h[3] = {OCP_MAGIC0, OCP_MAGIC1, OCP_VERSION_MAX};
-      memcpy(b, h, sizeof h);
-      len = sizeof h;
-    }
-    oc_buf_append(&c->out, b, len);
+  } else {
+    sf_garbage(f, c);
   }
   if (sf_flush(c) < 0) {
     sf_resolve(f, c, 1, now);
@@ -370,6 +390,66 @@ static int sf_drain(sf_conn_t *c, double timeout_s) {
   return eof;
 }
 
+/* One connection after a poll: read what came, keep a stalled viewer's session alive, write what
+ * waits, judge a deadline. @return 1 when the connection is resolved (gone), else 0. */
+static int sf_tend(stress_faults_t *f, sf_conn_t *c, short revents, double now) {
+  if (revents & (POLLIN | POLLHUP | POLLERR)) {
+    int r = revents & POLLIN || !(c->kind == STRESS_FK_STALL && c->welcomed) ? sf_read(f, c, now) : 1;
+    if (r < 0) { /* our own reset (drop) */
+      sf_reset(c->fd);
+      c->fd = -1;
+      if (c->variant == 3) f->st.states_before_drop += (uint64_t)c->states;
+      sf_resolve(f, c, 0, now);
+      return 1;
+    }
+    if (r > 0) {
+      sf_resolve(f, c, 1, now);
+      return 1;
+    }
+  }
+  if (c->kind == STRESS_FK_STALL && c->variant == 1 && c->welcomed && now - c->last_keepalive >= 1.0) {
+    ocp_viewer_keepalive(c->sess, &c->out);
+    c->last_keepalive = now;
+  }
+  if (c->out.len && sf_flush(c) < 0) {
+    sf_resolve(f, c, 1, now);
+    return 1;
+  }
+  if (c->deadline > 0 && now > c->deadline) {
+    sf_resolve(f, c, 0, now);
+    return 1;
+  }
+  return 0;
+}
+
+/* The end of the thread: every connection left judged and freed. */
+static void sf_finish(stress_faults_t *f) {
+  /* What is left: stalled viewers (and drops waiting for an epoch). Whether the server let a
+   * stalled one go shows only by reading what it could not deliver: EOF after it, or nothing more. */
+  double end = stress_now();
+  for (int i = 0; i < f->n; i++) {
+    sf_conn_t *c = f->c[i];
+    if (c->kind == STRESS_FK_STALL && c->stalled_at > 0) {
+      int eof = sf_drain(c, 3.0);
+      double held = end - c->stalled_at;
+      if (eof) {
+        f->st.closed[STRESS_FK_STALL]++;
+        if (c->got_error) f->st.errors[STRESS_FK_STALL]++;
+      } else {
+        f->st.open_at_end++;
+        if (f->st.stall_s > 0 && held > f->st.stall_s + STRESS_FAULT_STALL_GRACE) {
+          f->st.late++;
+          sf_fail(f, "stall %d: a viewer that stopped reading is still held %.1f s later (the server's stall timeout is %.0f s)",
+                  c->variant, held, f->st.stall_s);
+        }
+      }
+    }
+    sf_conn_free(c, 0);
+    free(c);
+  }
+  f->n = 0;
+}
+
 static void *sf_main(void *arg) {
   stress_faults_t *f = arg;
   stress_run_t *run = f->run;
@@ -416,33 +496,7 @@ static void *sf_main(void *arg) {
     now = stress_now();
     for (int i = 0; i < f->n; i++) {
       sf_conn_t *c = f->c[i];
-      int gone = 0;
-      if (pf[i].revents & (POLLIN | POLLHUP | POLLERR)) {
-        int r = pf[i].revents & POLLIN || !(c->kind == STRESS_FK_STALL && c->welcomed) ? sf_read(f, c, now) : 1;
-        if (r < 0) { /* our own reset (drop) */
-          sf_reset(c->fd);
-          c->fd = -1;
-          if (c->variant == 3) f->st.states_before_drop += (uint64_t)c->states;
-          sf_resolve(f, c, 0, now);
-          gone = 1;
-        } else if (r > 0) {
-          sf_resolve(f, c, 1, now);
-          gone = 1;
-        }
-      }
-      if (!gone && c->kind == STRESS_FK_STALL && c->variant == 1 && c->welcomed && now - c->last_keepalive >= 1.0) {
-        ocp_viewer_keepalive(c->sess, &c->out);
-        c->last_keepalive = now;
-      }
-      if (!gone && c->out.len && sf_flush(c) < 0) {
-        sf_resolve(f, c, 1, now);
-        gone = 1;
-      }
-      if (!gone && c->deadline > 0 && now > c->deadline) {
-        sf_resolve(f, c, 0, now);
-        gone = 1;
-      }
-      if (gone) {
+      if (sf_tend(f, c, pf[i].revents, now)) {
         free(c);
         f->c[i] = f->c[--f->n];
         pf[i] = pf[f->n];
@@ -450,30 +504,7 @@ static void *sf_main(void *arg) {
       }
     }
   }
-  /* What is left: stalled viewers (and drops waiting for an epoch). Whether the server let a
-   * stalled one go shows only by reading what it could not deliver: EOF after it, or nothing more. */
-  double end = stress_now();
-  for (int i = 0; i < f->n; i++) {
-    sf_conn_t *c = f->c[i];
-    if (c->kind == STRESS_FK_STALL && c->stalled_at > 0) {
-      int eof = sf_drain(c, 3.0);
-      double held = end - c->stalled_at;
-      if (eof) {
-        f->st.closed[STRESS_FK_STALL]++;
-        if (c->got_error) f->st.errors[STRESS_FK_STALL]++;
-      } else {
-        f->st.open_at_end++;
-        if (f->st.stall_s > 0 && held > f->st.stall_s + STRESS_FAULT_STALL_GRACE) {
-          f->st.late++;
-          sf_fail(f, "stall %d: a viewer that stopped reading is still held %.1f s later (the server's stall timeout is %.0f s)",
-                  c->variant, held, f->st.stall_s);
-        }
-      }
-    }
-    sf_conn_free(c, 0);
-    free(c);
-  }
-  f->n = 0;
+  sf_finish(f);
   free(pf);
   return NULL;
 }

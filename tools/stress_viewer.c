@@ -192,38 +192,9 @@ static void sv_tap(void *ctx, const uint8_t *p, size_t n) {
   stress_scan_feed(&v->scan, p, n, v->poll_utc, sv_on_begin, v);
 }
 
-static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
-  stress_viewer_t *v = ctx;
-  stress_run_t *run = v->run;
-  double t = stress_now();
-  int stepped = v->welcome.epoch_period == 0;
-  v->states++;
-  v->new_state = 1;
-  double prev_at = v->state_at;
-  if (v->states > 1) stress_samples_add(&v->interval, t - prev_at);
-  v->state_at = t;
-  v->bricks_in += bricks;
-  v->nodes_last = s->node_count;
-  int deepest = -1;
-  for (uint32_t i = 0; i < s->node_count; i++) {
-    int l = oc_key_level(s->nodes[i].key);
-    if (l > deepest) deepest = l;
-  }
-  v->depth_last = deepest;
-  if (deepest > v->depth_max) v->depth_max = deepest;
-  pthread_mutex_lock(&run->mu);
-  int measured = run->measure_from > 0 && t >= run->measure_from;
-  pthread_mutex_unlock(&run->mu);
-  if (measured) {
-    if (v->m_states) {
-      stress_samples_add(&v->m_interval, t - prev_at);
-      if (s->epoch > v->last_epoch + 1) v->m_skipped += s->epoch - v->last_epoch - 1;
-    } else {
-      v->m_t0 = t;
-      v->m_bytes0 = sv_bytes_in(v);
-    }
-    v->m_states++;
-  }
+/* The state's epoch against the last: the first, one after a restart (its resync time), one that
+ * does not increase (a protocol error), or skipped epochs (counted and listed). */
+static void sv_epoch_sequence(stress_viewer_t *v, const oc_state_t *s, double t) {
   if (v->fresh) { /* the first state from a server that came back: its epochs start anew */
     v->fresh = 0;
     stress_samples_add(&v->resync, t - v->lost_at);
@@ -238,25 +209,20 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
       v->skipped++;
       if (v->nskipped_list < STRESS_SKIPS_LISTED) v->skipped_list[v->nskipped_list++] = e;
     }
-    if (run->o->verbose)
+    if (v->run->o->verbose)
       fprintf(stderr, "overcast-stress: viewer %d (%s): skipped epoch%s %" PRIu64 "..%" PRIu64 "\n", v->index, sv_name(v),
               s->epoch - v->last_epoch > 2 ? "s" : "", v->last_epoch + 1, s->epoch - 1);
   }
-  v->last_epoch = s->epoch;
-  if (v->settle.phase && v->teleport_epoch == UINT64_MAX) v->teleport_epoch = s->epoch - 1;
-  if (!stepped) { /* lateness and coalesced ticks */
-    double begin = v->begin_seen && v->begin_epoch == s->epoch ? v->begin_utc : NAN;
-    stress_ticks_add(&v->ticks, s->epoch, begin);
-    if (measured) stress_ticks_add(&v->m_ticks, s->epoch, begin);
-  }
-  sv_sample_bricks(v, s, measured);
+}
 
-  /* The budget measure, counted here: this state and the K−1 before it. */
+/* The budget measure, counted here from this state and the K−1 before it, against the budget in
+ * force; and against the session's own count. @return 0, or -1 (out of memory: the viewer failed). */
+static int sv_budget_check(stress_viewer_t *v, const oc_state_t *s, uint64_t *resident_out) {
   int keep = v->welcome.kept_states > 1 ? v->welcome.kept_states - 1 : 1;
   if (keep > 2) keep = 2;
   if (sv_footprint(&v->fp_new, s) < 0) {
     sv_fail(v, "viewer %d: out of memory", v->index);
-    return;
+    return -1;
   }
   v->bricks_last = v->fp_new.n; /* brick records: a lean state carries no brick payloads */
   const stress_footprint_t *win[3] = {&v->fp_new, &v->fp[0], &v->fp[1]};
@@ -291,6 +257,54 @@ static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
               v->index, sv_name(v), s->epoch, resident, ss.resident_bytes);
     v->resident_mismatch++;
   }
+  *resident_out = resident;
+  return 0;
+}
+
+static void sv_on_state(void *ctx, const oc_state_t *s, uint32_t bricks) {
+  stress_viewer_t *v = ctx;
+  stress_run_t *run = v->run;
+  double t = stress_now();
+  int stepped = v->welcome.epoch_period == 0;
+  v->states++;
+  v->new_state = 1;
+  double prev_at = v->state_at;
+  if (v->states > 1) stress_samples_add(&v->interval, t - prev_at);
+  v->state_at = t;
+  v->bricks_in += bricks;
+  v->nodes_last = s->node_count;
+  int deepest = -1;
+  for (uint32_t i = 0; i < s->node_count; i++) {
+    int l = oc_key_level(s->nodes[i].key);
+    if (l > deepest) deepest = l;
+  }
+  v->depth_last = deepest;
+  if (deepest > v->depth_max) v->depth_max = deepest;
+  pthread_mutex_lock(&run->mu);
+  int measured = run->measure_from > 0 && t >= run->measure_from;
+  pthread_mutex_unlock(&run->mu);
+  if (measured) {
+    if (v->m_states) {
+      stress_samples_add(&v->m_interval, t - prev_at);
+      if (s->epoch > v->last_epoch + 1) v->m_skipped += s->epoch - v->last_epoch - 1;
+    } else {
+      v->m_t0 = t;
+      v->m_bytes0 = sv_bytes_in(v);
+    }
+    v->m_states++;
+  }
+  sv_epoch_sequence(v, s, t);
+  v->last_epoch = s->epoch;
+  if (v->settle.phase && v->teleport_epoch == UINT64_MAX) v->teleport_epoch = s->epoch - 1;
+  if (!stepped) { /* lateness and coalesced ticks */
+    double begin = v->begin_seen && v->begin_epoch == s->epoch ? v->begin_utc : NAN;
+    stress_ticks_add(&v->ticks, s->epoch, begin);
+    if (measured) stress_ticks_add(&v->m_ticks, s->epoch, begin);
+  }
+  sv_sample_bricks(v, s, measured);
+
+  uint64_t resident;
+  if (sv_budget_check(v, s, &resident) < 0) return;
 
   /* Latencies. The first byte of this epoch was seen unless it came in one read with the last one. */
   double transfer = !v->between && v->epoch_first_byte > 0 ? t - v->epoch_first_byte : NAN;
