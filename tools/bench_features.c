@@ -318,27 +318,22 @@ typedef struct {
 static const oc_cli_opt_t feat_opts[] = {
     OCT_OPT_SCENE(feat_opts_t),
     OCT_OPT_CAMERA(feat_opts_t),
-    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, epochs), .arg = "N", .lo = 1, .hi = 100000,
-     .def = "6", .help = "epochs to step per configuration"},
-    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, budget), .arg = "MIB", .lo = 1,
-     .hi = 1 << 20, .def = "64", .help = "the viewer's budget (2048-byte slots, 32-byte records)"},
-    {.name = "viewport", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(feat_opts_t, viewport),
-     .arg = "WxH", .def = "1280x720", .help = "the viewport the server plans for"},
-    {.name = "size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(feat_opts_t, size), .arg = "WxH",
-     .def = "160x90", .help = "rendered image size"},
+    OCT_INT(feat_opts_t, epochs, "epochs", "N", 1, 100000, "6", "epochs to step per configuration"),
+    OCT_INT(feat_opts_t, budget, "budget", "MIB", 1, 1 << 20, "64", "the viewer's budget (2048-byte slots, 32-byte "
+        "records)"),
+    OCT_SIZE(feat_opts_t, viewport, "viewport", "1280x720", "the viewport the server plans for"),
+    OCT_SIZE(feat_opts_t, size, "size", "160x90", "rendered image size"),
     OCT_OPT_RENDERER(feat_opts_t, "renderer of the final state (gl: headless EGL)"),
-    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, repeat), .arg = "N", .lo = 1, .hi = 1000,
-     .def = "3", .help = "table builds and renders per configuration; the fastest counts"},
-    {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(feat_opts_t, threads), .arg = "N", .lo = 0, .hi = 64,
-     .def_note = "all cores", .help = "producer, table and CPU render threads; 0: all cores"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_INT(feat_opts_t, repeat, "repeat", "N", 1, 1000, "3", "table builds and renders per configuration; the "
+        "fastest counts"),
+    OCT_INT_NOTE(feat_opts_t, threads, "threads", "N", 0, 64, "all cores", "producer, table and CPU render threads; "
+        "0: all cores"),
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_features_spec = {
-    .prog = "overcast-bench features",
-    .about = "Each feature a scene uses turned off alone (all of the scene's features first; the camera held still):\n"
-             "server time, bricks, wire, memory, tables, render.\n\noptions:\n",
-    .opts = feat_opts};
+OCT_SPEC(features,
+         "Each feature a scene uses turned off alone (all of the scene's features first; the camera held still):\n"
+         "server time, bricks, wire, memory, tables, render.",
+         feat_opts);
 
 /*-*** The subcommand ***/
 

@@ -79,21 +79,15 @@ typedef struct {
 
 static const oc_cli_opt_t field_opts[] = {
     OCT_OPT_SCENE(field_opts_t),
-    {.name = "levels", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = offsetof(field_opts_t, levels),
-     .arg = "LIST", .lo = 0, .hi = 21, .def = "10,13,16", .help = "octree levels"},
-    {.name = "block", .type = OC_CLI_INT, .offset = offsetof(field_opts_t, block), .arg = "N", .lo = 1, .hi = 64,
-     .def = "6", .help = "N³ nodes per level around the scene camera"},
-    OCT_OPT_AT(field_opts_t),
-    OCT_OPT_ALT(field_opts_t),
+    OCT_LIST(field_opts_t, levels, "levels", 0, 21, "10,13,16", "octree levels"),
+    OCT_INT(field_opts_t, block, "block", "N", 1, 64, "6", "N³ nodes per level around the scene camera"),
+    OCT_OPT_PLACE(field_opts_t),
     OCT_OPT_TIME(field_opts_t),
-    {.name = "march-clear", .type = OC_CLI_FLAG, .offset = offsetof(field_opts_t, march_clear),
-     .help = "march τ even where the sun column is proven clear (the state before the clear-sky shortcut; the "
-             "same bits, counted as clear marched)"},
-    {.name = "exact", .type = OC_CLI_FLAG, .offset = offsetof(field_opts_t, exact),
-     .help = "also sample the same nodes through the sources' exact box filter: its µs per brick beside the fast "
-             "filter's, and the fast one's error"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_FLAG(field_opts_t, march_clear, "march-clear", "march τ even where the sun column is proven clear (the "
+        "state before the clear-sky shortcut; the same bits, counted as clear marched)"),
+    OCT_FLAG(field_opts_t, exact, "exact", "also sample the same nodes through the sources' exact box filter: its "
+        "µs per brick beside the fast filter's, and the fast one's error"),
+    OCT_OPTS_END};
 
 const oc_cli_spec_t oct_bench_field_spec = {
     .prog = "overcast-bench field",

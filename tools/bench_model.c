@@ -200,16 +200,12 @@ static const oc_cli_opt_t model_opts[] = {
              "diffuse decay"},
     {.name = "abc", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "A,B,C", .def_note = "the scene's",
      .help = "octave factors"},
-    {.name = "legacy", .type = OC_CLI_FLAG, .offset = offsetof(oct__model_opts_t, legacy),
-     .help = "also score the plain octaves (the model before the fit)"},
-    {.name = "quiet", .type = OC_CLI_FLAG, .offset = offsetof(oct__model_opts_t, quiet),
-     .help = "only the summary and the fit objective"},
-    {.name = "search", .type = OC_CLI_INT, .offset = offsetof(oct__model_opts_t, search), .arg = "N", .lo = 1,
-     .hi = 100000, .def_note = "none",
-     .help = "N Nelder-Mead iterations on the eight numbers from the given (or default) start; prints the best "
-             "--abc and --fit, then scores the cases with them"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_FLAG(oct__model_opts_t, legacy, "legacy", "also score the plain octaves (the model before the fit)"),
+    OCT_FLAG(oct__model_opts_t, quiet, "quiet", "only the summary and the fit objective"),
+    OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
+        "eight numbers from the given (or default) start; prints the best --abc and --fit, then scores the cases "
+        "with them"),
+    OCT_OPTS_END};
 
 const oc_cli_spec_t oct_bench_model_spec = {
     .prog = "overcast-bench model",

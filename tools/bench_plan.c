@@ -122,23 +122,16 @@ typedef struct {
 } plan_opts_t;
 
 static const oc_cli_opt_t plan_opts[] = {
-    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(plan_opts_t, budget), .arg = "MIB", .lo = 1,
-     .hi = 1 << 20, .def_note = "2048, or what --leaves needs",
-     .help = "viewer budget (2048-byte slots, 32-byte records, 2 kept states)"},
-    {.name = "leaves", .type = OC_CLI_INT, .offset = offsetof(plan_opts_t, leaves), .arg = "N", .lo = 8,
-     .hi = 100000000, .def_note = "none",
-     .help = "target leaves: alone, sizes the budget for N brick leaves; with --budget, stops the build-up at N "
-             "leaves"},
-    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(plan_opts_t, repeat), .arg = "N", .lo = 1, .hi = 64,
-     .def = "5", .help = "re-plans timed per case; the median counts"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_INT_NOTE(plan_opts_t, budget, "budget", "MIB", 1, 1 << 20, "2048, or what --leaves needs", "viewer budget "
+        "(2048-byte slots, 32-byte records, 2 kept states)"),
+    OCT_INT_NOTE(plan_opts_t, leaves, "leaves", "N", 8, 100000000, "none", "target leaves: alone, sizes the budget "
+        "for N brick leaves; with --budget, stops the build-up at N leaves"),
+    OCT_INT(plan_opts_t, repeat, "repeat", "N", 1, 64, "5", "re-plans timed per case; the median counts"),
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_plan_spec = {
-    .prog = "overcast-bench plan",
-    .about = "LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core.\n\n"
-             "options:\n",
-    .opts = plan_opts};
+OCT_SPEC(plan,
+         "LOD planner: a re-plan of about a million leaves (still, moved, teleported), ms on one core.",
+         plan_opts);
 
 int oct_bench_plan(const char *prog, int argc, char **argv) {
   plan_opts_t o = {0};

@@ -171,27 +171,20 @@ static const oc_cli_opt_t render_opts[] = {
      .help = "scene; with procedural or vdb sources, the state the server core plans for a viewer at this camera "
              "(8 epochs, 64 MiB)"},
     OCT_OPT_CAMERA(render_opts_t),
-    {.name = "size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(render_opts_t, size),
-     .arg = "WxH", .def = "320x180", .help = "image size"},
-    {.name = "threads", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = offsetof(render_opts_t, threads),
-     .arg = "LIST", .lo = 1, .hi = 256, .def = "1,2", .help = "comma-separated thread counts"},
-    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(render_opts_t, repeat), .arg = "N", .lo = 1, .hi = 1000,
-     .def = "3", .help = "renders per thread count; the fastest counts"},
-    {.name = "step-factor", .type = OC_CLI_DOUBLE, .offset = offsetof(render_opts_t, step), .arg = "X", .lo = 1e-3,
-     .hi = 1e3, .def = "0.5", .help = "step × voxel spacing"},
+    OCT_SIZE(render_opts_t, size, "size", "320x180", "image size"),
+    OCT_LIST(render_opts_t, threads, "threads", 1, 256, "1,2", "comma-separated thread counts"),
+    OCT_INT(render_opts_t, repeat, "repeat", "N", 1, 1000, "3", "renders per thread count; the fastest counts"),
+    OCT_DBL(render_opts_t, step, "step-factor", "X", 1e-3, 1e3, "0.5", "step × voxel spacing"),
     OCT_OPT_TIME(render_opts_t),
-    {.name = "png", .type = OC_CLI_STRING, .offset = offsetof(render_opts_t, png), .arg = "FILE",
-     .help = "also write the first thread count's image"},
+    OCT_STR(render_opts_t, png, "png", "FILE", "also write the first thread count's image"),
     {.name = "gl", .type = OC_CLI_CUSTOM, .parse = opt_gl, .offset = offsetof(render_opts_t, gl),
      .help = "also time the GL compute renderer (headless EGL) on the same state and give its RMSE against the "
              "CPU image"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_render_spec = {
-    .prog = "overcast-bench render",
-    .about = "CPU reference renderer throughput per thread count.\n\noptions:\n",
-    .opts = render_opts};
+OCT_SPEC(render,
+         "CPU reference renderer throughput per thread count.",
+         render_opts);
 
 /* The state to render: analytic scenes voxelized with exact τ; others as the server core plans
  * them for a viewer at this camera. */

@@ -300,22 +300,16 @@ static const oc_cli_opt_t st_opts[] = {
      .help = "image size; even sides, the centre pixel is checked"},
     {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = opt_renderers, .arg = "LIST",
      .def_note = "cpu,gl when a GL context can be made", .help = "cpu, gl or cpu,gl"},
-    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(st_opts_t, epochs), .arg = "N", .lo = 1, .hi = 100,
-     .def = "3", .help = "states each case waits for"},
-    {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(st_opts_t, threads), .arg = "N", .lo = 1, .hi = 64,
-     .def = "2", .help = "server producer and CPU render threads"},
-    {.name = "big", .type = OC_CLI_FLAG, .offset = offsetof(st_opts_t, big),
-     .help = "also the multi-GiB budget case (plans for a 4 GiB viewer)"},
-    {.name = "md", .type = OC_CLI_STRING, .offset = offsetof(st_opts_t, md), .arg = "FILE",
-     .help = "also write the table as Markdown"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_INT(st_opts_t, epochs, "epochs", "N", 1, 100, "3", "states each case waits for"),
+    OCT_INT(st_opts_t, threads, "threads", "N", 1, 64, "2", "server producer and CPU render threads"),
+    OCT_FLAG(st_opts_t, big, "big", "also the multi-GiB budget case (plans for a 4 GiB viewer)"),
+    OCT_STR(st_opts_t, md, "md", "FILE", "also write the table as Markdown"),
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_stability_spec = {
-    .prog = "overcast-bench stability",
-    .about = "Stiff and extreme cases end to end, each through a server on 127.0.0.1, the wire protocol and the\n"
-             "renderers: finite, bounded, known answers.\n\noptions:\n",
-    .opts = st_opts};
+OCT_SPEC(stability,
+         "Stiff and extreme cases end to end, each through a server on 127.0.0.1, the wire protocol and the\n"
+         "renderers: finite, bounded, known answers.",
+         st_opts);
 
 /* One case's rows (to stdout and md); @return the rows that failed. */
 static int st_case_rows(const char *prog, const st_case_t *k, int i, st_opts_t *o, const char *tmpdir, FILE *md) {

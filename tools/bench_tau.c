@@ -32,26 +32,20 @@ typedef struct {
 
 static const oc_cli_opt_t tau_opts[] = {
     OCT_OPT_SCENE(tau_opts_t),
-    {.name = "level", .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = offsetof(tau_opts_t, levels),
-     .arg = "LIST", .lo = 2, .hi = 21, .def = "13", .help = "octree levels of the nodes"},
-    {.name = "block", .type = OC_CLI_INT, .offset = offsetof(tau_opts_t, block), .arg = "N", .lo = 1, .hi = 32,
-     .def = "8", .help = "N³ nodes per level, aligned to volume groups"},
-    OCT_OPT_AT(tau_opts_t),
-    OCT_OPT_ALT(tau_opts_t),
+    OCT_LIST(tau_opts_t, levels, "level", 2, 21, "13", "octree levels of the nodes"),
+    OCT_INT(tau_opts_t, block, "block", "N", 1, 32, "8", "N³ nodes per level, aligned to volume groups"),
+    OCT_OPT_PLACE(tau_opts_t),
     OCT_OPT_TIME(tau_opts_t),
-    {.name = "sun-zenith", .type = OC_CLI_DOUBLE, .offset = offsetof(tau_opts_t, zenith), .arg = "DEG", .lo = 0,
-     .hi = 180, .def_note = "the scene's sun", .help = "the sun this far from the zenith, toward the east, at the block"},
-    {.name = "repeat", .type = OC_CLI_INT, .offset = offsetof(tau_opts_t, repeat), .arg = "N", .lo = 1, .hi = 100,
-     .def = "3", .help = "timed passes; the fastest counts"},
-    {.name = "reference", .type = OC_CLI_FLAG, .offset = offsetof(tau_opts_t, reference),
-     .help = "also compare both methods with a converged march (8x the direct's cost)"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_DBL_NOTE(tau_opts_t, zenith, "sun-zenith", "DEG", 0, 180, "the scene's sun", "the sun this far from the "
+        "zenith, toward the east, at the block"),
+    OCT_INT(tau_opts_t, repeat, "repeat", "N", 1, 100, "3", "timed passes; the fastest counts"),
+    OCT_FLAG(tau_opts_t, reference, "reference", "also compare both methods with a converged march (8x the direct's "
+        "cost)"),
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_tau_spec = {
-    .prog = "overcast-bench tau",
-    .about = "Sun optical depth τ: direct march vs group volume, µs per brick and the volume's error.\n\noptions:\n",
-    .opts = tau_opts};
+OCT_SPEC(tau,
+         "Sun optical depth τ: direct march vs group volume, µs per brick and the volume's error.",
+         tau_opts);
 
 /*-*** The bench ***/
 

@@ -768,15 +768,13 @@ static const oc_cli_opt_t truth_opts[] = {
     {.name = "slab-photons", .type = OC_CLI_INT, .offset = AT(photons), .arg = "N", .lo = 1000, .hi = 1000000000,
      .def = "1000000", .help = "photons per slab case"},
     {.name = "no-slab-check", .type = OC_CLI_FLAG, .offset = AT(no_check), .help = "skip those checks before the truth run"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_OPTS_END};
 #undef AT
 
-const oc_cli_spec_t oct_bench_truth_spec = {
-    .prog = "overcast-bench truth",
-    .about = "Monte Carlo ground truth (delta tracking, every scattering order) for small views, against the CPU\n"
-             "reference renderer; bench only.\n\noptions:\n",
-    .opts = truth_opts};
+OCT_SPEC(truth,
+         "Monte Carlo ground truth (delta tracking, every scattering order) for small views, against the CPU\n"
+         "reference renderer; bench only.",
+         truth_opts);
 
 /*-*** The subcommand ***/
 

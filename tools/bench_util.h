@@ -48,29 +48,59 @@ int oct_opt_size(const char *prog, const oc_cli_opt_t *o, const char *text, void
  *  renderer. */
 int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
 
-/* Rows that mean the same in every subcommand; T is the subcommand's options struct. */
+/* A table's rows of the common kinds, one option each: T is the subcommand's options struct and f
+ * the option's field in it; lo, hi the inclusive range, def the default as an argument would be
+ * written (NULL: none), help one sentence. Rows of other kinds are written out. */
+#define OCT_INT(T, f, name_, arg_, lo_, hi_, def_, help_)                                                           \
+  {.name = name_, .type = OC_CLI_INT, .offset = offsetof(T, f), .arg = arg_, .lo = lo_, .hi = hi_, .def = def_,      \
+   .help = help_}
+#define OCT_DBL(T, f, name_, arg_, lo_, hi_, def_, help_)                                                           \
+  {.name = name_, .type = OC_CLI_DOUBLE, .offset = offsetof(T, f), .arg = arg_, .lo = lo_, .hi = hi_, .def = def_,   \
+   .help = help_}
+/* the same with no default, only a note of what stands in for one ("all cores") */
+#define OCT_INT_NOTE(T, f, name_, arg_, lo_, hi_, note_, help_)                                                     \
+  {.name = name_, .type = OC_CLI_INT, .offset = offsetof(T, f), .arg = arg_, .lo = lo_, .hi = hi_,                  \
+   .def_note = note_, .help = help_}
+#define OCT_DBL_NOTE(T, f, name_, arg_, lo_, hi_, note_, help_)                                                     \
+  {.name = name_, .type = OC_CLI_DOUBLE, .offset = offsetof(T, f), .arg = arg_, .lo = lo_, .hi = hi_,               \
+   .def_note = note_, .help = help_}
+#define OCT_FLAG(T, f, name_, help_) {.name = name_, .type = OC_CLI_FLAG, .offset = offsetof(T, f), .help = help_}
+#define OCT_STR(T, f, name_, arg_, help_)                                                                           \
+  {.name = name_, .type = OC_CLI_STRING, .offset = offsetof(T, f), .arg = arg_, .help = help_}
+/* an oct_list_t (oct_opt_list()), an int[2] "WxH" (oct_opt_size()) */
+#define OCT_LIST(T, f, name_, lo_, hi_, def_, help_)                                                                \
+  {.name = name_, .type = OC_CLI_CUSTOM, .parse = oct_opt_list, .offset = offsetof(T, f), .arg = "LIST", .lo = lo_, \
+   .hi = hi_, .def = def_, .help = help_}
+#define OCT_SIZE(T, f, name_, def_, help_)                                                                          \
+  {.name = name_, .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = offsetof(T, f), .arg = "WxH", .def = def_, \
+   .help = help_}
+
+/* Rows that mean the same in every subcommand. */
 #define OCT_OPT_SCENE(T)                                                                                         \
   {.name = "scene", .type = OC_CLI_STRING, .offset = offsetof(T, scene), .arg = "FILE",                          \
    .def_note = "the built-in procedural planet", .help = "scene"}
 #define OCT_OPT_CAMERA(T)                                                                                        \
   {.name = "camera", .type = OC_CLI_STRING, .offset = offsetof(T, camera), .arg = "LAT,LON,ALT,HEADING,PITCH,FOV", \
    .def_note = "the scene's camera", .help = "the viewer's camera"}
-#define OCT_OPT_AT(T)                                                                                            \
+/* --at and --alt: the centre of a block of nodes (an oct_at_t at and a double alt) */
+#define OCT_OPT_PLACE(T)                                                                                         \
   {.name = "at", .type = OC_CLI_CUSTOM, .parse = oct_opt_at, .offset = offsetof(T, at), .arg = "LAT,LON",        \
-   .def_note = "the scene camera", .help = "centre of the block, in degrees"}
-#define OCT_OPT_ALT(T)                                                                                           \
-  {.name = "alt", .type = OC_CLI_DOUBLE, .offset = offsetof(T, alt), .arg = "M", .lo = -1e4, .hi = 1e5,          \
-   .def = "2000", .help = "altitude of the block's centre in metres"}
-#define OCT_OPT_TIME(T)                                                                                          \
-  {.name = "time", .type = OC_CLI_DOUBLE, .offset = offsetof(T, time), .arg = "T", .lo = -1e12, .hi = 1e12,      \
-   .def = "0", .help = "world time in seconds"}
-#define OCT_OPT_THREADS(T)                                                                                       \
-  {.name = "threads", .type = OC_CLI_INT, .offset = offsetof(T, threads), .arg = "N", .lo = 0, .hi = 64,         \
-   .def_note = "all cores", .help = "producer threads; 0: all cores"}
+   .def_note = "the scene camera", .help = "centre of the block, in degrees"},                                   \
+      OCT_DBL(T, alt, "alt", "M", -1e4, 1e5, "2000", "altitude of the block's centre in metres")
+#define OCT_OPT_TIME(T) OCT_DBL(T, time, "time", "T", -1e12, 1e12, "0", "world time in seconds")
+#define OCT_OPT_THREADS(T) OCT_INT_NOTE(T, threads, "threads", "N", 0, 64, "all cores", "producer threads; 0: all cores")
 #define OCT_OPT_RENDERER(T, text)                                                                                \
   {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = oct_opt_renderer, .offset = offsetof(T, gl), .arg = "cpu|gl", \
    .def = "cpu", .help = text}
 #define OCT_OPT_HELP {.name = "help", .type = OC_CLI_HELP, .help = "print this and exit"}
+/* a table's last rows: --help and the terminator */
+#define OCT_OPTS_END OCT_OPT_HELP, {0}
+
+/*! OCT_SPEC() : defines oct_bench_<cmd>_spec (bench.h) from the subcommand's table and a line or two
+ *  about it (ending without a newline). */
+#define OCT_SPEC(cmd, about_, table)                                                                               \
+  const oc_cli_spec_t oct_bench_##cmd##_spec = {                                                                   \
+      .prog = "overcast-bench " #cmd, .about = about_ "\n\noptions:\n", .opts = table}
 
 /*-*** The preamble ***/
 

@@ -213,23 +213,18 @@ typedef struct {
 } wire_opts_t;
 
 static const oc_cli_opt_t wire_opts[] = {
-    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(wire_opts_t, epochs), .arg = "N", .lo = 1, .hi = 100000,
-     .def = "8", .help = "epochs to step"},
-    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(wire_opts_t, budget), .arg = "MIB", .lo = 1,
-     .hi = 1 << 20, .def = "64", .help = "the viewer's budget (2048-byte slots, 32-byte records)"},
-    {.name = "level", .type = OC_CLI_INT, .offset = offsetof(wire_opts_t, level), .arg = "N", .lo = 1, .hi = 19,
-     .def = OC_CLI_STR(OCP_LEVEL_DEFAULT), .help = "zstd level of every variant"},
+    OCT_INT(wire_opts_t, epochs, "epochs", "N", 1, 100000, "8", "epochs to step"),
+    OCT_INT(wire_opts_t, budget, "budget", "MIB", 1, 1 << 20, "64", "the viewer's budget (2048-byte slots, 32-byte "
+        "records)"),
+    OCT_INT(wire_opts_t, level, "level", "N", 1, 19, OC_CLI_STR(OCP_LEVEL_DEFAULT), "zstd level of every variant"),
     OCT_OPT_THREADS(wire_opts_t),
-    {.name = "csv", .type = OC_CLI_STRING, .offset = offsetof(wire_opts_t, csv), .arg = "FILE",
-     .help = "also write one row per epoch and variant"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_STR(wire_opts_t, csv, "csv", "FILE", "also write one row per epoch and variant"),
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_wire_spec = {
-    .prog = "overcast-bench wire",
-    .about = "Epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary (the built-in procedural\n"
-             "planet, one viewer at its camera; every decode is checked).\n\noptions:\n",
-    .opts = wire_opts};
+OCT_SPEC(wire,
+         "Epoch encodings side by side: per-brick zstd, batches, deltas, a dictionary (the built-in procedural\n"
+         "planet, one viewer at its camera; every decode is checked).",
+         wire_opts);
 
 typedef struct {
   const char *prog;

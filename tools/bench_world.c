@@ -45,29 +45,23 @@ typedef struct {
 
 static const oc_cli_opt_t world_opts[] = {
     OCT_OPT_SCENE(world_opts_t),
-    {.name = "viewers", .type = OC_CLI_INT, .offset = offsetof(world_opts_t, viewers), .arg = "N", .lo = 1, .hi = 64,
-     .def = "1", .help = "viewers, spread around the camera's heading when orbiting"},
-    {.name = "epochs", .type = OC_CLI_INT, .offset = offsetof(world_opts_t, epochs), .arg = "N", .lo = 1,
-     .hi = 100000, .def = "20", .help = "epochs to step"},
-    {.name = "budget", .type = OC_CLI_INT, .offset = offsetof(world_opts_t, budget), .arg = "MIB", .lo = 1,
-     .hi = 1 << 20, .def = "64", .help = "each viewer's budget (2048-byte slots, 32-byte records)"},
+    OCT_INT(world_opts_t, viewers, "viewers", "N", 1, 64, "1", "viewers, spread around the camera's heading when "
+        "orbiting"),
+    OCT_INT(world_opts_t, epochs, "epochs", "N", 1, 100000, "20", "epochs to step"),
+    OCT_INT(world_opts_t, budget, "budget", "MIB", 1, 1 << 20, "64", "each viewer's budget (2048-byte slots, "
+        "32-byte records)"),
     OCT_OPT_THREADS(world_opts_t),
     OCT_OPT_CAMERA(world_opts_t),
-    {.name = "orbit", .type = OC_CLI_DOUBLE, .offset = offsetof(world_opts_t, orbit), .arg = "DEG", .lo = -180,
-     .hi = 180, .def = "0", .help = "heading change per epoch; 0: a still camera"},
-    {.name = "split-fraction", .type = OC_CLI_DOUBLE, .offset = offsetof(world_opts_t, split), .arg = "X",
-     .lo = 0.001, .hi = 1, .def_note = "the planner's, 0.1", .help = "planner split cap per epoch as a fraction of capacity"},
-    {.name = "clocked", .type = OC_CLI_DOUBLE, .offset = offsetof(world_opts_t, clocked), .arg = "S", .lo = 0,
-     .hi = 3600, .def_note = "off",
-     .help = "clocked epochs: each tick shows only content that exists, then production runs S seconds; plan-ms "
-             "includes the target plans (target-ms)"},
-    OCT_OPT_HELP,
-    {0}};
+    OCT_DBL(world_opts_t, orbit, "orbit", "DEG", -180, 180, "0", "heading change per epoch; 0: a still camera"),
+    OCT_DBL_NOTE(world_opts_t, split, "split-fraction", "X", 0.001, 1, "the planner's, 0.1", "planner split cap per "
+        "epoch as a fraction of capacity"),
+    OCT_DBL_NOTE(world_opts_t, clocked, "clocked", "S", 0, 3600, "off", "clocked epochs: each tick shows only "
+        "content that exists, then production runs S seconds; plan-ms includes the target plans (target-ms)"),
+    OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_world_spec = {
-    .prog = "overcast-bench world",
-    .about = "The server core stepped for some epochs: plans, production, cache, refresh savings.\n\noptions:\n",
-    .opts = world_opts};
+OCT_SPEC(world,
+         "The server core stepped for some epochs: plans, production, cache, refresh savings.",
+         world_opts);
 
 /*-*** The bench ***/
 
