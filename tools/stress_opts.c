@@ -33,25 +33,32 @@ static int opt_u64(const char *p, const oc_cli_opt_t *o, const char *text, void 
   return 0;
 }
 
-/* "a,b,c" → integers in [lo, hi]. @return count, or -1 after a message naming the option. */
+/* The next item of a comma-separated list at *s (NULL: the list is over): its start and length;
+ * *s moves past it. @return 0 when the list is over. */
+static int next_item(const char **s, const char **item, size_t *len) {
+  if (!*s) return 0;
+  const char *comma = strchr(*s, ',');
+  *item = *s;
+  *len = comma ? (size_t)(comma - *s) : strlen(*s);
+  *s = comma ? comma + 1 : NULL;
+  return 1;
+}
+
+/* "a,b,c" → integers in the row's range. @return count, or -1 after a message naming the option. */
 static int parse_int_list(const char *p, const oc_cli_opt_t *o, const char *text, long *out, int cap) {
   int n = 0;
-  const char *s = text;
-  for (;;) {
-    const char *comma = strchr(s, ',');
-    size_t len = comma ? (size_t)(comma - s) : strlen(s);
-    char item[64];
-    if (len == 0 || len >= sizeof item || n >= cap) {
-      oc_cli_fail(p, 0, "--%s: expected a comma-separated list of at most %d integers, got \"%s\"", o->name, cap, text);
-      return -1;
-    }
-    memcpy(item, s, len);
-    item[len] = '\0';
-    if (row_int(p, o, item, &out[n]) < 0) return -1;
-    n++;
-    if (!comma) return n;
-    s = comma + 1;
+  const char *item;
+  size_t len;
+  for (const char *s = text; next_item(&s, &item, &len); n++) {
+    char buf[64];
+    if (len == 0 || len >= sizeof buf || n >= cap)
+      return oc_cli_fail(p, -1, "--%s: expected a comma-separated list of at most %d integers, got \"%s\"", o->name, cap,
+                         text);
+    memcpy(buf, item, len);
+    buf[len] = '\0';
+    if (row_int(p, o, buf, &out[n]) < 0) return -1;
   }
+  return n;
 }
 
 #define INT_LIST(fn, count, array)                                                        \
@@ -69,39 +76,37 @@ INT_LIST(opt_sweep_depths, nsweep_depths, sweep_depths)
 static int opt_paths(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
   stress_opts_t *c = base;
   int n = 0, cap = (int)(sizeof c->paths / sizeof c->paths[0]);
-  for (const char *s = text;; n++) {
-    const char *comma = strchr(s, ',');
-    size_t len = comma ? (size_t)(comma - s) : strlen(s);
-    int k = stress_path_parse(s, len);
+  const char *item;
+  size_t len;
+  for (const char *s = text; next_item(&s, &item, &len); n++) {
+    int k = stress_path_parse(item, len);
     if (k < 0)
-      return oc_cli_fail(p, -1, "--%s: unknown path \"%.*s\" (orbit, dive, cruise, teleport, random)", o->name, (int)len, s);
+      return oc_cli_fail(p, -1, "--%s: unknown path \"%.*s\" (orbit, dive, cruise, teleport, random)", o->name, (int)len,
+                         item);
     if (n >= cap) return oc_cli_fail(p, -1, "--%s: at most %d entries", o->name, cap);
     c->paths[n] = k;
-    if (!comma) break;
-    s = comma + 1;
   }
-  c->npaths = n + 1;
+  c->npaths = n;
   return 0;
 }
 
 static int opt_faults(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
   static const char *const names[] = {"stall", "drop", "garbage", "restart"};
   int f = 0;
-  for (const char *s = text;;) {
-    const char *comma = strchr(s, ',');
-    size_t len = comma ? (size_t)(comma - s) : strlen(s);
+  const char *item;
+  size_t len;
+  for (const char *s = text; next_item(&s, &item, &len);) {
     int k = -1;
-    if (len == 3 && !strncmp(s, "all", 3)) {
+    if (len == 3 && !strncmp(item, "all", 3)) {
       f |= (1 << STRESS_FK_COUNT) | ((1 << STRESS_FK_COUNT) - 1);
       k = 4;
     }
     for (int i = 0; i < 4 && k < 0; i++)
-      if (strlen(names[i]) == len && !strncmp(s, names[i], len)) k = i;
+      if (strlen(names[i]) == len && !strncmp(item, names[i], len)) k = i;
     if (k < 0)
-      return oc_cli_fail(p, -1, "--%s: unknown fault \"%.*s\" (stall, drop, garbage, restart, all)", o->name, (int)len, s);
+      return oc_cli_fail(p, -1, "--%s: unknown fault \"%.*s\" (stall, drop, garbage, restart, all)", o->name, (int)len,
+                         item);
     if (k < 4) f |= 1 << k;
-    if (!comma) break;
-    s = comma + 1;
   }
   ((stress_opts_t *)base)->faults = f;
   return 0;
@@ -212,8 +217,8 @@ static const oc_cli_opt_t opts[] = {
      .hi = 1L << 30, .group = SERVER, .help = "with --connect: a local server process to read RSS and CPU from"},
     {.name = "token", .type = OC_CLI_STRING, .offset = AT(token), .arg = "TEXT", .lo = 1, .hi = OCP_TOKEN_MAX,
      .group = SERVER, .help = "the server's token (passed on with --spawn)"},
-    {.name = "source-address", .type = OC_CLI_CUSTOM, .parse = opt_source, .arg = "IP", .def_note = "the system's choice",
-     .group = SERVER,
+    {.name = "source-address", .type = OC_CLI_CUSTOM, .parse = opt_source, .arg = "IP",
+     .def_note = "the system's choice", .group = SERVER,
      .help = "the viewers and the fault connections connect from this local address (bound before connecting, port "
              "0), e.g. 127.0.0.2: Linux routes all of 127.0.0.0/8 to the loopback (the control connection keeps the "
              "system's choice; fault connections need IPv4)"},
