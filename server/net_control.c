@@ -2,7 +2,9 @@
  * world time, sun, stepping, reload, sessions, stats, disconnect, drain, a viewer's budget. Requests and replies are JSON
  * objects (cJSON); they run on the loop thread and never while a step runs (net_input.c holds
  * them). Each op is a row of one table, which also says whether it changes the world: those go to
- * the audit log (net_audit.c) with their outcome. */
+ * the audit log (net_audit.c) with their outcome. A change of the world (weather, time, pause,
+ * resume, sun, step) is read into an ocs_change_t: applied here, or with --redis appended to the
+ * shared control history and answered once this front-end applies it (control_stream.h). */
 #include <cjson/cJSON.h>
 #include <inttypes.h>
 #include <math.h>
@@ -10,6 +12,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "control_stream.h"
 #include "net_internal.h"
 #include "net_share.h"
 #include "oc_err.h"
@@ -100,6 +103,17 @@ static int add_world(ctl_t *c) {
   return 0;
 }
 
+/* A change of the world: appended to the shared control history with --redis (the reply waits
+ * for this front-end to apply it), applied here otherwise. */
+static int change(ctl_t *c, const ocs_change_t *chg) {
+  ocs_server_t *srv = c->s->srv;
+  ocs_ctl_t *ctl = ocs_share_control(srv);
+  if (!ctl) return ocs_change_apply(srv->world, chg, ocs_net_utc(srv));
+  if (ocs_ctl_publish(ctl, c->s, c->request, chg, c->err, sizeof c->err) < 0) return OC_EIO;
+  c->waits = 1;
+  return 0;
+}
+
 static int op_weather(ctl_t *c) {
   const cJSON *pv = cJSON_GetObjectItemCaseSensitive(c->j, "preset");
   int preset = cJSON_IsString(pv) ? oc_scene_preset_parse(pv->valuestring) : OC_EINVAL;
@@ -108,25 +122,20 @@ static int op_weather(ctl_t *c) {
     return refuse(c, "weather: \"preset\" must be one of clear, fair, overcast, storm, cirrus (got %s)",
                   cJSON_IsString(pv) ? pv->valuestring : "nothing");
   if (!(sec >= 0 && sec <= 1e7)) return refuse(c, "weather: \"seconds\" must be a number in [0, 1e7]");
-  ocs_server_t *srv = c->s->srv;
-  return ocs_world_set_weather(srv->world, ocs_net_utc(srv), (oc_preset_t)preset, sec);
+  return change(c, &(ocs_change_t){.op = OCS_CHG_WEATHER, .preset = preset, .seconds = sec});
 }
 
 static int op_time(ctl_t *c) {
-  ocs_server_t *srv = c->s->srv;
   const cJSON *setv = cJSON_GetObjectItemCaseSensitive(c->j, "set"), *scv = cJSON_GetObjectItemCaseSensitive(c->j, "scale");
   double t = num(c->j, "set"), sc = num(c->j, "scale");
   if ((!setv && !scv) || (setv && !(fabs(t) <= 1e12)) || (scv && !(sc >= 0 && sc <= 1e6)))
     return refuse(c, "time: give \"set\" (s, |t| ≤ 1e12) and/or \"scale\" (0..1e6)");
-  int r = 0;
-  if (setv) r = ocs_world_set_time(srv->world, ocs_net_utc(srv), t);
-  if (r >= 0 && scv) r = ocs_world_set_time_scale(srv->world, ocs_net_utc(srv), sc);
-  return r;
+  return change(c, &(ocs_change_t){.op = OCS_CHG_TIME, .set = setv ? t : NAN, .scale = scv ? sc : NAN});
 }
 
-static int op_pause(ctl_t *c) { return ocs_world_pause(c->s->srv->world, ocs_net_utc(c->s->srv)); }
+static int op_pause(ctl_t *c) { return change(c, &(ocs_change_t){.op = OCS_CHG_PAUSE}); }
 
-static int op_resume(ctl_t *c) { return ocs_world_resume(c->s->srv->world, ocs_net_utc(c->s->srv)); }
+static int op_resume(ctl_t *c) { return change(c, &(ocs_change_t){.op = OCS_CHG_RESUME}); }
 
 static int op_sun(ctl_t *c) {
   const cJSON *dv = cJSON_GetObjectItemCaseSensitive(c->j, "dir");
@@ -146,7 +155,7 @@ static int op_sun(ctl_t *c) {
   }
   double l = oc_dlen(d);
   if (!(l > 1e-9 && isfinite(l))) return refuse(c, "sun: \"dir\" must be a finite non-zero vector");
-  return ocs_world_set_sun(c->s->srv->world, oc_dscale(d, 1.0 / l));
+  return change(c, &(ocs_change_t){.op = OCS_CHG_SUN, .sun = oc_dscale(d, 1.0 / l)});
 }
 
 static int op_step(ctl_t *c) {
@@ -156,10 +165,23 @@ static int op_step(ctl_t *c) {
   if (!(n >= 1 && n <= 1000 && n == floor(n))) return refuse(c, "step: \"epochs\" must be an integer in 1..1000");
   if (s->step_waiting) /* one waiting reply per connection: a second would lose the first */
     return refuse(c, "step: request %" PRIu32 " is still stepping on this connection; wait for its reply", s->step_request);
+  ocs_ctl_t *ctl = ocs_share_control(srv);
+  if (ctl && srv->period > 0)
+    return refuse(c, "step: with --redis the epochs of a clocked world tick on the clock of every front-end; "
+                     "steps are for stepped mode (--epoch-period 0)");
   s->step_waiting = 1;
   s->step_request = c->request;
-  s->step_target = srv->steps_done + srv->steps_queued + (uint64_t)n;
   c->waits = 1;
+  if (ctl) { /* the step is shared: its target is set when this front-end reads it (control_stream.c) */
+    s->step_target = UINT64_MAX;
+    if (ocs_ctl_publish(ctl, s, c->request, &(ocs_change_t){.op = OCS_CHG_STEP, .epochs = (uint32_t)n}, c->err,
+                        sizeof c->err) < 0) {
+      s->step_waiting = c->waits = 0;
+      return OC_EIO;
+    }
+    return 0;
+  }
+  s->step_target = srv->steps_done + srv->steps_queued + (uint64_t)n;
   ocs_server_queue_steps(srv, (uint64_t)n);
   return 0;
 }
@@ -247,6 +269,22 @@ static void step_done(ocs_session_t *s) {
   oc_buf_t b = {0};
   if (add_world(&c) < 0) cJSON_AddStringToObject(c.o, "error", "out of memory for the figures");
   reply(s, s->step_request, OCP_CODE_OK, c.o, &b);
+  ocs_session_send(s, &b);
+}
+
+void ocs_control_reply_later(ocs_server_t *srv, uint32_t session, uint32_t request, cJSON *o, const char *error) {
+  ocs_session_t *s = ocs_session_find(srv, session);
+  if (!s || s->state != OCS_SS_READY) {
+    cJSON_Delete(o);
+    return;
+  }
+  oc_buf_t b = {0};
+  if (error) {
+    cJSON_Delete(o);
+    fail(s, request, error, &b);
+  } else {
+    reply(s, request, OCP_CODE_OK, o ? o : cJSON_CreateObject(), &b);
+  }
   ocs_session_send(s, &b);
 }
 

@@ -22,6 +22,7 @@ static void close_quiet(uv_handle_t *h) {
  * answered (first: the input handled next may start a step), input held back by the step is
  * handled, and "step" requests whose epochs are done are answered. */
 static void after_step(ocs_server_t *srv) {
+  ocs_share_idle(srv); /* control entries due from the next epoch (control_stream.h) */
   ocs_metrics_resume(srv);
   for (ocs_session_t *s = srv->sessions, *nx; s; s = nx) {
     nx = s->next;
@@ -204,7 +205,7 @@ int ocs_server_run(ocs_server_t *srv, int handle_signals) {
     uv_signal_start(&srv->sig_term, on_signal, SIGTERM);
     srv->signals = 1;
   }
-  ocs_epoch_start_timer(srv);
+  if (!ocs_share_control(srv)) ocs_epoch_start_timer(srv); /* else once the control history is read */
   ocs_house_start(srv);
   uv_run(&srv->loop, UV_RUN_DEFAULT);
   return 0;

@@ -8,7 +8,10 @@
  * answers after that still count (offers and holds are safe while production runs). After
  * production, what was made here is stored for the others. Whenever Redis is down or slow the
  * lookup is skipped or cut short and everything is made locally: no tick ever waits for Redis
- * longer than the deadline. */
+ * longer than the deadline.
+ *
+ * The same --redis also holds the world's control history (control_stream.h), in clocked and in
+ * stepped mode; bricks are shared on the clock only (a stepped world makes everything it plans). */
 #include "net_share.h"
 
 #include <stdlib.h>
@@ -17,6 +20,7 @@
 #include <unistd.h>
 
 #include "brick_remote.h"
+#include "control_stream.h"
 #include "net_internal.h"
 #include "oc_err.h"
 #include "oc_log.h"
@@ -38,7 +42,8 @@ typedef struct {
 struct ocs_share_s {
   ocs_server_t *srv;
   ocs_redis_t *redis;
-  ocs_remote_t *tier;
+  ocs_remote_t *tier;   /* NULL: stepped, bricks not shared */
+  ocs_ctl_t *ctl;       /* the control history */
   uint64_t gen;          /* the world's generation: answers about an older world are dropped */
   int inflight;          /* fetches of this lookup not answered yet */
   int waiting;           /* production waits for this lookup */
@@ -102,9 +107,6 @@ static void ocs__on_found(void *ctx, int outcome, const uint8_t *content, size_t
 int ocs_share_open(ocs_server_t *srv, char *why, size_t why_len) {
   const ocs_server_desc_t *d = &srv->desc;
   if (!d->redis_host) return 0;
-  if (!(srv->period > 0))
-    return oc_errorf(OC_EINVAL, why, why_len, "--redis: bricks are shared between epochs on the clock only "
-                     "(an epoch period > 0)");
   ocs_share_t *sh = calloc(1, sizeof *sh);
   if (!sh) return OC_ENOMEM;
   sh->srv = srv;
@@ -112,17 +114,26 @@ int ocs_share_open(ocs_server_t *srv, char *why, size_t why_len) {
   ocs_redis_opts_t ro = {.host = d->redis_host, .port = d->redis_port, .seed = id};
   ocs_remote_opts_t to = {.deadline_ms = d->redis_deadline_ms > 0 ? (uint32_t)d->redis_deadline_ms : 200, .value_ttl_s = OCS_SHARE_TTL_S,
                           .frontend_id = id};
-  int r = ocs_redis_open(&sh->redis, &srv->loop, &ro);
-  if (r < 0 || (r = ocs_remote_create(&sh->tier, sh->redis, &to)) < 0) {
+  int r = 0;
+  if (srv->period > 0 && ((r = ocs_redis_open(&sh->redis, &srv->loop, &ro)) < 0 ||
+                          (r = ocs_remote_create(&sh->tier, sh->redis, &to)) < 0)) {
     ocs_redis_close(sh->redis);
     free(sh);
     return oc_errorf(r, why, why_len, "--redis %s:%d: %s", d->redis_host, d->redis_port, oc_strerror(r));
   }
+  if ((r = ocs_ctl_open(&sh->ctl, srv, id, why, why_len)) < 0) {
+    ocs_redis_close(sh->redis);
+    ocs_remote_free(sh->tier);
+    free(sh);
+    return r;
+  }
   uv_timer_init(&srv->loop, &sh->deadline);
   sh->deadline.data = sh;
   srv->share = sh;
-  oc_log_info("sharing bricks through redis %s:%d (content id %016llx)", d->redis_host, d->redis_port,
-              (unsigned long long)d->world.content_id);
+  if (sh->tier)
+    oc_log_info("sharing bricks through redis %s:%d (content id %016llx)", d->redis_host, d->redis_port,
+                (unsigned long long)d->world.content_id);
+  oc_log_info("control history in redis %s:%d, stream %s", d->redis_host, d->redis_port, OCS_CTL_STREAM);
   return 0;
 }
 
@@ -138,6 +149,7 @@ void ocs_share_close(ocs_server_t *srv) {
   if (!sh || sh->closing) return;
   ocs__lookup_end(sh); /* production must run and end for the server to stop */
   sh->closing = 1;
+  ocs_ctl_close(sh->ctl);
   ocs_redis_close(sh->redis); /* fetches in flight are answered now, and dropped */
   srv->share = NULL;
   uv_close((uv_handle_t *)&sh->deadline, ocs__share_closed);
@@ -145,7 +157,7 @@ void ocs_share_close(ocs_server_t *srv) {
 
 int ocs_share_lookup(ocs_server_t *srv, void (*go)(ocs_server_t *srv)) {
   ocs_share_t *sh = srv->share;
-  if (!sh || sh->waiting) return 0;
+  if (!sh || !sh->tier || sh->waiting) return 0;
   ocs_world_hold_clear(srv->world); /* each tick looks again */
   if (!ocs_redis_up(sh->redis)) {
     sh->st.skipped++;
@@ -182,7 +194,7 @@ int ocs_share_lookup(ocs_server_t *srv, void (*go)(ocs_server_t *srv)) {
 
 void ocs_share_store_made(ocs_server_t *srv) {
   ocs_share_t *sh = srv->share;
-  if (!sh) return;
+  if (!sh || !sh->tier) return;
   oc_key_t keys[256];
   uint64_t stamps[256];
   size_t n;
@@ -208,7 +220,7 @@ void ocs_share_world_changed(ocs_server_t *srv) {
 
 int ocs_share_content_id(const ocs_server_t *srv, const oc_scene_t *scene, uint64_t *out, char *why, size_t why_len) {
   *out = 0;
-  if (!srv->desc.redis_host) return 0;
+  if (!srv->desc.redis_host || !(srv->period > 0)) return 0; /* bricks are shared on the clock only */
   return ocs_scene_digest(srv->scene_path, scene, out, why, why_len);
 }
 
@@ -218,7 +230,9 @@ void ocs_share_stats(const ocs_server_t *srv, ocs_share_stats_t *out) {
   if (!sh) return;
   *out = sh->st;
   out->enabled = 1;
-  out->up = ocs_redis_up(sh->redis);
+  ocs_ctl_stats(sh->ctl, &out->control);
+  out->up = sh->tier ? ocs_redis_up(sh->redis) : out->control.up;
+  if (!sh->tier) return;
   ocs_remote_stats_t rs;
   ocs_remote_stats(sh->tier, &rs);
   out->hits = rs.hits;
@@ -228,3 +242,7 @@ void ocs_share_stats(const ocs_server_t *srv, ocs_share_stats_t *out) {
   out->rejected = rs.rejected;
   out->store_failures = rs.store_failures;
 }
+
+ocs_ctl_t *ocs_share_control(const ocs_server_t *srv) { return srv->share && !srv->share->closing ? srv->share->ctl : NULL; }
+
+void ocs_share_idle(ocs_server_t *srv) { ocs_ctl_idle(ocs_share_control(srv)); }

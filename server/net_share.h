@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "control_stream.h"
 #include "oc_scene.h"
 
 typedef struct ocs_server_s ocs_server_t;
@@ -27,10 +28,13 @@ typedef struct {
   uint64_t cut_short;       /* lookups whose deadline came before every answer */
   uint64_t stored, not_stored, store_failures;
   uint64_t released;        /* leases given back: production did not reach their bricks */
+  ocs_ctl_stats_t control;  /* the control history (control_stream.h) */
 } ocs_share_stats_t;
 
 /*! ocs_share_open() : with desc.redis_host, connects (asynchronously: a Redis not up yet only
- *  means local production until it is). @return 0, or OC_EINVAL (stepped epochs) with why. */
+ *  means local production until it is) and opens the control history (control_stream.h), which
+ *  then starts the epochs (ocs_epoch_start_timer()) once it is read. Bricks are shared on the
+ *  clock only: a stepped server shares its control history. @return 0 or a negative OC_E* with why. */
 int ocs_share_open(ocs_server_t *srv, char *why, size_t why_len);
 /*! ocs_share_close() : drops the connection; a production waiting for a lookup starts now. */
 void ocs_share_close(ocs_server_t *srv);
@@ -45,5 +49,9 @@ void ocs_share_world_changed(ocs_server_t *srv);
 /*! ocs_share_content_id() : the content id a world of `scene` gets (0 without --redis). */
 int ocs_share_content_id(const ocs_server_t *srv, const oc_scene_t *scene, uint64_t *out, char *why, size_t why_len);
 void ocs_share_stats(const ocs_server_t *srv, ocs_share_stats_t *out);
+/*! ocs_share_control() : the shared control history, or NULL (no --redis: changes apply here). */
+ocs_ctl_t *ocs_share_control(const ocs_server_t *srv);
+/*! ocs_share_idle() : the world is idle between epochs: the control entries due are applied. */
+void ocs_share_idle(ocs_server_t *srv);
 
 #endif /* OC_SERVER_NET_SHARE_H */

@@ -124,6 +124,19 @@ static void add_share(cJSON *o, const ocs_share_stats_t *s) {
            {"stored", s->stored},     {"not_stored", s->not_stored},   {"store_failures", s->store_failures},
            {"released", s->released}};
   for (size_t i = 0; i < sizeof f / sizeof f[0]; i++) cJSON_AddNumberToObject(j, f[i].key, (double)f[i].v);
+  const ocs_ctl_stats_t *c = &s->control; /* the control history (control_stream.h) */
+  cJSON *k = cJSON_AddObjectToObject(j, "control");
+  cJSON_AddBoolToObject(k, "up", c->up);
+  cJSON_AddBoolToObject(k, "caught_up", c->caught_up);
+  const struct {
+    const char *key;
+    uint64_t v;
+  } g[] = {{"read", c->read},       {"applied", c->applied}, {"skipped", c->skipped},        {"late", c->late},
+           {"published", c->published}, {"refused", c->refused}, {"last_epoch", c->last_epoch}};
+  for (size_t i = 0; i < sizeof g / sizeof g[0]; i++) cJSON_AddNumberToObject(k, g[i].key, (double)g[i].v);
+  cJSON_AddNumberToObject(k, "last_time", c->last_time);
+  cJSON_AddStringToObject(k, "last_op", c->last_op);
+  cJSON_AddStringToObject(k, "last_id", c->last_id);
 }
 
 cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st) {

@@ -670,6 +670,12 @@ int ocs_world_set_time_scale(ocs_world_t *w, double utc, double scale) {
   return clock_changed(w, ocs_clock_set(&w->clock, utc, NAN, scale));
 }
 
+int ocs_world_set_origin(ocs_world_t *w, double utc, double t) {
+  if (!w || !isfinite(utc) || !(fabs(t) <= 1e12)) return OC_EINVAL;
+  ocs_clock_init(&w->clock, utc, t);
+  return clock_changed(w, 0);
+}
+
 int ocs_world_pause(ocs_world_t *w, double utc) { return w ? clock_changed(w, ocs_clock_pause(&w->clock, utc)) : OC_EINVAL; }
 int ocs_world_resume(ocs_world_t *w, double utc) { return w ? clock_changed(w, ocs_clock_resume(&w->clock, utc)) : OC_EINVAL; }
 

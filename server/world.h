@@ -231,6 +231,10 @@ int ocs_world_set_time(ocs_world_t *w, double utc, double t);
 int ocs_world_set_time_scale(ocs_world_t *w, double utc, double scale);
 int ocs_world_pause(ocs_world_t *w, double utc);
 int ocs_world_resume(ocs_world_t *w, double utc);
+/*! ocs_world_set_origin() : the control history starts again from one entry, world time t at
+ *  instant utc (a front-end of a shared world takes the cluster's origin before its first epoch:
+ *  control_stream.h). @return 0 or OC_EINVAL. */
+int ocs_world_set_origin(ocs_world_t *w, double utc, double t);
 /*! ocs_world_set_weather() : every procedural source moves to `preset` over `seconds` from the
  *  world time at instant utc. */
 int ocs_world_set_weather(ocs_world_t *w, double utc, oc_preset_t preset, double seconds);

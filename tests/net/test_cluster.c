@@ -2,8 +2,12 @@
  * two servers of one scene and a real redis-server on loopback. A viewer of the second front-end
  * gets, verified, what the first one made, and the second makes almost none of it; while Redis is
  * gone both serve from their own production, every state verified; when it is back, sharing
- * resumes. Then scripts/cluster.sh's cluster (redis-server, two front-ends, HAProxy with PROXY v2):
- * a viewer whose front-end dies reconnects through HAProxy to the other one. */
+ * resumes. The control history in a Redis Stream (control_stream.h): steps and changes sent to
+ * one front-end apply on every one at the same epoch and world time, a front-end started later
+ * reads the whole history first, and while Redis is down changes are refused. Then
+ * scripts/cluster.sh's cluster (redis-server, two front-ends, HAProxy with PROXY v2): a viewer
+ * whose front-end dies reconnects through HAProxy to the other one. */
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -60,12 +64,55 @@ static int teardown(void **state) {
   return 0;
 }
 
-static void sun(int port, int lat, int lon) {
+/* A control request that must succeed; its reply (the caller frees). */
+static char *must(int port, const char *req) {
+  int32_t status;
+  char *r = control(port, NULL, req, &status);
+  if (status != 0) {
+    char why[600];
+    snprintf(why, sizeof why, "%s", r);
+    free(r);
+    r = NULL;
+    fail_msg("%s on port %d: status %d: %s", req, port, (int)status, why);
+  }
+  return r;
+}
+
+/* The sun moved through port's front-end; with --redis its reply names the epoch it takes effect at. */
+static double sun(int port, int lat, int lon) {
   char req[96];
   snprintf(req, sizeof req, "{\"op\":\"sun\",\"lat\":%d,\"lon\":%d}", lat, lon);
+  char *r = must(port, req);
+  double e = strstr(r, "\"epoch\":") ? json_num(r, NULL, "epoch") : -1;
+  free(r);
+  return e;
+}
+
+/* A member of the stats' share.control object (control_stream.h). */
+static double control_of(int port, const char *key) {
   int32_t status;
-  free(control(port, NULL, req, &status));
+  char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
   assert_int_equal(status, 0);
+  if (!strstr(r, "\"control\"")) fail_msg("no share.control in the stats of port %d: %.300s", port, r);
+  double v = json_num(r, "\"control\"", key);
+  free(r);
+  return v;
+}
+
+/* 1 when the front-end has read the control history and both its connections are up. */
+static int control_ready(int port) {
+  int32_t status;
+  char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
+  assert_int_equal(status, 0);
+  const char *k = strstr(r, "\"control\"");
+  int ok = k && strstr(k, "\"up\":true") && strstr(k, "\"caught_up\":true");
+  free(r);
+  return ok;
+}
+
+static void wait_control_ready(int port) {
+  for (int i = 0; i < 400 && !control_ready(port); i++) redis_sleep_ms(50);
+  assert_true(control_ready(port));
 }
 
 /* A viewer of the sphere's camera on `port`, each state verified by the client, until its tree
@@ -115,13 +162,15 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   assert_true(made_a > 100);
   assert_true(taken_b >= 0.9 * made_a);
   assert_true(made_b <= 0.02 * made_a);
-  /* Redis gone: a sun that moved on B alone is made there, every state verified, no lookup tried */
+  /* Redis gone: a sun that moved (through the control history, before Redis went) is made on B,
+   * every state verified, no lookup tried */
+  double moved = sun(b.port, 10, 30);
+  for (int i = 0; i < 200 && control_of(a.port, "last_epoch") < moved; i++) redis_sleep_ms(50);
   int port = r.port;
   kill(r.pid, SIGKILL);
   waitpid(r.pid, NULL, 0);
   r.pid = children[0] = 0;
   for (int i = 0; i < 200 && redis_up(b.port); i++) redis_sleep_ms(100);
-  sun(b.port, 10, 30);
   double before = stat_of(b.port, "bricks_produced");
   view(b.port, 4u << 20);
   assert_true(stat_of(b.port, "bricks_produced") > before + 100);
@@ -131,8 +180,10 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   children[0] = r.pid;
   for (int i = 0; i < 400 && !(redis_up(a.port) && redis_up(b.port)); i++) redis_sleep_ms(100);
   assert_true(redis_up(a.port) && redis_up(b.port));
-  sun(a.port, -20, 50);
-  sun(b.port, -20, 50);
+  for (int i = 0; i < 400 && !(control_ready(a.port) && control_ready(b.port)); i++) redis_sleep_ms(50);
+  moved = sun(a.port, -20, 50); /* both front-ends apply it, at one epoch */
+  for (int i = 0; i < 200 && control_of(b.port, "last_epoch") < moved; i++) redis_sleep_ms(50);
+  assert_true(control_of(b.port, "last_epoch") == moved);
   double taken_before = share_of(b.port, "taken"), made_before = stat_of(b.port, "bricks_produced");
   view(a.port, 4u << 20);
   view(b.port, 4u << 20);
@@ -175,6 +226,247 @@ static void test_cluster__redis_stopped(void **state) {
   ocv_conn_close(v.c);
   children[1] = 0;
   assert_int_equal(stop_server(&a), 0);
+  children[0] = 0;
+  redis_stop(&r);
+}
+
+
+/*-*** The control history in a Redis Stream (control_stream.h) ***/
+
+static void start_control_front_end(server_t *s, int redis_port, int clocked, const char *scene, const char *log) {
+  char addr[64];
+  snprintf(addr, sizeof addr, "127.0.0.1:%d", redis_port);
+  const char *extra[] = {"--scene", scene, "--redis", addr, "--handshake-rate", "1000", /* the test polls stats */
+                         "--threads", "1", clocked ? "--epoch-period" : NULL, "0.25", NULL};
+  start_server_log(s, extra, log);
+}
+
+/* The newest state's checksum and epoch of a viewer. */
+static uint64_t newest(viewer_t *v, uint64_t *epoch) {
+  const oc_state_t *st = ocp_viewer_state(ocv_conn_session(v->c), 0);
+  assert_non_null(st);
+  *epoch = st->epoch;
+  return oc_state_checksum(st);
+}
+
+/* Stepped mode, steps published to every front-end: a viewer on A and one on B with the same
+ * camera, both joined before step 1, get identical states at every epoch, whichever front-end
+ * the step or a sun move was sent to. */
+static void test_cluster__stepped_steps_shared(void **state) {
+  (void)state;
+  redis_proc_t r;
+  assert_int_equal(redis_start(&r, 0), 0);
+  children[0] = r.pid;
+  server_t a, b;
+  start_control_front_end(&a, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_A"));
+  children[1] = a.pid;
+  start_control_front_end(&b, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
+  children[2] = b.pid;
+  wait_control_ready(a.port);
+  wait_control_ready(b.port);
+  viewer_t va, vb;
+  viewer_open(&va, a.port, 4u << 20, NULL);
+  viewer_open(&vb, b.port, 4u << 20, NULL);
+  char why[256]; /* the cameras reach the servers before step 1 */
+  assert_int_equal(ocv_conn_wait_ready(va.c, 5.0, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_wait_ready(vb.c, 5.0, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(va.c, 5.0, why, sizeof why), 0);
+  assert_int_equal(ocv_conn_flush(vb.c, 5.0, why, sizeof why), 0);
+  for (int i = 0; i < 200 && !(stat_of(a.port, "viewers") == 1 && stat_of(b.port, "viewers") == 1); i++) redis_sleep_ms(50);
+  uint64_t first = 0;
+  for (int k = 1; k <= 8; k++) {
+    int port = k % 2 ? a.port : b.port; /* steps through either front-end */
+    if (k == 5) sun(b.port, 35, -40); /* takes effect from the next step, on both */
+    step(port, 1);
+    assert_int_equal(viewer_wait(&va, k, 120.0), 0);
+    assert_int_equal(viewer_wait(&vb, k, 120.0), 0);
+    uint64_t ea, eb, ca = newest(&va, &ea), cb = newest(&vb, &eb);
+    assert_int_equal(ea, (uint64_t)k);
+    assert_int_equal(eb, (uint64_t)k);
+    if (ca != cb) fail_msg("epoch %d: state checksums differ: A %016llx, B %016llx", k, (unsigned long long)ca, (unsigned long long)cb);
+    if (k == 4) first = ca;
+  }
+  assert_true(first != 0);
+  assert_int_equal(va.states, 8); /* one state per epoch on each, none coalesced */
+  assert_int_equal(vb.states, 8);
+  assert_true(control_of(b.port, "applied") >= 10); /* the origin, 8 steps, the sun */
+  assert_int_equal(control_of(a.port, "skipped"), 0);
+  ocv_conn_close(va.c);
+  ocv_conn_close(vb.c);
+  children[1] = children[2] = 0;
+  assert_int_equal(stop_server(&a), 0);
+  assert_int_equal(stop_server(&b), 0);
+  children[0] = 0;
+  redis_stop(&r);
+}
+
+/* The world time of a viewer's newest state, after waiting for an epoch ≥ `epoch`. */
+static double time_at_least(viewer_t *v, uint64_t epoch, uint64_t *got) {
+  while (1) {
+    assert_int_equal(viewer_wait(v, v->states + 1, 60.0), 0);
+    const oc_state_t *st = ocp_viewer_state(ocv_conn_session(v->c), 0);
+    if (st->epoch >= epoch) {
+      *got = st->epoch;
+      return st->time;
+    }
+  }
+}
+
+/* On the clock: a weather change sent to front-end A takes effect on front-end B at the same
+ * epoch and world time, which A's reply announced, and a viewer on B sees that world time. */
+static void test_cluster__weather_same_world_time(void **state) {
+  (void)state;
+  char planet[4200];
+  snprintf(planet, sizeof planet, "%s/scenes/planet.json", getenv("OC_SOURCE_DIR"));
+  redis_proc_t r;
+  assert_int_equal(redis_start(&r, 0), 0);
+  children[0] = r.pid;
+  server_t a, b;
+  start_control_front_end(&a, r.port, 1, planet, getenv("OC_CLUSTER_LOG_A"));
+  children[1] = a.pid;
+  wait_control_ready(a.port);
+  redis_sleep_ms(600); /* B starts later: its clock would differ without the shared origin */
+  start_control_front_end(&b, r.port, 1, planet, getenv("OC_CLUSTER_LOG_B"));
+  children[2] = b.pid;
+  wait_control_ready(b.port);
+  viewer_t vb;
+  viewer_open(&vb, b.port, 2u << 20, NULL);
+  double now = stat_of(a.port, "epoch");
+  char *rep = must(a.port, "{\"op\":\"weather\",\"preset\":\"storm\",\"seconds\":60}");
+  double e = json_num(rep, NULL, "epoch"), t = json_num(rep, NULL, "time");
+  free(rep);
+  print_message("weather sent to A at its epoch %.0f: takes effect at epoch %.0f, world time %.17g\n", now, e, t);
+  assert_true(e >= now + 2); /* at least 2 ticks ahead */
+  for (int i = 0; i < 200 && control_of(b.port, "last_epoch") < e; i++) redis_sleep_ms(50);
+  assert_true(control_of(b.port, "last_epoch") == e); /* B applied it, at that epoch ... */
+  assert_true(control_of(b.port, "last_time") == t);  /* ... and at that world time */
+  assert_true(control_of(a.port, "last_time") == t);
+  assert_int_equal(control_of(b.port, "late"), 0);
+  uint64_t got;
+  double tv = time_at_least(&vb, (uint64_t)e, &got); /* B's viewer: the same world time at epoch e */
+  assert_true(fabs(tv - (t + ((double)got - e) * 0.25)) < 1e-6);
+  ocv_conn_close(vb.c);
+  children[1] = children[2] = 0;
+  assert_int_equal(stop_server(&a), 0);
+  assert_int_equal(stop_server(&b), 0);
+  children[0] = 0;
+  redis_stop(&r);
+}
+
+/* Redis killed: changes are refused with the reason (read-only requests still work); after a
+ * restart they are accepted again, and apply on both front-ends. */
+static void test_cluster__control_refused_without_redis(void **state) {
+  (void)state;
+  redis_proc_t r;
+  assert_int_equal(redis_start(&r, 0), 0);
+  children[0] = r.pid;
+  server_t a, b;
+  start_control_front_end(&a, r.port, 1, scene_sphere, NULL);
+  children[1] = a.pid;
+  start_control_front_end(&b, r.port, 1, scene_sphere, NULL);
+  children[2] = b.pid;
+  wait_control_ready(a.port);
+  wait_control_ready(b.port);
+  int port = r.port;
+  kill(r.pid, SIGKILL);
+  waitpid(r.pid, NULL, 0);
+  r.pid = children[0] = 0;
+  for (int i = 0; i < 200 && control_ready(a.port); i++) redis_sleep_ms(50);
+  const char *changes[] = {"{\"op\":\"sun\",\"lat\":5,\"lon\":5}", "{\"op\":\"time\",\"scale\":2}", "{\"op\":\"pause\"}"};
+  for (int i = 0; i < 3; i++) {
+    int32_t status;
+    char *rep = control(a.port, NULL, changes[i], &status);
+    assert_int_not_equal(status, 0);
+    if (!strstr(rep, "unreachable") || !strstr(rep, "would split the world")) fail_msg("%s: %s", changes[i], rep);
+    free(rep);
+  }
+  free(must(a.port, "{\"op\":\"sessions\"}")); /* read-only: still answered */
+  assert_int_equal(stat_of(a.port, "viewers"), 0);
+  assert_true(control_of(a.port, "refused") >= 3);
+  assert_int_equal(redis_start(&r, port), 0);
+  children[0] = r.pid;
+  wait_control_ready(a.port);
+  wait_control_ready(b.port);
+  double e = sun(a.port, 5, 5);
+  assert_true(e > 0);
+  for (int i = 0; i < 200 && control_of(b.port, "last_epoch") < e; i++) redis_sleep_ms(50);
+  assert_true(control_of(b.port, "last_epoch") == e);
+  children[1] = children[2] = 0;
+  assert_int_equal(stop_server(&a), 0);
+  assert_int_equal(stop_server(&b), 0);
+  children[0] = 0;
+  redis_stop(&r);
+}
+
+/* A command to Redis over a raw socket (RESP); the first line of its answer. The stream's key is
+ * OCS_CTL_STREAM (server/control_stream.h). */
+static void redis_raw(int port, int argc, const char **argv, char *line, size_t cap) {
+  int fd = raw_connect(port);
+  char buf[2048];
+  int n = snprintf(buf, sizeof buf, "*%d\r\n", argc);
+  for (int i = 0; i < argc; i++) n += snprintf(buf + n, sizeof buf - (size_t)n, "$%zu\r\n%s\r\n", strlen(argv[i]), argv[i]);
+  raw_send(fd, buf, (size_t)n);
+  ssize_t k = read(fd, line, cap - 1);
+  line[k > 0 ? k : 0] = 0;
+  close(fd);
+}
+
+/* A front-end started later reads the whole history before its first epoch: its world time at
+ * every epoch is A's (origin, a time set and scale), its sun is A's; bad entries in the stream
+ * (a newer version, an unknown op, a malformed one) are skipped on both, by id, without harm. */
+static void test_cluster__late_front_end_reads_history(void **state) {
+  (void)state;
+  redis_proc_t r;
+  assert_int_equal(redis_start(&r, 0), 0);
+  children[0] = r.pid;
+  server_t a, c;
+  start_control_front_end(&a, r.port, 1, scene_sphere, NULL);
+  children[1] = a.pid;
+  wait_control_ready(a.port);
+  char line[256];
+  const char *bad[][13] = {{"XADD", "oc:ctl", "*", "v", "9", "op", "weather", "fe", "1", "req", "1", "epoch", "1"},
+                           {"XADD", "oc:ctl", "*", "v", "1", "op", "teleport", "fe", "1", "req", "1", "epoch", "1"},
+                           {"XADD", "oc:ctl", "*", "v", "1", "op", "sun", "fe", "1", "req", "1", "epoch", "x"}};
+  for (int i = 0; i < 3; i++) {
+    redis_raw(r.port, 13, bad[i], line, sizeof line);
+    assert_true(line[0] == '$'); /* an id */
+  }
+  char *req = must(a.port, "{\"op\":\"time\",\"set\":5000,\"scale\":3}");
+  double e = json_num(req, NULL, "epoch");
+  free(req);
+  double e2 = sun(a.port, -30, 70);
+  assert_true(e2 >= e);
+  assert_int_equal(control_of(a.port, "skipped"), 3);
+  start_control_front_end(&c, r.port, 1, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
+  children[2] = c.pid;
+  wait_control_ready(c.port);
+  assert_int_equal(control_of(c.port, "read"), control_of(a.port, "read")); /* the whole stream: origin, 3 bad, 2 */
+  assert_int_equal(control_of(c.port, "skipped"), 3);
+  /* its world: W(u) = 5000 + 3·(u − e·P) on both, whatever each one's start */
+  for (int i = 0; i < 2; i++) {
+    int port = i ? c.port : a.port;
+    for (int k = 0; k < 100 && stat_of(port, "epoch") <= e2; k++) redis_sleep_ms(50);
+    int32_t status; /* the world time now and the instant, from one reply */
+    char *rep = control(port, NULL, "{\"op\":\"stats\"}", &status);
+    double u = json_num(rep, NULL, "utc"), t = json_num(rep, NULL, "time");
+    free(rep);
+    if (fabs(t - (5000 + 3 * (u - e * 0.25))) > 1e-4) fail_msg("port %d: at %.6f world time %.9g", port, u, t);
+  }
+  assert_int_equal(control_of(c.port, "applied"), 3); /* the origin, the time, the sun */
+  assert_int_equal(control_of(c.port, "late"), 0);
+  /* and the same sun: a viewer on each, states of one camera at the same epoch agree */
+  viewer_t va, vc;
+  viewer_open(&va, a.port, 4u << 20, NULL);
+  viewer_open(&vc, c.port, 4u << 20, NULL);
+  assert_int_equal(viewer_wait(&va, 1, 60.0), 0);
+  assert_int_equal(viewer_wait(&vc, 1, 60.0), 0);
+  const oc_state_t *sa = ocp_viewer_state(ocv_conn_session(va.c), 0), *sc = ocp_viewer_state(ocv_conn_session(vc.c), 0);
+  assert_true(sa->sun_dir.x == sc->sun_dir.x && sa->sun_dir.y == sc->sun_dir.y && sa->sun_dir.z == sc->sun_dir.z);
+  ocv_conn_close(va.c);
+  ocv_conn_close(vc.c);
+  children[1] = children[2] = 0;
+  assert_int_equal(stop_server(&a), 0);
+  assert_int_equal(stop_server(&c), 0);
   children[0] = 0;
   redis_stop(&r);
 }
@@ -280,7 +572,12 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_cluster__made_once_then_without_redis, teardown),
       cmocka_unit_test_teardown(test_cluster__redis_stopped, teardown),
+      cmocka_unit_test_teardown(test_cluster__stepped_steps_shared, teardown),
+      cmocka_unit_test_teardown(test_cluster__weather_same_world_time, teardown),
+      cmocka_unit_test_teardown(test_cluster__control_refused_without_redis, teardown),
+      cmocka_unit_test_teardown(test_cluster__late_front_end_reads_history, teardown),
       cmocka_unit_test_teardown(test_cluster__failover_behind_haproxy, cluster_teardown),
   };
+  if (getenv("OC_TEST_FILTER")) cmocka_set_test_filter(getenv("OC_TEST_FILTER")); /* e.g. "*stepped*" */
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
