@@ -86,6 +86,20 @@ static inline void records_equal(const oc_state_t *a, const oc_state_t *b) {
   }
 }
 
+/* A lean decode equals the full state's records and the digests of its bricks. */
+static inline void expect_lean_equal(const oc_state_t *full, const oc_state_t *lean, const oc_brick_digests_t *dig) {
+  records_equal(lean, full);
+  assert_int_equal(lean->brick_count, 0);
+  assert_null(lean->bricks);
+  oc_brick_digests_t want = {0};
+  assert_int_equal(oc_brick_digests_of(&want, full), 0);
+  assert_int_equal(dig->count, want.count);
+  assert_memory_equal(dig->ids, want.ids, (size_t)want.count * sizeof *want.ids);
+  assert_memory_equal(dig->digests, want.digests, (size_t)want.count * sizeof *want.digests);
+  oc_brick_digests_free(&want);
+  assert_true(oc_state_digest_checksum(lean, dig) == oc_state_digest(full));
+}
+
 /* Two states equal in every field, brick code and checksum. */
 static inline void states_equal(const oc_state_t *a, const oc_state_t *b) {
   assert_int_equal(a->epoch, b->epoch);

@@ -336,8 +336,12 @@ static void test_brick__reconstruct(void **state) {
 }
 
 OC_TEST_MAIN(NULL, NULL,
-             cmocka_unit_test(test_brick__round_trip_error),   cmocka_unit_test(test_brick__worst_case_midpoints),
-             cmocka_unit_test(test_brick__zero_exact),         cmocka_unit_test(test_brick__decode_endpoints),
-             cmocka_unit_test(test_brick__code_encode_edges),  cmocka_unit_test(test_brick__flush_below_ratio),
-             cmocka_unit_test(test_brick__classify),           cmocka_unit_test(test_brick__sanitize),
+             cmocka_unit_test(test_brick__round_trip_error),
+             cmocka_unit_test(test_brick__worst_case_midpoints),
+             cmocka_unit_test(test_brick__zero_exact),
+             cmocka_unit_test(test_brick__decode_endpoints),
+             cmocka_unit_test(test_brick__code_encode_edges),
+             cmocka_unit_test(test_brick__flush_below_ratio),
+             cmocka_unit_test(test_brick__classify),
+             cmocka_unit_test(test_brick__sanitize),
              cmocka_unit_test(test_brick__reconstruct))

@@ -584,9 +584,15 @@ static void test_lipschitz_adversarial(void **state) {
 }
 
 OC_TEST_MAIN(NULL, NULL,
-             cmocka_unit_test(test_golden),          cmocka_unit_test(test_batch_matches_scalar),
-             cmocka_unit_test(test_threads),         cmocka_unit_test(test_bound),
-             cmocka_unit_test(test_lattice_zero),    cmocka_unit_test(test_continuity),
-             cmocka_unit_test(test_seed_changes_field), cmocka_unit_test(test_large_coordinates),
-             cmocka_unit_test(test_fbm_mean),        cmocka_unit_test(test_args),
-             cmocka_unit_test(test_lipschitz_proven), cmocka_unit_test(test_lipschitz_adversarial))
+             cmocka_unit_test(test_golden),
+             cmocka_unit_test(test_batch_matches_scalar),
+             cmocka_unit_test(test_threads),
+             cmocka_unit_test(test_bound),
+             cmocka_unit_test(test_lattice_zero),
+             cmocka_unit_test(test_continuity),
+             cmocka_unit_test(test_seed_changes_field),
+             cmocka_unit_test(test_large_coordinates),
+             cmocka_unit_test(test_fbm_mean),
+             cmocka_unit_test(test_args),
+             cmocka_unit_test(test_lipschitz_proven),
+             cmocka_unit_test(test_lipschitz_adversarial))

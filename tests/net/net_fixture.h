@@ -98,6 +98,14 @@ static inline int stop_server(server_t *s) {
   return -1;
 }
 
+/* Writes text to path (created or truncated). */
+static inline void write_file(const char *path, const char *text) {
+  FILE *f = fopen(path, "w");
+  assert_non_null(f);
+  fputs(text, f);
+  fclose(f);
+}
+
 /* A file's whole text ("" when it cannot be opened; the caller frees). */
 static inline char *read_file(const char *path) {
   FILE *f = fopen(path, "rb");

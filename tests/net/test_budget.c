@@ -171,17 +171,23 @@ static void test_budget__lowered_by_ctl(void **state) {
   unlink(audit);
 }
 
+/* A server sharing 8 MiB (8 at most a viewer) and a first viewer (max_version as for bv_open)
+ * granted the 6 it asks. */
+static void start_greedy(server_t *s, bviewer_t *g, int max_version) {
+  const char *extra[] = {"--scene", scene_sphere, "--total-budget", "8", "--max-budget", "8", NULL};
+  start_server(s, extra);
+  bv_open(g, s->port, 6 * MIB, max_version);
+  assert_int_equal(g->in_force, 6 * MIB);
+}
+
 /* A version-1 viewer: the op is refused by name, admission never lowers it, it never gets BUDGET;
  * the version-3 newcomer gets what is left. Then a control session is refused. */
 static void test_budget__v1_fixed(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--total-budget", "8", "--max-budget", "8", NULL};
-  start_server(&s, extra);
   bviewer_t a, b;
-  bv_open(&a, s.port, 6 * MIB, 1);
+  start_greedy(&s, &a, 1);
   assert_int_equal(ocp_viewer_welcome(ocv_conn_session(a.c))->version, 1);
-  assert_int_equal(a.in_force, 6 * MIB);
   expect_refused(s.port, a.session, 2 * MIB, "this viewer speaks protocol version 1: BUDGET needs 3");
   bv_open(&b, s.port, 4 * MIB, 0); /* needs room: only version-3 viewers would be lowered */
   assert_int_equal(b.in_force, 2 * MIB);
@@ -212,11 +218,8 @@ static void test_budget__v1_fixed(void **state) {
 static void test_budget__admission_lowers_greedy(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--total-budget", "8", "--max-budget", "8", NULL};
-  start_server(&s, extra);
   bviewer_t g, n;
-  bv_open(&g, s.port, 6 * MIB, 0);
-  assert_int_equal(g.in_force, 6 * MIB);
+  start_greedy(&s, &g, 0);
   bviewer_t *one[] = {&g};
   for (int i = 0; i < 3; i++) step_all(s.port, one, 1);
   bv_open(&n, s.port, 4 * MIB, 0);

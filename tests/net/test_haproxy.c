@@ -78,10 +78,7 @@ static void write_config(int tls_port, int server_port) {
   snprintf(s, sizeof s, "127.0.0.1:%d send-proxy-v2 source 127.0.0.5", server_port);
   replace(cfg, sizeof cfg, "127.0.0.1:7420 send-proxy-v2", s);
   snprintf(path, sizeof path, "%s/haproxy.cfg", dir);
-  FILE *f = fopen(path, "w");
-  assert_non_null(f);
-  fputs(cfg, f);
-  fclose(f);
+  write_file(path, cfg);
 }
 
 /* Becomes argv with stdin/stdout on fd (-1: /dev/null) and stderr into dir/log. */

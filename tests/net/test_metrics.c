@@ -96,10 +96,7 @@ static void promtool_clean(const char *text) {
   char in[300], out[300], cmd[800];
   snprintf(in, sizeof in, "%s/scrape.txt", tmpdir);
   snprintf(out, sizeof out, "%s/promtool.txt", tmpdir);
-  FILE *f = fopen(in, "w");
-  assert_non_null(f);
-  fputs(text, f);
-  fclose(f);
+  write_file(in, text);
   snprintf(cmd, sizeof cmd, "promtool check metrics <'%s' >'%s' 2>&1", in, out);
   int rc = system(cmd);
   char *said = read_file(out);

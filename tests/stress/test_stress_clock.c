@@ -219,6 +219,14 @@ static void test_stress_clock__ages(void **state) {
   assert_int_equal(b.sampled, 7);
 }
 
+/* Feeds rows of (splits, merges, waiting, leaves) as the epochs e0, e0 + 1, ... at times t0, t0 + 1,
+ * ... until s settles: @return the epoch it settled at, or -1. */
+static int settle_rows(stress_settle_t *s, const uint32_t rows[][4], size_t n, double t0, int e0) {
+  for (size_t i = 0; i < n; i++)
+    if (stress_settle_feed(s, rows[i][0], rows[i][1], rows[i][2], rows[i][3], t0 + (double)i, (uint64_t)e0 + i)) return e0 + (int)i;
+  return -1;
+}
+
 /* Time to full detail: the stepped reference's own STATS after a jump at 4 MiB (splits, merges,
  * waiting, leaves per epoch). "No split and none waiting" settled at the merge-only epoch 50,
  * while the tree went on changing for 7 more; the rule waits for three quiet states in a row and
@@ -230,11 +238,7 @@ static void test_stress_clock__settle(void **state) {
       {24, 48, 0, 2472}, {24, 75, 0, 2115}, {24, 39, 0, 2010}, {12, 51, 0, 1737},                   /* 51..54 */
       {5, 0, 0, 1772},   {0, 4, 0, 1744},   {10, 0, 0, 1814},  {0, 2, 0, 1800},  {3, 0, 0, 1800}};  /* 55..59 */
   stress_settle_t s = {.phase = 1};
-  int settled_at = -1;
-  for (int i = 0; i < (int)(sizeof trace / sizeof trace[0]) && settled_at < 0; i++)
-    if (stress_settle_feed(&s, trace[i][0], trace[i][1], trace[i][2], trace[i][3], 100.0 + i, (uint64_t)(46 + i)))
-      settled_at = 46 + i;
-  assert_int_equal(settled_at, 58);          /* known at the fourth state of the quiet window */
+  assert_int_equal(settle_rows(&s, trace, sizeof trace / sizeof trace[0], 100.0, 46), 58); /* known at the fourth state of the quiet window */
   assert_true(s.quiet_epoch == 55 && s.quiet_at == 109.0); /* reached at the first */
   assert_int_equal(s.phase, 0);
   /* splits waiting for content are change too; and no reaction yet is not settling: a clocked
@@ -255,11 +259,7 @@ static void test_stress_clock__settle(void **state) {
                                       {22, 0, 0, 4159}, {0, 41, 0, 3872}, {0, 0, 0, 3872}, {24, 29, 0, 3837},
                                       {24, 0, 0, 4005}, {0, 35, 0, 3760}};
   stress_settle_t c = {.phase = 1};
-  settled_at = -1;
-  for (int i = 0; i < (int)(sizeof churn / sizeof churn[0]) && settled_at < 0; i++)
-    if (stress_settle_feed(&c, churn[i][0], churn[i][1], churn[i][2], churn[i][3], 12.0 + i, (uint64_t)(12 + i)))
-      settled_at = 12 + i;
-  assert_int_equal(settled_at, 16);
+  assert_int_equal(settle_rows(&c, churn, sizeof churn / sizeof churn[0], 12.0, 12), 16);
   assert_true(c.quiet_epoch == 13 && c.quiet_at == 13.0);
   /* a stepped restructuring after a jump (epochs 30-45) stalls for two epochs (34-35: the kept
    * states are full of the old place's bricks); three states with those two in them settled at 33,
@@ -269,11 +269,7 @@ static void test_stress_clock__settle(void **state) {
                                       {23, 77, 0, 2290}, {22, 53, 0, 2073}, {18, 54, 0, 1821}, {4, 0, 0, 1849},
                                       {0, 15, 0, 1744},  {11, 0, 0, 1821},  {0, 6, 0, 1779},   {7, 0, 0, 1828}};
   stress_settle_t d = {.phase = 1};
-  settled_at = -1;
-  for (int i = 0; i < (int)(sizeof stall / sizeof stall[0]) && settled_at < 0; i++)
-    if (stress_settle_feed(&d, stall[i][0], stall[i][1], stall[i][2], stall[i][3], 30.0 + i, (uint64_t)(30 + i)))
-      settled_at = 30 + i;
-  assert_int_equal(settled_at, 44);
+  assert_int_equal(settle_rows(&d, stall, sizeof stall / sizeof stall[0], 30.0, 30), 44);
   assert_int_equal(d.quiet_epoch, 41);
 }
 
