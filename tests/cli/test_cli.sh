@@ -185,6 +185,12 @@ X=$BIN/overcast-stress
 if [ -x "$X" ]; then
   check "stress: --help" 0 "" -- "$X" --help
   grep -q "teleport" "$tmp/out" || { echo "FAIL stress --help: paths not listed"; fail=$((fail + 1)); }
+  # generated from the option table: each option with its default and range, the rule's figures
+  grep -q -- "--viewers N .*(default: 5; 1\.\.1024)" "$tmp/out" || { echo "FAIL stress --help: --viewers' default and range"; fail=$((fail + 1)); }
+  grep -q -- "--fault-rss-slack MIB" "$tmp/out" || { echo "FAIL stress --help: --fault-rss-slack not listed"; fail=$((fail + 1)); }
+  grep -q "lateness p99 <= 50 ms" "$tmp/out" || { echo "FAIL stress --help: the ramp's rule"; fail=$((fail + 1)); }
+  check "stress: --rebalance-at without a colon" 2 "--rebalance-at: give STEP:MIB" -- "$X" --rebalance-at 3
+  check "stress: --detail-reference without --ramp" 2 "go with --ramp" -- "$X" --detail-reference epochs
   check "stress: unknown option" 2 "unknown or incomplete option \"--frobnicate\"" -- "$X" --frobnicate
   check "stress: stray argument" 2 "unexpected argument \"x\"" -- "$X" x
   check "stress: bad viewers" 2 "--viewers: 0 is outside" -- "$X" --viewers 0
