@@ -90,44 +90,49 @@ static void test_drain__ctl_drain(void **state) {
   unlink(audit);
 }
 
-/* A server (logging to log) with --drain-timeout `timeout` and a raw viewer welcomed there that
- * never reads nor leaves. @return the viewer's socket. */
-static int start_with_raw_viewer(server_t *s, const char *log, const char *timeout) {
+/* A server draining (SIGTERM sent) with --drain-timeout `timeout`, logging to d->log, and a raw
+ * viewer welcomed there before that never reads nor leaves (socket d->fd). */
+typedef struct {
+  server_t s;
+  char log[256];
+  int fd;
+} drained_t;
+
+static void drain_raw(drained_t *d, const char *name, const char *timeout) {
+  log_path(d->log, sizeof d->log, name);
   const char *extra[] = {"--scene", scene_sphere, "--drain-timeout", timeout, NULL};
-  start_server_log(s, extra, log);
-  int fd = raw_connect(s->port), code;
-  assert_true(raw_hello(fd, 4u << 20, &code) > 0);
-  return fd;
+  start_server_log(&d->s, extra, d->log);
+  int code;
+  d->fd = raw_connect(d->s.port);
+  assert_true(raw_hello(d->fd, 4u << 20, &code) > 0);
+  kill(d->s.pid, SIGTERM);
+}
+
+/* The server has exited: its log names `last`; the socket and the log go. */
+static void drained_end(drained_t *d, const char *last) {
+  wait_log(d->log, last, 1);
+  close(d->fd);
+  unlink(d->log);
 }
 
 /* A viewer that never leaves: the drain's deadline closes it. */
 static void test_drain__timeout(void **state) {
   (void)state;
-  char log[256];
-  log_path(log, sizeof log, "timeout");
-  server_t s;
-  int fd = start_with_raw_viewer(&s, log, "1");
-  kill(s.pid, SIGTERM);
-  assert_int_equal(wait_exit(&s), 0);
-  wait_log(log, "drain timeout: closing 1 viewer(s)", 1);
-  close(fd);
-  unlink(log);
+  drained_t d;
+  drain_raw(&d, "timeout", "1");
+  assert_int_equal(wait_exit(&d.s), 0);
+  drained_end(&d, "drain timeout: closing 1 viewer(s)");
 }
 
 /* A second SIGTERM during a drain stops at once (the drain timeout would be 10 minutes). */
 static void test_drain__second_sigterm(void **state) {
   (void)state;
-  char log[256];
-  log_path(log, sizeof log, "twice");
-  server_t s;
-  int fd = start_with_raw_viewer(&s, log, "600");
-  kill(s.pid, SIGTERM);
-  wait_log(log, "SIGTERM: draining", 1);
-  kill(s.pid, SIGTERM);
-  assert_int_equal(wait_exit(&s), 0);
-  wait_log(log, "SIGTERM: shutting down", 1);
-  close(fd);
-  unlink(log);
+  drained_t d;
+  drain_raw(&d, "twice", "600");
+  wait_log(d.log, "SIGTERM: draining", 1);
+  kill(d.s.pid, SIGTERM);
+  assert_int_equal(wait_exit(&d.s), 0);
+  drained_end(&d, "SIGTERM: shutting down");
 }
 
 /* Told to reconnect, the viewer waits its backoff and comes back to a new server on the same
