@@ -207,25 +207,32 @@ static void net_step_until(int port, ocv_net_t *n, uint64_t states) {
   assert_true(net_status(n).states >= states);
 }
 
-/* overcast-view's network thread across a drain and a restart on the same port: told to
- * reconnect, it waits (one line per attempt), finds the new server and keeps receiving verified
- * states; the draining server exits 0 because it left. */
-static void test_drain__net_thread_follows_restart(void **state) {
-  (void)state;
+/* overcast-view's network thread (seed, retry_attempts: 0 for its default; logging to lg) with
+ * `states` verified states from a server that was then drained (SIGTERM) and has exited 0. */
+static ocv_net_t *net_thread_drained(server_t *s, net_log_t *lg, uint64_t seed, uint32_t retry_attempts, uint64_t states) {
   const char *extra[] = {"--scene", scene_sphere, NULL};
-  server_t s;
-  start_server(&s, extra);
-  net_log_t lg = {.mu = PTHREAD_MUTEX_INITIALIZER};
-  ocv_net_desc_t d = {.port = s.port, .seed = 3, .on_log = net_log, .ctx = &lg,
+  start_server(s, extra);
+  ocv_net_desc_t d = {.port = s->port, .seed = seed, .retry_attempts = retry_attempts, .on_log = net_log, .ctx = lg,
                       .viewer = {.role = OCP_ROLE_VIEWER, .budget = 4u << 20, .slot_bytes = 2048, .record_bytes = 32,
                                  .max_depth = 21, .width = 160, .height = 90}};
   ocv_net_t *n = NULL;
   assert_int_equal(ocv_net_start(&n, &d), 0);
   ocp_camera_t cam = sphere_camera(160, 90);
   assert_int_equal(ocv_net_set_camera(n, &cam), 0);
-  net_step_until(s.port, n, 2);
-  kill(s.pid, SIGTERM);
-  assert_int_equal(wait_exit(&s), 0); /* the thread left: the drain is over */
+  net_step_until(s->port, n, states);
+  kill(s->pid, SIGTERM);
+  assert_int_equal(wait_exit(s), 0);
+  return n;
+}
+
+/* overcast-view's network thread across a drain and a restart on the same port: told to
+ * reconnect, it waits (one line per attempt), finds the new server and keeps receiving verified
+ * states; the draining server exits 0 because it left. */
+static void test_drain__net_thread_follows_restart(void **state) {
+  (void)state;
+  server_t s;
+  net_log_t lg = {.mu = PTHREAD_MUTEX_INITIALIZER};
+  ocv_net_t *n = net_thread_drained(&s, &lg, 3, 0, 2); /* the thread left: the drain is over */
   char listen[64];
   snprintf(listen, sizeof listen, "127.0.0.1:%d", s.port);
   const char *again[] = {"--scene", scene_sphere, "--listen", listen, NULL};
@@ -247,20 +254,9 @@ static void test_drain__net_thread_follows_restart(void **state) {
 /* No server comes back: the thread gives up after its attempts with one clear line, and stops. */
 static void test_drain__net_thread_gives_up(void **state) {
   (void)state;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
   server_t s;
-  start_server(&s, extra);
   net_log_t lg = {.mu = PTHREAD_MUTEX_INITIALIZER};
-  ocv_net_desc_t d = {.port = s.port, .seed = 5, .retry_attempts = 2, .on_log = net_log, .ctx = &lg,
-                      .viewer = {.role = OCP_ROLE_VIEWER, .budget = 4u << 20, .slot_bytes = 2048, .record_bytes = 32,
-                                 .max_depth = 21, .width = 160, .height = 90}};
-  ocv_net_t *n = NULL;
-  assert_int_equal(ocv_net_start(&n, &d), 0);
-  ocp_camera_t cam = sphere_camera(160, 90);
-  assert_int_equal(ocv_net_set_camera(n, &cam), 0);
-  net_step_until(s.port, n, 1);
-  kill(s.pid, SIGTERM);
-  assert_int_equal(wait_exit(&s), 0);
+  ocv_net_t *n = net_thread_drained(&s, &lg, 5, 2, 1);
   for (int i = 0; i < 600 && !net_status(n).gave_up; i++) sleep_us(100000);
   ocv_net_status_t st = net_status(n);
   assert_true(st.gave_up);
