@@ -1,6 +1,7 @@
-/* overcast-view — the viewer. Sources: a saved state (--state), a scene served by the overcast-server
- * next to this program, which it starts on 127.0.0.1:0 (--scene; client/child.h), or the states
- * received from an overcast-server (--connect; client/net.h). The viewer generates no content.
+/* overcast-view — the viewer. Sources: a saved state (--state), the state of a scene planned by the
+ * overcast-server next to this program, started on 127.0.0.1:0 for it and stopped again (--scene;
+ * client/child.h), or the states received from an overcast-server (--connect; client/net.h). The
+ * viewer generates no content.
  * Renderers: the GL compute renderer (client/gl, ocv_gl_render_state) or the CPU reference
  * (oc_render_state); both produce the same linear image, tone-mapped by the same code.
  * Modes: --headless writes PNG frames (EGL, no display needed); --window opens a GLFW window
@@ -47,9 +48,9 @@ static void usage(FILE *f) {
           "source (one of):\n"
           "  --state FILE          render a saved state file (what a viewer held)\n"
           "  --scene FILE          start the overcast-server next to this program on 127.0.0.1:0 with the\n"
-          "                        scene, and render its states as with --connect (headless: its epochs are\n"
-          "                        stepped, as with --step); default: scenes/analytic_sphere.json when no\n"
-          "                        --state or --connect is given\n"
+          "                        scene and stepped epochs, take the state it plans for the camera (as\n"
+          "                        --connect --step does), stop it, and render that state as with --state;\n"
+          "                        default: scenes/analytic_sphere.json when no --state or --connect is given\n"
           "  --connect HOST:PORT   receive states from overcast-server and render the newest; the scene's\n"
           "                        features, optics and default camera come from the server\n"
           "network (with --connect or --scene):\n"
@@ -84,8 +85,8 @@ static void usage(FILE *f) {
           "  --exposure X          (default 10)\n"
           "  --ms-octaves N        multiple-scattering octaves 1..8 (default: the scene's)\n"
           "  --jitter              per-pixel ray-start jitter\n"
-          "  --threads N           render threads of the CPU renderer and tables, and --scene's server's\n"
-          "                        producer threads (default 2)\n"
+          "  --threads N           render threads of the CPU renderer and tables, and the producer threads\n"
+          "                        of --scene's server (default 2)\n"
           "  --save-state FILE     headless: also write the state that was rendered\n"
           "  --path FILE           headless: a recorded camera path (lines \"T LAT,LON,ALT,HEADING,PITCH,FOV\");\n"
           "                        frame f is its pose at f / --fps s (frames: the path's length, unless\n"
@@ -163,23 +164,28 @@ static int net_receive(const view_net_opts_t *o, const oc_camera_pose_t *pose_in
   return r;
 }
 
-/* --scene: the overcast-server next to this program serving the scene on 127.0.0.1:0, its epochs
- * stepped by us when `stepped` (headless); net is set to connect to it. */
-static int scene_server_start(const char *scene, long threads, int stepped, ocv_child_t *child, view_net_opts_t *net,
-                              char *why, size_t why_len) {
+/* --scene: the state that the overcast-server next to this program, serving the scene on
+ * 127.0.0.1:0 with stepped epochs, plans for `pose` (the newest of net->epochs, as --connect --step
+ * takes it); the server is stopped again. */
+static int scene_state(const char *scene, long threads, view_net_opts_t *net, const oc_camera_pose_t *pose,
+                       oc_scene_t *sc, oc_state_t *st, char *why, size_t why_len) {
   char dir[4000], exe[4096], thr[24];
   if (ocv_exe_dir(dir, sizeof dir) < 0) return oc_errorf(OC_EIO, why, why_len, "cannot read /proc/self/exe");
   snprintf(exe, sizeof exe, "%s/overcast-server", dir);
   snprintf(thr, sizeof thr, "%ld", threads < 64 ? threads : 64);
-  char *argv[] = {exe, "--scene", (char *)scene, "--listen", "127.0.0.1:0", "--threads", thr, "-q",
-                  stepped ? "--epoch-period" : NULL, "0", NULL};
-  int r = ocv_child_spawn(argv, net->timeout, child, why, why_len);
+  char *argv[] = {exe, "--scene", (char *)scene, "--listen", "127.0.0.1:0", "--threads", thr, "--epoch-period", "0",
+                  "-q", NULL};
+  ocv_child_t child;
+  int r = ocv_child_spawn(argv, net->timeout, &child, why, why_len);
   if (r < 0) return r;
-  net->connect = 1;
-  net->step = stepped;
-  snprintf(net->host, sizeof net->host, "%s", child->host);
-  net->port = child->port;
-  return 0;
+  view_net_opts_t o = *net;
+  o.step = 1;
+  snprintf(o.host, sizeof o.host, "%s", child.host);
+  o.port = child.port;
+  oc_camera_pose_t unused;
+  r = net_receive(&o, pose, &unused, sc, st, why, why_len);
+  ocv_child_stop(&child, 5.0);
+  return r;
 }
 
 /*-*** What every renderer and mode shares ***/
@@ -857,7 +863,6 @@ int main(int argc, char **argv) {
   oc_state_t st;
   oc_state_init(&st);
   oc_atmo_t *atmo = NULL;
-  ocv_child_t server = {.pid = -1, .out_fd = -1}; /* --scene */
 #ifdef OC_HAVE_GL
   ocv_window_t *win = NULL;
 #endif
@@ -889,7 +894,7 @@ int main(int argc, char **argv) {
   }
 
   oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
-  int have_pose = camera_text || camera_png;
+  int have_pose = camera_text || camera_png || !net.connect; /* --state, --scene: the scene's camera unless given */
   if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
     goto out;
@@ -915,9 +920,13 @@ int main(int argc, char **argv) {
 
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
-  if (!state_path && !net.connect && scene_server_start(scene_path, vo.threads, !window, &server, &net, why, sizeof why) < 0) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--scene %s: %s", scene_path, why);
-    goto out;
+  if (!state_path && !net.connect) {
+    net.width = w;
+    net.height = h;
+    if (scene_state(scene_path, vo.threads, &net, &pose, sc, &st, why, sizeof why) < 0) {
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--scene %s: %s", scene_path, why);
+      goto out;
+    }
   }
   if (net.connect && !window) {
     net.width = w;
@@ -991,7 +1000,6 @@ out:
 #endif
   oc_atmo_free(atmo);
   oc_state_free(&st);
-  ocv_child_stop(&server, 5.0);
   oc_scene_free(sc);
   free(sc);
   return rc;
