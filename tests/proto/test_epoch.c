@@ -239,36 +239,9 @@ static const oc_brick_codes_t *lookup(void *ctx, uint32_t id) {
 }
 
 /* Feeds frames to d as a viewer would. @return 0 once an EPOCH_END succeeded (state in *out), or
- * the first error (reason in why). */
+ * the first error (reason in why). (With decode_lean, below.) */
 static int decode_frames(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t *base, held_t *h, oc_state_t *out, char *why,
-                         size_t why_len) {
-  int r = OC_ECORRUPT;
-  snprintf(why, why_len, "no epoch end");
-  for (int i = 0; i < fs->n; i++) {
-    const frame_t *f = &fs->f[i];
-    switch (f->type) {
-      case OCP_MSG_EPOCH_BEGIN: {
-        ocp_epoch_begin_t m;
-        if ((r = ocp_get_epoch_begin(f->p, f->n, &m, why, why_len)) < 0) return r;
-        r = ocp_epoch_dec_begin(d, &m, m.base_epoch == OCP_NO_BASE ? NULL : base, lookup, h, why, why_len);
-        break;
-      }
-      case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, f->p, f->n, why, why_len); break;
-      case OCP_MSG_BRICKS: r = ocp_epoch_dec_bricks(d, f->p, f->n, why, why_len); break;
-      case OCP_MSG_DICT: r = ocp_epoch_dec_dict(d, f->p, f->n, why, why_len); break;
-      case OCP_MSG_EPOCH_END: {
-        ocp_epoch_end_t m;
-        if ((r = ocp_get_epoch_end(f->p, f->n, &m, why, why_len)) < 0) return r;
-        r = ocp_epoch_dec_end(d, &m, out, why, why_len);
-        if (r == 0) return 0;
-        break;
-      }
-      default: fail_msg("unexpected frame type 0x%02x", f->type);
-    }
-    if (r < 0) return r;
-  }
-  return OC_ECORRUPT;
-}
+                         size_t why_len);
 
 static void encode(const ocp_enc_desc_t *desc, const oc_state_t *s, const oc_state_t *base, const uint32_t *lacking, uint32_t n,
                    oc_buf_t *out, ocp_enc_stats_t *st) {
@@ -290,6 +263,19 @@ static void encode(const ocp_enc_desc_t *desc, const oc_state_t *s, const oc_sta
   ocp_epoch_enc_free(e);
 }
 
+/* A new decoder decodes fs on base (NULL: none; the viewer holds base's bricks) into *t; any error
+ * fails the test. @return the decoder (the caller frees it and *t). */
+static ocp_epoch_dec_t *decode_ok(const frames_t *fs, const oc_state_t *base, oc_state_t *t) {
+  ocp_epoch_dec_t *d = NULL;
+  assert_int_equal(ocp_epoch_dec_create(&d), 0);
+  held_t h = {{base, NULL}, 0, NULL, 0};
+  oc_state_init(t);
+  char why[512];
+  int r = decode_frames(d, fs, base, &h, t, why, sizeof why);
+  if (r) fail_msg("decode failed (%d): %s", r, why);
+  return d;
+}
+
 /* Encode (no base), decode, compare. @return the wire bytes. */
 static size_t round_trip(const ocp_enc_desc_t *desc, const oc_state_t *s, frames_t *keep_frames, oc_buf_t *keep_buf) {
   uint32_t n;
@@ -301,14 +287,8 @@ static size_t round_trip(const ocp_enc_desc_t *desc, const oc_state_t *s, frames
   assert_int_equal(fs.f[0].type, OCP_MSG_EPOCH_BEGIN);
   assert_int_equal(fs.f[fs.n - 1].type, OCP_MSG_EPOCH_END);
   assert_true(count_type(&fs, OCP_MSG_RECORDS) >= 1);
-  ocp_epoch_dec_t *d = NULL;
-  assert_int_equal(ocp_epoch_dec_create(&d), 0);
-  held_t h = {{NULL, NULL}, 0, NULL, 0};
   oc_state_t t;
-  oc_state_init(&t);
-  char why[512];
-  int r = decode_frames(d, &fs, NULL, &h, &t, why, sizeof why);
-  if (r) fail_msg("decode failed (%d): %s", r, why);
+  ocp_epoch_dec_t *d = decode_ok(&fs, NULL, &t);
   assert_false(ocp_epoch_dec_active(d));
   states_equal(s, &t);
   size_t len = b.len;
@@ -394,14 +374,8 @@ static void test_epoch__diff_round_trip(void **state) {
     assert_true(st.raw_bytes > st.wire_bytes);
     frames_t fs;
     split_frames(&b, &fs);
-    ocp_epoch_dec_t *d = NULL;
-    assert_int_equal(ocp_epoch_dec_create(&d), 0);
-    held_t h = {{&p.a, NULL}, 0, NULL, 0};
     oc_state_t t;
-    oc_state_init(&t);
-    char why[512];
-    int r = decode_frames(d, &fs, &p.a, &h, &t, why, sizeof why);
-    if (r) fail_msg("decode failed (%d): %s", r, why);
+    ocp_epoch_dec_t *d = decode_ok(&fs, &p.a, &t);
     states_equal(&p.b, &t);
     wire[deltas] = b.len;
     oc_state_free(&t);
@@ -517,9 +491,9 @@ static int lean_lookup(void *ctx, uint32_t id, uint64_t *digest) {
   return 0;
 }
 
-/* decode_frames() for a lean viewer: records into *out, bricks as digests into *dig. */
-static int decode_lean(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t *base, lean_held_t *h, oc_state_t *out,
-                       oc_brick_digests_t *dig, char *why, size_t why_len) {
+/* decode_frames() for a full viewer (h) or a lean one (lh: bricks as digests into *dig). */
+static int decode_with(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t *base, held_t *h, lean_held_t *lh,
+                       oc_state_t *out, oc_brick_digests_t *dig, char *why, size_t why_len) {
   int r = OC_ECORRUPT;
   snprintf(why, why_len, "no epoch end");
   for (int i = 0; i < fs->n; i++) {
@@ -528,7 +502,8 @@ static int decode_lean(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t 
       case OCP_MSG_EPOCH_BEGIN: {
         ocp_epoch_begin_t m;
         if ((r = ocp_get_epoch_begin(f->p, f->n, &m, why, why_len)) < 0) return r;
-        r = ocp_epoch_dec_begin_lean(d, &m, m.base_epoch == OCP_NO_BASE ? NULL : base, lean_lookup, h, why, why_len);
+        const oc_state_t *b = m.base_epoch == OCP_NO_BASE ? NULL : base;
+        r = lh ? ocp_epoch_dec_begin_lean(d, &m, b, lean_lookup, lh, why, why_len) : ocp_epoch_dec_begin(d, &m, b, lookup, h, why, why_len);
         break;
       }
       case OCP_MSG_RECORDS: r = ocp_epoch_dec_records(d, f->p, f->n, why, why_len); break;
@@ -537,7 +512,7 @@ static int decode_lean(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t 
       case OCP_MSG_EPOCH_END: {
         ocp_epoch_end_t m;
         if ((r = ocp_get_epoch_end(f->p, f->n, &m, why, why_len)) < 0) return r;
-        r = ocp_epoch_dec_end_lean(d, &m, out, dig, why, why_len);
+        r = lh ? ocp_epoch_dec_end_lean(d, &m, out, dig, why, why_len) : ocp_epoch_dec_end(d, &m, out, why, why_len);
         if (r == 0) return 0;
         break;
       }
@@ -546,6 +521,17 @@ static int decode_lean(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t 
     if (r < 0) return r;
   }
   return OC_ECORRUPT;
+}
+
+static int decode_frames(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t *base, held_t *h, oc_state_t *out, char *why,
+                         size_t why_len) {
+  return decode_with(d, fs, base, h, NULL, out, NULL, why, why_len);
+}
+
+/* decode_frames() for a lean viewer: records into *out, bricks as digests into *dig. */
+static int decode_lean(ocp_epoch_dec_t *d, const frames_t *fs, const oc_state_t *base, lean_held_t *h, oc_state_t *out,
+                       oc_brick_digests_t *dig, char *why, size_t why_len) {
+  return decode_with(d, fs, base, NULL, h, out, dig, why, why_len);
 }
 
 /* Decodes fs lean with frame `at` replaced by (p, n) (at < 0: as is); expects `err` with `needle`. */
@@ -1106,14 +1092,8 @@ static void test_epoch__batch_one(void **state) {
     frames_t fs;
     split_frames(&b, &fs);
     assert_int_equal(count_type(&fs, OCP_MSG_BRICKS), (int)((p.nlacking + bm - 1) / bm));
-    ocp_epoch_dec_t *d = NULL;
-    assert_int_equal(ocp_epoch_dec_create(&d), 0);
-    held_t h = {{&p.a, NULL}, 0, NULL, 0};
     oc_state_t t;
-    oc_state_init(&t);
-    char why[512];
-    int r = decode_frames(d, &fs, &p.a, &h, &t, why, sizeof why);
-    if (r) fail_msg("decode failed (%d): %s", r, why);
+    ocp_epoch_dec_t *d = decode_ok(&fs, &p.a, &t);
     states_equal(&p.b, &t);
     oc_state_free(&t);
     ocp_epoch_dec_free(d);
