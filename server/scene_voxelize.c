@@ -82,6 +82,6 @@ int ocs_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const ocs_scene_vo
   int r = ocs_voxelize(out, &vd);
   if (r < 0 && why)
     snprintf(why, why_len, "voxelizing the scene: %s%s", oc_strerror(r),
-             r == OC_ETOOBIG ? " (lower --max-level or raise the node limit)" : "");
+             r == OC_ETOOBIG ? " (a lower max_level or a higher max_nodes)" : "");
   return r;
 }
