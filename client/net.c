@@ -73,6 +73,14 @@ static void ocv__errstr(int e, char *buf, size_t cap) {
   if (strerror_r(e, buf, cap) != 0) snprintf(buf, cap, "error %d", e);
 }
 
+/* why := "addr: <what><the system's text for err>". @return OC_EIO */
+static int ocv__sys_error(const ocv_conn_t *c, int err, const char *what, char *why, size_t why_len) {
+  char e[128];
+  ocv__errstr(err, e, sizeof e);
+  (void)oc_errorf(0, why, why_len, "%s: %s%s", c->addr, what, e);
+  return OC_EIO;
+}
+
 static size_t ocv__pending(const ocv_conn_t *c) { return c->out.len - c->out_pos; }
 
 static void ocv__close_fd(ocv_conn_t *c) {
@@ -91,10 +99,7 @@ static int ocv__write(ocv_conn_t *c, char *why, size_t why_len) {
     if (k < 0) {
       if (errno == EINTR) continue;
       if (errno == EAGAIN || errno == EWOULDBLOCK) break;
-      char e[128];
-      ocv__errstr(errno, e, sizeof e);
-      (void)oc_errorf(0, why, why_len, "%s: send: %s", c->addr, e);
-      return OC_EIO;
+      return ocv__sys_error(c, errno, "send: ", why, why_len);
     }
     c->out_pos += (size_t)k;
     c->last_write = ocv__now();
@@ -380,9 +385,7 @@ int ocv_conn_reconnect(ocv_conn_t *c, double timeout_s, char *why, size_t why_le
     } else if (fd == -ECANCELED) {
       (void)oc_errorf(0, why, why_len, "%s: connect cancelled", c->addr);
     } else {
-      char e[128];
-      ocv__errstr(-fd, e, sizeof e);
-      (void)oc_errorf(0, why, why_len, "%s: cannot connect: %s", c->addr, e);
+      (void)ocv__sys_error(c, -fd, "cannot connect: ", why, why_len);
     }
     return OC_EIO;
   }
@@ -415,11 +418,9 @@ static int ocv__read(ocv_conn_t *c, char *why, size_t why_len) {
     if (n < 0) {
       if (errno == EINTR) continue;
       if (errno == EAGAIN || errno == EWOULDBLOCK) break;
-      char e[128];
-      ocv__errstr(errno, e, sizeof e);
-      (void)oc_errorf(0, why, why_len, "%s: %s", c->addr, e);
+      int r = ocv__sys_error(c, errno, "", why, why_len);
       ocv__close_fd(c);
-      return OC_EIO;
+      return r;
     }
     if (n == 0) {
       ocv__close_reason(c, why, why_len);
@@ -471,10 +472,7 @@ static int ocv__poll(ocv_conn_t *c, double deadline, int until_flushed, char *wh
     int k = poll(p, 3, ocv__ms_left(deadline));
     if (k < 0) {
       if (errno == EINTR) continue;
-      char e[128];
-      ocv__errstr(errno, e, sizeof e);
-      (void)oc_errorf(0, why, why_len, "%s: poll: %s", c->addr, e);
-      return OC_EIO;
+      return ocv__sys_error(c, errno, "poll: ", why, why_len);
     }
     if (p[0].revents & (POLLIN | POLLHUP | POLLERR)) return ocv__read(c, why, why_len);
     if ((p[1].revents | p[2].revents) & (POLLIN | POLLHUP | POLLERR)) return 0;

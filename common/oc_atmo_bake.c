@@ -238,32 +238,29 @@ static void oc__rmus(const struct oc_atmo_s *a, int which, double r, double mu_s
 
 static int oc__finite2(double a, double b) { return isfinite(a) && isfinite(b); }
 
-void oc__atmo_transmittance(const struct oc_atmo_s *a, double r, double mu, double out[3]) {
+/* Where the ray from radius r (raised to the ground) at cosine mu (clamped) enters the atmosphere:
+ * @return 1 and *e, or 0 with out the answer (1: it never enters; 0: r or mu not finite). */
+static int oc__enter(const struct oc_atmo_s *a, double r, double mu, double out[3], ocg_vec3 *e) {
   out[0] = out[1] = out[2] = 0.0;
-  if (!oc__finite2(r, mu)) return;
+  if (!oc__finite2(r, mu)) return 0;
   mu = ocg_clamp_cos(mu);
   r = fmax(r, a->p.bottom_radius);
-  ocg_vec3 e = ocg_atmo_enter(a->p, r, mu);
-  if (e.z == 0.0) { /* never enters the atmosphere */
-    out[0] = out[1] = out[2] = 1.0;
-    return;
-  }
-  if (ocg_atmo_ray_hits_ground(a->p, e.x, e.y)) return;
+  *e = ocg_atmo_enter(a->p, r, mu);
+  if (e->z != 0.0) return 1;
+  out[0] = out[1] = out[2] = 1.0;
+  return 0;
+}
+
+void oc__atmo_transmittance(const struct oc_atmo_s *a, double r, double mu, double out[3]) {
+  ocg_vec3 e;
+  if (!oc__enter(a, r, mu, out, &e) || ocg_atmo_ray_hits_ground(a->p, e.x, e.y)) return;
   ocg_vec2 uv = ocg_atmo_transmittance_uv(a->p, e.x, e.y);
   oc__bilinear(&a->tab[0], uv.x, uv.y, out);
 }
 
 void oc__atmo_sun_transmittance(const struct oc_atmo_s *a, double r, double mu_s, double out[3]) {
-  out[0] = out[1] = out[2] = 0.0;
-  if (!oc__finite2(r, mu_s)) return;
-  mu_s = ocg_clamp_cos(mu_s);
-  r = fmax(r, a->p.bottom_radius);
-  ocg_vec3 e = ocg_atmo_enter(a->p, r, mu_s);
-  if (e.z == 0.0) {
-    out[0] = out[1] = out[2] = 1.0;
-    return;
-  }
-  oc__sun_T(a, e.x, e.y, out);
+  ocg_vec3 e;
+  if (oc__enter(a, r, mu_s, out, &e)) oc__sun_T(a, e.x, e.y, out);
 }
 
 void oc__atmo_rmus_lookup(const struct oc_atmo_s *a, int which, double r, double mu_s, double out[3]) {

@@ -214,6 +214,9 @@ static int oc__missing(oc__ctx_t *c, const char *key) {
   return oc__fail(c, "missing required key \"%s\"", clean);
 }
 
+/* An absent member: an error when it is required (OC__REQ in flags), else 0. */
+static int oc__absent(oc__ctx_t *c, const char *key, unsigned flags) { return (flags & OC__REQ) ? oc__missing(c, key) : 0; }
+
 static int oc__check_num(oc__ctx_t *c, const cJSON *v, double lo, double hi, unsigned flags, double *out) {
   if (!cJSON_IsNumber(v)) return oc__fail(c, "expected %s, got %s", (flags & OC__INT) ? "an integer" : "a number", oc__type_of(v));
   double x = v->valuedouble;
@@ -239,12 +242,9 @@ static int oc__check_num(oc__ctx_t *c, const cJSON *v, double lo, double hi, uns
 
 static int oc__num(oc__ctx_t *c, const cJSON *obj, const char *key, double lo, double hi, unsigned flags, double def,
                    double *out) {
+  *out = def; /* kept when absent */
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
-  if (!v) {
-    if (flags & OC__REQ) return oc__missing(c, key);
-    *out = def;
-    return 0;
-  }
+  if (!v) return oc__absent(c, key, flags);
   size_t old = oc__push_key(c, key);
   OC_TRY(oc__check_num(c, v, lo, hi, flags, out));
   oc__pop(c, old);
@@ -274,12 +274,9 @@ static int oc__bool(oc__ctx_t *c, const cJSON *obj, const char *key, bool def, b
 /* A string of 1..max_len bytes without control characters; *out points into the cJSON tree. */
 static int oc__str(oc__ctx_t *c, const cJSON *obj, const char *key, size_t max_len, unsigned flags, const char *def,
                    const char **out) {
+  *out = def; /* kept when absent */
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
-  if (!v) {
-    if (flags & OC__REQ) return oc__missing(c, key);
-    *out = def;
-    return 0;
-  }
+  if (!v) return oc__absent(c, key, flags);
   size_t old = oc__push_key(c, key);
   if (!cJSON_IsString(v) || !v->valuestring) return oc__fail(c, "expected a string, got %s", oc__type_of(v));
   size_t n = strlen(v->valuestring);
@@ -336,10 +333,7 @@ static int oc__obj(oc__ctx_t *c, const cJSON *obj, const char *key, const cJSON 
 static int oc__vec(oc__ctx_t *c, const cJSON *obj, const char *key, int n, double lo, double hi, unsigned flags,
                    double *out) {
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
-  if (!v) {
-    if (flags & OC__REQ) return oc__missing(c, key);
-    return 0;
-  }
+  if (!v) return oc__absent(c, key, flags);
   size_t old = oc__push_key(c, key);
   if (!cJSON_IsArray(v)) return oc__fail(c, "expected an array of %d numbers, got %s", n, oc__type_of(v));
   int count = cJSON_GetArraySize(v);
