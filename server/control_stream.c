@@ -502,7 +502,7 @@ static void ocs__on_added(void *ctx, int status, const redisReply *rep) {
     snprintf(why, sizeof why, "the shared control history (Redis %s) did not confirm the change in time: it may still "
              "take effect on every front-end (see stats: share.control.last_id)", c->host);
   else
-    snprintf(why, sizeof why, "refused: the shared control history (Redis %s) %s", c->host,
+    snprintf(why, sizeof why, "the shared control history (Redis %s) %s", c->host,
              status == OCS_REDIS_OK && rep && rep->type == REDIS_REPLY_ERROR ? rep->str : "is unreachable");
   ocs_session_t *s = ocs_session_find(c->srv, m.session);
   if (s && m.op == OCS_CHG_STEP && s->step_waiting && s->step_request == m.request) s->step_waiting = 0;
@@ -537,12 +537,12 @@ int ocs_ctl_publish(ocs_ctl_t *c, ocs_session_t *s, uint32_t request, const ocs_
   if (!ocs_redis_up(c->rd) || !ocs_redis_up(c->wr)) {
     c->st.refused++;
     return oc_errorf(OC_EIO, why, why_len,
-                     "refused: the shared control history (Redis %s) is unreachable; a change applied here only would "
+                     "the shared control history (Redis %s) is unreachable; a change applied here only would "
                      "split the world", c->host);
   }
   if (!c->started) {
     c->st.refused++;
-    return oc_errorf(OC_EIO, why, why_len, "refused: this front-end is still reading the shared control history (Redis %s)",
+    return oc_errorf(OC_EIO, why, why_len, "this front-end is still reading the shared control history (Redis %s)",
                      c->host);
   }
   if (c->nmine == c->mine_cap) {
@@ -559,7 +559,7 @@ int ocs_ctl_publish(ocs_ctl_t *c, ocs_session_t *s, uint32_t request, const ocs_
   int r = ocs__append(c, chg, req, epoch);
   if (r < 0) {
     c->st.refused++;
-    return oc_errorf(r, why, why_len, "refused: the shared control history (Redis %s) is unreachable; a change applied "
+    return oc_errorf(r, why, why_len, "the shared control history (Redis %s) is unreachable; a change applied "
                      "here only would split the world", c->host);
   }
   c->mine[c->nmine++] = (ocs__mine_t){req, s->id, request, chg->op};

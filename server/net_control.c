@@ -108,6 +108,7 @@ static int add_world(ctl_t *c) {
 static int change(ctl_t *c, const ocs_change_t *chg) {
   ocs_server_t *srv = c->s->srv;
   ocs_ctl_t *ctl = ocs_share_control(srv);
+  if (!ctl && srv->desc.redis_host) return refuse(c, "the server is stopping (its shared control history is closed)");
   if (!ctl) return ocs_change_apply(srv->world, chg, ocs_net_utc(srv));
   if (ocs_ctl_publish(ctl, c->s, c->request, chg, c->err, sizeof c->err) < 0) return OC_EIO;
   c->waits = 1;

@@ -10,7 +10,8 @@
  *                    pump, stream)
  *   net_admit.c      fair admission: budgets, lingering sessions giving theirs back first
  *   net_share.c      bricks shared with other front-ends through Redis, looked up before
- *                    production and stored after it
+ *                    production and stored after it; it opens the control history
+ *                    (control_stream.c: changes through a Redis Stream, applied between epochs)
  *   net_epoch.c      ticks on the epoch timer, steps on the thread pool, new states streamed
  *   net_handshake.c  HELLO: version, tokens (constant time; viewer and control), resume, WELCOME
  *   net_stats.c      the server's figures, gathered once for the stats reply and for /metrics

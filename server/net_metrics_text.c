@@ -118,6 +118,18 @@ static void sharing(oc_buf_t *b, const ocs_share_stats_t *s) {
           (double)(s->rejected + s->refused));
   counter(b, "overcast_shared_lookups_cut_short_total", "Productions that started before every lookup was answered.",
           (double)s->cut_short);
+  const ocs_ctl_stats_t *c = &s->control; /* the control history (control_stream.h) */
+  gauge(b, "overcast_control_up", "1 while the shared control history can take changes (both connections up, read).",
+        c->up && c->caught_up);
+  ocs_prom_family(b, "overcast_control_entries_total", "counter", "Control history entries read, by what became of them.");
+  const struct {
+    const char *outcome;
+    uint64_t v;
+  } g[] = {{"applied", c->applied}, {"skipped", c->skipped}, {"late", c->late}};
+  for (size_t i = 0; i < sizeof g / sizeof g[0]; i++)
+    ocs_prom_sample(b, "overcast_control_entries_total", "outcome", g[i].outcome, (double)g[i].v);
+  counter(b, "overcast_control_refused_total", "Control changes refused: the shared history unreachable, or the append failed.",
+          (double)c->refused);
 }
 
 void ocs_metrics_text(const ocs_stats_t *st, oc_buf_t *out) {

@@ -196,9 +196,10 @@ static const oc_cli_opt_t opts[] = {
              "step, reload, disconnect): when, who, what, and the outcome"},
     {.name = "redis", .type = OC_CLI_CUSTOM, .parse = parse_redis, .arg = "HOST:PORT", .def_note = "none",
      .group = SERVE,
-     .help = "share bricks with the other front-ends of this world through Redis there (epochs on the clock; "
-             "docs/scale-out.md): what one made, the others do not make; while Redis is down or slow, every brick "
-             "is made here"},
+     .help = "serve one world with the other front-ends through Redis there (docs/scale-out.md): bricks are "
+             "shared (epochs on the clock: what one made, the others do not make; while Redis is down or slow, "
+             "every brick is made here), and so is the control history, in the stream oc:ctl (weather, time, sun, "
+             "steps apply on every front-end at the same epoch; refused while Redis is unreachable)"},
     {.name = "redis-deadline", .type = OC_CLI_INT, .offset = AT(desc.redis_deadline_ms), .arg = "MS", .lo = 1,
      .hi = 60000, .def_note = "200, and production waits at most a tenth of the epoch period", .group = SERVE,
      .help = "each Redis command's deadline, and how long production waits for a lookup's answers"},

@@ -18,30 +18,31 @@
 #include "net_fixture.h"
 #include "server/redis_fixture.h"
 
-static double stat_of(int port, const char *key) {
-  int32_t status;
-  char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
-  assert_int_equal(status, 0);
-  double v = json_num(r, NULL, key);
-  free(r);
-  return v;
-}
-
-static double share_of(int port, const char *key) {
-  int32_t status;
-  char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
-  assert_int_equal(status, 0);
-  if (!strstr(r, "\"share\"")) fail_msg("no share in the stats of port %d: %.300s", port, r);
-  double v = json_num(r, "\"share\"", key);
-  free(r);
-  return v;
-}
-
-/* 1 while the front-end's Redis connection is up (a JSON boolean). */
-static int redis_up(int port) {
+/* The stats reply of a front-end (the caller frees). */
+static char *stats_text(int port) {
   int32_t status;
   char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
   if (status != 0) fail_msg("stats of port %d: %s", port, r);
+  return r;
+}
+
+/* A number of the stats: in the object `section` ("share", "control": share.control) or NULL: world. */
+static double stats_member(int port, const char *section, const char *key) {
+  char *r = stats_text(port), quoted[32];
+  snprintf(quoted, sizeof quoted, "\"%s\"", section ? section : "world");
+  if (!strstr(r, quoted)) fail_msg("no %s in the stats of port %d: %.300s", quoted, port, r);
+  double v = json_num(r, quoted, key);
+  free(r);
+  return v;
+}
+
+static double stat_of(int port, const char *key) { return stats_member(port, NULL, key); }
+static double share_of(int port, const char *key) { return stats_member(port, "share", key); }
+static double control_of(int port, const char *key) { return stats_member(port, "control", key); }
+
+/* 1 while the front-end's Redis connection is up (a JSON boolean). */
+static int redis_up(int port) {
+  char *r = stats_text(port);
   const char *p = strstr(r, "\"redis_up\":");
   if (p) p += strlen("\"redis_up\":");
   while (p && (*p == ' ' || *p == '\t')) p++;
@@ -62,6 +63,21 @@ static int teardown(void **state) {
       children[i] = 0;
     }
   return 0;
+}
+
+/* redis-server on a free port, killed by the teardown if the test fails. */
+static void start_redis(redis_proc_t *r) {
+  assert_int_equal(redis_start(r, 0), 0);
+  children[0] = r->pid;
+}
+
+/* Both front-ends stopped (each must exit 0), then Redis. */
+static void stop_all(redis_proc_t *r, server_t *a, server_t *b) {
+  children[1] = children[2] = 0;
+  assert_int_equal(stop_server(a), 0);
+  assert_int_equal(stop_server(b), 0);
+  children[0] = 0;
+  redis_stop(r);
 }
 
 /* A control request that must succeed; its reply (the caller frees). */
@@ -88,22 +104,9 @@ static double sun(int port, int lat, int lon) {
   return e;
 }
 
-/* A member of the stats' share.control object (control_stream.h). */
-static double control_of(int port, const char *key) {
-  int32_t status;
-  char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
-  assert_int_equal(status, 0);
-  if (!strstr(r, "\"control\"")) fail_msg("no share.control in the stats of port %d: %.300s", port, r);
-  double v = json_num(r, "\"control\"", key);
-  free(r);
-  return v;
-}
-
 /* 1 when the front-end has read the control history and both its connections are up. */
 static int control_ready(int port) {
-  int32_t status;
-  char *r = control(port, NULL, "{\"op\":\"stats\"}", &status);
-  assert_int_equal(status, 0);
+  char *r = stats_text(port);
   const char *k = strstr(r, "\"control\"");
   int ok = k && strstr(k, "\"up\":true") && strstr(k, "\"caught_up\":true");
   free(r);
@@ -190,11 +193,7 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   double taken = share_of(b.port, "taken") - taken_before, made = stat_of(b.port, "bricks_produced") - made_before;
   print_message("after Redis came back: B took %.0f bricks and made %.0f\n", taken, made);
   assert_true(taken > 100 && made <= 0.02 * taken);
-  children[1] = children[2] = 0;
-  assert_int_equal(stop_server(&a), 0);
-  assert_int_equal(stop_server(&b), 0);
-  children[0] = 0;
-  redis_stop(&r);
+  stop_all(&r, &a, &b);
 }
 
 /* A Redis that stops answering (SIGSTOP: it still accepts connections) costs a front-end with the
@@ -203,8 +202,7 @@ static void test_cluster__made_once_then_without_redis(void **state) {
 static void test_cluster__redis_stopped(void **state) {
   (void)state;
   redis_proc_t r;
-  assert_int_equal(redis_start(&r, 0), 0);
-  children[0] = r.pid;
+  start_redis(&r);
   char addr[64];
   snprintf(addr, sizeof addr, "127.0.0.1:%d", r.port);
   const char *extra[] = {"--scene", scene_sphere, "--epoch-period", "0.25", "--redis", addr, "--handshake-rate", "1000", NULL};
@@ -233,12 +231,16 @@ static void test_cluster__redis_stopped(void **state) {
 
 /*-*** The control history in a Redis Stream (control_stream.h) ***/
 
-static void start_control_front_end(server_t *s, int redis_port, int clocked, const char *scene, const char *log) {
+/* Front-end `slot` (1, 2: killed by the teardown if the test fails), clocked (P = 0.25 s) or
+ * stepped, returned once it has read the control history. */
+static void start_control_front_end(server_t *s, int slot, int redis_port, int clocked, const char *scene, const char *log) {
   char addr[64];
   snprintf(addr, sizeof addr, "127.0.0.1:%d", redis_port);
   const char *extra[] = {"--scene", scene, "--redis", addr, "--handshake-rate", "1000", /* the test polls stats */
                          "--threads", "1", clocked ? "--epoch-period" : NULL, "0.25", NULL};
   start_server_log(s, extra, log);
+  children[slot] = s->pid;
+  wait_control_ready(s->port);
 }
 
 /* The newest state's checksum and epoch of a viewer. */
@@ -255,15 +257,10 @@ static uint64_t newest(viewer_t *v, uint64_t *epoch) {
 static void test_cluster__stepped_steps_shared(void **state) {
   (void)state;
   redis_proc_t r;
-  assert_int_equal(redis_start(&r, 0), 0);
-  children[0] = r.pid;
+  start_redis(&r);
   server_t a, b;
-  start_control_front_end(&a, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_A"));
-  children[1] = a.pid;
-  start_control_front_end(&b, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
-  children[2] = b.pid;
-  wait_control_ready(a.port);
-  wait_control_ready(b.port);
+  start_control_front_end(&a, 1, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_A"));
+  start_control_front_end(&b, 2, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
   viewer_t va, vb;
   viewer_open(&va, a.port, 4u << 20, NULL);
   viewer_open(&vb, b.port, 4u << 20, NULL);
@@ -293,11 +290,7 @@ static void test_cluster__stepped_steps_shared(void **state) {
   assert_int_equal(control_of(a.port, "skipped"), 0);
   ocv_conn_close(va.c);
   ocv_conn_close(vb.c);
-  children[1] = children[2] = 0;
-  assert_int_equal(stop_server(&a), 0);
-  assert_int_equal(stop_server(&b), 0);
-  children[0] = 0;
-  redis_stop(&r);
+  stop_all(&r, &a, &b);
 }
 
 /* The world time of a viewer's newest state, after waiting for an epoch ≥ `epoch`. */
@@ -319,16 +312,11 @@ static void test_cluster__weather_same_world_time(void **state) {
   char planet[4200];
   snprintf(planet, sizeof planet, "%s/scenes/planet.json", getenv("OC_SOURCE_DIR"));
   redis_proc_t r;
-  assert_int_equal(redis_start(&r, 0), 0);
-  children[0] = r.pid;
+  start_redis(&r);
   server_t a, b;
-  start_control_front_end(&a, r.port, 1, planet, getenv("OC_CLUSTER_LOG_A"));
-  children[1] = a.pid;
-  wait_control_ready(a.port);
+  start_control_front_end(&a, 1, r.port, 1, planet, getenv("OC_CLUSTER_LOG_A"));
   redis_sleep_ms(600); /* B starts later: its clock would differ without the shared origin */
-  start_control_front_end(&b, r.port, 1, planet, getenv("OC_CLUSTER_LOG_B"));
-  children[2] = b.pid;
-  wait_control_ready(b.port);
+  start_control_front_end(&b, 2, r.port, 1, planet, getenv("OC_CLUSTER_LOG_B"));
   viewer_t vb;
   viewer_open(&vb, b.port, 2u << 20, NULL);
   double now = stat_of(a.port, "epoch");
@@ -346,11 +334,7 @@ static void test_cluster__weather_same_world_time(void **state) {
   double tv = time_at_least(&vb, (uint64_t)e, &got); /* B's viewer: the same world time at epoch e */
   assert_true(fabs(tv - (t + ((double)got - e) * 0.25)) < 1e-6);
   ocv_conn_close(vb.c);
-  children[1] = children[2] = 0;
-  assert_int_equal(stop_server(&a), 0);
-  assert_int_equal(stop_server(&b), 0);
-  children[0] = 0;
-  redis_stop(&r);
+  stop_all(&r, &a, &b);
 }
 
 /* Redis killed: changes are refused with the reason (read-only requests still work); after a
@@ -358,15 +342,10 @@ static void test_cluster__weather_same_world_time(void **state) {
 static void test_cluster__control_refused_without_redis(void **state) {
   (void)state;
   redis_proc_t r;
-  assert_int_equal(redis_start(&r, 0), 0);
-  children[0] = r.pid;
+  start_redis(&r);
   server_t a, b;
-  start_control_front_end(&a, r.port, 1, scene_sphere, NULL);
-  children[1] = a.pid;
-  start_control_front_end(&b, r.port, 1, scene_sphere, NULL);
-  children[2] = b.pid;
-  wait_control_ready(a.port);
-  wait_control_ready(b.port);
+  start_control_front_end(&a, 1, r.port, 1, scene_sphere, NULL);
+  start_control_front_end(&b, 2, r.port, 1, scene_sphere, NULL);
   int port = r.port;
   kill(r.pid, SIGKILL);
   waitpid(r.pid, NULL, 0);
@@ -391,11 +370,7 @@ static void test_cluster__control_refused_without_redis(void **state) {
   assert_true(e > 0);
   for (int i = 0; i < 200 && control_of(b.port, "last_epoch") < e; i++) redis_sleep_ms(50);
   assert_true(control_of(b.port, "last_epoch") == e);
-  children[1] = children[2] = 0;
-  assert_int_equal(stop_server(&a), 0);
-  assert_int_equal(stop_server(&b), 0);
-  children[0] = 0;
-  redis_stop(&r);
+  stop_all(&r, &a, &b);
 }
 
 /* A command to Redis over a raw socket (RESP); the first line of its answer. The stream's key is
@@ -417,12 +392,9 @@ static void redis_raw(int port, int argc, const char **argv, char *line, size_t 
 static void test_cluster__late_front_end_reads_history(void **state) {
   (void)state;
   redis_proc_t r;
-  assert_int_equal(redis_start(&r, 0), 0);
-  children[0] = r.pid;
+  start_redis(&r);
   server_t a, c;
-  start_control_front_end(&a, r.port, 1, scene_sphere, NULL);
-  children[1] = a.pid;
-  wait_control_ready(a.port);
+  start_control_front_end(&a, 1, r.port, 1, scene_sphere, NULL);
   char line[256];
   const char *bad[][13] = {{"XADD", "oc:ctl", "*", "v", "9", "op", "weather", "fe", "1", "req", "1", "epoch", "1"},
                            {"XADD", "oc:ctl", "*", "v", "1", "op", "teleport", "fe", "1", "req", "1", "epoch", "1"},
@@ -437,17 +409,14 @@ static void test_cluster__late_front_end_reads_history(void **state) {
   double e2 = sun(a.port, -30, 70);
   assert_true(e2 >= e);
   assert_int_equal(control_of(a.port, "skipped"), 3);
-  start_control_front_end(&c, r.port, 1, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
-  children[2] = c.pid;
-  wait_control_ready(c.port);
+  start_control_front_end(&c, 2, r.port, 1, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
   assert_int_equal(control_of(c.port, "read"), control_of(a.port, "read")); /* the whole stream: origin, 3 bad, 2 */
   assert_int_equal(control_of(c.port, "skipped"), 3);
   /* its world: W(u) = 5000 + 3·(u − e·P) on both, whatever each one's start */
   for (int i = 0; i < 2; i++) {
     int port = i ? c.port : a.port;
     for (int k = 0; k < 100 && stat_of(port, "epoch") <= e2; k++) redis_sleep_ms(50);
-    int32_t status; /* the world time now and the instant, from one reply */
-    char *rep = control(port, NULL, "{\"op\":\"stats\"}", &status);
+    char *rep = stats_text(port); /* the world time now and the instant, from one reply */
     double u = json_num(rep, NULL, "utc"), t = json_num(rep, NULL, "time");
     free(rep);
     if (fabs(t - (5000 + 3 * (u - e * 0.25))) > 1e-4) fail_msg("port %d: at %.6f world time %.9g", port, u, t);
@@ -464,11 +433,7 @@ static void test_cluster__late_front_end_reads_history(void **state) {
   assert_true(sa->sun_dir.x == sc->sun_dir.x && sa->sun_dir.y == sc->sun_dir.y && sa->sun_dir.z == sc->sun_dir.z);
   ocv_conn_close(va.c);
   ocv_conn_close(vc.c);
-  children[1] = children[2] = 0;
-  assert_int_equal(stop_server(&a), 0);
-  assert_int_equal(stop_server(&c), 0);
-  children[0] = 0;
-  redis_stop(&r);
+  stop_all(&r, &a, &c);
 }
 
 /*-*** scripts/cluster.sh: redis-server, front-ends and HAProxy ***/
