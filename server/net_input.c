@@ -11,13 +11,18 @@
 #include "oc_err.h"
 #include "oc_log.h"
 
+/* A frame's payload that did not parse (rc < 0) closes the session as MALFORMED, naming why.
+ * @return 1 when it did. */
+static int closed_malformed(ocs_session_t *s, int rc, const char *why) {
+  if (rc >= 0) return 0;
+  ocs_session_close(s, OCP_CODE_MALFORMED, why);
+  return 1;
+}
+
 static void handle_ack(ocs_session_t *s, const uint8_t *p, size_t n) {
   char why[256];
   ocp_ack_t a;
-  if (ocp_get_ack(p, n, &a, why, sizeof why) < 0) {
-    ocs_session_close(s, OCP_CODE_MALFORMED, why);
-    return;
-  }
+  if (closed_malformed(s, ocp_get_ack(p, n, &a, why, sizeof why), why)) return;
   if (!s->awaiting_ack || a.epoch != s->stream_epoch || a.checksum != s->stream_checksum) {
     snprintf(why, sizeof why, "ack of epoch %" PRIu64 " (checksum %016" PRIx64 ") but epoch %" PRIu64 " is %s", a.epoch,
              a.checksum, s->stream_epoch, s->awaiting_ack ? "in flight with another checksum" : "not complete");
@@ -36,10 +41,7 @@ static void handle_ack(ocs_session_t *s, const uint8_t *p, size_t n) {
 static void handle_camera(ocs_session_t *s, const uint8_t *p, size_t n) {
   char why[256];
   ocp_camera_t c;
-  if (ocp_get_camera(p, n, &c, why, sizeof why) < 0) {
-    ocs_session_close(s, OCP_CODE_MALFORMED, why);
-    return;
-  }
+  if (closed_malformed(s, ocp_get_camera(p, n, &c, why, sizeof why), why)) return;
   ocs_view_t v = {c.pos, c.forward, c.up, c.vfov_deg, (int)c.width, (int)c.height};
   if (!ocs_view_valid(&v)) {
     ocs_session_close(s, OCP_CODE_MALFORMED, "camera: not a valid view");
@@ -77,15 +79,12 @@ static int handle_frame(ocs_session_t *s, const ocp_header_t *hd, const uint8_t 
   }
   switch (hd->type) {
     case OCP_MSG_KEEPALIVE:
-      if (ocp_get_empty(p, hd->length, why, sizeof why) < 0) ocs_session_close(s, OCP_CODE_MALFORMED, why);
+      (void)closed_malformed(s, ocp_get_empty(p, hd->length, why, sizeof why), why);
       return 0;
     case OCP_MSG_GOODBYE:
     case OCP_MSG_ERROR: {
       ocp_text_msg_t t;
-      if (ocp_get_text(p, hd->length, &t, why, sizeof why) < 0) {
-        ocs_session_close(s, OCP_CODE_MALFORMED, why);
-        return 0;
-      }
+      if (closed_malformed(s, ocp_get_text(p, hd->length, &t, why, sizeof why), why)) return 0;
       if (hd->type == OCP_MSG_ERROR) oc_log_warn("session %" PRIu32 " (%s): peer error: %s: %s", s->id, s->addr, ocp_code_text(t.code), t.text);
       ocs_session_close(s, OCP_CODE_OK, hd->type == OCP_MSG_GOODBYE ? "goodbye from the peer" : "after the peer's error");
       return 0;
@@ -102,10 +101,7 @@ static int handle_frame(ocs_session_t *s, const ocp_header_t *hd, const uint8_t 
       if (s->role != OCP_ROLE_CONTROL) break;
       if (srv->stepping) return 1;
       ocp_control_t c;
-      if (ocp_get_control(p, hd->length, &c, why, sizeof why) < 0) {
-        ocs_session_close(s, OCP_CODE_MALFORMED, why);
-        return 0;
-      }
+      if (closed_malformed(s, ocp_get_control(p, hd->length, &c, why, sizeof why), why)) return 0;
       oc_buf_t b = {0};
       ocs_control_handle(s, &c, &b);
       ocs_session_send(s, &b);
