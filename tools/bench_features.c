@@ -318,9 +318,8 @@ typedef struct {
 static const oc_cli_opt_t feat_opts[] = {
     OCT_OPT_SCENE(feat_opts_t),
     OCT_OPT_CAMERA(feat_opts_t),
-    OCT_INT(feat_opts_t, epochs, "epochs", "N", 1, 100000, "6", "epochs to step per configuration"),
-    OCT_INT(feat_opts_t, budget, "budget", "MIB", 1, 1 << 20, "64", "the viewer's budget (2048-byte slots, 32-byte "
-        "records)"),
+    OCT_OPT_EPOCHS(feat_opts_t, "6", "epochs to step per configuration"),
+    OCT_OPT_BUDGET(feat_opts_t, "64", "the viewer's"),
     OCT_SIZE(feat_opts_t, viewport, "viewport", "1280x720", "the viewport the server plans for"),
     OCT_SIZE(feat_opts_t, size, "size", "160x90", "rendered image size"),
     OCT_OPT_RENDERER(feat_opts_t, "renderer of the final state (gl: headless EGL)"),

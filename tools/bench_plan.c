@@ -139,14 +139,8 @@ int oct_bench_plan(const char *prog, int argc, char **argv) {
   if (orc != OCT_GO) return orc;
   const long budget_mib = o.budget, leaves = o.leaves, repeat = o.repeat;
 
-  ocs_plan_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.slot_bytes = OC_SLOT_BYTES;
-  d.record_bytes = OC_RECORD_BYTES;
-  d.max_depth = OC_KEY_MAX_LEVEL;
-  d.kept_states = KEPT;
-  d.split_fraction = 1.0;
-  d.reserve = RESERVE;
+  ocs_plan_desc_t d = {.slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .max_depth = OC_KEY_MAX_LEVEL,
+                       .kept_states = KEPT, .split_fraction = 1.0, .reserve = RESERVE};
   /* --leaves alone sizes the budget for that many brick leaves at the steady target; with --budget
    * it caps the build-up instead */
   if (budget_mib) d.budget = (uint64_t)budget_mib << 20;

@@ -23,11 +23,11 @@
 /*-*** Options ***/
 
 typedef struct {
-  const char *scene;
-  oct_list_t levels;
-  int block, repeat, reference;
   oct_at_t at;
   double alt, time, zenith;
+  oct_list_t levels;
+  int block, repeat, reference;
+  const char *scene;
 } tau_opts_t;
 
 static const oc_cli_opt_t tau_opts[] = {

@@ -92,6 +92,9 @@ int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, 
 #define OCT_OPT_RENDERER(T, text)                                                                                \
   {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = oct_opt_renderer, .offset = offsetof(T, gl), .arg = "cpu|gl", \
    .def = "cpu", .help = text}
+#define OCT_OPT_EPOCHS(T, def_, help_) OCT_INT(T, epochs, "epochs", "N", 1, 100000, def_, help_)
+#define OCT_OPT_BUDGET(T, def_, whose_)                                                                            \
+  OCT_INT(T, budget, "budget", "MIB", 1, 1 << 20, def_, whose_ " budget (2048-byte slots, 32-byte records)")
 #define OCT_OPT_HELP {.name = "help", .type = OC_CLI_HELP, .help = "print this and exit"}
 /* a table's last rows: --help and the terminator */
 #define OCT_OPTS_END OCT_OPT_HELP, {0}

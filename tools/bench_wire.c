@@ -213,9 +213,8 @@ typedef struct {
 } wire_opts_t;
 
 static const oc_cli_opt_t wire_opts[] = {
-    OCT_INT(wire_opts_t, epochs, "epochs", "N", 1, 100000, "8", "epochs to step"),
-    OCT_INT(wire_opts_t, budget, "budget", "MIB", 1, 1 << 20, "64", "the viewer's budget (2048-byte slots, 32-byte "
-        "records)"),
+    OCT_OPT_EPOCHS(wire_opts_t, "8", "epochs to step"),
+    OCT_OPT_BUDGET(wire_opts_t, "64", "the viewer's"),
     OCT_INT(wire_opts_t, level, "level", "N", 1, 19, OC_CLI_STR(OCP_LEVEL_DEFAULT), "zstd level of every variant"),
     OCT_OPT_THREADS(wire_opts_t),
     OCT_STR(wire_opts_t, csv, "csv", "FILE", "also write one row per epoch and variant"),

@@ -47,9 +47,8 @@ static const oc_cli_opt_t world_opts[] = {
     OCT_OPT_SCENE(world_opts_t),
     OCT_INT(world_opts_t, viewers, "viewers", "N", 1, 64, "1", "viewers, spread around the camera's heading when "
         "orbiting"),
-    OCT_INT(world_opts_t, epochs, "epochs", "N", 1, 100000, "20", "epochs to step"),
-    OCT_INT(world_opts_t, budget, "budget", "MIB", 1, 1 << 20, "64", "each viewer's budget (2048-byte slots, "
-        "32-byte records)"),
+    OCT_OPT_EPOCHS(world_opts_t, "20", "epochs to step"),
+    OCT_OPT_BUDGET(world_opts_t, "64", "each viewer's"),
     OCT_OPT_THREADS(world_opts_t),
     OCT_OPT_CAMERA(world_opts_t),
     OCT_DBL(world_opts_t, orbit, "orbit", "DEG", -180, 180, "0", "heading change per epoch; 0: a still camera"),
