@@ -422,23 +422,20 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
       if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
       return ocp__on_epoch_begin(v, h, p, out, why, why_len);
     case OCP_MSG_RECORDS:
-      if (v->phase != OCP__EP_BEGUN && v->phase != OCP__EP_RECORDS)
-        return ocp__unexpected(v, out, h, v->phase == OCP__EP_NONE ? "outside an epoch" : "after bricks", why, why_len);
-      e = ocp_epoch_dec_records(v->dec, p, h->length, reason, sizeof reason);
-      if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
-      v->phase = OCP__EP_RECORDS;
-      return 0;
     case OCP_MSG_BRICKS:
-      if (v->phase != OCP__EP_RECORDS && v->phase != OCP__EP_BRICKS)
-        return ocp__unexpected(v, out, h, v->phase == OCP__EP_NONE ? "outside an epoch" : "before records", why, why_len);
-      e = ocp_epoch_dec_bricks(v->dec, p, h->length, reason, sizeof reason);
+    case OCP_MSG_EPOCH_END: { /* RECORDS follow the BEGIN or RECORDS; BRICKS and the END, RECORDS or BRICKS */
+      int records = h->type == OCP_MSG_RECORDS;
+      int after = records ? OCP__EP_BEGUN : OCP__EP_RECORDS, next = records ? OCP__EP_RECORDS : OCP__EP_BRICKS;
+      if (v->phase != after && v->phase != next)
+        return ocp__unexpected(v, out, h, v->phase == OCP__EP_NONE ? "outside an epoch" : records ? "after bricks" : "before records",
+                               why, why_len);
+      if (h->type == OCP_MSG_EPOCH_END) return ocp__on_epoch_end(v, h, p, out, why, why_len);
+      e = records ? ocp_epoch_dec_records(v->dec, p, h->length, reason, sizeof reason)
+                  : ocp_epoch_dec_bricks(v->dec, p, h->length, reason, sizeof reason);
       if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
-      v->phase = OCP__EP_BRICKS;
+      v->phase = next;
       return 0;
-    case OCP_MSG_EPOCH_END:
-      if (v->phase != OCP__EP_RECORDS && v->phase != OCP__EP_BRICKS)
-        return ocp__unexpected(v, out, h, v->phase == OCP__EP_NONE ? "outside an epoch" : "before records", why, why_len);
-      return ocp__on_epoch_end(v, h, p, out, why, why_len);
+    }
     case OCP_MSG_STATS: {
       if (!viewer) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
       if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
