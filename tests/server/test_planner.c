@@ -236,6 +236,12 @@ static void sim_init(sim_t *s, const ocs_plan_desc_t *d, int animated, double ch
   s->split_cap_nodes = fmax(8.0, d->split_fraction * capacity);
 }
 
+/* Two identical simulations (animated when d keeps 3 states), to be run side by side. */
+static void sim_twins(sim_t *a, sim_t *b, const ocs_plan_desc_t *d, uint64_t seed) {
+  sim_init(a, d, d->kept_states == 3, 0.1, seed);
+  sim_init(b, d, d->kept_states == 3, 0.1, seed);
+}
+
 static void sim_free(sim_t *s) {
   ocs_planner_free(s->p);
   for (int i = 0; i < OCS_PLAN_MAX_KEPT; i++) {
@@ -661,8 +667,7 @@ static void test_planner__deterministic(void **state) {
   for (int K = 2; K <= 3; K++) {
     ocs_plan_desc_t d = desc_make(2048, 32, K, 1500, 0.2);
     sim_t a, b;
-    sim_init(&a, &d, K == 3, 0.1, 99);
-    sim_init(&b, &d, K == 3, 0.1, 99);
+    sim_twins(&a, &b, &d, 99);
     a.in.uniform_is_brick = b.in.uniform_is_brick = K == 3;
     a.shell.uniform_below_z = b.shell.uniform_below_z = -0.3 * OC_PLANET_RADIUS;
     pose_t cam = {10.0, -60.0, 800.0, 200.0, -20.0, 50.0, 800, 600};
@@ -1283,8 +1288,7 @@ static void test_planner__abandon_restores(void **state) {
   for (int K = 2; K <= 3; K++) {
     ocs_plan_desc_t d = desc_make(2048, 32, K, 1500, 0.3);
     sim_t a, b;
-    sim_init(&a, &d, K == 3, 0.1, 42);
-    sim_init(&b, &d, K == 3, 0.1, 42);
+    sim_twins(&a, &b, &d, 42);
     pose_t cam = {60.0, 25.0, 1500.0, 120.0, -15.0, 70.0, 960, 540};
     if (K == 2) { /* content reaching below R − 10 km and above R + 100 km: restored leaves keep their limits */
       a.shell.r_lo = b.shell.r_lo = OC_PLANET_RADIUS - 40e3;
