@@ -370,31 +370,28 @@ typedef struct {
   const lines_t *full;             /* lean replay: the full section, for its digests */
 } replay_t;
 
-static void content_changed(const replay_t *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void content_changed(const replay_t *r, const char *fmt, ...) {
+/* Fails the test at r's line: the server's content changed (changed = 1: re-record if meant) or
+ * it broke protocol version 1 (changed = 0). */
+static void rp_fail(const replay_t *r, int changed, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void rp_fail(const replay_t *r, int changed, const char *fmt, ...) {
   char what[1024];
   va_list ap;
   va_start(ap, fmt);
   vsnprintf(what, sizeof what, fmt, ap);
   va_end(ap);
-  fail_msg("%s:%d (section %s): the server's content changed: %s.\n"
-           "It still speaks version 1, but serves other states than the recording. If that change is intended,\n"
-           "re-record, check the diff and commit the file:\n"
-           "  OC_REPLAY_RECORD=%s ctest --test-dir %s -R net_test_replay_v1 --output-on-failure",
-           g_file, r->no, r->section, what, g_file, g_build);
+  if (changed)
+    fail_msg("%s:%d (section %s): the server's content changed: %s.\n"
+             "It still speaks version 1, but serves other states than the recording. If that change is intended,\n"
+             "re-record, check the diff and commit the file:\n"
+             "  OC_REPLAY_RECORD=%s ctest --test-dir %s -R net_test_replay_v1 --output-on-failure",
+             g_file, r->no, r->section, what, g_file, g_build);
+  else
+    fail_msg("%s:%d (section %s): the server broke protocol version 1: %s (a version-1 viewer must still be served "
+             "exactly as recorded; docs/protocol.md, \"Wire\")",
+             g_file, r->no, r->section, what);
 }
-
-static void protocol_broken(const replay_t *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void protocol_broken(const replay_t *r, const char *fmt, ...) {
-  char what[1024];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(what, sizeof what, fmt, ap);
-  va_end(ap);
-  fail_msg("%s:%d (section %s): the server broke protocol version 1: %s (a version-1 viewer must still be served "
-           "exactly as recorded; docs/protocol.md, \"Wire\")",
-           g_file, r->no, r->section, what);
-}
+#define content_changed(r, ...) rp_fail(r, 1, __VA_ARGS__)
+#define protocol_broken(r, ...) rp_fail(r, 0, __VA_ARGS__)
 
 static const oc_brick_codes_t *rp_lookup(void *ctx, uint32_t id) {
   const replay_t *r = ctx;
