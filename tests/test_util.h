@@ -15,6 +15,16 @@ static inline uint64_t rng_u64(void) {
 /* Uniform in [0, 1) with 53 random bits. */
 static inline double rng_unit(void) { return (double)(rng_u64() >> 11) * (1.0 / 9007199254740992.0); }
 
+/* splitmix64 over the caller's state: seeded streams of their own (one per loop or thread). */
+static inline uint64_t rng_split(uint64_t *s) {
+  uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+/* Uniform in [0, 1) with 53 bits of rng_split(s). */
+static inline double rng_split_unit(uint64_t *s) { return (double)(rng_split(s) >> 11) * (1.0 / 9007199254740992.0); }
+
 /* Mean of σt over a node's own cube from its 8³ corner samples: each sample stands for the box of
  * edge size/7 around it, so samples on faces count half, on edges a quarter, at corners an eighth
  * (trapezoid weights). Used by the filtering tests (a parent's mean against its descendants'). */

@@ -12,18 +12,12 @@
 #include <cmocka.h>
 
 #include "test_main.h"
+#include "test_util.h" /* rng_split */
 #include "oc_err.h"
 #include "oc_noise.h"
 
-/* Test-local deterministic RNG (splitmix64). */
-static uint64_t rng_next(uint64_t *s) {
-  uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-static double rng_unit(uint64_t *s) { return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0); }
-static double rng_range(uint64_t *s, double lo, double hi) { return lo + (hi - lo) * rng_unit(s); }
+/* Uniform in [lo, hi) from a seeded stream. */
+static double rng_range(uint64_t *s, double lo, double hi) { return lo + (hi - lo) * rng_split_unit(s); }
 
 /* Optimised builds prove the Lipschitz bound at full resolution; unoptimised or sanitised ones (the
  * CI's ASan+UBSan stage) run the same code coarsely. */
@@ -207,7 +201,7 @@ static void test_bound(void **state) {
     double c[3] = {floor(rng_range(&rs, -1e5, 1e5)), floor(rng_range(&rs, -1e5, 1e5)), floor(rng_range(&rs, -1e5, 1e5))};
     double f[3] = {0.35525671, 0.48149221, 0.5};
     /* a random permutation and mirroring of the cell point */
-    int perm = (int)(rng_next(&rs) % 6), flip = (int)(rng_next(&rs) % 8);
+    int perm = (int)(rng_split(&rs) % 6), flip = (int)(rng_split(&rs) % 8);
     static const int P[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
     double p[3];
     for (int k = 0; k < 3; k++) p[k] = c[k] + ((flip >> k & 1) ? 1.0 - f[P[perm][k]] : f[P[perm][k]]);
@@ -543,7 +537,7 @@ static void test_lipschitz_adversarial(void **state) {
   const double h = 1e-6;
   for (int start = 0; start < 400; start++) {
     double f[3], d[3];
-    for (int k = 0; k < 3; k++) f[k] = rng_unit(&rs), d[k] = rng_range(&rs, -1, 1);
+    for (int k = 0; k < 3; k++) f[k] = rng_split_unit(&rs), d[k] = rng_range(&rs, -1, 1);
     double step = 0.05, best = 0.0;
     for (int it = 0; it < 400; it++) {
       double f2[3], d2[3], n = 0.0;

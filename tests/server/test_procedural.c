@@ -41,16 +41,8 @@
 
 /*-*** Helpers ***/
 
-static uint64_t rng_next(uint64_t *s) {
-  uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-static double proc_rng_unit(uint64_t *s) { return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0); }
-
 static oc_dvec3 rand_dir(uint64_t *s) {
-  double z = 2.0 * proc_rng_unit(s) - 1.0, ph = 2.0 * OC_PI * proc_rng_unit(s), r = sqrt(1.0 - z * z);
+  double z = 2.0 * rng_split_unit(s) - 1.0, ph = 2.0 * OC_PI * rng_split_unit(s), r = sqrt(1.0 - z * z);
   return oc_dv3(r * cos(ph), r * sin(ph), z);
 }
 static oc_dvec3 at_alt(oc_dvec3 dir, double alt) { return oc_dscale(dir, OC_PLANET_RADIUS + alt); }
@@ -100,7 +92,7 @@ static void bound_key(const ocs_source_t *s, oc_key_t k, double t, float *mn, fl
 /* A point with σt > 0 at an altitude in [lo, hi]; fails the test after many tries. */
 static oc_dvec3 cloudy_point(const ocs_source_t *s, double t, double lo, double hi, uint64_t *rng) {
   for (int i = 0; i < 200000; i++) {
-    oc_dvec3 p = at_alt(rand_dir(rng), lo + (hi - lo) * proc_rng_unit(rng));
+    oc_dvec3 p = at_alt(rand_dir(rng), lo + (hi - lo) * rng_split_unit(rng));
     if (s->vt->point(s, p, t) > 0.0) return p;
   }
   fail_msg("no cloud found between %g and %g m", lo, hi);
@@ -240,7 +232,7 @@ static void test_procedural__deterministic(void **st) {
   assert_true(differ >= NKEYS / 2); /* another seed is another planet */
   uint64_t rng = 5;
   for (int i = 0; i < 1000; i++) {
-    oc_dvec3 p = at_alt(rand_dir(&rng), 12000.0 * proc_rng_unit(&rng));
+    oc_dvec3 p = at_alt(rand_dir(&rng), 12000.0 * rng_split_unit(&rng));
     double va = a->vt->point(a, p, t), vb = b->vt->point(b, p, t);
     assert_memory_equal(&va, &vb, sizeof va);
   }
@@ -508,11 +500,11 @@ static void test_procedural__bound_is_conservative(void **st) {
       s->animated = 0;
     }
     for (int n = 0; n < SIZE(60, 12); n++) {
-      int level = 5 + (int)(rng_next(&rng) % 13);
-      double t = pi == 1 ? 3000.0 + 37.5 * (double)(rng_next(&rng) % 33) : (n % 3 ? 3600.0 * proc_rng_unit(&rng) : 0.0);
+      int level = 5 + (int)(rng_split(&rng) % 13);
+      double t = pi == 1 ? 3000.0 + 37.5 * (double)(rng_split(&rng) % 33) : (n % 3 ? 3600.0 * rng_split_unit(&rng) : 0.0);
       int exact = pi == 1 || t == 0.0; /* point() sees what the brick holds */
       oc_dvec3 p = n % 2 ? cloudy_point(s, t, 0.0, 15000.0, &rng)
-                         : at_alt(rand_dir(&rng), -1000.0 + 18000.0 * proc_rng_unit(&rng));
+                         : at_alt(rand_dir(&rng), -1000.0 + 18000.0 * rng_split_unit(&rng));
       oc_key_t k = oc_key_from_point(level, p);
       float mn, mx, b[512];
       bound_key(s, k, t, &mn, &mx);
@@ -525,8 +517,8 @@ static void test_procedural__bound_is_conservative(void **st) {
         oc_dvec3 lo, hi;
         footprint(k, &lo, &hi);
         for (int i = 0; i < SIZE(200, 50); i++) {
-          oc_dvec3 q = oc_dv3(lo.x + (hi.x - lo.x) * proc_rng_unit(&rng), lo.y + (hi.y - lo.y) * proc_rng_unit(&rng),
-                              lo.z + (hi.z - lo.z) * proc_rng_unit(&rng));
+          oc_dvec3 q = oc_dv3(lo.x + (hi.x - lo.x) * rng_split_unit(&rng), lo.y + (hi.y - lo.y) * rng_split_unit(&rng),
+                              lo.z + (hi.z - lo.z) * rng_split_unit(&rng));
           double v = s->vt->point(s, q, t);
           if (v > mx) fail_msg("level %d t %g: point %g above bound %g", level, t, v, mx);
         }
@@ -555,7 +547,7 @@ static void test_procedural__voxel_bounds_are_conservative(void **st) {
     ocs_source_t *s = mk(presets[pi], pi == 0 ? 2.0 : 1.0, 1.0, 5);
     const ocs__proc_t *P = (const ocs__proc_t *)s;
     for (int n = 0; n < SIZE(40, 8); n++) {
-      int level = 5 + (int)(rng_next(&rng) % 13);
+      int level = 5 + (int)(rng_split(&rng) % 13);
       oc_key_t k = oc_key_from_point(level, cloudy_point(s, 0.0, 0.0, 15000.0, &rng));
       ocs__frame_t F;
       ocs__bb_t nb;
@@ -610,7 +602,7 @@ static void layer_range(oc_preset_t preset, const char *layer, double hlo, doubl
   uint64_t rng = 11;
   int n = 0;
   for (int i = 0; i < N; i++) {
-    double x = s->vt->point(s, at_alt(rand_dir(&rng), hlo + (hhi - hlo) * proc_rng_unit(&rng)), 0.0);
+    double x = s->vt->point(s, at_alt(rand_dir(&rng), hlo + (hhi - hlo) * rng_split_unit(&rng)), 0.0);
     assert_true(x >= 0.0 && isfinite(x));
     if (x > 0.0) v[n++] = x;
   }
@@ -641,9 +633,9 @@ static void test_procedural__layer_altitudes(void **st) {
   int inside = 0;
   for (int i = 0; i < SIZE(20000, 4000); i++) {
     oc_dvec3 d = rand_dir(&rng);
-    assert_true(s->vt->point(s, at_alt(d, 16000.0 + 84000.0 * proc_rng_unit(&rng)), 500.0) == 0.0);
-    assert_true(s->vt->point(s, at_alt(d, -50000.0 * proc_rng_unit(&rng) - 1e-3), 500.0) == 0.0);
-    inside += s->vt->point(s, at_alt(d, 400.0 + 13600.0 * proc_rng_unit(&rng)), 500.0) > 0.0;
+    assert_true(s->vt->point(s, at_alt(d, 16000.0 + 84000.0 * rng_split_unit(&rng)), 500.0) == 0.0);
+    assert_true(s->vt->point(s, at_alt(d, -50000.0 * rng_split_unit(&rng) - 1e-3), 500.0) == 0.0);
+    inside += s->vt->point(s, at_alt(d, 400.0 + 13600.0 * rng_split_unit(&rng)), 500.0) > 0.0;
   }
   assert_true(inside > SIZE(2000, 400));
   assert_true(s->vt->point(s, oc_dv3(0, 0, 0), 0.0) == 0.0);
@@ -771,7 +763,7 @@ static void test_procedural__weather_transition(void **st) {
   /* A change that starts earlier replaces a later one; chained changes stay continuous. */
   assert_int_equal(w->vt->set_weather(w, OC_PRESET_CLEAR, 500.0, 100.0), 0);
   for (int i = 0; i < 200; i++)
-    assert_true(w->vt->point(w, at_alt(rand_dir(&rng), 12000.0 * proc_rng_unit(&rng)), 2000.0) == 0.0);
+    assert_true(w->vt->point(w, at_alt(rand_dir(&rng), 12000.0 * rng_split_unit(&rng)), 2000.0) == 0.0);
   assert_int_equal(w->vt->set_weather(w, OC_PRESET_OVERCAST, 550.0, 300.0), 0); /* during the first */
   oc_dvec3 p = cloudy_point(fair, 550.0, 500.0, 3000.0, &rng);
   double l = w->vt->point(w, p, 550.0 - 1e-6), r = w->vt->point(w, p, 550.0 + 1e-6);
@@ -888,7 +880,7 @@ static void test_procedural__bench(void **st) {
       int shell = 0, empty = 0, tried = 0, zero = 0;
       double tb = 0.0;
       for (int i = 0; i < 4000; i++) {
-        oc_key_t k = oc_key_from_point(L, at_alt(rand_dir(&rng), 16000.0 * proc_rng_unit(&rng)));
+        oc_key_t k = oc_key_from_point(L, at_alt(rand_dir(&rng), 16000.0 * rng_split_unit(&rng)));
         float mn, mx;
         double tb0 = now_s();
         bound_key(s, k, 0.0, &mn, &mx);
