@@ -83,6 +83,50 @@ static uint32_t count_resent(const oc_state_t *s, const oc_state_t *prev, const 
 }
 
 /* The server and the wire for one configuration. @return OC_EXIT_* after printing any error. */
+/* The wire of epoch e: encoded against the previous state, decoded as the viewer, compared with the
+ * server's state; buf receives the epoch's bytes. @return OC_EXIT_OK, or OC_EXIT_RUNTIME after the error. */
+static int wire_round_trip(const char *prog, const fcfg_t *c, long e, ocs_viewer_t *v, const ocs_epoch_out_t *o,
+                           ocp_epoch_enc_t *enc, ocp_epoch_dec_t *dec, oc_buf_t *buf) {
+  const oc_state_t *s = o->state, *prev = ocs_viewer_held(v, 1);
+  char why[1024];
+  int r = 0;
+  buf->len = 0;
+  if (ocp_epoch_enc_begin(enc, s, prev, o->lacking, o->nlacking) < 0) r = OC_ENOMEM;
+  while (r >= 0 && (r = ocp_epoch_enc_next(enc, F_VERSION, buf)) > 0) {
+  }
+  if (r < 0) {
+    fprintf(stderr, "\n");
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: encoding failed: %s", c->label, e, oc_strerror(r));
+  }
+  why[0] = '\0';
+  /* the viewer holds what the server has seen acknowledged: its held states 1..K−1 */
+  const oc_state_t *held[OCS_PLAN_MAX_KEPT];
+  int nheld = 0;
+  for (int i = 1; i < c->K && nheld < OCS_PLAN_MAX_KEPT; i++) held[nheld++] = ocs_viewer_held(v, i);
+  oc_state_t got;
+  oc_state_init(&got);
+  r = oct_epoch_decode(dec, buf, held, nheld, &got, why, sizeof why);
+  int same = r >= 0 && oc_state_checksum(&got) == oc_state_checksum(s);
+  oc_state_free(&got);
+  if (same) return OC_EXIT_OK;
+  fprintf(stderr, "\n");
+  return oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: DECODE %s: %s", c->label, e, r < 0 ? "FAILED" : "MISMATCH",
+                     r < 0 ? why : "the decoded state's checksum differs from the server's");
+}
+
+/* The last epoch's state: resident bytes, counts, checksum, and a copy to render. @return 0 or -1. */
+static int record_last(fcfg_t *c, ocs_viewer_t *v, const oc_state_t *s) {
+  const oc_state_t *kept[OCS_PLAN_MAX_KEPT];
+  int n = 0;
+  for (int i = 0; i < c->K && i < OCS_PLAN_MAX_KEPT; i++)
+    if ((kept[n] = ocs_viewer_held(v, i))) n++;
+  c->resident = oc_resident_bytes(kept, n, OC_SLOT_BYTES, OC_RECORD_BYTES);
+  c->nodes = s->node_count, c->state_bricks = s->brick_count, c->checksum = oc_state_checksum(s);
+  for (uint32_t i = 0; i < s->node_count; i++)
+    if (s->nodes[i].kind <= OC_NODE_BRICK) c->kinds[s->nodes[i].kind]++;
+  return oc_state_copy(&c->final, s);
+}
+
 static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long epochs, long budget_mib, int threads) {
   char why[1024];
   ocs_world_desc_t wd = {.threads = threads, .cache_bytes = 1ull << 30};
@@ -91,8 +135,6 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
   ocp_epoch_enc_t *enc = NULL;
   ocp_epoch_dec_t *dec = NULL;
   oc_buf_t buf = {0};
-  oc_state_t got;
-  oc_state_init(&got);
   int rc = OC_EXIT_OK, r;
   double t0 = oct_now();
   if ((r = ocs_world_create(&w, c->sc, &wd, why, sizeof why)) < 0) {
@@ -133,28 +175,7 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
     uint64_t made = ws.bricks_produced - produced;
     produced = ws.bricks_produced;
     const oc_state_t *s = o.state, *prev = ocs_viewer_held(v, 1);
-    /* the wire: encode against the previous state, decode as the viewer, compare */
-    buf.len = 0;
-    if (ocp_epoch_enc_begin(enc, s, prev, o.lacking, o.nlacking) < 0) r = OC_ENOMEM;
-    while (r >= 0 && (r = ocp_epoch_enc_next(enc, F_VERSION, &buf)) > 0) {
-    }
-    if (r < 0) {
-      fprintf(stderr, "\n");
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: encoding failed: %s", c->label, e, oc_strerror(r));
-      goto out;
-    }
-    why[0] = '\0';
-    /* the viewer holds what the server has seen acknowledged: its held states 1..K−1 */
-    const oc_state_t *held[OCS_PLAN_MAX_KEPT];
-    int nheld = 0;
-    for (int i = 1; i < c->K && nheld < OCS_PLAN_MAX_KEPT; i++) held[nheld++] = ocs_viewer_held(v, i);
-    if ((r = oct_epoch_decode(dec, &buf, held, nheld, &got, why, sizeof why)) < 0 || oc_state_checksum(&got) != oc_state_checksum(s)) {
-      fprintf(stderr, "\n");
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: %s: epoch %ld: DECODE %s: %s", c->label, e, r < 0 ? "FAILED" : "MISMATCH",
-                       r < 0 ? why : "the decoded state's checksum differs from the server's");
-      goto out;
-    }
-    oc_state_free(&got);
+    if ((rc = wire_round_trip(prog, c, e, v, &o, enc, dec, &buf)) != OC_EXIT_OK) goto out;
     uint32_t resent = count_resent(s, prev, o.lacking, o.nlacking);
     if (e == 0) {
       c->cpu0_ms = cpu_ms, c->bricks0 = made, c->wire0 = buf.len;
@@ -163,16 +184,8 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
     }
     if (e == epochs - 1) {
       c->cpu_last_ms = cpu_ms, c->bricks_last = made, c->resent_last = resent, c->wire_last = buf.len;
-      const oc_state_t *kept[OCS_PLAN_MAX_KEPT];
-      int n = 0;
-      for (int i = 0; i < c->K && i < OCS_PLAN_MAX_KEPT; i++)
-        if ((kept[n] = ocs_viewer_held(v, i))) n++;
-      c->resident = oc_resident_bytes(kept, n, OC_SLOT_BYTES, OC_RECORD_BYTES);
-      c->nodes = s->node_count, c->state_bricks = s->brick_count, c->checksum = oc_state_checksum(s);
-      for (uint32_t i = 0; i < s->node_count; i++)
-        if (s->nodes[i].kind <= OC_NODE_BRICK) c->kinds[s->nodes[i].kind]++;
       c->tau_volumes = ws.tau_volumes;
-      if (oc_state_copy(&c->final, s) < 0) {
+      if (record_last(c, v, s) < 0) {
         fprintf(stderr, "\n");
         rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "features: out of memory");
         goto out;
@@ -182,7 +195,6 @@ static int run_server(const char *prog, fcfg_t *c, const ocs_view_t *view, long 
   }
   fprintf(stderr, "\r\033[K");
 out:
-  oc_state_free(&got);
   oc_buf_free(&buf);
   ocp_epoch_enc_free(enc);
   ocp_epoch_dec_free(dec);
