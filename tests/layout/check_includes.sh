@@ -5,7 +5,8 @@
 #   server/ adds server/ (never client/); client/ (client/gl/ too) adds client/ (never server/);
 # - tools/ includes its own headers, shaders/ ones (their precision is the includer's choice) and
 #   the modules' public headers only: oc.h, ocp.h, ocs.h, ocv.h;
-# - only proto/ includes zstd.h.
+# - only proto/ includes zstd.h;
+# - client/CMakeLists.txt never links ocs_core, server/ and proto/ never oc_client or oc_gl.
 # tests/ are white-box and not checked. A header not found in any module is a library's (stb, ...).
 # Usage: check_includes.sh [SOURCE_ROOT]; exits 1 naming every include that goes against a rule.
 set -u
@@ -68,6 +69,15 @@ for dir in $mods; do
     done <"$f"
   done
 done
+# The link lines agree: client/ never links the server's library, server/ and proto/ never the
+# client's (nor proto/ the server's).
+for rule in client:ocs_core server:oc_client server:oc_gl proto:ocs_core proto:oc_client; do
+  d=${rule%%:*} lib=${rule#*:}
+  if grep -nE "target_link_libraries\(.*\b$lib\b" "$d/CMakeLists.txt" >/dev/null 2>&1; then
+    echo "$d/CMakeLists.txt: links $lib: $d/ may not depend on it"
+    bad=$((bad + 1))
+  fi
+done
 if [ $files -lt 50 ]; then echo "only $files source files found under $root: wrong folder?"; exit 2; fi
-if [ $bad -gt 0 ]; then echo "$bad include(s) against the layering (docs/architecture.md, Modules)"; exit 1; fi
+if [ $bad -gt 0 ]; then echo "$bad include(s) or link line(s) against the layering (docs/architecture.md, Modules)"; exit 1; fi
 echo "layout: $files files, every include follows shaders ◄ common ◄ proto ◄ server/client ◄ tools"
