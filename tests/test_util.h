@@ -4,6 +4,15 @@
 
 #include <stdint.h>
 
+/* Optimised builds run a test's full workload; unoptimised or sanitised ones (the CI's ASan+UBSan
+ * stage is a Debug build) the same code paths on a smaller one: SIZE(full, smoke). */
+#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__)
+#define FULL 1
+#else
+#define FULL 0
+#endif
+#define SIZE(full, smoke) (FULL ? (full) : (smoke))
+
 /* xorshift64*: deterministic across platforms, unlike rand(). One stream per test program. */
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
 static inline uint64_t rng_u64(void) {

@@ -19,13 +19,8 @@
 /* Uniform in [lo, hi) from a seeded stream. */
 static double rng_range(uint64_t *s, double lo, double hi) { return lo + (hi - lo) * rng_split_unit(s); }
 
-/* Optimised builds prove the Lipschitz bound at full resolution; unoptimised or sanitised ones (the
- * CI's ASan+UBSan stage) run the same code coarsely. */
-#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__)
-#define FULL 1
-#else
-#define FULL 0
-#endif
+/* FULL (test_util.h): optimised builds prove the Lipschitz bound at full resolution; unoptimised
+ * or sanitised ones (the CI's ASan+UBSan stage) run the same code coarsely. */
 
 static uint32_t fbits(float f) {
   uint32_t u;

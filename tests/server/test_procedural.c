@@ -28,16 +28,10 @@
 
 /*-*** Workload ***/
 
-/* Optimised builds run the statistics at full size. Unoptimised or sanitised builds (the CI's
- * ASan+UBSan stage is a Debug build, where the noise is about 35 times slower) run every code path
- * on a smaller workload and check the statistical tolerances only where the sample is big enough;
- * the full checks are stage 1's job. */
-#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__)
-#define FULL 1
-#else
-#define FULL 0
-#endif
-#define SIZE(full, smoke) (FULL ? (full) : (smoke))
+/* FULL and SIZE (test_util.h): optimised builds run the statistics at full size. Unoptimised or
+ * sanitised builds (the CI's ASan+UBSan stage is a Debug build, where the noise is about 35 times
+ * slower) run every code path on a smaller workload and check the statistical tolerances only
+ * where the sample is big enough; the full checks are stage 1's job. */
 
 /*-*** Helpers ***/
 

@@ -24,15 +24,10 @@
 #include "ocs_field.h"
 #include "report.h"
 #include "sun_depth.h"
+#include "test_util.h" /* SIZE */
 
-/* Optimised builds run the full workload; unoptimised or sanitised ones (the CI's ASan+UBSan stage
- * is a Debug build) the same code paths on fewer nodes. */
-#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__)
-#define FULL 1
-#else
-#define FULL 0
-#endif
-#define SIZE(full, smoke) (FULL ? (full) : (smoke))
+/* FULL and SIZE (test_util.h): optimised builds run the full workload; unoptimised or sanitised
+ * ones (the CI's ASan+UBSan stage is a Debug build) the same code paths on fewer nodes. */
 
 /*-*** A field behind the callbacks, with a thread-safe memo (the server's shared brick cache) ***/
 
