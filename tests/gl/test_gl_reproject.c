@@ -134,12 +134,7 @@ static void test_gl_reproject__disocclusion(void **state) {
   sphere_state(&st, cam, H, 0);
   ocv_gl_state_t gs;
   assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
-  oc_render_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.width = W;
-  d.height = H;
-  d.camera = cam;
-  d.background = OC_BG_CONSTANT;
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
   d.background_radiance = 0.05f; /* the mark */
   oc_image_t before = {0}, after = {0}, img = {0};
   assert_int_equal(oc_image_alloc(&before, W, H), 0);
