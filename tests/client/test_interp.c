@@ -14,6 +14,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "brick.h" /* ocg_*: the reference reconstruction */
 #include "interp.h"
 #include "oc_err.h"
@@ -846,20 +847,16 @@ static void test_interp__random_consistency(void **state) {
                 (unsigned long long)total[4], (unsigned long long)fine_total, (unsigned long long)one_level_total);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_interp__identity_is_same),
-      cmocka_unit_test(test_interp__null_prev_is_none),
-      cmocka_unit_test(test_interp__split_ramp),
-      cmocka_unit_test(test_interp__split_multilevel),
-      cmocka_unit_test(test_interp__split_empty_uniform_brick),
-      cmocka_unit_test(test_interp__merge_uniform_children),
-      cmocka_unit_test(test_interp__merge_bricks),
-      cmocka_unit_test(test_interp__refresh_is_own),
-      cmocka_unit_test(test_interp__constant_brick_is_uniform),
-      cmocka_unit_test(test_interp__corrupt_input),
-      cmocka_unit_test(test_interp__weights),
-      cmocka_unit_test(test_interp__random_consistency),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_interp__identity_is_same),
+             cmocka_unit_test(test_interp__null_prev_is_none),
+             cmocka_unit_test(test_interp__split_ramp),
+             cmocka_unit_test(test_interp__split_multilevel),
+             cmocka_unit_test(test_interp__split_empty_uniform_brick),
+             cmocka_unit_test(test_interp__merge_uniform_children),
+             cmocka_unit_test(test_interp__merge_bricks),
+             cmocka_unit_test(test_interp__refresh_is_own),
+             cmocka_unit_test(test_interp__constant_brick_is_uniform),
+             cmocka_unit_test(test_interp__corrupt_input),
+             cmocka_unit_test(test_interp__weights),
+             cmocka_unit_test(test_interp__random_consistency))

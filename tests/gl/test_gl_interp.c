@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "brick.h" /* ocg_*: N's reconstruction at a merged leaf's child lattices */
 #include "interp.h"
 #include "oc_camera.h"
@@ -283,7 +284,5 @@ static void test_gl_interp__refresh_and_replan(void **state) {
   oc_state_free(&R);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_interp__refresh_and_replan)};
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_gl_interp__refresh_and_replan))

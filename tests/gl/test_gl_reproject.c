@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "oc_camera.h"
 #include "oc_image.h"
 #include "oc_render.h"
@@ -228,8 +229,6 @@ static void test_gl_reproject__disocclusion(void **state) {
   oc_state_free(&st);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_reproject__frames),
-                                     cmocka_unit_test(test_gl_reproject__disocclusion)};
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_gl_reproject__frames),
+             cmocka_unit_test(test_gl_reproject__disocclusion))

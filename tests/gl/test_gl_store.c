@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "oc_atmo.h"
 #include "oc_camera.h"
 #include "oc_err.h"
@@ -210,8 +211,6 @@ static void test_gl_store__sized_from_the_grant(void **state) {
   assert_non_null(strstr(why, "kept states must be 2 or 3"));
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_store__epochs),
-                                     cmocka_unit_test(test_gl_store__sized_from_the_grant)};
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_gl_store__epochs),
+             cmocka_unit_test(test_gl_store__sized_from_the_grant))

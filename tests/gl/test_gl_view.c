@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "test_main.h"
 #include "oc_camera.h"
 #include "oc_err.h"
 #include "oc_image.h"
@@ -261,8 +262,6 @@ static void test_gl_view__no_popping(void **state) {
   for (int k = 0; k < PATH_E; k++) oc_state_free(&states[k]);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_gl_view__epochs),
-                                     cmocka_unit_test(test_gl_view__no_popping)};
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_gl_view__epochs),
+             cmocka_unit_test(test_gl_view__no_popping))

@@ -10,6 +10,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_scene.h"
 #include "oc_planet.h"
@@ -300,15 +301,11 @@ static void test_field__slab_filter_is_exact(void **st) {
   ocs_field_free(f);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_field__box_filter_preserves_the_mean),
-      cmocka_unit_test(test_field__bound_is_conservative),
-      cmocka_unit_test(test_field__sources_add_and_static_steps),
-      cmocka_unit_test(test_field__static_procedural_is_frozen),
-      cmocka_unit_test(test_field__bound_cache_is_exact),
-      cmocka_unit_test(test_field__bad_source_names_it),
-      cmocka_unit_test(test_field__slab_filter_is_exact),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_field__box_filter_preserves_the_mean),
+             cmocka_unit_test(test_field__bound_is_conservative),
+             cmocka_unit_test(test_field__sources_add_and_static_steps),
+             cmocka_unit_test(test_field__static_procedural_is_frozen),
+             cmocka_unit_test(test_field__bound_cache_is_exact),
+             cmocka_unit_test(test_field__bad_source_names_it),
+             cmocka_unit_test(test_field__slab_filter_is_exact))

@@ -17,6 +17,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "oc_err.h"
 #include "oc_planet.h"
 #include "oc_scene.h"
@@ -897,26 +898,22 @@ static void test_procedural__bench(void **st) {
   }
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_procedural__rejects_bad_desc),
-      cmocka_unit_test(test_procedural__deterministic),
-      cmocka_unit_test(test_procedural__sample_is_box_average_of_point),
-      cmocka_unit_test(test_procedural__shared_faces_agree),
-      cmocka_unit_test(test_procedural__coarse_strata_are_all_counted),
-      cmocka_unit_test(test_procedural__fast_matches_exact),
-      cmocka_unit_test(test_procedural__filter_mean_coarse),
-      cmocka_unit_test(test_procedural__filter_mean_mid),
-      cmocka_unit_test(test_procedural__filter_mean_fine),
-      cmocka_unit_test(test_procedural__bound_is_conservative),
-      cmocka_unit_test(test_procedural__voxel_bounds_are_conservative),
-      cmocka_unit_test(test_procedural__layer_ranges),
-      cmocka_unit_test(test_procedural__layer_altitudes),
-      cmocka_unit_test(test_procedural__animation),
-      cmocka_unit_test(test_procedural__weather_transition),
-      cmocka_unit_test(test_procedural__presets_differ),
-      cmocka_unit_test(test_procedural__scales),
-      cmocka_unit_test(test_procedural__bench),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_procedural__rejects_bad_desc),
+             cmocka_unit_test(test_procedural__deterministic),
+             cmocka_unit_test(test_procedural__sample_is_box_average_of_point),
+             cmocka_unit_test(test_procedural__shared_faces_agree),
+             cmocka_unit_test(test_procedural__coarse_strata_are_all_counted),
+             cmocka_unit_test(test_procedural__fast_matches_exact),
+             cmocka_unit_test(test_procedural__filter_mean_coarse),
+             cmocka_unit_test(test_procedural__filter_mean_mid),
+             cmocka_unit_test(test_procedural__filter_mean_fine),
+             cmocka_unit_test(test_procedural__bound_is_conservative),
+             cmocka_unit_test(test_procedural__voxel_bounds_are_conservative),
+             cmocka_unit_test(test_procedural__layer_ranges),
+             cmocka_unit_test(test_procedural__layer_altitudes),
+             cmocka_unit_test(test_procedural__animation),
+             cmocka_unit_test(test_procedural__weather_transition),
+             cmocka_unit_test(test_procedural__presets_differ),
+             cmocka_unit_test(test_procedural__scales),
+             cmocka_unit_test(test_procedural__bench))

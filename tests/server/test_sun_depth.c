@@ -16,6 +16,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "analytic.h"
 #include "oc_err.h"
 #include "oc_scene.h"
@@ -922,20 +923,16 @@ static void test_sun_depth__bad_arguments(void **st) {
   tc_free(&c);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_sun_depth__slab_below_three_sun_angles),
-      cmocka_unit_test(test_sun_depth__slab_inside),
-      cmocka_unit_test(test_sun_depth__zenith_along_an_axis),
-      cmocka_unit_test(test_sun_depth__sun_below_horizon),
-      cmocka_unit_test(test_sun_depth__root_cube_edge),
-      cmocka_unit_test(test_sun_depth__huge_sigma),
-      cmocka_unit_test(test_sun_depth__above_clouds_is_zero),
-      cmocka_unit_test(test_sun_depth__volume_matches_direct_on_the_planet),
-      cmocka_unit_test(test_sun_depth__quadrature_is_exact),
-      cmocka_unit_test(test_sun_depth__thread_count_independent),
-      cmocka_unit_test(test_sun_depth__clear_column_is_the_march),
-      cmocka_unit_test(test_sun_depth__bad_arguments),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_sun_depth__slab_below_three_sun_angles),
+             cmocka_unit_test(test_sun_depth__slab_inside),
+             cmocka_unit_test(test_sun_depth__zenith_along_an_axis),
+             cmocka_unit_test(test_sun_depth__sun_below_horizon),
+             cmocka_unit_test(test_sun_depth__root_cube_edge),
+             cmocka_unit_test(test_sun_depth__huge_sigma),
+             cmocka_unit_test(test_sun_depth__above_clouds_is_zero),
+             cmocka_unit_test(test_sun_depth__volume_matches_direct_on_the_planet),
+             cmocka_unit_test(test_sun_depth__quadrature_is_exact),
+             cmocka_unit_test(test_sun_depth__thread_count_independent),
+             cmocka_unit_test(test_sun_depth__clear_column_is_the_march),
+             cmocka_unit_test(test_sun_depth__bad_arguments))

@@ -20,6 +20,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "test_util.h"
 
 #include "oc_err.h"
@@ -1391,34 +1392,30 @@ static int teardown(void **st) {
   return 0;
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_vdb__analytic_field_maps_no_openvdb), /* first: before any VDB use */
-      cmocka_unit_test(test_vdb__shim_reads_disney_with_progress),
-      cmocka_unit_test(test_vdb__inspect_text_and_json),
-      cmocka_unit_test(test_vdb__fog_sphere_fine_levels_match_analytic),
-      cmocka_unit_test(test_vdb__fog_sphere_coarse_levels_box_average),
-      cmocka_unit_test(test_vdb__compression_and_half_variants),
-      cmocka_unit_test(test_vdb__constant_tiles),
-      cmocka_unit_test(test_vdb__placement_orientation_and_heading),
-      cmocka_unit_test(test_vdb__rotated_nonuniform_transform),
-      cmocka_unit_test(test_vdb__grid_selection),
-      cmocka_unit_test(test_vdb__sequence_loop_hold_and_cache),
-      cmocka_unit_test(test_vdb__sequence_threads),
-      cmocka_unit_test(test_vdb__bound_is_conservative),
-      cmocka_unit_test(test_vdb__bad_missing_file),
-      cmocka_unit_test(test_vdb__bad_not_a_vdb),
-      cmocka_unit_test(test_vdb__bad_truncated),
-      cmocka_unit_test(test_vdb__bad_no_float_grid),
-      cmocka_unit_test(test_vdb__bad_level_set),
-      cmocka_unit_test(test_vdb__bad_point_grid),
-      cmocka_unit_test(test_vdb__bad_empty_grid),
-      cmocka_unit_test(test_vdb__bad_voxel_size),
-      cmocka_unit_test(test_vdb__bad_values_sanitised),
-      cmocka_unit_test(test_vdb__bad_absurd_placement),
-      cmocka_unit_test(test_vdb__disney_cloud),
-      cmocka_unit_test(test_vdb__two_vdbs_in_one_field),
-      cmocka_unit_test(test_vdb__export_round_trip),
-  };
-  return cmocka_run_group_tests(tests, setup, teardown);
-}
+OC_TEST_MAIN(setup, teardown,
+             cmocka_unit_test(test_vdb__analytic_field_maps_no_openvdb), /* first: before any VDB use */
+             cmocka_unit_test(test_vdb__shim_reads_disney_with_progress),
+             cmocka_unit_test(test_vdb__inspect_text_and_json),
+             cmocka_unit_test(test_vdb__fog_sphere_fine_levels_match_analytic),
+             cmocka_unit_test(test_vdb__fog_sphere_coarse_levels_box_average),
+             cmocka_unit_test(test_vdb__compression_and_half_variants),
+             cmocka_unit_test(test_vdb__constant_tiles),
+             cmocka_unit_test(test_vdb__placement_orientation_and_heading),
+             cmocka_unit_test(test_vdb__rotated_nonuniform_transform),
+             cmocka_unit_test(test_vdb__grid_selection),
+             cmocka_unit_test(test_vdb__sequence_loop_hold_and_cache),
+             cmocka_unit_test(test_vdb__sequence_threads),
+             cmocka_unit_test(test_vdb__bound_is_conservative),
+             cmocka_unit_test(test_vdb__bad_missing_file),
+             cmocka_unit_test(test_vdb__bad_not_a_vdb),
+             cmocka_unit_test(test_vdb__bad_truncated),
+             cmocka_unit_test(test_vdb__bad_no_float_grid),
+             cmocka_unit_test(test_vdb__bad_level_set),
+             cmocka_unit_test(test_vdb__bad_point_grid),
+             cmocka_unit_test(test_vdb__bad_empty_grid),
+             cmocka_unit_test(test_vdb__bad_voxel_size),
+             cmocka_unit_test(test_vdb__bad_values_sanitised),
+             cmocka_unit_test(test_vdb__bad_absurd_placement),
+             cmocka_unit_test(test_vdb__disney_cloud),
+             cmocka_unit_test(test_vdb__two_vdbs_in_one_field),
+             cmocka_unit_test(test_vdb__export_round_trip))

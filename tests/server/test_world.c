@@ -12,6 +12,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "analytic.h"
 #include "oc_camera.h"
 #include "oc_err.h"
@@ -338,16 +339,12 @@ static void test_world__fair_share(void **st) {
   ocs_world_free(w);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_world__fair_share),
-      cmocka_unit_test(test_world__states_valid_under_budget_and_static_converges),
-      cmocka_unit_test(test_world__two_viewers_cost_one_generation),
-      cmocka_unit_test(test_world__thread_count_does_not_change_states),
-      cmocka_unit_test(test_world__unacknowledged_viewer_is_coalesced_and_throttled),
-      cmocka_unit_test(test_world__tau_matches_slab),
-      cmocka_unit_test(test_world__weather_change_refreshes_every_viewer),
-      cmocka_unit_test(test_world__admission_and_bad_input),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_world__fair_share),
+             cmocka_unit_test(test_world__states_valid_under_budget_and_static_converges),
+             cmocka_unit_test(test_world__two_viewers_cost_one_generation),
+             cmocka_unit_test(test_world__thread_count_does_not_change_states),
+             cmocka_unit_test(test_world__unacknowledged_viewer_is_coalesced_and_throttled),
+             cmocka_unit_test(test_world__tau_matches_slab),
+             cmocka_unit_test(test_world__weather_change_refreshes_every_viewer),
+             cmocka_unit_test(test_world__admission_and_bad_input))

@@ -15,6 +15,7 @@
 
 #include <cmocka.h>
 
+#include "test_main.h"
 #include "truth.h"
 
 typedef struct {
@@ -98,10 +99,6 @@ static void test_truth__bad_files_rejected(void **state) {
   remove(path);
 }
 
-int main(void) {
-  const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_truth__model_within_measured_bounds),
-      cmocka_unit_test(test_truth__bad_files_rejected),
-  };
-  return cmocka_run_group_tests(tests, NULL, NULL);
-}
+OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_truth__model_within_measured_bounds),
+             cmocka_unit_test(test_truth__bad_files_rejected))
