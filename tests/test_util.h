@@ -2,7 +2,11 @@
 #ifndef OC_TESTS_UTIL_H
 #define OC_TESTS_UTIL_H
 
+#include <dirent.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <unistd.h>
 
 /* Optimised builds run a test's full workload; unoptimised or sanitised ones (the CI's ASan+UBSan
  * stage is a Debug build) the same code paths on a smaller one: SIZE(full, smoke). */
@@ -33,6 +37,28 @@ static inline uint64_t rng_split(uint64_t *s) {
 }
 /* Uniform in [0, 1) with 53 bits of rng_split(s). */
 static inline double rng_split_unit(uint64_t *s) { return (double)(rng_split(s) >> 11) * (1.0 / 9007199254740992.0); }
+
+/* A new directory /tmp/oc_test_<name>_XXXXXX, its path in dir (cap bytes). @return 0, or -1. */
+static inline int oc_test_tmpdir(char *dir, size_t cap, const char *name) {
+  snprintf(dir, cap, "/tmp/oc_test_%s_XXXXXX", name);
+  return mkdtemp(dir) ? 0 : -1;
+}
+
+/* Removes what is in dir (subdirectories too), then dir. */
+static inline void oc_test_rmtree(const char *dir) {
+  DIR *d = opendir(dir);
+  if (d) {
+    struct dirent *e;
+    char p[4096];
+    while ((e = readdir(d)))
+      if (e->d_name[0] != '.') {
+        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
+        if (unlink(p) != 0) oc_test_rmtree(p);
+      }
+    closedir(d);
+  }
+  rmdir(dir);
+}
 
 /* Mean of σt over a node's own cube from its 8³ corner samples: each sample stands for the box of
  * edge size/7 around it, so samples on faces count half, on edges a quarter, at corners an eighth

@@ -17,6 +17,7 @@
 #include <xxhash.h> /* XXH3_64bits: re-sealing deliberately corrupted bytes */
 
 #include "test_main.h"
+#include "test_util.h" /* oc_test_tmpdir, oc_test_rmtree */
 #include "oc_err.h"
 #include "oc_state.h"
 #include "state_fixture.h" /* child, node, golden_codes, golden_state */
@@ -548,19 +549,12 @@ static char tmpdir[64];
 
 static int setup_tmp(void **state) {
   (void)state;
-  snprintf(tmpdir, sizeof tmpdir, "/tmp/oc_test_state_XXXXXX");
-  return mkdtemp(tmpdir) ? 0 : -1;
+  return oc_test_tmpdir(tmpdir, sizeof tmpdir, "state");
 }
 
 static int teardown_tmp(void **state) {
   (void)state;
-  char p[128];
-  static const char *names[] = {"a.ocst", "a.ocst.tmp", "junk.ocst", "short.ocst"};
-  for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
-    snprintf(p, sizeof p, "%s/%s", tmpdir, names[i]);
-    remove(p);
-  }
-  rmdir(tmpdir);
+  oc_test_rmtree(tmpdir);
   return 0;
 }
 

@@ -1371,24 +1371,12 @@ static void test_vdb__export_round_trip(void **st) {
 
 static int setup(void **st) {
   (void)st;
-  snprintf(g_dir, sizeof g_dir, "/tmp/oc_test_vdb_XXXXXX");
-  return mkdtemp(g_dir) ? 0 : -1;
+  return oc_test_tmpdir(g_dir, sizeof g_dir, "vdb");
 }
 
 static int teardown(void **st) {
   (void)st;
-  DIR *d = opendir(g_dir);
-  if (d) {
-    struct dirent *e;
-    char p[600];
-    while ((e = readdir(d)))
-      if (e->d_name[0] != '.') {
-        snprintf(p, sizeof p, "%s/%s", g_dir, e->d_name);
-        unlink(p);
-      }
-    closedir(d);
-  }
-  rmdir(g_dir);
+  oc_test_rmtree(g_dir);
   return 0;
 }
 
