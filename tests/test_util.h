@@ -60,6 +60,19 @@ static inline void oc_test_rmtree(const char *dir) {
   rmdir(dir);
 }
 
+/* Defines tmpdir_setup and tmpdir_teardown, cmocka setup and teardown functions that make and
+ * remove the temporary directory `dir` (a char array) of test `name`. */
+#define OC_TEST_TMPDIR_FIXTURE(dir, name)                    \
+  static int tmpdir_setup(void **state) {                    \
+    (void)state;                                             \
+    return oc_test_tmpdir(dir, sizeof dir, name);            \
+  }                                                          \
+  static int tmpdir_teardown(void **state) {                 \
+    (void)state;                                             \
+    oc_test_rmtree(dir);                                     \
+    return 0;                                                \
+  }
+
 /* Mean of σt over a node's own cube from its 8³ corner samples: each sample stands for the box of
  * edge size/7 around it, so samples on faces count half, on edges a quarter, at corners an eighth
  * (trapezoid weights). Used by the filtering tests (a parent's mean against its descendants'). */

@@ -547,16 +547,7 @@ static void test_state__validate_lean(void **state) {
 
 static char tmpdir[64];
 
-static int setup_tmp(void **state) {
-  (void)state;
-  return oc_test_tmpdir(tmpdir, sizeof tmpdir, "state");
-}
-
-static int teardown_tmp(void **state) {
-  (void)state;
-  oc_test_rmtree(tmpdir);
-  return 0;
-}
+OC_TEST_TMPDIR_FIXTURE(tmpdir, "state")
 
 static void test_state__save_load(void **state) {
   (void)state;
@@ -740,6 +731,6 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_state__golden),
              cmocka_unit_test(test_state__digest_golden),
              cmocka_unit_test(test_state__validate_lean),
-             cmocka_unit_test_setup_teardown(test_state__save_load, setup_tmp, teardown_tmp),
+             cmocka_unit_test_setup_teardown(test_state__save_load, tmpdir_setup, tmpdir_teardown),
              cmocka_unit_test(test_state__resident_bytes),
              cmocka_unit_test(test_state__fuzz_seeds))

@@ -1369,18 +1369,9 @@ static void test_vdb__export_round_trip(void **st) {
 
 /* ---- Group ------------------------------------------------------------------------------------ */
 
-static int setup(void **st) {
-  (void)st;
-  return oc_test_tmpdir(g_dir, sizeof g_dir, "vdb");
-}
+OC_TEST_TMPDIR_FIXTURE(g_dir, "vdb")
 
-static int teardown(void **st) {
-  (void)st;
-  oc_test_rmtree(g_dir);
-  return 0;
-}
-
-OC_TEST_MAIN(setup, teardown,
+OC_TEST_MAIN(tmpdir_setup, tmpdir_teardown,
              cmocka_unit_test(test_vdb__analytic_field_maps_no_openvdb), /* first: before any VDB use */
              cmocka_unit_test(test_vdb__shim_reads_disney_with_progress),
              cmocka_unit_test(test_vdb__inspect_text_and_json),
