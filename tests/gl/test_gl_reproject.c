@@ -27,42 +27,54 @@
 #define W 96
 #define H 56
 
-static void test_gl_reproject__frames(void **state) {
-  (void)state;
+/* The analytic sphere seen from the scene's camera: its state, uploaded (after require_gl()). */
+typedef struct {
+  oc_camera_pose_t pose;
+  oc_camera_t cam;
+  oc_state_t st;
+  ocv_gl_state_t gs;
+} sphere_view_t;
+
+static void sphere_view_up(sphere_view_t *sv) {
   require_gl();
   char why[512];
-  oc_camera_pose_t pose = {{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0}; /* the scene's camera */
-  oc_camera_t cam = oc_camera_from_pose(pose);
-  oc_state_t st;
-  sphere_state(&st, cam, H, 0);
-  ocv_gl_state_t gs;
-  assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
-  oc_render_desc_t d = const_bg_desc(cam, W, H);
+  sv->pose = (oc_camera_pose_t){{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0}; /* the scene's camera */
+  sv->cam = oc_camera_from_pose(sv->pose);
+  sphere_state(&sv->st, sv->cam, H, 0);
+  assert_int_equal(ocv_gl_state_upload(&sv->gs, &sv->st, why, sizeof why), 0);
+}
+
+static void test_gl_reproject__frames(void **state) {
+  (void)state;
+  sphere_view_t sv;
+  sphere_view_up(&sv);
+  oc_render_desc_t d = const_bg_desc(sv.cam, W, H);
+  char why[512];
   oc_image_t full = {0}, img = {0};
   assert_int_equal(oc_image_alloc(&full, W, H), 0);
   assert_int_equal(oc_image_alloc(&img, W, H), 0);
-  assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &full, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_state(ren, &sv.gs, &d, &full, why, sizeof why), 0);
   ocv_gl_history_t *hs = ocv_gl_history_create(W, H, why, sizeof why);
   assert_non_null(hs);
   ocv_gl_frame_stats_t fs;
 
   /* frame 0: no history */
-  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 1, &img, &fs, why, sizeof why), 0);
   assert_int_equal(fs.traced, W * H / 16);
   assert_int_equal(fs.reprojected, 0);
   double block_fill = rmse(&img, &full);
   /* frames 1..15: still camera, every pixel traced once by the 16th */
   for (int f = 1; f < 16; f++) {
-    assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+    assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 1, &img, &fs, why, sizeof why), 0);
     assert_int_equal(fs.reprojected + fs.traced, W * H); /* still: nothing rejected */
   }
   assert_memory_equal(img.px, full.px, sizeof(float) * 4 * W * H);
 
   /* a turn of 0.3°: reprojection keeps most pixels and beats filling the blocks */
-  pose.heading += 0.3;
-  d.camera = oc_camera_from_pose(pose);
-  assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &full, why, sizeof why), 0);
-  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+  sv.pose.heading += 0.3;
+  d.camera = oc_camera_from_pose(sv.pose);
+  assert_int_equal(ocv_gl_render_state(ren, &sv.gs, &d, &full, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 1, &img, &fs, why, sizeof why), 0);
   double turned = rmse(&img, &full);
   printf("first frame (blocks filled): RMSE %.2f; after a 0.3° turn: RMSE %.2f, %u traced, %u reprojected, %u filled\n",
          block_fill, turned, fs.traced, fs.reprojected, fs.rejected);
@@ -74,13 +86,13 @@ static void test_gl_reproject__frames(void **state) {
   assert_true(turned < block_fill / 2);
 
   /* off: every pixel traced */
-  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 0, &img, &fs, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 0, &img, &fs, why, sizeof why), 0);
   assert_int_equal(fs.traced, W * H);
   assert_memory_equal(img.px, full.px, sizeof(float) * 4 * W * H);
 
   /* jittered ray starts: the traced pixels join their history, so the frames average the jitter —
    * closer to the mean of 16 jittered full renders than any single jittered frame */
-  d.camera = cam;
+  d.camera = sv.cam;
   d.flags = OC_RF_JITTER;
   oc_image_t mean = {0}, one = {0};
   assert_int_equal(oc_image_alloc(&mean, W, H), 0);
@@ -88,13 +100,13 @@ static void test_gl_reproject__frames(void **state) {
   memset(mean.px, 0, sizeof(float) * 4 * W * H);
   for (uint32_t f = 0; f < 16; f++) {
     d.frame = 100 + f;
-    assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &one, why, sizeof why), 0);
+    assert_int_equal(ocv_gl_render_state(ren, &sv.gs, &d, &one, why, sizeof why), 0);
     for (int i = 0; i < 4 * W * H; i++) mean.px[i] += one.px[i] / 16.0f;
   }
   ocv_gl_history_reset(hs);
   for (uint32_t f = 0; f < 96; f++) {
     d.frame = f;
-    assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+    assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 1, &img, &fs, why, sizeof why), 0);
   }
   double acc = rmse(&img, &mean), single = rmse(&one, &mean);
   printf("jitter: accumulated frames vs the mean of 16 jittered renders RMSE %.3f; one jittered render %.3f\n", acc, single);
@@ -105,8 +117,8 @@ static void test_gl_reproject__frames(void **state) {
   ocv_gl_history_free(hs);
   oc_image_free(&full);
   oc_image_free(&img);
-  ocv_gl_state_free(&gs);
-  oc_state_free(&st);
+  ocv_gl_state_free(&sv.gs);
+  oc_state_free(&sv.st);
 }
 
 /* Disocclusion: the camera steps 1.1 km sideways (lat + 0.01°: the sphere shifts ~11 px) after a
@@ -127,16 +139,11 @@ static void test_gl_reproject__frames(void **state) {
  * error 1.16 vs 26.0 for the stale history. */
 static void test_gl_reproject__disocclusion(void **state) {
   (void)state;
-  require_gl();
-  char why[512];
-  oc_camera_pose_t pose = {{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0}; /* the scene's camera */
-  oc_camera_t cam = oc_camera_from_pose(pose);
-  oc_state_t st;
-  sphere_state(&st, cam, H, 0);
-  ocv_gl_state_t gs;
-  assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
-  oc_render_desc_t d = const_bg_desc(cam, W, H);
+  sphere_view_t sv;
+  sphere_view_up(&sv);
+  oc_render_desc_t d = const_bg_desc(sv.cam, W, H);
   d.background_radiance = 0.05f; /* the mark */
+  char why[512];
   oc_image_t before = {0}, after = {0}, img = {0};
   assert_int_equal(oc_image_alloc(&before, W, H), 0);
   assert_int_equal(oc_image_alloc(&after, W, H), 0);
@@ -144,12 +151,12 @@ static void test_gl_reproject__disocclusion(void **state) {
   ocv_gl_history_t *hs = ocv_gl_history_create(W, H, why, sizeof why);
   assert_non_null(hs);
   ocv_gl_frame_stats_t fs;
-  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 0, &before, &fs, why, sizeof why), 0); /* full: the history */
-  pose.geo.lat += 0.01;
-  d.camera = oc_camera_from_pose(pose);
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 0, &before, &fs, why, sizeof why), 0); /* full: the history */
+  sv.pose.geo.lat += 0.01;
+  d.camera = oc_camera_from_pose(sv.pose);
   d.background_radiance = 0.02f;
-  assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &after, why, sizeof why), 0);
-  assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_state(ren, &sv.gs, &d, &after, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 1, &img, &fs, why, sizeof why), 0);
   static uint8_t a[W * H * 3], b[W * H * 3], r[W * H * 3];
   assert_int_equal(oc_image_tonemap(&before, 10.0f, a), 0);
   assert_int_equal(oc_image_tonemap(&after, 10.0f, b), 0);
@@ -203,9 +210,9 @@ static void test_gl_reproject__disocclusion(void **state) {
   for (int f = 0; f < 24; f++) {
     fly.geo.lat += 0.0012; /* 130 m a frame: about 0.8 pixel at the sphere */
     d.camera = oc_camera_from_pose(fly);
-    assert_int_equal(ocv_gl_render_frame(ren, hs, &gs, &d, 1, &img, &fs, why, sizeof why), 0);
+    assert_int_equal(ocv_gl_render_frame(ren, hs, &sv.gs, &d, 1, &img, &fs, why, sizeof why), 0);
     if (f < 16) continue; /* every pixel traced once first */
-    assert_int_equal(ocv_gl_render_state(ren, &gs, &d, &after, why, sizeof why), 0);
+    assert_int_equal(ocv_gl_render_state(ren, &sv.gs, &d, &after, why, sizeof why), 0);
     for (int i = 0; i < W * H; i++)
       if (after.px[4 * i + 3] < 0.5f) {
         cloud_px++;
@@ -225,8 +232,8 @@ static void test_gl_reproject__disocclusion(void **state) {
   oc_image_free(&before);
   oc_image_free(&after);
   oc_image_free(&img);
-  ocv_gl_state_free(&gs);
-  oc_state_free(&st);
+  ocv_gl_state_free(&sv.gs);
+  oc_state_free(&sv.st);
 }
 
 OC_TEST_MAIN(setup, teardown,
