@@ -118,6 +118,12 @@ static void sharing(oc_buf_t *b, const ocs_share_stats_t *s) {
           (double)(s->rejected + s->refused));
   counter(b, "overcast_shared_lookups_cut_short_total", "Productions that started before every lookup was answered.",
           (double)s->cut_short);
+  counter(b, "overcast_shared_lookups_answered_total", "Bricks looked up whose answer came (in time or late).",
+          (double)s->answered);
+  counter(b, "overcast_shared_lookup_answer_seconds_total",
+          "Summed over answered lookups: from the start of their production's lookup to the answer.", 1e-6 * (double)s->answer_us);
+  counter(b, "overcast_shared_lookup_wait_seconds_total", "Time productions waited for their lookups (each at most the deadline).",
+          1e-6 * (double)s->wait_us);
   const ocs_ctl_stats_t *c = &s->control; /* the control history (control_stream.h) */
   gauge(b, "overcast_control_up", "1 while the shared control history can take changes (both connections up, read).",
         c->up && c->caught_up);

@@ -47,6 +47,7 @@ struct ocs_share_s {
   uint64_t gen;          /* the world's generation: answers about an older world are dropped */
   int inflight;          /* fetches of this lookup not answered yet */
   int waiting;           /* production waits for this lookup */
+  uint64_t started_ns;   /* uv_hrtime() at this lookup's start: what it adds, in the stats */
   void (*go)(ocs_server_t *srv);
   uv_timer_t deadline;
   int closing;
@@ -66,6 +67,7 @@ typedef struct {
 static void ocs__lookup_end(ocs_share_t *sh) {
   if (!sh->waiting) return;
   sh->waiting = 0;
+  sh->st.wait_us += (uv_hrtime() - sh->started_ns) / 1000u;
   uv_timer_stop(&sh->deadline);
   sh->go(sh->srv);
 }
@@ -79,6 +81,8 @@ static void ocs__on_deadline(uv_timer_t *t) {
 static void ocs__on_found(void *ctx, int outcome, const uint8_t *content, size_t n) {
   ocs__lookup_t *l = ctx;
   ocs_share_t *sh = l->sh;
+  sh->st.answered++;
+  sh->st.answer_us += (uv_hrtime() - sh->started_ns) / 1000u;
   if (!sh->closing && l->gen == sh->gen) {
     ocs_world_t *w = sh->srv->world;
     if (outcome == OCS_REMOTE_HIT) {
@@ -166,6 +170,7 @@ int ocs_share_lookup(ocs_server_t *srv, void (*go)(ocs_server_t *srv)) {
   oc_key_t key;
   uint64_t stamp;
   sh->nleased = 0;
+  sh->started_ns = uv_hrtime();
   /* production takes the whole queue: what is not looked up would be made here unasked. A lease of
    * a brick production then does not reach keeps the others off it until production ends and
    * gives it back (ocs_share_store_made): one tick at most. */

@@ -28,6 +28,9 @@ typedef struct {
   uint64_t cut_short;       /* lookups whose deadline came before every answer */
   uint64_t stored, not_stored, store_failures;
   uint64_t released;        /* leases given back: production did not reach their bricks */
+  uint64_t answered;        /* lookups answered (any outcome) */
+  uint64_t answer_us;       /* summed over those: from the lookup's start to the answer */
+  uint64_t wait_us;         /* summed over productions: how long each waited for its lookup */
   ocs_ctl_stats_t control;  /* the control history (control_stream.h) */
 } ocs_share_stats_t;
 

@@ -122,7 +122,8 @@ static void add_share(cJSON *o, const ocs_share_stats_t *s) {
            {"held", s->held},         {"unavailable", s->unavailable}, {"rejected", s->rejected},
            {"refused", s->refused},   {"skipped", s->skipped},         {"cut_short", s->cut_short},
            {"stored", s->stored},     {"not_stored", s->not_stored},   {"store_failures", s->store_failures},
-           {"released", s->released}};
+           {"released", s->released},   {"answered", s->answered},       {"answer_us", s->answer_us},
+           {"wait_us", s->wait_us}};
   for (size_t i = 0; i < sizeof f / sizeof f[0]; i++) cJSON_AddNumberToObject(j, f[i].key, (double)f[i].v);
   const ocs_ctl_stats_t *c = &s->control; /* the control history (control_stream.h) */
   cJSON *k = cJSON_AddObjectToObject(j, "control");

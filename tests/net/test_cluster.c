@@ -165,6 +165,13 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   assert_true(made_a > 100);
   assert_true(taken_b >= 0.9 * made_a);
   assert_true(made_b <= 0.02 * made_a);
+  /* production time (per-brick timers on the producer threads): B's at most a tenth of A's */
+  double spent_a = stats_member(a.port, "brick_seconds", "sum"), spent_b = stats_member(b.port, "brick_seconds", "sum");
+  if (!(spent_a > 0 && spent_b <= 0.1 * spent_a)) fail_msg("production time: A %.3f s, B %.3f s", spent_a, spent_b);
+  /* B's lookups: every answer counted, and the time its productions waited for them */
+  double answered = share_of(b.port, "answered");
+  assert_true(answered >= taken_b && answered <= share_of(b.port, "looked_up"));
+  assert_true(share_of(b.port, "wait_us") > 0);
   /* Redis gone: a sun that moved (through the control history, before Redis went) is made on B,
    * every state verified, no lookup tried */
   double moved = sun(b.port, 10, 30);
