@@ -523,7 +523,12 @@ int ocp_epoch_dec_dict(ocp_epoch_dec_t *d, const uint8_t *payload, size_t n, cha
   return 0;
 }
 
-static int ocp__dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, char *why, size_t why_len) {
+/* The start both decoder kinds share: why cleared, arguments checked (has_lookup: the caller's
+ * lookup function is set), the counts checked, the base adopted; ctx is the lookup's context. */
+static int ocp__dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, int has_lookup, void *ctx,
+                          char *why, size_t why_len) {
+  if (why && why_len) why[0] = '\0';
+  if (!d || !m || !has_lookup) return OC_EINVAL;
   ocp__dec_reset(d);
   if (m->node_count == 0 || m->node_count > OC_STATE_MAX_NODES || m->brick_count > OC_STATE_MAX_BRICKS ||
       m->bricks_sent > m->brick_count) {
@@ -544,27 +549,22 @@ static int ocp__dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const 
   d->st.time = m->time;
   d->st.sun_dir = m->sun_dir;
   d->active = 1;
+  d->ctx = ctx;
   return 0;
 }
 
 int ocp_epoch_dec_begin(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, ocp_brick_lookup_fn lookup,
                         void *ctx, char *why, size_t why_len) {
-  if (why && why_len) why[0] = '\0';
-  if (!d || !m || !lookup) return OC_EINVAL;
-  OC_TRY(ocp__dec_begin(d, m, base, why, why_len));
+  OC_TRY(ocp__dec_begin(d, m, base, lookup != NULL, ctx, why, why_len));
   d->lookup = lookup;
-  d->ctx = ctx;
   return 0;
 }
 
 int ocp_epoch_dec_begin_lean(ocp_epoch_dec_t *d, const ocp_epoch_begin_t *m, const oc_state_t *base, ocp_digest_lookup_fn lookup,
                              void *ctx, char *why, size_t why_len) {
-  if (why && why_len) why[0] = '\0';
-  if (!d || !m || !lookup) return OC_EINVAL;
-  OC_TRY(ocp__dec_begin(d, m, base, why, why_len));
+  OC_TRY(ocp__dec_begin(d, m, base, lookup != NULL, ctx, why, why_len));
   d->lean = 1;
   d->dlookup = lookup;
-  d->ctx = ctx;
   return 0;
 }
 
