@@ -46,6 +46,11 @@ static double march(const ocs_medium_t *m, oc_dvec3 p, oc_dvec3 d, double tmax, 
   return s * h;
 }
 
+/* |p| in long double: the reference for the slab figures below. */
+static long double len_l(oc_dvec3 p) {
+  return sqrtl((long double)p.x * p.x + (long double)p.y * p.y + (long double)p.z * p.z);
+}
+
 static ocs_medium_t one(const ocs_prim_t *p) {
   ocs_medium_t m;
   ocs_medium_init(&m);
@@ -243,7 +248,7 @@ static void test_tau__inside_slab(void **state) {
   ocs_medium_t m = one(&sl);
   oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){52, 4, h});
   oc_enu_t enu = oc_enu_at(p);
-  long double r = sqrtl((long double)p.x * p.x + (long double)p.y * p.y + (long double)p.z * p.z);
+  long double r = len_l(p);
   long double ro = OC_PLANET_RADIUS + top, ri = OC_PLANET_RADIUS + base;
   /* Up: σt (top − h). */
   assert_near(ocs_medium_tau_sun(&m, p, enu.up), sig * (top - h), 1e-12);
@@ -266,7 +271,7 @@ static void test_tau__slab_sun_angles(void **state) {
   ocs_medium_t m = one(&sl);
   oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){-5, 100, h});
   oc_enu_t enu = oc_enu_at(p);
-  long double rp = sqrtl((long double)p.x * p.x + (long double)p.y * p.y + (long double)p.z * p.z);
+  long double rp = len_l(p);
   const double zenith[3] = {0.0, 60.0, 85.0};
   for (int i = 0; i < 3; i++) {
     double th = zenith[i] * OC_DEG, mu = cos(th);
@@ -286,7 +291,7 @@ static void test_tau__slab_sun_angles(void **state) {
     print_message("slab tau: zenith %4.1f  exact %.9f  flat (top-base)/mu %.9f\n", zenith[i], got, flat);
     /* From inside the slab: (top − z)/μ type, exact spherical form. */
     oc_dvec3 q = oc_geo_to_xyz((oc_geo_t){-5, 100, 2400});
-    long double rq = sqrtl((long double)q.x * q.x + (long double)q.y * q.y + (long double)q.z * q.z);
+    long double rq = len_l(q);
     long double tq = sqrtl(ro * ro - rq * rq * s2) - rq * lmu;
     double gq = ocs_medium_tau_sun(&m, q, sun);
     assert_near(gq, (double)(sig * tq), 1e-9 * gq);

@@ -57,6 +57,12 @@ static ocs_source_t *mk(oc_preset_t preset, double cov, double sig, uint64_t see
   return s;
 }
 
+/* The four presets of the conservative-bound tests; the first (fair) at coverage 2. */
+static ocs_source_t *mk_bound_preset(int pi, uint64_t seed) {
+  static const oc_preset_t presets[4] = {OC_PRESET_FAIR, OC_PRESET_STORM, OC_PRESET_OVERCAST, OC_PRESET_CIRRUS};
+  return mk(presets[pi], pi == 0 ? 2.0 : 1.0, 1.0, seed);
+}
+
 /* What bricks hold: the fast estimate of the box filter (procedural_columns.c). */
 static void sample(const ocs_source_t *s, oc_key_t k, double t, float out[512]) {
   memset(out, 0, 512 * sizeof(float));
@@ -483,11 +489,10 @@ static void test_procedural__filter_mean_fine(void **st) {
  * footprint never above max (so an "empty" bound is checked without trusting sample()). */
 static void test_procedural__bound_is_conservative(void **st) {
   (void)st;
-  static const oc_preset_t presets[4] = {OC_PRESET_FAIR, OC_PRESET_STORM, OC_PRESET_OVERCAST, OC_PRESET_CIRRUS};
   uint64_t rng = 77;
   int checked = 0, empty = 0;
   for (int pi = 0; pi < 4; pi++) {
-    ocs_source_t *s = mk(presets[pi], pi == 0 ? 2.0 : 1.0, 1.0, 3);
+    ocs_source_t *s = mk_bound_preset(pi, 3);
     if (pi == 1) {
       /* Static, in the middle of a change: at a transition step's start the brick's (quantised)
        * weather and point()'s (continuous) one are the same, so point() checks the bound there. */
@@ -535,11 +540,10 @@ static void test_procedural__bound_is_conservative(void **st) {
  * lowered to 0.8× (their chord × 0.8). */
 static void test_procedural__voxel_bounds_are_conservative(void **st) {
   (void)st;
-  static const oc_preset_t presets[4] = {OC_PRESET_FAIR, OC_PRESET_STORM, OC_PRESET_OVERCAST, OC_PRESET_CIRRUS};
   uint64_t rng = 91;
   long masked = 0, near_cloud = 0;
   for (int pi = 0; pi < 4; pi++) {
-    ocs_source_t *s = mk(presets[pi], pi == 0 ? 2.0 : 1.0, 1.0, 5);
+    ocs_source_t *s = mk_bound_preset(pi, 5);
     const ocs__proc_t *P = (const ocs__proc_t *)s;
     for (int n = 0; n < SIZE(40, 8); n++) {
       int level = 5 + (int)(rng_split(&rng) % 13);

@@ -159,6 +159,12 @@ static void medium_from(const char *json, ocs_medium_t *m) {
   oc_scene_free(&sc);
 }
 
+/* The field cache at t = 0 and the analytic medium, both of the scene `json`. */
+static void open_scene(tcache_t *c, ocs_medium_t *m, const char *json) {
+  tc_init(c, json, 0.0);
+  medium_from(json, m);
+}
+
 /* The sun at zenith angle z (degrees) toward the east of point p. */
 static oc_dvec3 sun_at(oc_dvec3 p, double zenith_deg) {
   oc_enu_t f = oc_enu_at(p);
@@ -315,9 +321,8 @@ static const char *slab_json =
 static void test_sun_depth__slab_below_three_sun_angles(void **st) {
   (void)st;
   tcache_t c;
-  tc_init(&c, slab_json, 0.0);
   ocs_medium_t m;
-  medium_from(slab_json, &m);
+  open_scene(&c, &m, slab_json);
   oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
   float lo, hi;
   tc_bound(&c, below, &lo, &hi);
@@ -339,9 +344,8 @@ static void test_sun_depth__slab_below_three_sun_angles(void **st) {
 static void test_sun_depth__slab_inside(void **st) {
   (void)st;
   tcache_t c;
-  tc_init(&c, slab_json, 0.0);
   ocs_medium_t m;
-  medium_from(slab_json, &m);
+  open_scene(&c, &m, slab_json);
   oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
   slab_err_t ed = {0}, ev = {0};
   slab_case(&c, &m, inside, sun_at(oc_key_center(inside), 60.0), &ed, &ev, "inside the slab, sun 60°");
@@ -390,9 +394,8 @@ static int exact_slab_sigma(void *ctx, oc_key_t key, float out[512]) {
 static void test_sun_depth__zenith_along_an_axis(void **st) {
   (void)st;
   tcache_t c;
-  tc_init(&c, slab_json, 0.0);
   ocs_medium_t m;
-  medium_from(slab_json, &m);
+  open_scene(&c, &m, slab_json);
   oc_key_t pole = oc_key_from_point(14, oc_dv3(100.0, 100.0, OC_PLANET_RADIUS + 700.0));
   slab_err_t ed = {0}, ev = {0};
   slab_case_cb(&c, &m, pole, oc_dv3(0.0, 0.0, 1.0), &ed, &ev, "north pole, sun along +Z", 1, exact_slab_sigma, 1e-6);
@@ -407,9 +410,8 @@ static void test_sun_depth__zenith_along_an_axis(void **st) {
 static void test_sun_depth__sun_below_horizon(void **st) {
   (void)st;
   tcache_t c;
-  tc_init(&c, slab_json, 0.0);
   ocs_medium_t m;
-  medium_from(slab_json, &m);
+  open_scene(&c, &m, slab_json);
   oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));
   slab_err_t ed = {0}, ev = {0};
   double t0 = now();
@@ -437,9 +439,8 @@ static void test_sun_depth__root_cube_edge(void **st) {
   const char *json = "{\"version\": 1, \"features\": {\"animation\": false},"
                      " \"sources\": [{\"type\": \"slab\", \"base\": 80000, \"top\": 93000, \"sigma_t\": 0.001}]}";
   tcache_t c;
-  tc_init(&c, json, 0.0);
   ocs_medium_t m;
-  medium_from(json, &m);
+  open_scene(&c, &m, json);
   int L = 12;
   uint32_t n = 1u << L;
   oc_key_t edge = oc_key_make(L, n - 1, n / 2, n / 2);
@@ -474,9 +475,8 @@ static void test_sun_depth__huge_sigma(void **st) {
   const char *json = "{\"version\": 1, \"features\": {\"animation\": false},"
                      " \"sources\": [{\"type\": \"slab\", \"base\": 2000, \"top\": 3000, \"sigma_t\": 1000}]}";
   tcache_t c;
-  tc_init(&c, json, 0.0);
   ocs_medium_t m;
-  medium_from(json, &m);
+  open_scene(&c, &m, json);
   assert_true(sigma_of(json) == 1000.0);
   oc_key_t below = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 700.0}));
   oc_key_t inside = oc_key_from_point(15, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0}));

@@ -32,6 +32,15 @@ static double now_s(void) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* Voxelizes m into a fresh state s with `threads` threads (asserting success); returns the seconds
+ * it took, for the printed figures only. */
+static double voxelize_timed(oc_state_t *s, const ocs_medium_t *m, int max_level, int sub, oc_dvec3 sun, int threads) {
+  oc_state_init(s);
+  double t0 = now_s();
+  assert_int_equal(ocs_voxelize_medium(s, m, max_level, sub, sun, threads), 0);
+  return now_s() - t0;
+}
+
 static uint64_t rng_state = 0x2545f4914f6cdd1dull;
 static uint64_t rnd_u64(void) {
   rng_state ^= rng_state >> 12;
@@ -443,10 +452,7 @@ static void test_voxelize__threads_identical(void **state) {
   uint32_t nodes = 0, bricks = 0;
   for (int t = 1; t <= 3; t++) {
     oc_state_t s;
-    oc_state_init(&s);
-    double t0 = now_s();
-    assert_int_equal(ocs_voxelize_medium(&s, &m, 13, 3, sun, t), 0);
-    double dt = now_s() - t0;
+    double dt = voxelize_timed(&s, &m, 13, 3, sun, t);
     sum[t - 1] = oc_state_checksum(&s);
     print_message("threads %d: %u leaves, %u bricks, checksum %016llx, %.3f s\n", t, s.node_count, s.brick_count,
                   (unsigned long long)sum[t - 1], dt);
@@ -679,10 +685,7 @@ static void test_voxelize__timing_level14(void **state) {
   oc_dvec3 sun = oc_dnorm(oc_dv3(0.3, 0.4, 0.8));
   for (int t = 1; t <= 2; t++) {
     oc_state_t s;
-    oc_state_init(&s);
-    double t0 = now_s();
-    assert_int_equal(ocs_voxelize_medium(&s, &m, 14, 4, sun, t), 0);
-    double dt = now_s() - t0;
+    double dt = voxelize_timed(&s, &m, 14, 4, sun, t);
     print_message("sphere r=4 km, max_level 14 (790 m), sub 4, %d thread(s): %u leaves, %u bricks, %.3f s "
                   "(%.2f ms/brick)\n",
                   t, s.node_count, s.brick_count, dt, 1e3 * dt / (s.brick_count ? s.brick_count : 1));
