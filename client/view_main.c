@@ -499,256 +499,297 @@ static int screenshot(const view_win_t *v, int w, int h, const uint8_t *rgb, int
   return 0;
 }
 
+/* The window loop's state between frames. */
+typedef struct {
+  ocv_gl_renderer_t *r;
+  ocv_gl_view_t *view; /* kept states, bounded uploads, blending, reprojection */
+  ocv_gl_present_t *present; /* tone mapping and HUD on the GPU */
+  oc_atmo_t *atmo;
+  int have_gs, reproject, hud, debug, weather, paused;
+  int scene_ready; /* with --connect: once the WELCOME brought features and optics */
+  int repush;      /* a store resized for BUDGET takes the newest state again */
+  int cam_dirty;
+  uint64_t epoch, welcomes_seen, budgets_seen, bytes_prev;
+  double shown_at, bytes_at, bytes_rate, frame_ms, title_at;
+  ocv_gl_view_stats_t vs;
+  ocv_net_status_t ns;
+  uint8_t *overlay; /* the HUD: premultiplied RGBA8, the frame's width × WIN_OVERLAY_H */
+  GLuint picture;
+  int iw, ih;
+} win_loop_t;
+
+enum { WIN_OVERLAY_H = 48 };
+
+/* Drops the GL view and the atmosphere: the next WELCOME builds them again. */
+static void win_unready(win_loop_t *L) {
+  ocv_gl_view_free(L->view);
+  L->view = NULL;
+  oc_atmo_free(L->atmo);
+  L->atmo = NULL;
+  L->scene_ready = L->have_gs = 0;
+}
+
+/* A WELCOME in force and no view yet: the scene, default camera, atmosphere and GL view from it. */
+static int win_welcome(view_win_t *v, win_loop_t *L) {
+  char why[1024];
+  const ocp_welcome_t *w = &L->ns.welcome;
+  scene_from_welcome(v->sc, w);
+  if (!v->have_pose) {
+    v->pose = (oc_camera_pose_t){{w->cam_lat, w->cam_lon, w->cam_alt}, w->cam_heading, w->cam_pitch, w->cam_fov};
+    v->have_pose = 1;
+  }
+  if (make_atmo(v->sc, v->o.threads, &L->atmo) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
+  ocv_gl_view_desc_t vd = {.grant = w->grant, /* the contract as granted: the atlas is sized from it */
+                           .animated = (w->features >> OC_FEATURE_ANIMATION) & 1u,
+                           .epoch_period = w->epoch_period > 0 ? w->epoch_period : 1.0};
+  if (!(L->view = ocv_gl_view_create(L->r, &vd, why, sizeof why)))
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL view: %s", why);
+  L->scene_ready = 1;
+  L->cam_dirty = 1;
+  if (L->repush && ocv_gl_view_push(L->view, v->st, why, sizeof why) == 0) L->have_gs = 1;
+  L->repush = 0;
+  return OC_EXIT_OK;
+}
+
+/* --connect, once a frame: sessions, BUDGET, WELCOME, the newest state, bytes/s. */
+static int win_net(view_win_t *v, win_loop_t *L, double t) {
+  char why[1024];
+  ocv_net_status(v->net, &L->ns);
+  if (L->ns.gave_up) /* the reconnects ran out: say so and stop, never hang on a dead server */
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", L->ns.error);
+  if (L->scene_ready && L->ns.welcomes != L->welcomes_seen && !L->ns.resumed) {
+    /* a new session (a restarted server): nothing held is valid (its brick ids may name other
+     * bricks now) and the grant may differ, so the view starts again from this WELCOME */
+    oc_log_info("%s: a new session: the view starts afresh", v->net_opts->host);
+    win_unready(L);
+  }
+  L->welcomes_seen = L->ns.welcomes;
+  if (L->scene_ready && L->ns.budgets != L->budgets_seen) {
+    /* BUDGET took effect (a raise at once, a lowering once the old budget's states have left
+     * the window): the store is sized again from the grant now in force, and takes the newest
+     * state again at once */
+    oc_log_info("%s: budget now %.1f MiB: the GPU store is resized", v->net_opts->host,
+                (double)L->ns.welcome.grant.budget / 1048576.0);
+    L->repush = L->have_gs;
+    win_unready(L);
+  }
+  L->budgets_seen = L->ns.budgets;
+  int rc;
+  if (!L->scene_ready && L->ns.have_welcome && (rc = win_welcome(v, L)) != OC_EXIT_OK) return rc;
+  uint64_t e;
+  if (L->view && ocv_net_take_state(v->net, v->st, &e) == 1) {
+    if (ocv_gl_view_push(L->view, v->st, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload (epoch %llu): %s", (unsigned long long)e, why);
+    L->have_gs = 1;
+  }
+  if (t - L->bytes_at >= 1.0) { /* bytes/s received, for the HUD */
+    L->bytes_rate = (double)(L->ns.viewer.bytes_in - L->bytes_prev) / (t - L->bytes_at);
+    L->bytes_prev = L->ns.viewer.bytes_in;
+    L->bytes_at = t;
+  }
+  return OC_EXIT_OK;
+}
+
+/* Keys and mouse: flight, step, exposure, toggles, and the server's world (sun, weather, time). */
+static void win_keys(view_win_t *v, win_loop_t *L, const ocv_window_input_t *in, double dt) {
+  if (v->have_pose && fly(&v->pose, in, dt)) L->cam_dirty = 1;
+  for (int i = 0; i < in->presses[OCV_ACT_STEP_MUL]; i++) v->o.step = fmin(v->o.step * 1.25, 1e3);
+  for (int i = 0; i < in->presses[OCV_ACT_STEP_DIV]; i++) v->o.step = fmax(v->o.step / 1.25, 1e-3);
+  for (int i = 0; i < in->presses[OCV_ACT_EXPOSURE_UP]; i++) v->o.exposure = fmin(v->o.exposure * 1.25, 1e6);
+  for (int i = 0; i < in->presses[OCV_ACT_EXPOSURE_DOWN]; i++) v->o.exposure = fmax(v->o.exposure / 1.25, 1e-6);
+  if (in->presses[OCV_ACT_REPROJECT] & 1) L->reproject = !L->reproject;
+  if (in->presses[OCV_ACT_HUD] & 1) L->hud = !L->hud;
+  if (in->presses[OCV_ACT_JITTER] & 1) v->o.jitter = !v->o.jitter;
+  for (int i = 0; i < in->presses[OCV_ACT_OCTAVES]; i++) {
+    long cur = v->o.octaves ? v->o.octaves : make_desc(v->sc, &v->o, L->atmo).ms_octaves;
+    v->o.octaves = cur % 8 + 1;
+  }
+  int world_keys = in->presses[OCV_ACT_WEATHER] + in->presses[OCV_ACT_SUN_WEST] + in->presses[OCV_ACT_SUN_EAST] +
+                   in->presses[OCV_ACT_TIME];
+  if (world_keys && !v->net) oc_log_warn("sun, weather and time are the server's: keys N, K, L, T need --connect");
+  else if (world_keys && L->scene_ready) {
+    oc_dvec3 sun = L->have_gs ? v->st->sun_dir : v->sc->sun_dir;
+    if (in->presses[OCV_ACT_WEATHER]) {
+      L->weather = (L->weather + in->presses[OCV_ACT_WEATHER]) % OC_PRESET_COUNT;
+      char json[128];
+      snprintf(json, sizeof json, "{\"op\":\"weather\",\"preset\":\"%s\",\"seconds\":10}",
+               oc_scene_preset_name(L->weather));
+      world_request(v->net_opts, json);
+    }
+    int sun_steps = in->presses[OCV_ACT_SUN_EAST] - in->presses[OCV_ACT_SUN_WEST];
+    if (sun_steps) sun_request(v->net_opts, sun, 15.0 * sun_steps);
+    if (in->presses[OCV_ACT_TIME] & 1) {
+      L->paused = !L->paused;
+      world_request(v->net_opts, L->paused ? "{\"op\":\"pause\"}" : "{\"op\":\"resume\"}");
+    }
+  }
+  L->debug = (L->debug + in->presses[OCV_ACT_DEBUG]) % 4;
+  if (in->resized) L->cam_dirty = 1;
+  if (v->net && L->cam_dirty && v->have_pose && in->fb_w > 0 && in->fb_h > 0) {
+    ocp_camera_t wc = wire_camera(v->pose, in->fb_w, in->fb_h);
+    if (ocv_net_set_camera(v->net, &wc) < 0) oc_log_warn("camera refused by the session (invalid camera)");
+  }
+  L->cam_dirty = 0;
+}
+
+/* The HUD into L->overlay (oh rows) for the frame rendered at t0. */
+static void win_hud(const view_win_t *v, win_loop_t *L, double t0, int oh) {
+  memset(L->overlay, 0, (size_t)L->iw * WIN_OVERLAY_H * 4);
+  ocv_hud_stats_t hs = {.frame_ms = L->frame_ms, .epoch = L->epoch, .epoch_age_s = t0 - L->shown_at,
+                        .bricks = L->vs.bricks,
+                        .resident_bytes = L->vs.resident_bytes,
+                        .budget_bytes = v->net ? L->ns.welcome.grant.budget : L->vs.resident_bytes,
+                        .bytes_per_s = L->bytes_rate, .renderer = L->reproject ? "gl, reprojected" : "gl"};
+  ocv_gl_renderer_timings(L->r, &hs.trace_ms, &hs.reproject_ms);
+  if (!L->reproject) hs.reproject_ms = -1.0;
+  char text[512];
+  ocv_hud_format(&hs, text, sizeof text);
+  ocv_hud_text_rgba(L->overlay, L->iw, oh, 6, 6, 1, text, (const uint8_t[3]){255, 255, 255});
+}
+
+/* One frame of the shown state at the window's size, tone-mapped with the HUD into L->picture;
+ * *drawn 1 when there is one. */
+static int win_draw(view_win_t *v, win_loop_t *L, const ocv_window_input_t *in, int *drawn, int *ms_octaves) {
+  char why[1024];
+  *drawn = 0;
+  if (!(L->have_gs && L->scene_ready && v->have_pose && in->fb_w > 0 && in->fb_h > 0)) return OC_EXIT_OK;
+  if (in->fb_w != L->iw || in->fb_h != L->ih) {
+    free(L->overlay);
+    if (!(L->overlay = malloc((size_t)in->fb_w * WIN_OVERLAY_H * 4)))
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d HUD", in->fb_w, (int)WIN_OVERLAY_H);
+    L->iw = in->fb_w;
+    L->ih = in->fb_h;
+  }
+  oc_render_desc_t d = make_desc(v->sc, &v->o, L->atmo);
+  d.width = L->iw;
+  d.height = L->ih;
+  d.camera = oc_camera_from_pose(v->pose);
+  d.debug_view = L->debug;
+  *ms_octaves = d.ms_octaves;
+  double t0 = now_s();
+  if (ocv_gl_view_frame(L->view, &d, t0, L->reproject, NULL, &L->vs, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
+  L->frame_ms = 1e3 * (now_s() - t0);
+  if (L->vs.shown) {
+    if (L->vs.epoch != L->epoch) L->shown_at = t0;
+    L->epoch = L->vs.epoch;
+    int oh = L->ih < WIN_OVERLAY_H ? L->ih : WIN_OVERLAY_H;
+    if (L->hud) win_hud(v, L, t0, oh);
+    L->picture = ocv_gl_present_tonemap(L->present, ocv_gl_view_output(L->view), L->iw, L->ih, (float)v->o.exposure,
+                                        L->hud ? L->overlay : NULL, L->iw, oh, why, sizeof why);
+    if (!L->picture) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+    *drawn = 1;
+  }
+  if (v->record) {
+    if (!v->record->count || t0 - v->record_t0 > v->record->t[v->record->count - 1] + 1e-3)
+      (void)ocv_path_add(v->record, v->record->count ? t0 - v->record_t0 : 0.0, v->pose);
+    if (v->record->count == 1) v->record_t0 = t0;
+  }
+  return OC_EXIT_OK;
+}
+
+/* F12 / P: the picture shown, read back once, as a PNG with the camera. */
+static void win_screenshot(const view_win_t *v, win_loop_t *L, int drawn, int ms_octaves) {
+  char why[1024];
+  if (!drawn) {
+    oc_log_warn("screenshot: nothing rendered yet");
+    return;
+  }
+  uint8_t *rgb = malloc((size_t)L->iw * (size_t)L->ih * 3); /* the only read-back: a screenshot */
+  if (!rgb) oc_log_error("screenshot: out of memory");
+  else if (ocv_gl_present_read(L->present, rgb, why, sizeof why) < 0 ||
+           screenshot(v, L->iw, L->ih, rgb, ms_octaves, why, sizeof why) < 0)
+    oc_log_error("screenshot: %s", why);
+  free(rgb);
+}
+
+/* The title, four times a second: the connection while no state is held, else epoch and settings. */
+static void win_title(const view_win_t *v, win_loop_t *L, double t) {
+  if (t - L->title_at < 0.25) return;
+  char title[512];
+  const ocv_net_status_t *ns = &L->ns;
+  if (v->net && !L->have_gs)
+    snprintf(title, sizeof title, "overcast-view — %.200s — %.200s", v->net_opts->host,
+             ns->error[0] ? ns->error : ns->connected ? "waiting for the first state" : "connecting");
+  else
+    snprintf(title, sizeof title, "overcast-view — %s — epoch %llu — %.1f ms — step %.3g, exposure %.3g%s",
+             v->sc->name[0] ? v->sc->name : "state", (unsigned long long)L->epoch, L->frame_ms, v->o.step,
+             v->o.exposure, v->net && !ns->connected ? " — reconnecting" : "");
+  ocv_window_set_title(v->win, title);
+  L->title_at = t;
+}
+
+/* One local state (--state, --scene): a GL view whose budget holds it, nothing to blend. */
+static int win_local_state(view_win_t *v, win_loop_t *L) {
+  char why[1024];
+  /* K = 2 (the state and none staged beside it) with the GL store's own sizes */
+  oc_budget_t g = {.slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 2};
+  g.budget = ((uint64_t)v->st->brick_count + 2) * (OC_SLOT_BYTES + OC_RECORD_BYTES); /* ≥ the minimum */
+  ocv_gl_view_desc_t vd = {.grant = g};
+  if (!(L->view = ocv_gl_view_create(L->r, &vd, why, sizeof why)) || ocv_gl_view_push(L->view, v->st, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload: %s", why);
+  L->have_gs = 1;
+  return OC_EXIT_OK;
+}
+
 static int run_window(view_win_t *v) {
   char why[1024];
   int rc = OC_EXIT_OK;
-  ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why);
-  if (!r) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL renderer: %s", why);
-  ocv_gl_view_t *view = NULL; /* kept states, bounded uploads, blending, reprojection */
-  ocv_gl_present_t *present = ocv_gl_present_create(why, sizeof why); /* tone mapping and HUD on the GPU */
-  if (!present) {
-    ocv_gl_renderer_free(r);
+  win_loop_t L = {.hud = 1, .weather = OC_PRESET_FAIR, .cam_dirty = 1};
+  if (!(L.r = ocv_gl_renderer_create(why, sizeof why))) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL renderer: %s", why);
+  if (!(L.present = ocv_gl_present_create(why, sizeof why))) {
+    ocv_gl_renderer_free(L.r);
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL picture: %s", why);
   }
-  int have_gs = 0, reproject = 0, hud = 1, debug = 0, weather = OC_PRESET_FAIR, paused = 0;
-  uint64_t epoch = v->have_state ? v->st->epoch : 0;
-  double shown_at = now_s(), bytes_at = shown_at, bytes_rate = 0;
-  uint64_t bytes_prev = 0;
-  ocv_gl_view_stats_t vs = {0};
-  oc_atmo_t *atmo = NULL;
-  int scene_ready = !v->net; /* with --connect: once the WELCOME brought features and optics */
-  uint64_t welcomes_seen = 0, budgets_seen = 0;
-  int repush = 0; /* a store resized for BUDGET takes the newest state again */
-  if (scene_ready && make_atmo(v->sc, v->o.threads, &atmo) < 0) {
+  L.epoch = v->have_state ? v->st->epoch : 0;
+  L.shown_at = L.bytes_at = now_s();
+  L.scene_ready = !v->net;
+  if (L.scene_ready && make_atmo(v->sc, v->o.threads, &L.atmo) < 0)
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
-    goto out;
-  }
-  if (v->have_state) { /* one local state: a budget that holds it, nothing to blend */
-    /* K = 2 (the state and none staged beside it) with the GL store's own sizes */
-    oc_budget_t g = {.slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 2};
-    g.budget = ((uint64_t)v->st->brick_count + 2) * (OC_SLOT_BYTES + OC_RECORD_BYTES); /* ≥ the minimum */
-    ocv_gl_view_desc_t vd = {.grant = g};
-    if (!(view = ocv_gl_view_create(r, &vd, why, sizeof why)) || ocv_gl_view_push(view, v->st, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload: %s", why);
-      goto out;
-    }
-    have_gs = 1;
-  }
-  uint8_t *overlay = NULL; /* the HUD: premultiplied RGBA8, the frame's width × OVERLAY_H */
-  enum { OVERLAY_H = 48 };
-  GLuint picture = 0;
-  int iw = 0, ih = 0;
-  double last = now_s(), title_at = 0, frame_ms = 0;
-  int cam_dirty = 1;
-  for (;;) {
+  if (rc == OC_EXIT_OK && v->have_state) rc = win_local_state(v, &L);
+  double last = now_s();
+  while (rc == OC_EXIT_OK) {
     ocv_window_input_t in;
     ocv_window_poll(v->win, &in);
     if (in.presses[OCV_ACT_QUIT]) break;
     double t = now_s(), dt = t - last;
     last = t;
-
-    ocv_net_status_t ns = {0};
-    if (v->net) {
-      ocv_net_status(v->net, &ns);
-      if (ns.gave_up) { /* the reconnects ran out: say so and stop, never hang on a dead server */
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", ns.error);
-        break;
-      }
-      if (scene_ready && ns.welcomes != welcomes_seen && !ns.resumed) {
-        /* a new session (a restarted server): nothing held is valid (its brick ids may name other
-         * bricks now) and the grant may differ, so the view starts again from this WELCOME */
-        oc_log_info("%s: a new session: the view starts afresh", v->net_opts->host);
-        ocv_gl_view_free(view);
-        view = NULL;
-        oc_atmo_free(atmo);
-        atmo = NULL;
-        scene_ready = have_gs = 0;
-      }
-      welcomes_seen = ns.welcomes;
-      if (scene_ready && ns.budgets != budgets_seen) {
-        /* BUDGET took effect (a raise at once, a lowering once the old budget's states have left
-         * the window): the store is sized again from the grant now in force, and takes the newest
-         * state again at once */
-        oc_log_info("%s: budget now %.1f MiB: the GPU store is resized", v->net_opts->host,
-                    (double)ns.welcome.grant.budget / 1048576.0);
-        ocv_gl_view_free(view);
-        view = NULL;
-        oc_atmo_free(atmo);
-        atmo = NULL;
-        repush = have_gs;
-        scene_ready = have_gs = 0;
-      }
-      budgets_seen = ns.budgets;
-      if (!scene_ready && ns.have_welcome) {
-        const ocp_welcome_t *w = &ns.welcome;
-        scene_from_welcome(v->sc, w);
-        if (!v->have_pose) {
-          v->pose = (oc_camera_pose_t){{w->cam_lat, w->cam_lon, w->cam_alt}, w->cam_heading, w->cam_pitch, w->cam_fov};
-          v->have_pose = 1;
-        }
-        if (make_atmo(v->sc, v->o.threads, &atmo) < 0) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
-          break;
-        }
-        ocv_gl_view_desc_t vd = {.grant = w->grant, /* the contract as granted: the atlas is sized from it */
-                                 .animated = (w->features >> OC_FEATURE_ANIMATION) & 1u,
-                                 .epoch_period = w->epoch_period > 0 ? w->epoch_period : 1.0};
-        if (!(view = ocv_gl_view_create(r, &vd, why, sizeof why))) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL view: %s", why);
-          break;
-        }
-        scene_ready = 1;
-        cam_dirty = 1;
-        if (repush && ocv_gl_view_push(view, v->st, why, sizeof why) == 0) have_gs = 1;
-        repush = 0;
-      }
-      uint64_t e;
-      if (view && ocv_net_take_state(v->net, v->st, &e) == 1) {
-        if (ocv_gl_view_push(view, v->st, why, sizeof why) < 0) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload (epoch %llu): %s", (unsigned long long)e, why);
-          break;
-        }
-        have_gs = 1;
-      }
-      if (t - bytes_at >= 1.0) { /* bytes/s received, for the HUD */
-        bytes_rate = (double)(ns.viewer.bytes_in - bytes_prev) / (t - bytes_at);
-        bytes_prev = ns.viewer.bytes_in;
-        bytes_at = t;
-      }
-    }
-
-    if (v->have_pose && fly(&v->pose, &in, dt)) cam_dirty = 1;
-    for (int i = 0; i < in.presses[OCV_ACT_STEP_MUL]; i++) v->o.step = fmin(v->o.step * 1.25, 1e3);
-    for (int i = 0; i < in.presses[OCV_ACT_STEP_DIV]; i++) v->o.step = fmax(v->o.step / 1.25, 1e-3);
-    for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_UP]; i++) v->o.exposure = fmin(v->o.exposure * 1.25, 1e6);
-    for (int i = 0; i < in.presses[OCV_ACT_EXPOSURE_DOWN]; i++) v->o.exposure = fmax(v->o.exposure / 1.25, 1e-6);
-    if (in.presses[OCV_ACT_REPROJECT] & 1) reproject = !reproject;
-    if (in.presses[OCV_ACT_HUD] & 1) hud = !hud;
-    if (in.presses[OCV_ACT_JITTER] & 1) v->o.jitter = !v->o.jitter;
-    for (int i = 0; i < in.presses[OCV_ACT_OCTAVES]; i++) {
-      long cur = v->o.octaves ? v->o.octaves : make_desc(v->sc, &v->o, atmo).ms_octaves;
-      v->o.octaves = cur % 8 + 1;
-    }
-    int world_keys = in.presses[OCV_ACT_WEATHER] + in.presses[OCV_ACT_SUN_WEST] + in.presses[OCV_ACT_SUN_EAST] +
-                     in.presses[OCV_ACT_TIME];
-    if (world_keys && !v->net) oc_log_warn("sun, weather and time are the server's: keys N, K, L, T need --connect");
-    else if (world_keys && scene_ready) {
-      oc_dvec3 sun = have_gs ? v->st->sun_dir : v->sc->sun_dir;
-      if (in.presses[OCV_ACT_WEATHER]) {
-        weather = (weather + in.presses[OCV_ACT_WEATHER]) % OC_PRESET_COUNT;
-        char json[128];
-        snprintf(json, sizeof json, "{\"op\":\"weather\",\"preset\":\"%s\",\"seconds\":10}",
-                 oc_scene_preset_name(weather));
-        world_request(v->net_opts, json);
-      }
-      int sun_steps = in.presses[OCV_ACT_SUN_EAST] - in.presses[OCV_ACT_SUN_WEST];
-      if (sun_steps) sun_request(v->net_opts, sun, 15.0 * sun_steps);
-      if (in.presses[OCV_ACT_TIME] & 1) {
-        paused = !paused;
-        world_request(v->net_opts, paused ? "{\"op\":\"pause\"}" : "{\"op\":\"resume\"}");
-      }
-    }
-    debug = (debug + in.presses[OCV_ACT_DEBUG]) % 4;
-    if (in.resized) cam_dirty = 1;
-    if (v->net && cam_dirty && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
-      ocp_camera_t wc = wire_camera(v->pose, in.fb_w, in.fb_h);
-      if (ocv_net_set_camera(v->net, &wc) < 0) oc_log_warn("camera refused by the session (invalid camera)");
-    }
-    cam_dirty = 0;
-
+    if (v->net && (rc = win_net(v, &L, t)) != OC_EXIT_OK) break;
+    win_keys(v, &L, &in, dt);
     int drawn = 0, ms_octaves = 1;
-    if (have_gs && scene_ready && v->have_pose && in.fb_w > 0 && in.fb_h > 0) {
-      if (in.fb_w != iw || in.fb_h != ih) {
-        free(overlay);
-        if (!(overlay = malloc((size_t)in.fb_w * OVERLAY_H * 4))) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory for a %dx%d HUD", in.fb_w, (int)OVERLAY_H);
-          break;
-        }
-        iw = in.fb_w;
-        ih = in.fb_h;
-      }
-      oc_render_desc_t d = make_desc(v->sc, &v->o, atmo);
-      d.width = iw;
-      d.height = ih;
-      d.camera = oc_camera_from_pose(v->pose);
-      d.debug_view = debug;
-      ms_octaves = d.ms_octaves;
-      double t0 = now_s();
-      if (ocv_gl_view_frame(view, &d, t0, reproject, NULL, &vs, why, sizeof why) < 0) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
-        break;
-      }
-      frame_ms = 1e3 * (now_s() - t0);
-      if (vs.shown) {
-        if (vs.epoch != epoch) shown_at = t0;
-        epoch = vs.epoch;
-        int oh = ih < OVERLAY_H ? ih : OVERLAY_H;
-        if (hud) {
-          memset(overlay, 0, (size_t)iw * OVERLAY_H * 4);
-          ocv_hud_stats_t hs = {.frame_ms = frame_ms, .epoch = epoch, .epoch_age_s = t0 - shown_at,
-                                .bricks = vs.bricks,
-                                .resident_bytes = vs.resident_bytes,
-                                .budget_bytes = v->net ? ns.welcome.grant.budget : vs.resident_bytes,
-                                .bytes_per_s = bytes_rate, .renderer = reproject ? "gl, reprojected" : "gl"};
-          ocv_gl_renderer_timings(r, &hs.trace_ms, &hs.reproject_ms);
-          if (!reproject) hs.reproject_ms = -1.0;
-          char text[512];
-          ocv_hud_format(&hs, text, sizeof text);
-          ocv_hud_text_rgba(overlay, iw, oh, 6, 6, 1, text, (const uint8_t[3]){255, 255, 255});
-        }
-        picture = ocv_gl_present_tonemap(present, ocv_gl_view_output(view), iw, ih, (float)v->o.exposure,
-                                         hud ? overlay : NULL, iw, oh, why, sizeof why);
-        if (!picture) {
-          rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-          break;
-        }
-        drawn = 1;
-      }
-      if (v->record) {
-        if (!v->record->count || t0 - v->record_t0 > v->record->t[v->record->count - 1] + 1e-3)
-          (void)ocv_path_add(v->record, v->record->count ? t0 - v->record_t0 : 0.0, v->pose);
-        if (v->record->count == 1) v->record_t0 = t0;
-      }
-    }
-    if (ocv_window_present(v->win, drawn ? picture : 0, why, sizeof why) < 0) {
+    if ((rc = win_draw(v, &L, &in, &drawn, &ms_octaves)) != OC_EXIT_OK) break;
+    if (ocv_window_present(v->win, drawn ? L.picture : 0, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       break;
     }
-    if (in.presses[OCV_ACT_SCREENSHOT]) {
-      if (!drawn) oc_log_warn("screenshot: nothing rendered yet");
-      else {
-        uint8_t *rgb = malloc((size_t)iw * (size_t)ih * 3); /* the only read-back: a screenshot */
-        if (!rgb) oc_log_error("screenshot: out of memory");
-        else if (ocv_gl_present_read(present, rgb, why, sizeof why) < 0 || screenshot(v, iw, ih, rgb, ms_octaves, why, sizeof why) < 0)
-          oc_log_error("screenshot: %s", why);
-        free(rgb);
-      }
-    }
-    if (t - title_at >= 0.25) {
-      char title[512];
-      if (v->net && !have_gs)
-        snprintf(title, sizeof title, "overcast-view — %.200s — %.200s", v->net_opts->host,
-                 ns.error[0] ? ns.error : ns.connected ? "waiting for the first state" : "connecting");
-      else
-        snprintf(title, sizeof title, "overcast-view — %s — epoch %llu — %.1f ms — step %.3g, exposure %.3g%s",
-                 v->sc->name[0] ? v->sc->name : "state", (unsigned long long)epoch, frame_ms, v->o.step, v->o.exposure,
-                 v->net && !ns.connected ? " — reconnecting" : "");
-      ocv_window_set_title(v->win, title);
-      title_at = t;
-    }
+    if (in.presses[OCV_ACT_SCREENSHOT]) win_screenshot(v, &L, drawn, ms_octaves);
+    win_title(v, &L, t);
   }
-  free(overlay);
-out:
-  (void)have_gs;
-  ocv_gl_view_free(view);
-  ocv_gl_present_free(present);
-  ocv_gl_renderer_free(r);
-  oc_atmo_free(atmo);
+  free(L.overlay);
+  ocv_gl_view_free(L.view);
+  ocv_gl_present_free(L.present);
+  ocv_gl_renderer_free(L.r);
+  oc_atmo_free(L.atmo);
   return rc;
 }
 #endif
 
-int main(int argc, char **argv) {
+/* What the command line asked for (parse_args). */
+typedef struct {
+  const char *state_path, *scene_path, *camera_text, *camera_png, *save_path, *record_path, *path_file;
+  int w, h;
+  long frames;
+  int frames_given;
+  view_opts_t vo;
+  ocv_path_t cam_path; /* --path */
+  view_net_opts_t net;
+  renderer_t renderer;
+  int net_opts, want_window, want_headless, batch_opts, batch_net;
+} view_args_t;
+
+/* The options into *a; returns -1 to go on, else the exit status (--help, --version, a usage error). */
+static int parse_args(int argc, char **argv, view_args_t *a) {
   enum { O_STATE = 256, O_SCENE, O_CAMERA, O_CAMERA_FROM, O_SIZE, O_FRAMES, O_OUT, O_RENDERER, O_STEP, O_EXPOSURE,
          O_OCTAVES, O_JITTER, O_THREADS, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
          O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS, O_RECORD, O_PATH, O_FPS, O_HUD };
@@ -771,62 +812,54 @@ int main(int argc, char **argv) {
       {"record", required_argument, 0, O_RECORD},     {"path", required_argument, 0, O_PATH},
       {"fps", required_argument, 0, O_FPS},           {"hud", no_argument, 0, O_HUD},
       {0, 0, 0, 0}};
-  const char *state_path = NULL, *scene_path = NULL, *camera_text = NULL, *camera_png = NULL;
-  const char *save_path = NULL;
-  int w = 640, h = 360;
-  long frames = 1;
-  view_opts_t vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2, .fps = 30.0};
-  const char *record_path = NULL, *path_file = NULL;
-  int frames_given = 0;
-  ocv_path_t cam_path;
-  ocv_path_init(&cam_path);
-  view_net_opts_t net = {.budget_mib = 64, .max_depth = 21, .epochs = 4, .timeout = 60.0};
-  renderer_t renderer = R_AUTO;
-  int net_opts = 0, want_window = 0, want_headless = 0, batch_opts = 0, batch_net = 0;
+  *a = (view_args_t){.w = 640, .h = 360, .frames = 1, .renderer = R_AUTO,
+                     .vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2, .fps = 30.0},
+                     .net = {.budget_mib = 64, .max_depth = 21, .epochs = 4, .timeout = 60.0}};
+  ocv_path_init(&a->cam_path);
   int c;
   opterr = 0;
   while ((c = getopt_long(argc, argv, "q", opts, NULL)) != -1) {
     switch (c) {
-      case O_STATE: state_path = optarg; break;
-      case O_SCENE: scene_path = optarg; break;
-      case O_CAMERA: camera_text = optarg; break;
-      case O_CAMERA_FROM: camera_png = optarg; break;
-      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &w, &h)) return OC_EXIT_USAGE; break;
-      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &frames)) return OC_EXIT_USAGE; batch_opts = 1; frames_given = 1; break;
-      case O_RECORD: record_path = optarg; want_window = 1; break;
-      case O_PATH: path_file = optarg; batch_opts = 1; break;
-      case O_FPS: if (oc_cli_double(prog, "--fps", optarg, 0.01, 1000, &vo.fps)) return OC_EXIT_USAGE; break;
-      case O_HUD: vo.hud = 1; break;
-      case O_OUT: vo.out_dir = optarg; batch_opts |= 2; break;
+      case O_STATE: a->state_path = optarg; break;
+      case O_SCENE: a->scene_path = optarg; break;
+      case O_CAMERA: a->camera_text = optarg; break;
+      case O_CAMERA_FROM: a->camera_png = optarg; break;
+      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &a->w, &a->h)) return OC_EXIT_USAGE; break;
+      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &a->frames)) return OC_EXIT_USAGE; a->batch_opts = 1; a->frames_given = 1; break;
+      case O_RECORD: a->record_path = optarg; a->want_window = 1; break;
+      case O_PATH: a->path_file = optarg; a->batch_opts = 1; break;
+      case O_FPS: if (oc_cli_double(prog, "--fps", optarg, 0.01, 1000, &a->vo.fps)) return OC_EXIT_USAGE; break;
+      case O_HUD: a->vo.hud = 1; break;
+      case O_OUT: a->vo.out_dir = optarg; a->batch_opts |= 2; break;
       case O_RENDERER:
-        if (strcmp(optarg, "cpu") == 0) renderer = R_CPU;
-        else if (strcmp(optarg, "gl") == 0) renderer = R_GL;
+        if (strcmp(optarg, "cpu") == 0) a->renderer = R_CPU;
+        else if (strcmp(optarg, "gl") == 0) a->renderer = R_GL;
         else return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer %s: expected gl or cpu", optarg);
         break;
-      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &vo.step)) return OC_EXIT_USAGE; break;
-      case O_EXPOSURE: if (oc_cli_double(prog, "--exposure", optarg, 1e-6, 1e6, &vo.exposure)) return OC_EXIT_USAGE; break;
-      case O_OCTAVES: if (oc_cli_int(prog, "--ms-octaves", optarg, 1, 8, &vo.octaves)) return OC_EXIT_USAGE; break;
-      case O_JITTER: vo.jitter = 1; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &vo.threads)) return OC_EXIT_USAGE; break;
-      case O_SAVE: save_path = optarg; batch_opts = 1; break;
+      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &a->vo.step)) return OC_EXIT_USAGE; break;
+      case O_EXPOSURE: if (oc_cli_double(prog, "--exposure", optarg, 1e-6, 1e6, &a->vo.exposure)) return OC_EXIT_USAGE; break;
+      case O_OCTAVES: if (oc_cli_int(prog, "--ms-octaves", optarg, 1, 8, &a->vo.octaves)) return OC_EXIT_USAGE; break;
+      case O_JITTER: a->vo.jitter = 1; break;
+      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &a->vo.threads)) return OC_EXIT_USAGE; break;
+      case O_SAVE: a->save_path = optarg; a->batch_opts = 1; break;
       case O_CONNECT:
-        if (ocv_parse_address(optarg, net.host, sizeof net.host, &net.port) < 0)
+        if (ocv_parse_address(optarg, a->net.host, sizeof a->net.host, &a->net.port) < 0)
           return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect: expected HOST:PORT (port 1..65535), got \"%s\"", optarg);
-        net.connect = 1;
+        a->net.connect = 1;
         break;
       case O_TOKEN:
         if (!*optarg || strlen(optarg) > OCP_TOKEN_MAX)
           return oc_cli_fail(prog, OC_EXIT_USAGE, "--token: 1..%d bytes", OCP_TOKEN_MAX);
-        net.token = optarg;
-        net_opts = 1;
+        a->net.token = optarg;
+        a->net_opts = 1;
         break;
-      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &net.budget_mib)) return OC_EXIT_USAGE; net_opts = 1; break;
-      case O_MAXDEPTH: if (oc_cli_int(prog, "--max-depth", optarg, 0, 21, &net.max_depth)) return OC_EXIT_USAGE; net_opts = 1; break;
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &net.epochs)) return OC_EXIT_USAGE; net_opts = 1; batch_net = 1; break;
-      case O_NETSTEP: net.step = 1; net_opts = 1; batch_net = 1; break;
-      case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.01, 86400, &net.timeout)) return OC_EXIT_USAGE; net_opts = 1; break;
-      case O_WINDOW: want_window = 1; break;
-      case O_HEADLESS: want_headless = 1; break;
+      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &a->net.budget_mib)) return OC_EXIT_USAGE; a->net_opts = 1; break;
+      case O_MAXDEPTH: if (oc_cli_int(prog, "--max-depth", optarg, 0, 21, &a->net.max_depth)) return OC_EXIT_USAGE; a->net_opts = 1; break;
+      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &a->net.epochs)) return OC_EXIT_USAGE; a->net_opts = 1; a->batch_net = 1; break;
+      case O_NETSTEP: a->net.step = 1; a->net_opts = 1; a->batch_net = 1; break;
+      case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.01, 86400, &a->net.timeout)) return OC_EXIT_USAGE; a->net_opts = 1; break;
+      case O_WINDOW: a->want_window = 1; break;
+      case O_HEADLESS: a->want_headless = 1; break;
       case 'q': oc_log_set_level(OC_LOG_ERROR); break;
       case O_HELP: usage(stdout); return OC_EXIT_OK;
       case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
@@ -835,31 +868,140 @@ int main(int argc, char **argv) {
     }
   }
   if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "unexpected argument \"%s\" (see --help)", argv[optind]);
-  if (state_path && scene_path) return oc_cli_fail(prog, OC_EXIT_USAGE, "--state and --scene exclude each other");
-  if (net.connect && (state_path || scene_path))
+  return -1;
+}
+
+/* Options that exclude or need each other; --path loaded. Returns -1 to go on, else the exit status. */
+static int check_args(view_args_t *a) {
+  if (a->state_path && a->scene_path) return oc_cli_fail(prog, OC_EXIT_USAGE, "--state and --scene exclude each other");
+  if (a->net.connect && (a->state_path || a->scene_path))
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect excludes --state and --scene");
-  if (net_opts && state_path)
+  if (a->net_opts && a->state_path)
     return oc_cli_fail(prog, OC_EXIT_USAGE,
                        "--token, --budget, --max-depth, --epochs, --step and --timeout go with --connect or --scene");
-  if (camera_text && camera_png) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera and --camera-from exclude each other");
-  if (path_file && (camera_text || camera_png)) return oc_cli_fail(prog, OC_EXIT_USAGE, "--path gives the camera: no --camera or --camera-from");
-  if (record_path && want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--record records a window's flight: not with --headless");
-  if (path_file) {
+  if (a->camera_text && a->camera_png) return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera and --camera-from exclude each other");
+  if (a->path_file && (a->camera_text || a->camera_png)) return oc_cli_fail(prog, OC_EXIT_USAGE, "--path gives the camera: no --camera or --camera-from");
+  if (a->record_path && a->want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--record records a window's flight: not with --headless");
+  if (a->path_file) {
     char pwhy[512];
-    if (ocv_path_load(&cam_path, path_file, pwhy, sizeof pwhy) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--path: %s", pwhy);
-    vo.path = &cam_path;
-    if (!frames_given) frames = (long)floor(ocv_path_duration(&cam_path) * vo.fps) + 1;
+    if (ocv_path_load(&a->cam_path, a->path_file, pwhy, sizeof pwhy) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--path: %s", pwhy);
+    a->vo.path = &a->cam_path;
+    if (!a->frames_given) a->frames = (long)floor(ocv_path_duration(&a->cam_path) * a->vo.fps) + 1;
   }
-  if (want_window && want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--window and --headless exclude each other");
-  if (want_window && ((batch_opts & 1) || batch_net))
+  if (a->want_window && a->want_headless) return oc_cli_fail(prog, OC_EXIT_USAGE, "--window and --headless exclude each other");
+  if (a->want_window && ((a->batch_opts & 1) || a->batch_net))
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--frames, --save-state, --epochs and --step go with --headless, not --window");
-  if (want_window && renderer == R_CPU)
+  if (a->want_window && a->renderer == R_CPU)
     return oc_cli_fail(prog, OC_EXIT_USAGE, "--window renders with GL: --renderer cpu goes with --headless");
+  return -1;
+}
+
+/* The camera: --camera, --camera-from's text chunk, else the scene's. *have_pose 0: the server's
+ * (--connect). Returns OC_EXIT_OK or the exit status of an error. */
+static int initial_pose(const view_args_t *a, const oc_scene_t *sc, oc_camera_pose_t *pose, int *have_pose) {
+  char why[1024];
+  *pose = (oc_camera_pose_t){sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
+  *have_pose = a->camera_text || a->camera_png || !a->net.connect; /* --state, --scene: the scene's camera unless given */
+  if (a->camera_text && oc_camera_parse(a->camera_text, pose, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
+  if (a->camera_png) {
+    int pw, ph;
+    uint8_t *px;
+    char text[256];
+    if (oc_png_read(a->camera_png, &pw, &ph, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from: %s", why);
+    free(px);
+    if (!text[0]) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: no overcast-camera text chunk", a->camera_png);
+    if (oc_camera_parse(text, pose, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: %s", a->camera_png, why);
+  }
+  return OC_EXIT_OK;
+}
+
+/* The state to render (not for a --connect window, which takes states as they come): --scene's,
+ * --connect's newest, or --state's; saved with --save-state. */
+static int source_state(view_args_t *a, int window, oc_camera_pose_t *pose, int have_pose, oc_scene_t *sc,
+                        oc_state_t *st) {
+  char why[1024];
+  struct timespec t0, t1;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  if (!a->state_path && !a->net.connect) {
+    a->net.width = a->w;
+    a->net.height = a->h;
+    if (scene_state(a->scene_path, a->vo.threads, &a->net, pose, sc, st, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "--scene %s: %s", a->scene_path, why);
+  }
+  if (a->net.connect && !window) {
+    a->net.width = a->w;
+    a->net.height = a->h;
+    if (net_receive(&a->net, have_pose ? pose : NULL, pose, sc, st, why, sizeof why) < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  }
+  if (a->state_path && oc_state_load(st, a->state_path, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  if (!(a->net.connect && window)) {
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    oc_log_info("state: %u nodes, %u bricks (%.2f s)", st->node_count, st->brick_count,
+                (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
+  }
+  if (a->save_path && oc_state_save(st, a->save_path, why, sizeof why) < 0)
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
+  return OC_EXIT_OK;
+}
+
+#ifdef OC_HAVE_GL
+/* The window mode: with --connect the network thread, then the window loop; --record saved. */
+static int window_mode(const view_args_t *a, ocv_window_t *win, oc_scene_t *sc, oc_state_t *st, oc_camera_pose_t pose,
+                       int have_pose) {
+  const view_net_opts_t *net = &a->net;
+  int rc;
+  view_win_t v = {.win = win, .net_opts = net, .sc = sc, .st = st, .have_state = !net->connect, .pose = pose,
+                  .have_pose = have_pose || !net->connect, .o = a->vo};
+  if (net->connect) {
+    ocv_net_desc_t nd = {.host = net->host, .port = net->port,
+                         .viewer = {.role = OCP_ROLE_VIEWER, .budget = (uint64_t)net->budget_mib << 20,
+                                    .max_depth = (uint8_t)net->max_depth, .width = (uint32_t)a->w,
+                                    .height = (uint32_t)a->h, .caps = OCP_CAP_ALL, .token = net->token},
+                         .connect_timeout_s = fmin(net->timeout, 10.0), .on_state = net_wake, .on_log = net_log};
+    int r = ocv_net_start(&v.net, &nd);
+    if (r < 0)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s:%d: cannot start the network thread (%s)", net->host, net->port,
+                         oc_strerror(r));
+    if (have_pose) {
+      ocp_camera_t wc = wire_camera(pose, a->w, a->h);
+      (void)ocv_net_set_camera(v.net, &wc);
+    }
+  }
+  ocv_path_t rec;
+  ocv_path_init(&rec);
+  if (a->record_path) v.record = &rec;
+  rc = run_window(&v);
+  ocv_net_stop(v.net);
+  if (a->record_path) {
+    char pwhy[512];
+    if (ocv_path_save(&rec, a->record_path, pwhy, sizeof pwhy) < 0)
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--record: %s", pwhy);
+    else oc_log_info("%zu camera keys recorded in %s", rec.count, a->record_path);
+  }
+  ocv_path_free(&rec);
+  return rc;
+}
+#endif
+
+int main(int argc, char **argv) {
+  view_args_t a;
+  int rc = parse_args(argc, argv, &a);
+  if (rc < 0) rc = check_args(&a);
+  if (rc >= 0) {
+    ocv_path_free(&a.cam_path);
+    return rc;
+  }
   /* A window by default when there is a display to show it and nothing asks for batch output. */
-  int window = want_window || (!want_headless && !batch_opts && !batch_net && renderer != R_CPU && have_display());
+  int window = a.want_window ||
+               (!a.want_headless && !a.batch_opts && !a.batch_net && a.renderer != R_CPU && have_display());
 
   char why[1024];
-  int rc = OC_EXIT_OK;
+  rc = OC_EXIT_OK;
   oc_state_t st;
   oc_state_init(&st);
   oc_atmo_t *atmo = NULL;
@@ -867,14 +1009,17 @@ int main(int argc, char **argv) {
   ocv_window_t *win = NULL;
 #endif
   oc_scene_t *sc = calloc(1, sizeof *sc);
-  if (!sc) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  if (!sc) {
+    ocv_path_free(&a.cam_path);
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+  }
   if (window) { /* first, so that a missing display is said before any work */
     if (!have_display()) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--window: no display (DISPLAY and WAYLAND_DISPLAY are unset); use --headless");
       goto out;
     }
 #ifdef OC_HAVE_GL
-    if (!(win = ocv_window_open(w, h, "overcast-view", why, sizeof why))) {
+    if (!(win = ocv_window_open(a.w, a.h, "overcast-view", why, sizeof why))) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--window: %s (or use --headless)", why);
       goto out;
     }
@@ -883,118 +1028,32 @@ int main(int argc, char **argv) {
     goto out;
 #endif
   }
-  if (!state_path && !net.connect) {
-    if (!scene_path) scene_path = "scenes/analytic_sphere.json";
-    if (oc_scene_load(sc, scene_path, why, sizeof why) < 0) {
+  if (!a.state_path && !a.net.connect) {
+    if (!a.scene_path) a.scene_path = "scenes/analytic_sphere.json";
+    if (oc_scene_load(sc, a.scene_path, why, sizeof why) < 0) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       goto out;
     }
   } else {
     oc_scene_default(sc);
   }
-
-  oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
-  int have_pose = camera_text || camera_png || !net.connect; /* --state, --scene: the scene's camera unless given */
-  if (camera_text && oc_camera_parse(camera_text, &pose, why, sizeof why) < 0) {
-    rc = oc_cli_fail(prog, OC_EXIT_USAGE, "--camera: %s", why);
-    goto out;
-  }
-  if (camera_png) {
-    int pw, ph;
-    uint8_t *px;
-    char text[256];
-    if (oc_png_read(camera_png, &pw, &ph, &px, "overcast-camera", text, sizeof text, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from: %s", why);
-      goto out;
-    }
-    free(px);
-    if (!text[0]) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: no overcast-camera text chunk", camera_png);
-      goto out;
-    }
-    if (oc_camera_parse(text, &pose, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--camera-from %s: %s", camera_png, why);
-      goto out;
-    }
-  }
-
-  struct timespec t0, t1;
-  clock_gettime(CLOCK_MONOTONIC, &t0);
-  if (!state_path && !net.connect) {
-    net.width = w;
-    net.height = h;
-    if (scene_state(scene_path, vo.threads, &net, &pose, sc, &st, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--scene %s: %s", scene_path, why);
-      goto out;
-    }
-  }
-  if (net.connect && !window) {
-    net.width = w;
-    net.height = h;
-    if (net_receive(&net, have_pose ? &pose : NULL, &pose, sc, &st, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      goto out;
-    }
-  }
-  if (state_path) {
-    if (oc_state_load(&st, state_path, why, sizeof why) < 0) {
-      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-      goto out;
-    }
-  }
-  if (!(net.connect && window)) {
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    oc_log_info("state: %u nodes, %u bricks (%.2f s)", st.node_count, st.brick_count,
-                (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
-  }
-  if (save_path && oc_state_save(&st, save_path, why, sizeof why) < 0) {
-    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
-    goto out;
-  }
-
+  oc_camera_pose_t pose;
+  int have_pose;
+  if ((rc = initial_pose(&a, sc, &pose, &have_pose)) != OC_EXIT_OK) goto out;
+  if ((rc = source_state(&a, window, &pose, have_pose, sc, &st)) != OC_EXIT_OK) goto out;
   if (window) {
 #ifdef OC_HAVE_GL
-    view_win_t v = {.win = win, .net_opts = &net, .sc = sc, .st = &st, .have_state = !net.connect, .pose = pose,
-                    .have_pose = have_pose || !net.connect, .o = vo};
-    if (net.connect) {
-      ocv_net_desc_t nd = {.host = net.host, .port = net.port,
-                           .viewer = {.role = OCP_ROLE_VIEWER, .budget = (uint64_t)net.budget_mib << 20,
-                                      .max_depth = (uint8_t)net.max_depth, .width = (uint32_t)w, .height = (uint32_t)h,
-                                      .caps = OCP_CAP_ALL, .token = net.token},
-                           .connect_timeout_s = fmin(net.timeout, 10.0), .on_state = net_wake, .on_log = net_log};
-      int r = ocv_net_start(&v.net, &nd);
-      if (r < 0) {
-        rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s:%d: cannot start the network thread (%s)", net.host, net.port,
-                         oc_strerror(r));
-        goto out;
-      }
-      if (have_pose) {
-        ocp_camera_t wc = wire_camera(pose, w, h);
-        (void)ocv_net_set_camera(v.net, &wc);
-      }
-    }
-    ocv_path_t rec;
-    ocv_path_init(&rec);
-    if (record_path) v.record = &rec;
-    rc = run_window(&v);
-    ocv_net_stop(v.net);
-    if (record_path) {
-      char pwhy[512];
-      if (ocv_path_save(&rec, record_path, pwhy, sizeof pwhy) < 0) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--record: %s", pwhy);
-      else oc_log_info("%zu camera keys recorded in %s", rec.count, record_path);
-    }
-    ocv_path_free(&rec);
+    rc = window_mode(&a, win, sc, &st, pose, have_pose);
 #endif
     goto out;
   }
-
-  if (make_atmo(sc, vo.threads, &atmo) < 0) {
+  if (make_atmo(sc, a.vo.threads, &atmo) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
     goto out;
   }
-  rc = run_headless(renderer, &st, sc, atmo, pose, w, h, frames, &vo);
+  rc = run_headless(a.renderer, &st, sc, atmo, pose, a.w, a.h, a.frames, &a.vo);
 out:
-  ocv_path_free(&cam_path);
+  ocv_path_free(&a.cam_path);
 #ifdef OC_HAVE_GL
   ocv_window_close(win);
 #endif
