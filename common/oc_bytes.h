@@ -102,6 +102,20 @@ static inline double oc_read_f64(oc_reader_t *r) {
   return q ? oc_get_f64(q) : 0.0;
 }
 
+/*-*** Arrays: growth by doubling ***/
+
+/*! oc_grow() : room for one more element in the array `arr` of `*cap` elements of `size` bytes, `n` of them in
+ * use: when full, reallocates it to twice `*cap` (`first` when empty) and updates `*cap`.
+ * @return the array (moved or not), or NULL when the allocation failed (then `arr` and `*cap` are unchanged). */
+static inline void *oc_grow(void *arr, size_t *cap, size_t n, size_t size, size_t first) {
+  if (n < *cap) return arr;
+  size_t nc = *cap ? 2 * *cap : first;
+  if (nc > SIZE_MAX / size) return NULL;
+  void *a = realloc(arr, nc * size);
+  if (a) *cap = nc;
+  return a;
+}
+
 /*-*** Buffer: a growable byte array (writers append; on allocation failure `err` is set) ***/
 
 typedef struct {

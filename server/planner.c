@@ -11,6 +11,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "oc_bytes.h"
 #include "oc_err.h"
 #include "oc_planet.h"
 
@@ -109,13 +110,9 @@ static void h_down(heap_t *h, size_t i) {
 
 /* append without ordering; h_heapify() afterwards */
 static int h_append(heap_t *h, hent_t e) {
-  if (h->n == h->cap) {
-    size_t nc = h->cap ? 2 * h->cap : 1024;
-    hent_t *a = realloc(h->a, nc * sizeof *a);
-    if (!a) return OC_ENOMEM;
-    h->a = a;
-    h->cap = nc;
-  }
+  hent_t *a = oc_grow(h->a, &h->cap, h->n, sizeof *a, 1024);
+  if (!a) return OC_ENOMEM;
+  h->a = a;
   h->a[h->n++] = e;
   return 0;
 }

@@ -20,13 +20,9 @@
 /*-*** Samples ***/
 
 int stress_samples_add(stress_samples_t *s, double x) {
-  if (s->n == s->cap) {
-    size_t cap = s->cap ? 2 * s->cap : 64;
-    double *nv = realloc(s->v, cap * sizeof *nv);
-    if (!nv) return OC_ENOMEM;
-    s->v = nv;
-    s->cap = cap;
-  }
+  double *nv = oc_grow(s->v, &s->cap, s->n, sizeof *nv, 64);
+  if (!nv) return OC_ENOMEM;
+  s->v = nv;
   s->v[s->n++] = x;
   return 0;
 }
