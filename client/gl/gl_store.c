@@ -84,10 +84,14 @@ static void ocv__release(ocv_gl_store_t *st, uint32_t id) {
   if (e && --e->refs == 0) ocv__remove(st, e);
 }
 
+static void ocv__release_state(ocv_gl_store_t *st, const oc_state_t *s) {
+  for (uint32_t b = 0; b < s->brick_count; b++) ocv__release(st, s->bricks[b].id);
+}
+
 /* Drops the staged state: its references go, and so do the bricks only it held. */
 static void ocv__unstage(ocv_gl_store_t *st) {
   if (!st->staged) return;
-  for (uint32_t b = 0; b < st->staged->brick_count; b++) ocv__release(st, st->staged->bricks[b].id);
+  ocv__release_state(st, st->staged);
   st->staged = NULL;
   st->npending = st->pending_pos = 0;
 }
@@ -164,14 +168,16 @@ void ocv_gl_store_free(ocv_gl_store_t *st) {
   free(st);
 }
 
-int ocv_gl_store_stage(ocv_gl_store_t *st, const oc_state_t *s, char *why, size_t why_len) {
-  if (!st || !s || !s->node_count) return oc_errorf(OC_EINVAL, why, why_len, "gl store: no state to stage");
-  ocv__unstage(st);
+/* References to s's bricks, and the pending list of those not uploaded yet; on a shortage of
+ * slots nothing is taken. */
+static int ocv__take(ocv_gl_store_t *st, const oc_state_t *s, char *why, size_t why_len) {
+  st->npending = st->pending_pos = 0;
   for (uint32_t b = 0; b < s->brick_count; b++) {
     uint32_t id = s->bricks[b].id;
     ocv__entry_t *e = ocv__find(st, id);
     if (e) {
       e->refs++;
+      if (!e->uploaded) st->pending[st->npending++] = b; /* staged before, not uploaded yet */
       continue;
     }
     if (!st->nfree || id == 0) {
@@ -185,6 +191,25 @@ int ocv_gl_store_stage(ocv_gl_store_t *st, const oc_state_t *s, char *why, size_
     ocv__insert(st, id, st->free_slots[--st->nfree]);
     st->pending[st->npending++] = b;
   }
+  return 0;
+}
+
+int ocv_gl_store_stage(ocv_gl_store_t *st, const oc_state_t *s, char *why, size_t why_len) {
+  if (!st || !s || !s->node_count) return oc_errorf(OC_EINVAL, why, why_len, "gl store: no state to stage");
+  /* The new state's references first, then the old staged state's go: the bricks both hold and
+   * that were uploaded already stay, so states that come faster than one uploads still complete
+   * (each replaced stage would otherwise start again from nothing). Where the slots do not hold
+   * both, the old stage goes first. */
+  const oc_state_t *old = st->staged;
+  st->staged = NULL;
+  int rc = ocv__take(st, s, why, why_len);
+  if (rc == OC_ETOOBIG && old) {
+    ocv__release_state(st, old);
+    old = NULL;
+    rc = ocv__take(st, s, why, why_len);
+  }
+  if (old) ocv__release_state(st, old);
+  if (rc < 0) return rc;
   st->staged = s;
   st->pending_pos = 0;
   return 0;

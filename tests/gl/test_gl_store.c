@@ -178,6 +178,39 @@ static void test_gl_store__epochs(void **state) {
   oc_state_free(&s5);
 }
 
+/* States that arrive faster than one uploads (a slow window takes the newest each frame): a replaced
+ * stage keeps the uploaded bricks it shares with the new state, so the upload still completes.
+ * Before, each stage started again from nothing and, past one call's bytes, never completed. */
+static void test_gl_store__restaged_every_call_completes(void **state) {
+  (void)state;
+  require_gl();
+  char why[512];
+  oc_state_t s1, s2;
+  oc_camera_t cam;
+  make_state(&s1, &cam, -0.09, 0);
+  refresh(&s2, &s1, 10);
+  assert_true(s1.brick_count > 64);
+  uint32_t slots = distinct_bricks(&s1, &s2) + s1.brick_count;
+  oc_budget_t g = {.budget = (uint64_t)slots * (OC_SLOT_BYTES + OC_RECORD_BYTES) + OC_RECORD_BYTES,
+                   .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
+  ocv_gl_store_t *st = ocv_gl_store_create(&g, why, sizeof why);
+  if (!st) fail_msg("%s", why);
+  const oc_state_t *arriving[2] = {&s1, &s2};
+  int calls = 0, r = 0;
+  while (r == 0 && calls < (int)s1.brick_count) {
+    assert_int_equal(ocv_gl_store_stage(st, arriving[calls & 1], why, sizeof why), 0);
+    r = ocv_gl_store_pump(st, 32 * OC_SLOT_BYTES, why, sizeof why);
+    calls++;
+  }
+  printf("store: a state of %u bricks, restaged every call, complete after %d calls of 32 bricks\n", s1.brick_count,
+         calls);
+  assert_int_equal(r, 1);
+  expect_same_image(ocv_gl_store_state(st, 0), arriving[(calls - 1) & 1], cam);
+  ocv_gl_store_free(st);
+  oc_state_free(&s1);
+  oc_state_free(&s2);
+}
+
 /* The atlas follows the grant, not the budget alone: other slot and record bytes, another K, give
  * another number of slots (oc_budget_slots()), resident bytes are counted in the granted sizes,
  * and a grant too small for a window is refused by name. */
@@ -213,4 +246,5 @@ static void test_gl_store__sized_from_the_grant(void **state) {
 
 OC_TEST_MAIN(setup, teardown,
              cmocka_unit_test(test_gl_store__epochs),
+             cmocka_unit_test(test_gl_store__restaged_every_call_completes),
              cmocka_unit_test(test_gl_store__sized_from_the_grant))
