@@ -159,13 +159,9 @@ int oct_fcache_sigma(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) {
   oct_fcache_ent_t *e = fcache_find(c, key);
   if (!e) return OC_ENOMEM;
   if (!e->brick) {
-    if (c->nb == c->pool_cap) {
-      size_t ncap = c->pool_cap ? c->pool_cap * 2 : 256;
-      float *np = realloc(c->pool, ncap * OC_BRICK_VOXELS * sizeof(float));
-      if (!np) return OC_ENOMEM;
-      c->pool = np;
-      c->pool_cap = ncap;
-    }
+    float *np = oc_grow(c->pool, &c->pool_cap, c->nb, OC_BRICK_VOXELS * sizeof(float), 256);
+    if (!np) return OC_ENOMEM;
+    c->pool = np;
     float *b = c->pool + c->nb * OC_BRICK_VOXELS;
     OC_TRY(ocs_field_sample(c->f, key, c->t, b));
     oc_sanitize(b, OC_BRICK_VOXELS, NULL);
