@@ -578,7 +578,9 @@ static int win_net(view_win_t *v, win_loop_t *L, double t) {
   int rc;
   if (!L->scene_ready && L->ns.have_welcome && (rc = win_welcome(v, L)) != OC_EXIT_OK) return rc;
   uint64_t e;
-  if (L->view && ocv_net_take_state(v->net, v->st, &e) == 1) {
+  /* the newest state, once the one uploading is complete: replacing it every time a newer one came
+   * kept a slow window (llvmpipe, 1280×720) on its first state for minutes */
+  if (L->view && !ocv_gl_view_staging(L->view) && ocv_net_take_state(v->net, v->st, &e) == 1) {
     if (ocv_gl_view_push(L->view, v->st, why, sizeof why) < 0)
       return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload (epoch %llu): %s", (unsigned long long)e, why);
     L->have_gs = 1;

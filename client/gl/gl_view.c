@@ -76,6 +76,8 @@ int ocv_gl_view_push(ocv_gl_view_t *v, const oc_state_t *s, char *why, size_t wh
   return rc;
 }
 
+int ocv_gl_view_staging(const ocv_gl_view_t *v) { return v && v->have_staged; }
+
 /* The staged state is complete: it is shown from now on, blended from the state shown before. */
 static int ocv__switch(ocv_gl_view_t *v, double now, char *why, size_t why_len) {
   if (v->have_prev) ocv_gl_prev_free(&v->prev);

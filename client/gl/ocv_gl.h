@@ -280,6 +280,10 @@ void ocv_gl_view_free(ocv_gl_view_t *v);
 /*! ocv_gl_view_push() : a new complete state (copied), replacing one still being uploaded.
  *  @return 0 or a negative OC_E* with why (OC_ETOOBIG: it does not fit the budget). */
 int ocv_gl_view_push(ocv_gl_view_t *v, const oc_state_t *s, char *why, size_t why_len);
+/*! ocv_gl_view_staging() : 1 while a pushed state is still being uploaded. A caller that pushes
+ *  every newer state before the last completes may never see one complete when a frame uploads
+ *  less than a state's new bricks (llvmpipe at 1280×720: 20–60 s a frame); it waits for 0 instead. */
+int ocv_gl_view_staging(const ocv_gl_view_t *v);
 /*! ocv_gl_view_frame() : one frame at time `now` (s, any monotonic clock): pumps uploads, switches
  *  to a state that became complete, renders desc's view (blended, reprojected when asked) into img.
  *  Before the first state is complete nothing is rendered (stats->shown 0). @return 0 or OC_E*. */
