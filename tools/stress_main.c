@@ -265,19 +265,22 @@ static void rebalance_verdict(const stress_opts_t *o, const stress_run_t *run, s
 }
 
 /* What the server has done so far: its bricks (stats) and, when it is a local process we know, its
- * CPU in clock ticks; -1 when neither can be read. Equal readings 0.5 s apart: the server is quiet.
- * CPU counts because not all work makes bricks (σt columns and τ volumes of a cold start). */
-static double server_work(ocv_conn_t *ctl, long pid, double timeout) {
+ * CPU in clock ticks; -1 where unknown. Equal readings 0.5 s apart: the server is quiet. CPU counts
+ * because not all work makes bricks (σt columns and τ volumes of a cold start). */
+typedef struct {
+  double bricks, cpu_ticks;
+} server_work_t;
+
+static server_work_t server_work(ocv_conn_t *ctl, long pid, double timeout) {
   char why[256];
   cJSON *reply = NULL;
   stress_proc_t p;
   stress_proc_sample(pid, &p);
-  double n = -1;
-  if (control(ctl, "{\"op\":\"stats\"}", timeout, &reply, why, sizeof why) == 0) n = world_num(reply, "bricks_produced");
+  server_work_t w = {-1, p.ok ? floor(100.0 * p.cpu_s) : -1};
+  if (control(ctl, "{\"op\":\"stats\"}", timeout, &reply, why, sizeof why) == 0) w.bricks = world_num(reply, "bricks_produced");
   cJSON_Delete(reply);
-  if (!isfinite(n)) n = -1;
-  if (p.ok) n = (n < 0 ? 0 : n) + 1e9 * floor(100.0 * p.cpu_s);
-  return n;
+  if (!isfinite(w.bricks)) w.bricks = -1;
+  return w;
 }
 
 /* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
@@ -318,7 +321,8 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
       if (restart_server(run, ctlp, fx, k, sum) < 0) break;
       continue; /* this step's epoch died with the server */
     }
-    double replied = stress_now(), made = -1, asked_at = 0;
+    double replied = stress_now(), asked_at = 0;
+    server_work_t made = {-1, -1};
     int still = 0; /* two readings of the server's work 0.5 s apart were equal */
     long pid = fx->child && fx->child->pid > 0 ? (long)fx->child->pid : o->server_pid;
     uint64_t target = run->epoch0 + (k - run->step0);
@@ -336,14 +340,15 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
       int silent = now - replied >= 2.0 && now - last_in >= 2.0;
       if (!silent) {
         still = 0;
-        made = -1;
+        made = (server_work_t){-1, -1};
       }
       if (silent && !still && now - asked_at >= 0.5) { /* still working? then not quiet */
         pthread_mutex_unlock(&run->mu);
-        double n = server_work(ctl, pid, o->timeout);
+        server_work_t n = server_work(ctl, pid, o->timeout);
         pthread_mutex_lock(&run->mu);
         asked_at = now = stress_now();
-        still = n < 0 || n == made; /* no figure: judge by the silence alone, as before */
+        int known = n.bricks >= 0 || n.cpu_ticks >= 0; /* none: judge by the silence alone, as before */
+        still = !known || (n.bricks == made.bricks && n.cpu_ticks == made.cpu_ticks);
         made = n;
       }
       if ((silent && still) || now - run->step_at[k] > o->timeout || g_interrupted) {
