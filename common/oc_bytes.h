@@ -33,6 +33,7 @@ static inline void oc_put_f64(uint8_t *p, double f) {
   memcpy(&u, &f, 8);
   oc_put_u64(p, u);
 }
+static inline uint8_t oc_get_u8(const uint8_t *p) { return p[0]; }
 static inline uint16_t oc_get_u16(const uint8_t *p) { return (uint16_t)(p[0] | (p[1] << 8)); }
 static inline uint32_t oc_get_u32(const uint8_t *p) {
   uint32_t v = 0;
@@ -57,6 +58,16 @@ static inline double oc_get_f64(const uint8_t *p) {
   return f;
 }
 
+/*! OC_SCALAR_MAP(XX) : every scalar the formats use, as XX(name, C type, size in bytes); the reader and buffer
+ * functions for each are generated from it, in the manner of libuv's UV_ERRNO_MAP. */
+#define OC_SCALAR_MAP(XX) \
+  XX(u8, uint8_t, 1) \
+  XX(u16, uint16_t, 2) \
+  XX(u32, uint32_t, 4) \
+  XX(u64, uint64_t, 8) \
+  XX(f32, float, 4) \
+  XX(f64, double, 8)
+
 /*-*** Reader: a cursor over untrusted bytes ***/
 
 typedef struct {
@@ -77,30 +88,15 @@ static inline const uint8_t *oc_reader_take(oc_reader_t *r, size_t n) {
   r->pos += n;
   return q;
 }
-static inline uint8_t oc_read_u8(oc_reader_t *r) {
-  const uint8_t *q = oc_reader_take(r, 1);
-  return q ? q[0] : 0;
-}
-static inline uint16_t oc_read_u16(oc_reader_t *r) {
-  const uint8_t *q = oc_reader_take(r, 2);
-  return q ? oc_get_u16(q) : 0;
-}
-static inline uint32_t oc_read_u32(oc_reader_t *r) {
-  const uint8_t *q = oc_reader_take(r, 4);
-  return q ? oc_get_u32(q) : 0;
-}
-static inline uint64_t oc_read_u64(oc_reader_t *r) {
-  const uint8_t *q = oc_reader_take(r, 8);
-  return q ? oc_get_u64(q) : 0;
-}
-static inline float oc_read_f32(oc_reader_t *r) {
-  const uint8_t *q = oc_reader_take(r, 4);
-  return q ? oc_get_f32(q) : 0.0f;
-}
-static inline double oc_read_f64(oc_reader_t *r) {
-  const uint8_t *q = oc_reader_take(r, 8);
-  return q ? oc_get_f64(q) : 0.0;
-}
+/*! oc_read_u8() .. oc_read_f64() : the next scalar, little-endian, or 0 (and err set) when fewer bytes are left.
+ * Generated from OC_SCALAR_MAP, as are the oc_buf_* writers below. */
+#define OC_READ_FN(name, type, size) \
+  static inline type oc_read_##name(oc_reader_t *r) { \
+    const uint8_t *q = oc_reader_take(r, size); \
+    return q ? oc_get_##name(q) : (type)0; \
+  }
+OC_SCALAR_MAP(OC_READ_FN)
+#undef OC_READ_FN
 
 /*-*** Arrays: growth by doubling ***/
 
@@ -156,29 +152,13 @@ static inline void oc_buf_append(oc_buf_t *b, const void *p, size_t n) {
   uint8_t *q = oc_buf_grow(b, n);
   if (q && n) memcpy(q, p, n);
 }
-static inline void oc_buf_u8(oc_buf_t *b, uint8_t v) {
-  uint8_t *q = oc_buf_grow(b, 1);
-  if (q) q[0] = v;
-}
-static inline void oc_buf_u16(oc_buf_t *b, uint16_t v) {
-  uint8_t *q = oc_buf_grow(b, 2);
-  if (q) oc_put_u16(q, v);
-}
-static inline void oc_buf_u32(oc_buf_t *b, uint32_t v) {
-  uint8_t *q = oc_buf_grow(b, 4);
-  if (q) oc_put_u32(q, v);
-}
-static inline void oc_buf_u64(oc_buf_t *b, uint64_t v) {
-  uint8_t *q = oc_buf_grow(b, 8);
-  if (q) oc_put_u64(q, v);
-}
-static inline void oc_buf_f32(oc_buf_t *b, float v) {
-  uint8_t *q = oc_buf_grow(b, 4);
-  if (q) oc_put_f32(q, v);
-}
-static inline void oc_buf_f64(oc_buf_t *b, double v) {
-  uint8_t *q = oc_buf_grow(b, 8);
-  if (q) oc_put_f64(q, v);
-}
+/*! oc_buf_u8() .. oc_buf_f64() : appends one scalar, little-endian (nothing once err is set). */
+#define OC_BUF_FN(name, type, size) \
+  static inline void oc_buf_##name(oc_buf_t *b, type v) { \
+    uint8_t *q = oc_buf_grow(b, size); \
+    if (q) oc_put_##name(q, v); \
+  }
+OC_SCALAR_MAP(OC_BUF_FN)
+#undef OC_BUF_FN
 
 #endif /* OC_COMMON_BYTES_H */
