@@ -179,6 +179,15 @@ check "ctl: raw non-object" 2 "raw: not a JSON object" -- "$C" raw '[1]'
 check "ctl: stray argument" 2 "unexpected argument \"x\"" -- "$C" stats x
 check "ctl: two different tokens" 2 "--token: a token was given already" -- "$C" --control-token a --token b stats
 "$C" --help | grep -q -- "--control-token TEXT" || { echo "FAIL ctl --help: --control-token not listed"; fail=$((fail + 1)); }
+# --help is generated from the option table: each option with its default and range, the commands' own too
+"$C" --help >"$tmp/out"
+grep -Eq -- "--timeout S .*\(default: 30; 0\.01\.\.86400\)" "$tmp/out" || { echo "FAIL ctl --help: --timeout's default and range"; fail=$((fail + 1)); }
+grep -Eq -- "--lat LAT .*\(-90\.\.90\)" "$tmp/out" || { echo "FAIL ctl --help: sun --lat's range"; fail=$((fail + 1)); }
+check "ctl: bad value" 2 "^overcast-ctl: --timeout: 0 is outside \[0\.01, 86400\]$" -- "$C" --timeout 0 stats
+check "ctl: bad value of a command's option" 2 "^overcast-ctl: --seconds: -1 is outside" -- "$C" weather storm --seconds -1
+check "ctl: bad --dir" 2 "--dir: expected X,Y,Z" -- "$C" sun --dir 0,0,0
+check "ctl: another command's option" 2 "weather: unknown option \"--set\"" -- "$C" weather storm --set 3
+check "ctl: option after the command, bad address" 2 "--connect: expected HOST:PORT" -- "$C" stats --connect localhost:0
 check "ctl: connection refused" 1 "^overcast-ctl: 127\.0\.0\.1:1: cannot connect" -- "$C" --connect 127.0.0.1:1 --timeout 5 stats
 
 X=$BIN/overcast-stress
