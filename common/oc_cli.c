@@ -27,14 +27,9 @@ int oc_cli_int(const char *prog, const char *opt, const char *text, long lo, lon
   char *end;
   errno = 0;
   long v = strtol(text, &end, 10);
-  if (end == text || *end || errno) {
-    oc_cli_fail(prog, 0, "%s: expected an integer, got \"%s\"", opt, text);
-    return -1;
-  }
-  if (v < lo || v > hi) {
-    oc_cli_fail(prog, 0, "%s: %ld is outside [%ld, %ld]", opt, v, lo, hi);
-    return -1;
-  }
+  if (end == text || *end || errno)
+    return oc_cli_fail(prog, -1, "%s: expected an integer, got \"%s\"", opt, text);
+  if (v < lo || v > hi) return oc_cli_fail(prog, -1, "%s: %ld is outside [%ld, %ld]", opt, v, lo, hi);
   *out = v;
   return 0;
 }
@@ -42,14 +37,9 @@ int oc_cli_int(const char *prog, const char *opt, const char *text, long lo, lon
 int oc_cli_double(const char *prog, const char *opt, const char *text, double lo, double hi, double *out) {
   char *end;
   double v = strtod(text, &end);
-  if (end == text || *end || !isfinite(v)) {
-    oc_cli_fail(prog, 0, "%s: expected a finite number, got \"%s\"", opt, text);
-    return -1;
-  }
-  if (v < lo || v > hi) {
-    oc_cli_fail(prog, 0, "%s: %g is outside [%g, %g]", opt, v, lo, hi);
-    return -1;
-  }
+  if (end == text || *end || !isfinite(v))
+    return oc_cli_fail(prog, -1, "%s: expected a finite number, got \"%s\"", opt, text);
+  if (v < lo || v > hi) return oc_cli_fail(prog, -1, "%s: %g is outside [%g, %g]", opt, v, lo, hi);
   *out = v;
   return 0;
 }
@@ -61,16 +51,13 @@ int oc_cli_size(const char *prog, const char *opt, const char *text, int *w, int
   const char *s = end + 1;
   b = strtol(s, &end, 10);
   if (end == s || *end) goto bad;
-  if (a < 1 || a > 16384 || b < 1 || b > 16384) {
-    oc_cli_fail(prog, 0, "%s: %s: each side must be 1..16384", opt, text);
-    return -1;
-  }
+  if (a < 1 || a > 16384 || b < 1 || b > 16384)
+    return oc_cli_fail(prog, -1, "%s: %s: each side must be 1..16384", opt, text);
   *w = (int)a;
   *h = (int)b;
   return 0;
 bad:
-  oc_cli_fail(prog, 0, "%s: expected WxH, got \"%s\"", opt, text);
-  return -1;
+  return oc_cli_fail(prog, -1, "%s: expected WxH, got \"%s\"", opt, text);
 }
 
 void oc_cli_version(const char *prog) { printf("%s %s\n", prog, OC_VERSION); }
@@ -111,10 +98,8 @@ static int store(const char *prog, const oc_cli_opt_t *o, const char *text, void
       return 0;
     case OC_CLI_STRING: {
       size_t n = strlen(text);
-      if (o->lo < o->hi && (n < o->lo || n > o->hi)) {
-        oc_cli_fail(prog, 0, "%s: %.0f..%.0f bytes", opt, o->lo, o->hi);
-        return -1;
-      }
+      if (o->lo < o->hi && (n < o->lo || n > o->hi))
+        return oc_cli_fail(prog, -1, "%s: %.0f..%.0f bytes", opt, o->lo, o->hi);
       *(const char **)dst = text;
       return 0;
     }
