@@ -7,8 +7,8 @@
  * Modes: --headless writes PNG frames (EGL, no display needed); --window opens a GLFW window
  * (client/gl/gl_window.c) that renders continuously, with mouse look and WASD flight. */
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,87 +38,6 @@
 #endif
 
 static const char *prog = "overcast-view";
-
-static void usage(FILE *f) {
-  fprintf(f,
-          "usage: overcast-view [options]\n"
-          "Renders clouds and atmosphere in a window, or headless to PNG frames, with the GL renderer\n"
-          "or the CPU reference renderer.\n"
-          "\n"
-          "source (one of):\n"
-          "  --state FILE          render a saved state file (what a viewer held)\n"
-          "  --scene FILE          start the overcast-server next to this program on 127.0.0.1:0 with the\n"
-          "                        scene and stepped epochs, take the state it plans for the camera (as\n"
-          "                        --connect --step does), stop it, and render that state as with --state;\n"
-          "                        default: scenes/analytic_sphere.json when no --state or --connect is given\n"
-          "  --connect HOST:PORT   receive states from overcast-server and render the newest; the scene's\n"
-          "                        features, optics and default camera come from the server\n"
-          "network (with --connect or --scene):\n"
-          "  --token TEXT          the server's token, if it has one\n"
-          "  --budget MIB          memory budget asked for (default 64)\n"
-          "  --max-depth N         deepest octree level asked for, 0..21 (default 21)\n"
-          "  --wait-epochs N       headless: render once N complete states have arrived (default 4;\n"
-          "                        --epochs N is the same)\n"
-          "  --step                headless, for a server run with --epoch-period 0: ask it (on a second,\n"
-          "                        control connection) to step one epoch whenever the previous state arrived\n"
-          "  --timeout S           headless: give up when the states have not arrived within S s (default 60);\n"
-          "                        window: the connect timeout (at most 10 s). A lost connection or a\n"
-          "                        draining server (GOODBYE RECONNECT) is retried with backoff and jitter,\n"
-          "                        one line per attempt, and given up after 10 attempts or 120 s\n"
-          "mode:\n"
-          "  --window              a window (OpenGL 4.5 core through GLFW) rendering continuously; the default\n"
-          "                        when DISPLAY or WAYLAND_DISPLAY is set and none of --headless, --frames,\n"
-          "                        --out, --save-state, --epochs, --step is given\n"
-          "  --headless            render --frames PNG frames into --out and exit (no display needed)\n"
-          "view:\n"
-          "  --camera LAT,LON,ALT,HEADING,PITCH,FOV   degrees, metres (default: the scene's camera)\n"
-          "  --camera-from PNG     restore the camera stored in a screenshot's text chunk\n"
-          "  --size WxH            image size, or the window's initial size (default 640x360)\n"
-          "  --frames N            headless: frames to write (default 1; with --jitter each frame has its own jitter)\n"
-          "  --out DIR             output folder (default out): frame_NNNN.png headless, screenshot_NNNN.png\n"
-          "                        in the window\n"
-          "rendering:\n"
-          "  --renderer gl|cpu     gl: the GL compute renderer (headless through EGL); cpu: the CPU reference\n"
-          "                        renderer (headless only). Default: gl when a GL context can be made, else\n"
-          "                        cpu with a notice; a forced gl without a context is an error\n"
-          "  --step-factor X       step = X × voxel spacing (default 0.5)\n"
-          "  --exposure X          (default 10)\n"
-          "  --ms-octaves N        multiple-scattering octaves 1..8 (default: the scene's)\n"
-          "  --jitter              per-pixel ray-start jitter\n"
-          "  --threads N           render threads of the CPU renderer and tables, and the producer threads\n"
-          "                        of --scene's server (default 2)\n"
-          "  --save-state FILE     headless: also write the state that was rendered\n"
-          "  --path FILE           headless: a recorded camera path (lines \"T LAT,LON,ALT,HEADING,PITCH,FOV\");\n"
-          "                        frame f is its pose at f / --fps s (frames: the path's length, unless\n"
-          "                        --frames says)\n"
-          "  --fps X               frames per second of --path (default 30)\n"
-          "  --hud                 headless: draw the HUD into the frames too (the window has it on H)\n"
-          "  --record FILE         window: record the flight as a camera path (saved at exit)\n"
-          "  -q, --quiet           only errors\n"
-          "  --help, --version\n"
-          "window keys:\n"
-          "  left mouse button + drag   look around\n"
-          "  W A S D, Q E               fly forward/left/back/right, down/up (arrow keys too); speed =\n"
-          "                             altitude above ground per second (at least 1 m/s), Shift ×10\n"
-          "  [ ]                        step factor × / ÷ 1.25\n"
-          "  - =                        exposure ÷ / × 1.25\n"
-          "  F12 or P                   screenshot (PNG with the camera in a text chunk, for --camera-from)\n"
-          "  R                          reprojection on/off (one pixel in 16 traced per frame)\n"
-          "  V                          debug views: off, level of detail, τ channel, node bounds\n"
-          "  H                          HUD on/off (frame and GPU pass times, epoch and age, resident\n"
-          "                             bytes against the budget, bytes/s received)\n"
-          "  J                          per-pixel ray-start jitter on/off (averaged by reprojection)\n"
-          "  M                          multiple-scattering octaves: 1, 2, ... 8, cycled\n"
-          "  N                          --connect: the server's next weather preset (clear, fair, overcast,\n"
-          "                             storm, cirrus; a 10 s transition), through a control connection\n"
-          "  K L                        --connect: the sun 15° west / east (time of day)\n"
-          "  T                          --connect: world time paused / resumed\n"
-          "                             (N, K, L, T use --token when the server has one)\n"
-          "  Esc                        quit\n"
-          "The window's viewport and every camera move are sent to the server with --connect.\n"
-          "\n"
-          "exit status: 0 ok, 1 runtime error, 2 usage error\n");
-}
 
 /*-*** --connect: receive states from a server ***/
 
@@ -780,6 +699,7 @@ static int run_window(view_win_t *v) {
 /* What the command line asked for (parse_args). */
 typedef struct {
   const char *state_path, *scene_path, *camera_text, *camera_png, *save_path, *record_path, *path_file;
+  const char *connect; /* --connect, parsed into net.host and net.port after the table */
   int w, h;
   long frames;
   int frames_given;
@@ -787,89 +707,179 @@ typedef struct {
   ocv_path_t cam_path; /* --path */
   view_net_opts_t net;
   renderer_t renderer;
-  int net_opts, want_window, want_headless, batch_opts, batch_net;
+  int net_opts, want_window, want_headless, batch_opts, batch_net, quiet;
 } view_args_t;
+
+/*-*** The options: one table (common/oc_cli.h), from which they are parsed and --help is printed ***/
+
+/* An integer in the row's range into a long. */
+static int opt_long(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  char opt[80];
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  return oc_cli_int(p, opt, text, (long)o->lo, (long)o->hi, oc_cli_field(o, base));
+}
+
+/* --size WxH: the image's, or the window's initial size. */
+static int opt_size(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  view_args_t *a = base;
+  (void)o;
+  return oc_cli_size(p, "--size", text, &a->w, &a->h);
+}
+
+/* --renderer gl|cpu. */
+static int opt_renderer(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  renderer_t *r = oc_cli_field(o, base);
+  if (!strcmp(text, "cpu")) *r = R_CPU;
+  else if (!strcmp(text, "gl")) *r = R_GL;
+  else return oc_cli_fail(p, -1, "--renderer %s: expected gl or cpu", text);
+  return 0;
+}
+
+/* Rows indexed by R_*, so that given[R_*] says what the command line holds. */
+enum { R_STATE, R_SCENE, R_CONNECT, R_TOKEN, R_BUDGET, R_MAX_DEPTH, R_WAIT_EPOCHS, R_EPOCHS, R_STEP, R_TIMEOUT,
+       R_WINDOW, R_HEADLESS, R_CAMERA, R_CAMERA_FROM, R_SIZE, R_FRAMES, R_OUT, R_RENDERER, R_STEP_FACTOR, R_EXPOSURE,
+       R_MS_OCTAVES, R_JITTER, R_THREADS, R_SAVE_STATE, R_PATH, R_FPS, R_HUD, R_RECORD, R_QUIET, R_HELP, R_VERSION,
+       R_COUNT };
+
+#define SOURCE "source (one of)"
+#define NETWORK "network (with --connect or --scene)"
+#define MODE "mode"
+#define VIEW "view"
+#define RENDER "rendering"
+#define OTHER "other"
+#define AT(field) offsetof(view_args_t, field)
+#define LONG_ROW(field) .type = OC_CLI_CUSTOM, .parse = opt_long, .offset = AT(field)
+
+static const oc_cli_opt_t opts[R_COUNT + 1] = {
+    [R_STATE] = {.name = "state", .type = OC_CLI_STRING, .offset = AT(state_path), .arg = "FILE", .group = SOURCE,
+                 .help = "render a saved state file (what a viewer held)"},
+    [R_SCENE] = {.name = "scene", .type = OC_CLI_STRING, .offset = AT(scene_path), .arg = "FILE",
+                 .def_note = "scenes/analytic_sphere.json when no --state or --connect is given", .group = SOURCE,
+                 .help = "start the overcast-server next to this program on 127.0.0.1:0 with the scene and stepped "
+                         "epochs, take the state it plans for the camera (as --connect --step does), stop it, and "
+                         "render that state as with --state"},
+    [R_CONNECT] = {.name = "connect", .type = OC_CLI_STRING, .offset = AT(connect), .arg = "HOST:PORT",
+                   .group = SOURCE,
+                   .help = "receive states from overcast-server and render the newest; the scene's features, "
+                           "optics and default camera come from the server"},
+    [R_TOKEN] = {.name = "token", .type = OC_CLI_STRING, .offset = AT(net.token), .arg = "TEXT", .lo = 1,
+                 .hi = OCP_TOKEN_MAX, .group = NETWORK, .help = "the server's token, if it has one"},
+    [R_BUDGET] = {.name = "budget", LONG_ROW(net.budget_mib), .arg = "MIB", .lo = 1, .hi = 1 << 20, .def = "64",
+                  .group = NETWORK, .help = "memory budget asked for"},
+    [R_MAX_DEPTH] = {.name = "max-depth", LONG_ROW(net.max_depth), .arg = "N", .lo = 0, .hi = 21, .def = "21",
+                     .group = NETWORK, .help = "deepest octree level asked for"},
+    [R_WAIT_EPOCHS] = {.name = "wait-epochs", LONG_ROW(net.epochs), .arg = "N", .lo = 1, .hi = 100000, .def = "4",
+                       .group = NETWORK, .help = "headless: render once N complete states have arrived"},
+    [R_EPOCHS] = {.name = "epochs", LONG_ROW(net.epochs), .arg = "N", .lo = 1, .hi = 100000, .group = NETWORK,
+                  .help = "the same as --wait-epochs"},
+    [R_STEP] = {.name = "step", .type = OC_CLI_FLAG, .offset = AT(net.step), .group = NETWORK,
+                .help = "headless, for a server run with --epoch-period 0: ask it (on a second, control connection) "
+                        "to step one epoch whenever the previous state arrived"},
+    [R_TIMEOUT] = {.name = "timeout", .type = OC_CLI_DOUBLE, .offset = AT(net.timeout), .arg = "S", .lo = 0.01,
+                   .hi = 86400, .def = "60", .group = NETWORK,
+                   .help = "headless: give up when the states have not arrived within S s; window: the connect "
+                           "timeout (at most 10 s). A lost connection or a draining server (GOODBYE RECONNECT) is "
+                           "retried with backoff and jitter, one line per attempt, and given up after 10 attempts "
+                           "or 120 s"},
+    [R_WINDOW] = {.name = "window", .type = OC_CLI_FLAG, .offset = AT(want_window), .group = MODE,
+                  .help = "a window (OpenGL 4.5 core through GLFW) rendering continuously; the default when DISPLAY "
+                          "or WAYLAND_DISPLAY is set and none of --headless, --frames, --out, --save-state, "
+                          "--epochs, --step is given"},
+    [R_HEADLESS] = {.name = "headless", .type = OC_CLI_FLAG, .offset = AT(want_headless), .group = MODE,
+                    .help = "render --frames PNG frames into --out and exit (no display needed)"},
+    [R_CAMERA] = {.name = "camera", .type = OC_CLI_STRING, .offset = AT(camera_text),
+                  .arg = "LAT,LON,ALT,HEADING,PITCH,FOV", .def_note = "the scene's camera", .group = VIEW,
+                  .help = "degrees, metres"},
+    [R_CAMERA_FROM] = {.name = "camera-from", .type = OC_CLI_STRING, .offset = AT(camera_png), .arg = "PNG",
+                       .group = VIEW, .help = "restore the camera stored in a screenshot's text chunk"},
+    [R_SIZE] = {.name = "size", .type = OC_CLI_CUSTOM, .parse = opt_size, .arg = "WxH", .def = "640x360",
+                .group = VIEW, .help = "image size, or the window's initial size"},
+    [R_FRAMES] = {.name = "frames", LONG_ROW(frames), .arg = "N", .lo = 1, .hi = 100000,
+                  .def_note = "1; with --path, the path's length", .group = VIEW,
+                  .help = "headless: frames to write (with --jitter each frame has its own jitter)"},
+    [R_OUT] = {.name = "out", .type = OC_CLI_STRING, .offset = AT(vo.out_dir), .arg = "DIR", .def = "out",
+               .group = VIEW,
+               .help = "output folder: frame_NNNN.png headless, screenshot_NNNN.png in the window"},
+    [R_RENDERER] = {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = opt_renderer, .offset = AT(renderer),
+                    .arg = "gl|cpu", .def_note = "gl when a GL context can be made, else cpu with a notice",
+                    .group = RENDER,
+                    .help = "gl: the GL compute renderer (headless through EGL); cpu: the CPU reference renderer "
+                            "(headless only); a forced gl without a context is an error"},
+    [R_STEP_FACTOR] = {.name = "step-factor", .type = OC_CLI_DOUBLE, .offset = AT(vo.step), .arg = "X", .lo = 1e-3,
+                       .hi = 1e3, .def = "0.5", .group = RENDER, .help = "step = X × voxel spacing"},
+    [R_EXPOSURE] = {.name = "exposure", .type = OC_CLI_DOUBLE, .offset = AT(vo.exposure), .arg = "X", .lo = 1e-6,
+                    .hi = 1e6, .def = "10", .group = RENDER, .help = "exposure of the tone mapping"},
+    [R_MS_OCTAVES] = {.name = "ms-octaves", LONG_ROW(vo.octaves), .arg = "N", .lo = 1, .hi = 8,
+                      .def_note = "the scene's", .group = RENDER, .help = "multiple-scattering octaves"},
+    [R_JITTER] = {.name = "jitter", .type = OC_CLI_FLAG, .offset = AT(vo.jitter), .group = RENDER,
+                  .help = "per-pixel ray-start jitter"},
+    [R_THREADS] = {.name = "threads", LONG_ROW(vo.threads), .arg = "N", .lo = 1, .hi = 256, .def = "2",
+                   .group = RENDER,
+                   .help = "render threads of the CPU renderer and tables, and the producer threads of --scene's "
+                           "server"},
+    [R_SAVE_STATE] = {.name = "save-state", .type = OC_CLI_STRING, .offset = AT(save_path), .arg = "FILE",
+                      .group = RENDER, .help = "headless: also write the state that was rendered"},
+    [R_PATH] = {.name = "path", .type = OC_CLI_STRING, .offset = AT(path_file), .arg = "FILE", .group = RENDER,
+                .help = "headless: a recorded camera path (lines \"T LAT,LON,ALT,HEADING,PITCH,FOV\"); frame f is "
+                        "its pose at f / --fps s"},
+    [R_FPS] = {.name = "fps", .type = OC_CLI_DOUBLE, .offset = AT(vo.fps), .arg = "X", .lo = 0.01, .hi = 1000,
+               .def = "30", .group = RENDER, .help = "frames per second of --path"},
+    [R_HUD] = {.name = "hud", .type = OC_CLI_FLAG, .offset = AT(vo.hud), .group = RENDER,
+               .help = "headless: draw the HUD into the frames too (the window has it on H)"},
+    [R_RECORD] = {.name = "record", .type = OC_CLI_STRING, .offset = AT(record_path), .arg = "FILE",
+                  .group = RENDER, .help = "window: record the flight as a camera path (saved at exit)"},
+    [R_QUIET] = {.name = "quiet", .short_name = 'q', .type = OC_CLI_FLAG, .offset = AT(quiet), .group = OTHER,
+                 .help = "only errors"},
+    [R_HELP] = {.name = "help", .type = OC_CLI_HELP, .group = OTHER, .help = "print this and exit"},
+    [R_VERSION] = {.name = "version", .type = OC_CLI_VERSION, .group = OTHER, .help = "print the version and exit"},
+    [R_COUNT] = {0}};
+
+static const oc_cli_spec_t spec = {
+    .prog = "overcast-view",
+    .synopsis = "[options]",
+    .about = "Renders clouds and atmosphere in a window, or headless to PNG frames, with the GL renderer\n"
+             "or the CPU reference renderer.\n",
+    .epilog = "window keys:\n"
+              "  left mouse button + drag   look around\n"
+              "  W A S D, Q E               fly forward/left/back/right, down/up (arrow keys too); speed =\n"
+              "                             altitude above ground per second (at least 1 m/s), Shift ×10\n"
+              "  [ ]                        step factor × / ÷ 1.25\n"
+              "  - =                        exposure ÷ / × 1.25\n"
+              "  F12 or P                   screenshot (PNG with the camera in a text chunk, for --camera-from)\n"
+              "  R                          reprojection on/off (one pixel in 16 traced per frame)\n"
+              "  V                          debug views: off, level of detail, τ channel, node bounds\n"
+              "  H                          HUD on/off (frame and GPU pass times, epoch and age, resident\n"
+              "                             bytes against the budget, bytes/s received)\n"
+              "  J                          per-pixel ray-start jitter on/off (averaged by reprojection)\n"
+              "  M                          multiple-scattering octaves: 1, 2, ... 8, cycled\n"
+              "  N                          --connect: the server's next weather preset (clear, fair, overcast,\n"
+              "                             storm, cirrus; a 10 s transition), through a control connection\n"
+              "  K L                        --connect: the sun 15° west / east (time of day)\n"
+              "  T                          --connect: world time paused / resumed\n"
+              "                             (N, K, L, T use --token when the server has one)\n"
+              "  Esc                        quit\n"
+              "The window's viewport and every camera move are sent to the server with --connect.\n"
+              "\n"
+              "exit status: 0 ok, 1 runtime error, 2 usage error\n",
+    .opts = opts,
+};
 
 /* The options into *a; returns -1 to go on, else the exit status (--help, --version, a usage error). */
 static int parse_args(int argc, char **argv, view_args_t *a) {
-  enum { O_STATE = 256, O_SCENE, O_CAMERA, O_CAMERA_FROM, O_SIZE, O_FRAMES, O_OUT, O_RENDERER, O_STEP, O_EXPOSURE,
-         O_OCTAVES, O_JITTER, O_THREADS, O_SAVE, O_HELP, O_VERSION, O_CONNECT, O_TOKEN, O_BUDGET,
-         O_MAXDEPTH, O_EPOCHS, O_NETSTEP, O_TIMEOUT, O_WINDOW, O_HEADLESS, O_RECORD, O_PATH, O_FPS, O_HUD };
-  static const struct option opts[] = {
-      {"state", required_argument, 0, O_STATE},       {"scene", required_argument, 0, O_SCENE},
-      {"camera", required_argument, 0, O_CAMERA},     {"camera-from", required_argument, 0, O_CAMERA_FROM},
-      {"size", required_argument, 0, O_SIZE},         {"frames", required_argument, 0, O_FRAMES},
-      {"out", required_argument, 0, O_OUT},           {"renderer", required_argument, 0, O_RENDERER},
-      {"step-factor", required_argument, 0, O_STEP},  {"exposure", required_argument, 0, O_EXPOSURE},
-      {"ms-octaves", required_argument, 0, O_OCTAVES}, {"jitter", no_argument, 0, O_JITTER},
-      {"threads", required_argument, 0, O_THREADS},   {"save-state", required_argument, 0, O_SAVE},
-      {"quiet", no_argument, 0, 'q'},
-      {"help", no_argument, 0, O_HELP},               {"version", no_argument, 0, O_VERSION},
-      {"connect", required_argument, 0, O_CONNECT},   {"token", required_argument, 0, O_TOKEN},
-      {"budget", required_argument, 0, O_BUDGET},     {"max-depth", required_argument, 0, O_MAXDEPTH},
-      {"epochs", required_argument, 0, O_EPOCHS},     {"step", no_argument, 0, O_NETSTEP},
-      {"wait-epochs", required_argument, 0, O_EPOCHS},
-      {"timeout", required_argument, 0, O_TIMEOUT},   {"window", no_argument, 0, O_WINDOW},
-      {"headless", no_argument, 0, O_HEADLESS},
-      {"record", required_argument, 0, O_RECORD},     {"path", required_argument, 0, O_PATH},
-      {"fps", required_argument, 0, O_FPS},           {"hud", no_argument, 0, O_HUD},
-      {0, 0, 0, 0}};
-  *a = (view_args_t){.w = 640, .h = 360, .frames = 1, .renderer = R_AUTO,
-                     .vo = {.out_dir = "out", .step = 0.5, .exposure = 10.0, .threads = 2, .fps = 30.0},
-                     .net = {.budget_mib = 64, .max_depth = 21, .epochs = 4, .timeout = 60.0}};
+  unsigned char given[R_COUNT];
+  *a = (view_args_t){.frames = 1, .renderer = R_AUTO};
   ocv_path_init(&a->cam_path);
-  int c;
-  opterr = 0;
-  while ((c = getopt_long(argc, argv, "q", opts, NULL)) != -1) {
-    switch (c) {
-      case O_STATE: a->state_path = optarg; break;
-      case O_SCENE: a->scene_path = optarg; break;
-      case O_CAMERA: a->camera_text = optarg; break;
-      case O_CAMERA_FROM: a->camera_png = optarg; break;
-      case O_SIZE: if (oc_cli_size(prog, "--size", optarg, &a->w, &a->h)) return OC_EXIT_USAGE; break;
-      case O_FRAMES: if (oc_cli_int(prog, "--frames", optarg, 1, 100000, &a->frames)) return OC_EXIT_USAGE; a->batch_opts = 1; a->frames_given = 1; break;
-      case O_RECORD: a->record_path = optarg; a->want_window = 1; break;
-      case O_PATH: a->path_file = optarg; a->batch_opts = 1; break;
-      case O_FPS: if (oc_cli_double(prog, "--fps", optarg, 0.01, 1000, &a->vo.fps)) return OC_EXIT_USAGE; break;
-      case O_HUD: a->vo.hud = 1; break;
-      case O_OUT: a->vo.out_dir = optarg; a->batch_opts |= 2; break;
-      case O_RENDERER:
-        if (strcmp(optarg, "cpu") == 0) a->renderer = R_CPU;
-        else if (strcmp(optarg, "gl") == 0) a->renderer = R_GL;
-        else return oc_cli_fail(prog, OC_EXIT_USAGE, "--renderer %s: expected gl or cpu", optarg);
-        break;
-      case O_STEP: if (oc_cli_double(prog, "--step-factor", optarg, 1e-3, 1e3, &a->vo.step)) return OC_EXIT_USAGE; break;
-      case O_EXPOSURE: if (oc_cli_double(prog, "--exposure", optarg, 1e-6, 1e6, &a->vo.exposure)) return OC_EXIT_USAGE; break;
-      case O_OCTAVES: if (oc_cli_int(prog, "--ms-octaves", optarg, 1, 8, &a->vo.octaves)) return OC_EXIT_USAGE; break;
-      case O_JITTER: a->vo.jitter = 1; break;
-      case O_THREADS: if (oc_cli_int(prog, "--threads", optarg, 1, 256, &a->vo.threads)) return OC_EXIT_USAGE; break;
-      case O_SAVE: a->save_path = optarg; a->batch_opts = 1; break;
-      case O_CONNECT:
-        if (ocv_parse_address(optarg, a->net.host, sizeof a->net.host, &a->net.port) < 0)
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect: expected HOST:PORT (port 1..65535), got \"%s\"", optarg);
-        a->net.connect = 1;
-        break;
-      case O_TOKEN:
-        if (!*optarg || strlen(optarg) > OCP_TOKEN_MAX)
-          return oc_cli_fail(prog, OC_EXIT_USAGE, "--token: 1..%d bytes", OCP_TOKEN_MAX);
-        a->net.token = optarg;
-        a->net_opts = 1;
-        break;
-      case O_BUDGET: if (oc_cli_int(prog, "--budget", optarg, 1, 1 << 20, &a->net.budget_mib)) return OC_EXIT_USAGE; a->net_opts = 1; break;
-      case O_MAXDEPTH: if (oc_cli_int(prog, "--max-depth", optarg, 0, 21, &a->net.max_depth)) return OC_EXIT_USAGE; a->net_opts = 1; break;
-      case O_EPOCHS: if (oc_cli_int(prog, "--epochs", optarg, 1, 100000, &a->net.epochs)) return OC_EXIT_USAGE; a->net_opts = 1; a->batch_net = 1; break;
-      case O_NETSTEP: a->net.step = 1; a->net_opts = 1; a->batch_net = 1; break;
-      case O_TIMEOUT: if (oc_cli_double(prog, "--timeout", optarg, 0.01, 86400, &a->net.timeout)) return OC_EXIT_USAGE; a->net_opts = 1; break;
-      case O_WINDOW: a->want_window = 1; break;
-      case O_HEADLESS: a->want_headless = 1; break;
-      case 'q': oc_log_set_level(OC_LOG_ERROR); break;
-      case O_HELP: usage(stdout); return OC_EXIT_OK;
-      case O_VERSION: oc_cli_version(prog); return OC_EXIT_OK;
-      default:
-        return oc_cli_fail(prog, OC_EXIT_USAGE, "unknown or incomplete option \"%s\" (see --help)", argv[optind - 1]);
-    }
-  }
-  if (optind < argc) return oc_cli_fail(prog, OC_EXIT_USAGE, "unexpected argument \"%s\" (see --help)", argv[optind]);
+  int r = oc_cli_parse(&spec, argc, argv, a, given, NULL);
+  if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
+  if (a->quiet) oc_log_set_level(OC_LOG_ERROR);
+  if ((a->net.connect = given[R_CONNECT]) &&
+      ocv_parse_address(a->connect, a->net.host, sizeof a->net.host, &a->net.port) < 0)
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--connect: expected HOST:PORT (port 1..65535), got \"%s\"", a->connect);
+  for (int i = 0; i < R_COUNT; i++) a->net_opts |= given[i] && !strcmp(opts[i].group, NETWORK);
+  a->frames_given = given[R_FRAMES];
+  a->batch_opts = (given[R_FRAMES] || given[R_PATH] || given[R_SAVE_STATE]) | (given[R_OUT] << 1);
+  a->batch_net = given[R_WAIT_EPOCHS] || given[R_EPOCHS] || given[R_STEP];
+  a->want_window |= given[R_RECORD];
   return -1;
 }
 

@@ -46,7 +46,16 @@ check "view: bad camera" 2 "camera fov 500 outside" -- "$V" --camera 0,0,100,0,0
 check "view: bad renderer" 2 "--renderer bogus: expected gl or cpu" -- "$V" --renderer bogus
 check "view: stray argument" 2 "unexpected argument" -- "$V" extra
 check "view: --wait-epochs needs a server" 2 "go with --connect or --scene" -- "$V" --state "$tmp/none.ocst" --wait-epochs 3
-check "view: --wait-epochs range" 2 "--epochs: 0 is outside" -- "$V" --connect 127.0.0.1:1 --wait-epochs 0
+check "view: --wait-epochs range" 2 "--wait-epochs: 0 is outside" -- "$V" --connect 127.0.0.1:1 --wait-epochs 0
+check "view: bad value" 2 "^overcast-view: --budget: 0 is outside \[1, 1048576\]$" -- "$V" --connect 127.0.0.1:1 --budget 0
+check "view: not a number" 2 "^overcast-view: --exposure: expected a finite number, got \"abc\"$" -- "$V" --exposure abc
+check "view: bad short option" 2 "unknown or incomplete option \"-x\"" -- "$V" -x
+# --help is generated from the option table (each option with its default and range), the window keys after it
+check "view: --help" 0 "" -- "$V" --help
+grep -Eq -- "--budget MIB .*\(default: 64; 1\.\.1048576\)" "$tmp/out" || { echo "FAIL view --help: --budget's default and range"; fail=$((fail + 1)); }
+grep -Eq -- "--size WxH .*\(default: 640x360\)" "$tmp/out" || { echo "FAIL view --help: --size's default"; fail=$((fail + 1)); }
+grep -Eq -- "^ *-q, --quiet" "$tmp/out" || { echo "FAIL view --help: -q not listed"; fail=$((fail + 1)); }
+grep -q "^window keys:" "$tmp/out" && grep -q "F12 or P" "$tmp/out" || { echo "FAIL view --help: no window keys"; fail=$((fail + 1)); }
 check "view: missing state" 1 "/nonexistent.ocst" -- "$V" --state /nonexistent.ocst --out "$tmp"
 echo "garbage" >"$tmp/bad.ocst"
 check "view: corrupt state" 1 "bad.ocst" -- "$V" --state "$tmp/bad.ocst" --out "$tmp"
