@@ -836,7 +836,6 @@ static const oc_cli_opt_t opts[R_COUNT + 1] = {
 
 static const oc_cli_spec_t spec = {
     .prog = "overcast-view",
-    .synopsis = "[options]",
     .about = "Renders clouds and atmosphere in a window, or headless to PNG frames, with the GL renderer\n"
              "or the CPU reference renderer.\n",
     .epilog = "window keys:\n"
