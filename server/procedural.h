@@ -260,18 +260,27 @@ typedef struct {
 double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, const double lo[3], const double hi[3],
                     int grid, const ocs__bb_t *inherit, unsigned reuse, ocs__bb_t *bb);
 
-/* What both samplers do first: the frame of the key's level at t, the node's bound over its sample
- * footprint, and which layers' per-voxel bounds take the node's ranges (reuse). @return 1 when
- * the brick may hold cloud, 0 when it is empty, or OC_EINVAL (a bad key). */
-int ocs__brick_begin(const ocs__proc_t *P, oc_key_t key, double t, ocs__frame_t *F, ocs__bb_t *nb, unsigned *reuse);
+/* A brick that a sampler has begun (ocs__brick_begin): the source, the frame of the key's level at
+ * t, the node's bound over its sample footprint (nb), and the layers whose per-voxel bounds take
+ * the node's ranges (reuse). */
+typedef struct {
+  const ocs__proc_t *P;
+  ocs__frame_t F;
+  ocs__bb_t nb;
+  unsigned reuse;
+  int level;
+} ocs__brick_t;
+
+/* What both samplers do first: fills B for the key at t. @return 1 when the brick may hold cloud,
+ * 0 when it is empty, or OC_EINVAL (a bad key). */
+int ocs__brick_begin(const ocs_source_t *s, oc_key_t key, double t, ocs__brick_t *B);
 
 /* The per-voxel bounds of a brick (ocs__box_max() with grid 0 on each voxel's cube, batched):
- * the layers that may be non-zero, and those whose W is 1, per voxel. nb is the node's bound, whose
- * ranges the layers in `reuse` take. ccentre (may be NULL) gets each layer's coverage value C at
- * each voxel's centre where it was evaluated (+inf where the layer took the node's ranges: W = 1
- * there). */
-void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key, const ocs__bb_t *nb, unsigned reuse,
-                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
+ * the layers that may be non-zero, and those whose W is 1, per voxel. B->nb is the node's bound,
+ * whose ranges the layers in B->reuse take. ccentre (may be NULL) gets each layer's coverage value
+ * C at each voxel's centre where it was evaluated (+inf where the layer took the node's ranges:
+ * W = 1 there). */
+void ocs__voxel_bounds(const ocs__brick_t *B, oc_key_t key, uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
                        double (*ccentre)[OC_BRICK_VOXELS]);
 
 /* Strata of the exact box filter at a level: sub_h along the two most horizontal axes of a voxel,

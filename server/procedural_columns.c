@@ -552,17 +552,13 @@ static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, cons
 }
 
 int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
-  const ocs__proc_t *P = (const ocs__proc_t *)s;
   if (!out) return OC_EINVAL;
   if (ocs__col_tables() < 0) return OC_ENOMEM;
-  ocs__frame_t F;
-  ocs__bb_t nb;
-  unsigned reuse;
-  int r = ocs__brick_begin(P, key, t, &F, &nb, &reuse);
+  ocs__brick_t B;
+  int r = ocs__brick_begin(s, key, t, &B);
   if (r <= 0) return r;
-  int level = oc_key_level(key);
-  double u = ocs__voxel_size(level);
-  const ocs__plan_t *plan = ocs__T.plan[level];
+  double u = ocs__voxel_size(B.level);
+  const ocs__plan_t *plan = ocs__T.plan[B.level];
   ocs__cws_t *ws = malloc(sizeof *ws);
   if (!ws) return OC_ENOMEM;
   memset(ws->sum, 0, sizeof ws->sum);
@@ -576,9 +572,9 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
     free(ws);
     return OC_ENOMEM;
   }
-  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone, cc);
+  ocs__voxel_bounds(&B, key, vmask, vwone, cc);
   for (int l = 0; l < OCS_LAYER_COUNT; l++) {
-    if (!(nb.mask >> l & 1u)) continue;
+    if (!(B.nb.mask >> l & 1u)) continue;
     const ocs__plan_t *pl = &plan[l];
     const ocs__tab_t *T = ocs__layer_tab(l);
     if (!T) {
@@ -601,10 +597,10 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
           xyz[ha] = -OC_ROOT_HALF + (gg[ha] + off[ma]) * u;
           xyz[hb] = -OC_ROOT_HALF + (gg[hb] + off[mb]) * u;
           xyz[va] = c[va];
-          ocs__column(P, &F, l, pl, T, ws, xyz, va, c[va] - 0.5 * u, c[va] + 0.5 * u, v, vwone[v]);
+          ocs__column(B.P, &B.F, l, pl, T, ws, xyz, va, c[va] - 0.5 * u, c[va] + 0.5 * u, v, vwone[v]);
         }
     }
-    if (ws->n) ocs__layer_pieces(P, &F, l, pl, T, ws);
+    if (ws->n) ocs__layer_pieces(B.P, &B.F, l, pl, T, ws);
   }
   for (int v = 0; v < OC_BRICK_VOXELS; v++)
     if (ws->sum[v] > 0.0) out[v] += (float)ws->sum[v];

@@ -166,17 +166,14 @@ void ocs__subs(int level, int *sub_h, int *sub_v) {
 }
 
 int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
-  const ocs__proc_t *P = (const ocs__proc_t *)s;
   if (!out) return OC_EINVAL;
-  ocs__frame_t F;
-  ocs__bb_t nb;
-  unsigned reuse;
-  int r = ocs__brick_begin(P, key, t, &F, &nb, &reuse);
+  ocs__brick_t B;
+  int r = ocs__brick_begin(s, key, t, &B);
   if (r <= 0) return r;
-  int level = oc_key_level(key);
+  const ocs__proc_t *P = B.P;
 
   int sub_h, sub_v;
-  ocs__subs(level, &sub_h, &sub_v);
+  ocs__subs(B.level, &sub_h, &sub_v);
   double off_h[OCS_PROC_MAX_SUB_H], off_v[OCS_PROC_MAX_SUB_V];
   for (int m = 0; m < sub_h; m++) off_h[m] = ((double)m + 0.5) / (double)sub_h - 0.5;
   for (int m = 0; m < sub_v; m++) off_v[m] = ((double)m + 0.5) / (double)sub_v - 0.5;
@@ -187,9 +184,9 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
   double inv[OC_BRICK_VOXELS];
   uint32_t ic[3];
   oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
-  double u = ocs__voxel_size(level);
+  double u = ocs__voxel_size(B.level);
   uint8_t vmask[OC_BRICK_VOXELS], vwone[OC_BRICK_VOXELS];
-  ocs__voxel_bounds(P, &F, key, &nb, reuse, vmask, vwone, NULL);
+  ocs__voxel_bounds(&B, key, vmask, vwone, NULL);
 
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++)
@@ -218,7 +215,7 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
               double y = -OC_ROOT_HALF + (gg[1] + off_h[my]) * u;
               for (int mx = 0; mx < sub_h; mx++) {
                 double xyz[3] = {-OC_ROOT_HALF + (gg[0] + off_h[mx]) * u, y, z};
-                ocs__add_point(P, &F, ws, xyz, band_lo, band_hi, v, &vb);
+                ocs__add_point(P, &B.F, ws, xyz, band_lo, band_hi, v, &vb);
               }
             }
           }
@@ -238,11 +235,11 @@ int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float
             for (int run = 0; run < runs; run++)
               for (int m = m0[run]; m <= m1[run]; m++) {
                 xyz[va] = -OC_ROOT_HALF + (gg[va] + off_v[m]) * u;
-                ocs__add_point(P, &F, ws, xyz, band_lo, band_hi, v, &vb);
+                ocs__add_point(P, &B.F, ws, xyz, band_lo, band_hi, v, &vb);
               }
           }
       }
-  ocs__flush(P, &F, ws);
+  ocs__flush(P, &B.F, ws);
   for (int v = 0; v < OC_BRICK_VOXELS; v++)
     if (ws->sum[v] > 0.0) out[v] += (float)(ws->sum[v] * inv[v]);
   free(ws);

@@ -426,8 +426,11 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
   return total;
 }
 
-int ocs__brick_begin(const ocs__proc_t *P, oc_key_t key, double t, ocs__frame_t *F, ocs__bb_t *nb, unsigned *reuse) {
-  int level = oc_key_level(key);
+int ocs__brick_begin(const ocs_source_t *s, oc_key_t key, double t, ocs__brick_t *B) {
+  const ocs__proc_t *P = B->P = (const ocs__proc_t *)s;
+  ocs__frame_t *F = &B->F;
+  ocs__bb_t *nb = &B->nb;
+  int level = B->level = oc_key_level(key);
   if (level < 0) return OC_EINVAL;
   ocs__frame(P, level, t, F);
   if (!F->mask) return 0;
@@ -440,9 +443,9 @@ int ocs__brick_begin(const ocs__proc_t *P, oc_key_t key, double t, ocs__frame_t 
    * coverage is in the ramp (a voxel may be all 0 or all 1), or the cell bound is informative at
    * the voxel's size (Lipschitz step below 1/2). Elsewhere they reuse the node's ranges. */
   double u = ocs__voxel_size(level);
-  *reuse = 0;
+  B->reuse = 0;
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
-    if ((nb->wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) *reuse |= 1u << l;
+    if ((nb->wone >> l & 1u) && P->L[l].lip_cell * 0.8660254 * u >= 0.5) B->reuse |= 1u << l;
   return 1;
 }
 
@@ -488,10 +491,13 @@ static int ocs__voxel_geoms(const uint32_t ic[3], double u, double band_lo, doub
 /* The per-voxel bounds of a brick: what ocs__box_max(grid 0) gives for each voxel's cube, with
  * each pattern evaluated for all voxels in one batch (a call per voxel and pattern spent more on
  * the fBm's set-up than on its octaves). */
-void ocs__voxel_bounds(const ocs__proc_t *P, const ocs__frame_t *F, oc_key_t key, const ocs__bb_t *nb, unsigned reuse,
-                       uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
+void ocs__voxel_bounds(const ocs__brick_t *B, oc_key_t key, uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
                        double (*ccentre)[OC_BRICK_VOXELS]) {
   enum { N = OC_BRICK_VOXELS };
+  const ocs__proc_t *P = B->P;
+  const ocs__frame_t *F = &B->F;
+  const ocs__bb_t *nb = &B->nb;
+  unsigned reuse = B->reuse;
   static _Thread_local struct {
     ocs__geom_t g[N];
     ocs__bb_t bb[N];

@@ -544,16 +544,13 @@ static void test_procedural__voxel_bounds_are_conservative(void **st) {
   long masked = 0, near_cloud = 0;
   for (int pi = 0; pi < 4; pi++) {
     ocs_source_t *s = mk_bound_preset(pi, 5);
-    const ocs__proc_t *P = (const ocs__proc_t *)s;
     for (int n = 0; n < SIZE(40, 8); n++) {
       int level = 5 + (int)(rng_split(&rng) % 13);
       oc_key_t k = oc_key_from_point(level, cloudy_point(s, 0.0, 0.0, 15000.0, &rng));
-      ocs__frame_t F;
-      ocs__bb_t nb;
-      unsigned reuse;
-      if (ocs__brick_begin(P, k, 0.0, &F, &nb, &reuse) <= 0) continue;
+      ocs__brick_t B;
+      if (ocs__brick_begin(s, k, 0.0, &B) <= 0) continue;
       uint8_t vmask[512], vwone[512];
-      ocs__voxel_bounds(P, &F, k, &nb, reuse, vmask, vwone, NULL);
+      ocs__voxel_bounds(&B, k, vmask, vwone, NULL);
       float b[512];
       sample(s, k, 0.0, b);
       double u = oc_key_size(level) / 7.0;
