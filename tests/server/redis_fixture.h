@@ -76,6 +76,13 @@ static inline int redis_start(redis_proc_t *p, int port) {
   return -1;
 }
 
+/* Kills the server at once (SIGKILL: no reply, no goodbye) and reaps it. */
+static inline void redis_kill(redis_proc_t *p) {
+  kill(p->pid, SIGKILL);
+  waitpid(p->pid, NULL, 0);
+  p->pid = 0;
+}
+
 static inline void redis_stop(redis_proc_t *p) {
   if (p->pid <= 0) return;
   kill(p->pid, SIGCONT);

@@ -13,7 +13,7 @@
 
 #include "brick_remote.h"
 #include "oc_err.h"
-#include "server/redis_fixture.h"
+#include "server/redis_loop_fixture.h"
 
 typedef struct {
   int calls, outcome;
@@ -29,15 +29,8 @@ static void on_got(void *ctx, int outcome, const uint8_t *content, size_t n) {
   if (content) memcpy(g->content, content, g->n);
 }
 
-static int run_until(uv_loop_t *loop, const int *flag) {
-  for (int i = 0; i < 2000 && !*flag; i++) { /* about 20 s: a guard against hangs */
-    uv_run(loop, UV_RUN_NOWAIT);
-    if (!*flag) redis_sleep_ms(10);
-  }
-  return *flag;
-}
-
 typedef struct {
+  uv_loop_t *loop;
   ocs_redis_t *redis;
   ocs_remote_t *tier;
   int up;
@@ -45,13 +38,22 @@ typedef struct {
 
 static void on_state(void *ctx, int up) { ((frontend_t *)ctx)->up = up; }
 
-static void frontend_open(uv_loop_t *loop, frontend_t *f, int port, uint64_t id, uint32_t lease_ms) {
+/* A front-end on the fixture's Redis and loop, connected. */
+static void frontend_open(redis_loop_t *fx, frontend_t *f, uint64_t id, uint32_t lease_ms) {
   memset(f, 0, sizeof *f);
-  ocs_redis_opts_t o = {.host = "127.0.0.1", .port = port, .retry_ms = 50, .on_state = on_state, .state_ctx = f};
-  assert_int_equal(ocs_redis_open(&f->redis, loop, &o), 0);
-  assert_true(run_until(loop, &f->up));
+  f->loop = &fx->loop;
+  ocs_redis_opts_t o = {
+      .host = "127.0.0.1", .port = fx->redis.port, .retry_ms = 50, .on_state = on_state, .state_ctx = f};
+  assert_int_equal(ocs_redis_open(&f->redis, f->loop, &o), 0);
+  assert_true(redis_run_until(f->loop, &f->up));
   ocs_remote_opts_t r = {.deadline_ms = 10000, .lease_ms = lease_ms, .frontend_id = id};
   assert_int_equal(ocs_remote_create(&f->tier, f->redis, &r), 0);
+}
+
+/* Two front-ends, a (id 0xa) and b (id 0xb), that share one Redis. */
+static void frontend_open_pair(redis_loop_t *fx, frontend_t *a, frontend_t *b, uint32_t lease_ms) {
+  frontend_open(fx, a, 0xa, lease_ms);
+  frontend_open(fx, b, 0xb, lease_ms);
 }
 
 static void frontend_close(frontend_t *f) {
@@ -59,11 +61,11 @@ static void frontend_close(frontend_t *f) {
   ocs_remote_free(f->tier);
 }
 
-static int fetch(uv_loop_t *loop, frontend_t *f, const ocs_bkey_t *k, got_t *g) {
+static int fetch(frontend_t *f, const ocs_bkey_t *k, got_t *g) {
   memset(g, 0, sizeof *g);
   int r = ocs_remote_fetch(f->tier, k, on_got, g);
   if (r < 0) return r;
-  assert_true(run_until(loop, &g->calls));
+  assert_true(redis_run_until(f->loop, &g->calls));
   return g->outcome;
 }
 
@@ -74,62 +76,56 @@ static void on_raw_set(void *ctx, int status, const struct redisReply *r) {
 }
 
 /* Writes raw bytes under a brick's name, as a damaged or foreign value would be. */
-static void put_raw(uv_loop_t *loop, frontend_t *f, const ocs_bkey_t *k, const char *bytes, size_t n) {
+static void put_raw(frontend_t *f, const ocs_bkey_t *k, const char *bytes, size_t n) {
   char name[OCS_BKEY_TEXT];
   ocs_bkey_text(k, "oc:b:", name);
   const char *argv[] = {"SET", name, bytes};
   size_t lens[] = {3, strlen(name), n};
   int done = 0;
   assert_int_equal(ocs_redis_command(f->redis, 10000, on_raw_set, &done, 3, argv, lens), 0);
-  assert_true(run_until(loop, &done));
+  assert_true(redis_run_until(f->loop, &done));
 }
 
 static void test_remote__produced_once_shared_by_all(void **state) {
-  (void)state;
-  redis_proc_t p;
-  assert_int_equal(redis_start(&p, 0), 0);
-  uv_loop_t loop;
-  uv_loop_init(&loop);
   frontend_t a, b;
-  frontend_open(&loop, &a, p.port, 0xa, 60000);
-  frontend_open(&loop, &b, p.port, 0xb, 60000);
+  frontend_open_pair(*state, &a, &b, 60000);
   ocs_bkey_in_t in = {.scene = 11, .weather = 12, .sun = 13, .stamp = 14, .node = 15, .channel = 1};
   ocs_bkey_t k = ocs_bkey_make(&in);
   got_t g;
-  assert_int_equal(fetch(&loop, &a, &k, &g), OCS_REMOTE_LEASED); /* a produces */
-  assert_int_equal(fetch(&loop, &b, &k, &g), OCS_REMOTE_BUSY);   /* b requeues */
-  assert_int_equal(fetch(&loop, &a, &k, &g), OCS_REMOTE_LEASED); /* a, looking again, still holds it */
+  assert_int_equal(fetch(&a, &k, &g), OCS_REMOTE_LEASED); /* a produces */
+  assert_int_equal(fetch(&b, &k, &g), OCS_REMOTE_BUSY);   /* b requeues */
+  assert_int_equal(fetch(&a, &k, &g), OCS_REMOTE_LEASED); /* a, looking again, still holds it */
   const char brick[] = "sixty-four bytes of brick codes, say";
   assert_int_equal(ocs_remote_store(a.tier, &k, brick, sizeof brick), 0);
-  assert_int_equal(fetch(&loop, &b, &k, &g), OCS_REMOTE_HIT); /* replies come in order: stored first */
+  assert_int_equal(fetch(&b, &k, &g), OCS_REMOTE_HIT); /* replies come in order: stored first */
   assert_int_equal(g.n, sizeof brick);
   assert_memory_equal(g.content, brick, sizeof brick);
   /* another channel of the same node is another brick */
   in.channel = 2;
   ocs_bkey_t k2 = ocs_bkey_make(&in);
-  assert_int_equal(fetch(&loop, &b, &k2, &g), OCS_REMOTE_LEASED);
+  assert_int_equal(fetch(&b, &k2, &g), OCS_REMOTE_LEASED);
   /* a damaged value is discarded and made again under a lease */
   in.channel = 3;
   ocs_bkey_t k3 = ocs_bkey_make(&in);
   uint8_t v[256];
   size_t len = ocs_bval_pack(&k3, brick, sizeof brick, v, sizeof v);
   v[40] ^= 4;
-  put_raw(&loop, &a, &k3, (const char *)v, len);
-  assert_int_equal(fetch(&loop, &a, &k3, &g), OCS_REMOTE_LEASED);
+  put_raw(&a, &k3, (const char *)v, len);
+  assert_int_equal(fetch(&a, &k3, &g), OCS_REMOTE_LEASED);
   /* a value stored under another brick's name is not that brick */
   in.channel = 4;
   ocs_bkey_t k4 = ocs_bkey_make(&in);
   v[40] ^= 4;
-  put_raw(&loop, &a, &k4, (const char *)v, len);
-  assert_int_equal(fetch(&loop, &b, &k4, &g), OCS_REMOTE_LEASED);
+  put_raw(&a, &k4, (const char *)v, len);
+  assert_int_equal(fetch(&b, &k4, &g), OCS_REMOTE_LEASED);
   /* a lease given back is free at once; b's release of a's lease changes nothing */
   in.channel = 5;
   ocs_bkey_t k5 = ocs_bkey_make(&in);
-  assert_int_equal(fetch(&loop, &a, &k5, &g), OCS_REMOTE_LEASED);
+  assert_int_equal(fetch(&a, &k5, &g), OCS_REMOTE_LEASED);
   assert_int_equal(ocs_remote_release(b.tier, &k5), 0);
-  assert_int_equal(fetch(&loop, &b, &k5, &g), OCS_REMOTE_BUSY);
+  assert_int_equal(fetch(&b, &k5, &g), OCS_REMOTE_BUSY);
   assert_int_equal(ocs_remote_release(a.tier, &k5), 0);
-  assert_int_equal(fetch(&loop, &b, &k5, &g), OCS_REMOTE_LEASED);
+  assert_int_equal(fetch(&b, &k5, &g), OCS_REMOTE_LEASED);
   ocs_remote_stats_t st;
   ocs_remote_stats(a.tier, &st);
   assert_int_equal(st.rejected, 1);
@@ -140,51 +136,34 @@ static void test_remote__produced_once_shared_by_all(void **state) {
   assert_int_equal(st.busy, 2);
   frontend_close(&a);
   frontend_close(&b);
-  uv_run(&loop, UV_RUN_DEFAULT);
-  assert_int_equal(uv_loop_close(&loop), 0);
-  redis_stop(&p);
 }
 
 /* A producer that dies holding the lease delays the others by the lease's time, no more. */
 static void test_remote__lease_expires(void **state) {
-  (void)state;
-  redis_proc_t p;
-  assert_int_equal(redis_start(&p, 0), 0);
-  uv_loop_t loop;
-  uv_loop_init(&loop);
   frontend_t a, b;
-  frontend_open(&loop, &a, p.port, 0xa, 200);
-  frontend_open(&loop, &b, p.port, 0xb, 200);
+  frontend_open_pair(*state, &a, &b, 200);
   ocs_bkey_in_t in = {.node = 99, .channel = 1};
   ocs_bkey_t k = ocs_bkey_make(&in);
   got_t g;
-  assert_int_equal(fetch(&loop, &a, &k, &g), OCS_REMOTE_LEASED);
+  assert_int_equal(fetch(&a, &k, &g), OCS_REMOTE_LEASED);
   frontend_close(&a); /* a dies without storing */
   redis_sleep_ms(400);  /* twice the lease: Redis expires it on its own clock */
-  assert_int_equal(fetch(&loop, &b, &k, &g), OCS_REMOTE_LEASED);
+  assert_int_equal(fetch(&b, &k, &g), OCS_REMOTE_LEASED);
   frontend_close(&b);
-  uv_run(&loop, UV_RUN_DEFAULT);
-  assert_int_equal(uv_loop_close(&loop), 0);
-  redis_stop(&p);
 }
 
 /* Redis gone: the answer is at once "produce locally", or unavailable for a fetch in flight. */
 static void test_remote__redis_gone(void **state) {
-  (void)state;
-  redis_proc_t p;
-  assert_int_equal(redis_start(&p, 0), 0);
-  uv_loop_t loop;
-  uv_loop_init(&loop);
+  redis_loop_t *fx = *state;
   frontend_t a;
-  frontend_open(&loop, &a, p.port, 0xa, 60000);
+  frontend_open(fx, &a, 0xa, 60000);
   ocs_bkey_in_t in = {.node = 7, .channel = 1};
   ocs_bkey_t k = ocs_bkey_make(&in);
-  kill(p.pid, SIGSTOP);
+  kill(fx->redis.pid, SIGSTOP);
   got_t g = {0};
   assert_int_equal(ocs_remote_fetch(a.tier, &k, on_got, &g), 0);
-  kill(p.pid, SIGKILL); /* dies with the fetch in flight, unanswered */
-  waitpid(p.pid, NULL, 0);
-  assert_true(run_until(&loop, &g.calls));
+  redis_kill(&fx->redis); /* dies with the fetch in flight, unanswered */
+  assert_true(redis_run_until(a.loop, &g.calls));
   assert_int_equal(g.outcome, OCS_REMOTE_UNAVAILABLE);
   assert_false(a.up);
   assert_int_equal(ocs_remote_fetch(a.tier, &k, on_got, &g), OC_EIO);
@@ -194,16 +173,13 @@ static void test_remote__redis_gone(void **state) {
   assert_int_equal(st.unavailable, 2);
   assert_int_equal(st.store_failures, 1);
   frontend_close(&a);
-  uv_run(&loop, UV_RUN_DEFAULT);
-  assert_int_equal(uv_loop_close(&loop), 0);
 }
 
 int main(void) {
-  signal(SIGPIPE, SIG_IGN);
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_remote__produced_once_shared_by_all),
-      cmocka_unit_test(test_remote__lease_expires),
-      cmocka_unit_test(test_remote__redis_gone),
+      cmocka_unit_test_setup_teardown(test_remote__produced_once_shared_by_all, redis_loop_setup, redis_loop_teardown),
+      cmocka_unit_test_setup_teardown(test_remote__lease_expires, redis_loop_setup, redis_loop_teardown),
+      cmocka_unit_test_setup_teardown(test_remote__redis_gone, redis_loop_setup, redis_loop_teardown),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
