@@ -66,10 +66,15 @@ void ocv_hud_format(const ocv_hud_stats_t *s, char *buf, int cap) {
     snprintf(gpu, sizeof gpu, "  gpu trace %.2f ms, reproject %.2f ms", s->trace_ms, s->reproject_ms);
   else if (s->trace_ms >= 0)
     snprintf(gpu, sizeof gpu, "  gpu trace %.2f ms", s->trace_ms);
+  char trace[64] = "";
+  if (s->trace_w > 0 && s->trace_h > 0) {
+    if (s->trace_scale > 1) snprintf(trace, sizeof trace, "  |  trace %dx%d (1/%d)", s->trace_w, s->trace_h, s->trace_scale);
+    else snprintf(trace, sizeof trace, "  |  trace %dx%d (full)", s->trace_w, s->trace_h);
+  }
   snprintf(buf, (size_t)cap,
            "%s  frame %.1f ms%s\n"
            "epoch %llu, %.1f s old  |  %u bricks, %.1f of %.1f MiB\n"
-           "received %.1f KiB/s",
+           "received %.1f KiB/s%s",
            s->renderer ? s->renderer : "", s->frame_ms, gpu, (unsigned long long)s->epoch, s->epoch_age_s, s->bricks,
-           (double)s->resident_bytes / 1048576.0, (double)s->budget_bytes / 1048576.0, s->bytes_per_s / 1024.0);
+           (double)s->resident_bytes / 1048576.0, (double)s->budget_bytes / 1048576.0, s->bytes_per_s / 1024.0, trace);
 }

@@ -24,6 +24,8 @@ typedef struct {
   uint64_t resident_bytes, budget_bytes;
   double bytes_per_s;       /**< received */
   const char *renderer;     /**< "gl (llvmpipe)", "cpu" */
+  int trace_w, trace_h;     /**< the internal (traced) resolution; 0: not shown */
+  int trace_scale;          /**< its divisor per axis of the picture's (1: full) */
 } ocv_hud_stats_t;
 
 /*! ocv_hud_format() : the standard HUD lines for s into buf. */

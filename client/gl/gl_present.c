@@ -53,8 +53,17 @@ void ocv_gl_present_free(ocv_gl_present_t *p) {
 
 GLuint ocv_gl_present_tonemap(ocv_gl_present_t *p, GLuint radiance, int w, int h, float exposure, const uint8_t *overlay,
                               int ow, int oh, char *why, size_t why_len) {
+  return ocv_gl_present_upsample(p, radiance, w, h, w, h, exposure, overlay, ow, oh, why, why_len);
+}
+
+GLuint ocv_gl_present_upsample(ocv_gl_present_t *p, GLuint radiance, int rw, int rh, int w, int h, float exposure,
+                               const uint8_t *overlay, int ow, int oh, char *why, size_t why_len) {
   if (!p || !radiance || w <= 0 || h <= 0 || w > 16384 || h > 16384) {
     (void)oc_errorf(0, why, why_len, "gl present: no radiance buffer or a bad size %dx%d", w, h);
+    return 0;
+  }
+  if (rw <= 0 || rh <= 0 || rw > w || rh > h) {
+    (void)oc_errorf(0, why, why_len, "gl present: a radiance buffer of %dx%d for a %dx%d picture", rw, rh, w, h);
     return 0;
   }
   if (!(exposure >= 0.0f && exposure < 1e30f)) {
@@ -82,6 +91,7 @@ GLuint ocv_gl_present_tonemap(ocv_gl_present_t *p, GLuint radiance, int w, int h
   glProgramUniform2i(p->prog, 0, w, h);
   glProgramUniform1f(p->prog, 1, exposure);
   glProgramUniform2i(p->prog, 2, ow, oh);
+  glProgramUniform2i(p->prog, 3, rw, rh);
   glUseProgram(p->prog);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, radiance);
   glBindImageTexture(0, p->tex, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);

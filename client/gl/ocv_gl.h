@@ -261,7 +261,13 @@ typedef struct {
   int animated;                /**< time interpolation (else only splits and merges cross-fade) */
   double epoch_period;         /**< s; the blend lasts the wall time between the two states'
                                     epochs (ocv_interp_blend_seconds; ≤ 0: no blend) */
-  uint64_t upload_per_frame;   /**< bytes of bricks uploaded per frame; 0 → 4 MiB */
+  uint64_t upload_per_frame;   /**< bytes of bricks uploaded per frame; 0 → 4 MiB. With a frame-time
+                                    target, in steps of a sixteenth of it (256 KiB) for as long as they
+                                    have taken less than a quarter of the target (one step at least) */
+  double frame_ms;             /**< frame-time target, ms: the view traces at full, 1/2, 1/4 or 1/8 of
+                                    desc's size per axis, chosen from the frame times reported
+                                    (ocv_gl_view_frame_time), and the picture is upsampled
+                                    (ocv_gl_present_upsample); 0: off, every frame at full size */
 } ocv_gl_view_desc_t;
 
 typedef struct {
@@ -273,6 +279,9 @@ typedef struct {
   uint32_t bricks;       /**< atlas slots in use */
   ocv_gl_frame_stats_t frame;
   int shown;             /**< 1 when a state was rendered */
+  int switched;          /**< 1 when this frame switched to a state that became complete */
+  int scale;             /**< the divisor per axis the frame was traced at (1, 2, 4, 8) */
+  int trace_w, trace_h;  /**< the traced size (ocv_gl_view_output's) */
 } ocv_gl_view_stats_t;
 
 ocv_gl_view_t *ocv_gl_view_create(ocv_gl_renderer_t *r, const ocv_gl_view_desc_t *d, char *why, size_t why_len);
@@ -289,9 +298,30 @@ int ocv_gl_view_staging(const ocv_gl_view_t *v);
  *  Before the first state is complete nothing is rendered (stats->shown 0). @return 0 or OC_E*. */
 int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now, int reproject, oc_image_t *img,
                       ocv_gl_view_stats_t *st, char *why, size_t why_len);
-/*! ocv_gl_view_output() : the GL buffer of the last frame rendered (w×h RGBA32F radiance, rows from the
- *  top), 0 before the first; img may be NULL in ocv_gl_view_frame() to keep frames on the GPU. */
+/*! ocv_gl_view_output() : the GL buffer of the last frame rendered (trace_w×trace_h RGBA32F radiance,
+ *  rows from the top; desc's w×h unless a frame-time target scales it), 0 before the first; img may
+ *  be NULL in ocv_gl_view_frame() to keep frames on the GPU. */
 GLuint ocv_gl_view_output(const ocv_gl_view_t *v);
+
+/* The frame-time target (ocv_gl_view_desc_t.frame_ms): the traced size is desc's divided by 1, 2, 4
+ * or 8 per axis (rounded, the coarsest keeping ≥ OCV_GL_SCALE_MIN_ROWS rows). A frame is about 4×
+ * cheaper per step, so the controller keeps a wide band between the two decisions and never flickers:
+ * coarser when two frames in a row took more than 1.25× the target (or one more than 3×), as many
+ * steps as bring the time predicted (∝ pixels) under 0.7×; finer when three frames in a row would
+ * still fit 0.6× of it at the finer scale (time × 4). Frames that switched state or showed nothing
+ * are not counted. The first frame is traced at the coarsest scale (llvmpipe: 160×90 for 1280×720),
+ * which a fast GPU leaves within a few frames. */
+#define OCV_GL_SCALE_MAX 8
+#define OCV_GL_SCALE_MIN_ROWS 32
+/*! ocv_gl_view_frame_time() : the wall time of the whole last frame, ms (render, upload, picture,
+ *  swap: what the caller measured around its loop), for the controller; a test may report any time
+ *  (a slow frame made up). No-op without a target. */
+void ocv_gl_view_frame_time(ocv_gl_view_t *v, double ms);
+/*! ocv_gl_view_scale() : the divisor per axis (1, 2, 4, 8) the next frame of a view h rows high traces
+ *  at (1 without a target). */
+int ocv_gl_view_scale(const ocv_gl_view_t *v, int h);
+/*! ocv_gl_view_trace_size() : the size traced for a w×h view at divisor `scale` (≥ 1×1). */
+void ocv_gl_view_trace_size(int w, int h, int scale, int *tw, int *th);
 
 /* ---- The picture (gl_present.c, shaders/present.comp.glsl) --------------------------------------------- */
 
@@ -308,6 +338,11 @@ void ocv_gl_present_free(ocv_gl_present_t *p);
  *  valid until the next call), or 0 with why. */
 GLuint ocv_gl_present_tonemap(ocv_gl_present_t *p, GLuint radiance, int w, int h, float exposure, const uint8_t *overlay,
                               int ow, int oh, char *why, size_t why_len);
+/*! ocv_gl_present_upsample() : as ocv_gl_present_tonemap() for a radiance buffer of rw×rh (a frame traced
+ *  at a lower resolution), bilinearly interpolated (texel centres aligned, edges clamped) to the w×h
+ *  picture before tone mapping; rw×rh = w×h is ocv_gl_present_tonemap() exactly. */
+GLuint ocv_gl_present_upsample(ocv_gl_present_t *p, GLuint radiance, int rw, int rh, int w, int h, float exposure,
+                               const uint8_t *overlay, int ow, int oh, char *why, size_t why_len);
 /*! ocv_gl_present_read() : the last tone-mapped picture as 8-bit RGB rows from the top (w·h·3 bytes, the
  *  layout of oc_image_tonemap()), for screenshots and tests. @return 0, or OC_EINVAL before the first. */
 int ocv_gl_present_read(ocv_gl_present_t *p, uint8_t *rgb8, char *why, size_t why_len);
