@@ -324,6 +324,16 @@ static double oc__nu(double mu, double mu_s, int m, int nphi) {
   return mu * mu_s + sin_v * sin_s * cos(OC__PI * (m + 0.5) / nphi);
 }
 
+/* The ground as seen from radius r: its radius, the horizon's zenith cosine and its Lambertian BRDF a/π. */
+typedef struct {
+  double b, mu_h, brdf[3];
+} oc__ground_t;
+
+static oc__ground_t oc__ground(const ocg_atmosphere p, double r) {
+  ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
+  return (oc__ground_t){p.bottom_radius, ocg_atmo_horizon_mu(p, r), {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI}};
+}
+
 /* ---- Per-node rows --------------------------------------------------------------------------------
  * The scattering tables look the transmittance and Ψ_ms tables up at every ray node for many sun
  * directions. The node's radius fixes the tables' v, so each node first interpolates the two rows
@@ -388,6 +398,19 @@ typedef struct {
   double L[OC__MAX_COLS][OC__ATMO_MAX_PHI][3]; /* accumulated radiance */
 } oc__dirs_t;
 
+/* Zenith-cosine node k of one side of the horizon seen from radius r: its cosine *mu and weight *wmu, the
+ * ray along it (to the ground or the top) and, in dirs->nu, each azimuth's cosine to the n suns.
+ * @return the ray's length. */
+static double oc__dir_node(const struct oc_atmo_s *a, double r, int side, double mu_h, int k, int n,
+                           const double *mu_s, int nphi, double *mu, double *wmu, oc__ray_t *ray, oc__dirs_t *dirs) {
+  oc__mu_node(&a->rule_mu, k, side, mu_h, mu, wmu);
+  double d = oc__side_dist(a->p, r, *mu, side);
+  oc__ray_build(a, &a->rule_ray, r, *mu, d, ray, 1);
+  for (int i = 0; i < n; i++)
+    for (int m = 0; m < nphi; m++) dirs->nu[i][m] = oc__nu(*mu, mu_s[i], m, nphi);
+  return d;
+}
+
 /* Hillaire 2020's multiple-scattering transfer Ψ_ms(r, μs), per unit solar irradiance:
  *   L2 = (1/4π) ∫_4π L'(ω) dω,   f_ms = (1/4π) ∫_4π f(ω) dω,   Ψ_ms = L2 / (1 − f_ms),
  *   L'(ω) = ∫_0^d T(0,s) σ_s(s) (1/4π) T_sun(s) ds + [ground] T(0,d) (a/π) T_sun(g) max(μ_s,g, 0),
@@ -395,11 +418,8 @@ typedef struct {
  * with σ_s = β_R + β^s_M, the isotropic phase 1/4π for both orders (Hillaire's choice), and T_sun the
  * softened transmittance to the sun (the transmittance table, as at run time). n values of μs. */
 static void oc__eval_multiscatter(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
-  const ocg_atmosphere p = a->p;
   const int nphi = OC_ATMO_MS_PHI_NODES;
-  const double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
-  ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
-  const double albedo[3] = {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI};
+  const oc__ground_t g = oc__ground(a->p, r);
   const double inv4pi = 1.0 / (4.0 * OC__PI), wphi = 2.0 * OC__PI / nphi;
   double L2[OC__MAX_COLS][3], F[3] = {0.0, 0.0, 0.0};
   memset(L2, 0, sizeof L2);
@@ -409,12 +429,8 @@ static void oc__eval_multiscatter(const struct oc_atmo_s *a, double r, int n, co
   for (int side = 0; side < 2; side++)
     for (int k = 0; k < a->rule_mu.n; k++) {
       double mu, wmu, Ts[3];
-      oc__mu_node(&a->rule_mu, k, side, mu_h, &mu, &wmu);
-      double d = oc__side_dist(p, r, mu, side);
-      oc__ray_build(a, &a->rule_ray, r, mu, d, &ray, 1);
+      double d = oc__dir_node(a, r, side, g.mu_h, k, n, mu_s, nphi, &mu, &wmu, &ray, &dirs);
       memset(dirs.L, 0, sizeof dirs.L);
-      for (int i = 0; i < n; i++)
-        for (int m = 0; m < nphi; m++) dirs.nu[i][m] = oc__nu(mu, mu_s[i], m, nphi);
       for (int q = 0; q < ray.n; q++) {
         double wts[3]; /* f's integrand; the azimuth integral of f is 2π (no sun) */
         for (int c = 0; c < 3; c++) {
@@ -428,13 +444,13 @@ static void oc__eval_multiscatter(const struct oc_atmo_s *a, double r, int n, co
             for (int c = 0; c < 3; c++) dirs.L[i][m][c] += wts[c] * inv4pi * Ts[c];
           }
       }
-      if (side == 1) oc__rows_prepare(a, b, 0, &rows);
+      if (side == 1) oc__rows_prepare(a, g.b, 0, &rows);
       for (int i = 0; i < n; i++)
         for (int m = 0; m < nphi; m++) {
           if (side == 1) {
-            double mus_g = ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], d, b);
-            oc__sun_T_rows(a, &rows, b, mus_g, Ts);
-            for (int c = 0; c < 3; c++) dirs.L[i][m][c] += exp(-ray.tau[c]) * albedo[c] * Ts[c] * fmax(mus_g, 0.0);
+            double mus_g = ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], d, g.b);
+            oc__sun_T_rows(a, &rows, g.b, mus_g, Ts);
+            for (int c = 0; c < 3; c++) dirs.L[i][m][c] += exp(-ray.tau[c]) * g.brdf[c] * Ts[c] * fmax(mus_g, 0.0);
           }
           for (int c = 0; c < 3; c++) L2[i][c] += wmu * wphi * inv4pi * dirs.L[i][m][c];
         }
@@ -480,7 +496,6 @@ static void oc__sky_radiance(const struct oc_atmo_s *a, const oc__ray_t *ray, do
 /* Sky irradiance on a horizontal surface, per unit solar irradiance: E(r, μs) = ∫_{μ>0} L(ω) μ dω
  * (side 0 of the horizon substitution with μ_h = 0, i.e. μ = s²). n values of μs. */
 static void oc__eval_irradiance(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
-  const ocg_atmosphere p = a->p;
   const int nphi = OC_ATMO_PHI_NODES;
   const double wphi = 2.0 * OC__PI / nphi;
   oc__ray_t ray;
@@ -488,10 +503,7 @@ static void oc__eval_irradiance(const struct oc_atmo_s *a, double r, int n, cons
   memset(out, 0, sizeof(double[3]) * (size_t)n);
   for (int k = 0; k < a->rule_mu.n; k++) {
     double mu, wmu;
-    oc__mu_node(&a->rule_mu, k, 0, 0.0, &mu, &wmu);
-    oc__ray_build(a, &a->rule_ray, r, mu, ocg_atmo_dist_top(p, r, mu), &ray, 1);
-    for (int i = 0; i < n; i++)
-      for (int m = 0; m < nphi; m++) dirs.nu[i][m] = oc__nu(mu, mu_s[i], m, nphi);
+    oc__dir_node(a, r, 0, 0.0, k, n, mu_s, nphi, &mu, &wmu, &ray, &dirs);
     oc__sky_radiance(a, &ray, r, n, mu_s, nphi, &dirs);
     for (int i = 0; i < n; i++)
       for (int m = 0; m < nphi; m++)
@@ -504,34 +516,27 @@ static void oc__eval_irradiance(const struct oc_atmo_s *a, double r, int n, cons
  *   L_ground = T(0,d) (a/π) (T_sun(g) max(μ_s,g, 0) + E(b, μ_s,g))   (E from the irradiance table).
  * n values of μs. */
 static void oc__eval_fluence(const struct oc_atmo_s *a, double r, int n, const double *mu_s, double (*out)[3]) {
-  const ocg_atmosphere p = a->p;
   const int nphi = OC_ATMO_PHI_NODES;
-  const double mu_h = ocg_atmo_horizon_mu(p, r), b = p.bottom_radius;
-  ocg_vec3 alb = ocg_atmo_f3(p.ground_albedo);
-  const double albedo[3] = {alb.x / OC__PI, alb.y / OC__PI, alb.z / OC__PI};
+  const oc__ground_t g = oc__ground(a->p, r);
   const double wphi = 2.0 * OC__PI / nphi;
   oc__ray_t ray;
   oc__rows_t ground;
   oc__dirs_t dirs;
-  oc__rows_prepare(a, b, 0, &ground);
+  oc__rows_prepare(a, g.b, 0, &ground);
   memset(out, 0, sizeof(double[3]) * (size_t)n);
   for (int side = 0; side < 2; side++)
     for (int k = 0; k < a->rule_mu.n; k++) {
       double mu, wmu;
-      oc__mu_node(&a->rule_mu, k, side, mu_h, &mu, &wmu);
-      double d = oc__side_dist(p, r, mu, side);
-      oc__ray_build(a, &a->rule_ray, r, mu, d, &ray, 1);
-      for (int i = 0; i < n; i++)
-        for (int m = 0; m < nphi; m++) dirs.nu[i][m] = oc__nu(mu, mu_s[i], m, nphi);
+      double d = oc__dir_node(a, r, side, g.mu_h, k, n, mu_s, nphi, &mu, &wmu, &ray, &dirs);
       oc__sky_radiance(a, &ray, r, n, mu_s, nphi, &dirs);
       for (int i = 0; i < n; i++)
         for (int m = 0; m < nphi; m++) {
           if (side == 1) {
-            double mus_g = ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], d, b), Ts[3], Eg[3];
-            oc__sun_T_rows(a, &ground, b, mus_g, Ts);
-            oc__rmus(a, 2, b, mus_g, Eg);
+            double mus_g = ocg_atmo_cos_at(r, mu_s[i], dirs.nu[i][m], d, g.b), Ts[3], Eg[3];
+            oc__sun_T_rows(a, &ground, g.b, mus_g, Ts);
+            oc__rmus(a, 2, g.b, mus_g, Eg);
             for (int c = 0; c < 3; c++)
-              dirs.L[i][m][c] += exp(-ray.tau[c]) * albedo[c] * (Ts[c] * fmax(mus_g, 0.0) + Eg[c]);
+              dirs.L[i][m][c] += exp(-ray.tau[c]) * g.brdf[c] * (Ts[c] * fmax(mus_g, 0.0) + Eg[c]);
           }
           for (int c = 0; c < 3; c++) out[i][c] += wmu * wphi * dirs.L[i][m][c];
         }
