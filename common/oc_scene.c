@@ -217,6 +217,21 @@ static int oc__missing(oc__ctx_t *c, const char *key) {
 /* An absent member: an error when it is required (OC__REQ in flags), else 0. */
 static int oc__absent(oc__ctx_t *c, const char *key, unsigned flags) { return (flags & OC__REQ) ? oc__missing(c, key) : 0; }
 
+/* Member `key` of obj. Present: .v, with the key pushed onto the error path (oc__pop(c, .old) takes it off).
+ * Absent: .v is NULL and .rc is oc__absent's answer (0 when optional, an error when OC__REQ). */
+typedef struct {
+  const cJSON *v;
+  size_t old;
+  int rc;
+} oc__member_t;
+
+static oc__member_t oc__member(oc__ctx_t *c, const cJSON *obj, const char *key, unsigned flags) {
+  oc__member_t m = {cJSON_GetObjectItemCaseSensitive(obj, key), 0, 0};
+  if (m.v) m.old = oc__push_key(c, key);
+  else m.rc = oc__absent(c, key, flags);
+  return m;
+}
+
 static int oc__check_num(oc__ctx_t *c, const cJSON *v, double lo, double hi, unsigned flags, double *out) {
   if (!cJSON_IsNumber(v)) return oc__fail(c, "expected %s, got %s", (flags & OC__INT) ? "an integer" : "a number", oc__type_of(v));
   double x = v->valuedouble;
@@ -243,11 +258,10 @@ static int oc__check_num(oc__ctx_t *c, const cJSON *v, double lo, double hi, uns
 static int oc__num(oc__ctx_t *c, const cJSON *obj, const char *key, double lo, double hi, unsigned flags, double def,
                    double *out) {
   *out = def; /* kept when absent */
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
-  if (!v) return oc__absent(c, key, flags);
-  size_t old = oc__push_key(c, key);
-  OC_TRY(oc__check_num(c, v, lo, hi, flags, out));
-  oc__pop(c, old);
+  oc__member_t m = oc__member(c, obj, key, flags);
+  if (!m.v) return m.rc;
+  OC_TRY(oc__check_num(c, m.v, lo, hi, flags, out));
+  oc__pop(c, m.old);
   return 0;
 }
 
@@ -275,18 +289,17 @@ static int oc__bool(oc__ctx_t *c, const cJSON *obj, const char *key, bool def, b
 static int oc__str(oc__ctx_t *c, const cJSON *obj, const char *key, size_t max_len, unsigned flags, const char *def,
                    const char **out) {
   *out = def; /* kept when absent */
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
-  if (!v) return oc__absent(c, key, flags);
-  size_t old = oc__push_key(c, key);
-  if (!cJSON_IsString(v) || !v->valuestring) return oc__fail(c, "expected a string, got %s", oc__type_of(v));
-  size_t n = strlen(v->valuestring);
+  oc__member_t m = oc__member(c, obj, key, flags);
+  if (!m.v) return m.rc;
+  if (!cJSON_IsString(m.v) || !m.v->valuestring) return oc__fail(c, "expected a string, got %s", oc__type_of(m.v));
+  size_t n = strlen(m.v->valuestring);
   if (n == 0) return oc__fail(c, "must not be empty");
   if (n > max_len) return oc__fail(c, "longer than %zu bytes", max_len);
   for (size_t i = 0; i < n; i++)
-    if ((unsigned char)v->valuestring[i] < 0x20 || v->valuestring[i] == 0x7f)
+    if ((unsigned char)m.v->valuestring[i] < 0x20 || m.v->valuestring[i] == 0x7f)
       return oc__fail(c, "contains a control character");
-  *out = v->valuestring;
-  oc__pop(c, old);
+  *out = m.v->valuestring;
+  oc__pop(c, m.old);
   return 0;
 }
 
@@ -316,35 +329,30 @@ static int oc__enum(oc__ctx_t *c, const cJSON *obj, const char *key, const char 
 
 /* `key` must be an object (or absent: *out = NULL). */
 static int oc__obj(oc__ctx_t *c, const cJSON *obj, const char *key, const cJSON **out) {
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
   *out = NULL;
-  if (!v) return 0;
-  if (!cJSON_IsObject(v)) {
-    size_t old = oc__push_key(c, key);
-    int r = oc__fail(c, "expected an object, got %s", oc__type_of(v));
-    oc__pop(c, old);
-    return r;
-  }
-  *out = v;
+  oc__member_t m = oc__member(c, obj, key, 0);
+  if (!m.v) return m.rc;
+  if (!cJSON_IsObject(m.v)) return oc__fail(c, "expected an object, got %s", oc__type_of(m.v));
+  oc__pop(c, m.old);
+  *out = m.v;
   return 0;
 }
 
 /* `key` must be an array of exactly n numbers in [lo, hi] (flags as for oc__num). */
 static int oc__vec(oc__ctx_t *c, const cJSON *obj, const char *key, int n, double lo, double hi, unsigned flags,
                    double *out) {
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
-  if (!v) return oc__absent(c, key, flags);
-  size_t old = oc__push_key(c, key);
-  if (!cJSON_IsArray(v)) return oc__fail(c, "expected an array of %d numbers, got %s", n, oc__type_of(v));
-  int count = cJSON_GetArraySize(v);
+  oc__member_t m = oc__member(c, obj, key, flags);
+  if (!m.v) return m.rc;
+  if (!cJSON_IsArray(m.v)) return oc__fail(c, "expected an array of %d numbers, got %s", n, oc__type_of(m.v));
+  int count = cJSON_GetArraySize(m.v);
   if (count != n) return oc__fail(c, "expected %d numbers, got %d", n, count);
   int i = 0;
-  for (const cJSON *it = v->child; it; it = it->next, i++) {
+  for (const cJSON *it = m.v->child; it; it = it->next, i++) {
     size_t o2 = oc__push_index(c, i);
     OC_TRY(oc__check_num(c, it, lo, hi, flags & ~(unsigned)OC__REQ, &out[i]));
     oc__pop(c, o2);
   }
-  oc__pop(c, old);
+  oc__pop(c, m.old);
   return 0;
 }
 
