@@ -82,6 +82,13 @@ static ocg_vec3 oc__leaf_local(const oc__leaf_t *lf, oc_dvec3 p) {
                 (float)((p.z - lf->origin.z) * inv));
 }
 
+float oc_render_sample_leaf(const oc_node_t *n, const oc_brick_t *b, oc_dvec3 origin, double size, int ch,
+                            oc_dvec3 p) {
+  if (!n) return 0.0f;
+  const oc__leaf_t lf = {.n = n, .b = b, .origin = origin, .size = size};
+  return oc__leaf_channel(&lf, ch, oc__leaf_local(&lf, p));
+}
+
 void oc_render_sample_state(const oc_state_t *s, oc_dvec3 p, float *sigma_t, float *tau) {
   oc__leaf_t lf;
   oc__leaf_locate(s, p, &lf);

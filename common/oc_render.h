@@ -103,4 +103,11 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
  *  root cube): the reconstruction the renderer and the shaders use. */
 void oc_render_sample_state(const oc_state_t *s, oc_dvec3 p, float *sigma_t, float *tau);
 
+/*! oc_render_sample_leaf() : channel ch (OC_CH_*) at planet-frame point p of the leaf node n, whose cube
+ *  has corner origin and edge size, and b its payload (NULL when it has none: read as range.lo); the same
+ *  reconstruction as oc_render_sample_state(), for callers that find their leaves themselves. 0 when n
+ *  is NULL or empty. */
+float oc_render_sample_leaf(const oc_node_t *n, const oc_brick_t *b, oc_dvec3 origin, double size, int ch,
+                            oc_dvec3 p);
+
 #endif /* OC_COMMON_RENDER_H */

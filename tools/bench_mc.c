@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "brick.h" /* ocg_code_decode, ocg_brick_voxel: the decode the reconstruction uses */
+#include "brick.h" /* ocg_code_decode, ocg_brick_voxel: a brick's majorant */
 #include "oc.h"
 #include "optics.h"    /* ocg_phase_hg, ocg_phase_hg_draine, OCG_HGD_* */
 
@@ -207,24 +207,11 @@ static int oct__locate(const oct_mc_medium_t *m, oc_dvec3 q, oct__leaf_t *lf) {
   return 0;
 }
 
-/* σt of a leaf at p. This is oc__leaf_channel() of common/oc_render.c (static there), statement for
- * statement, from the same shared functions of shaders/brick.h; oct_mc_check_reconstruction()
- * compares it bit for bit with oc_render_sample_state() before every truth run. */
+/* σt of a leaf at p: oc_render_sample_leaf(), the renderer's reconstruction (shaders/brick.h);
+ * oct_mc_check_reconstruction() compares the leaves oct__locate() finds with oc_render_sample_state()'s,
+ * bit for bit, before every truth run. */
 static float oct__leaf_sigma(const oct__leaf_t *lf, oc_dvec3 p) {
-  const oc_node_t *n = lf->n;
-  if (!n || n->kind == OC_NODE_EMPTY) return 0.0f;
-  if (n->kind == OC_NODE_UNIFORM || !lf->b) return n->range[OC_CH_SIGMA].lo;
-  float lo = n->range[OC_CH_SIGMA].lo, hi = n->range[OC_CH_SIGMA].hi;
-  if (hi == 0.0f) return 0.0f;
-  double inv = 1.0 / lf->size;
-  ocg_vec3 u = ocg_v3((float)((p.x - lf->origin.x) * inv), (float)((p.y - lf->origin.y) * inv),
-                      (float)((p.z - lf->origin.z) * inv));
-  ocg_vec3 base = ocg_brick_base(u), f = ocg_brick_frac(u, base);
-  ocg_uint b0 = ocg_brick_base_voxel(base);
-  const uint16_t *c = lf->b->codes.code[OC_CH_SIGMA];
-  float v[8];
-  for (ocg_uint q = 0; q < 8u; q++) v[q] = ocg_code_decode(c[b0 + ocg_brick_voxel(q & 1u, (q >> 1) & 1u, q >> 2)], lo, hi);
-  return ocg_trilerp(ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]), f);
+  return oc_render_sample_leaf(lf->n, lf->b, lf->origin, lf->size, OC_CH_SIGMA, p);
 }
 
 long oct_mc_check_reconstruction(const oct_mc_medium_t *m, uint64_t seed, long n, long *tested) {
