@@ -18,6 +18,7 @@
 
 #include "test_main.h"
 #include "analytic.h"
+#include "brick_cache.h"
 #include "oc_err.h"
 #include "oc_scene.h"
 #include "scene_voxelize.h"
@@ -30,86 +31,59 @@
 /* FULL and SIZE (test_util.h): optimised builds run the full workload; unoptimised or sanitised
  * ones (the CI's ASan+UBSan stage is a Debug build) the same code paths on fewer nodes. */
 
-/*-*** A field behind the callbacks, with a thread-safe memo (the server's shared brick cache) ***/
-
-typedef struct {
-  oc_key_t key;
-  int has_bound, has_sigma;
-  float lo, hi;
-  float *s;
-} tc_ent_t;
+/*-*** A field behind the callbacks, memoised in the server's shared brick cache ***/
 
 typedef struct {
   ocs_field_t *f;
   double t;
-  pthread_mutex_t mu;
-  tc_ent_t *tab;
-  size_t cap, n;
-  long sigma_fetches, bound_fetches;
-  int fail_sigma; /* make sigma() fail with OC_EIO */
+  ocs_cache_t *memo;                         /* σt bricks and bounds of the field at t, keyed {kind, node} */
+  _Atomic long sigma_fetches, bound_fetches; /* bricks and bounds produced (each at most once) */
+  int fail_sigma;                            /* make sigma() fail with OC_EIO */
 } tcache_t;
 
-static tc_ent_t *tc_find(tcache_t *c, oc_key_t key) { /* under the lock */
-  if ((c->n + 1) * 2 > c->cap) {
-    size_t ncap = c->cap ? c->cap * 2 : 1024;
-    tc_ent_t *nt = calloc(ncap, sizeof *nt);
-    assert_non_null(nt);
-    for (size_t i = 0; i < c->cap; i++) {
-      if (!c->tab[i].key) continue;
-      size_t h = (size_t)((c->tab[i].key * 0x9E3779B97F4A7C15ull) >> 20) & (ncap - 1);
-      while (nt[h].key) h = (h + 1) & (ncap - 1);
-      nt[h] = c->tab[i];
-    }
-    free(c->tab);
-    c->tab = nt;
-    c->cap = ncap;
+enum { TC_SIGMA = 1, TC_BOUND = 2 };
+
+/* Copies the memo of (kind, key), `bytes` of it, to out; on a miss produces it from the field
+ * first (single flight: threads asking at once wait for the one producing). */
+static int tc_memo(tcache_t *c, int kind, oc_key_t key, void *out, size_t bytes) {
+  ocs_cache_key_t k = {{(uint64_t)kind, key, 0, 0}};
+  ocs_cache_entry_t *e;
+  int r = ocs_cache_acquire(c->memo, &k, &e);
+  if (r < 0) return r;
+  if (r == OCS_CACHE_HIT) {
+    memcpy(out, ocs_cache_data(e), bytes);
+    ocs_cache_release(c->memo, e);
+    return 0;
   }
-  size_t h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 20) & (c->cap - 1);
-  while (c->tab[h].key && c->tab[h].key != key) h = (h + 1) & (c->cap - 1);
-  if (!c->tab[h].key) {
-    c->tab[h].key = key;
-    c->n++;
+  if (kind == TC_SIGMA) {
+    r = ocs_field_sample(c->f, key, c->t, out);
+    if (r >= 0) oc_sanitize(out, 512, NULL);
+  } else {
+    float *lohi = out;
+    ocs_field_bound(c->f, key, c->t, &lohi[0], &lohi[1]);
   }
-  return &c->tab[h];
+  void *copy = r < 0 ? NULL : malloc(bytes);
+  if (!copy) {
+    ocs_cache_abandon(c->memo, e);
+    return r < 0 ? r : OC_ENOMEM;
+  }
+  memcpy(copy, out, bytes);
+  ocs_cache_publish(c->memo, e, copy, bytes);
+  ocs_cache_release(c->memo, e);
+  if (kind == TC_SIGMA) c->sigma_fetches++;
+  else c->bound_fetches++;
+  return 0;
 }
 
 static int tc_sigma(void *ctx, oc_key_t key, float out[512]) {
   tcache_t *c = ctx;
-  if (c->fail_sigma) return OC_EIO;
-  pthread_mutex_lock(&c->mu);
-  tc_ent_t *e = tc_find(c, key);
-  if (e->has_sigma) {
-    memcpy(out, e->s, sizeof(float) * 512);
-    pthread_mutex_unlock(&c->mu);
-    return 0;
-  }
-  pthread_mutex_unlock(&c->mu);
-  int r = ocs_field_sample(c->f, key, c->t, out); /* deterministic: racing threads compute the same */
-  if (r < 0) return r;
-  oc_sanitize(out, 512, NULL);
-  pthread_mutex_lock(&c->mu);
-  e = tc_find(c, key);
-  if (!e->has_sigma) {
-    e->s = malloc(sizeof(float) * 512);
-    memcpy(e->s, out, sizeof(float) * 512);
-    e->has_sigma = 1;
-    c->sigma_fetches++;
-  }
-  pthread_mutex_unlock(&c->mu);
-  return 0;
+  return c->fail_sigma ? OC_EIO : tc_memo(c, TC_SIGMA, key, out, sizeof(float) * 512);
 }
 
 static void tc_bound(void *ctx, oc_key_t key, float *lo, float *hi) {
-  tcache_t *c = ctx;
-  pthread_mutex_lock(&c->mu);
-  tc_ent_t *e = tc_find(c, key);
-  if (!e->has_bound) {
-    ocs_field_bound(c->f, key, c->t, &e->lo, &e->hi);
-    e->has_bound = 1;
-    c->bound_fetches++;
-  }
-  *lo = e->lo, *hi = e->hi;
-  pthread_mutex_unlock(&c->mu);
+  float lohi[2];
+  assert_int_equal(tc_memo(ctx, TC_BOUND, key, lohi, sizeof lohi), 0);
+  *lo = lohi[0], *hi = lohi[1];
 }
 
 static void tc_init(tcache_t *c, const char *json, double t) {
@@ -124,13 +98,11 @@ static void tc_init(tcache_t *c, const char *json, double t) {
   if (ocs_field_create(&c->f, &sc, why, sizeof why) < 0) fail_msg("field: %s", why);
   oc_scene_free(&sc);
   c->t = t;
-  pthread_mutex_init(&c->mu, NULL);
+  assert_int_equal(ocs_cache_create(&c->memo, UINT64_MAX), 0); /* no cap: nothing is produced twice */
 }
 
 static void tc_free(tcache_t *c) {
-  for (size_t i = 0; i < c->cap; i++) free(c->tab[i].s);
-  free(c->tab);
-  pthread_mutex_destroy(&c->mu);
+  ocs_cache_free(c->memo);
   ocs_field_free(c->f);
 }
 
