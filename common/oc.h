@@ -18,6 +18,7 @@
 #include "oc_log.h"          /* logging */
 #include "oc_math.h"         /* double vectors */
 #include "oc_noise.h"        /* noise */
+#include "oc_parallel.h"     /* a parallel loop over items */
 #include "oc_planet.h"       /* planet frame */
 #include "oc_render.h"       /* the CPU reference renderer */
 #include "oc_scene.h"        /* scene files */

@@ -4,8 +4,6 @@
 #include "oc_atmo.h"
 
 #include <math.h>      /* isfinite */
-#include <pthread.h>   /* pthread_create */
-#include <stdatomic.h> /* atomic_int */
 #include <stdlib.h>    /* calloc */
 #include <time.h>      /* clock_gettime */
 #include <unistd.h>    /* sysconf */
@@ -13,6 +11,7 @@
 #include "oc_atmo_internal.h"
 #include "oc_err.h"
 #include "oc_log.h"
+#include "oc_parallel.h"
 #include "oc_planet.h" /* OC_PLANET_RADIUS, OC_ATMOSPHERE_HEIGHT */
 
 #define OC__ATMO_MAX_THREADS 64
@@ -76,30 +75,19 @@ static int oc__check(const ocg_atmosphere *p) {
 typedef struct {
   oc_atmo_t *a;
   int which;
-  atomic_int next_row;
 } oc__job_t;
 
-/* Rows are handed out by an atomic counter; every texel is a pure function of the parameters and the
- * tables before it, so the result does not depend on which thread computes which row. */
-static void *oc__work(void *arg) {
+/* Row `row` of a table (an oc_parallel() item): every texel is a pure function of the parameters and
+ * the tables before it, so the result does not depend on which thread computes which row. */
+static void oc__bake_row(void *arg, int row, int thread) {
+  (void)thread;
   oc__job_t *job = arg;
-  int h = job->a->tab[job->which].h;
-  for (int row; (row = atomic_fetch_add(&job->next_row, 1)) < h;) oc__atmo_bake_row(job->a, job->which, row);
-  return NULL;
+  oc__atmo_bake_row(job->a, job->which, row);
 }
 
 static void oc__run(oc_atmo_t *a, int which, int threads) {
   oc__job_t job = {.a = a, .which = which};
-  atomic_init(&job.next_row, 0);
-  int n = threads < a->tab[which].h ? threads : a->tab[which].h;
-  pthread_t th[OC__ATMO_MAX_THREADS];
-  int started = 0;
-  for (int i = 1; i < n; i++) {
-    if (pthread_create(&th[started], NULL, oc__work, &job) != 0) break; /* the caller does the rest */
-    started++;
-  }
-  oc__work(&job);
-  for (int i = 0; i < started; i++) pthread_join(th[i], NULL);
+  oc_parallel(a->tab[which].h, threads, oc__bake_row, &job);
 }
 
 /* ---- Life cycle --------------------------------------------------------------------------------------- */

@@ -6,8 +6,6 @@
 #include "oc_render.h"
 
 #include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -15,6 +13,7 @@
 #include "brick.h"      /* ocg_code_decode, ocg_trilerp */
 #include "oc_err.h"
 #include "oc_log.h"
+#include "oc_parallel.h"
 #include "oc_planet.h"
 #include "march.h"    /* the march: sources, segment update, ground, sun disc */
 #include "optics.h"   /* phase functions, segment weights, octaves */
@@ -42,7 +41,6 @@ typedef struct {
   ocg_cloud_model cm;  /**< albedo and multiple-scattering model */
   double ground_r;     /**< planet radius, or 0 without a planet */
   double air_top;      /**< atmosphere top radius */
-  atomic_int next_row;
   oc_render_stats_t *thread_stats;
 } oc__ctx_t;
 
@@ -303,26 +301,16 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
 
 /* ---- Threads ----------------------------------------------------------------------------------------- */
 
-typedef struct {
-  oc__ctx_t *cx;
-  int id;
-} oc__worker_t;
-
-static void *oc__worker(void *arg) {
-  oc__worker_t *wk = arg;
-  oc__ctx_t *cx = wk->cx;
-  oc_render_stats_t *st = &cx->thread_stats[wk->id];
+/* Row y of the image (an oc_parallel() item), counted in the stats of its thread. */
+static void oc__row(void *arg, int y, int thread) {
+  oc__ctx_t *cx = arg;
+  oc_render_stats_t *st = &cx->thread_stats[thread];
   const oc_render_desc_t *d = &cx->d;
-  for (;;) {
-    int y = atomic_fetch_add(&cx->next_row, 1);
-    if (y >= d->height) break;
-    for (int x = 0; x < d->width; x++) {
-      oc_dvec3 dir = oc_camera_ray(&d->camera, d->width, d->height, x, y);
-      float j = (d->flags & OC_RF_JITTER) ? ocg_jitter((ocg_uint)x, (ocg_uint)y, d->frame) : 0.5f;
-      oc__trace(cx, d->camera.pos, dir, j, cx->img->px + 4 * ((size_t)y * (size_t)d->width + (size_t)x), st);
-    }
+  for (int x = 0; x < d->width; x++) {
+    oc_dvec3 dir = oc_camera_ray(&d->camera, d->width, d->height, x, y);
+    float j = (d->flags & OC_RF_JITTER) ? ocg_jitter((ocg_uint)x, (ocg_uint)y, d->frame) : 0.5f;
+    oc__trace(cx, d->camera.pos, dir, j, cx->img->px + 4 * ((size_t)y * (size_t)d->width + (size_t)x), st);
   }
-  return NULL;
 }
 
 static int oc__bad(const char *field) {
@@ -389,26 +377,9 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   cx.ground_r = (d->background == OC_BG_CONSTANT || (d->flags & OC_RF_NO_PLANET)) ? 0.0
                 : cx.have_atmo ? cx.atm.bottom_radius : OC_PLANET_RADIUS;
 
-  atomic_init(&cx.next_row, 0);
   cx.thread_stats = calloc((size_t)d->threads, sizeof *cx.thread_stats);
-  oc__worker_t *wk = calloc((size_t)d->threads, sizeof *wk);
-  pthread_t *th = calloc((size_t)d->threads, sizeof *th);
-  if (!cx.thread_stats || !wk || !th) {
-    free(cx.thread_stats);
-    free(wk);
-    free(th);
-    return OC_ENOMEM;
-  }
-  unsigned char *ok = calloc((size_t)d->threads, 1);
-  for (int i = 0; i < d->threads; i++) {
-    wk[i].cx = &cx;
-    wk[i].id = i;
-    if (i > 0 && ok) ok[i] = pthread_create(&th[i], NULL, oc__worker, &wk[i]) == 0;
-  }
-  oc__worker(&wk[0]); /* the calling thread works too; rows left by failed spawns are taken here */
-  for (int i = 1; i < d->threads; i++)
-    if (ok && ok[i]) pthread_join(th[i], NULL);
-  free(ok);
+  if (!cx.thread_stats) return OC_ENOMEM;
+  oc_parallel(d->height, d->threads, oc__row, &cx);
 
   oc_render_stats_t sum = {0};
   for (int i = 0; i < d->threads; i++) {
@@ -420,7 +391,5 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   }
   if (stats) *stats = sum;
   free(cx.thread_stats);
-  free(wk);
-  free(th);
   return 0;
 }

@@ -12,7 +12,6 @@
  * closed form and energy conservation. Bench only: minutes of CPU, never in CI. */
 #include <math.h>
 #include <stddef.h>
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,47 +28,6 @@
 #define OCT_TRUTH_MAX_TAUS 16
 #define OCT_TWO_PI 6.283185307179586477
 #define OCT_TRUTH_EXPOSURE 10.0f /* the exposure every bench tone-maps with */
-
-/* ---- Parallel loops ---------------------------------------------------------------------------------
- * Items (image rows, photon chunks) go to threads through an atomic counter; every item writes only
- * its own outputs, so results never depend on the thread count. */
-
-typedef struct {
-  atomic_int next;
-  int count;
-  void (*fn)(void *ctx, int item, int thread);
-  void *ctx;
-} oct__pool_t;
-
-typedef struct {
-  oct__pool_t *pool;
-  int id;
-} oct__worker_t;
-
-static void *oct__work(void *arg) {
-  oct__worker_t *wk = arg;
-  for (;;) {
-    int i = atomic_fetch_add(&wk->pool->next, 1);
-    if (i >= wk->pool->count) return NULL;
-    wk->pool->fn(wk->pool->ctx, i, wk->id);
-  }
-}
-
-static void oct__parallel(int count, int threads, void (*fn)(void *, int, int), void *ctx) {
-  oct__pool_t pool = {.count = count, .fn = fn, .ctx = ctx};
-  atomic_init(&pool.next, 0);
-  pthread_t th[256];
-  oct__worker_t wk[256];
-  int ok[256] = {0};
-  for (int i = 0; i < threads; i++) {
-    wk[i].pool = &pool;
-    wk[i].id = i;
-    if (i > 0) ok[i] = pthread_create(&th[i], NULL, oct__work, &wk[i]) == 0;
-  }
-  oct__work(&wk[0]); /* the caller works too, and takes what failed spawns leave */
-  for (int i = 1; i < threads; i++)
-    if (ok[i]) pthread_join(th[i], NULL);
-}
 
 static void oct__stats_add(oct_mc_stats_t *sum, const oct_mc_stats_t *s) {
   sum->paths += s->paths;
@@ -151,7 +109,7 @@ static void oct__slab_run(double tau, double albedo, oct_mc_phase_t phase, long 
   job.photons = photons;
   job.seed = seed;
   job.stream0 = stream0;
-  oct__parallel(OCT_SLAB_CHUNKS, threads, oct__slab_chunk, &job);
+  oc_parallel(OCT_SLAB_CHUNKS, threads, oct__slab_chunk, &job);
   oct__slab_sums_t s = {0};
   for (int c = 0; c < OCT_SLAB_CHUNKS; c++) { /* in chunk order: deterministic */
     s.r1 += job.chunk[c].r1;
@@ -545,7 +503,7 @@ static int oct__run_truth(oct__run_t *r, long paths, long max_bounces, double su
   job->salt *= UINT64_C(0x9e3779b97f4a7c15);
   atomic_init(&job->rows_done, 0);
   job->t0 = oct_now();
-  oct__parallel(r->h, r->threads, oct__truth_row, job);
+  oc_parallel(r->h, r->threads, oct__truth_row, job);
   r->t_mc = oct_now() - job->t0;
   fprintf(stderr, "\r\033[K");
   for (int i = 0; i < r->threads; i++) oct__stats_add(&r->stats, &job->stats[i]);
