@@ -76,16 +76,21 @@ void oct_mc_medium_free(oct_mc_medium_t *m);
  *  *tested: points compared. */
 long oct_mc_check_reconstruction(const oct_mc_medium_t *m, uint64_t seed, long n, long *tested);
 
-/*! Event counters (per thread; add them up). */
+/*! Event counters (per thread; add them up), listed once as X(name), each a uint64_t. */
+#define OCT_MC_STATS_FIELDS(X)                                                                            \
+  X(paths)                                                                                                \
+  X(real_collisions)     /**< scattering events */                                                        \
+  X(null_collisions)     /**< tentative collisions rejected by delta tracking */                          \
+  X(majorant_violations) /**< σt above the span's majorant at a tentative collision (must stay 0; each   \
+                              one is a small bias) */                                                     \
+  X(truncated)           /**< paths stopped at max_bounces (a bias; must stay 0) */                       \
+  X(nee_rays)            /**< exact transmittance evaluations toward the sun */
+
+#define OCT_MC_STATS_FIELD(name) uint64_t name;
 typedef struct {
-  uint64_t paths;
-  uint64_t real_collisions;      /**< scattering events */
-  uint64_t null_collisions;      /**< tentative collisions rejected by delta tracking */
-  uint64_t majorant_violations;  /**< σt above the span's majorant at a tentative collision (must
-                                      stay 0; each one is a small bias) */
-  uint64_t truncated;            /**< paths stopped at max_bounces (a bias; must stay 0) */
-  uint64_t nee_rays;             /**< exact transmittance evaluations toward the sun */
+  OCT_MC_STATS_FIELDS(OCT_MC_STATS_FIELD)
 } oct_mc_stats_t;
+#undef OCT_MC_STATS_FIELD
 
 /*! oct_mc_optical_depth() : ∫σt along o + t·d for t in [0, ∞), exact for the medium's
  *  reconstruction (see the file comment); d unit. */

@@ -30,12 +30,9 @@
 #define OCT_TRUTH_EXPOSURE 10.0f /* the exposure every bench tone-maps with */
 
 static void oct__stats_add(oct_mc_stats_t *sum, const oct_mc_stats_t *s) {
-  sum->paths += s->paths;
-  sum->real_collisions += s->real_collisions;
-  sum->null_collisions += s->null_collisions;
-  sum->majorant_violations += s->majorant_violations;
-  sum->truncated += s->truncated;
-  sum->nee_rays += s->nee_rays;
+#define OCT__STATS_ADD(name) sum->name += s->name;
+  OCT_MC_STATS_FIELDS(OCT__STATS_ADD)
+#undef OCT__STATS_ADD
 }
 
 /* Mean and standard error of the mean from a sum and a sum of squares over n samples. */
