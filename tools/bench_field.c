@@ -70,32 +70,23 @@ static uint64_t oct__fnv(uint64_t h, const void *data, size_t n) {
 /*-*** Options ***/
 
 typedef struct {
-  const char *scene;
-  oct_list_t levels;
-  int block, march_clear, exact;
-  oct_at_t at;
-  double alt, time;
+  OCT_BLOCK_FIELDS
+  int march_clear, exact;
 } field_opts_t;
 
 static const oc_cli_opt_t field_opts[] = {
-    OCT_OPT_SCENE(field_opts_t),
-    OCT_LIST(field_opts_t, levels, "levels", 0, 21, "10,13,16", "octree levels"),
-    OCT_INT(field_opts_t, block, "block", "N", 1, 64, "6", "N³ nodes per level around the scene camera"),
-    OCT_OPT_PLACE(field_opts_t),
-    OCT_OPT_TIME(field_opts_t),
+    OCT_OPTS_BLOCK(field_opts_t, "levels", 0, "10,13,16", "octree levels", 64, "6",
+                   "N³ nodes per level around the scene camera"),
     OCT_FLAG(field_opts_t, march_clear, "march-clear", "march τ even where the sun column is proven clear (the "
         "state before the clear-sky shortcut; the same bits, counted as clear marched)"),
     OCT_FLAG(field_opts_t, exact, "exact", "also sample the same nodes through the sources' exact box filter: its "
         "µs per brick beside the fast filter's, and the fast one's error"),
     OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_field_spec = {
-    .prog = "overcast-bench field",
-    .about = "Brick production of a scene's field sources: bricks/s per core, bound classification.\n\noptions:\n",
-    .epilog = "Prints the anchor beside each level: a scalar 6-octave Perlin fBm once per voxel, bricks/s per core,\n"
-              "and the ratios to it; with shadows, σt + τ as the world makes them, the CPU on bricks that end up\n"
-              "empty, and the τ direct marches proven clear.\n",
-    .opts = field_opts};
+OCT_SPEC(field, "Brick production of a scene's field sources: bricks/s per core, bound classification.", field_opts,
+         .epilog = "Prints the anchor beside each level: a scalar 6-octave Perlin fBm once per voxel, bricks/s per core,\n"
+                   "and the ratios to it; with shadows, σt + τ as the world makes them, the CPU on bricks that end up\n"
+                   "empty, and the τ direct marches proven clear.\n");
 
 /*-*** The bench ***/
 
@@ -292,7 +283,7 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
   static oc_scene_t sc;
   int rc = oct_begin(&oct_bench_field_spec, argc, argv, &o, &o.scene, NULL, &sc, NULL);
   if (rc != OCT_GO) return rc;
-  oc_geo_t g = {o.at.given ? o.at.lat : sc.camera.pos.lat, o.at.given ? o.at.lon : sc.camera.pos.lon, o.alt};
+  oc_geo_t g = oct_block_centre(&o.at, o.alt, &sc);
   size_t nk = (size_t)o.block * (size_t)o.block * (size_t)o.block;
   static field_run_t R;
   R = (field_run_t){.prog = prog, .o = &o, .dig_s = 0xcbf29ce484222325ull, .dig_t = 0xcbf29ce484222325ull};

@@ -207,12 +207,10 @@ static const oc_cli_opt_t model_opts[] = {
         "with them"),
     OCT_OPTS_END};
 
-const oc_cli_spec_t oct_bench_model_spec = {
-    .prog = "overcast-bench model",
-    .synopsis = "[options] FILE...",
-    .about = "The cloud model against stored truth images (FILE... from `overcast-bench truth --save`): errors, fit\n"
-             "objective.\n\noptions:\n",
-    .opts = model_opts};
+OCT_SPEC(model,
+         "The cloud model against stored truth images (FILE... from `overcast-bench truth --save`): errors, fit\n"
+         "objective.",
+         model_opts, .synopsis = "[options] FILE...");
 
 int oct_bench_model(const char *prog, int argc, char **argv) {
   oct__model_opts_t o = {0};

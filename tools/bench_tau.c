@@ -23,19 +23,14 @@
 /*-*** Options ***/
 
 typedef struct {
-  oct_at_t at;
-  double alt, time, zenith;
-  oct_list_t levels;
-  int block, repeat, reference;
-  const char *scene;
+  OCT_BLOCK_FIELDS
+  double zenith;
+  int repeat, reference;
 } tau_opts_t;
 
 static const oc_cli_opt_t tau_opts[] = {
-    OCT_OPT_SCENE(tau_opts_t),
-    OCT_LIST(tau_opts_t, levels, "level", 2, 21, "13", "octree levels of the nodes"),
-    OCT_INT(tau_opts_t, block, "block", "N", 1, 32, "8", "N³ nodes per level, aligned to volume groups"),
-    OCT_OPT_PLACE(tau_opts_t),
-    OCT_OPT_TIME(tau_opts_t),
+    OCT_OPTS_BLOCK(tau_opts_t, "level", 2, "13", "octree levels of the nodes", 32, "8",
+                   "N³ nodes per level, aligned to volume groups"),
     OCT_DBL_NOTE(tau_opts_t, zenith, "sun-zenith", "DEG", 0, 180, "the scene's sun", "the sun this far from the "
         "zenith, toward the east, at the block"),
     OCT_INT(tau_opts_t, repeat, "repeat", "N", 1, 100, "3", "timed passes; the fastest counts"),
@@ -234,7 +229,7 @@ int oct_bench_tau(const char *prog, int argc, char **argv) {
     oc_scene_free(&sc);
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
   }
-  oc_geo_t g = {o.at.given ? o.at.lat : sc.camera.pos.lat, o.at.given ? o.at.lon : sc.camera.pos.lon, o.alt};
+  oc_geo_t g = oct_block_centre(&o.at, o.alt, &sc);
   oc_dvec3 centre = oc_geo_to_xyz(g);
   double zen;
   oc_dvec3 sun = tau_sun(&o, &sc, centre, &zen);

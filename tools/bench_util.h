@@ -88,6 +88,22 @@ int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, 
    .def_note = "the scene camera", .help = "centre of the block, in degrees"},                                   \
       OCT_DBL(T, alt, "alt", "M", -1e4, 1e5, "2000", "altitude of the block's centre in metres")
 #define OCT_OPT_TIME(T) OCT_DBL(T, time, "time", "T", -1e12, 1e12, "0", "world time in seconds")
+/* A block of block³ nodes at each of some octree levels, around a place, at a time: the fields a
+ * subcommand's options struct takes for OCT_OPTS_BLOCK (its rows: --scene, the levels' list option,
+ * --block, --at, --alt, --time); oct_block_centre() is the place. */
+#define OCT_BLOCK_FIELDS \
+  const char *scene;     \
+  oct_list_t levels;     \
+  int block;             \
+  oct_at_t at;           \
+  double alt, time;
+#define OCT_OPTS_BLOCK(T, levels_name_, levels_lo_, levels_def_, levels_help_, block_hi_, block_def_, block_help_) \
+  OCT_OPT_SCENE(T), OCT_LIST(T, levels, levels_name_, levels_lo_, 21, levels_def_, levels_help_),                  \
+      OCT_INT(T, block, "block", "N", 1, block_hi_, block_def_, block_help_), OCT_OPT_PLACE(T), OCT_OPT_TIME(T)
+/*! oct_block_centre() : the block's centre: --at (else the scene camera's latitude and longitude) at --alt. */
+static inline oc_geo_t oct_block_centre(const oct_at_t *at, double alt, const oc_scene_t *sc) {
+  return (oc_geo_t){at->given ? at->lat : sc->camera.pos.lat, at->given ? at->lon : sc->camera.pos.lon, alt};
+}
 #define OCT_OPT_THREADS(T) OCT_INT_NOTE(T, threads, "threads", "N", 0, 64, "all cores", "producer threads; 0: all cores")
 #define OCT_OPT_RENDERER(T, text)                                                                                \
   {.name = "renderer", .type = OC_CLI_CUSTOM, .parse = oct_opt_renderer, .offset = offsetof(T, gl), .arg = "cpu|gl", \
@@ -99,11 +115,12 @@ int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, 
 /* a table's last rows: --help and the terminator */
 #define OCT_OPTS_END OCT_OPT_HELP, {0}
 
-/*! OCT_SPEC() : defines oct_bench_<cmd>_spec (bench.h) from the subcommand's table and a line or two
- *  about it (ending without a newline). */
-#define OCT_SPEC(cmd, about_, table)                                                                               \
+/*! OCT_SPEC() : defines oct_bench_<cmd>_spec (bench.h) from a line or two about the subcommand (ending
+ *  without a newline) and its table, optionally followed by more of the spec's fields
+ *  (`.synopsis = ...`, `.epilog = ...`). */
+#define OCT_SPEC(cmd, about_, ...)                                                                                 \
   const oc_cli_spec_t oct_bench_##cmd##_spec = {                                                                   \
-      .prog = "overcast-bench " #cmd, .about = about_ "\n\noptions:\n", .opts = table}
+      .prog = "overcast-bench " #cmd, .about = about_ "\n\noptions:\n", .opts = __VA_ARGS__}
 
 /*-*** The preamble ***/
 
