@@ -19,6 +19,14 @@
 
 static uint32_t rng_below(uint64_t n) { return (uint32_t)(rng_u64() % n); }
 
+/* A random cell of `level`: its coordinates, each below 2^level, drawn x first. */
+static void rng_cell(int level, uint32_t *ix, uint32_t *iy, uint32_t *iz) {
+  uint64_t side = (uint64_t)1 << level;
+  *ix = rng_below(side);
+  *iy = rng_below(side);
+  *iz = rng_below(side);
+}
+
 /* The convention written out bit by bit: the reference the magic-number version must match. */
 static oc_key_t slow_key(int level, uint32_t ix, uint32_t iy, uint32_t iz) {
   oc_key_t k = 1;
@@ -53,30 +61,41 @@ static void test_key__layout_matches_convention(void **state) {
   assert_true(oc_key_make(21, 0, 0, 0) == (oc_key_t)1 << 63);
   for (int n = 0; n < 20000; n++) {
     int level = (int)rng_below(22);
-    uint64_t side = (uint64_t)1 << level;
-    uint32_t ix = rng_below(side), iy = rng_below(side), iz = rng_below(side);
+    uint32_t ix, iy, iz;
+    rng_cell(level, &ix, &iy, &iz);
     assert_true(oc_key_make(level, ix, iy, iz) == slow_key(level, ix, iy, iz));
   }
 }
 
-static void test_key__make_coords_round_trip(void **state) {
-  (void)state;
+/* Runs check(level, a cell's coordinates) on `per_level` random cells (rng_cell()) of every level; with
+ * `corners`, the first two are the level's first and last corner cells instead (drawn all the same). */
+static void each_cell(int per_level, int corners, void (*check)(int level, uint32_t ix, uint32_t iy, uint32_t iz)) {
   for (int level = 0; level <= OC_KEY_MAX_LEVEL; level++) {
-    uint64_t side = (uint64_t)1 << level;
-    for (int n = 0; n < 2000; n++) {
-      uint32_t ix = rng_below(side), iy = rng_below(side), iz = rng_below(side);
-      if (n == 0) ix = iy = iz = 0;
-      if (n == 1) ix = iy = iz = (uint32_t)(side - 1);
-      oc_key_t k = oc_key_make(level, ix, iy, iz);
-      assert_true(oc_key_valid(k));
-      assert_int_equal(oc_key_level(k), level);
-      uint32_t x, y, z;
-      oc_key_coords(k, &x, &y, &z);
-      assert_int_equal(x, ix);
-      assert_int_equal(y, iy);
-      assert_int_equal(z, iz);
+    uint32_t last = (uint32_t)(((uint64_t)1 << level) - 1);
+    for (int n = 0; n < per_level; n++) {
+      uint32_t ix, iy, iz;
+      rng_cell(level, &ix, &iy, &iz);
+      if (corners && n == 0) ix = iy = iz = 0;
+      if (corners && n == 1) ix = iy = iz = last;
+      check(level, ix, iy, iz);
     }
   }
+}
+
+static void round_trip_cell(int level, uint32_t ix, uint32_t iy, uint32_t iz) {
+  oc_key_t k = oc_key_make(level, ix, iy, iz);
+  assert_true(oc_key_valid(k));
+  assert_int_equal(oc_key_level(k), level);
+  uint32_t x, y, z;
+  oc_key_coords(k, &x, &y, &z);
+  assert_int_equal(x, ix);
+  assert_int_equal(y, iy);
+  assert_int_equal(z, iz);
+}
+
+static void test_key__make_coords_round_trip(void **state) {
+  (void)state;
+  each_cell(2000, 1, round_trip_cell);
 }
 
 static void test_key__invalid_rejected(void **state) {
@@ -126,8 +145,8 @@ static void test_key__parent_child_ancestor(void **state) {
   (void)state;
   for (int n = 0; n < 5000; n++) {
     int level = (int)rng_below(21); /* 0..20: has children */
-    uint64_t side = (uint64_t)1 << level;
-    uint32_t ix = rng_below(side), iy = rng_below(side), iz = rng_below(side);
+    uint32_t ix, iy, iz;
+    rng_cell(level, &ix, &iy, &iz);
     oc_key_t k = oc_key_make(level, ix, iy, iz);
     for (int i = 0; i < 8; i++) {
       oc_key_t c = oc_key_child(k, i);
@@ -215,33 +234,32 @@ static void test_key__size_exact(void **state) {
   assert_true(co.x == po.x + cs && co.y == po.y + cs && co.z == po.z + cs);
 }
 
+static void bounds_cell(int level, uint32_t ix, uint32_t iy, uint32_t iz) {
+  uint32_t last = (uint32_t)(((uint64_t)1 << level) - 1);
+  oc_key_t k = oc_key_make(level, ix, iy, iz);
+  oc_dvec3 o, c = oc_key_center(k);
+  double size;
+  oc_key_bounds(k, &o, &size);
+  assert_true(o.x == -S + (double)ix * size && o.z == -S + (double)iz * size);
+  assert_true(c.x == o.x + 0.5 * size && c.y == o.y + 0.5 * size && c.z == o.z + 0.5 * size);
+  /* Centre and origin map back; the max corner belongs to the upper neighbour (or, on the
+   * root's max face, to this last cell). */
+  assert_true(oc_key_from_point(level, c) == k);
+  assert_true(oc_key_from_point(level, o) == k);
+  oc_dvec3 top = oc_dv3(o.x + size, o.y + size, o.z + size);
+  oc_key_t up = oc_key_from_point(level, top);
+  uint32_t ux = ix < last ? ix + 1 : ix, uy = iy < last ? iy + 1 : iy, uz = iz < last ? iz + 1 : iz;
+  assert_true(up == oc_key_make(level, ux, uy, uz));
+  /* A random interior point maps to this key, and its ancestors' keys to the ancestors. */
+  oc_dvec3 p = oc_dv3(o.x + size * (0.001 + 0.998 * rng_unit()), o.y + size * (0.001 + 0.998 * rng_unit()),
+                      o.z + size * (0.001 + 0.998 * rng_unit()));
+  assert_true(oc_key_from_point(level, p) == k);
+  for (int a = 0; a < level; a++) assert_true(oc_key_from_point(a, p) == oc_key_ancestor(k, a));
+}
+
 static void test_key__bounds_from_point_consistent(void **state) {
   (void)state;
-  for (int level = 0; level <= OC_KEY_MAX_LEVEL; level++) {
-    uint64_t side = (uint64_t)1 << level;
-    for (int n = 0; n < 1000; n++) {
-      uint32_t ix = rng_below(side), iy = rng_below(side), iz = rng_below(side);
-      oc_key_t k = oc_key_make(level, ix, iy, iz);
-      oc_dvec3 o, c = oc_key_center(k);
-      double size;
-      oc_key_bounds(k, &o, &size);
-      assert_true(o.x == -S + (double)ix * size && o.z == -S + (double)iz * size);
-      assert_true(c.x == o.x + 0.5 * size && c.y == o.y + 0.5 * size && c.z == o.z + 0.5 * size);
-      /* Centre and origin map back; the max corner belongs to the upper neighbour (or, on the
-       * root's max face, to this last cell). */
-      assert_true(oc_key_from_point(level, c) == k);
-      assert_true(oc_key_from_point(level, o) == k);
-      oc_dvec3 top = oc_dv3(o.x + size, o.y + size, o.z + size);
-      oc_key_t up = oc_key_from_point(level, top);
-      uint32_t ux = ix + 1 < side ? ix + 1 : ix, uy = iy + 1 < side ? iy + 1 : iy, uz = iz + 1 < side ? iz + 1 : iz;
-      assert_true(up == oc_key_make(level, ux, uy, uz));
-      /* A random interior point maps to this key, and its ancestors' keys to the ancestors. */
-      oc_dvec3 p = oc_dv3(o.x + size * (0.001 + 0.998 * rng_unit()), o.y + size * (0.001 + 0.998 * rng_unit()),
-                          o.z + size * (0.001 + 0.998 * rng_unit()));
-      assert_true(oc_key_from_point(level, p) == k);
-      for (int a = 0; a < level; a++) assert_true(oc_key_from_point(a, p) == oc_key_ancestor(k, a));
-    }
-  }
+  each_cell(1000, 0, bounds_cell);
 }
 
 static void test_key__from_point_outside(void **state) {
