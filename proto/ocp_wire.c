@@ -1,12 +1,14 @@
 /* ocp_wire.c — frames and messages of the Overcast wire protocol (ocp_wire.h; docs/protocol.md,
  * "Wire").
  *
- * Encoders pack field by field through oc_bytes.h; decoders read through an oc_reader_t after
- * checking the exact payload length first, so a short or long payload is reported as such rather
+ * Each message's fixed part is one table of fields ("Message layouts"): its wire width, its struct
+ * member and the rule an honest peer keeps. One encoder and one decoder walk every table; the
+ * decoder checks the payload length first, so a short or long payload is reported as such rather
  * than as whatever field happened to be cut. Every check a decoder makes is one an honest peer
  * never fails: the code above sees only well-formed messages. */
 #include "ocp_wire.h"
 
+#include <assert.h>
 #include <inttypes.h> /* PRIu32, PRIu64 */
 #include <math.h>     /* isfinite, fabs */
 #include <stdarg.h>
@@ -165,97 +167,338 @@ void ocp_frame_end(oc_buf_t *b, size_t header_offset) {
   oc_put_u32(b->data + header_offset + 4, (uint32_t)n);
 }
 
+/*-*** Message layouts ***/
+
+/* Every message's fixed part is one table of fields in wire order, read by one encoder (ocp__put) and
+ * one decoder (ocp__get, ocp__check), so a field's width, place and rule are written down once. */
+
+typedef enum {
+  OCP__UINT,  /* unsigned integer of `wire` bytes; its member may be wider (kept_states is an int) */
+  OCP__F64,   /* double */
+  OCP__DVEC3, /* three doubles x, y, z */
+  OCP__BYTES, /* `wire` raw bytes (a u8 array member of as many) */
+  OCP__PAD,   /* reserved bytes: sent as zero, refused unless zero; no member */
+  OCP__TAIL,  /* u16 length of the variable part that follows the fixed part (name, token, text) */
+} ocp__kind_t;
+
+typedef enum {
+  OCP__ANY,     /* no check */
+  OCP__NONZERO, /* integer ≠ 0 */
+  OCP__MAX,     /* integer ≤ hi */
+  OCP__IN,      /* integer in lo..hi */
+  OCP__MASK,    /* integer with no bit outside hi */
+  OCP__FINITE,  /* double or vector: finite */
+  OCP__NONNEG,  /* double: finite and ≥ 0 */
+  OCP__CLOSED,  /* double: finite and in [lo, hi] */
+  OCP__OPEN,    /* double in (lo, hi) */
+  OCP__UNIT,    /* vector: finite with |length − 1| ≤ hi */
+} ocp__rule_t;
+
+typedef struct {
+  uint8_t kind;     /* ocp__kind_t */
+  uint8_t wire;     /* bytes on the wire */
+  uint8_t size;     /* bytes of the struct member; 0: none */
+  uint16_t off;     /* offsetof the member */
+  const char *name; /* as reasons name it */
+  uint8_t rule;     /* ocp__rule_t */
+  uint8_t viewer;   /* a viewer's field: see ocp__peer_t */
+  double lo, hi;    /* the rule's bounds; OCP__UNIT: hi is the tolerance; OCP__TAIL: hi is the largest length */
+} ocp__field_t;
+
+_Static_assert(sizeof(oc_dvec3) == 24, "a vector member is three doubles, as on the wire");
+
+typedef struct {
+  const char *msg;          /* names the message in every reason */
+  const ocp__field_t *field;
+  size_t count;
+  size_t base, bytes;       /* where the fixed part starts in the payload, and its length */
+  size_t struct_size;       /* zeroed before decoding */
+  int var;                  /* a variable part follows (its length: OCP__TAIL, or the frame's) */
+} ocp__layout_t;
+
+/* Table rows, each naming the member m of the message struct T: an integer of w wire bytes (a viewer's:
+ * OCP__GRANT), a double, a vector, a byte array, reserved bytes, the variable part's length. */
+#define OCP__M(T, m) (uint8_t) sizeof(((T *)0)->m), (uint16_t)offsetof(T, m), #m
+#define OCP__INT(T, w, m, rule, lo, hi) {OCP__UINT, w, OCP__M(T, m), rule, 0, lo, hi}
+#define OCP__GRANT(T, w, m, rule, lo, hi) {OCP__UINT, w, OCP__M(T, m), rule, 1, lo, hi}
+#define OCP__DBL(T, m, rule, lo, hi) {OCP__F64, 8, OCP__M(T, m), rule, 0, lo, hi}
+#define OCP__VEC(T, m, rule, tol) {OCP__DVEC3, 24, OCP__M(T, m), rule, 0, 0, tol}
+#define OCP__RAW(T, m) {OCP__BYTES, sizeof(((T *)0)->m), OCP__M(T, m), OCP__ANY, 0, 0, 0}
+#define OCP__RES(w) {OCP__PAD, w, 0, 0, "reserved", OCP__ANY, 0, 0, 0}
+#define OCP__LEN(name, max) {OCP__TAIL, 2, 0, 0, name, OCP__ANY, 0, 0, max}
+#define OCP__LAYOUT(msg, T, fields, base, bytes, var) \
+  {msg, fields, sizeof fields / sizeof fields[0], base, bytes, sizeof(T), var}
+
+#define OCP__T ocp_hello_t
+static const ocp__field_t ocp__hello_fields[] = {
+    OCP__INT(OCP__T, 2, min_version, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 2, max_version, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 1, role, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 1, max_depth, OCP__MAX, 0, OCP__MAX_DEPTH),
+    {OCP__TAIL, 2, OCP__M(OCP__T, token_len), OCP__ANY, 0, 0, OCP_TOKEN_MAX},
+    OCP__GRANT(OCP__T, 8, budget, OCP__NONZERO, 0, 0),
+    OCP__GRANT(OCP__T, 4, slot_bytes, OCP__IN, 1, OCP__GPU_BYTES_MAX),
+    OCP__GRANT(OCP__T, 4, record_bytes, OCP__IN, 1, OCP__GPU_BYTES_MAX),
+    OCP__GRANT(OCP__T, 4, width, OCP__IN, 1, OCP__VIEWPORT_MAX),
+    OCP__GRANT(OCP__T, 4, height, OCP__IN, 1, OCP__VIEWPORT_MAX),
+    OCP__INT(OCP__T, 4, caps, OCP__MASK, 0, OCP_CAP_KNOWN),
+    OCP__GRANT(OCP__T, 4, resume_session, OCP__ANY, 0, 0),
+    OCP__GRANT(OCP__T, 8, resume_secret, OCP__ANY, 0, 0),
+    OCP__GRANT(OCP__T, 8, held_epoch, OCP__ANY, 0, 0),
+    OCP__GRANT(OCP__T, 8, held_checksum, OCP__ANY, 0, 0),
+};
+static const ocp__layout_t OCP__HELLO = OCP__LAYOUT("hello", OCP__T, ocp__hello_fields, 0, OCP__HELLO_BYTES, 1);
+#undef OCP__T
+
+#define OCP__T ocp_welcome_t
+static const ocp__field_t ocp__welcome_fields[] = {
+    OCP__INT(OCP__T, 2, version, OCP__NONZERO, 0, 0),
+    OCP__INT(OCP__T, 1, flags, OCP__MASK, 0, OCP_WELCOME_RESUMED),
+    OCP__INT(OCP__T, 1, kept_states, OCP__ANY, 0, 0), /* 0, 2 or 3: checked by ocp_get_welcome */
+    OCP__INT(OCP__T, 4, session, OCP__NONZERO, 0, 0),
+    OCP__INT(OCP__T, 8, secret, OCP__ANY, 0, 0),
+    OCP__GRANT(OCP__T, 8, budget, OCP__NONZERO, 0, 0),
+    OCP__GRANT(OCP__T, 4, slot_bytes, OCP__IN, 1, OCP__GPU_BYTES_MAX),
+    OCP__GRANT(OCP__T, 4, record_bytes, OCP__IN, 1, OCP__GPU_BYTES_MAX),
+    OCP__INT(OCP__T, 1, max_depth, OCP__MAX, 0, OCP__MAX_DEPTH),
+    OCP__RES(3),
+    OCP__INT(OCP__T, 4, features, OCP__ANY, 0, 0),
+    OCP__DBL(OCP__T, epoch_period, OCP__NONNEG, 0, 0),
+    OCP__DBL(OCP__T, planet_radius, OCP__NONNEG, 0, 0),
+    OCP__DBL(OCP__T, time, OCP__FINITE, 0, 0),
+    OCP__VEC(OCP__T, sun_dir, OCP__UNIT, OCP__SUN_TOL),
+    OCP__DBL(OCP__T, albedo, OCP__CLOSED, 0, 1),
+    OCP__DBL(OCP__T, ms_a, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, ms_b, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, ms_c, OCP__FINITE, 0, 0),
+    OCP__INT(OCP__T, 4, ms_octaves, OCP__ANY, 0, 0),
+    OCP__RES(4),
+    OCP__DBL(OCP__T, cam_lat, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, cam_lon, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, cam_alt, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, cam_heading, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, cam_pitch, OCP__FINITE, 0, 0),
+    OCP__DBL(OCP__T, cam_fov, OCP__FINITE, 0, 0),
+    OCP__LEN("name length", OCP_NAME_MAX),
+};
+static const ocp__layout_t OCP__WELCOME = OCP__LAYOUT("welcome", OCP__T, ocp__welcome_fields, 0, OCP__WELCOME_BYTES, 1);
+#undef OCP__T
+
+#define OCP__T ocp_camera_t
+static const ocp__field_t ocp__camera_fields[] = {
+    OCP__VEC(OCP__T, pos, OCP__FINITE, 0),
+    OCP__VEC(OCP__T, forward, OCP__UNIT, OCP__CAMERA_TOL),
+    OCP__VEC(OCP__T, up, OCP__UNIT, OCP__CAMERA_TOL),
+    OCP__DBL(OCP__T, vfov_deg, OCP__OPEN, 0, 180),
+    OCP__INT(OCP__T, 4, width, OCP__IN, 1, OCP__VIEWPORT_MAX),
+    OCP__INT(OCP__T, 4, height, OCP__IN, 1, OCP__VIEWPORT_MAX),
+};
+static const ocp__layout_t OCP__CAMERA = OCP__LAYOUT("camera", OCP__T, ocp__camera_fields, 0, OCP__CAMERA_BYTES, 0);
+#undef OCP__T
+
+static const ocp__field_t ocp__ack_fields[] = {
+    OCP__INT(ocp_ack_t, 8, epoch, OCP__ANY, 0, 0),
+    OCP__INT(ocp_ack_t, 8, checksum, OCP__ANY, 0, 0),
+};
+static const ocp__layout_t OCP__ACK = OCP__LAYOUT("ack", ocp_ack_t, ocp__ack_fields, 0, OCP__ACK_BYTES, 0);
+
+static const ocp__field_t ocp__budget_fields[] = {
+    OCP__INT(ocp_budget_t, 8, budget, OCP__ANY, 0, 0), /* ≠ 0: checked by ocp_get_budget */
+    OCP__INT(ocp_budget_t, 8, epoch, OCP__ANY, 0, 0),
+};
+static const ocp__layout_t OCP__BUDGET = OCP__LAYOUT("budget", ocp_budget_t, ocp__budget_fields, 0, OCP__BUDGET_BYTES, 0);
+
+static const ocp__field_t ocp__text_fields[] = {
+    OCP__INT(ocp_text_msg_t, 4, code, OCP__ANY, 0, 0),
+    OCP__LEN("text length", OCP_TEXT_MAX),
+};
+static const ocp__layout_t OCP__TEXT = OCP__LAYOUT("error/goodbye", ocp_text_msg_t, ocp__text_fields, 0, OCP__TEXT_BYTES, 1);
+
+#define OCP__T ocp_epoch_begin_t
+static const ocp__field_t ocp__epoch_begin_fields[] = {
+    OCP__INT(OCP__T, 8, epoch, OCP__ANY, 0, 0),
+    OCP__DBL(OCP__T, time, OCP__FINITE, 0, 0),
+    OCP__VEC(OCP__T, sun_dir, OCP__UNIT, OCP__SUN_TOL),
+    OCP__INT(OCP__T, 8, base_epoch, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, node_count, OCP__IN, 1, OC_STATE_MAX_NODES),
+    OCP__INT(OCP__T, 4, brick_count, OCP__IN, 0, OC_STATE_MAX_BRICKS),
+    OCP__INT(OCP__T, 4, bricks_sent, OCP__ANY, 0, 0),
+    OCP__RES(4),
+};
+static const ocp__layout_t OCP__EPOCH_BEGIN =
+    OCP__LAYOUT("epoch-begin", OCP__T, ocp__epoch_begin_fields, 0, OCP__EPOCH_BEGIN_BYTES, 0);
+#undef OCP__T
+
+static const ocp__field_t ocp__epoch_end_fields[] = {
+    OCP__INT(ocp_epoch_end_t, 8, epoch, OCP__ANY, 0, 0),
+    OCP__INT(ocp_epoch_end_t, 8, checksum, OCP__ANY, 0, 0),
+};
+static const ocp__layout_t OCP__EPOCH_END =
+    OCP__LAYOUT("epoch-end", ocp_epoch_end_t, ocp__epoch_end_fields, 0, OCP__EPOCH_END_BYTES, 0);
+
+#define OCP__T ocp_stats_t
+static const ocp__field_t ocp__stats_fields[] = {
+    OCP__INT(OCP__T, 8, epoch, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, leaves, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, splits, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, merges, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, deferred, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 8, coalesced, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 8, resident_bytes, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 8, wire_bytes, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 8, raw_bytes, OCP__ANY, 0, 0),
+    OCP__DBL(OCP__T, plan_ms, OCP__NONNEG, 0, 0),
+    OCP__DBL(OCP__T, produce_ms, OCP__NONNEG, 0, 0),
+    OCP__RES(16), /* the listed fields fill 72 of the 88 bytes */
+};
+/* version 2 appends these */
+static const ocp__field_t ocp__stats_v2_fields[] = {
+    OCP__INT(OCP__T, 4, queue, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, produced, OCP__ANY, 0, 0),
+    OCP__INT(OCP__T, 4, split_backlog, OCP__ANY, 0, 0),
+    OCP__RES(4),
+    OCP__RAW(OCP__T, age_p50),
+    OCP__RAW(OCP__T, age_p99),
+};
+static const ocp__layout_t OCP__STATS = OCP__LAYOUT("stats", OCP__T, ocp__stats_fields, 0, OCP__STATS_BYTES, 0);
+static const ocp__layout_t OCP__STATS_V2 = OCP__LAYOUT("stats", OCP__T, ocp__stats_v2_fields, OCP__STATS_BYTES,
+                                                       OCP__STATS_V2_BYTES - OCP__STATS_BYTES, 0);
+#undef OCP__T
+
+static const ocp__field_t ocp__control_fields[] = {
+    OCP__INT(ocp_control_t, 4, request, OCP__ANY, 0, 0),
+    OCP__INT(ocp_control_t, 4, status, OCP__ANY, 0, 0), /* an int32; ≥ 0: checked by ocp_get_control */
+};
+static const ocp__layout_t OCP__CONTROL = OCP__LAYOUT("control", ocp_control_t, ocp__control_fields, 0, OCP__CONTROL_BYTES, 1);
+
+/* An integer member of `size` bytes, widened. */
+static uint64_t ocp__member_uint(const uint8_t *q, size_t size) {
+  uint8_t u8;
+  uint16_t u16;
+  uint32_t u32;
+  uint64_t u64;
+  switch (size) {
+    case 1: return memcpy(&u8, q, 1), u8;
+    case 2: return memcpy(&u16, q, 2), u16;
+    case 4: return memcpy(&u32, q, 4), u32;
+    default: return memcpy(&u64, q, 8), u64;
+  }
+}
+
+static void ocp__set_member_uint(uint8_t *q, size_t size, uint64_t v) {
+  uint8_t u8 = (uint8_t)v;
+  uint16_t u16 = (uint16_t)v;
+  uint32_t u32 = (uint32_t)v;
+  switch (size) {
+    case 1: memcpy(q, &u8, 1); break;
+    case 2: memcpy(q, &u16, 2); break;
+    case 4: memcpy(q, &u32, 4); break;
+    default: memcpy(q, &v, 8); break;
+  }
+}
+
+static uint64_t ocp__wire_uint(const uint8_t *p, size_t wire) {
+  switch (wire) {
+    case 1: return oc_get_u8(p);
+    case 2: return oc_get_u16(p);
+    case 4: return oc_get_u32(p);
+    default: return oc_get_u64(p);
+  }
+}
+
+static void ocp__set_wire_uint(uint8_t *p, size_t wire, uint64_t v) {
+  switch (wire) {
+    case 1: oc_put_u8(p, (uint8_t)v); break;
+    case 2: oc_put_u16(p, (uint16_t)v); break;
+    case 4: oc_put_u32(p, (uint32_t)v); break;
+    default: oc_put_u64(p, v); break;
+  }
+}
+
+/* Appends the fixed part of m as laid out by l; `tail` is the OCP__TAIL length. */
+static void ocp__put(oc_buf_t *b, const ocp__layout_t *l, const void *m, uint16_t tail) {
+  uint8_t *q = oc_buf_grow(b, l->bytes);
+  if (!q) return;
+  const uint8_t *s = m;
+  for (size_t i = 0; i < l->count; i++) {
+    const ocp__field_t *f = &l->field[i];
+    const uint8_t *v = s + f->off;
+    switch (f->kind) {
+      case OCP__UINT: ocp__set_wire_uint(q, f->wire, ocp__member_uint(v, f->size)); break;
+      case OCP__DVEC3:
+      case OCP__F64:
+        for (size_t k = 0; k < f->wire; k += 8) {
+          double d;
+          memcpy(&d, v + k, 8);
+          oc_put_f64(q + k, d);
+        }
+        break;
+      case OCP__BYTES: memcpy(q, v, f->wire); break;
+      case OCP__PAD: memset(q, 0, f->wire); break;
+      case OCP__TAIL: oc_put_u16(q, tail); break;
+    }
+    q += f->wire;
+  }
+  assert(q == b->data + b->len); /* the table's widths add up to l->bytes */
+}
+
+/* Appends one whole frame: the fixed part of m, then `tail_len` bytes of tail. */
+static void ocp__put_frame(oc_buf_t *b, uint8_t version, uint8_t type, const ocp__layout_t *l, const void *m,
+                           const void *tail, size_t tail_len) {
+  size_t h = ocp_frame_begin(b, version, type);
+  ocp__put(b, l, m, (uint16_t)tail_len);
+  if (tail_len) oc_buf_append(b, tail, tail_len);
+  ocp_frame_end(b, h);
+}
+
+/* Reads the fixed part at p + l->base into m; checks nothing (ocp__check does). */
+static void ocp__read(const ocp__layout_t *l, const uint8_t *p, void *m) {
+  uint8_t *s = m;
+  p += l->base;
+  for (size_t i = 0; i < l->count; i++) {
+    const ocp__field_t *f = &l->field[i];
+    uint8_t *v = s + f->off;
+    switch (f->kind) {
+      case OCP__UINT: ocp__set_member_uint(v, f->size, ocp__wire_uint(p, f->wire)); break;
+      case OCP__DVEC3:
+      case OCP__F64:
+        for (size_t k = 0; k < f->wire; k += 8) {
+          double d = oc_get_f64(p + k);
+          memcpy(v + k, &d, 8);
+        }
+        break;
+      case OCP__BYTES: memcpy(v, p, f->wire); break;
+      case OCP__PAD: break;
+      case OCP__TAIL:
+        if (f->size) ocp__set_member_uint(v, f->size, oc_get_u16(p));
+        break;
+    }
+    p += f->wire;
+  }
+}
+
+
 /*-*** Encoders ***/
 
 void ocp_put_hello(oc_buf_t *b, const ocp_hello_t *m) {
   uint16_t t = m->token_len <= OCP_TOKEN_MAX ? m->token_len : OCP_TOKEN_MAX;
-  size_t h = ocp_frame_begin(b, (uint8_t)m->max_version, OCP_MSG_HELLO);
-  oc_buf_u16(b, m->min_version);
-  oc_buf_u16(b, m->max_version);
-  oc_buf_u8(b, m->role);
-  oc_buf_u8(b, m->max_depth);
-  oc_buf_u16(b, t);
-  oc_buf_u64(b, m->budget);
-  oc_buf_u32(b, m->slot_bytes);
-  oc_buf_u32(b, m->record_bytes);
-  oc_buf_u32(b, m->width);
-  oc_buf_u32(b, m->height);
-  oc_buf_u32(b, m->caps);
-  oc_buf_u32(b, m->resume_session);
-  oc_buf_u64(b, m->resume_secret);
-  oc_buf_u64(b, m->held_epoch);
-  oc_buf_u64(b, m->held_checksum);
-  oc_buf_append(b, m->token, t);
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, (uint8_t)m->max_version, OCP_MSG_HELLO, &OCP__HELLO, m, m->token, t);
 }
 
 void ocp_put_welcome(oc_buf_t *b, uint8_t version, const ocp_welcome_t *m) {
-  size_t n = strnlen(m->name, OCP_NAME_MAX);
-  size_t h = ocp_frame_begin(b, version, OCP_MSG_WELCOME);
-  oc_buf_u16(b, m->version);
-  oc_buf_u8(b, m->flags);
-  oc_buf_u8(b, m->kept_states);
-  oc_buf_u32(b, m->session);
-  oc_buf_u64(b, m->secret);
-  oc_buf_u64(b, m->budget);
-  oc_buf_u32(b, m->slot_bytes);
-  oc_buf_u32(b, m->record_bytes);
-  oc_buf_u8(b, m->max_depth);
-  oc_buf_u8(b, 0); /* reserved 33..35 */
-  oc_buf_u16(b, 0);
-  oc_buf_u32(b, m->features);
-  oc_buf_f64(b, m->epoch_period);
-  oc_buf_f64(b, m->planet_radius);
-  oc_buf_f64(b, m->time);
-  oc_buf_f64(b, m->sun_dir.x);
-  oc_buf_f64(b, m->sun_dir.y);
-  oc_buf_f64(b, m->sun_dir.z);
-  oc_buf_f64(b, m->albedo);
-  oc_buf_f64(b, m->ms_a);
-  oc_buf_f64(b, m->ms_b);
-  oc_buf_f64(b, m->ms_c);
-  oc_buf_u32(b, m->ms_octaves);
-  oc_buf_u32(b, 0); /* reserved 124..127 */
-  oc_buf_f64(b, m->cam_lat);
-  oc_buf_f64(b, m->cam_lon);
-  oc_buf_f64(b, m->cam_alt);
-  oc_buf_f64(b, m->cam_heading);
-  oc_buf_f64(b, m->cam_pitch);
-  oc_buf_f64(b, m->cam_fov);
-  oc_buf_u16(b, (uint16_t)n);
-  oc_buf_append(b, m->name, n);
-  ocp_frame_end(b, h);
-}
-
-static void ocp__buf_dvec3(oc_buf_t *b, oc_dvec3 v) {
-  oc_buf_f64(b, v.x);
-  oc_buf_f64(b, v.y);
-  oc_buf_f64(b, v.z);
+  ocp__put_frame(b, version, OCP_MSG_WELCOME, &OCP__WELCOME, m, m->name, strnlen(m->name, OCP_NAME_MAX));
 }
 
 void ocp_put_camera(oc_buf_t *b, uint8_t version, const ocp_camera_t *m) {
-  size_t h = ocp_frame_begin(b, version, OCP_MSG_CAMERA);
-  ocp__buf_dvec3(b, m->pos);
-  ocp__buf_dvec3(b, m->forward);
-  ocp__buf_dvec3(b, m->up);
-  oc_buf_f64(b, m->vfov_deg);
-  oc_buf_u32(b, m->width);
-  oc_buf_u32(b, m->height);
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, version, OCP_MSG_CAMERA, &OCP__CAMERA, m, NULL, 0);
 }
 
 void ocp_put_ack(oc_buf_t *b, uint8_t version, const ocp_ack_t *m) {
-  size_t h = ocp_frame_begin(b, version, OCP_MSG_ACK);
-  oc_buf_u64(b, m->epoch);
-  oc_buf_u64(b, m->checksum);
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, version, OCP_MSG_ACK, &OCP__ACK, m, NULL, 0);
 }
 
 void ocp_put_budget(oc_buf_t *b, uint8_t version, const ocp_budget_t *m) {
-  size_t h = ocp_frame_begin(b, version, OCP_MSG_BUDGET);
-  oc_buf_u64(b, m->budget);
-  oc_buf_u64(b, m->epoch);
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, version, OCP_MSG_BUDGET, &OCP__BUDGET, m, NULL, 0);
 }
 
 void ocp_put_text(oc_buf_t *b, uint8_t version, uint8_t type, uint32_t code, const char *text) {
@@ -265,11 +508,8 @@ void ocp_put_text(oc_buf_t *b, uint8_t version, uint8_t type, uint32_t code, con
     /* never cut inside a UTF-8 sequence: back up over continuation bytes */
     while (n > 0 && ((uint8_t)text[n] & 0xC0) == 0x80) n--;
   }
-  size_t h = ocp_frame_begin(b, version, type);
-  oc_buf_u32(b, code);
-  oc_buf_u16(b, (uint16_t)n);
-  oc_buf_append(b, text, n);
-  ocp_frame_end(b, h);
+  ocp_text_msg_t m = {.code = code};
+  ocp__put_frame(b, version, type, &OCP__TEXT, &m, text, n);
 }
 
 void ocp_put_empty(oc_buf_t *b, uint8_t version, uint8_t type) {
@@ -278,61 +518,25 @@ void ocp_put_empty(oc_buf_t *b, uint8_t version, uint8_t type) {
 }
 
 void ocp_put_epoch_begin(oc_buf_t *b, uint8_t version, const ocp_epoch_begin_t *m) {
-  size_t h = ocp_frame_begin(b, version, OCP_MSG_EPOCH_BEGIN);
-  oc_buf_u64(b, m->epoch);
-  oc_buf_f64(b, m->time);
-  ocp__buf_dvec3(b, m->sun_dir);
-  oc_buf_u64(b, m->base_epoch);
-  oc_buf_u32(b, m->node_count);
-  oc_buf_u32(b, m->brick_count);
-  oc_buf_u32(b, m->bricks_sent);
-  oc_buf_u32(b, 0); /* reserved */
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, version, OCP_MSG_EPOCH_BEGIN, &OCP__EPOCH_BEGIN, m, NULL, 0);
 }
 
 void ocp_put_epoch_end(oc_buf_t *b, uint8_t version, const ocp_epoch_end_t *m) {
-  size_t h = ocp_frame_begin(b, version, OCP_MSG_EPOCH_END);
-  oc_buf_u64(b, m->epoch);
-  oc_buf_u64(b, m->checksum);
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, version, OCP_MSG_EPOCH_END, &OCP__EPOCH_END, m, NULL, 0);
 }
 
 void ocp_put_stats(oc_buf_t *b, uint8_t version, const ocp_stats_t *m) {
   size_t h = ocp_frame_begin(b, version, OCP_MSG_STATS);
-  oc_buf_u64(b, m->epoch);
-  oc_buf_u32(b, m->leaves);
-  oc_buf_u32(b, m->splits);
-  oc_buf_u32(b, m->merges);
-  oc_buf_u32(b, m->deferred);
-  oc_buf_u64(b, m->coalesced);
-  oc_buf_u64(b, m->resident_bytes);
-  oc_buf_u64(b, m->wire_bytes);
-  oc_buf_u64(b, m->raw_bytes);
-  oc_buf_f64(b, m->plan_ms);
-  oc_buf_f64(b, m->produce_ms);
-  oc_buf_u64(b, 0); /* reserved 72..87: the listed fields fill 72 of the 88 bytes */
-  oc_buf_u64(b, 0);
-  if (version >= 2) {
-    oc_buf_u32(b, m->queue);
-    oc_buf_u32(b, m->produced);
-    oc_buf_u32(b, m->split_backlog);
-    oc_buf_u32(b, 0); /* reserved 100..103 */
-    oc_buf_append(b, m->age_p50, OCP_STATS_LEVELS);
-    oc_buf_append(b, m->age_p99, OCP_STATS_LEVELS);
-  }
+  ocp__put(b, &OCP__STATS, m, 0);
+  if (version >= 2) ocp__put(b, &OCP__STATS_V2, m, 0);
   ocp_frame_end(b, h);
 }
 
 void ocp_put_control(oc_buf_t *b, uint8_t version, uint8_t type, const ocp_control_t *m) {
-  size_t h = ocp_frame_begin(b, version, type);
-  oc_buf_u32(b, m->request);
-  oc_buf_u32(b, (uint32_t)m->status);
-  if (m->json_len) oc_buf_append(b, m->json, m->json_len);
-  ocp_frame_end(b, h);
+  ocp__put_frame(b, version, type, &OCP__CONTROL, m, m->json, m->json_len);
 }
 
 /*-*** Decoders ***/
-
 
 static void ocp__why_clear(char *why, size_t why_len) {
   if (why && why_len) why[0] = '\0';
@@ -344,12 +548,33 @@ static int ocp__exact(const char *msg, size_t n, size_t want, char *why, size_t 
   return oc_errorf(OC_ECORRUPT, why, why_len, "%s: payload is %zu bytes, expected %zu", msg, n, want);
 }
 
-static oc_dvec3 ocp__read_dvec3(oc_reader_t *r) {
-  oc_dvec3 v;
-  v.x = oc_read_f64(r);
-  v.y = oc_read_f64(r);
-  v.z = oc_read_f64(r);
-  return v;
+/* Starts a decoder: clears why and m, checks the payload length n (exactly l->bytes, or at least that when a
+ * variable part follows) and reads the fixed part. @return 0 or OC_ECORRUPT. */
+static int ocp__get(const ocp__layout_t *l, const uint8_t *p, size_t n, void *m, char *why, size_t why_len) {
+  ocp__why_clear(why, why_len);
+  memset(m, 0, l->struct_size);
+  if (!l->var) OC_TRY(ocp__exact(l->msg, n, l->bytes, why, why_len));
+  if (n < l->bytes)
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: payload is %zu bytes, shorter than %zu", l->msg, n, l->bytes);
+  ocp__read(l, p, m);
+  return 0;
+}
+
+/* The variable part after l's fixed part, as long as its OCP__TAIL field says (at most that field's hi) and
+ * filling the rest of the payload, is copied to dst. `text` names it when it must hold no NUL byte. */
+static int ocp__get_tail(const ocp__layout_t *l, const uint8_t *p, size_t n, const char *text, void *dst, char *why,
+                         size_t why_len) {
+  size_t pos = 0;
+  const ocp__field_t *f = l->field;
+  while (f->kind != OCP__TAIL) pos += f++->wire;
+  uint16_t len = oc_get_u16(p + pos);
+  if (len > f->hi)
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %u is above %u", l->msg, f->name, (unsigned)len, (unsigned)f->hi);
+  OC_TRY(ocp__exact(l->msg, n, l->bytes + len, why, why_len));
+  const uint8_t *q = p + l->bytes;
+  if (text && len && memchr(q, 0, len)) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s contains a NUL byte", l->msg, text);
+  if (len) memcpy(dst, q, len);
+  return 0;
 }
 
 static int ocp__dvec3_finite(oc_dvec3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
@@ -363,199 +588,112 @@ static int ocp__check_unit(const char *msg, const char *field, oc_dvec3 v, doubl
   return 0;
 }
 
-static int ocp__check_finite(const char *msg, const char *field, double x, char *why, size_t why_len) {
-  return isfinite(x) ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not finite", msg, field);
+static int ocp__check_uint(const char *msg, const ocp__field_t *f, uint64_t x, char *why, size_t why_len) {
+  uint64_t lo = (uint64_t)f->lo, hi = (uint64_t)f->hi;
+  switch (f->rule) {
+    case OCP__NONZERO:
+      return x ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is zero", msg, f->name);
+    case OCP__MAX:
+      return x <= hi ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %" PRIu64 " is above %" PRIu64, msg, f->name, x, hi);
+    case OCP__IN:
+      if (x >= lo && x <= hi) return 0;
+      return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %" PRIu64 " is outside %" PRIu64 "..%" PRIu64, msg, f->name, x, lo, hi);
+    case OCP__MASK:
+      return !(x & ~hi) ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s 0x%" PRIx64 " has unknown bits", msg, f->name, x);
+    default:
+      return 0;
+  }
 }
 
-static int ocp__check_range_u32(const char *msg, const char *field, uint32_t x, uint32_t lo, uint32_t hi, char *why,
-                                size_t why_len) {
-  if (x >= lo && x <= hi) return 0;
-  return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %" PRIu32 " is outside %" PRIu32 "..%" PRIu32, msg, field, x, lo, hi);
+static int ocp__check_f64(const char *msg, const ocp__field_t *f, double x, char *why, size_t why_len) {
+  if (f->rule != OCP__ANY && f->rule != OCP__OPEN && !isfinite(x))
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not finite", msg, f->name);
+  if (f->rule == OCP__NONNEG && x < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %g is negative", msg, f->name, x);
+  if (f->rule == OCP__CLOSED && (x < f->lo || x > f->hi))
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %g is outside [%g, %g]", msg, f->name, x, f->lo, f->hi);
+  if (f->rule == OCP__OPEN && !(x > f->lo && x < f->hi))
+    return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s %g is outside (%g, %g)", msg, f->name, x, f->lo, f->hi);
+  return 0;
 }
 
-static int ocp__check_zero(const char *msg, const char *field, uint64_t x, char *why, size_t why_len) {
-  return x == 0 ? 0 : oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not zero", msg, field);
+/* Whom a message's viewer fields (OCP__GRANT) come from: a viewer's are held to their rules, a control
+ * client's must be zero, and in a WELCOME without a grant they are not looked at. */
+typedef enum { OCP__PEER_VIEWER, OCP__PEER_CONTROL, OCP__PEER_NO_GRANT } ocp__peer_t;
+
+/* Checks the fields of l read into m, in wire order (reserved bytes from the payload p). */
+static int ocp__check(const ocp__layout_t *l, const uint8_t *p, const void *m, ocp__peer_t peer, char *why, size_t why_len) {
+  const uint8_t *s = m;
+  size_t pos = l->base;
+  for (size_t i = 0; i < l->count; pos += l->field[i].wire, i++) {
+    const ocp__field_t *f = &l->field[i];
+    const uint8_t *v = s + f->off;
+    if (f->viewer && peer == OCP__PEER_NO_GRANT) continue;
+    if (f->viewer && peer == OCP__PEER_CONTROL) {
+      if (ocp__member_uint(v, f->size)) return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s (control) is not zero", l->msg, f->name);
+      continue;
+    }
+    if (f->kind == OCP__UINT) OC_TRY(ocp__check_uint(l->msg, f, ocp__member_uint(v, f->size), why, why_len));
+    if (f->kind == OCP__F64) {
+      double x;
+      memcpy(&x, v, sizeof x);
+      OC_TRY(ocp__check_f64(l->msg, f, x, why, why_len));
+    }
+    if (f->kind == OCP__DVEC3) {
+      oc_dvec3 d;
+      memcpy(&d, v, sizeof d);
+      if (f->rule == OCP__FINITE && !ocp__dvec3_finite(d))
+        return oc_errorf(OC_ECORRUPT, why, why_len, "%s: %s is not finite", l->msg, f->name);
+      if (f->rule == OCP__UNIT) OC_TRY(ocp__check_unit(l->msg, f->name, d, f->hi, why, why_len));
+    }
+    if (f->kind == OCP__PAD)
+      for (size_t k = 0; k < f->wire; k++)
+        if (p[pos + k])
+          return oc_errorf(OC_ECORRUPT, why, why_len, "%s: reserved bytes %zu..%zu are not zero", l->msg, pos, pos + f->wire - 1);
+  }
+  return 0;
 }
 
 int ocp_get_hello(const uint8_t *p, size_t n, ocp_hello_t *m, char *why, size_t why_len) {
-  static const char *msg = "hello";
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  if (n < OCP__HELLO_BYTES)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: payload is %zu bytes, shorter than %d", n, OCP__HELLO_BYTES);
-  oc_reader_t r = oc_reader(p, n);
-  m->min_version = oc_read_u16(&r);
-  m->max_version = oc_read_u16(&r);
-  m->role = oc_read_u8(&r);
-  m->max_depth = oc_read_u8(&r);
-  m->token_len = oc_read_u16(&r);
-  m->budget = oc_read_u64(&r);
-  m->slot_bytes = oc_read_u32(&r);
-  m->record_bytes = oc_read_u32(&r);
-  m->width = oc_read_u32(&r);
-  m->height = oc_read_u32(&r);
-  m->caps = oc_read_u32(&r);
-  m->resume_session = oc_read_u32(&r);
-  m->resume_secret = oc_read_u64(&r);
-  m->held_epoch = oc_read_u64(&r);
-  m->held_checksum = oc_read_u64(&r);
-  if (m->token_len > OCP_TOKEN_MAX)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: token_len %u is above %d", (unsigned)m->token_len, OCP_TOKEN_MAX);
-  OC_TRY(ocp__exact(msg, n, (size_t)OCP__HELLO_BYTES + m->token_len, why, why_len));
-  const uint8_t *tok = oc_reader_take(&r, m->token_len);
-  if (r.err || !tok) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: truncated"); /* cannot happen after the length check */
-  if (m->token_len) memcpy(m->token, tok, m->token_len);
+  OC_TRY(ocp__get(&OCP__HELLO, p, n, m, why, why_len));
+  OC_TRY(ocp__get_tail(&OCP__HELLO, p, n, NULL, m->token, why, why_len));
   if (m->min_version > m->max_version)
     return oc_errorf(OC_ECORRUPT, why, why_len, "hello: min_version %u is above max_version %u", (unsigned)m->min_version,
                      (unsigned)m->max_version);
   if (m->role != OCP_ROLE_VIEWER && m->role != OCP_ROLE_CONTROL)
     return oc_errorf(OC_ECORRUPT, why, why_len, "hello: role %u is neither viewer (0) nor control (1)", (unsigned)m->role);
-  if (m->max_depth > OCP__MAX_DEPTH)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "hello: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
-  if (m->caps & ~OCP_CAP_KNOWN) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: caps 0x%" PRIx32 " has unknown bits", m->caps);
+  /* a control client's viewer fields are zero */
+  OC_TRY(ocp__check(&OCP__HELLO, p, m, m->role == OCP_ROLE_VIEWER ? OCP__PEER_VIEWER : OCP__PEER_CONTROL, why, why_len));
   if ((m->caps & OCP_CAP_DIGEST) && (m->caps & OCP_CAP_DELTA))
     return oc_errorf(OC_ECORRUPT, why, why_len,
                      "hello: caps 0x%" PRIx32 " combine digest (0x4) with delta (0x1): a viewer without codes cannot apply deltas",
                      m->caps);
-  if (m->role == OCP_ROLE_VIEWER) {
-    if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "hello: budget is zero");
-    OC_TRY(ocp__check_range_u32(msg, "slot_bytes", m->slot_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
-    OC_TRY(ocp__check_range_u32(msg, "record_bytes", m->record_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
-    OC_TRY(ocp__check_range_u32(msg, "width", m->width, 1, OCP__VIEWPORT_MAX, why, why_len));
-    OC_TRY(ocp__check_range_u32(msg, "height", m->height, 1, OCP__VIEWPORT_MAX, why, why_len));
-  } else { /* control: the viewer-only fields are zero */
-    OC_TRY(ocp__check_zero(msg, "budget (control)", m->budget, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "slot_bytes (control)", m->slot_bytes, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "record_bytes (control)", m->record_bytes, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "width (control)", m->width, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "height (control)", m->height, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "resume_session (control)", m->resume_session, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "resume_secret (control)", m->resume_secret, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "held_epoch (control)", m->held_epoch, why, why_len));
-    OC_TRY(ocp__check_zero(msg, "held_checksum (control)", m->held_checksum, why, why_len));
-  }
   return 0;
 }
 
 int ocp_get_welcome(const uint8_t *p, size_t n, ocp_welcome_t *m, char *why, size_t why_len) {
-  static const char *msg = "welcome";
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  if (n < OCP__WELCOME_BYTES)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: payload is %zu bytes, shorter than %d", n, OCP__WELCOME_BYTES);
-  oc_reader_t r = oc_reader(p, n);
-  m->version = oc_read_u16(&r);
-  m->flags = oc_read_u8(&r);
-  m->kept_states = oc_read_u8(&r);
-  m->session = oc_read_u32(&r);
-  m->secret = oc_read_u64(&r);
-  m->budget = oc_read_u64(&r);
-  m->slot_bytes = oc_read_u32(&r);
-  m->record_bytes = oc_read_u32(&r);
-  m->max_depth = oc_read_u8(&r);
-  uint32_t res0 = oc_read_u8(&r);
-  res0 |= oc_read_u16(&r);
-  m->features = oc_read_u32(&r);
-  m->epoch_period = oc_read_f64(&r);
-  m->planet_radius = oc_read_f64(&r);
-  m->time = oc_read_f64(&r);
-  m->sun_dir = ocp__read_dvec3(&r);
-  m->albedo = oc_read_f64(&r);
-  m->ms_a = oc_read_f64(&r);
-  m->ms_b = oc_read_f64(&r);
-  m->ms_c = oc_read_f64(&r);
-  m->ms_octaves = oc_read_u32(&r);
-  uint32_t res1 = oc_read_u32(&r);
-  m->cam_lat = oc_read_f64(&r);
-  m->cam_lon = oc_read_f64(&r);
-  m->cam_alt = oc_read_f64(&r);
-  m->cam_heading = oc_read_f64(&r);
-  m->cam_pitch = oc_read_f64(&r);
-  m->cam_fov = oc_read_f64(&r);
-  uint16_t name_len = oc_read_u16(&r);
-  if (name_len > OCP_NAME_MAX)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: name length %u is above %d", (unsigned)name_len, OCP_NAME_MAX);
-  OC_TRY(ocp__exact(msg, n, (size_t)OCP__WELCOME_BYTES + name_len, why, why_len));
-  const uint8_t *name = oc_reader_take(&r, name_len);
-  if (r.err || !name) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: truncated");
-  if (name_len && memchr(name, 0, name_len)) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: name contains a NUL byte");
-  if (name_len) memcpy(m->name, name, name_len);
-  m->name[name_len] = '\0';
-  if (m->version == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: version is zero");
-  if (m->flags & ~OCP_WELCOME_RESUMED)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: flags 0x%x has unknown bits", (unsigned)m->flags);
+  OC_TRY(ocp__get(&OCP__WELCOME, p, n, m, why, why_len));
+  OC_TRY(ocp__get_tail(&OCP__WELCOME, p, n, "name", m->name, why, why_len));
   if (m->kept_states != 0 && m->kept_states != 2 && m->kept_states != 3)
     return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: kept_states %u is not 0, 2 or 3", (unsigned)m->kept_states);
-  if (m->session == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: session is zero");
-  if (m->max_depth > OCP__MAX_DEPTH)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: max_depth %u is above %d", (unsigned)m->max_depth, OCP__MAX_DEPTH);
-  if (res0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: reserved bytes 33..35 are not zero");
-  if (res1) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: reserved bytes 124..127 are not zero");
-  if (m->kept_states) { /* a viewer's grant */
-    if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: budget is zero");
-    OC_TRY(ocp__check_range_u32(msg, "slot_bytes", m->slot_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
-    OC_TRY(ocp__check_range_u32(msg, "record_bytes", m->record_bytes, 1, OCP__GPU_BYTES_MAX, why, why_len));
-  }
-  OC_TRY(ocp__check_finite(msg, "epoch_period", m->epoch_period, why, why_len));
-  if (m->epoch_period < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: epoch_period %g is negative", m->epoch_period);
-  OC_TRY(ocp__check_finite(msg, "planet_radius", m->planet_radius, why, why_len));
-  if (m->planet_radius < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: planet_radius %g is negative", m->planet_radius);
-  OC_TRY(ocp__check_finite(msg, "time", m->time, why, why_len));
-  OC_TRY(ocp__check_unit(msg, "sun_dir", m->sun_dir, OCP__SUN_TOL, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "albedo", m->albedo, why, why_len));
-  if (m->albedo < 0 || m->albedo > 1) return oc_errorf(OC_ECORRUPT, why, why_len, "welcome: albedo %g is outside [0, 1]", m->albedo);
-  OC_TRY(ocp__check_finite(msg, "ms_a", m->ms_a, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "ms_b", m->ms_b, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "ms_c", m->ms_c, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "cam_lat", m->cam_lat, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "cam_lon", m->cam_lon, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "cam_alt", m->cam_alt, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "cam_heading", m->cam_heading, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "cam_pitch", m->cam_pitch, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "cam_fov", m->cam_fov, why, why_len));
-  return 0;
+  /* kept_states 0: a control client's WELCOME, without a grant */
+  return ocp__check(&OCP__WELCOME, p, m, m->kept_states ? OCP__PEER_VIEWER : OCP__PEER_NO_GRANT, why, why_len);
 }
 
 int ocp_get_camera(const uint8_t *p, size_t n, ocp_camera_t *m, char *why, size_t why_len) {
-  static const char *msg = "camera";
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact(msg, n, OCP__CAMERA_BYTES, why, why_len));
-  oc_reader_t r = oc_reader(p, n);
-  m->pos = ocp__read_dvec3(&r);
-  m->forward = ocp__read_dvec3(&r);
-  m->up = ocp__read_dvec3(&r);
-  m->vfov_deg = oc_read_f64(&r);
-  m->width = oc_read_u32(&r);
-  m->height = oc_read_u32(&r);
-  if (!ocp__dvec3_finite(m->pos)) return oc_errorf(OC_ECORRUPT, why, why_len, "camera: pos is not finite");
-  OC_TRY(ocp__check_unit(msg, "forward", m->forward, OCP__CAMERA_TOL, why, why_len));
-  OC_TRY(ocp__check_unit(msg, "up", m->up, OCP__CAMERA_TOL, why, why_len));
+  OC_TRY(ocp__get(&OCP__CAMERA, p, n, m, why, why_len));
+  OC_TRY(ocp__check(&OCP__CAMERA, p, m, OCP__PEER_VIEWER, why, why_len));
   double d = oc_ddot(m->forward, m->up);
   if (!(fabs(d) <= OCP__CAMERA_TOL))
     return oc_errorf(OC_ECORRUPT, why, why_len, "camera: forward and up are not orthogonal (dot %g)", d);
-  if (!(m->vfov_deg > 0 && m->vfov_deg < 180))
-    return oc_errorf(OC_ECORRUPT, why, why_len, "camera: vfov_deg %g is outside (0, 180)", m->vfov_deg);
-  OC_TRY(ocp__check_range_u32(msg, "width", m->width, 1, OCP__VIEWPORT_MAX, why, why_len));
-  OC_TRY(ocp__check_range_u32(msg, "height", m->height, 1, OCP__VIEWPORT_MAX, why, why_len));
   return 0;
 }
 
 int ocp_get_ack(const uint8_t *p, size_t n, ocp_ack_t *m, char *why, size_t why_len) {
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact("ack", n, OCP__ACK_BYTES, why, why_len));
-  m->epoch = oc_get_u64(p);
-  m->checksum = oc_get_u64(p + 8);
-  return 0;
+  return ocp__get(&OCP__ACK, p, n, m, why, why_len);
 }
 
 int ocp_get_budget(const uint8_t *p, size_t n, ocp_budget_t *m, char *why, size_t why_len) {
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact("budget", n, OCP__BUDGET_BYTES, why, why_len));
-  m->budget = oc_get_u64(p);
-  m->epoch = oc_get_u64(p + 8);
+  OC_TRY(ocp__get(&OCP__BUDGET, p, n, m, why, why_len));
   if (m->budget == 0) return oc_errorf(OC_ECORRUPT, why, why_len, "budget: budget is 0");
   return 0;
 }
@@ -568,19 +706,8 @@ uint32_t ocp_reconnect_delay_ms(const char *text) {
 }
 
 int ocp_get_text(const uint8_t *p, size_t n, ocp_text_msg_t *m, char *why, size_t why_len) {
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  if (n < OCP__TEXT_BYTES)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "error/goodbye: payload is %zu bytes, shorter than %d", n, OCP__TEXT_BYTES);
-  m->code = oc_get_u32(p);
-  uint16_t len = oc_get_u16(p + 4);
-  if (len > OCP_TEXT_MAX)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "error/goodbye: text length %u is above %d", (unsigned)len, OCP_TEXT_MAX);
-  OC_TRY(ocp__exact("error/goodbye", n, (size_t)OCP__TEXT_BYTES + len, why, why_len));
-  if (len && memchr(p + OCP__TEXT_BYTES, 0, len)) return oc_errorf(OC_ECORRUPT, why, why_len, "error/goodbye: text contains a NUL byte");
-  if (len) memcpy(m->text, p + OCP__TEXT_BYTES, len);
-  m->text[len] = '\0';
-  return 0;
+  OC_TRY(ocp__get(&OCP__TEXT, p, n, m, why, why_len));
+  return ocp__get_tail(&OCP__TEXT, p, n, "text", m->text, why, why_len);
 }
 
 int ocp_get_empty(const uint8_t *p, size_t n, char *why, size_t why_len) {
@@ -590,28 +717,12 @@ int ocp_get_empty(const uint8_t *p, size_t n, char *why, size_t why_len) {
 }
 
 int ocp_get_epoch_begin(const uint8_t *p, size_t n, ocp_epoch_begin_t *m, char *why, size_t why_len) {
-  static const char *msg = "epoch-begin";
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact(msg, n, OCP__EPOCH_BEGIN_BYTES, why, why_len));
-  oc_reader_t r = oc_reader(p, n);
-  m->epoch = oc_read_u64(&r);
-  m->time = oc_read_f64(&r);
-  m->sun_dir = ocp__read_dvec3(&r);
-  m->base_epoch = oc_read_u64(&r);
-  m->node_count = oc_read_u32(&r);
-  m->brick_count = oc_read_u32(&r);
-  m->bricks_sent = oc_read_u32(&r);
-  uint32_t res = oc_read_u32(&r);
-  if (res) return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: reserved bytes 60..63 are not zero");
-  OC_TRY(ocp__check_finite(msg, "time", m->time, why, why_len));
-  OC_TRY(ocp__check_unit(msg, "sun_dir", m->sun_dir, OCP__SUN_TOL, why, why_len));
+  OC_TRY(ocp__get(&OCP__EPOCH_BEGIN, p, n, m, why, why_len));
+  OC_TRY(ocp__check(&OCP__EPOCH_BEGIN, p, m, OCP__PEER_VIEWER, why, why_len));
   /* epochs only move forward, so a base is always older than the state built on it */
   if (m->base_epoch != OCP_NO_BASE && m->base_epoch >= m->epoch)
     return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: base_epoch %" PRIu64 " is not before epoch %" PRIu64, m->base_epoch,
                      m->epoch);
-  OC_TRY(ocp__check_range_u32(msg, "node_count", m->node_count, 1, OC_STATE_MAX_NODES, why, why_len));
-  OC_TRY(ocp__check_range_u32(msg, "brick_count", m->brick_count, 0, OC_STATE_MAX_BRICKS, why, why_len));
   if (m->bricks_sent > m->brick_count)
     return oc_errorf(OC_ECORRUPT, why, why_len, "epoch-begin: bricks_sent %" PRIu32 " is above brick_count %" PRIu32, m->bricks_sent,
                      m->brick_count);
@@ -622,62 +733,31 @@ int ocp_get_epoch_begin(const uint8_t *p, size_t n, ocp_epoch_begin_t *m, char *
 }
 
 int ocp_get_epoch_end(const uint8_t *p, size_t n, ocp_epoch_end_t *m, char *why, size_t why_len) {
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact("epoch-end", n, OCP__EPOCH_END_BYTES, why, why_len));
-  m->epoch = oc_get_u64(p);
-  m->checksum = oc_get_u64(p + 8);
-  return 0;
+  return ocp__get(&OCP__EPOCH_END, p, n, m, why, why_len);
 }
 
 int ocp_get_stats(uint8_t version, const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t why_len) {
-  static const char *msg = "stats";
   ocp__why_clear(why, why_len);
   memset(m, 0, sizeof *m);
-  OC_TRY(ocp__exact(msg, n, version >= 2 ? OCP__STATS_V2_BYTES : OCP__STATS_BYTES, why, why_len));
-  oc_reader_t r = oc_reader(p, n);
-  m->epoch = oc_read_u64(&r);
-  m->leaves = oc_read_u32(&r);
-  m->splits = oc_read_u32(&r);
-  m->merges = oc_read_u32(&r);
-  m->deferred = oc_read_u32(&r);
-  m->coalesced = oc_read_u64(&r);
-  m->resident_bytes = oc_read_u64(&r);
-  m->wire_bytes = oc_read_u64(&r);
-  m->raw_bytes = oc_read_u64(&r);
-  m->plan_ms = oc_read_f64(&r);
-  m->produce_ms = oc_read_f64(&r);
-  uint64_t res = oc_read_u64(&r);
-  res |= oc_read_u64(&r);
-  if (res) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: reserved bytes 72..87 are not zero");
+  OC_TRY(ocp__exact("stats", n, version >= 2 ? OCP__STATS_V2_BYTES : OCP__STATS_BYTES, why, why_len));
+  ocp__read(&OCP__STATS, p, m);
+  OC_TRY(ocp__check(&OCP__STATS, p, m, OCP__PEER_VIEWER, why, why_len));
   if (version >= 2) {
-    m->queue = oc_read_u32(&r);
-    m->produced = oc_read_u32(&r);
-    m->split_backlog = oc_read_u32(&r);
-    if (oc_read_u32(&r)) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: reserved bytes 100..103 are not zero");
-    memcpy(m->age_p50, p + 104, OCP_STATS_LEVELS);
-    memcpy(m->age_p99, p + 104 + OCP_STATS_LEVELS, OCP_STATS_LEVELS);
+    ocp__read(&OCP__STATS_V2, p, m);
+    OC_TRY(ocp__check(&OCP__STATS_V2, p, m, OCP__PEER_VIEWER, why, why_len));
     for (int l = 0; l < OCP_STATS_LEVELS; l++)
       if (m->age_p50[l] > m->age_p99[l])
         return oc_errorf(OC_ECORRUPT, why, why_len, "stats: level %d's age p50 %u is over its p99 %u", l, m->age_p50[l],
                          m->age_p99[l]);
   }
-  OC_TRY(ocp__check_finite(msg, "plan_ms", m->plan_ms, why, why_len));
-  OC_TRY(ocp__check_finite(msg, "produce_ms", m->produce_ms, why, why_len));
-  if (m->plan_ms < 0 || m->produce_ms < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "stats: negative plan_ms or produce_ms");
   return 0;
 }
 
 int ocp_get_control(const uint8_t *p, size_t n, ocp_control_t *m, char *why, size_t why_len) {
-  ocp__why_clear(why, why_len);
-  memset(m, 0, sizeof *m);
-  if (n < OCP__CONTROL_BYTES)
-    return oc_errorf(OC_ECORRUPT, why, why_len, "control: payload is %zu bytes, shorter than %d", n, OCP__CONTROL_BYTES);
+  OC_TRY(ocp__get(&OCP__CONTROL, p, n, m, why, why_len));
   if (n - OCP__CONTROL_BYTES > OCP__CONTROL_JSON_MAX)
     return oc_errorf(OC_ECORRUPT, why, why_len, "control: json of %zu bytes is above %u", n - OCP__CONTROL_BYTES,
                      (unsigned)OCP__CONTROL_JSON_MAX);
-  m->request = oc_get_u32(p);
-  m->status = (int32_t)oc_get_u32(p + 4);
   m->json_len = (uint32_t)(n - OCP__CONTROL_BYTES);
   m->json = (const char *)p + OCP__CONTROL_BYTES;
   if (m->status < 0) return oc_errorf(OC_ECORRUPT, why, why_len, "control: status %" PRId32 " is negative", m->status);
