@@ -38,28 +38,30 @@
 
 /*-*** Names and codes ***/
 
+/* The names of message types and the texts of wire codes, as {value, string} rows of their maps. */
+typedef struct {
+  uint32_t val;
+  const char *str;
+} ocp__name_t;
+
+#define OCP__NAME_ROW(name, val, str) {(val), (str)},
+static const ocp__name_t ocp__msg_names[] = {OCP_MSG_MAP(OCP__NAME_ROW)};
+static const ocp__name_t ocp__code_texts[] = {OCP_CODE_MAP(OCP__NAME_ROW)};
+#undef OCP__NAME_ROW
+
+static const char *ocp__name_of(const ocp__name_t *t, size_t count, uint32_t val, const char *none) {
+  for (size_t i = 0; i < count; i++)
+    if (t[i].val == val) return t[i].str;
+  return none;
+}
+
 const char *ocp_msg_name(int type) {
-  switch (type) {
-#define OCP__MSG_NAME(name, val, str) \
-  case (val):                         \
-    return str;
-    OCP_MSG_MAP(OCP__MSG_NAME)
-#undef OCP__MSG_NAME
-    default:
-      return NULL;
-  }
+  if (type < 0) return NULL;
+  return ocp__name_of(ocp__msg_names, sizeof ocp__msg_names / sizeof ocp__msg_names[0], (uint32_t)type, NULL);
 }
 
 const char *ocp_code_text(uint32_t code) {
-  switch (code) {
-#define OCP__CODE_TEXT(name, val, str) \
-  case (val):                          \
-    return str;
-    OCP_CODE_MAP(OCP__CODE_TEXT)
-#undef OCP__CODE_TEXT
-    default:
-      return "unknown code";
-  }
+  return ocp__name_of(ocp__code_texts, sizeof ocp__code_texts / sizeof ocp__code_texts[0], code, "unknown code");
 }
 
 uint32_t ocp_code_from_err(int err) {
