@@ -233,18 +233,21 @@ static oc__ids_t oc__ids_lean(const oc_brick_digests_t *b) {
   return (oc__ids_t){(const uint8_t *)b->ids, sizeof *b->ids, b->count};
 }
 
-/* Index of id in the ascending list, or -1. */
-static int64_t oc__ids_find(const oc__ids_t *v, uint32_t id) {
-  uint32_t a = 0, b = v->n;
+int64_t oc_ids_find(const void *first, size_t stride, uint32_t n, uint32_t id) {
+  oc__ids_t v = {first, stride, n};
+  uint32_t a = 0, b = n;
   while (a < b) {
     uint32_t m = a + (b - a) / 2;
-    if (oc__id_at(v, m) < id)
+    if (oc__id_at(&v, m) < id)
       a = m + 1;
     else
       b = m;
   }
-  return a < v->n && oc__id_at(v, a) == id ? (int64_t)a : -1;
+  return a < n && oc__id_at(&v, a) == id ? (int64_t)a : -1;
 }
+
+/* Index of id in the ascending list, or -1. */
+static int64_t oc__ids_find(const oc__ids_t *v, uint32_t id) { return oc_ids_find(v->p, v->stride, v->n, id); }
 
 /* Every brick node's id resolves, and every brick is referenced exactly once. With `codes` (the
  * full state's bricks, in the order of ids), zero channels also have all-zero codes. */
@@ -362,15 +365,8 @@ int64_t oc_state_find_leaf(const oc_state_t *s, oc_key_t key21) {
 
 const oc_brick_t *oc_state_find_brick(const oc_state_t *s, uint32_t id) {
   if (!s || !s->brick_count) return NULL;
-  uint32_t a = 0, b = s->brick_count;
-  while (a < b) {
-    uint32_t m = a + (b - a) / 2;
-    if (s->bricks[m].id < id)
-      a = m + 1;
-    else
-      b = m;
-  }
-  return a < s->brick_count && s->bricks[a].id == id ? &s->bricks[a] : NULL;
+  int64_t k = oc_ids_find(&s->bricks[0].id, sizeof *s->bricks, s->brick_count, id);
+  return k < 0 ? NULL : &s->bricks[k];
 }
 
 /*-*** Budget ***/

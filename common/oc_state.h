@@ -81,6 +81,9 @@ int64_t oc_state_find_node(const oc_state_t *s, oc_key_t key);
 int64_t oc_state_find_leaf(const oc_state_t *s, oc_key_t key21);
 /*! oc_state_find_brick() : the brick with this id, or NULL. O(log n). */
 const oc_brick_t *oc_state_find_brick(const oc_state_t *s, uint32_t id);
+/*! oc_ids_find() : index of `id` among n ascending u32 ids, the first at `first` and each next one
+ *  `stride` bytes on (the id member of an array of structs, or a plain list), or -1. O(log n). */
+int64_t oc_ids_find(const void *first, size_t stride, uint32_t n, uint32_t id);
 
 /*! oc_state_serialized_size() : exact bytes of the serialisation (header, records, bricks, checksum). */
 size_t oc_state_serialized_size(const oc_state_t *s);

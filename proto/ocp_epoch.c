@@ -712,15 +712,9 @@ static int ocp__records_done(ocp_epoch_dec_t *d, char *why, size_t why_len) {
 }
 
 static ocp__ref_t *ocp__find_ref(ocp_epoch_dec_t *d, uint32_t id) {
-  uint32_t a = 0, b = d->nrefs;
-  while (a < b) {
-    uint32_t m = a + (b - a) / 2;
-    if (d->refs[m].id < id)
-      a = m + 1;
-    else
-      b = m;
-  }
-  return a < d->nrefs && d->refs[a].id == id ? &d->refs[a] : NULL;
+  if (!d->nrefs) return NULL;
+  int64_t k = oc_ids_find(&d->refs[0].id, sizeof *d->refs, d->nrefs, id);
+  return k < 0 ? NULL : &d->refs[k];
 }
 
 /* A zero channel's codes are all zero (one byte form per content; oc_state_validate's rule, for a
