@@ -119,6 +119,7 @@ typedef struct {
   const ocv_path_t *path; /* --path: the camera of frame f is its pose at f / fps */
   double fps;
   int hud;                 /* --hud: the HUD drawn into headless frames too */
+  double frame_ms;         /* --frame-ms: the window's frame-time target (0: off, full resolution) */
 } view_opts_t;
 
 /* The render description for the scene's optics and features; the caller sets size and camera. */
@@ -418,6 +419,8 @@ static int screenshot(const view_win_t *v, int w, int h, const uint8_t *rgb, int
   return 0;
 }
 
+enum { WIN_OVERLAY_H = 48, WIN_ARRIVALS = 16, WIN_STATS_S = 5 };
+
 /* The window loop's state between frames. */
 typedef struct {
   ocv_gl_renderer_t *r;
@@ -429,15 +432,17 @@ typedef struct {
   int repush;      /* a store resized for BUDGET takes the newest state again */
   int cam_dirty;
   uint64_t epoch, welcomes_seen, budgets_seen, bytes_prev;
-  double shown_at, bytes_at, bytes_rate, frame_ms, title_at;
+  double shown_at, bytes_at, bytes_rate, frame_ms, title_at; /* frame_ms: the whole last frame */
   ocv_gl_view_stats_t vs;
   ocv_net_status_t ns;
   uint8_t *overlay; /* the HUD: premultiplied RGBA8, the frame's width × WIN_OVERLAY_H */
   GLuint picture;
   int iw, ih;
+  struct { uint64_t epoch; double at; } arrived[WIN_ARRIVALS]; /* when the newest states arrived */
+  uint64_t newest; /* the newest epoch received */
+  double stats_at, shown_lag; /* the last stats line; the shown state's wait from arrival to screen */
+  long stats_frames;
 } win_loop_t;
-
-enum { WIN_OVERLAY_H = 48 };
 
 /* Drops the GL view and the atmosphere: the next WELCOME builds them again. */
 static void win_unready(win_loop_t *L) {
@@ -461,7 +466,8 @@ static int win_welcome(view_win_t *v, win_loop_t *L) {
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
   ocv_gl_view_desc_t vd = {.grant = w->grant, /* the contract as granted: the atlas is sized from it */
                            .animated = (w->features >> OC_FEATURE_ANIMATION) & 1u,
-                           .epoch_period = w->epoch_period > 0 ? w->epoch_period : 1.0};
+                           .epoch_period = w->epoch_period > 0 ? w->epoch_period : 1.0,
+                           .frame_ms = v->o.frame_ms};
   if (!(L->view = ocv_gl_view_create(L->r, &vd, why, sizeof why)))
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL view: %s", why);
   L->scene_ready = 1;
@@ -496,6 +502,11 @@ static int win_net(view_win_t *v, win_loop_t *L, double t) {
   L->budgets_seen = L->ns.budgets;
   int rc;
   if (!L->scene_ready && L->ns.have_welcome && (rc = win_welcome(v, L)) != OC_EXIT_OK) return rc;
+  if (L->ns.states > 0 && L->ns.epoch != L->newest) { /* arrived (to within a frame): for the state's age */
+    L->newest = L->ns.epoch;
+    L->arrived[L->newest % WIN_ARRIVALS].epoch = L->newest;
+    L->arrived[L->newest % WIN_ARRIVALS].at = t;
+  }
   uint64_t e;
   /* the newest state, once the one uploading is complete: replacing it every time a newer one came
    * kept a slow window (llvmpipe, 1280×720) on its first state for minutes */
@@ -558,7 +569,8 @@ static void win_keys(view_win_t *v, win_loop_t *L, const ocv_window_input_t *in,
 static void win_hud(const view_win_t *v, win_loop_t *L, double t0, int oh) {
   memset(L->overlay, 0, (size_t)L->iw * WIN_OVERLAY_H * 4);
   ocv_hud_stats_t hs = {.frame_ms = L->frame_ms, .epoch = L->epoch, .epoch_age_s = t0 - L->shown_at,
-                        .bricks = L->vs.bricks,
+                        .bricks = L->vs.bricks, .trace_w = L->vs.trace_w, .trace_h = L->vs.trace_h,
+                        .trace_scale = L->vs.scale,
                         .resident_bytes = L->vs.resident_bytes,
                         .budget_bytes = v->net ? L->ns.welcome.grant.budget : L->vs.resident_bytes,
                         .bytes_per_s = L->bytes_rate, .renderer = L->reproject ? "gl, reprojected" : "gl"};
@@ -591,14 +603,19 @@ static int win_draw(view_win_t *v, win_loop_t *L, const ocv_window_input_t *in, 
   double t0 = now_s();
   if (ocv_gl_view_frame(L->view, &d, t0, L->reproject, NULL, &L->vs, why, sizeof why) < 0)
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "render failed: %s", why);
-  L->frame_ms = 1e3 * (now_s() - t0);
   if (L->vs.shown) {
-    if (L->vs.epoch != L->epoch) L->shown_at = t0;
+    if (L->vs.epoch != L->epoch) { /* a new state on screen: its age counts from its arrival */
+      const uint64_t e = L->vs.epoch;
+      L->shown_at = L->arrived[e % WIN_ARRIVALS].epoch == e ? L->arrived[e % WIN_ARRIVALS].at : t0;
+      L->shown_lag = t0 - L->shown_at;
+    }
     L->epoch = L->vs.epoch;
     int oh = L->ih < WIN_OVERLAY_H ? L->ih : WIN_OVERLAY_H;
     if (L->hud) win_hud(v, L, t0, oh);
-    L->picture = ocv_gl_present_tonemap(L->present, ocv_gl_view_output(L->view), L->iw, L->ih, (float)v->o.exposure,
-                                        L->hud ? L->overlay : NULL, L->iw, oh, why, sizeof why);
+    /* traced at vs.trace_w × vs.trace_h (the frame-time target), upsampled to the window */
+    L->picture = ocv_gl_present_upsample(L->present, ocv_gl_view_output(L->view), L->vs.trace_w, L->vs.trace_h, L->iw,
+                                         L->ih, (float)v->o.exposure, L->hud ? L->overlay : NULL, L->iw, oh, why,
+                                         sizeof why);
     if (!L->picture) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
     *drawn = 1;
   }
@@ -641,13 +658,28 @@ static void win_title(const view_win_t *v, win_loop_t *L, double t) {
   L->title_at = t;
 }
 
+/* Every WIN_STATS_S s, a line for benchmarks (scripts/window_fps.sh): frames/s, the traced size, and
+ * the shown state against the newest received. */
+static void win_stats(const view_win_t *v, win_loop_t *L, double t, int drawn) {
+  L->stats_frames += drawn;
+  if (t - L->stats_at < WIN_STATS_S) return;
+  if (L->have_gs)
+    oc_log_info("window: %.2f frames/s over %.1f s, trace %dx%d (1/%d) of %dx%d, epoch %llu shown (%.2f s from its "
+                "arrival to the screen), newest received %llu, %s",
+                (double)L->stats_frames / (t - L->stats_at), t - L->stats_at, L->vs.trace_w, L->vs.trace_h, L->vs.scale,
+                L->iw, L->ih, (unsigned long long)L->epoch, L->shown_lag,
+                (unsigned long long)(v->net ? L->newest : L->epoch), L->reproject ? "reprojected" : "every pixel traced");
+  L->stats_at = t;
+  L->stats_frames = 0;
+}
+
 /* One local state (--state, --scene): a GL view whose budget holds it, nothing to blend. */
 static int win_local_state(view_win_t *v, win_loop_t *L) {
   char why[1024];
   /* K = 2 (the state and none staged beside it) with the GL store's own sizes */
   oc_budget_t g = {.slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 2};
   g.budget = ((uint64_t)v->st->brick_count + 2) * (OC_SLOT_BYTES + OC_RECORD_BYTES); /* ≥ the minimum */
-  ocv_gl_view_desc_t vd = {.grant = g};
+  ocv_gl_view_desc_t vd = {.grant = g, .frame_ms = v->o.frame_ms};
   if (!(L->view = ocv_gl_view_create(L->r, &vd, why, sizeof why)) || ocv_gl_view_push(L->view, v->st, why, sizeof why) < 0)
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL state upload: %s", why);
   L->have_gs = 1;
@@ -657,14 +689,14 @@ static int win_local_state(view_win_t *v, win_loop_t *L) {
 static int run_window(view_win_t *v) {
   char why[1024];
   int rc = OC_EXIT_OK;
-  win_loop_t L = {.hud = 1, .weather = OC_PRESET_FAIR, .cam_dirty = 1};
+  win_loop_t L = {.hud = 1, .reproject = 1, .weather = OC_PRESET_FAIR, .cam_dirty = 1};
   if (!(L.r = ocv_gl_renderer_create(why, sizeof why))) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL renderer: %s", why);
   if (!(L.present = ocv_gl_present_create(why, sizeof why))) {
     ocv_gl_renderer_free(L.r);
     return oc_cli_fail(prog, OC_EXIT_RUNTIME, "GL picture: %s", why);
   }
   L.epoch = v->have_state ? v->st->epoch : 0;
-  L.shown_at = L.bytes_at = now_s();
+  L.shown_at = L.bytes_at = L.stats_at = now_s();
   L.scene_ready = !v->net;
   if (L.scene_ready && make_atmo(v->sc, v->o.threads, &L.atmo) < 0)
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "could not build the atmosphere tables");
@@ -685,6 +717,13 @@ static int run_window(view_win_t *v) {
       break;
     }
     if (in.presses[OCV_ACT_SCREENSHOT]) win_screenshot(v, &L, drawn, ms_octaves);
+    /* the whole frame (network, keys, render, picture, swap): what the frame-time target keeps */
+    double end = now_s();
+    if (drawn) {
+      L.frame_ms = 1e3 * (end - t);
+      ocv_gl_view_frame_time(L.view, L.frame_ms);
+    }
+    win_stats(v, &L, end, drawn);
     win_title(v, &L, t);
   }
   free(L.overlay);
@@ -738,8 +777,8 @@ static int opt_renderer(const char *p, const oc_cli_opt_t *o, const char *text, 
 /* Rows indexed by R_*, so that given[R_*] says what the command line holds. */
 enum { R_STATE, R_SCENE, R_CONNECT, R_TOKEN, R_BUDGET, R_MAX_DEPTH, R_WAIT_EPOCHS, R_EPOCHS, R_STEP, R_TIMEOUT,
        R_WINDOW, R_HEADLESS, R_CAMERA, R_CAMERA_FROM, R_SIZE, R_FRAMES, R_OUT, R_RENDERER, R_STEP_FACTOR, R_EXPOSURE,
-       R_MS_OCTAVES, R_JITTER, R_THREADS, R_SAVE_STATE, R_PATH, R_FPS, R_HUD, R_RECORD, R_QUIET, R_HELP, R_VERSION,
-       R_COUNT };
+       R_MS_OCTAVES, R_JITTER, R_THREADS, R_SAVE_STATE, R_PATH, R_FPS, R_HUD, R_RECORD, R_FRAME_MS, R_QUIET, R_HELP,
+       R_VERSION, R_COUNT };
 
 #define SOURCE "source (one of)"
 #define NETWORK "network (with --connect or --scene)"
@@ -828,6 +867,11 @@ static const oc_cli_opt_t opts[R_COUNT + 1] = {
                .help = "headless: draw the HUD into the frames too (the window has it on H)"},
     [R_RECORD] = {.name = "record", .type = OC_CLI_STRING, .offset = AT(record_path), .arg = "FILE",
                   .group = RENDER, .help = "window: record the flight as a camera path (saved at exit)"},
+    [R_FRAME_MS] = {.name = "frame-ms", .type = OC_CLI_DOUBLE, .offset = AT(vo.frame_ms), .arg = "MS", .lo = 0,
+                    .hi = 60000, .def = "100", .group = RENDER,
+                    .help = "window: the frame-time target, kept by tracing at full, 1/2, 1/4 or 1/8 of the size "
+                            "per axis (upsampled; the HUD shows the traced size), starting at the coarsest; 0: "
+                            "every frame traced at full size"},
     [R_QUIET] = {.name = "quiet", .short_name = 'q', .type = OC_CLI_FLAG, .offset = AT(quiet), .group = OTHER,
                  .help = "only errors"},
     [R_HELP] = {.name = "help", .type = OC_CLI_HELP, .group = OTHER, .help = "print this and exit"},
@@ -845,7 +889,7 @@ static const oc_cli_spec_t spec = {
               "  [ ]                        step factor × / ÷ 1.25\n"
               "  - =                        exposure ÷ / × 1.25\n"
               "  F12 or P                   screenshot (PNG with the camera in a text chunk, for --camera-from)\n"
-              "  R                          reprojection on/off (one pixel in 16 traced per frame)\n"
+              "  R                          reprojection on/off (on at start: one pixel in 16 traced per frame)\n"
               "  V                          debug views: off, level of detail, τ channel, node bounds\n"
               "  H                          HUD on/off (frame and GPU pass times, epoch and age, resident\n"
               "                             bytes against the budget, bytes/s received)\n"

@@ -2,7 +2,8 @@
  * sent with xdotool. Skipped (not failed) where Xvfb or xdotool is missing, which CI is: neither is
  * a project dependency. Run where they are, it checks that:
  *   - the window renders, and a screenshot (P) equals the headless frame of the camera stored in it
- *     (the picture is tone-mapped on the GPU in the window, on the CPU headless);
+ *     (the picture is tone-mapped on the GPU in the window, on the CPU headless), every pixel traced
+ *     at full size (--frame-ms 0, and R turning the default reprojection off);
  *   - W flies forward (the next screenshot's camera moved) and --record saved the flight;
  *   - V changes the picture (the LOD view), and after cycling back, = (exposure up) brightens it;
  *   - a resized window renders at its new size;
@@ -24,7 +25,7 @@
 
 #include "oc_camera.h"
 #include "oc_image.h"
-#include "programs.h" /* oc_test_dirs, oc_test_run */
+#include "programs.h" /* oc_test_dirs, oc_test_run, oc_test_start */
 
 static char bin[2048], src[2048], tmp[256];
 
@@ -75,12 +76,12 @@ static void test_window__keys_screenshots_record(void **state) {
   }
   char cmd[16384];
   /* Xvfb picks a free display and writes its number; the viewer renders at 160×90. */
-  snprintf(cmd, sizeof cmd,
-           "cd '%s' && (Xvfb -displayfd 3 -screen 0 320x240x24 -nolisten tcp 3>'%s/display' 2>'%s/xvfb.log' & "
-           "echo $! > '%s/xvfb.pid') && for i in $(seq 50); do [ -s '%s/display' ] && break; sleep 0.1; done; "
-           "[ -s '%s/display' ]",
-           tmp, tmp, tmp, tmp, tmp, tmp);
-  assert_int_equal(oc_test_run(cmd), 0);
+  char pid[1100], ready[1100];
+  snprintf(cmd, sizeof cmd, "Xvfb -displayfd 3 -screen 0 320x240x24 -nolisten tcp 3>'%s/display' 2>'%s/xvfb.log'", tmp,
+           tmp);
+  snprintf(pid, sizeof pid, "%s/xvfb.pid", tmp);
+  snprintf(ready, sizeof ready, "[ -s '%s/display' ]", tmp);
+  assert_int_equal(oc_test_start(tmp, cmd, pid, ready, 50), 0);
 #if defined(__SANITIZE_ADDRESS__)
   /* Mesa's GLX driver, unloaded by glfwTerminate() before LeakSanitizer runs, leaks a few blocks
    * that cannot be symbolised (so tests/lsan.supp cannot name them); the viewer's own code is
@@ -93,13 +94,13 @@ static void test_window__keys_screenshots_record(void **state) {
    * the keys a user would, and give back the viewer's exit status. */
   snprintf(cmd, sizeof cmd,
            "export DISPLAY=:$(cat '%s/display'); cd '%s'; "
-           "%s'%s/overcast-view' --window --scene scenes/analytic_sphere.json --size 160x90 --out '%s/out' "
+           "%s'%s/overcast-view' --window --scene scenes/analytic_sphere.json --size 160x90 --frame-ms 0 --out '%s/out' "
            "--record '%s/flight.txt' > '%s/view.log' 2>&1 & pid=$!; "
            "w=''; for i in $(seq 300); do w=$(xdotool search --name 'overcast-view' 2>/dev/null | head -1); "
            "[ -n \"$w\" ] && xdotool getwindowname $w | grep -q ' ms ' && break; sleep 0.1; done; "
            "[ -n \"$w\" ] || { kill $pid; exit 90; }; "
            "k() { xdotool key --window $w \"$@\"; sleep 0.7; }; "
-           "k h; k p; "                                                    /* 0: no HUD */
+           "k r; k h; k p; "                       /* 0: every pixel traced (R: reprojection off), no HUD */
            "xdotool keydown --window $w w; sleep 1; xdotool keyup --window $w w; sleep 0.5; k p; " /* 1: flown */
            "k v; k p; "                                                    /* 2: LOD view */
            "k v; k v; k v; k equal; k equal; k equal; k p; "              /* 3: normal, brighter */
