@@ -106,14 +106,6 @@ static int geom_excluded(oc_key_t key) {
   return dmax < OC_PLANET_RADIUS - 1e4 || dmin > OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;
 }
 
-static uint64_t mix64(uint64_t x) {
-  x ^= x >> 33;
-  x *= 0xff51afd7ed558ccdull;
-  x ^= x >> 33;
-  x *= 0xc4ceb9fe1a85ec53ull;
-  return x ^ (x >> 33);
-}
-
 /*-*** Views ***/
 
 typedef struct {
@@ -205,14 +197,12 @@ static void sim_stamps(sim_t *s) {
 }
 
 static ocs_plan_desc_t desc_make(uint32_t slot, uint32_t rec, int K, double capacity, double split_fraction) {
-  ocs_plan_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.slot_bytes = slot;
-  d.record_bytes = rec;
-  d.max_depth = OC_KEY_MAX_LEVEL;
-  d.kept_states = K;
-  d.split_fraction = split_fraction;
-  d.budget = (uint64_t)(capacity * ((double)slot + K * (double)rec));
+  ocs_plan_desc_t d = {.slot_bytes = slot,
+                       .record_bytes = rec,
+                       .max_depth = OC_KEY_MAX_LEVEL,
+                       .kept_states = K,
+                       .split_fraction = split_fraction,
+                       .budget = (uint64_t)(capacity * ((double)slot + K * (double)rec))};
   assert_int_equal(ocs_plan_clamp(&d, UINT64_MAX), 0);
   return d;
 }
@@ -236,10 +226,14 @@ static void sim_init(sim_t *s, const ocs_plan_desc_t *d, int animated, double ch
   s->split_cap_nodes = fmax(8.0, d->split_fraction * capacity);
 }
 
-/* Two identical simulations (animated when d keeps 3 states), to be run side by side. */
-static void sim_twins(sim_t *a, sim_t *b, const ocs_plan_desc_t *d, uint64_t seed) {
-  sim_init(a, d, d->kept_states == 3, 0.1, seed);
-  sim_init(b, d, d->kept_states == 3, 0.1, seed);
+/* Two identical simulations, to be run side by side, of a planner for about 1500 bricks of 2048
+ * bytes (32-byte records) keeping K states (animated when K = 3); the camera path (path_step)
+ * starts again from path_seed. */
+static void sim_twins(sim_t *a, sim_t *b, int K, double split_fraction, uint64_t seed, uint64_t path_seed) {
+  rng_state = path_seed;
+  ocs_plan_desc_t d = desc_make(2048, 32, K, 1500, split_fraction);
+  sim_init(a, &d, K == 3, 0.1, seed);
+  sim_init(b, &d, K == 3, 0.1, seed);
 }
 
 static void sim_free(sim_t *s) {
@@ -407,8 +401,8 @@ static void sim_commit(sim_t *s) {
     nd.kind = f->kind;
     if (f->produce) {
       if (f->kind != OC_NODE_EMPTY) { /* sometimes cheaper than predicted */
-        double u = s->cheaper_by_key ? (double)(mix64(f->key ^ s->rng) >> 11) * (1.0 / 9007199254740992.0)
-                                     : (double)(sim_rand(s) >> 11) * (1.0 / 9007199254740992.0);
+        uint64_t by_key = f->key ^ s->rng; /* the same draw for the same node, whatever the order */
+        double u = s->cheaper_by_key ? rng_split_unit(&by_key) : (double)(sim_rand(s) >> 11) * (1.0 / 9007199254740992.0);
         if (u < s->cheaper) nd.kind = OC_NODE_EMPTY;
         else if (u < 1.5 * s->cheaper) nd.kind = OC_NODE_UNIFORM;
       }
@@ -663,11 +657,9 @@ static void test_planner__slow_viewer_gets_smaller_plans(void **state) {
 
 static void test_planner__deterministic(void **state) {
   (void)state;
-  rng_state = 0x5EED0003ull;
   for (int K = 2; K <= 3; K++) {
-    ocs_plan_desc_t d = desc_make(2048, 32, K, 1500, 0.2);
     sim_t a, b;
-    sim_twins(&a, &b, &d, 99);
+    sim_twins(&a, &b, K, 0.2, 99, 0x5EED0003ull);
     a.in.uniform_is_brick = b.in.uniform_is_brick = K == 3;
     a.shell.uniform_below_z = b.shell.uniform_below_z = -0.3 * OC_PLANET_RADIUS;
     pose_t cam = {10.0, -60.0, 800.0, 200.0, -20.0, 50.0, 800, 600};
@@ -990,14 +982,8 @@ static void test_planner__never_splits_what_it_must_not(void **state) {
 
 static void test_planner__clamp_and_views(void **state) {
   (void)state;
-  ocs_plan_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.split_fraction = NAN;
-  d.reserve = NAN;
-  d.min_pixels = NAN;
-  d.outside_weight = NAN;
-  d.max_depth = -5;
-  d.kept_states = 0;
+  ocs_plan_desc_t d = {
+      .split_fraction = NAN, .reserve = NAN, .min_pixels = NAN, .outside_weight = NAN, .max_depth = -5, .kept_states = 0};
   assert_int_equal(ocs_plan_clamp(&d, 1ull << 30), 0);
   assert_true(d.slot_bytes == 1 && d.record_bytes == 1 && d.max_depth == 0 && d.kept_states == 2);
   assert_true(d.split_fraction == 0.1 && d.reserve == 0.1 && d.min_pixels == 1.0 && d.outside_weight == 0.25);
@@ -1284,11 +1270,9 @@ static void test_planner__budget_lowered_and_raised(void **state) {
 
 static void test_planner__abandon_restores(void **state) {
   (void)state;
-  rng_state = 0x5EED0006ull;
   for (int K = 2; K <= 3; K++) {
-    ocs_plan_desc_t d = desc_make(2048, 32, K, 1500, 0.3);
     sim_t a, b;
-    sim_twins(&a, &b, &d, 42);
+    sim_twins(&a, &b, K, 0.3, 42, 0x5EED0006ull);
     pose_t cam = {60.0, 25.0, 1500.0, 120.0, -15.0, 70.0, 960, 540};
     if (K == 2) { /* content reaching below R − 10 km and above R + 100 km: restored leaves keep their limits */
       a.shell.r_lo = b.shell.r_lo = OC_PLANET_RADIUS - 40e3;
@@ -1319,7 +1303,7 @@ static void test_planner__abandon_restores(void **state) {
     }
     /* abandoning before any commit returns to the root alone */
     sim_t c;
-    sim_init(&c, &d, 0, 0.0, 1);
+    sim_init(&c, &a.d, 0, 0.0, 1);
     ocs_view_t v = view_of(cam);
     assert_int_equal(sim_plan(&c, &v), 0);
     ocs_plan_abandon(c.p);
