@@ -369,6 +369,14 @@ const oc_brick_t *oc_state_find_brick(const oc_state_t *s, uint32_t id) {
   return k < 0 ? NULL : &s->bricks[k];
 }
 
+const oc_brick_codes_t *oc_states_find_codes(const oc_state_t *states, int n, uint32_t id) {
+  for (int i = 0; i < n; i++) {
+    const oc_brick_t *b = oc_state_find_brick(&states[i], id);
+    if (b) return &b->codes;
+  }
+  return NULL;
+}
+
 /*-*** Budget ***/
 
 /* Distinct ids by an n-way merge of the (canonical, ascending) id lists: no allocation for the 2–3
@@ -445,4 +453,15 @@ int64_t oc_brick_digests_find(const oc_brick_digests_t *b, uint32_t id) {
   if (!b || !b->count) return -1;
   oc__ids_t v = oc__ids_lean(b);
   return oc__ids_find(&v, id);
+}
+
+int oc_brick_digests_lookup(const oc_brick_digests_t *lists, int n, uint32_t id, uint64_t *digest) {
+  for (int i = 0; i < n; i++) {
+    int64_t k = oc_brick_digests_find(&lists[i], id);
+    if (k >= 0) {
+      *digest = lists[i].digests[k];
+      return 1;
+    }
+  }
+  return 0;
 }

@@ -84,6 +84,9 @@ const oc_brick_t *oc_state_find_brick(const oc_state_t *s, uint32_t id);
 /*! oc_ids_find() : index of `id` among n ascending u32 ids, the first at `first` and each next one
  *  `stride` bytes on (the id member of an array of structs, or a plain list), or -1. O(log n). */
 int64_t oc_ids_find(const void *first, size_t stride, uint32_t n, uint32_t id);
+/*! oc_states_find_codes() : the codes of brick `id` in the first of the n states that holds it (a
+ *  viewer's held states, newest first), or NULL. */
+const oc_brick_codes_t *oc_states_find_codes(const oc_state_t *states, int n, uint32_t id);
 
 /*! oc_state_serialized_size() : exact bytes of the serialisation (header, records, bricks, checksum). */
 size_t oc_state_serialized_size(const oc_state_t *s);
@@ -125,6 +128,9 @@ void oc_brick_digests_free(oc_brick_digests_t *b);
 int oc_brick_digests_of(oc_brick_digests_t *out, const oc_state_t *s);
 /*! oc_brick_digests_find() : index of brick `id` in b, or -1. O(log n). */
 int64_t oc_brick_digests_find(const oc_brick_digests_t *b, uint32_t id);
+/*! oc_brick_digests_lookup() : the digest of brick `id` from the first of the n lists that holds
+ *  it (a lean viewer's held states, newest first). @return 1 with *digest set, or 0. */
+int oc_brick_digests_lookup(const oc_brick_digests_t *lists, int n, uint32_t id, uint64_t *digest);
 /*! oc_brick_digest() : XXH3-64 (seed 0) of the brick's 2048 code bytes as serialised (σt then τ,
  *  little-endian u16, x fastest). */
 uint64_t oc_brick_digest(const oc_brick_codes_t *c);

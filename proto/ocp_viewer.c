@@ -122,14 +122,7 @@ static const oc_brick_codes_t *ocp__lookup(void *ctx, uint32_t id) {
 
 static int ocp__dlookup(void *ctx, uint32_t id, uint64_t *digest) {
   const ocp_viewer_t *v = ctx;
-  for (int i = 0; i < v->nheld; i++) {
-    int64_t k = oc_brick_digests_find(&v->hdig[i], id);
-    if (k >= 0) {
-      *digest = v->hdig[i].digests[k];
-      return 1;
-    }
-  }
-  return 0;
+  return oc_brick_digests_lookup(v->hdig, v->nheld, id, digest);
 }
 
 /*-*** Life cycle ***/

@@ -29,15 +29,20 @@ static inline void golden_codes(uint32_t id, oc_brick_codes_t *c) {
       c->code[ch][v] = (uint16_t)((v * 131u + (uint32_t)ch * 7919u + id * 17u) % 65536u);
 }
 
+/* An empty state with these header fields: where each fixture state starts. */
+static inline void state_begin(oc_state_t *s, uint64_t epoch, double time, oc_dvec3 sun_dir) {
+  oc_state_init(s);
+  s->epoch = epoch;
+  s->time = time;
+  s->sun_dir = sun_dir;
+}
+
 /* Root split in 8; child 7 split again: 15 leaves, 3 bricks (ids 3, 7, 42), every kind; epoch 42,
  * time 1234.5, sun (0, 0.6, 0.8). @return 0, or OC_ENOMEM. */
 static inline int golden_state(oc_state_t *s) {
   oc_brick_codes_t c;
   int r = 0;
-  oc_state_init(s);
-  s->epoch = 42;
-  s->time = 1234.5;
-  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
+  state_begin(s, 42, 1234.5, oc_dv3(0.0, 0.6, 0.8));
   oc_key_t root = OC_KEY_ROOT, c7 = child(root, 7);
   oc_node_t n = node(child(root, 0), OC_NODE_EMPTY, 0, 0, 0, 0, 0);
   r |= oc_state_add_node(s, &n);

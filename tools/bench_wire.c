@@ -57,11 +57,7 @@ typedef struct {
 
 static const oc_brick_codes_t *held_lookup(void *ctx, uint32_t id) {
   const held_t *h = ctx;
-  for (int i = 0; i < h->n; i++) {
-    const oc_brick_t *b = oc_state_find_brick(&h->s[i], id);
-    if (b) return &b->codes;
-  }
-  return NULL;
+  return oc_states_find_codes(h->s, h->n, id);
 }
 
 /* The newest state becomes held[0] (moved); the oldest beyond `keep` is dropped. */

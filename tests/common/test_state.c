@@ -640,10 +640,7 @@ static void test_state__resident_bytes(void **state) {
 /* A root split down one corner to level 21 (7 siblings per level), one brick at the bottom. */
 static void deep_state(oc_state_t *s) {
   oc_brick_codes_t c;
-  oc_state_init(s);
-  s->epoch = 7;
-  s->time = 0.25;
-  s->sun_dir = oc_dv3(1.0, 0.0, 0.0);
+  state_begin(s, 7, 0.25, oc_dv3(1.0, 0.0, 0.0));
   oc_key_t k = OC_KEY_ROOT;
   for (int L = 1; L <= OC_KEY_MAX_LEVEL; L++) {
     for (int i = 1; i < 8; i++) {
@@ -663,10 +660,7 @@ static void deep_state(oc_state_t *s) {
 
 /* Eight brick leaves from the real encoder. */
 static void bricks_state(oc_state_t *s) {
-  oc_state_init(s);
-  s->epoch = 3;
-  s->time = 3.0;
-  s->sun_dir = oc_dv3(0.0, 0.0, -1.0);
+  state_begin(s, 3, 3.0, oc_dv3(0.0, 0.0, -1.0));
   for (int i = 0; i < 8; i++) {
     float sg[OC_BRICK_VOXELS], tu[OC_BRICK_VOXELS];
     oc_brick_codes_t c;

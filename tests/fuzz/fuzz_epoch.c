@@ -35,10 +35,7 @@ static void codes(uint32_t id, int tau_zero, oc_brick_codes_t *c) {
 /* The base the viewer holds: root split in 8, child 7 split again; bricks 1..4. */
 static void base_state(oc_state_t *s) {
   oc_brick_codes_t c;
-  oc_state_init(s);
-  s->epoch = 5;
-  s->time = 50.0;
-  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
+  state_begin(s, 5, 50.0, oc_dv3(0.0, 0.6, 0.8));
   oc_key_t r = OC_KEY_ROOT, c7 = child(r, 7);
   for (int i = 0; i < 7; i++) {
     oc_node_t n = i == 1 ? node(child(r, i), OC_NODE_BRICK, 1, 0.01f, 0.5f, 0.1f, 2.0f)
@@ -324,10 +321,7 @@ static void raw_epoch(oc_buf_t *b, const oc_state_t *s, const oc_state_t *base) 
 /* The next epoch of a: brick 2 kept, every other brick refreshed (deltas; odd ids also change
  * their σt range: whole σt, delta τ), child 0 split in 8, the children of child 7 merged. */
 static void next_state(const oc_state_t *a, oc_state_t *s, uint32_t first_id) {
-  oc_state_init(s);
-  s->epoch = a->epoch + 1;
-  s->time = a->time + 10.0;
-  s->sun_dir = a->sun_dir;
+  state_begin(s, a->epoch + 1, a->time + 10.0, a->sun_dir);
   uint32_t id = first_id;
   oc_key_t c7 = child(OC_KEY_ROOT, 7);
   int merged = 0;

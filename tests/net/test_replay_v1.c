@@ -395,23 +395,12 @@ static void rp_fail(const replay_t *r, int changed, const char *fmt, ...) {
 
 static const oc_brick_codes_t *rp_lookup(void *ctx, uint32_t id) {
   const replay_t *r = ctx;
-  for (int i = 0; i < r->nheld; i++) {
-    const oc_brick_t *b = oc_state_find_brick(&r->held[i], id);
-    if (b) return &b->codes;
-  }
-  return NULL;
+  return oc_states_find_codes(r->held, r->nheld, id);
 }
 
 static int rp_dlookup(void *ctx, uint32_t id, uint64_t *digest) {
   const replay_t *r = ctx;
-  for (int i = 0; i < r->nheld; i++) {
-    int64_t k = oc_brick_digests_find(&r->hdig[i], id);
-    if (k >= 0) {
-      *digest = r->hdig[i].digests[k];
-      return 1;
-    }
-  }
-  return 0;
+  return oc_brick_digests_lookup(r->hdig, r->nheld, id, digest);
 }
 
 static int is_content_frame(int type) { return type == OCP_MSG_RECORDS || type == OCP_MSG_BRICKS; }

@@ -80,10 +80,7 @@ static void random_state(oc_state_t *s, uint64_t epoch, uint32_t leaves, int max
     keys[i] = child(k, 0);
     for (int c = 1; c < 8; c++) keys[n++] = child(k, c);
   }
-  oc_state_init(s);
-  s->epoch = epoch;
-  s->time = 10.0 * (double)epoch;
-  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
+  state_begin(s, epoch, 10.0 * (double)epoch, oc_dv3(0.0, 0.6, 0.8));
   for (uint32_t i = 0; i < n; i++) fresh_content(s, keys[i], next_id);
   oc_state_canonicalize(s);
   free(keys);

@@ -961,10 +961,7 @@ static void test_viewer__create_rejects(void **state) {
 
 /* 8³ leaves at level 3: three in four are bricks (ids 1..), the rest uniform. */
 static void big_state(oc_state_t *s) {
-  oc_state_init(s);
-  s->epoch = 100;
-  s->time = 5.0;
-  s->sun_dir = oc_dv3(0.0, 0.6, 0.8);
+  state_begin(s, 100, 5.0, oc_dv3(0.0, 0.6, 0.8));
   uint32_t id = 1;
   for (int i = 0; i < 512; i++) {
     oc_key_t k = child(child(child(OC_KEY_ROOT, i / 64), (i / 8) % 8), i % 8);
@@ -1274,10 +1271,7 @@ static void test_viewer__lean_detects(void **state) {
 
 /* 64 brick leaves (root split twice), enough samples to train a dictionary. */
 static void many_bricks_state(oc_state_t *s) {
-  oc_state_init(s);
-  s->epoch = 5;
-  s->time = 10.0;
-  s->sun_dir = oc_dv3(1.0, 0.0, 0.0);
+  state_begin(s, 5, 10.0, oc_dv3(1.0, 0.0, 0.0));
   for (int i = 0; i < 64; i++) {
     oc_brick_codes_t c;
     oc_node_t n = node(child(child(OC_KEY_ROOT, i / 8), i % 8), OC_NODE_BRICK, (uint32_t)(1 + i), 0.5f, 1.0f, 0.0f, 0.0f);
