@@ -57,6 +57,25 @@ void set_why(char *why, size_t len, const char *fmt, ...) {
   va_end(ap);
 }
 
+// Called in a catch block: the exception in flight as the reason "<context>: <its what()>"
+// ("<context>: unknown error" for one that is not a std::exception). @return err.
+int caught(int err, char *why, size_t len, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+int caught(int err, char *why, size_t len, const char *fmt, ...) {
+  char context[4096];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(context, sizeof context, fmt, ap);
+  va_end(ap);
+  try {
+    throw;
+  } catch (const std::exception &e) {
+    set_why(why, len, "%s: %s", context, e.what());
+  } catch (...) {
+    set_why(why, len, "%s: unknown error", context);
+  }
+  return err;
+}
+
 // ---- Reading with progress ------------------------------------------------------------------------
 
 // A read-only streambuf over a FILE* with a 1 MiB buffer. It counts the bytes handed out (for the
@@ -446,12 +465,8 @@ int shim_grid_prepare(ocs_vdb_file_t *f, int i, ocs_vdb_grid_t **out, ocs_vdb_pr
   } catch (const std::bad_alloc &) {
     set_why(why, why_len, "out of memory preparing grid %d", i);
     return OC_ENOMEM;
-  } catch (const std::exception &e) {
-    set_why(why, why_len, "preparing grid %d: %s", i, e.what());
-    return OC_ECORRUPT;
   } catch (...) {
-    set_why(why, why_len, "preparing grid %d: unknown error", i);
-    return OC_ECORRUPT;
+    return caught(OC_ECORRUPT, why, why_len, "preparing grid %d", i);
   }
 }
 
@@ -602,12 +617,8 @@ int shim_writer_add_grid(ocs_vdb_writer_t *w, const ocs_vdb_grid_desc_t *d, char
     if (d->half) e.grid->setSaveFloatAsHalf(true);
     w->grids.push_back(e);
     return (int)w->grids.size() - 1;
-  } catch (const std::exception &ex) {
-    set_why(why, why_len, "grid '%s': %s", d->name, ex.what());
-    return OC_EINVAL;
   } catch (...) {
-    set_why(why, why_len, "grid '%s': unknown error", d->name);
-    return OC_EINVAL;
+    return caught(OC_EINVAL, why, why_len, "grid '%s'", d->name);
   }
 }
 
@@ -740,12 +751,8 @@ int shim_writer_save(ocs_vdb_writer_t *w, const char *path, int compression, cha
     file.setCompression(flags);
     file.write(grids);
     file.close();
-  } catch (const std::exception &e) {
-    set_why(why, why_len, "cannot write %s: %s", path, e.what());
-    return OC_EIO;
   } catch (...) {
-    set_why(why, why_len, "cannot write %s: unknown error", path);
-    return OC_EIO;
+    return caught(OC_EIO, why, why_len, "cannot write %s", path);
   }
   for (size_t i = 0; i < w->grids.size(); i++)
     if (w->grids[i].patch && patch_doubles(path, placeholder_voxel_size(i), w->grids[i].bad_voxel_size) < 0) {
