@@ -30,6 +30,7 @@
 #include <time.h>
 
 #include "net_internal.h"
+#include "oc_bytes.h" /* oc_grow */
 #include "oc_err.h"
 #include "oc_log.h"
 #include "redis_client.h"
@@ -545,13 +546,9 @@ int ocs_ctl_publish(ocs_ctl_t *c, ocs_session_t *s, uint32_t request, const ocs_
     return oc_errorf(OC_EIO, why, why_len, "this front-end is still reading the shared control history (Redis %s)",
                      c->host);
   }
-  if (c->nmine == c->mine_cap) {
-    size_t nc = c->mine_cap ? 2 * c->mine_cap : 16;
-    ocs__mine_t *a = realloc(c->mine, nc * sizeof *a);
-    if (!a) return oc_errorf(OC_ENOMEM, why, why_len, "out of memory");
-    c->mine = a;
-    c->mine_cap = nc;
-  }
+  ocs__mine_t *a = oc_grow(c->mine, &c->mine_cap, c->nmine, sizeof *a, 16);
+  if (!a) return oc_errorf(OC_ENOMEM, why, why_len, "out of memory");
+  c->mine = a;
   ocs_server_t *srv = c->srv;
   uint64_t epoch = srv->period > 0 ? ocs_ctl_epoch_ahead(ocs_net_utc(srv), srv->period)
                                    : ocs_world_epoch(srv->world) + srv->steps_queued + 1; /* stepped: as seen here */

@@ -52,7 +52,7 @@ static int lower_greedy(ocs_session_t *s, const ocs_plan_desc_t *req) {
     }
     oc_log_info("session %" PRIu32 " (viewer %s): lowered from %" PRIu64 " to a fair share, %" PRIu64
                 " bytes, to make room for session %" PRIu32, t->id, t->addr, vs.budget, fair, s->id);
-    srv->budget_lowerings++;
+    srv->counts.budget_lowerings++;
     n++;
   }
   return n;

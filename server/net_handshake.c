@@ -105,7 +105,7 @@ static int try_resume(ocs_session_t *s, ocs_session_t *old, const ocp_hello_t *h
     old->state = OCS_SS_READY;
     ocs_session_close(old, OCP_CODE_OK, "resumed on another connection");
   }
-  srv->resumes++;
+  srv->counts.resumes++;
   s->state = OCS_SS_READY;
   /* WELCOME names the largest budget its window may still use (the viewer counts its held states
    * against it); a lowering in force is told again after it */

@@ -126,6 +126,14 @@ struct ocs_session_s {
   uint64_t step_target;
 };
 
+/* The server's connection counters since it started: kept in the server, copied whole into its
+ * figures (ocs_stats_t). */
+typedef struct {
+  uint64_t accepted, refused, closed_errors, resumes;
+  uint64_t budget_lowerings; /* viewers lowered by admission to make room (net_admit.c) */
+  uint64_t refusals[OCS_REFUSE_COUNT]; /* connections and HELLOs refused, by reason */
+} ocs_net_counts_t;
+
 struct ocs_server_s {
   uv_loop_t loop;
   uv_tcp_t listener;
@@ -159,7 +167,6 @@ struct ocs_server_s {
   int stepping, step_rc, stopping; /* stepping: the world is busy (ticking or producing) */
   int ticking;                      /* a step runs */
   uint64_t steps_queued, steps_done, late_ticks;
-  uint64_t budget_lowerings; /* viewers lowered by admission to make room (net_admit.c) */
   ocs_hist_t tick_lateness; /* s: clocked ticks' first frames after their due instants (0: on time) */
   uint64_t step_epoch;  /* the running step's epoch (clocked); 0: the virtual clock's next */
   uint64_t tick_epoch;  /* the due epoch the last tick asked for */
@@ -180,12 +187,13 @@ struct ocs_server_s {
   double plan_ms, produce_ms; /* of the last step, for every viewer's STATS */
   /* viewers to remove once the running step ends */
   ocs_viewer_t **doomed;
-  int ndoomed, doomed_cap;
+  int ndoomed;
+  size_t doomed_cap;
   ocs_peer_t **peers; /* addresses with open connections or a bucket still refilling */
-  int npeers, peers_cap;
+  int npeers;
+  size_t peers_cap;
   void (*after_step)(ocs_server_t *srv); /* net_server.c: held input, waiting "step" requests */
-  uint64_t accepted, refused, closed_errors, resumes;
-  uint64_t refusals[OCS_REFUSE_COUNT];
+  ocs_net_counts_t counts;
   uint8_t readbuf[64 * 1024];
 };
 
@@ -299,9 +307,7 @@ typedef struct {
   double utc, time;                /* now: the server's clock and the world time */
   uint64_t ticks, late_ticks;      /* steps done; due ticks skipped */
   uint64_t queue, bricks_made;     /* the production queue; bricks made between ticks */
-  uint64_t budget_lowerings; /* viewers admission lowered to make room */
-  uint64_t accepted, refused, closed_errors, resumes;
-  uint64_t refusals[OCS_REFUSE_COUNT];
+  ocs_net_counts_t counts;
   int connections, admitted, lingering, by_state[OCS_SS_COUNT];
   uint64_t lingering_budget, total_budget, max_budget;
   ocs_hist_view_t tick_lateness;

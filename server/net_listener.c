@@ -107,7 +107,7 @@ static void on_connection(uv_stream_t *ls, int status) {
   s->secret = random_u64();
   s->created = s->last_rx = s->last_progress = ocs_net_now();
   ocp_reader_init(&s->rd, OCP_MAX_CLIENT_PAYLOAD);
-  srv->accepted++;
+  srv->counts.accepted++;
   if (srv->ntrusted && ocs_proxy_list_has(srv->trusted, srv->ntrusted, &sa)) {
     if (await_proxy(s) < 0) return;
   } else if (!ocs_listener_admit(s, ip)) {

@@ -52,14 +52,14 @@ static void budgets(oc_buf_t *b, const ocs_stats_t *st) {
 
 static void connections(oc_buf_t *b, const ocs_stats_t *st) {
   gauge(b, "overcast_connections", "Open connections, refused ones still closing included.", st->connections);
-  counter(b, "overcast_connections_accepted_total", "Connections accepted by the listener.", (double)st->accepted);
-  counter(b, "overcast_connections_closed_errors_total", "Connections closed for an error.", (double)st->closed_errors);
-  counter(b, "overcast_resumes_total", "Viewers that resumed a session.", (double)st->resumes);
+  counter(b, "overcast_connections_accepted_total", "Connections accepted by the listener.", (double)st->counts.accepted);
+  counter(b, "overcast_connections_closed_errors_total", "Connections closed for an error.", (double)st->counts.closed_errors);
+  counter(b, "overcast_resumes_total", "Viewers that resumed a session.", (double)st->counts.resumes);
   counter(b, "overcast_budget_lowerings_total", "Viewers admission lowered to a fair share to make room (BUDGET).",
-          (double)st->budget_lowerings);
+          (double)st->counts.budget_lowerings);
   ocs_prom_family(b, "overcast_refusals_total", "counter", "Connections and HELLOs refused, by reason.");
   for (int i = 0; i < OCS_REFUSE_COUNT; i++)
-    ocs_prom_sample(b, "overcast_refusals_total", "reason", ocs_refusal_key((ocs_refusal_t)i), (double)st->refusals[i]);
+    ocs_prom_sample(b, "overcast_refusals_total", "reason", ocs_refusal_key((ocs_refusal_t)i), (double)st->counts.refusals[i]);
   ocs_prom_family(b, "overcast_sessions", "gauge", "Sessions by state.");
   for (int i = 0; i < OCS_SS_COUNT; i++)
     ocs_prom_sample(b, "overcast_sessions", "state", ocs_session_state_name(i), st->by_state[i]);

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "net_internal.h"
+#include "oc_bytes.h" /* oc_grow */
 
 /* Entries beyond this are refused (CONNECTIONS): the table is bounded whatever the peers do. */
 #define OCS_PEERS_MAX 4096
@@ -31,13 +32,9 @@ static ocs_peer_t *peer_get(ocs_server_t *srv, const char *ip, double now) {
     if (!strcmp(srv->peers[i]->ip, ip)) return srv->peers[i];
   if (srv->npeers == OCS_PEERS_MAX) ocs_peer_sweep(srv, now);
   if (srv->npeers == OCS_PEERS_MAX) return NULL;
-  if (srv->npeers == srv->peers_cap) {
-    int nc = srv->peers_cap ? 2 * srv->peers_cap : 16;
-    ocs_peer_t **a = realloc(srv->peers, (size_t)nc * sizeof *a);
-    if (!a) return NULL;
-    srv->peers = a;
-    srv->peers_cap = nc;
-  }
+  ocs_peer_t **a = oc_grow(srv->peers, &srv->peers_cap, (size_t)srv->npeers, sizeof *a, 16);
+  if (!a) return NULL;
+  srv->peers = a;
   ocs_peer_t *p = calloc(1, sizeof *p);
   if (!p) return NULL;
   size_t n = strlen(ip);
@@ -88,5 +85,6 @@ void ocs_peer_free_all(ocs_server_t *srv) {
   for (int i = 0; i < srv->npeers; i++) free(srv->peers[i]);
   free(srv->peers);
   srv->peers = NULL;
-  srv->npeers = srv->peers_cap = 0;
+  srv->npeers = 0;
+  srv->peers_cap = 0;
 }

@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include "net_internal.h"
+#include "oc_bytes.h" /* oc_grow */
 #include "oc_err.h"
 #include "oc_log.h"
 
@@ -62,13 +63,9 @@ void ocs_session_free(ocs_session_t *s) {
 void ocs_session_drop_viewer(ocs_server_t *srv, ocs_session_t *s) {
   if (!s->viewer) return;
   if (srv->stepping) {
-    if (srv->ndoomed == srv->doomed_cap) {
-      int nc = srv->doomed_cap ? 2 * srv->doomed_cap : 8;
-      ocs_viewer_t **a = realloc(srv->doomed, (size_t)nc * sizeof *a);
-      if (!a) abort(); /* cannot defer: a stepping world must not be touched */
-      srv->doomed = a;
-      srv->doomed_cap = nc;
-    }
+    ocs_viewer_t **a = oc_grow(srv->doomed, &srv->doomed_cap, (size_t)srv->ndoomed, sizeof *a, 8);
+    if (!a) abort(); /* cannot defer: a stepping world must not be touched */
+    srv->doomed = a;
     srv->doomed[srv->ndoomed++] = s->viewer;
   } else {
     ocs_world_remove_viewer(srv->world, s->viewer);
@@ -106,7 +103,7 @@ void ocs_session_close(ocs_session_t *s, uint32_t code, const char *text) {
   if (s->state == OCS_SS_CLOSING) return;
   int is_error = code != OCP_CODE_OK && code != OCP_CODE_SHUTDOWN && code != OCP_CODE_RELOAD && code != OCP_CODE_KICKED &&
                  code != OCP_CODE_RECONNECT;
-  if (is_error) srv->closed_errors++;
+  if (is_error) srv->counts.closed_errors++;
   oc_log(is_error ? OC_LOG_WARN : OC_LOG_INFO, "session %" PRIu32 " (%s %s): closing: %s%s%s", s->id, ocs_role_name(s->role),
          s->addr, ocp_code_text(code), text && *text ? ": " : "", text ? text : "");
   ocs_session_drop_viewer(srv, s);
@@ -136,8 +133,8 @@ void ocs_session_refuse(ocs_session_t *s, ocs_refusal_t why, const char *text) {
                                    OCP_CODE_FULL, OCP_CODE_TOKEN, OCP_CODE_VERSION, OCP_CODE_SHUTDOWN,
                                    OCP_CODE_MALFORMED, OCP_CODE_RECONNECT};
   _Static_assert(sizeof codes / sizeof *codes == OCS_REFUSE_COUNT, "a code per refusal");
-  s->srv->refused++;
-  s->srv->refusals[why]++;
+  s->srv->counts.refused++;
+  s->srv->counts.refusals[why]++;
   ocs_session_close(s, codes[why], text);
 }
 

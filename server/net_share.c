@@ -22,6 +22,7 @@
 #include "brick_remote.h"
 #include "control_stream.h"
 #include "net_internal.h"
+#include "oc_bytes.h" /* oc_grow */
 #include "oc_err.h"
 #include "oc_log.h"
 #include "redis_client.h"
@@ -93,14 +94,8 @@ static void ocs__on_found(void *ctx, int outcome, const uint8_t *content, size_t
       ocs_world_hold_back(w, l->key, l->stamp);
       sh->st.held++;
     } else if (outcome == OCS_REMOTE_LEASED) {
-      if (sh->nleased == sh->leased_cap) {
-        size_t nc = sh->leased_cap ? 2 * sh->leased_cap : 256;
-        ocs__leased_t *a = realloc(sh->leased, nc * sizeof *a);
-        if (a) {
-          sh->leased = a;
-          sh->leased_cap = nc;
-        }
-      }
+      ocs__leased_t *a = oc_grow(sh->leased, &sh->leased_cap, sh->nleased, sizeof *a, 256);
+      if (a) sh->leased = a;
       if (sh->nleased < sh->leased_cap) sh->leased[sh->nleased++] = (ocs__leased_t){l->key, l->stamp};
     }
   }

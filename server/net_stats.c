@@ -56,12 +56,7 @@ int ocs_stats_gather(ocs_server_t *srv, ocs_stats_t *st) {
   st->late_ticks = srv->late_ticks;
   st->queue = ocs_world_queue_length(srv->world);
   st->bricks_made = srv->bricks_made;
-  st->accepted = srv->accepted;
-  st->refused = srv->refused;
-  st->closed_errors = srv->closed_errors;
-  st->resumes = srv->resumes;
-  st->budget_lowerings = srv->budget_lowerings;
-  memcpy(st->refusals, srv->refusals, sizeof st->refusals);
+  st->counts = srv->counts;
   st->connections = srv->nconnected;
   st->admitted = srv->nadmitted;
   ocs_session_oldest_lingering(srv, &st->lingering, &st->lingering_budget);
@@ -82,31 +77,36 @@ void ocs_stats_free(ocs_stats_t *st) {
   st->nsessions = 0;
 }
 
+/* Named numbers of a JSON object, added in their order (ADD_NUMBERS takes them as a list). */
+typedef struct {
+  const char *key;
+  double v;
+} num_t;
+
+static void add_numbers(cJSON *o, const num_t *f, size_t n) {
+  for (size_t i = 0; i < n; i++) cJSON_AddNumberToObject(o, f[i].key, f[i].v);
+}
+#define ADD_NUMBERS(o, ...)                             \
+  do {                                                  \
+    const num_t f_[] = {__VA_ARGS__};                   \
+    add_numbers((o), f_, sizeof f_ / sizeof f_[0]);     \
+  } while (0)
+
 /* {"count": n, "sum": s} of a histogram of seconds. */
 static void add_hist(cJSON *o, const char *key, const ocs_hist_view_t *h) {
-  cJSON *j = cJSON_AddObjectToObject(o, key);
-  cJSON_AddNumberToObject(j, "count", (double)h->n);
-  cJSON_AddNumberToObject(j, "sum", h->sum);
+  ADD_NUMBERS(cJSON_AddObjectToObject(o, key), {"count", (double)h->n}, {"sum", h->sum});
 }
 
 /* The connection limits in force, so that a client (overcast-stress) can check it is held to them. */
 static void add_limits(cJSON *o, const ocs_server_t *srv, const ocs_stats_t *st) {
   const ocs_server_desc_t *d = &srv->desc;
-  cJSON *l = cJSON_AddObjectToObject(o, "limits");
-  cJSON_AddNumberToObject(l, "handshake_s", d->handshake_s);
-  cJSON_AddNumberToObject(l, "idle_s", d->idle_s);
-  cJSON_AddNumberToObject(l, "stall_s", d->stall_s);
-  cJSON_AddNumberToObject(l, "soft_s", d->soft_s);
-  cJSON_AddNumberToObject(l, "linger_s", d->linger_s);
-  cJSON_AddNumberToObject(l, "queue_soft", (double)d->queue_soft);
-  cJSON_AddNumberToObject(l, "queue_hard", (double)d->queue_hard);
-  cJSON_AddNumberToObject(l, "max_connections", d->max_connections);
-  cJSON_AddNumberToObject(l, "max_per_address", d->max_per_address);
-  cJSON_AddNumberToObject(l, "handshake_rate", d->handshake_rate);
-  cJSON_AddNumberToObject(l, "max_lingering", d->max_lingering);
-  cJSON_AddNumberToObject(l, "linger_budget", (double)d->linger_budget);
-  cJSON_AddNumberToObject(l, "max_budget", (double)st->max_budget);
-  cJSON_AddNumberToObject(l, "total_budget", (double)st->total_budget);
+  ADD_NUMBERS(cJSON_AddObjectToObject(o, "limits"), {"handshake_s", d->handshake_s}, {"idle_s", d->idle_s},
+              {"stall_s", d->stall_s}, {"soft_s", d->soft_s}, {"linger_s", d->linger_s},
+              {"queue_soft", (double)d->queue_soft}, {"queue_hard", (double)d->queue_hard},
+              {"max_connections", d->max_connections}, {"max_per_address", d->max_per_address},
+              {"handshake_rate", d->handshake_rate}, {"max_lingering", d->max_lingering},
+              {"linger_budget", (double)d->linger_budget}, {"max_budget", (double)st->max_budget},
+              {"total_budget", (double)st->total_budget});
 }
 
 /* Bricks shared with the other front-ends (net_share.h), when --redis is given. */
@@ -114,73 +114,50 @@ static void add_share(cJSON *o, const ocs_share_stats_t *s) {
   if (!s->enabled) return;
   cJSON *j = cJSON_AddObjectToObject(o, "share");
   cJSON_AddBoolToObject(j, "redis_up", s->up);
-  const struct {
-    const char *key;
-    uint64_t v;
-  } f[] = {{"lookups", s->lookups},   {"looked_up", s->looked_up},     {"hits", s->hits},
-           {"taken", s->taken},       {"leased", s->leased},           {"busy", s->busy},
-           {"held", s->held},         {"unavailable", s->unavailable}, {"rejected", s->rejected},
-           {"refused", s->refused},   {"skipped", s->skipped},         {"cut_short", s->cut_short},
-           {"stored", s->stored},     {"not_stored", s->not_stored},   {"store_failures", s->store_failures},
-           {"released", s->released},   {"answered", s->answered},       {"answer_us", s->answer_us},
-           {"wait_us", s->wait_us}};
-  for (size_t i = 0; i < sizeof f / sizeof f[0]; i++) cJSON_AddNumberToObject(j, f[i].key, (double)f[i].v);
+  ADD_NUMBERS(j, {"lookups", (double)s->lookups}, {"looked_up", (double)s->looked_up}, {"hits", (double)s->hits},
+              {"taken", (double)s->taken}, {"leased", (double)s->leased}, {"busy", (double)s->busy},
+              {"held", (double)s->held}, {"unavailable", (double)s->unavailable}, {"rejected", (double)s->rejected},
+              {"refused", (double)s->refused}, {"skipped", (double)s->skipped}, {"cut_short", (double)s->cut_short},
+              {"stored", (double)s->stored}, {"not_stored", (double)s->not_stored},
+              {"store_failures", (double)s->store_failures}, {"released", (double)s->released},
+              {"answered", (double)s->answered}, {"answer_us", (double)s->answer_us}, {"wait_us", (double)s->wait_us});
   const ocs_ctl_stats_t *c = &s->control; /* the control history (control_stream.h) */
   cJSON *k = cJSON_AddObjectToObject(j, "control");
   cJSON_AddBoolToObject(k, "up", c->up);
   cJSON_AddBoolToObject(k, "caught_up", c->caught_up);
-  const struct {
-    const char *key;
-    uint64_t v;
-  } g[] = {{"read", c->read},       {"applied", c->applied}, {"skipped", c->skipped},        {"late", c->late},
-           {"published", c->published}, {"refused", c->refused}, {"last_epoch", c->last_epoch}};
-  for (size_t i = 0; i < sizeof g / sizeof g[0]; i++) cJSON_AddNumberToObject(k, g[i].key, (double)g[i].v);
-  cJSON_AddNumberToObject(k, "last_time", c->last_time);
+  ADD_NUMBERS(k, {"read", (double)c->read}, {"applied", (double)c->applied}, {"skipped", (double)c->skipped},
+              {"late", (double)c->late}, {"published", (double)c->published}, {"refused", (double)c->refused},
+              {"last_epoch", (double)c->last_epoch}, {"last_time", c->last_time});
   cJSON_AddStringToObject(k, "last_op", c->last_op);
   cJSON_AddStringToObject(k, "last_id", c->last_id);
 }
 
 cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st) {
   const ocs_world_stats_t *ws = &st->world;
+  const ocs_net_counts_t *n = &st->counts;
   cJSON *o = cJSON_CreateObject();
-  cJSON_AddNumberToObject(o, "epoch", (double)ws->epoch);
-  cJSON_AddNumberToObject(o, "time", st->time);
-  cJSON_AddNumberToObject(o, "utc", st->utc);
-  cJSON_AddNumberToObject(o, "epoch_period", srv->period);
-  cJSON_AddNumberToObject(o, "ticks", (double)st->ticks);
-  cJSON_AddNumberToObject(o, "viewers", ws->viewers);
-  cJSON_AddNumberToObject(o, "granted_bytes", (double)ws->granted_bytes);
-  cJSON_AddNumberToObject(o, "held_bytes", (double)ws->held_bytes);
-  cJSON_AddNumberToObject(o, "bricks_produced", (double)ws->bricks_produced);
-  cJSON_AddNumberToObject(o, "brick_requests", (double)ws->brick_requests);
-  cJSON_AddNumberToObject(o, "cache_hits", (double)ws->cache_hits);
-  cJSON_AddNumberToObject(o, "cache_misses", (double)ws->cache_misses);
-  cJSON_AddNumberToObject(o, "cache_evictions", (double)ws->cache_evictions);
-  cJSON_AddNumberToObject(o, "cache_hit_rate", ws->cache_hit_rate);
-  cJSON_AddNumberToObject(o, "cache_bytes", (double)ws->cache_bytes);
-  cJSON_AddNumberToObject(o, "plan_ms", 1e3 * ws->plan_seconds);
-  cJSON_AddNumberToObject(o, "produce_ms", 1e3 * ws->produce_seconds);
+  ADD_NUMBERS(o, {"epoch", (double)ws->epoch}, {"time", st->time}, {"utc", st->utc}, {"epoch_period", srv->period},
+              {"ticks", (double)st->ticks}, {"viewers", ws->viewers}, {"granted_bytes", (double)ws->granted_bytes},
+              {"held_bytes", (double)ws->held_bytes}, {"bricks_produced", (double)ws->bricks_produced},
+              {"brick_requests", (double)ws->brick_requests}, {"cache_hits", (double)ws->cache_hits},
+              {"cache_misses", (double)ws->cache_misses}, {"cache_evictions", (double)ws->cache_evictions},
+              {"cache_hit_rate", ws->cache_hit_rate}, {"cache_bytes", (double)ws->cache_bytes},
+              {"plan_ms", 1e3 * ws->plan_seconds}, {"produce_ms", 1e3 * ws->produce_seconds});
   add_hist(o, "brick_seconds", &ws->brick_seconds);
   cJSON_AddNumberToObject(o, "late_ticks", (double)st->late_ticks);
   add_hist(o, "tick_lateness", &st->tick_lateness);
-  cJSON_AddNumberToObject(o, "queue", (double)st->queue);
-  cJSON_AddNumberToObject(o, "bricks_made_between_ticks", (double)st->bricks_made);
-  cJSON_AddNumberToObject(o, "produce_errors", (double)ws->produce_errors);
-  cJSON_AddNumberToObject(o, "connections", st->connections);
-  cJSON_AddNumberToObject(o, "accepted", (double)st->accepted);
-  cJSON_AddNumberToObject(o, "refused", (double)st->refused);
-  cJSON_AddNumberToObject(o, "closed_errors", (double)st->closed_errors);
-  cJSON_AddNumberToObject(o, "resumes", (double)st->resumes);
-  cJSON_AddNumberToObject(o, "budget_lowerings", (double)st->budget_lowerings);
+  ADD_NUMBERS(o, {"queue", (double)st->queue}, {"bricks_made_between_ticks", (double)st->bricks_made},
+              {"produce_errors", (double)ws->produce_errors}, {"connections", st->connections},
+              {"accepted", (double)n->accepted}, {"refused", (double)n->refused},
+              {"closed_errors", (double)n->closed_errors}, {"resumes", (double)n->resumes},
+              {"budget_lowerings", (double)n->budget_lowerings});
   add_limits(o, srv, st);
   cJSON *rf = cJSON_AddObjectToObject(o, "refusals"); /* by reason: connections and HELLOs refused */
-  for (int i = 0; i < OCS_REFUSE_COUNT; i++) cJSON_AddNumberToObject(rf, ocs_refusal_key((ocs_refusal_t)i), (double)st->refusals[i]);
+  for (int i = 0; i < OCS_REFUSE_COUNT; i++) cJSON_AddNumberToObject(rf, ocs_refusal_key((ocs_refusal_t)i), (double)n->refusals[i]);
   cJSON *ss = cJSON_AddObjectToObject(o, "sessions_by_state");
   for (int i = 0; i < OCS_SS_COUNT; i++) cJSON_AddNumberToObject(ss, ocs_session_state_name(i), st->by_state[i]);
-  cJSON_AddNumberToObject(o, "lingering", st->lingering);
-  cJSON_AddNumberToObject(o, "lingering_budget", (double)st->lingering_budget);
-  cJSON_AddNumberToObject(o, "admitted", st->admitted);
-  cJSON_AddNumberToObject(o, "resident_bytes", (double)st->rss);
+  ADD_NUMBERS(o, {"lingering", st->lingering}, {"lingering_budget", (double)st->lingering_budget},
+              {"admitted", st->admitted}, {"resident_bytes", (double)st->rss});
   add_share(o, &st->share);
   return o;
 }

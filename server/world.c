@@ -180,7 +180,8 @@ struct ocs_world_s {
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], stamp[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1];
   double rate[OC_KEY_MAX_LEVEL + 1];
   ocs_viewer_t **viewers;
-  int nviewers, viewers_cap;
+  int nviewers;
+  size_t viewers_cap;
   uint64_t granted;
   prod_t stepping;   /* the step's requests (a clocked tick's: all content that exists) */
   prod_t producing;  /* production's (clocked), between ocs_world_produce_begin() and _end() */
@@ -742,13 +743,9 @@ int ocs_world_add_viewer(ocs_world_t *w, const ocs_plan_desc_t *req, ocs_viewer_
                (unsigned long long)cap, (unsigned long long)ocs_plan_min_budget(&d));
     return OC_ERANGE;
   }
-  if (w->nviewers == w->viewers_cap) {
-    int nc = w->viewers_cap ? 2 * w->viewers_cap : 8;
-    ocs_viewer_t **a = realloc(w->viewers, (size_t)nc * sizeof *a);
-    if (!a) return OC_ENOMEM;
-    w->viewers = a;
-    w->viewers_cap = nc;
-  }
+  ocs_viewer_t **a = oc_grow(w->viewers, &w->viewers_cap, (size_t)w->nviewers, sizeof *a, 8);
+  if (!a) return OC_ENOMEM;
+  w->viewers = a;
   ocs_viewer_t *v = calloc(1, sizeof *v);
   if (!v) return OC_ENOMEM;
   v->steady = 1.0; /* until its view jumps */
@@ -961,17 +958,13 @@ static uint64_t ready_cb(void *ctx, oc_key_t key, int level, uint64_t stamp, uin
     ocs_cache_entry_t *e;
     if (!ocs_cache_peek(w->cache, &k, &e)) continue;
     pthread_mutex_lock(&w->tick_mu);
-    if (w->npins == w->pins_cap) {
-      size_t nc = w->pins_cap ? 2 * w->pins_cap : 1024;
-      ocs_cache_entry_t **a = realloc(w->pins, nc * sizeof *a);
-      if (!a) {
-        pthread_mutex_unlock(&w->tick_mu);
-        ocs_cache_release(w->cache, e);
-        return 0; /* treated as not ready */
-      }
-      w->pins = a;
-      w->pins_cap = nc;
+    ocs_cache_entry_t **a = oc_grow(w->pins, &w->pins_cap, w->npins, sizeof *a, 1024);
+    if (!a) {
+      pthread_mutex_unlock(&w->tick_mu);
+      ocs_cache_release(w->cache, e);
+      return 0; /* treated as not ready */
     }
+    w->pins = a;
     w->pins[w->npins++] = e;
     pthread_mutex_unlock(&w->tick_mu);
     *kind = ((const payload_t *)ocs_cache_data(e))->kind;
@@ -985,16 +978,12 @@ static void want_cb(void *ctx, oc_key_t key, uint64_t stamp, double prio) {
   const plan_ctx_t *c = ctx;
   ocs_world_t *w = c->w;
   pthread_mutex_lock(&w->tick_mu);
-  if (w->nwish == w->wish_cap) {
-    size_t nc = w->wish_cap ? 2 * w->wish_cap : 1024;
-    wish_t *a = realloc(w->wish, nc * sizeof *a);
-    if (!a) { /* asked again next tick */
-      pthread_mutex_unlock(&w->tick_mu);
-      return;
-    }
-    w->wish = a;
-    w->wish_cap = nc;
+  wish_t *a = oc_grow(w->wish, &w->wish_cap, w->nwish, sizeof *a, 1024);
+  if (!a) { /* asked again next tick */
+    pthread_mutex_unlock(&w->tick_mu);
+    return;
   }
+  w->wish = a;
   w->wish[w->nwish++] = (wish_t){key, stamp, prio > 0 ? prio : 0.0, 0.0, c->viewer};
   pthread_mutex_unlock(&w->tick_mu);
 }
@@ -1233,13 +1222,9 @@ static int cmp_want(const void *a, const void *b) {
 }
 
 static int push_want(want_t **want, size_t *n, size_t *cap, want_t x) {
-  if (*n == *cap) {
-    size_t nc = *cap ? 2 * *cap : 1024;
-    want_t *a = realloc(*want, nc * sizeof *a);
-    if (!a) return OC_ENOMEM;
-    *want = a;
-    *cap = nc;
-  }
+  want_t *a = oc_grow(*want, cap, *n, sizeof *a, 1024);
+  if (!a) return OC_ENOMEM;
+  *want = a;
   (*want)[(*n)++] = x;
   return 0;
 }
@@ -1427,13 +1412,9 @@ static int plan_viewers(ocs_world_t *w, ocs_plan_input_t *in, want_t **want, siz
 }
 
 static int push_req(prod_t *p, oc_key_t key, uint64_t stamp) {
-  if (p->nreq == p->req_cap) {
-    size_t nc = p->req_cap ? 2 * p->req_cap : 1024;
-    req_t *a = realloc(p->req, nc * sizeof *a);
-    if (!a) return OC_ENOMEM;
-    p->req = a;
-    p->req_cap = nc;
-  }
+  req_t *a = oc_grow(p->req, &p->req_cap, p->nreq, sizeof *a, 1024);
+  if (!a) return OC_ENOMEM;
+  p->req = a;
   p->req[p->nreq++] = (req_t){.key = key, .stamp = stamp};
   return 0;
 }
@@ -1469,19 +1450,15 @@ static int produce_requests(prod_t *p, int serial) {
   p->ndeferred = 0;
   for (size_t i = 0; i < p->nreq; i++) {
     if (!p->req[i].sigma) continue;
-    if (p->ndeferred == p->deferred_cap) {
-      size_t nc = p->deferred_cap ? 2 * p->deferred_cap : 256;
-      size_t *a = realloc(p->deferred, nc * sizeof *a);
-      if (!a) { /* finish it here, waiting */
-        int r = produce_finish(p, &p->req[i], p->req[i].sigma, 1);
-        free(p->req[i].sigma);
-        p->req[i].sigma = NULL;
-        if (r < 0 && rc >= 0) rc = r;
-        continue;
-      }
-      p->deferred = a;
-      p->deferred_cap = nc;
+    size_t *a = oc_grow(p->deferred, &p->deferred_cap, p->ndeferred, sizeof *a, 256);
+    if (!a) { /* finish it here, waiting */
+      int r = produce_finish(p, &p->req[i], p->req[i].sigma, 1);
+      free(p->req[i].sigma);
+      p->req[i].sigma = NULL;
+      if (r < 0 && rc >= 0) rc = r;
+      continue;
     }
+    p->deferred = a;
     p->deferred[p->ndeferred++] = i;
   }
   int r = 0;
@@ -1976,13 +1953,9 @@ void ocs_world_hold_clear(ocs_world_t *w) {
 
 static void made_log(ocs_world_t *w, oc_key_t key, uint64_t stamp) {
   pthread_mutex_lock(&w->share_mu);
-  if (w->nmade == w->made_cap && w->made_cap < OCS_MADE_MAX) {
-    size_t nc = w->made_cap ? 2 * w->made_cap : 1024;
-    share_t *a = realloc(w->made, nc * sizeof *a);
-    if (a) {
-      w->made = a;
-      w->made_cap = nc;
-    }
+  if (w->made_cap < OCS_MADE_MAX) {
+    share_t *a = oc_grow(w->made, &w->made_cap, w->nmade, sizeof *a, 1024);
+    if (a) w->made = a;
   }
   if (w->nmade < w->made_cap) w->made[w->nmade++] = (share_t){key, stamp, 1};
   else w->made_dropped++; /* not shared: made again elsewhere, which is only waste */
