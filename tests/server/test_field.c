@@ -18,6 +18,7 @@
 #include "ocs_field.h"
 #include "report.h"
 #include "test_util.h"
+#include "server/filter_check.h"
 
 static ocs_field_t *field_from(const char *json) {
   oc_scene_t sc;
@@ -30,64 +31,34 @@ static ocs_field_t *field_from(const char *json) {
   return f;
 }
 
-static double descendants_mean(const ocs_field_t *f, oc_key_t key, int depth) {
-  if (depth == 0) {
-    float s[512];
-    assert_int_equal(ocs_field_sample(f, key, 0.0, s), 0);
-    return oc_test_node_mean(s);
-  }
-  double m = 0.0;
-  for (int c = 0; c < 8; c++) m += descendants_mean(f, oc_key_child(key, c), depth - 1) / 8.0;
-  return m;
+/* The field at t = 0 as a filter_check.h source. */
+static void field_sample0(const void *f, oc_key_t key, float out[512]) {
+  assert_int_equal(ocs_field_sample(f, key, 0.0, out), 0);
 }
+static double field_point0(const void *f, oc_dvec3 p) { return ocs_field_point(f, p, 0.0); }
 
 static const char *sphere_json =
     "{\"sources\": [{\"type\": \"sphere\", \"lat\": 10, \"lon\": 20, \"alt\": 3000, \"radius\": 2000, \"sigma_t\": 0.05}],"
     " \"features\": {\"animation\": false}}";
 
-/* Nodes that straddle the sphere's surface at four levels. Two checks:
- *  - exactness of the box filter: the 512 samples' footprints tile the node's extended cube (edge
- *    8/7 of the node), so their plain mean is the true mean of σt over it (truth by 96³ quadrature);
- *  - the Conventions' test: the node's mean (trapezoid weights over its own cube) against its 8 and
- *    64 descendants', relative to the node's peak σt (what a viewer sees as brightness). */
+/* Nodes that straddle the sphere's surface at four levels: the box filter's exactness (truth by
+ * 96³ quadrature) and the Conventions' test (filter_check.h). */
 static void test_field__box_filter_preserves_the_mean(void **st) {
   (void)st;
   ocs_field_t *f = field_from(sphere_json);
   oc_geo_t edge = {10.0, 20.0 + 2000.0 / (OC_PLANET_RADIUS * cos(10.0 * OC_DEG) * OC_DEG), 3000.0};
   oc_dvec3 p = oc_geo_to_xyz(edge);
-  double worst = 0.0, worst_exact = 0.0;
+  filter_src_t src = {f, field_sample0, field_point0};
+  filter_worst_t worst = {0};
   for (int level = 12; level <= 15; level++) {
-    oc_key_t k = oc_key_from_point(level, p);
-    float s[512];
-    assert_int_equal(ocs_field_sample(f, k, 0.0, s), 0);
-    double plain = 0.0, peak = 0.0;
-    for (int i = 0; i < 512; i++) {
-      plain += s[i] / 512.0;
-      peak = fmax(peak, s[i]);
-    }
-    oc_dvec3 o;
-    double size, truth = 0.0;
-    oc_key_bounds(k, &o, &size);
-    const int n = 96;
-    double h = size / 7.0, e = 8.0 * h;
-    for (int z = 0; z < n; z++)
-      for (int y = 0; y < n; y++)
-        for (int x = 0; x < n; x++)
-          truth += ocs_field_point(f, oc_dv3(o.x - h / 2 + (x + 0.5) * e / n, o.y - h / 2 + (y + 0.5) * e / n,
-                                             o.z - h / 2 + (z + 0.5) * e / n), 0.0);
-    truth /= (double)n * n * n;
-    double m0 = descendants_mean(f, k, 0), m1 = descendants_mean(f, k, 1), m2 = descendants_mean(f, k, 2);
-    double e1 = fabs(m1 - m0) / peak, e2 = fabs(m2 - m0) / peak, ex = fabs(plain - truth) / peak;
+    filter_check_t r = filter_check(&src, oc_key_from_point(level, p), 96);
     printf("level %d: samples' mean %.6e, true mean %.6e (%.1e of peak); node mean %.6e, 8 children %.6e (%.1e), "
-           "64 grandchildren %.6e (%.1e)\n", level, plain, truth, ex, m0, m1, e1, m2, e2);
-    assert_true(m0 > 0.0 && peak <= 0.05f);
-    worst = fmax(worst, fmax(e1, e2));
-    worst_exact = fmax(worst_exact, ex);
+           "64 grandchildren %.6e (%.1e)\n", level, r.plain, r.truth, r.exact, r.m0, r.m1, fabs(r.m1 - r.m0) / r.peak, r.m2,
+           fabs(r.m2 - r.m0) / r.peak);
+    assert_true(r.m0 > 0.0 && r.peak <= 0.05f);
+    filter_worst_add(&worst, &r);
   }
-  oc_report("filtering", "analytic sphere: box-filtered samples' mean vs true mean, levels 12-15", worst_exact, 2e-3, "of peak");
-  oc_report("filtering", "analytic sphere: parent mean vs 8 and 64 descendants, levels 12-15", worst, 1e-2, "of peak");
-  assert_true(worst_exact < 2e-3);
-  assert_true(worst < 1e-2);
+  filter_worst_check(&worst, "analytic sphere", "levels 12-15", 2e-3);
   ocs_field_free(f);
 }
 

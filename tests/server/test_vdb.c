@@ -32,6 +32,7 @@
 #include "report.h"
 #include "vdb_shim.h"
 #include "vdb_tools.h"
+#include "server/filter_check.h"
 
 static char g_dir[256];
 static const ocs_vdb_api_t *g_api;
@@ -203,15 +204,11 @@ static oc_dvec3 index_to_planet(const place_t *p, const double i[3]) {
   return world_to_planet(p, w);
 }
 
-static double descendants_mean(const ocs_source_t *s, oc_key_t key, int depth) {
-  if (depth == 0) {
-    float v[512];
-    sample(s, key, 0.0, v);
-    return oc_test_node_mean(v);
-  }
-  double m = 0.0;
-  for (int c = 0; c < 8; c++) m += descendants_mean(s, oc_key_child(key, c), depth - 1) / 8.0;
-  return m;
+/* A source at t = 0 as a filter_check.h source. */
+static void source_sample0(const void *s, oc_key_t key, float out[512]) { sample(s, key, 0.0, out); }
+static double source_point0(const void *s, oc_dvec3 p) {
+  const ocs_source_t *src = s;
+  return src->vt->point(src, p, 0.0);
 }
 
 /* ---- 1. No OpenVDB for analytic scenes (runs first: nothing has loaded the shim yet) --------- */
@@ -461,7 +458,8 @@ static void test_vdb__fog_sphere_coarse_levels_box_average(void **st) {
           tsum += truth / 512.0;
           peak = fmax(peak, got);
         }
-    double m0 = oc_test_node_mean(v), m1 = descendants_mean(s, key, 1), m2 = descendants_mean(s, key, 2);
+    filter_src_t src = {s, source_sample0, source_point0};
+    double m0 = oc_test_node_mean(v), m1 = filter_descendants_mean(&src, key, 1), m2 = filter_descendants_mean(&src, key, 2);
     double em = fabs(sum - tsum) / peak, ed = fmax(fabs(m1 - m0), fabs(m2 - m0)) / peak;
     print_message("    level %d (footprint %.0f m): worst |sample - box average| %.2e, samples' mean vs true %.2e, node mean vs "
                   "8/64 descendants %.2e %.2e (of peak %.4f)\n", level, size / 7.0, worst / peak, em, fabs(m1 - m0) / peak,
@@ -1169,41 +1167,20 @@ static void test_vdb__disney_cloud(void **st) {
     masses[level - 10] = mass;
   }
   print_message("    Disney mass (σt·m³) at levels 10, 11, 12: %.6g %.6g %.6g\n", masses[0], masses[1], masses[2]);
-  /* The Conventions' test, as tests/server/test_field.c: for nodes through the cloud at levels
-   * 11..16, the samples' plain mean against the true mean over the extended cube (64³ point
-   * quadrature of the voxels' trilinear reconstruction), and the node's mean against its 8 and
-   * 64 descendants', both relative to the node's peak σt. */
-  double worst_desc = 0.0, worst_exact = 0.0;
+  /* The Conventions' test (filter_check.h), as tests/server/test_field.c: for nodes through the
+   * cloud at levels 11..16, the samples' plain mean against the true mean over the extended cube
+   * (64³ point quadrature of the voxels' trilinear reconstruction), and the node's mean against
+   * its 8 and 64 descendants', both relative to the node's peak σt. */
+  filter_src_t src = {s, source_sample0, source_point0};
+  filter_worst_t worst = {0};
   for (int level = 11; level <= 16; level++) {
-    oc_key_t key = oc_key_from_point(level, c);
-    float v[512];
-    sample(s, key, 0.0, v);
-    double plain = 0.0, peak = 0.0, truth = 0.0;
-    for (int i = 0; i < 512; i++) {
-      plain += v[i] / 512.0;
-      peak = fmax(peak, v[i]);
-    }
-    oc_dvec3 o;
-    double size;
-    oc_key_bounds(key, &o, &size);
-    const int n = 64;
-    double h = size / 7.0, e = 8.0 * h;
-    for (int z = 0; z < n; z++)
-      for (int y = 0; y < n; y++)
-        for (int x = 0; x < n; x++)
-          truth += s->vt->point(s, oc_dv3(o.x - h / 2 + (x + 0.5) * e / n, o.y - h / 2 + (y + 0.5) * e / n, o.z - h / 2 + (z + 0.5) * e / n), 0.0);
-    truth /= (double)n * n * n;
-    double m0 = oc_test_node_mean(v), m1 = descendants_mean(s, key, 1), m2 = descendants_mean(s, key, 2);
-    double e1 = fabs(m1 - m0) / peak, e2 = fabs(m2 - m0) / peak, ex = fabs(plain - truth) / peak;
+    filter_check_t r = filter_check(&src, oc_key_from_point(level, c), 64);
     print_message("    level %d: samples' mean %.5g vs true %.5g (%.1e of peak); node mean %.5g, 8 children %.1e, 64 "
-                  "grandchildren %.1e of peak\n", level, plain, truth, ex, m0, e1, e2);
-    worst_desc = fmax(worst_desc, fmax(e1, e2));
-    worst_exact = fmax(worst_exact, ex);
+                  "grandchildren %.1e of peak\n", level, r.plain, r.truth, r.exact, r.m0, fabs(r.m1 - r.m0) / r.peak,
+                  fabs(r.m2 - r.m0) / r.peak);
+    filter_worst_add(&worst, &r);
   }
-  oc_report("filtering", "Disney cloud: box-filtered samples' mean vs true mean, levels 11-16", worst_exact, 5e-3, "of peak");
-  oc_report("filtering", "Disney cloud: parent mean vs 8 and 64 descendants, levels 11-16", worst_desc, 1e-2, "of peak");
-  assert_true(worst_exact < 5e-3);
-  assert_true(worst_desc < 1e-2);
+  filter_worst_check(&worst, "Disney cloud", "levels 11-16", 5e-3);
   assert_true(fabs(masses[1] - masses[0]) / masses[0] < 0.01);
   assert_true(fabs(masses[2] - masses[0]) / masses[0] < 0.01);
   /* σt stays within [0, 0.1]; the root's bound covers it. */
