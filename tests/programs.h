@@ -35,4 +35,15 @@ static inline int oc_test_run(const char *cmd) {
   return r == -1 ? -1 : WIFEXITED(r) ? WEXITSTATUS(r) : 128;
 }
 
+/* Starts cmd in the background (in dir, unless NULL) with its pid written to pid_file, then waits up to
+ * tenths × 0.1 s for the shell test `ready` to hold. @return 0 once it holds, else nonzero. */
+static inline int oc_test_start(const char *dir, const char *cmd, const char *pid_file, const char *ready, int tenths) {
+  char sh[16384];
+  int n = snprintf(sh, sizeof sh,
+                   "%s%s%s(%s & echo $! >'%s') && for i in $(seq %d); do %s && break; sleep 0.1; done; %s",
+                   dir ? "cd '" : "", dir ? dir : "", dir ? "' && " : "", cmd, pid_file, tenths, ready, ready);
+  if (n < 0 || (size_t)n >= sizeof sh) return -1;
+  return oc_test_run(sh);
+}
+
 #endif /* OC_TESTS_PROGRAMS_H */

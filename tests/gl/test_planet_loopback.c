@@ -23,7 +23,7 @@
 #include <unistd.h>
 
 #include "oc_image.h"
-#include "programs.h" /* oc_test_dirs, oc_test_run */
+#include "programs.h" /* oc_test_dirs, oc_test_run, oc_test_start */
 
 #define W 96
 #define H 54
@@ -68,13 +68,13 @@ static void test_planet__loopback_cloudy_sky(void **state) {
   printf("built with AddressSanitizer: skipped (the gcc stage runs it)\n");
   skip();
 #endif
-  char cmd[8192];
+  char cmd[8192], pid[1100], ready[1100];
   snprintf(cmd, sizeof cmd,
-           "'%s/overcast-server' --listen 127.0.0.1:0 --epoch-period 0 --threads 2 >'%s/addr' 2>'%s/server.log' & "
-           "echo $! >'%s/server.pid'; for i in $(seq 300); do grep -q 'listening on' '%s/addr' && break; sleep 0.1; done; "
-           "grep -q 'listening on' '%s/addr'",
-           bin, tmp, tmp, tmp, tmp, tmp);
-  assert_int_equal(oc_test_run(cmd), 0);
+           "'%s/overcast-server' --listen 127.0.0.1:0 --epoch-period 0 --threads 2 >'%s/addr' 2>'%s/server.log'", bin,
+           tmp, tmp);
+  snprintf(pid, sizeof pid, "%s/server.pid", tmp);
+  snprintf(ready, sizeof ready, "grep -q 'listening on' '%s/addr'", tmp);
+  assert_int_equal(oc_test_start(NULL, cmd, pid, ready, 300), 0);
   snprintf(cmd, sizeof cmd,
            "'%s/overcast-view' --connect $(sed -n 's/^listening on //p' '%s/addr') --step --wait-epochs 3 --budget 4 "
            "--timeout 600 --headless --renderer gl --camera " CAMERA " --size %dx%d --out '%s/gl' --save-state '%s/s.ocst' -q",

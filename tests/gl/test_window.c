@@ -25,7 +25,7 @@
 
 #include "oc_camera.h"
 #include "oc_image.h"
-#include "programs.h" /* oc_test_dirs, oc_test_run */
+#include "programs.h" /* oc_test_dirs, oc_test_run, oc_test_start */
 
 static char bin[2048], src[2048], tmp[256];
 
@@ -76,12 +76,12 @@ static void test_window__keys_screenshots_record(void **state) {
   }
   char cmd[16384];
   /* Xvfb picks a free display and writes its number; the viewer renders at 160×90. */
-  snprintf(cmd, sizeof cmd,
-           "cd '%s' && (Xvfb -displayfd 3 -screen 0 320x240x24 -nolisten tcp 3>'%s/display' 2>'%s/xvfb.log' & "
-           "echo $! > '%s/xvfb.pid') && for i in $(seq 50); do [ -s '%s/display' ] && break; sleep 0.1; done; "
-           "[ -s '%s/display' ]",
-           tmp, tmp, tmp, tmp, tmp, tmp);
-  assert_int_equal(oc_test_run(cmd), 0);
+  char pid[1100], ready[1100];
+  snprintf(cmd, sizeof cmd, "Xvfb -displayfd 3 -screen 0 320x240x24 -nolisten tcp 3>'%s/display' 2>'%s/xvfb.log'", tmp,
+           tmp);
+  snprintf(pid, sizeof pid, "%s/xvfb.pid", tmp);
+  snprintf(ready, sizeof ready, "[ -s '%s/display' ]", tmp);
+  assert_int_equal(oc_test_start(tmp, cmd, pid, ready, 50), 0);
 #if defined(__SANITIZE_ADDRESS__)
   /* Mesa's GLX driver, unloaded by glfwTerminate() before LeakSanitizer runs, leaks a few blocks
    * that cannot be symbolised (so tests/lsan.supp cannot name them); the viewer's own code is
