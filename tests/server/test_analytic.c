@@ -240,42 +240,53 @@ static void test_tau__inside_sphere(void **state) {
   }
 }
 
+/* A medium of one slab (base..top m above the ground, σt sig) and a point in it or below it, with
+ * the point's local frame and its distance from the planet's centre. */
+typedef struct {
+  ocs_prim_t prim;
+  ocs_medium_t m;
+  oc_dvec3 p;
+  oc_enu_t enu;
+  long double r;
+} slab_probe_t;
+
+static void slab_probe(slab_probe_t *s, double base, double top, double sig, oc_geo_t at) {
+  assert_int_equal(ocs_prim_slab(&s->prim, base, top, sig), 0);
+  s->m = one(&s->prim);
+  s->p = oc_geo_to_xyz(at);
+  s->enu = oc_enu_at(s->p);
+  s->r = len_l(s->p);
+}
+
 static void test_tau__inside_slab(void **state) {
   (void)state;
   const double base = 1000, top = 2500, sig = 0.002, h = 1500;
-  ocs_prim_t sl;
-  assert_int_equal(ocs_prim_slab(&sl, base, top, sig), 0);
-  ocs_medium_t m = one(&sl);
-  oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){52, 4, h});
-  oc_enu_t enu = oc_enu_at(p);
-  long double r = len_l(p);
-  long double ro = OC_PLANET_RADIUS + top, ri = OC_PLANET_RADIUS + base;
+  slab_probe_t s;
+  slab_probe(&s, base, top, sig, (oc_geo_t){52, 4, h});
+  long double ro = OC_PLANET_RADIUS + top;
   /* Up: σt (top − h). */
-  assert_near(ocs_medium_tau_sun(&m, p, enu.up), sig * (top - h), 1e-12);
+  assert_near(ocs_medium_tau_sun(&s.m, s.p, s.enu.up), sig * (top - h), 1e-12);
   /* Horizontal: σt √(r_out² − r²) (the inner sphere is missed). */
-  double horiz = (double)(sig * sqrtl((ro - r) * (ro + r)));
-  assert_near(ocs_medium_tau_sun(&m, p, enu.east), horiz, 1e-9 * horiz);
+  double horiz = (double)(sig * sqrtl((ro - s.r) * (ro + s.r)));
+  assert_near(ocs_medium_tau_sun(&s.m, s.p, s.enu.east), horiz, 1e-9 * horiz);
   /* Down: through the ground and the planet, out through the slab on the far side: no planet
    * shadow in τ (Conventions). Straight down: (h − base) + (top − base). */
-  assert_near(ocs_medium_tau_sun(&m, p, oc_dscale(enu.up, -1)), sig * ((h - base) + (top - base)), 1e-9);
-  (void)ri;
+  assert_near(ocs_medium_tau_sun(&s.m, s.p, oc_dscale(s.enu.up, -1)), sig * ((h - base) + (top - base)), 1e-9);
 }
 
 /* ---- τ toward the sun below a slab ----------------------------------------------------------- */
 
 static void test_tau__slab_sun_angles(void **state) {
   (void)state;
-  const double base = 2000, top = 3000, sig = 0.01, h = 300;
-  ocs_prim_t sl;
-  assert_int_equal(ocs_prim_slab(&sl, base, top, sig), 0);
-  ocs_medium_t m = one(&sl);
-  oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){-5, 100, h});
-  oc_enu_t enu = oc_enu_at(p);
-  long double rp = len_l(p);
+  const double base = 2000, top = 3000, sig = 0.01;
+  slab_probe_t s;
+  slab_probe(&s, base, top, sig, (oc_geo_t){-5, 100, 300});
+  oc_dvec3 p = s.p;
+  long double rp = s.r;
   const double zenith[3] = {0.0, 60.0, 85.0};
   for (int i = 0; i < 3; i++) {
     double th = zenith[i] * OC_DEG, mu = cos(th);
-    oc_dvec3 sun = oc_dadd(oc_dscale(enu.up, mu), oc_dscale(enu.east, sin(th)));
+    oc_dvec3 sun = oc_dadd(oc_dscale(s.enu.up, mu), oc_dscale(s.enu.east, sin(th)));
     /* Distance along the sun ray to radius r: √(r² − rp²(1 − μ²)) − rp μ. */
     long double lmu = (long double)oc_ddot(oc_dnorm(p), oc_dnorm(sun));
     long double s2 = 1.0L - lmu * lmu;
@@ -283,7 +294,7 @@ static void test_tau__slab_sun_angles(void **state) {
     long double to = sqrtl(ro * ro - rp * rp * s2) - rp * lmu, ti = sqrtl(ri * ri - rp * rp * s2) - rp * lmu;
     double exact = (double)(sig * (to - ti));
     double flat = sig * (top - base) / mu;
-    double got = ocs_medium_tau_sun(&m, p, sun);
+    double got = ocs_medium_tau_sun(&s.m, p, sun);
     assert_near(got, exact, 1e-9 * exact);
     if (i == 0) assert_near(got, flat, 1e-9);
     if (i == 1) assert_near(got, flat, 2e-3 * flat); /* curvature: ~tan²θ·z/R = 1.2e-3 */
@@ -293,7 +304,7 @@ static void test_tau__slab_sun_angles(void **state) {
     oc_dvec3 q = oc_geo_to_xyz((oc_geo_t){-5, 100, 2400});
     long double rq = len_l(q);
     long double tq = sqrtl(ro * ro - rq * rq * s2) - rq * lmu;
-    double gq = ocs_medium_tau_sun(&m, q, sun);
+    double gq = ocs_medium_tau_sun(&s.m, q, sun);
     assert_near(gq, (double)(sig * tq), 1e-9 * gq);
     if (i == 0) assert_near(gq, sig * (top - 2400), 1e-9);
   }
