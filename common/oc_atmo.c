@@ -30,7 +30,10 @@ void oc_atmo_params_default(ocg_atmosphere *p) {
   p->ozone_absorption = ocg_v3(0.650e-6f, 1.881e-6f, 0.085e-6f);
   p->ozone_center = 25000.0f;
   p->ozone_half_width = 15000.0f;
-  p->ground_albedo = ocg_v3s(0.1f);
+  /* Land, not Bruneton's grey 0.1: a mix of vegetation and soil (green above red, little blue), so
+   * that the planet's ground reads as land beside the clouds (issue 21, "a first frame worth
+   * opening"; `overcast-bench look` gives its colour). */
+  p->ground_albedo = ocg_v3(0.07f, 0.09f, 0.04f);
   p->sun_angular_radius = 0.004675f;
   p->solar_irradiance = ocg_v3(1.474f, 1.8504f, 1.91198f);
 }

@@ -26,7 +26,10 @@ for _ in $(seq 100); do
 done
 ADDR=$(sed -n 's/^listening on //p' "$OUT/server.addr")
 echo "run: overcast-server on $ADDR (log: $OUT/server.log)" >&2
-CAMERA=45,0,2000,260,-5,60 # the built-in planet's camera (scenes/planet.json)
+# The main job's camera: 6 km over fair-weather cumulus west of France, looking down 15° (the
+# scene's own camera, 2 km over a stretch with few clouds, stays for the benches). Test
+# bench_look_main_job holds this view to cloud on >= 15 % of the frame and lit / dark cloud >= 2.
+CAMERA=45.5,-4,6000,260,-15,60
 if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
   build/bin/overcast-view --connect "$ADDR" --window --camera "$CAMERA" --size 1280x720 --out "$OUT" "$@"
 else
