@@ -224,22 +224,22 @@ static inline double ocs__w(const ocs__layer_t *L, const ocs__lframe_t *lf, floa
   return ocs__sat(((double)C - lf->theta) / L->s_w);
 }
 static inline double ocs__v(const ocs__layer_t *L, float K) { return ocs__sat(L->a0 + L->a1 * (double)K); }
+/* σt of water content wc at the altitude h (air density rho there) in the layer's phase: a mixed
+ * layer splits it between liquid and ice by its glaciation ramp. */
+static inline double ocs__sigma_wc(const ocs__layer_t *L, double wc, double h, double rho) {
+  if (L->phase == OCS__LIQUID) return ocg_sigma_t_liquid(wc, rho);
+  if (L->phase == OCS__ICE) return ocg_sigma_t_ice(wc, rho);
+  double g = ocs__smoothstep(L->glac_lo, L->glac_hi, h);
+  return ocg_sigma_t_liquid(wc * (1.0 - g), rho) + ocg_sigma_t_ice(wc * g * L->ice_ratio, rho);
+}
 /* σt of a layer from G > 0, the detail value D and the altitude. */
 static inline double ocs__sigma(const ocs__layer_t *L, const ocs__frame_t *F, const ocs__lframe_t *lf, double G,
                                 float D, double h) {
   double d = (double)D * lf->det_scale;
   double phi = ocs__sat((G - L->e * ocs__sat(0.5 - L->k_d * d)) / L->F_w);
   if (!(phi > 0.0)) return 0.0;
-  double wc = lf->wc * ocs__prof_up(L, h) * ocs__prof_down(L, h) * phi, rho = ocs__rho_air(h), s;
-  if (L->phase == OCS__LIQUID)
-    s = ocg_sigma_t_liquid(wc, rho);
-  else if (L->phase == OCS__ICE)
-    s = ocg_sigma_t_ice(wc, rho);
-  else {
-    double g = ocs__smoothstep(L->glac_lo, L->glac_hi, h);
-    s = ocg_sigma_t_liquid(wc * (1.0 - g), rho) + ocg_sigma_t_ice(wc * g * L->ice_ratio, rho);
-  }
-  return F->sigma_scale * s;
+  double wc = lf->wc * ocs__prof_up(L, h) * ocs__prof_down(L, h) * phi;
+  return F->sigma_scale * ocs__sigma_wc(L, wc, h, ocs__rho_air(h));
 }
 
 /* What a box bound learns per layer: the coverage range and the cell maximum over the box (a

@@ -133,11 +133,7 @@ static pthread_once_t ocs__T_once = PTHREAD_ONCE_INIT;
 
 /* s(h): σt per unit water content (kg/kg) at h, with the layer's profile and phase. */
 static double ocs__s_of_h(const ocs__layer_t *L, double h) {
-  double prof = ocs__prof_up(L, h) * ocs__prof_down(L, h), rho = ocs__rho_air(h);
-  if (L->phase == OCS__LIQUID) return ocg_sigma_t_liquid(prof, rho);
-  if (L->phase == OCS__ICE) return ocg_sigma_t_ice(prof, rho);
-  double g = ocs__smoothstep(L->glac_lo, L->glac_hi, h);
-  return ocg_sigma_t_liquid(prof * (1.0 - g), rho) + ocg_sigma_t_ice(prof * g * L->ice_ratio, rho);
+  return ocs__sigma_wc(L, ocs__prof_up(L, h) * ocs__prof_down(L, h), h, ocs__rho_air(h));
 }
 
 /* J of a layer: cumulative in h, one row of sub-step sums per A' column. */
