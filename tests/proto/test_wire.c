@@ -69,92 +69,79 @@ static void expect_reject(int e, const char *why, const char *needle) {
   if (!strstr(why, needle)) fail_msg("reason '%s' lacks '%s'", why, needle);
 }
 
-static ocp_hello_t sample_hello(void) {
-  ocp_hello_t m;
-  memset(&m, 0, sizeof m);
-  m.min_version = 1;
-  m.max_version = 1;
-  m.role = OCP_ROLE_VIEWER;
-  m.max_depth = 12;
-  m.budget = 0x0102030405060708ull;
-  m.slot_bytes = 2048;
-  m.record_bytes = 32;
-  m.width = 1920;
-  m.height = 1080;
-  m.caps = OCP_CAP_ALL;
-  m.resume_session = 0x11223344u;
-  m.resume_secret = 0xAABBCCDDEEFF0011ull;
-  m.held_epoch = 5;
-  m.held_checksum = 0xc9d949fa8e9ec21bull;
-  m.token_len = 2;
-  m.token[0] = 'a', m.token[1] = 'b';
-  return m;
-}
+/* Sample messages, every field set (static: the padding is zero too, so decoded copies compare
+ * equal byte for byte). */
+static const ocp_hello_t sample_hello = {
+    .min_version = 1,
+    .max_version = 1,
+    .role = OCP_ROLE_VIEWER,
+    .max_depth = 12,
+    .budget = 0x0102030405060708ull,
+    .slot_bytes = 2048,
+    .record_bytes = 32,
+    .width = 1920,
+    .height = 1080,
+    .caps = OCP_CAP_ALL,
+    .resume_session = 0x11223344u,
+    .resume_secret = 0xAABBCCDDEEFF0011ull,
+    .held_epoch = 5,
+    .held_checksum = 0xc9d949fa8e9ec21bull,
+    .token_len = 2,
+    .token = {'a', 'b'},
+};
 
-static ocp_welcome_t sample_welcome(void) {
-  ocp_welcome_t w;
-  memset(&w, 0, sizeof w);
-  w.version = 1;
-  w.flags = OCP_WELCOME_RESUMED;
-  w.kept_states = 3;
-  w.session = 77;
-  w.secret = 0x123456789ABCDEF0ull;
-  w.budget = 64u << 20;
-  w.slot_bytes = 2048;
-  w.record_bytes = 32;
-  w.max_depth = 14;
-  w.features = 0x1Fu;
-  w.epoch_period = 1.0;
-  w.planet_radius = 6371000.0;
-  w.time = 3600.25;
-  w.sun_dir = oc_dv3(0.0, 0.6, 0.8);
-  w.albedo = 0.99;
-  w.ms_a = 0.5, w.ms_b = 0.45, w.ms_c = 0.3;
-  w.ms_octaves = 4;
-  w.cam_lat = 47.5, w.cam_lon = 8.25, w.cam_alt = 1500.0;
-  w.cam_heading = 90.0, w.cam_pitch = 5.0, w.cam_fov = 60.0;
-  snprintf(w.name, sizeof w.name, "fair-weather cumulus");
-  return w;
-}
+static const ocp_welcome_t sample_welcome = {
+    .version = 1,
+    .flags = OCP_WELCOME_RESUMED,
+    .kept_states = 3,
+    .session = 77,
+    .secret = 0x123456789ABCDEF0ull,
+    .budget = 64u << 20,
+    .slot_bytes = 2048,
+    .record_bytes = 32,
+    .max_depth = 14,
+    .features = 0x1Fu,
+    .epoch_period = 1.0,
+    .planet_radius = 6371000.0,
+    .time = 3600.25,
+    .sun_dir = {0.0, 0.6, 0.8},
+    .albedo = 0.99,
+    .ms_a = 0.5, .ms_b = 0.45, .ms_c = 0.3,
+    .ms_octaves = 4,
+    .cam_lat = 47.5, .cam_lon = 8.25, .cam_alt = 1500.0,
+    .cam_heading = 90.0, .cam_pitch = 5.0, .cam_fov = 60.0,
+    .name = "fair-weather cumulus",
+};
 
-static ocp_camera_t sample_camera(void) {
-  ocp_camera_t c;
-  memset(&c, 0, sizeof c);
-  c.pos = oc_dv3(1.0, -2.0, 0.5);
-  c.forward = oc_dv3(0.0, 0.0, -1.0);
-  c.up = oc_dv3(0.0, 1.0, 0.0);
-  c.vfov_deg = 60.0;
-  c.width = 800;
-  c.height = 600;
-  return c;
-}
+static const ocp_camera_t sample_camera = {
+    .pos = {1.0, -2.0, 0.5},
+    .forward = {0.0, 0.0, -1.0},
+    .up = {0.0, 1.0, 0.0},
+    .vfov_deg = 60.0,
+    .width = 800,
+    .height = 600,
+};
 
-static ocp_epoch_begin_t sample_begin(void) {
-  ocp_epoch_begin_t m;
-  memset(&m, 0, sizeof m);
-  m.epoch = 43;
-  m.time = 1235.5;
-  m.sun_dir = oc_dv3(0.0, 0.6, 0.8);
-  m.base_epoch = 42;
-  m.node_count = 15;
-  m.brick_count = 3;
-  m.bricks_sent = 1;
-  return m;
-}
+static const ocp_epoch_begin_t sample_begin = {
+    .epoch = 43,
+    .time = 1235.5,
+    .sun_dir = {0.0, 0.6, 0.8},
+    .base_epoch = 42,
+    .node_count = 15,
+    .brick_count = 3,
+    .bricks_sent = 1,
+};
 
-static ocp_stats_t sample_stats(void) {
-  ocp_stats_t s;
-  memset(&s, 0, sizeof s);
-  s.epoch = 43;
-  s.leaves = 15, s.splits = 2, s.merges = 1, s.deferred = 4;
-  s.coalesced = 3;
-  s.resident_bytes = 123456;
-  s.wire_bytes = 4567;
-  s.raw_bytes = 98765;
-  s.plan_ms = 1.25;
-  s.produce_ms = 12.5;
-  return s;
-}
+static const ocp_stats_t sample_stats = {
+    .epoch = 43,
+    .leaves = 15, .splits = 2, .merges = 1, .deferred = 4,
+    .coalesced = 3,
+    .resident_bytes = 123456,
+    .wire_bytes = 4567,
+    .raw_bytes = 98765,
+    .plan_ms = 1.25,
+    .produce_ms = 12.5,
+};
 
 /*-*** Names, codes, versions ***/
 
@@ -224,7 +211,7 @@ static void test_wire__golden_hello(void **state) {
       0x61, 0x62,                                     /* token "ab" */
   };
   oc_buf_t b = {0};
-  ocp_hello_t m = sample_hello();
+  ocp_hello_t m = sample_hello;
   ocp_put_hello(&b, &m);
   assert_int_equal(b.len, sizeof want);
   assert_memory_equal(b.data, want, sizeof want);
@@ -249,7 +236,7 @@ static void test_wire__golden_camera(void **state) {
       0x58, 0x02, 0x00, 0x00,                         /* height 600 */
   };
   oc_buf_t b = {0};
-  ocp_camera_t c = sample_camera();
+  ocp_camera_t c = sample_camera;
   ocp_put_camera(&b, 1, &c);
   assert_int_equal(b.len, sizeof want);
   assert_memory_equal(b.data, want, sizeof want);
@@ -262,124 +249,76 @@ static void test_wire__golden_camera(void **state) {
 
 /*-*** Round trips ***/
 
-static void test_wire__round_trip_hello(void **state) {
-  (void)state;
+/* m, a message of `type`, encoded as `version` is one frame of that type whose payload is `length`
+ * bytes and decodes back to m (its first `size` bytes). @return the frame's header. */
+static ocp_header_t expect_round_trip(uint8_t version, uint8_t type, const wire_msg_t *m, size_t size, size_t length) {
   oc_buf_t b = {0};
   ocp_header_t h;
   char why[256];
-  ocp_hello_t m = sample_hello(), back;
-  ocp_put_hello(&b, &m);
+  wire_msg_t back;
+  wire_put_any(&b, version, type, m);
   const uint8_t *p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_HELLO);
-  assert_int_equal(h.version, m.max_version);
-  assert_int_equal(h.length, 64 + 2);
-  assert_int_equal(ocp_get_hello(p, h.length, &back, why, sizeof why), 0);
-  assert_memory_equal(&back, &m, sizeof m);
+  assert_int_equal(h.type, type);
+  assert_int_equal(h.length, length);
+  if (wire_get_any(version, type, p, h.length, &back, why, sizeof why)) fail_msg("%s: %s", ocp_msg_name(type), why);
+  assert_memory_equal(&back, m, size);
+  oc_buf_free(&b);
+  return h;
+}
+
+static void test_wire__round_trip_hello(void **state) {
+  (void)state;
+  wire_msg_t m;
+  memset(&m, 0, sizeof m); /* the padding compares too */
+  m.hello = sample_hello;
+  ocp_header_t h = expect_round_trip(1, OCP_MSG_HELLO, &m, sizeof m.hello, 64 + 2);
+  assert_int_equal(h.version, m.hello.max_version);
   /* a control client: viewer fields zero, the longest token */
   memset(&m, 0, sizeof m);
-  m.min_version = 1, m.max_version = 1, m.role = OCP_ROLE_CONTROL;
-  m.token_len = OCP_TOKEN_MAX;
-  for (int i = 0; i < OCP_TOKEN_MAX; i++) m.token[i] = (uint8_t)(i * 7 + 1);
-  b.len = 0;
-  ocp_put_hello(&b, &m);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.length, 64 + OCP_TOKEN_MAX);
-  assert_int_equal(ocp_get_hello(p, h.length, &back, why, sizeof why), 0);
-  assert_memory_equal(&back, &m, sizeof m);
-  oc_buf_free(&b);
+  m.hello.min_version = 1, m.hello.max_version = 1, m.hello.role = OCP_ROLE_CONTROL;
+  m.hello.token_len = OCP_TOKEN_MAX;
+  for (int i = 0; i < OCP_TOKEN_MAX; i++) m.hello.token[i] = (uint8_t)(i * 7 + 1);
+  expect_round_trip(1, OCP_MSG_HELLO, &m, sizeof m.hello, 64 + OCP_TOKEN_MAX);
 }
 
 static void test_wire__round_trip_welcome(void **state) {
   (void)state;
-  oc_buf_t b = {0};
-  ocp_header_t h;
-  char why[256];
-  ocp_welcome_t w = sample_welcome(), back;
-  ocp_put_welcome(&b, 1, &w);
-  const uint8_t *p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_WELCOME);
-  assert_int_equal(h.length, 178 + strlen(w.name));
-  if (ocp_get_welcome(p, h.length, &back, why, sizeof why)) fail_msg("%s", why);
-  assert_memory_equal(&back, &w, sizeof w);
+  wire_msg_t m;
+  memset(&m, 0, sizeof m); /* the padding compares too */
+  m.welcome = sample_welcome;
+  expect_round_trip(1, OCP_MSG_WELCOME, &m, sizeof m.welcome, 178 + strlen(m.welcome.name));
   /* control grant: K = 0, nothing granted; the longest name */
-  memset(&w, 0, sizeof w);
-  w.version = 1, w.session = 1;
-  w.sun_dir = oc_dv3(1, 0, 0);
-  memset(w.name, 'n', OCP_NAME_MAX);
-  b.len = 0;
-  ocp_put_welcome(&b, 1, &w);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.length, 178 + OCP_NAME_MAX);
-  if (ocp_get_welcome(p, h.length, &back, why, sizeof why)) fail_msg("%s", why);
-  assert_memory_equal(&back, &w, sizeof w);
-  oc_buf_free(&b);
+  memset(&m, 0, sizeof m);
+  m.welcome.version = 1, m.welcome.session = 1;
+  m.welcome.sun_dir = oc_dv3(1, 0, 0);
+  memset(m.welcome.name, 'n', OCP_NAME_MAX);
+  expect_round_trip(1, OCP_MSG_WELCOME, &m, sizeof m.welcome, 178 + OCP_NAME_MAX);
 }
 
 static void test_wire__round_trip_small(void **state) {
   (void)state;
-  oc_buf_t b = {0};
-  ocp_header_t h;
-  char why[256];
-  const uint8_t *p;
-  /* camera */
-  ocp_camera_t c = sample_camera(), cb;
-  c.pos = oc_dv3(6371000.5, -1234.25, 1e-3);
-  c.forward = oc_dnorm(oc_dv3(1, 2, 3));
-  c.up = oc_dnorm(oc_dcross(oc_dcross(c.forward, oc_dv3(0, 0, 1)), c.forward));
-  c.width = 65536, c.height = 1;
-  ocp_put_camera(&b, 1, &c);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_CAMERA);
-  if (ocp_get_camera(p, h.length, &cb, why, sizeof why)) fail_msg("%s", why);
-  assert_memory_equal(&cb, &c, sizeof c);
-  /* ack */
-  ocp_ack_t a = {UINT64_MAX - 1, 0x0123456789ABCDEFull}, ab;
-  b.len = 0;
-  ocp_put_ack(&b, 1, &a);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_ACK);
-  assert_int_equal(h.length, 16);
-  assert_int_equal(ocp_get_ack(p, h.length, &ab, why, sizeof why), 0);
-  assert_memory_equal(&ab, &a, sizeof a);
-  /* keepalive */
-  b.len = 0;
-  ocp_put_empty(&b, 1, OCP_MSG_KEEPALIVE);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_KEEPALIVE);
-  assert_int_equal(h.length, 0);
-  assert_int_equal(ocp_get_empty(p, 0, why, sizeof why), 0);
-  /* epoch begin / end */
-  ocp_epoch_begin_t eb = sample_begin(), ebb;
-  b.len = 0;
-  ocp_put_epoch_begin(&b, 1, &eb);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_EPOCH_BEGIN);
-  assert_int_equal(h.length, 64);
-  if (ocp_get_epoch_begin(p, h.length, &ebb, why, sizeof why)) fail_msg("%s", why);
-  assert_memory_equal(&ebb, &eb, sizeof eb);
-  eb.base_epoch = OCP_NO_BASE;
-  b.len = 0;
-  ocp_put_epoch_begin(&b, 1, &eb);
-  p = only_frame(&b, &h);
-  assert_int_equal(ocp_get_epoch_begin(p, h.length, &ebb, why, sizeof why), 0);
-  assert_true(ebb.base_epoch == OCP_NO_BASE);
-  ocp_epoch_end_t ee = {43, 0xc9d949fa8e9ec21bull}, eeb;
-  b.len = 0;
-  ocp_put_epoch_end(&b, 1, &ee);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_EPOCH_END);
-  assert_int_equal(ocp_get_epoch_end(p, h.length, &eeb, why, sizeof why), 0);
-  assert_memory_equal(&eeb, &ee, sizeof ee);
-  /* stats */
-  ocp_stats_t s = sample_stats(), sb;
-  b.len = 0;
-  ocp_put_stats(&b, 1, &s);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_STATS);
-  assert_int_equal(h.length, 88);
-  if (ocp_get_stats(1, p, h.length, &sb, why, sizeof why)) fail_msg("%s", why);
-  assert_memory_equal(&sb, &s, sizeof s);
-  oc_buf_free(&b);
+  wire_msg_t m;
+  memset(&m, 0, sizeof m); /* the padding compares too */
+  m.camera = sample_camera;
+  m.camera.pos = oc_dv3(6371000.5, -1234.25, 1e-3);
+  m.camera.forward = oc_dnorm(oc_dv3(1, 2, 3));
+  m.camera.up = oc_dnorm(oc_dcross(oc_dcross(m.camera.forward, oc_dv3(0, 0, 1)), m.camera.forward));
+  m.camera.width = 65536, m.camera.height = 1;
+  expect_round_trip(1, OCP_MSG_CAMERA, &m, sizeof m.camera, 88);
+  m.ack = (ocp_ack_t){UINT64_MAX - 1, 0x0123456789ABCDEFull};
+  expect_round_trip(1, OCP_MSG_ACK, &m, sizeof m.ack, 16);
+  expect_round_trip(1, OCP_MSG_KEEPALIVE, &m, 0, 0);
+  /* epoch begin, with a base and without; end */
+  memset(&m, 0, sizeof m);
+  m.begin = sample_begin;
+  expect_round_trip(1, OCP_MSG_EPOCH_BEGIN, &m, sizeof m.begin, 64);
+  m.begin.base_epoch = OCP_NO_BASE;
+  expect_round_trip(1, OCP_MSG_EPOCH_BEGIN, &m, sizeof m.begin, 64);
+  m.end = (ocp_epoch_end_t){43, 0xc9d949fa8e9ec21bull};
+  expect_round_trip(1, OCP_MSG_EPOCH_END, &m, sizeof m.end, 16);
+  memset(&m, 0, sizeof m);
+  m.stats = sample_stats;
+  expect_round_trip(1, OCP_MSG_STATS, &m, sizeof m.stats, 88);
 }
 
 /* STATS by version: version 1 keeps its 88 bytes (a v1 viewer never sees the new fields); version 2
@@ -387,7 +326,7 @@ static void test_wire__round_trip_small(void **state) {
  * offsets docs/protocol.md gives; each version refuses the other's length and bad v2 fields. */
 static void test_wire__stats_versions(void **state) {
   (void)state;
-  ocp_stats_t s = sample_stats(), sb;
+  ocp_stats_t s = sample_stats, sb;
   s.queue = 1234, s.produced = 567, s.split_backlog = 89;
   for (int l = 0; l < OCP_STATS_LEVELS; l++) s.age_p50[l] = (uint8_t)(l % 3), s.age_p99[l] = (uint8_t)(l % 3 + 1);
   s.age_p50[21] = s.age_p99[21] = 255;
@@ -506,64 +445,49 @@ static void test_wire__round_trip_control(void **state) {
 
 /*-*** Exact lengths ***/
 
+/* m encoded as `type`: the frame decodes; with one byte less or one zero byte more it does not. */
+static void expect_exact_length_of(uint8_t type, const wire_msg_t *m) {
+  oc_buf_t b = {0};
+  wire_put_any(&b, 1, type, m);
+  expect_exact_length(&b);
+  oc_buf_free(&b);
+}
+
 static void test_wire__exact_lengths(void **state) {
   (void)state;
-  oc_buf_t b = {0};
-  ocp_hello_t hello = sample_hello();
-  ocp_put_hello(&b, &hello);
-  expect_exact_length(&b);
-  hello.token_len = 0;
-  b.len = 0;
-  ocp_put_hello(&b, &hello);
-  expect_exact_length(&b);
-  ocp_welcome_t w = sample_welcome();
-  b.len = 0;
-  ocp_put_welcome(&b, 1, &w);
-  expect_exact_length(&b);
-  w.name[0] = '\0';
-  b.len = 0;
-  ocp_put_welcome(&b, 1, &w);
-  expect_exact_length(&b);
-  ocp_camera_t c = sample_camera();
-  b.len = 0;
-  ocp_put_camera(&b, 1, &c);
-  expect_exact_length(&b);
-  ocp_ack_t a = {1, 2};
-  b.len = 0;
-  ocp_put_ack(&b, 1, &a);
-  expect_exact_length(&b);
-  b.len = 0;
-  ocp_put_text(&b, 1, OCP_MSG_ERROR, 2, "bad");
-  expect_exact_length(&b);
-  b.len = 0;
-  ocp_put_text(&b, 1, OCP_MSG_GOODBYE, 0, "");
-  expect_exact_length(&b);
-  b.len = 0;
-  ocp_put_empty(&b, 1, OCP_MSG_KEEPALIVE);
-  expect_exact_length(&b);
-  ocp_epoch_begin_t eb = sample_begin();
-  b.len = 0;
-  ocp_put_epoch_begin(&b, 1, &eb);
-  expect_exact_length(&b);
-  ocp_epoch_end_t ee = {43, 44};
-  b.len = 0;
-  ocp_put_epoch_end(&b, 1, &ee);
-  expect_exact_length(&b);
-  ocp_stats_t s = sample_stats();
-  b.len = 0;
-  ocp_put_stats(&b, 1, &s);
-  expect_exact_length(&b);
+  wire_msg_t m = {.hello = sample_hello};
+  expect_exact_length_of(OCP_MSG_HELLO, &m);
+  m.hello.token_len = 0;
+  expect_exact_length_of(OCP_MSG_HELLO, &m);
+  m.welcome = sample_welcome;
+  expect_exact_length_of(OCP_MSG_WELCOME, &m);
+  m.welcome.name[0] = '\0';
+  expect_exact_length_of(OCP_MSG_WELCOME, &m);
+  m.camera = sample_camera;
+  expect_exact_length_of(OCP_MSG_CAMERA, &m);
+  m.ack = (ocp_ack_t){1, 2};
+  expect_exact_length_of(OCP_MSG_ACK, &m);
+  m.text = (ocp_text_msg_t){2, "bad"};
+  expect_exact_length_of(OCP_MSG_ERROR, &m);
+  m.text = (ocp_text_msg_t){0, ""};
+  expect_exact_length_of(OCP_MSG_GOODBYE, &m);
+  expect_exact_length_of(OCP_MSG_KEEPALIVE, &m);
+  m.begin = sample_begin;
+  expect_exact_length_of(OCP_MSG_EPOCH_BEGIN, &m);
+  m.end = (ocp_epoch_end_t){43, 44};
+  expect_exact_length_of(OCP_MSG_EPOCH_END, &m);
+  m.stats = sample_stats;
+  expect_exact_length_of(OCP_MSG_STATS, &m);
   /* CONTROL has no fixed length (json_len = n − 8): its bounds are in round_trip_control */
   char why[256];
   uint8_t z[200] = {0};
-  expect_reject(ocp_get_hello(z, 63, &hello, why, sizeof why), why, "hello: payload is 63 bytes");
-  expect_reject(ocp_get_welcome(z, 177, &w, why, sizeof why), why, "welcome: payload is 177 bytes");
-  expect_reject(ocp_get_camera(z, 87, &c, why, sizeof why), why, "camera: payload is 87 bytes, expected 88");
-  expect_reject(ocp_get_ack(z, 17, &a, why, sizeof why), why, "ack: payload is 17 bytes, expected 16");
-  expect_reject(ocp_get_text(z, 5, &(ocp_text_msg_t){0}, why, sizeof why), why, "payload is 5 bytes");
+  expect_reject(ocp_get_hello(z, 63, &m.hello, why, sizeof why), why, "hello: payload is 63 bytes");
+  expect_reject(ocp_get_welcome(z, 177, &m.welcome, why, sizeof why), why, "welcome: payload is 177 bytes");
+  expect_reject(ocp_get_camera(z, 87, &m.camera, why, sizeof why), why, "camera: payload is 87 bytes, expected 88");
+  expect_reject(ocp_get_ack(z, 17, &m.ack, why, sizeof why), why, "ack: payload is 17 bytes, expected 16");
+  expect_reject(ocp_get_text(z, 5, &m.text, why, sizeof why), why, "payload is 5 bytes");
   expect_reject(ocp_get_empty(z, 1, why, sizeof why), why, "keepalive: payload is 1 bytes, expected 0");
-  expect_reject(ocp_get_stats(1, z, 89, &s, why, sizeof why), why, "stats: payload is 89 bytes, expected 88");
-  oc_buf_free(&b);
+  expect_reject(ocp_get_stats(1, z, 89, &m.stats, why, sizeof why), why, "stats: payload is 89 bytes, expected 88");
 }
 
 /*-*** Field checks ***/
@@ -583,12 +507,12 @@ static int hello_with(const ocp_hello_t *m, size_t off, const uint8_t *bytes, si
 static void test_wire__hello_fields(void **state) {
   (void)state;
   char why[256];
-  ocp_hello_t m = sample_hello();
+  ocp_hello_t m = sample_hello;
   oc_buf_t b = {0};
   m.max_depth = 30;
   ocp_put_hello(&b, &m);
   expect_reject(ocp_get_hello(b.data + 8, b.len - 8, &m, why, sizeof why), why, "hello: max_depth 30 is above 21");
-  m = sample_hello();
+  m = sample_hello;
   expect_reject(hello_with(&m, 0, (const uint8_t[]){2, 0, 1, 0}, 4, why, sizeof why), why, "min_version 2 is above max_version 1");
   expect_reject(hello_with(&m, 4, (const uint8_t[]){2}, 1, why, sizeof why), why, "role 2");
   expect_reject(hello_with(&m, 32, (const uint8_t[]){8}, 1, why, sizeof why), why, "caps 0x8 has unknown bits");
@@ -619,7 +543,7 @@ static void test_wire__hello_fields(void **state) {
 
 static int welcome_with(size_t off, const uint8_t *bytes, size_t n, char *why, size_t why_len) {
   oc_buf_t b = {0};
-  ocp_welcome_t w = sample_welcome(), back;
+  ocp_welcome_t w = sample_welcome, back;
   ocp_put_welcome(&b, 1, &w);
   memcpy(b.data + OCP_HEADER_BYTES + off, bytes, n);
   int e = ocp_get_welcome(b.data + OCP_HEADER_BYTES, b.len - OCP_HEADER_BYTES, &back, why, why_len);
@@ -655,7 +579,7 @@ static void test_wire__welcome_sun_and_name(void **state) {
   expect_reject(welcome_with(178 + 3, (const uint8_t[]){0}, 1, why, sizeof why), why, "name contains a NUL");
   /* name length 64 */
   oc_buf_t b = {0};
-  ocp_welcome_t w = sample_welcome(), back;
+  ocp_welcome_t w = sample_welcome, back;
   ocp_put_welcome(&b, 1, &w);
   oc_put_u16(b.data + 8 + 176, 64);
   expect_reject(ocp_get_welcome(b.data + 8, b.len - 8, &back, why, sizeof why), why, "name length 64 is above 63");
@@ -675,7 +599,7 @@ static void test_wire__reserved_bytes(void **state) {
   for (size_t off = 124; off < 128; off++)
     expect_reject(welcome_with(off, (const uint8_t[]){0x80}, 1, why, sizeof why), why, "welcome: reserved bytes 124..127");
   oc_buf_t b = {0};
-  ocp_epoch_begin_t eb = sample_begin(), ebb;
+  ocp_epoch_begin_t eb = sample_begin, ebb;
   ocp_put_epoch_begin(&b, 1, &eb);
   for (size_t off = 60; off < 64; off++) {
     b.data[8 + off] = 1;
@@ -683,7 +607,7 @@ static void test_wire__reserved_bytes(void **state) {
     b.data[8 + off] = 0;
   }
   assert_int_equal(ocp_get_epoch_begin(b.data + 8, 64, &ebb, why, sizeof why), 0);
-  ocp_stats_t s = sample_stats(), sb;
+  ocp_stats_t s = sample_stats, sb;
   b.len = 0;
   ocp_put_stats(&b, 1, &s);
   for (size_t off = 72; off < 88; off++) {
@@ -707,36 +631,36 @@ static int camera_check(const ocp_camera_t *c, char *why, size_t why_len) {
 static void test_wire__camera_fields(void **state) {
   (void)state;
   char why[256];
-  ocp_camera_t c = sample_camera();
+  ocp_camera_t c = sample_camera;
   assert_int_equal(camera_check(&c, why, sizeof why), 0);
   c.pos.y = NAN;
   expect_reject(camera_check(&c, why, sizeof why), why, "camera: pos is not finite");
-  c = sample_camera();
+  c = sample_camera;
   c.forward.x = NAN;
   expect_reject(camera_check(&c, why, sizeof why), why, "camera: forward is not finite");
-  c = sample_camera();
+  c = sample_camera;
   c.up.z = INFINITY;
   expect_reject(camera_check(&c, why, sizeof why), why, "camera: up is not finite");
-  c = sample_camera();
+  c = sample_camera;
   c.vfov_deg = NAN;
   expect_reject(camera_check(&c, why, sizeof why), why, "vfov_deg");
-  c = sample_camera();
+  c = sample_camera;
   c.forward.z = -1.002; /* length off by 2e-3 */
   expect_reject(camera_check(&c, why, sizeof why), why, "camera: forward");
   c.forward.z = -1.0009; /* within 1e-3 */
   assert_int_equal(camera_check(&c, why, sizeof why), 0);
-  c = sample_camera();
+  c = sample_camera;
   c.up = oc_dnorm(oc_dv3(0.0, 1.0, 0.002)); /* dot = −0.002 */
   expect_reject(camera_check(&c, why, sizeof why), why, "not orthogonal");
-  c = sample_camera();
+  c = sample_camera;
   c.vfov_deg = 0.0;
   expect_reject(camera_check(&c, why, sizeof why), why, "vfov_deg 0 is outside (0, 180)");
   c.vfov_deg = 180.0;
   expect_reject(camera_check(&c, why, sizeof why), why, "vfov_deg 180");
-  c = sample_camera();
+  c = sample_camera;
   c.width = 0;
   expect_reject(camera_check(&c, why, sizeof why), why, "camera: width 0");
-  c = sample_camera();
+  c = sample_camera;
   c.height = 65537;
   expect_reject(camera_check(&c, why, sizeof why), why, "camera: height 65537");
 }
@@ -748,7 +672,7 @@ static void test_wire__epoch_begin_fields(void **state) {
   ocp_epoch_begin_t m, back;
 #define CHECK(edit, needle)                                                               \
   do {                                                                                    \
-    m = sample_begin();                                                                   \
+    m = sample_begin;                                                                   \
     edit;                                                                                 \
     b.len = 0;                                                                            \
     ocp_put_epoch_begin(&b, 1, &m);                                                       \
@@ -762,7 +686,7 @@ static void test_wire__epoch_begin_fields(void **state) {
   CHECK(m.sun_dir = oc_dv3(0, 0.6, 0.8000021), "epoch-begin: sun_dir");
   CHECK(m.base_epoch = 43, "base_epoch 43 is not before epoch 43");
 #undef CHECK
-  m = sample_begin();
+  m = sample_begin;
   m.node_count = OC_STATE_MAX_NODES, m.brick_count = OC_STATE_MAX_BRICKS, m.bricks_sent = OC_STATE_MAX_BRICKS;
   b.len = 0;
   ocp_put_epoch_begin(&b, 1, &m);
@@ -817,9 +741,9 @@ static void test_wire__header(void **state) {
 
 /* A stream of several frames of different sizes. */
 static void build_stream(oc_buf_t *b) {
-  ocp_welcome_t w = sample_welcome();
-  ocp_camera_t c = sample_camera();
-  ocp_stats_t s = sample_stats();
+  ocp_welcome_t w = sample_welcome;
+  ocp_camera_t c = sample_camera;
+  ocp_stats_t s = sample_stats;
   ocp_put_welcome(b, 1, &w);
   ocp_put_empty(b, 1, OCP_MSG_KEEPALIVE);
   ocp_put_camera(b, 1, &c);
