@@ -8,6 +8,7 @@
 #include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -78,6 +79,22 @@ static inline void start_server_log(server_t *s, const char *const *extra, const
 }
 
 static inline void start_server(server_t *s, const char *const *extra) { start_server_log(s, extra, NULL); }
+
+/* Starts overcast-server on the sphere scene (scene_sphere), with more options: a NULL-terminated
+ * list of them. */
+static inline void start_sphere(server_t *s, ...) {
+  const char *extra[32] = {"--scene", scene_sphere};
+  int n = 2;
+  va_list ap;
+  va_start(ap, s);
+  for (const char *o; (o = va_arg(ap, const char *)) != NULL;) {
+    assert_true(n < 31);
+    extra[n++] = o;
+  }
+  va_end(ap);
+  extra[n] = NULL;
+  start_server(s, extra);
+}
 
 /* SIGTERM and the exit status (must be 0). SIGTERM drains: a viewer still open must leave (be
  * closed, or polled: it closes on the GOODBYE RECONNECT) within the 15 s this waits. */
@@ -204,6 +221,13 @@ static inline void viewer_open_as(viewer_t *v, int port, uint64_t budget, const 
 
 static inline void viewer_open(viewer_t *v, int port, uint64_t budget, const char *token) { viewer_open_as(v, port, budget, token, 0); }
 
+/* A viewer opened and welcomed (within 5 s). */
+static inline void viewer_welcomed(viewer_t *v, int port, uint64_t budget) {
+  viewer_open(v, port, budget, NULL);
+  char why[256];
+  if (ocv_conn_wait_ready(v->c, 5, why, sizeof why) != 0) fail_msg("viewer not welcomed: %s", why);
+}
+
 /* Polls until the viewer has `n` states, or is closed (returns its poll result). */
 static inline int viewer_wait(viewer_t *v, int n, double timeout_s) {
   char why[512];
@@ -255,6 +279,16 @@ static inline void step(int port, int n) {
     fail_msg("step %d: status %d: %s", n, (int)st, why);
   }
   free(r);
+}
+
+/* One epoch, stepped once the viewer's messages (its camera, its ACK) have reached the server;
+ * waits for the viewer's n-th state (60 s). */
+static inline void step_to(viewer_t *v, int port, int n) {
+  char why[256];
+  assert_int_equal(ocv_conn_flush(v->c, 5, why, sizeof why), 0);
+  sleep_us(50000);
+  step(port, 1);
+  assert_int_equal(viewer_wait(v, n, 60), 0);
 }
 
 /* A number in the JSON text after `"key":` (first occurrence after `after`, if given). */
@@ -322,15 +356,21 @@ static inline int raw_read_close_code(int fd, double timeout_s, char *text, size
 
 static inline void raw_send(int fd, const void *p, size_t n) { assert_int_equal(write(fd, p, n), (ssize_t)n); }
 
+/* Sends a HELLO on a raw socket; `camera` (NULL: none) follows it in the same write. */
+static inline void raw_send_hello(int fd, const ocp_hello_t *h, const ocp_camera_t *camera) {
+  oc_buf_t b = {0};
+  ocp_put_hello(&b, h);
+  if (camera) ocp_put_camera(&b, 1, camera);
+  raw_send(fd, b.data, b.len);
+  oc_buf_free(&b);
+}
+
 /* A raw viewer's HELLO asking `budget`; returns the WELCOME's granted budget (0: refused, with
  * the ERROR's code in *code). The socket stays open. */
 static inline uint64_t raw_hello(int fd, uint64_t budget, int *code) {
-  oc_buf_t b = {0};
   ocp_hello_t h = {.min_version = 1, .max_version = OCP_VERSION_MAX, .role = OCP_ROLE_VIEWER, .max_depth = 21,
                    .budget = budget, .slot_bytes = 2048, .record_bytes = 32, .width = 160, .height = 90};
-  ocp_put_hello(&b, &h);
-  raw_send(fd, b.data, b.len);
-  oc_buf_free(&b);
+  raw_send_hello(fd, &h, NULL);
   ocp_reader_t rd;
   ocp_reader_init(&rd, OCP_MAX_PAYLOAD);
   uint64_t granted = 0;
@@ -360,14 +400,10 @@ static inline int raw_stalled_viewer(int port, uint64_t budget, uint32_t w, uint
   int fd = raw_connect(port);
   int small = 4096;
   setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
-  oc_buf_t b = {0};
   ocp_hello_t hello = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = budget,
                        .slot_bytes = 2048, .record_bytes = 32, .width = w, .height = h, .caps = OCP_CAP_ALL};
-  ocp_put_hello(&b, &hello);
   ocp_camera_t cam = sphere_camera((int)w, (int)h);
-  ocp_put_camera(&b, 1, &cam);
-  raw_send(fd, b.data, b.len);
-  oc_buf_free(&b);
+  raw_send_hello(fd, &hello, &cam);
   return fd;
 }
 

@@ -63,8 +63,7 @@ static int file_has(const char *path, const char *text) {
 static void test_admission__greedy_then_vanish(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   int fd = raw_connect(s.port), code;
   uint64_t greedy = raw_hello(fd, GREEDY, &code);
   assert_int_equal(code, OCP_CODE_OK);
@@ -132,8 +131,7 @@ static void test_admission__lingering_give_back_then_largest_fit(void **state) {
 static void test_admission__greedy_connected(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   viewer_t g, v;
   viewer_open(&g, s.port, GREEDY, NULL);
   assert_int_equal(viewer_admitted(&g), 0);
@@ -159,8 +157,7 @@ static void test_admission__greedy_connected(void **state) {
 static void test_admission__lingering_caps(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--max-lingering", "1", "--linger-budget", "16", NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--max-lingering", "1", "--linger-budget", "16", NULL);
   int code, f1 = raw_connect(s.port), f2 = raw_connect(s.port), f3 = raw_connect(s.port);
   assert_true(raw_hello(f1, 8 * MIB, &code) == 8 * MIB);
   assert_true(raw_hello(f2, 8 * MIB, &code) == 8 * MIB);
@@ -190,8 +187,7 @@ static void test_admission__lingering_caps(void **state) {
 static void test_admission__connect_storm(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   enum { STORM = 500 };
   static int fds[STORM];
   for (int i = 0; i < STORM; i++) fds[i] = raw_connect_from(1, s.port);
@@ -219,8 +215,7 @@ static void test_admission__connect_storm(void **state) {
 static void test_admission__handshake_rate(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--max-per-address", "4", "--handshake-rate", "0.1", NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--max-per-address", "4", "--handshake-rate", "0.1", NULL);
   int code;
   for (int i = 0; i < 4; i++) { /* within the bucket (a refill takes 10 s) */
     int fd = raw_connect_from(3, s.port);

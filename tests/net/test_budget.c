@@ -124,8 +124,7 @@ static void test_budget__lowered_by_ctl(void **state) {
   assert_true(afd >= 0);
   close(afd);
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--audit-log", audit, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--audit-log", audit, NULL);
   bviewer_t v;
   bv_open(&v, s.port, 8 * MIB, 0);
   assert_int_equal(v.in_force, 8 * MIB);

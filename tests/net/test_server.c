@@ -41,8 +41,7 @@
 static void test_server__two_viewers(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   viewer_t a, b;
   viewer_open(&a, s.port, 8u << 20, NULL);
   viewer_open(&b, s.port, 8u << 20, NULL);
@@ -118,16 +117,12 @@ static void test_server__matches_offline(void **state) {
   remove(path);
 
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   viewer_t v;
   viewer_open(&v, s.port, 8u << 20, NULL);
   for (int e = 1; e <= 3; e++) {
     assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
-    assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
-    sleep_us(50000);
-    step(s.port, 1);
-    assert_int_equal(viewer_wait(&v, e, 60), 0);
+    step_to(&v, s.port, e);
   }
   const oc_state_t *net = ocp_viewer_state(ocv_conn_session(v.c), 0);
   assert_non_null(net);
@@ -149,16 +144,12 @@ static void test_server__matches_offline(void **state) {
 static void test_server__hostile_peers(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   viewer_t v;
   viewer_open(&v, s.port, 8u << 20, NULL);
   char why[256], text[1100];
   assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
-  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
-  sleep_us(50000);
-  step(s.port, 1);
-  assert_int_equal(viewer_wait(&v, 1, 60), 0);
+  step_to(&v, s.port, 1);
 
   int fd = raw_connect(s.port); /* an HTTP client */
   raw_send(fd, "GET / HTTP/1.1\r\nHost: x\r\n\r\n", 27);
@@ -213,8 +204,7 @@ static void test_server__hostile_peers(void **state) {
 static void test_server__token(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--token", "s3cret", NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--token", "s3cret", NULL);
   viewer_t v;
   char why[256];
   viewer_open(&v, s.port, 8u << 20, "wrong");
@@ -247,8 +237,7 @@ static void test_server__token(void **state) {
 static void test_server__control_token(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--token", "viewer-secret", "--control-token", "control-secret", NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--token", "viewer-secret", "--control-token", "control-secret", NULL);
   static const struct {
     const char *token, *expect;
   } refused[] = {{"viewer-secret", "the viewer token cannot run control requests"},
@@ -296,16 +285,11 @@ static void test_server__control_token(void **state) {
 static void test_server__resume(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   viewer_t v;
   char why[256];
-  viewer_open(&v, s.port, 8u << 20, NULL);
-  assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
-  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
-  sleep_us(50000);
-  step(s.port, 1);
-  assert_int_equal(viewer_wait(&v, 1, 60), 0);
+  viewer_welcomed(&v, s.port, 8u << 20);
+  step_to(&v, s.port, 1);
   assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0); /* the ACK */
   sleep_us(100000);
 
@@ -313,10 +297,7 @@ static void test_server__resume(void **state) {
   assert_int_equal(ocv_conn_reconnect(v.c, 5, why, sizeof why), 0);
   assert_int_equal(ocv_conn_wait_ready(v.c, 5, why, sizeof why), 0);
   assert_int_equal(v.resumed, 1);
-  assert_int_equal(ocv_conn_flush(v.c, 5, why, sizeof why), 0);
-  sleep_us(50000);
-  step(s.port, 1);
-  assert_int_equal(viewer_wait(&v, 2, 60), 0);
+  step_to(&v, s.port, 2);
   assert_int_equal(v.epoch, 2);
 
   /* 2: the epoch in flight is lost with the connection: the server sends it again */
@@ -344,8 +325,7 @@ static void test_server__resume(void **state) {
 static void test_server__lean_viewer(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   viewer_t full, lean;
   char why[256], text[1100];
   viewer_open_as(&full, s.port, 8u << 20, NULL, 0);
@@ -396,10 +376,7 @@ static void test_server__lean_viewer(void **state) {
   assert_int_equal(ocv_conn_reconnect(lean.c, 5, why, sizeof why), 0);
   assert_int_equal(ocv_conn_wait_ready(lean.c, 5, why, sizeof why), 0);
   assert_int_equal(lean.resumed, 1);
-  assert_int_equal(ocv_conn_flush(lean.c, 5, why, sizeof why), 0);
-  sleep_us(50000);
-  step(s.port, 1);
-  assert_int_equal(viewer_wait(&lean, 4, 60), 0);
+  step_to(&lean, s.port, 4);
   assert_int_equal(viewer_wait(&full, 4, 60), 0);
   assert_int_equal(lean.epoch, 4);
   /* the epoch in flight lost with the connection: sent again, verified by digests */
@@ -432,12 +409,9 @@ static void test_server__lean_viewer(void **state) {
 
   /* digests with deltas: refused, naming both */
   int fd = raw_connect(s.port);
-  oc_buf_t b = {0};
   ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
                    .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16, .caps = OCP_CAP_DIGEST | OCP_CAP_DELTA};
-  ocp_put_hello(&b, &h);
-  raw_send(fd, b.data, b.len);
-  oc_buf_free(&b);
+  raw_send_hello(fd, &h, NULL);
   assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_MALFORMED);
   if (!strstr(text, "digest") || !strstr(text, "delta")) fail_msg("'%s' does not name the conflict", text);
   ocv_conn_close(full.c);
@@ -451,8 +425,7 @@ static void test_server__lean_viewer(void **state) {
 static void test_server__slow_viewer(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--stall-timeout", "2", "--send-buffer", "8", NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--stall-timeout", "2", "--send-buffer", "8", NULL);
   viewer_t v;
   char why[256];
   viewer_open(&v, s.port, 8u << 20, NULL);
@@ -541,19 +514,15 @@ static void test_server__stalled_in_kernel(void **state) {
 static void test_server__idle_timeout(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, "--idle-timeout", "1", NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--idle-timeout", "1", NULL);
   char text[1100];
   int fd = raw_connect(s.port);
   assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_TIMEOUT);
   assert_non_null(strstr(text, "no hello"));
   fd = raw_connect(s.port);
-  oc_buf_t b = {0};
   ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
                    .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16};
-  ocp_put_hello(&b, &h);
-  raw_send(fd, b.data, b.len);
-  oc_buf_free(&b);
+  raw_send_hello(fd, &h, NULL);
   assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_TIMEOUT);
   assert_non_null(strstr(text, "nothing received"));
   assert_int_equal(stop_server(&s), 0);
@@ -572,8 +541,7 @@ static void test_server__hello_during_step(void **state) {
   char gate[64];
   snprintf(gate, sizeof gate, "/tmp/oc_step_gate_%d", (int)getpid());
   unlink(gate);
-  const char *extra[] = {"--scene", scene_sphere, "--idle-timeout", "1", "--step-gate", gate, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, "--idle-timeout", "1", "--step-gate", gate, NULL);
   char why[512];
   viewer_t a;
   memset(&a, 0, sizeof a);
@@ -595,12 +563,9 @@ static void test_server__hello_during_step(void **state) {
   assert_int_equal(ocv_conn_control(ctl, 1, "{\"op\":\"step\",\"epochs\":1}"), 0); /* held by the gate */
   sleep_us(100000);
   int fd = raw_connect(s.port);
-  oc_buf_t b = {0};
   ocp_hello_t h = {.min_version = 1, .max_version = 1, .role = OCP_ROLE_VIEWER, .max_depth = 21, .budget = 1u << 20,
                    .slot_bytes = 2048, .record_bytes = 32, .width = 16, .height = 16};
-  ocp_put_hello(&b, &h);
-  raw_send(fd, b.data, b.len);
-  oc_buf_free(&b);
+  raw_send_hello(fd, &h, NULL);
   /* held: both connections stay alive through the step (idle timeout 1 s), and the peer that sent
    * its HELLO gets nothing, not ERROR TIMEOUT, for 2.5 s of the test's own clock */
   double held = 0;
@@ -656,19 +621,23 @@ static void test_server__control(void **state) {
     const char *json, *expect;
     int ok;
   } req[] = {
-      {"{\"op\":\"weather\",\"preset\":\"storm\",\"seconds\":60}", "\"ok\":true", 1},
-      {"{\"op\":\"weather\",\"preset\":\"hail\"}", "preset", 0},
-      {"{\"op\":\"time\",\"set\":3600,\"scale\":2}", "\"ok\":true", 1},
-      {"{\"op\":\"time\"}", "time:", 0},
-      {"{\"op\":\"pause\"}", "\"ok\":true", 1},
-      {"{\"op\":\"resume\"}", "\"ok\":true", 1},
-      {"{\"op\":\"sun\",\"lat\":10,\"lon\":20}", "\"ok\":true", 1},
-      {"{\"op\":\"sun\",\"dir\":[0,0,0]}", "non-zero", 0},
-      {"{\"op\":\"step\",\"epochs\":0}", "1..1000", 0},
-      {"{\"op\":\"disconnect\",\"session\":999}", "no session 999", 0},
-      {"{\"op\":\"fly\"}", "unknown op", 0},
-      {"[1,2]", "not a JSON object", 0},
+#define DONE(json) {json, "\"ok\":true", 1}   /* a change, done */
+#define REFUSED(json, why) {json, why, 0} /* refused, the reply naming why */
+      DONE("{\"op\":\"weather\",\"preset\":\"storm\",\"seconds\":60}"),
+      REFUSED("{\"op\":\"weather\",\"preset\":\"hail\"}", "preset"),
+      DONE("{\"op\":\"time\",\"set\":3600,\"scale\":2}"),
+      REFUSED("{\"op\":\"time\"}", "time:"),
+      DONE("{\"op\":\"pause\"}"),
+      DONE("{\"op\":\"resume\"}"),
+      DONE("{\"op\":\"sun\",\"lat\":10,\"lon\":20}"),
+      REFUSED("{\"op\":\"sun\",\"dir\":[0,0,0]}", "non-zero"),
+      REFUSED("{\"op\":\"step\",\"epochs\":0}", "1..1000"),
+      REFUSED("{\"op\":\"disconnect\",\"session\":999}", "no session 999"),
+      REFUSED("{\"op\":\"fly\"}", "unknown op"),
+      REFUSED("[1,2]", "not a JSON object"),
       {"{\"op\":\"stats\"}", "\"epoch\"", 1},
+#undef DONE
+#undef REFUSED
   };
   for (size_t i = 0; i < sizeof req / sizeof req[0]; i++) {
     int32_t st;
@@ -683,8 +652,7 @@ static void test_server__control(void **state) {
 
   viewer_t a, b;
   char why[256];
-  viewer_open(&a, s.port, 4u << 20, NULL);
-  assert_int_equal(ocv_conn_wait_ready(a.c, 5, why, sizeof why), 0);
+  viewer_welcomed(&a, s.port, 4u << 20);
   viewer_open(&b, s.port, 4u << 20, NULL);
   assert_int_equal(ocv_conn_wait_ready(b.c, 5, why, sizeof why), 1);
   assert_int_equal(b.closed_code, OCP_CODE_FULL);
@@ -698,8 +666,7 @@ static void test_server__control(void **state) {
   assert_int_equal(a.closed_code, OCP_CODE_RELOAD);
   ocv_conn_close(a.c);
 
-  viewer_open(&a, s.port, 4u << 20, NULL);
-  assert_int_equal(ocv_conn_wait_ready(a.c, 5, why, sizeof why), 0);
+  viewer_welcomed(&a, s.port, 4u << 20);
   kill(s.pid, SIGTERM); /* a drain: the viewer is told to reconnect, and the server ends once it left */
   for (int i = 0; i < 600 && !a.closed_code; i++) ocv_conn_poll(a.c, 0.1, why, sizeof why);
   assert_int_equal(a.closed_code, OCP_CODE_RECONNECT);
@@ -717,8 +684,7 @@ static void ev_reply_status(void *ctx, const ocp_control_t *c) {
 static void test_server__step_while_stepping(void **state) {
   (void)state;
   server_t s;
-  const char *extra[] = {"--scene", scene_sphere, NULL};
-  start_server(&s, extra);
+  start_sphere(&s, NULL);
   int got[4] = {0};
   char why[512];
   ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL};
