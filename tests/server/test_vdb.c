@@ -71,19 +71,40 @@ typedef struct {
   int32_t centre[3];
 } sphere_t;
 
-static int add_sphere(ocs_vdb_writer_t *w, const sphere_t *sp) {
+static ocs_vdb_writer_t *new_writer(void) {
+  ocs_vdb_writer_t *w;
+  assert_int_equal(api()->writer_create(&w), 0);
+  return w;
+}
+
+/* Adds an empty grid; @return its index. */
+static int add_grid(ocs_vdb_writer_t *w, const ocs_vdb_grid_desc_t *d) {
   char why[512];
-  ocs_vdb_grid_desc_t d;
-  memset(&d, 0, sizeof d);
-  d.name = sp->name ? sp->name : "density";
-  d.type = sp->type;
-  d.klass = sp->klass ? sp->klass : OCS_VDB_CLASS_FOG;
-  d.half = sp->half;
-  d.voxel_size = sp->voxel != 0.0 ? sp->voxel : 1.0;
-  d.affine = sp->affine;
-  memcpy(d.i2w, sp->i2w, sizeof d.i2w);
-  int g = api()->writer_add_grid(w, &d, why, sizeof why);
+  int g = api()->writer_add_grid(w, d, why, sizeof why);
   if (g < 0) fail_msg("add_grid: %s", why);
+  return g;
+}
+
+/* Adds an empty fog grid "density" with voxel_size (the file's transform). */
+static int add_density(ocs_vdb_writer_t *w, double voxel_size) {
+  ocs_vdb_grid_desc_t d = {.name = "density", .klass = OCS_VDB_CLASS_FOG, .voxel_size = voxel_size};
+  return add_grid(w, &d);
+}
+
+static void set_voxel(ocs_vdb_writer_t *w, int g, int32_t i, int32_t j, int32_t k, float value) {
+  int32_t o[3] = {i, j, k}, one[3] = {1, 1, 1};
+  assert_int_equal(api()->writer_set_values(w, g, o, one, &value), 0);
+}
+
+static int add_sphere(ocs_vdb_writer_t *w, const sphere_t *sp) {
+  ocs_vdb_grid_desc_t d = {.name = sp->name ? sp->name : "density",
+                           .type = sp->type,
+                           .klass = sp->klass ? sp->klass : OCS_VDB_CLASS_FOG,
+                           .half = sp->half,
+                           .voxel_size = sp->voxel != 0.0 ? sp->voxel : 1.0,
+                           .affine = sp->affine};
+  memcpy(d.i2w, sp->i2w, sizeof d.i2w);
+  int g = add_grid(w, &d);
   int R = sp->R, n = 2 * R + 1;
   double peak = sp->peak != 0.0 ? sp->peak : 1.0;
   float *v = malloc(sizeof(float) * (size_t)n * n * n);
@@ -106,8 +127,7 @@ static void save(ocs_vdb_writer_t *w, const char *path, int compression) {
 }
 
 static void write_sphere(const char *path, const sphere_t *sp, int compression) {
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
+  ocs_vdb_writer_t *w = new_writer();
   add_sphere(w, sp);
   save(w, path, compression);
 }
@@ -143,6 +163,13 @@ static void expect_fail(const oc_source_t *d, int err, const char *needle) {
   if (!strstr(why, d->vdb.file)) fail_msg("message does not name the file: %s", why);
   if (!strstr(why, needle)) fail_msg("message lacks \"%s\": %s", needle, why);
   print_message("    error as reported: %s\n", why);
+}
+
+/* The file at path, placed at (0, 0, 1000 m) with 10 m voxels, is refused with `err` and a message
+ * containing `needle`. */
+static void expect_file_fails(const char *path, int err, const char *needle) {
+  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
+  expect_fail(&d, err, needle);
 }
 
 static void sample(const ocs_source_t *s, oc_key_t key, double t, float out[512]) {
@@ -520,13 +547,10 @@ static void test_vdb__compression_and_half_variants(void **st) {
 /* Constant tiles: a 128³ tile (upper internal node) and an 8³ tile (lower internal node), no leaves. */
 static void test_vdb__constant_tiles(void **st) {
   (void)st;
-  char path[512], why[512];
+  char path[512];
   tmp_path(path, sizeof path, "tiles.vdb");
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
-  ocs_vdb_grid_desc_t d = {.name = "density", .klass = OCS_VDB_CLASS_FOG, .voxel_size = 1.0};
-  int g = api()->writer_add_grid(w, &d, why, sizeof why);
-  assert_true(g >= 0);
+  ocs_vdb_writer_t *w = new_writer();
+  int g = add_density(w, 1.0);
   int32_t lo[3] = {0, 0, 0}, hi[3] = {127, 127, 127}, lo2[3] = {128, 0, 0}, hi2[3] = {135, 7, 7};
   assert_int_equal(api()->writer_fill(w, g, lo, hi, 0.5f), 0);
   assert_int_equal(api()->writer_fill(w, g, lo2, hi2, 1.0f), 0);
@@ -586,19 +610,15 @@ static void test_vdb__constant_tiles(void **st) {
  * into south. */
 static void test_vdb__placement_orientation_and_heading(void **st) {
   (void)st;
-  char path[512], why[256];
+  char path[512];
   tmp_path(path, sizeof path, "blobs.vdb");
   /* single voxels: 1 at index (0,0,0), 2 at (20,0,0), 3 at (0,20,0) and at (0,0,-20) */
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
-  ocs_vdb_grid_desc_t d = {.name = "density", .klass = OCS_VDB_CLASS_FOG, .voxel_size = 1.0};
-  int g = api()->writer_add_grid(w, &d, why, sizeof why);
-  float one = 1.0f, two = 2.0f, three = 3.0f;
-  int32_t o0[3] = {0, 0, 0}, ox[3] = {20, 0, 0}, oy[3] = {0, 20, 0}, oz[3] = {0, 0, -20}, d1[3] = {1, 1, 1};
-  assert_int_equal(api()->writer_set_values(w, g, o0, d1, &one), 0);
-  assert_int_equal(api()->writer_set_values(w, g, ox, d1, &two), 0);
-  assert_int_equal(api()->writer_set_values(w, g, oy, d1, &three), 0);
-  assert_int_equal(api()->writer_set_values(w, g, oz, d1, &three), 0);
+  ocs_vdb_writer_t *w = new_writer();
+  int g = add_density(w, 1.0);
+  set_voxel(w, g, 0, 0, 0, 1.0f);
+  set_voxel(w, g, 20, 0, 0, 2.0f);
+  set_voxel(w, g, 0, 20, 0, 3.0f);
+  set_voxel(w, g, 0, 0, -20, 3.0f);
   save(w, path, OCS_VDB_COMPRESS_DEFAULT);
   for (int hi = 0; hi < 2; hi++) {
     double heading = hi ? 90.0 : 0.0;
@@ -698,8 +718,7 @@ static void test_vdb__grid_selection(void **st) {
   (void)st;
   char path[512];
   tmp_path(path, sizeof path, "multi.vdb");
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
+  ocs_vdb_writer_t *w = new_writer();
   sphere_t a = {.R = 5, .peak = 1.0}, b = {.R = 5, .peak = 2.0}, c = {.name = "temperature", .R = 5, .peak = 3.0};
   sphere_t v = {.name = "vel", .type = OCS_VDB_TYPE_VEC3, .R = 3};
   add_sphere(w, &v);
@@ -936,8 +955,7 @@ static void test_vdb__bad_missing_file(void **st) {
   (void)st;
   char path[512];
   tmp_path(path, sizeof path, "does_not_exist.vdb");
-  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_ENOENT, "no such file");
+  expect_file_fails(path, OC_ENOENT, "no such file");
 }
 
 static void test_vdb__bad_not_a_vdb(void **st) {
@@ -947,13 +965,11 @@ static void test_vdb__bad_not_a_vdb(void **st) {
   FILE *f = fopen(path, "w");
   fputs("{\"this is\": \"json, not a VDB file\"}\n", f);
   fclose(f);
-  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_EVERSION, "not a VDB file");
+  expect_file_fails(path, OC_EVERSION, "not a VDB file");
   tmp_path(path, sizeof path, "empty_file.vdb");
   f = fopen(path, "w");
   fclose(f);
-  d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_EVERSION, "not a VDB file");
+  expect_file_fails(path, OC_EVERSION, "not a VDB file");
 }
 
 static void test_vdb__bad_truncated(void **st) {
@@ -976,8 +992,7 @@ static void test_vdb__bad_truncated(void **st) {
     f = fopen(path, "wb");
     fwrite(buf, 1, (size_t)cuts[i], f);
     fclose(f);
-    oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-    expect_fail(&d, OC_ETRUNC, "truncated");
+    expect_file_fails(path, OC_ETRUNC, "truncated");
   }
   free(buf);
 }
@@ -986,14 +1001,12 @@ static void test_vdb__bad_no_float_grid(void **st) {
   (void)st;
   char path[512];
   tmp_path(path, sizeof path, "no_float.vdb");
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
+  ocs_vdb_writer_t *w = new_writer();
   sphere_t v = {.name = "velocity", .type = OCS_VDB_TYPE_VEC3, .R = 3}, n = {.name = "flags", .type = OCS_VDB_TYPE_INT32, .R = 3};
   add_sphere(w, &v);
   add_sphere(w, &n);
   save(w, path, OCS_VDB_COMPRESS_DEFAULT);
-  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_EINVAL, "no float grid");
+  expect_file_fails(path, OC_EINVAL, "no float grid");
 }
 
 static void test_vdb__bad_level_set(void **st) {
@@ -1002,25 +1015,21 @@ static void test_vdb__bad_level_set(void **st) {
   tmp_path(path, sizeof path, "level_set.vdb");
   sphere_t sp = {.R = 6, .klass = OCS_VDB_CLASS_LEVEL_SET};
   write_sphere(path, &sp, OCS_VDB_COMPRESS_DEFAULT);
-  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_EINVAL, "is a level set");
+  expect_file_fails(path, OC_EINVAL, "is a level set");
 }
 
 static void test_vdb__bad_point_grid(void **st) {
   (void)st;
   char path[512], why[256];
   tmp_path(path, sizeof path, "points.vdb");
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
+  ocs_vdb_writer_t *w = new_writer();
   ocs_vdb_grid_desc_t gd = {.name = "density", .type = OCS_VDB_TYPE_POINTS, .voxel_size = 0.5};
-  int g = api()->writer_add_grid(w, &gd, why, sizeof why);
-  assert_true(g >= 0);
+  int g = add_grid(w, &gd);
   double pts[30];
   for (int i = 0; i < 30; i++) pts[i] = (i * 7 % 11) * 0.3;
   assert_int_equal(api()->writer_add_points(w, g, pts, 10), 0);
   save(w, path, OCS_VDB_COMPRESS_DEFAULT);
-  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_EINVAL, "point data grid (10 points)");
+  expect_file_fails(path, OC_EINVAL, "point data grid (10 points)");
   /* inspect reports it as points */
   char *buf = NULL;
   size_t len = 0;
@@ -1033,32 +1042,23 @@ static void test_vdb__bad_point_grid(void **st) {
 
 static void test_vdb__bad_empty_grid(void **st) {
   (void)st;
-  char path[512], why[256];
+  char path[512];
   tmp_path(path, sizeof path, "empty_grid.vdb");
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
-  ocs_vdb_grid_desc_t gd = {.name = "density", .klass = OCS_VDB_CLASS_FOG, .voxel_size = 1.0};
-  assert_true(api()->writer_add_grid(w, &gd, why, sizeof why) >= 0);
+  ocs_vdb_writer_t *w = new_writer();
+  add_density(w, 1.0);
   save(w, path, OCS_VDB_COMPRESS_DEFAULT);
-  oc_source_t d = vdb_desc(path, 0, 0, 1000, 10, 1);
-  expect_fail(&d, OC_EINVAL, "is empty");
+  expect_file_fails(path, OC_EINVAL, "is empty");
 }
 
 static void test_vdb__bad_voxel_size(void **st) {
   (void)st;
   const double bad[] = {0.0, NAN, INFINITY, -2.0};
   for (int i = 0; i < 4; i++) {
-    char path[512], name[64], why[256];
+    char path[512], name[64];
     snprintf(name, sizeof name, "voxel_size_%d.vdb", i);
     tmp_path(path, sizeof path, name);
-    ocs_vdb_writer_t *w;
-    assert_int_equal(api()->writer_create(&w), 0);
-    ocs_vdb_grid_desc_t gd = {.name = "density", .klass = OCS_VDB_CLASS_FOG, .voxel_size = bad[i]};
-    int g = api()->writer_add_grid(w, &gd, why, sizeof why);
-    assert_true(g >= 0);
-    float one = 1.0f;
-    int32_t o[3] = {0, 0, 0}, dd[3] = {1, 1, 1};
-    assert_int_equal(api()->writer_set_values(w, g, o, dd, &one), 0);
+    ocs_vdb_writer_t *w = new_writer();
+    set_voxel(w, add_density(w, bad[i]), 0, 0, 0, 1.0f);
     save(w, path, OCS_VDB_COMPRESS_DEFAULT);
     oc_source_t d = vdb_desc(path, 0, 0, 1000, 0.0, 1); /* the file's own transform */
     expect_fail(&d, OC_EINVAL, "voxel size");
@@ -1070,12 +1070,10 @@ static void test_vdb__bad_voxel_size(void **st) {
 
 static void test_vdb__bad_values_sanitised(void **st) {
   (void)st;
-  char path[512], why[256];
+  char path[512];
   tmp_path(path, sizeof path, "bad_values.vdb");
-  ocs_vdb_writer_t *w;
-  assert_int_equal(api()->writer_create(&w), 0);
-  ocs_vdb_grid_desc_t gd = {.name = "density", .klass = OCS_VDB_CLASS_FOG, .voxel_size = 1.0};
-  int g = api()->writer_add_grid(w, &gd, why, sizeof why);
+  ocs_vdb_writer_t *w = new_writer();
+  int g = add_density(w, 1.0);
   float v[4 * 4 * 4];
   for (int i = 0; i < 64; i++) v[i] = 0.5f;
   v[1] = NAN;
