@@ -35,6 +35,17 @@ static oc_dvec3 sun_from(oc_dvec3 at, double elevation_deg, double azimuth_deg) 
   return oc_heading_pitch_dir(e, azimuth_deg, elevation_deg);
 }
 
+/* sphere_medium(sigma) voxelized into a new state s (ocs_voxelize_medium() to max_level, sub, threads)
+ * with the sun at sun_elev, sun_az degrees seen from the sphere's centre. @return the medium. */
+static ocs_medium_t sphere_state(oc_state_t *s, double sigma, int max_level, int sub, double sun_elev, double sun_az,
+                                 int threads) {
+  ocs_medium_t m = sphere_medium(sigma);
+  oc_state_init(s);
+  oc_dvec3 sun = sun_from(m.prims[0].sphere.c, sun_elev, sun_az);
+  assert_int_equal(ocs_voxelize_medium(s, &m, max_level, sub, sun, threads), 0);
+  return m;
+}
+
 /* Camera 20 km south of the sphere at its altitude, looking north at it. */
 static oc_camera_t sphere_camera(void) {
   oc_camera_pose_t pose = {{10.0 - 20000.0 / (OC_PLANET_RADIUS * OC_DEG), 20.0, 3000.0}, 0.0, 0.0, 12.0};
@@ -46,19 +57,11 @@ static oc_camera_t sphere_camera(void) {
  * softens the surface over one voxel, 56 m, which grazing rays feel most). */
 static void test_render__sphere_transmittance_matches_closed_form(void **st) {
   (void)st;
-  ocs_medium_t m = sphere_medium(0.0005); /* τ through the centre: 2 */
   oc_state_t s;
-  oc_state_init(&s);
+  ocs_medium_t m = sphere_state(&s, 0.0005, 15, 4, 45, 0, 2); /* τ through the centre: 2 */
   oc_dvec3 c = m.prims[0].sphere.c;
-  assert_int_equal(ocs_voxelize_medium(&s, &m, 15, 4, sun_from(c, 45, 0), 2), 0);
-  oc_render_desc_t d = {0};
-  d.width = 48;
-  d.height = 48;
-  d.camera = sphere_camera();
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 1.0f;
-  d.albedo_zero = 1;
-  d.threads = 2;
+  oc_render_desc_t d = {.width = 48, .height = 48, .camera = sphere_camera(), .background = OC_BG_CONSTANT,
+                        .background_radiance = 1.0f, .albedo_zero = 1, .threads = 2};
   oc_image_t img;
   assert_int_equal(oc_image_alloc(&img, d.width, d.height), 0);
   oc_render_stats_t rs;
@@ -132,30 +135,16 @@ static void test_render__slab_single_scattering_matches_closed_form(void **st) {
     oc_dvec3 sun = sun_from(ground, elev[a], 0.0);
     slab_refine_t rc = {{&m, sun, 0.0}, oc_geo_to_xyz((oc_geo_t){0, 0, 1500}), 5000.0};
     ocs_aabb_t box = {oc_dsub(rc.at, oc_dv3(6000, 6000, 6000)), oc_dadd(rc.at, oc_dv3(6000, 6000, 6000))};
-    ocs_voxelize_desc_t vd = {0};
-    vd.sigma = ocs_medium_sigma_cb;
-    vd.tau = ocs_medium_tau_cb;
-    vd.ctx = &rc.mc;
-    vd.min_level = 3;
-    vd.max_level = 16;
-    vd.aabbs = &box;
-    vd.aabb_count = 1;
-    vd.refine = slab_refine;
-    vd.refine_ctx = &rc;
-    vd.sun_dir = sun;
-    vd.threads = 2;
+    ocs_voxelize_desc_t vd = {.sigma = ocs_medium_sigma_cb, .tau = ocs_medium_tau_cb, .ctx = &rc.mc, .min_level = 3,
+                              .max_level = 16, .aabbs = &box, .aabb_count = 1, .refine = slab_refine,
+                              .refine_ctx = &rc, .sun_dir = sun, .threads = 2};
     oc_state_t s;
     oc_state_init(&s);
     assert_int_equal(ocs_voxelize(&s, &vd), 0);
 
-    oc_render_desc_t d = {0};
-    d.width = d.height = 5;
     oc_camera_pose_t pose = {{0.0, 0.0, 0.0}, 0.0, 89.999, 0.5};
-    d.camera = oc_camera_from_pose(pose);
-    d.background = OC_BG_CONSTANT;
-    d.background_radiance = 0.0f;
-    d.ms_octaves = 1;
-    d.step_factor = 0.25;
+    oc_render_desc_t d = {.width = 5, .height = 5, .camera = oc_camera_from_pose(pose), .background = OC_BG_CONSTANT,
+                          .background_radiance = 0.0f, .ms_octaves = 1, .step_factor = 0.25};
     oc_image_t img;
     assert_int_equal(oc_image_alloc(&img, d.width, d.height), 0);
     assert_int_equal(oc_render_state(&s, &d, &img, NULL), 0);
@@ -192,13 +181,8 @@ static oc_atmo_t *atmo(void) {
 
 static void render_pose(const oc_state_t *s, oc_camera_pose_t pose, int threads, uint32_t flags, oc_image_t *img,
                         oc_render_stats_t *rs) {
-  oc_render_desc_t d = {0};
-  d.width = 40;
-  d.height = 24;
-  d.camera = oc_camera_from_pose(pose);
-  d.atmo = atmo();
-  d.threads = threads;
-  d.flags = flags;
+  oc_render_desc_t d = {.width = 40, .height = 24, .camera = oc_camera_from_pose(pose), .atmo = atmo(),
+                        .threads = threads, .flags = flags};
   assert_int_equal(oc_image_alloc(img, d.width, d.height), 0);
   assert_int_equal(oc_render_state(s, &d, img, rs), 0);
 }
@@ -206,10 +190,8 @@ static void render_pose(const oc_state_t *s, oc_camera_pose_t pose, int threads,
 /* Same bytes for 1, 2 and 3 threads, with jitter on (jitter depends on the pixel, not the thread). */
 static void test_render__deterministic_across_thread_counts(void **st) {
   (void)st;
-  ocs_medium_t m = sphere_medium(0.05);
   oc_state_t s;
-  oc_state_init(&s);
-  assert_int_equal(ocs_voxelize_medium(&s, &m, 14, 2, sun_from(m.prims[0].sphere.c, 30, 120), 2), 0);
+  sphere_state(&s, 0.05, 14, 2, 30, 120, 2);
   oc_camera_pose_t pose = {{10.0 - 20000.0 / (OC_PLANET_RADIUS * OC_DEG), 20.0, 3000.0}, 0.0, 0.0, 30.0};
   oc_image_t ref, img;
   render_pose(&s, pose, 1, OC_RF_JITTER, &ref, NULL);
@@ -296,17 +278,11 @@ static void test_render__extreme_views_are_finite_and_plausible(void **st) {
 static void test_render__air_integral_converges(void **st) {
   (void)st;
   oc_state_t s;
-  oc_state_init(&s);
-  ocs_medium_t m = sphere_medium(0.05);
-  assert_int_equal(ocs_voxelize_medium(&s, &m, 8, 1, sun_from(m.prims[0].sphere.c, 30, 60), 1), 0);
+  sphere_state(&s, 0.05, 8, 1, 30, 60, 1);
   const oc_camera_pose_t poses[2] = {{{0.0, -0.5, 3e7}, 90.0, -89.0, 30.0}, {{0.0, 0.0, 10.0}, 90.0, 2.0, 60.0}};
   for (int i = 0; i < 2; i++) {
-    oc_render_desc_t d = {0};
-    d.width = 32;
-    d.height = 18;
-    d.camera = oc_camera_from_pose(poses[i]);
-    d.atmo = atmo();
-    d.threads = 2;
+    oc_render_desc_t d = {.width = 32, .height = 18, .camera = oc_camera_from_pose(poses[i]), .atmo = atmo(),
+                          .threads = 2};
     oc_image_t a, b;
     assert_int_equal(oc_image_alloc(&a, d.width, d.height), 0);
     assert_int_equal(oc_image_alloc(&b, d.width, d.height), 0);
@@ -346,16 +322,9 @@ static void test_render__bad_data_sanitised(void **st) {
   ocs_medium_t m = sphere_medium(0.05);
   ocs_medium_ctx_t mc = {&m, oc_dv3(0, 0, 1), 0.0};
   ocs_voxelize_stats_t vs;
-  ocs_voxelize_desc_t vd = {0};
-  vd.sigma = bad_data;
-  vd.tau = bad_data;
-  vd.ctx = &mc;
-  vd.min_level = 2;
-  vd.max_level = 13;
-  vd.refine = ocs_medium_refine_cb;
-  vd.sun_dir = sun_from(m.prims[0].sphere.c, 40, 0);
-  vd.threads = 2;
-  vd.stats = &vs;
+  ocs_voxelize_desc_t vd = {.sigma = bad_data, .tau = bad_data, .ctx = &mc, .min_level = 2, .max_level = 13,
+                            .refine = ocs_medium_refine_cb, .sun_dir = sun_from(m.prims[0].sphere.c, 40, 0),
+                            .threads = 2, .stats = &vs};
   oc_state_t s;
   oc_state_init(&s);
   assert_int_equal(ocs_voxelize(&s, &vd), 0);
@@ -382,10 +351,7 @@ static void test_render__rejects_bad_descriptions(void **st) {
   assert_int_equal(ocs_voxelize_medium(&s, &m, 8, 1, oc_dv3(0, 0, 1), 1), 0);
   oc_image_t img;
   assert_int_equal(oc_image_alloc(&img, 8, 8), 0);
-  oc_render_desc_t d = {0};
-  d.width = d.height = 8;
-  d.camera = sphere_camera();
-  d.background = OC_BG_CONSTANT;
+  oc_render_desc_t d = {.width = 8, .height = 8, .camera = sphere_camera(), .background = OC_BG_CONSTANT};
   oc_render_desc_t bad = d;
   bad.width = 9;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
@@ -403,20 +369,13 @@ static void test_render__rejects_bad_descriptions(void **st) {
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
   /* The cloud model's domain: albedo [0, 1], octave factors (0, 1], the model enum, fit overrides. */
   const float outside[] = {-0.1f, 1.5f, NAN, INFINITY};
-  for (int i = 0; i < 4; i++) {
-    bad = d;
-    bad.albedo = outside[i];
-    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
-    bad = d;
-    bad.ms_a = outside[i];
-    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
-    bad = d;
-    bad.ms_b = outside[i];
-    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
-    bad = d;
-    bad.ms_c = outside[i];
-    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
-  }
+  float *const in_unit[] = {&bad.albedo, &bad.ms_a, &bad.ms_b, &bad.ms_c}; /* fields of bad */
+  for (int i = 0; i < 4; i++)
+    for (int f = 0; f < 4; f++) {
+      bad = d;
+      *in_unit[f] = outside[i];
+      assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+    }
   bad = d;
   bad.ms_model = 7;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
