@@ -143,6 +143,21 @@ static const ocp_stats_t sample_stats = {
     .produce_ms = 12.5,
 };
 
+/* The sample of `type` in a message cleared first (its padding compares too). */
+static wire_msg_t sample_of(uint8_t type) {
+  wire_msg_t m;
+  memset(&m, 0, sizeof m);
+  switch (type) {
+    case OCP_MSG_HELLO: m.hello = sample_hello; break;
+    case OCP_MSG_WELCOME: m.welcome = sample_welcome; break;
+    case OCP_MSG_CAMERA: m.camera = sample_camera; break;
+    case OCP_MSG_EPOCH_BEGIN: m.begin = sample_begin; break;
+    case OCP_MSG_STATS: m.stats = sample_stats; break;
+    default: fail_msg("no sample of type 0x%02x", type);
+  }
+  return m;
+}
+
 /*-*** Names, codes, versions ***/
 
 static void test_wire__names_and_codes(void **state) {
@@ -268,9 +283,7 @@ static ocp_header_t expect_round_trip(uint8_t version, uint8_t type, const wire_
 
 static void test_wire__round_trip_hello(void **state) {
   (void)state;
-  wire_msg_t m;
-  memset(&m, 0, sizeof m); /* the padding compares too */
-  m.hello = sample_hello;
+  wire_msg_t m = sample_of(OCP_MSG_HELLO);
   ocp_header_t h = expect_round_trip(1, OCP_MSG_HELLO, &m, sizeof m.hello, 64 + 2);
   assert_int_equal(h.version, m.hello.max_version);
   /* a control client: viewer fields zero, the longest token */
@@ -283,9 +296,7 @@ static void test_wire__round_trip_hello(void **state) {
 
 static void test_wire__round_trip_welcome(void **state) {
   (void)state;
-  wire_msg_t m;
-  memset(&m, 0, sizeof m); /* the padding compares too */
-  m.welcome = sample_welcome;
+  wire_msg_t m = sample_of(OCP_MSG_WELCOME);
   expect_round_trip(1, OCP_MSG_WELCOME, &m, sizeof m.welcome, 178 + strlen(m.welcome.name));
   /* control grant: K = 0, nothing granted; the longest name */
   memset(&m, 0, sizeof m);
@@ -297,9 +308,7 @@ static void test_wire__round_trip_welcome(void **state) {
 
 static void test_wire__round_trip_small(void **state) {
   (void)state;
-  wire_msg_t m;
-  memset(&m, 0, sizeof m); /* the padding compares too */
-  m.camera = sample_camera;
+  wire_msg_t m = sample_of(OCP_MSG_CAMERA);
   m.camera.pos = oc_dv3(6371000.5, -1234.25, 1e-3);
   m.camera.forward = oc_dnorm(oc_dv3(1, 2, 3));
   m.camera.up = oc_dnorm(oc_dcross(oc_dcross(m.camera.forward, oc_dv3(0, 0, 1)), m.camera.forward));
@@ -309,15 +318,13 @@ static void test_wire__round_trip_small(void **state) {
   expect_round_trip(1, OCP_MSG_ACK, &m, sizeof m.ack, 16);
   expect_round_trip(1, OCP_MSG_KEEPALIVE, &m, 0, 0);
   /* epoch begin, with a base and without; end */
-  memset(&m, 0, sizeof m);
-  m.begin = sample_begin;
+  m = sample_of(OCP_MSG_EPOCH_BEGIN);
   expect_round_trip(1, OCP_MSG_EPOCH_BEGIN, &m, sizeof m.begin, 64);
   m.begin.base_epoch = OCP_NO_BASE;
   expect_round_trip(1, OCP_MSG_EPOCH_BEGIN, &m, sizeof m.begin, 64);
   m.end = (ocp_epoch_end_t){43, 0xc9d949fa8e9ec21bull};
   expect_round_trip(1, OCP_MSG_EPOCH_END, &m, sizeof m.end, 16);
-  memset(&m, 0, sizeof m);
-  m.stats = sample_stats;
+  m = sample_of(OCP_MSG_STATS);
   expect_round_trip(1, OCP_MSG_STATS, &m, sizeof m.stats, 88);
 }
 
@@ -364,24 +371,24 @@ static void test_wire__stats_versions(void **state) {
 
 static void test_wire__round_trip_text(void **state) {
   (void)state;
-  oc_buf_t b = {0};
+  wire_msg_t m;
+  memset(&m, 0, sizeof m);
+  m.text.code = OCP_CODE_CHECKSUM;
+  snprintf(m.text.text, sizeof m.text.text, "epoch 43: checksum mismatch");
+  expect_round_trip(1, OCP_MSG_ERROR, &m, sizeof m.text, 6 + strlen(m.text.text));
+  memset(&m, 0, sizeof m);
+  expect_round_trip(1, OCP_MSG_GOODBYE, &m, sizeof m.text, 6);
+  /* no text (NULL) goes as the empty text */
+  oc_buf_t b = {0}, empty = {0};
+  ocp_put_text(&b, 1, OCP_MSG_GOODBYE, OCP_CODE_OK, NULL);
+  ocp_put_text(&empty, 1, OCP_MSG_GOODBYE, OCP_CODE_OK, "");
+  assert_int_equal(b.len, empty.len);
+  assert_memory_equal(b.data, empty.data, b.len);
+  oc_buf_free(&empty);
   ocp_header_t h;
   char why[256];
   ocp_text_msg_t t;
-  ocp_put_text(&b, 1, OCP_MSG_ERROR, OCP_CODE_CHECKSUM, "epoch 43: checksum mismatch");
-  const uint8_t *p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_ERROR);
-  assert_int_equal(h.length, 6 + strlen("epoch 43: checksum mismatch"));
-  assert_int_equal(ocp_get_text(p, h.length, &t, why, sizeof why), 0);
-  assert_int_equal(t.code, OCP_CODE_CHECKSUM);
-  assert_string_equal(t.text, "epoch 43: checksum mismatch");
-  b.len = 0;
-  ocp_put_text(&b, 1, OCP_MSG_GOODBYE, OCP_CODE_OK, NULL);
-  p = only_frame(&b, &h);
-  assert_int_equal(h.type, OCP_MSG_GOODBYE);
-  assert_int_equal(ocp_get_text(p, h.length, &t, why, sizeof why), 0);
-  assert_int_equal(t.code, 0);
-  assert_string_equal(t.text, "");
+  const uint8_t *p;
   /* a long text is cut at OCP_TEXT_MAX, never inside a UTF-8 sequence */
   char *lng = malloc(3000);
   memset(lng, 'x', 2999);
@@ -492,16 +499,21 @@ static void test_wire__exact_lengths(void **state) {
 
 /*-*** Field checks ***/
 
-/* Encodes m, overwrites n payload bytes at off, decodes. */
-static int hello_with(const ocp_hello_t *m, size_t off, const uint8_t *bytes, size_t n, char *why, size_t why_len) {
+/* Encodes m as `type`, overwrites n payload bytes at off, decodes. */
+static int decode_patched(uint8_t type, const wire_msg_t *m, size_t off, const uint8_t *bytes, size_t n, char *why,
+                          size_t why_len) {
   oc_buf_t b = {0};
-  ocp_hello_t back;
-  ocp_put_hello(&b, m);
+  wire_msg_t back;
+  wire_put_any(&b, 1, type, m);
   assert_true(off + n <= b.len - OCP_HEADER_BYTES);
   memcpy(b.data + OCP_HEADER_BYTES + off, bytes, n);
-  int e = ocp_get_hello(b.data + OCP_HEADER_BYTES, b.len - OCP_HEADER_BYTES, &back, why, why_len);
+  int e = wire_get_any(1, type, b.data + OCP_HEADER_BYTES, b.len - OCP_HEADER_BYTES, &back, why, why_len);
   oc_buf_free(&b);
   return e;
+}
+
+static int hello_with(const ocp_hello_t *m, size_t off, const uint8_t *bytes, size_t n, char *why, size_t why_len) {
+  return decode_patched(OCP_MSG_HELLO, &(wire_msg_t){.hello = *m}, off, bytes, n, why, why_len);
 }
 
 static void test_wire__hello_fields(void **state) {
@@ -542,13 +554,7 @@ static void test_wire__hello_fields(void **state) {
 }
 
 static int welcome_with(size_t off, const uint8_t *bytes, size_t n, char *why, size_t why_len) {
-  oc_buf_t b = {0};
-  ocp_welcome_t w = sample_welcome, back;
-  ocp_put_welcome(&b, 1, &w);
-  memcpy(b.data + OCP_HEADER_BYTES + off, bytes, n);
-  int e = ocp_get_welcome(b.data + OCP_HEADER_BYTES, b.len - OCP_HEADER_BYTES, &back, why, why_len);
-  oc_buf_free(&b);
-  return e;
+  return decode_patched(OCP_MSG_WELCOME, &(wire_msg_t){.welcome = sample_welcome}, off, bytes, n, why, why_len);
 }
 
 static void test_wire__welcome_fields(void **state) {
