@@ -177,6 +177,28 @@ static void sample(const ocs_source_t *s, oc_key_t key, double t, float out[512]
   assert_int_equal(s->vt->sample(s, key, t, out), 0);
 }
 
+/* The mass (σt·m³ at t = 0) of the (2 span + 1)³ nodes at `level` around the one holding p: each
+ * node's trapezoid mean × its volume (faces are shared, so interior weights count once). */
+static double block_mass(const ocs_source_t *s, int level, oc_dvec3 p, int span) {
+  double mass = 0.0, size = oc_key_size(level);
+  uint32_t ix, iy, iz;
+  oc_key_coords(oc_key_from_point(level, p), &ix, &iy, &iz);
+  for (int dz = -span; dz <= span; dz++)
+    for (int dy = -span; dy <= span; dy++)
+      for (int dx = -span; dx <= span; dx++) {
+        float v[512];
+        sample(s, oc_key_make(level, ix + dx, iy + dy, iz + dz), 0.0, v);
+        mass += oc_test_node_mean(v) * size * size * size;
+      }
+  return mass;
+}
+
+/* `what`'s mass within 1 % of `expect`. */
+static void check_mass(const char *what, double mass, double expect) {
+  print_message("    %s: mass %.6g vs %.6g (%.2e)\n", what, mass, expect, fabs(mass - expect) / expect);
+  assert_true(fabs(mass - expect) / expect < 0.01);
+}
+
 /* ---- Placement as the scene defines it (written independently of source_vdb.c) ---------------- */
 
 typedef struct {
@@ -583,26 +605,9 @@ static void test_vdb__constant_tiles(void **st) {
   /* The small tile (a reader that visits only leaves would see nothing there). */
   double small[3] = {131.5, 3.5, 3.5};
   assert_true(fabs(s->vt->point(s, index_to_planet(&p, small), 0.0) - 0.1) < 1e-7);
-  /* A coarse node holding the whole cube: mass = 0.5·128³ + 1·8³ voxels of 1000 m³, × 0.1. */
-  double total = 0.0;
-  int level = 12;
-  oc_key_t k0 = oc_key_from_point(level, c);
-  double size = oc_key_size(level);
-  uint32_t ix, iy, iz;
-  oc_key_coords(k0, &ix, &iy, &iz);
-  /* Sum the masses of the 3³ neighbourhood of nodes (the cube may straddle node faces): each
-   * sample stands for its footprint; faces are shared, so count interior weights only once. */
-  for (int dz = -1; dz <= 1; dz++)
-    for (int dy = -1; dy <= 1; dy++)
-      for (int dx = -1; dx <= 1; dx++) {
-        oc_key_t k = oc_key_make(level, ix + dx, iy + dy, iz + dz);
-        float v[512];
-        sample(s, k, 0.0, v);
-        total += oc_test_node_mean(v) * size * size * size;
-      }
-  double expect = 0.1 * (0.5 * 128 * 128 * 128 + 512) * 1000.0;
-  print_message("    tiles: mass over level-%d nodes %.6g vs %.6g (%.2e)\n", level, total, expect, fabs(total - expect) / expect);
-  assert_true(fabs(total - expect) / expect < 0.01);
+  /* The 3³ level-12 nodes around the cube's centre (it may straddle node faces) hold it whole:
+   * mass = 0.5·128³ + 1·8³ voxels of 1000 m³, × 0.1. */
+  check_mass("tiles, level-12 nodes", block_mass(s, 12, c, 1), 0.1 * (0.5 * 128 * 128 * 128 + 512) * 1000.0);
   s->vt->destroy(s);
 }
 
@@ -690,25 +695,15 @@ static void test_vdb__rotated_nonuniform_transform(void **st) {
   double c0[3] = {0, 0, 0};
   oc_dvec3 c = index_to_planet(&p, c0);
   for (int level = 13; level <= 14; level++) {
-    double mass = 0.0, size = oc_key_size(level);
-    oc_key_t k0 = oc_key_from_point(level, c);
-    uint32_t ix, iy, iz;
-    oc_key_coords(k0, &ix, &iy, &iz);
-    for (int dz = -1; dz <= 1; dz++)
-      for (int dy = -1; dy <= 1; dy++)
-        for (int dx = -1; dx <= 1; dx++) {
-          float v[512];
-          sample(s, oc_key_make(level, ix + dx, iy + dy, iz + dz), 0.0, v);
-          mass += oc_test_node_mean(v) * size * size * size;
-        }
+    double mass = block_mass(s, level, c, 1);
     /* discrete truth: the voxel values' sum × voxel volume */
     double vsum = 0.0;
     for (int k = -10; k <= 10; k++)
       for (int j = -10; j <= 10; j++)
         for (int i = -10; i <= 10; i++) vsum += (float)profile(sqrt((double)(i * i + j * j + k * k)), 10);
-    double expect = 0.2 * vsum * 8.0 * 12.0 * 16.0;
-    print_message("    rotated: level %d mass %.6g vs %.6g (%.2e)\n", level, mass, expect, fabs(mass - expect) / expect);
-    assert_true(fabs(mass - expect) / expect < 0.01);
+    char what[64];
+    snprintf(what, sizeof what, "rotated, level %d", level);
+    check_mass(what, mass, 0.2 * vsum * 8.0 * 12.0 * 16.0);
   }
   s->vt->destroy(s);
 }
@@ -1150,20 +1145,8 @@ static void test_vdb__disney_cloud(void **st) {
   double mid[3] = {-3.5, 21.5, -13.5};
   oc_dvec3 c = index_to_planet(&p, mid);
   double masses[3];
-  for (int level = 10; level <= 12; level++) {
-    double mass = 0.0, size = oc_key_size(level);
-    uint32_t ix, iy, iz;
-    int span = level == 12 ? 2 : 1; /* 5³ level-12 nodes cover the level-10 block's middle */
-    oc_key_coords(oc_key_from_point(level, c), &ix, &iy, &iz);
-    for (int dz = -span; dz <= span; dz++)
-      for (int dy = -span; dy <= span; dy++)
-        for (int dx = -span; dx <= span; dx++) {
-          float v[512];
-          sample(s, oc_key_make(level, ix + dx, iy + dy, iz + dz), 0.0, v);
-          mass += oc_test_node_mean(v) * size * size * size;
-        }
-    masses[level - 10] = mass;
-  }
+  for (int level = 10; level <= 12; level++)
+    masses[level - 10] = block_mass(s, level, c, level == 12 ? 2 : 1); /* 5³ level-12 nodes cover the level-10 block's middle */
   print_message("    Disney mass (σt·m³) at levels 10, 11, 12: %.6g %.6g %.6g\n", masses[0], masses[1], masses[2]);
   /* The Conventions' test (filter_check.h), as tests/server/test_field.c: for nodes through the
    * cloud at levels 11..16, the samples' plain mean against the true mean over the extended cube
