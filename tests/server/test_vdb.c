@@ -91,6 +91,22 @@ static int add_density(ocs_vdb_writer_t *w, double voxel_size) {
   return add_grid(w, &d);
 }
 
+/* A VDB file being written at a temporary path: a writer holding one empty fog grid "density"
+ * of 1 m voxels, index g. */
+typedef struct {
+  char path[512];
+  ocs_vdb_writer_t *w;
+  int g;
+} density_file_t;
+
+static density_file_t density_file(const char *name) {
+  density_file_t f;
+  tmp_path(f.path, sizeof f.path, name);
+  f.w = new_writer();
+  f.g = add_density(f.w, 1.0);
+  return f;
+}
+
 static void set_voxel(ocs_vdb_writer_t *w, int g, int32_t i, int32_t j, int32_t k, float value) {
   int32_t o[3] = {i, j, k}, one[3] = {1, 1, 1};
   assert_int_equal(api()->writer_set_values(w, g, o, one, &value), 0);
@@ -569,16 +585,13 @@ static void test_vdb__compression_and_half_variants(void **st) {
 /* Constant tiles: a 128³ tile (upper internal node) and an 8³ tile (lower internal node), no leaves. */
 static void test_vdb__constant_tiles(void **st) {
   (void)st;
-  char path[512];
-  tmp_path(path, sizeof path, "tiles.vdb");
-  ocs_vdb_writer_t *w = new_writer();
-  int g = add_density(w, 1.0);
+  density_file_t f = density_file("tiles.vdb");
   int32_t lo[3] = {0, 0, 0}, hi[3] = {127, 127, 127}, lo2[3] = {128, 0, 0}, hi2[3] = {135, 7, 7};
-  assert_int_equal(api()->writer_fill(w, g, lo, hi, 0.5f), 0);
-  assert_int_equal(api()->writer_fill(w, g, lo2, hi2, 1.0f), 0);
-  save(w, path, OCS_VDB_COMPRESS_DEFAULT);
+  assert_int_equal(api()->writer_fill(f.w, f.g, lo, hi, 0.5f), 0);
+  assert_int_equal(api()->writer_fill(f.w, f.g, lo2, hi2, 1.0f), 0);
+  save(f.w, f.path, OCS_VDB_COMPRESS_DEFAULT);
   /* 10 m voxels: a 1280 m cube; σt = value × 0.1 */
-  oc_source_t desc = vdb_desc(path, -20.0, 100.0, 2000.0, 10.0, 0.1);
+  oc_source_t desc = vdb_desc(f.path, -20.0, 100.0, 2000.0, 10.0, 0.1);
   ocs_source_t *s = must_create(&desc);
   ocs_vdb_source_info_t in;
   assert_int_equal(ocs_vdb_source_info(s, &in), 0);
@@ -615,19 +628,16 @@ static void test_vdb__constant_tiles(void **st) {
  * into south. */
 static void test_vdb__placement_orientation_and_heading(void **st) {
   (void)st;
-  char path[512];
-  tmp_path(path, sizeof path, "blobs.vdb");
   /* single voxels: 1 at index (0,0,0), 2 at (20,0,0), 3 at (0,20,0) and at (0,0,-20) */
-  ocs_vdb_writer_t *w = new_writer();
-  int g = add_density(w, 1.0);
-  set_voxel(w, g, 0, 0, 0, 1.0f);
-  set_voxel(w, g, 20, 0, 0, 2.0f);
-  set_voxel(w, g, 0, 20, 0, 3.0f);
-  set_voxel(w, g, 0, 0, -20, 3.0f);
-  save(w, path, OCS_VDB_COMPRESS_DEFAULT);
+  density_file_t f = density_file("blobs.vdb");
+  set_voxel(f.w, f.g, 0, 0, 0, 1.0f);
+  set_voxel(f.w, f.g, 20, 0, 0, 2.0f);
+  set_voxel(f.w, f.g, 0, 20, 0, 3.0f);
+  set_voxel(f.w, f.g, 0, 0, -20, 3.0f);
+  save(f.w, f.path, OCS_VDB_COMPRESS_DEFAULT);
   for (int hi = 0; hi < 2; hi++) {
     double heading = hi ? 90.0 : 0.0;
-    oc_source_t desc = vdb_desc(path, 45.0, -70.0, 500.0, 10.0, 1.0);
+    oc_source_t desc = vdb_desc(f.path, 45.0, -70.0, 500.0, 10.0, 1.0);
     desc.vdb.heading = heading;
     ocs_source_t *s = must_create(&desc);
     place_t p = place_of(s, heading, 10.0);
@@ -1037,12 +1047,9 @@ static void test_vdb__bad_point_grid(void **st) {
 
 static void test_vdb__bad_empty_grid(void **st) {
   (void)st;
-  char path[512];
-  tmp_path(path, sizeof path, "empty_grid.vdb");
-  ocs_vdb_writer_t *w = new_writer();
-  add_density(w, 1.0);
-  save(w, path, OCS_VDB_COMPRESS_DEFAULT);
-  expect_file_fails(path, OC_EINVAL, "is empty");
+  density_file_t f = density_file("empty_grid.vdb");
+  save(f.w, f.path, OCS_VDB_COMPRESS_DEFAULT);
+  expect_file_fails(f.path, OC_EINVAL, "is empty");
 }
 
 static void test_vdb__bad_voxel_size(void **st) {
@@ -1065,10 +1072,7 @@ static void test_vdb__bad_voxel_size(void **st) {
 
 static void test_vdb__bad_values_sanitised(void **st) {
   (void)st;
-  char path[512];
-  tmp_path(path, sizeof path, "bad_values.vdb");
-  ocs_vdb_writer_t *w = new_writer();
-  int g = add_density(w, 1.0);
+  density_file_t f = density_file("bad_values.vdb");
   float v[4 * 4 * 4];
   for (int i = 0; i < 64; i++) v[i] = 0.5f;
   v[1] = NAN;
@@ -1078,9 +1082,9 @@ static void test_vdb__bad_values_sanitised(void **st) {
   v[21] = -INFINITY;
   v[40] = -0.25f;
   int32_t o[3] = {0, 0, 0}, dd[3] = {4, 4, 4};
-  assert_int_equal(api()->writer_set_values(w, g, o, dd, v), 0);
-  save(w, path, OCS_VDB_COMPRESS_DEFAULT);
-  oc_source_t d = vdb_desc(path, 5, 5, 1000, 10, 1);
+  assert_int_equal(api()->writer_set_values(f.w, f.g, o, dd, v), 0);
+  save(f.w, f.path, OCS_VDB_COMPRESS_DEFAULT);
+  oc_source_t d = vdb_desc(f.path, 5, 5, 1000, 10, 1);
   ocs_source_t *s = must_create(&d);
   ocs_vdb_source_info_t in;
   assert_int_equal(ocs_vdb_source_info(s, &in), 0);
