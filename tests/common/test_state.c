@@ -52,6 +52,28 @@ static uint8_t *serialize(const oc_state_t *s, size_t *len) {
   return buf;
 }
 
+/* The golden state's serialisation, a state to decode it into and room for the reason. */
+typedef struct {
+  uint8_t *buf;
+  size_t len;
+  oc_state_t t;
+  char why[256];
+} golden_bytes_t;
+
+static void golden_bytes(golden_bytes_t *g) {
+  oc_state_t s;
+  golden_state(&s);
+  g->buf = serialize(&s, &g->len);
+  oc_state_free(&s);
+  oc_state_init(&g->t);
+  g->why[0] = '\0';
+}
+
+static void golden_bytes_free(golden_bytes_t *g) {
+  free(g->buf);
+  oc_state_free(&g->t);
+}
+
 static void reseal(uint8_t *buf, size_t len) {
   uint64_t h = XXH3_64bits(buf, len - 8);
   for (int i = 0; i < 8; i++) buf[len - 8 + i] = (uint8_t)(h >> (8 * i));
@@ -315,106 +337,90 @@ static void test_state__checksum_sees_every_code_byte(void **state) {
 
 static void test_state__truncation(void **state) {
   (void)state;
-  oc_state_t s, t;
-  size_t len;
-  char why[256];
-  golden_state(&s);
-  uint8_t *buf = serialize(&s, &len);
-  oc_state_init(&t);
-  for (size_t n = 0; n < len; n++) {
+  golden_bytes_t g;
+  golden_bytes(&g);
+  for (size_t n = 0; n < g.len; n++) {
     uint8_t *copy = malloc(n ? n : 1); /* exact-size copy so ASan sees any over-read */
-    memcpy(copy, buf, n);
-    int e = oc_state_deserialize(&t, copy, n, why, sizeof why);
+    memcpy(copy, g.buf, n);
+    int e = oc_state_deserialize(&g.t, copy, n, g.why, sizeof g.why);
     assert_true(e < 0);
     if (n >= 64 + 8) assert_int_equal(e, OC_ETRUNC);
-    assert_int_equal(t.node_count, 0);
-    assert_null(t.nodes);
+    assert_int_equal(g.t.node_count, 0);
+    assert_null(g.t.nodes);
     free(copy);
   }
   /* one byte too many */
-  uint8_t *longer = malloc(len + 1);
-  memcpy(longer, buf, len);
-  longer[len] = 0;
-  assert_int_equal(oc_state_deserialize(&t, longer, len + 1, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "trailing"));
+  uint8_t *longer = malloc(g.len + 1);
+  memcpy(longer, g.buf, g.len);
+  longer[g.len] = 0;
+  assert_int_equal(oc_state_deserialize(&g.t, longer, g.len + 1, g.why, sizeof g.why), OC_ECORRUPT);
+  assert_non_null(strstr(g.why, "trailing"));
   free(longer);
-  free(buf);
-  oc_state_free(&s);
+  golden_bytes_free(&g);
 }
 
 static void test_state__bit_flips(void **state) {
   (void)state;
-  oc_state_t s, t;
-  size_t len;
-  char why[256];
-  golden_state(&s);
-  uint8_t *buf = serialize(&s, &len);
-  oc_state_init(&t);
-  for (size_t i = 0; i < len; i++)
+  golden_bytes_t g;
+  golden_bytes(&g);
+  for (size_t i = 0; i < g.len; i++)
     for (int bit = 0; bit < 8; bit++) {
-      buf[i] ^= (uint8_t)(1u << bit);
-      int e = oc_state_deserialize(&t, buf, len, why, sizeof why);
+      g.buf[i] ^= (uint8_t)(1u << bit);
+      int e = oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why);
       assert_true(e < 0);
-      assert_int_equal(t.node_count, 0);
+      assert_int_equal(g.t.node_count, 0);
       /* Magic, version and counts are checked before the checksum (identity and length first);
        * every other byte is caught by the checksum. */
       bool early = i < 8 || (i >= 48 && i < 56);
-      if (!early && e != OC_ECHECKSUM) fail_msg("byte %zu bit %d: %d (%s)", i, bit, e, why);
-      buf[i] ^= (uint8_t)(1u << bit);
+      if (!early && e != OC_ECHECKSUM) fail_msg("byte %zu bit %d: %d (%s)", i, bit, e, g.why);
+      g.buf[i] ^= (uint8_t)(1u << bit);
     }
-  assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), 0);
-  oc_state_free(&t);
-  free(buf);
-  oc_state_free(&s);
+  assert_int_equal(oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why), 0);
+  golden_bytes_free(&g);
 }
 
 /* Malformed but correctly sealed input reaches the structural checks. */
 static void test_state__sealed_corruption(void **state) {
   (void)state;
-  oc_state_t s, t;
-  size_t len;
-  char why[256];
-  golden_state(&s);
-  uint8_t *buf = serialize(&s, &len);
-  oc_state_init(&t);
+  golden_bytes_t g;
+  golden_bytes(&g);
 
-  buf[60] = 1; /* reserved header byte */
-  reseal(buf, len);
-  assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "reserved header"));
-  buf[60] = 0;
-  buf[64 + 32 + 10] = 1; /* reserved record byte */
-  reseal(buf, len);
-  assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "node 1: reserved"));
-  buf[64 + 32 + 10] = 0;
-  buf[64 + 32 + 8] = 9; /* kind */
-  reseal(buf, len);
-  assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "bad kind"));
-  buf[64 + 32 + 8] = OC_NODE_UNIFORM;
-  buf[4] = 2; /* version */
-  reseal(buf, len);
-  assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), OC_EVERSION);
-  buf[4] = 1;
-  reseal(buf, len);
-  assert_int_equal(oc_state_deserialize(&t, buf, len, why, sizeof why), 0);
-  assert_int_equal(t.node_count, 15);
+  g.buf[60] = 1; /* reserved header byte */
+  reseal(g.buf, g.len);
+  assert_int_equal(oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why), OC_ECORRUPT);
+  assert_non_null(strstr(g.why, "reserved header"));
+  g.buf[60] = 0;
+  g.buf[64 + 32 + 10] = 1; /* reserved record byte */
+  reseal(g.buf, g.len);
+  assert_int_equal(oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why), OC_ECORRUPT);
+  assert_non_null(strstr(g.why, "node 1: reserved"));
+  g.buf[64 + 32 + 10] = 0;
+  g.buf[64 + 32 + 8] = 9; /* kind */
+  reseal(g.buf, g.len);
+  assert_int_equal(oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why), OC_ECORRUPT);
+  assert_non_null(strstr(g.why, "bad kind"));
+  g.buf[64 + 32 + 8] = OC_NODE_UNIFORM;
+  g.buf[4] = 2; /* version */
+  reseal(g.buf, g.len);
+  assert_int_equal(oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why), OC_EVERSION);
+  g.buf[4] = 1;
+  reseal(g.buf, g.len);
+  assert_int_equal(oc_state_deserialize(&g.t, g.buf, g.len, g.why, sizeof g.why), 0);
+  assert_int_equal(g.t.node_count, 15);
 
   /* Counts at and past the limits against a short buffer: refused before any allocation. */
   uint8_t hdr[72];
-  memcpy(hdr, buf, 64);
+  memcpy(hdr, g.buf, 64);
   memset(hdr + 64, 0, 8);
   hdr[48] = 0, hdr[49] = 0, hdr[50] = 0, hdr[51] = 1; /* 2^24 nodes = the limit */
-  assert_int_equal(oc_state_deserialize(&t, hdr, sizeof hdr, why, sizeof why), OC_ETRUNC);
+  assert_int_equal(oc_state_deserialize(&g.t, hdr, sizeof hdr, g.why, sizeof g.why), OC_ETRUNC);
   hdr[48] = 1;                                        /* 2^24 + 1 */
-  assert_int_equal(oc_state_deserialize(&t, hdr, sizeof hdr, why, sizeof why), OC_ETOOBIG);
+  assert_int_equal(oc_state_deserialize(&g.t, hdr, sizeof hdr, g.why, sizeof g.why), OC_ETOOBIG);
   hdr[48] = 0, hdr[51] = 0, hdr[52] = 0xFF, hdr[53] = 0xFF, hdr[54] = 0xFF, hdr[55] = 0xFF;
-  assert_int_equal(oc_state_deserialize(&t, hdr, sizeof hdr, why, sizeof why), OC_ETOOBIG);
-  assert_int_equal(oc_state_deserialize(&t, NULL, 0, why, sizeof why), OC_ETRUNC);
-  assert_int_equal(t.node_count, 0);
-  free(buf);
-  oc_state_free(&s);
+  assert_int_equal(oc_state_deserialize(&g.t, hdr, sizeof hdr, g.why, sizeof g.why), OC_ETOOBIG);
+  assert_int_equal(oc_state_deserialize(&g.t, NULL, 0, g.why, sizeof g.why), OC_ETRUNC);
+  assert_int_equal(g.t.node_count, 0);
+  golden_bytes_free(&g);
 }
 
 static void test_state__golden(void **state) {
