@@ -34,10 +34,10 @@ static void production(oc_buf_t *b, const ocs_stats_t *st) {
                      &w->brick_seconds);
   counter(b, "overcast_brick_production_errors_total", "Bricks whose production failed.", (double)w->produce_errors);
   counter(b, "overcast_brick_requests_total", "Bricks the viewers' plans asked for, before sharing.", (double)w->brick_requests);
-  counter(b, "overcast_brick_cache_hits_total", "Brick cache lookups that found the brick.", (double)w->cache_hits);
-  counter(b, "overcast_brick_cache_misses_total", "Brick cache lookups that did not.", (double)w->cache_misses);
-  counter(b, "overcast_brick_cache_evictions_total", "Bricks evicted from the cache.", (double)w->cache_evictions);
-  gauge(b, "overcast_brick_cache_bytes", "Bytes held by the brick cache.", (double)w->cache_bytes);
+  counter(b, "overcast_brick_cache_hits_total", "Brick cache lookups that found the brick.", (double)w->cache.hits);
+  counter(b, "overcast_brick_cache_misses_total", "Brick cache lookups that did not.", (double)w->cache.misses);
+  counter(b, "overcast_brick_cache_evictions_total", "Bricks evicted from the cache.", (double)w->cache.evictions);
+  gauge(b, "overcast_brick_cache_bytes", "Bytes held by the brick cache.", (double)w->cache.bytes);
 }
 
 static void budgets(oc_buf_t *b, const ocs_stats_t *st) {

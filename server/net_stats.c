@@ -139,9 +139,9 @@ cJSON *ocs_stats_world_json(const ocs_server_t *srv, const ocs_stats_t *st) {
   ADD_NUMBERS(o, {"epoch", (double)ws->epoch}, {"time", st->time}, {"utc", st->utc}, {"epoch_period", srv->period},
               {"ticks", (double)st->ticks}, {"viewers", ws->viewers}, {"granted_bytes", (double)ws->granted_bytes},
               {"held_bytes", (double)ws->held_bytes}, {"bricks_produced", (double)ws->bricks_produced},
-              {"brick_requests", (double)ws->brick_requests}, {"cache_hits", (double)ws->cache_hits},
-              {"cache_misses", (double)ws->cache_misses}, {"cache_evictions", (double)ws->cache_evictions},
-              {"cache_hit_rate", ws->cache_hit_rate}, {"cache_bytes", (double)ws->cache_bytes},
+              {"brick_requests", (double)ws->brick_requests}, {"cache_hits", (double)ws->cache.hits},
+              {"cache_misses", (double)ws->cache.misses}, {"cache_evictions", (double)ws->cache.evictions},
+              {"cache_hit_rate", ws->cache_hit_rate}, {"cache_bytes", (double)ws->cache.bytes},
               {"plan_ms", 1e3 * ws->plan_seconds}, {"produce_ms", 1e3 * ws->produce_seconds});
   add_hist(o, "brick_seconds", &ws->brick_seconds);
   cJSON_AddNumberToObject(o, "late_ticks", (double)st->late_ticks);

@@ -1795,21 +1795,27 @@ int ocs_world_queue_peek(const ocs_world_t *w, size_t i, oc_key_t *key, double *
 void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   memset(out, 0, sizeof *out);
   if (!w) return;
-  out->epoch = w->epoch;
-  out->time = w->time;
-  out->bricks_produced = w->bricks_produced;
-  out->sigma_produced = w->sigma_produced;
-  out->tau_volumes = w->tau_volumes;
-  out->brick_requests = w->brick_requests;
-  ocs_cache_stats_t cs;
-  ocs_cache_stats(w->cache, &cs);
-  out->cache_hits = cs.hits;
-  out->cache_misses = cs.misses;
-  out->cache_bytes = cs.bytes;
-  out->cache_evictions = cs.evictions;
-  out->cache_hit_rate = ocs_cache_hit_rate(w->cache);
-  out->viewers = (uint32_t)w->nviewers;
-  out->granted_bytes = w->granted;
+  *out = (ocs_world_stats_t){.epoch = w->epoch,
+                             .time = w->time,
+                             .bricks_produced = w->bricks_produced,
+                             .sigma_produced = w->sigma_produced,
+                             .tau_volumes = w->tau_volumes,
+                             .brick_requests = w->brick_requests,
+                             .cache_hit_rate = ocs_cache_hit_rate(w->cache),
+                             .viewers = (uint32_t)w->nviewers,
+                             .granted_bytes = w->granted,
+                             .produce_seconds = w->produce_seconds,
+                             .plan_seconds = w->plan_seconds,
+                             .target_seconds = w->target_seconds,
+                             .tau_direct = (uint64_t)atomic_load(&w->tau_stats.direct),
+                             .tau_clear = (uint64_t)atomic_load(&w->tau_stats.clear_proven),
+                             .produce_errors = w->produce_errors,
+                             .brick_cpu = w->brick_cpu,
+                             .brick_cpu_empty = w->brick_cpu_empty,
+                             .bricks_empty = w->bricks_empty,
+                             .last_error = w->last_error,
+                             .last_error_key = w->last_error_key};
+  ocs_cache_stats(w->cache, &out->cache);
   for (int i = 0; i < w->nviewers; i++)
     for (int j = 0; j < w->viewers[i]->nheld; j++) {
       const oc_state_t *s = &w->viewers[i]->held[j];
@@ -1819,17 +1825,6 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
     const oc_state_t *s = &w->viewers[i]->spare;
     out->held_bytes += (uint64_t)s->node_cap * sizeof(oc_node_t) + (uint64_t)s->brick_cap * sizeof(oc_brick_t);
   }
-  out->produce_seconds = w->produce_seconds;
-  out->plan_seconds = w->plan_seconds;
-  out->target_seconds = w->target_seconds;
-  out->tau_direct = (uint64_t)atomic_load(&w->tau_stats.direct);
-  out->tau_clear = (uint64_t)atomic_load(&w->tau_stats.clear_proven);
-  out->produce_errors = w->produce_errors;
-  out->brick_cpu = w->brick_cpu;
-  out->brick_cpu_empty = w->brick_cpu_empty;
-  out->bricks_empty = w->bricks_empty;
-  out->last_error = w->last_error;
-  out->last_error_key = w->last_error_key;
   ocs_hist_read(&w->brick_seconds, &out->brick_seconds);
 }
 

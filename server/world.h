@@ -22,6 +22,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "brick_cache.h" /* ocs_cache_stats_t */
 #include "brick_value.h"
 #include "histogram.h"
 #include "oc_scene.h"
@@ -65,7 +66,7 @@ typedef struct {
   uint64_t sigma_produced;   /**< σt samplings of the field */
   uint64_t tau_volumes;      /**< τ volumes built */
   uint64_t brick_requests;   /**< bricks asked for by plans, before sharing */
-  uint64_t cache_hits, cache_misses, cache_bytes, cache_evictions;
+  ocs_cache_stats_t cache;   /**< the brick cache's counters (brick_cache.h) */
   double cache_hit_rate;
   uint32_t viewers;
   uint64_t granted_bytes;    /**< sum of viewers' budgets */
