@@ -59,19 +59,8 @@ void ocs_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *c
 
 /* ---- Refinement ------------------------------------------------------------------------------ */
 
-typedef struct {
-  ocs_field_fn sigma, tau;
-  void *ctx;
-  int min_level, max_level;
-  const ocs_aabb_t *aabbs;
-  int aabb_count;
-  double margin;
-  ocs_refine_fn refine;
-  void *refine_ctx;
-  int sub_sigma, sub_tau;
-  int threads;
-  uint32_t max_nodes;
-} oc__vox_t;
+/* The description with its defaults filled in (oc__resolve). */
+typedef ocs_voxelize_desc_t oc__vox_t;
 
 static int oc__wants_split(const oc__vox_t *v, oc_key_t key, int level) {
   if (level < v->min_level) return 1;
@@ -286,20 +275,13 @@ static int oc__resolve(const ocs_voxelize_desc_t *d, oc__vox_t *v, oc_dvec3 *sun
   OC_RETURN_IF(!isfinite(sl) || !(sl > 0.0), OC_EINVAL);
   *sun = fabs(sl - 1.0) <= 1e-12 ? d->sun_dir : oc_dscale(d->sun_dir, 1.0 / sl);
 
-  v->sigma = d->sigma;
-  v->tau = d->tau;
-  v->ctx = d->ctx;
-  v->min_level = d->min_level;
+  *v = *d;
   v->max_level = max_level;
-  v->aabbs = d->aabbs;
-  v->aabb_count = d->aabb_count;
-  v->margin = d->margin;
-  v->refine = d->refine;
-  v->refine_ctx = d->refine_ctx ? d->refine_ctx : d->ctx;
-  v->sub_sigma = d->sub_sigma ? d->sub_sigma : 4;
-  v->sub_tau = d->sub_tau ? d->sub_tau : 1;
-  v->threads = d->threads ? d->threads : 1;
-  v->max_nodes = (d->max_nodes == 0 || d->max_nodes > OC_STATE_MAX_NODES) ? OC_STATE_MAX_NODES : d->max_nodes;
+  if (!v->refine_ctx) v->refine_ctx = d->ctx;
+  if (!v->sub_sigma) v->sub_sigma = 4;
+  if (!v->sub_tau) v->sub_tau = 1;
+  if (!v->threads) v->threads = 1;
+  if (v->max_nodes == 0 || v->max_nodes > OC_STATE_MAX_NODES) v->max_nodes = OC_STATE_MAX_NODES;
   return 0;
 }
 
