@@ -439,6 +439,16 @@ static oc_dvec3 sphere_centre(const place_t *p) {
   return index_to_planet(p, c);
 }
 
+/* The sphere as the first sampling test writes it (sphere.vdb), opened with `heading`; *p its
+ * placement, *c its centre. */
+static ocs_source_t *open_sphere(double heading, place_t *p, oc_dvec3 *c) {
+  char path[512];
+  tmp_path(path, sizeof path, "sphere.vdb");
+  ocs_source_t *s = sphere_source(path, heading, p);
+  *c = sphere_centre(p);
+  return s;
+}
+
 /* σt of the continuous sphere at a planet point. */
 static double sphere_sigma(oc_dvec3 c, oc_dvec3 q) { return SPH_SIGMA * profile(oc_dlen(oc_dsub(q, c)) / SPH_S, SPH_R); }
 
@@ -449,8 +459,8 @@ static void test_vdb__fog_sphere_fine_levels_match_analytic(void **st) {
   sphere_t sp = {.R = SPH_R};
   write_sphere(path, &sp, OCS_VDB_COMPRESS_DEFAULT);
   place_t p;
-  ocs_source_t *s = sphere_source(path, 0.0, &p);
-  oc_dvec3 c = sphere_centre(&p);
+  oc_dvec3 c;
+  ocs_source_t *s = open_sphere(0.0, &p, &c);
   /* Level 17 (spacing 14 m) and 18 (7 m): footprints below a voxel: trilinear samples. */
   double worst = 0.0;
   int compared = 0;
@@ -498,11 +508,9 @@ static double sphere_box(oc_dvec3 c, oc_dvec3 x, double e) {
 
 static void test_vdb__fog_sphere_coarse_levels_box_average(void **st) {
   (void)st;
-  char path[512];
-  tmp_path(path, sizeof path, "sphere.vdb");
   place_t p;
-  ocs_source_t *s = sphere_source(path, 0.0, &p);
-  oc_dvec3 c = sphere_centre(&p);
+  oc_dvec3 c;
+  ocs_source_t *s = open_sphere(0.0, &p, &c);
   /* Level 12..15: footprints of 452, 226, 113, 56 m against 20 m voxels (a 480 m sphere). Per
    * sample: the box average of the continuous sphere (24³ quadrature); per node: the samples'
    * plain mean against the true mean over the extended cube, and the node's mean against its 8
@@ -920,11 +928,9 @@ static void test_vdb__sequence_threads(void **st) {
 /* The bound holds every sample of random nodes near the sphere, and is exact far away. */
 static void test_vdb__bound_is_conservative(void **st) {
   (void)st;
-  char path[512];
-  tmp_path(path, sizeof path, "sphere.vdb");
   place_t p;
-  ocs_source_t *s = sphere_source(path, 33.0, &p);
-  oc_dvec3 c = sphere_centre(&p);
+  oc_dvec3 c;
+  ocs_source_t *s = open_sphere(33.0, &p, &c);
   srand(11);
   int empty = 0, nodes = 0;
   for (int q = 0; q < 400; q++) {
