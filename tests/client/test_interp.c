@@ -62,6 +62,12 @@ static void split_uniform(oc_state_t *s, oc_key_t key, float sigma, float tau) {
   for (int i = 0; i < 8; i++) add_uniform(s, child(key, i), sigma + 0.01f * (float)i, tau);
 }
 
+/* An empty state, lit from +z. */
+static void empty_state(oc_state_t *s) {
+  oc_state_init(s);
+  s->sun_dir = oc_dv3(0, 0, 1);
+}
+
 static void copy_state(oc_state_t *dst, const oc_state_t *src) {
   oc_state_init(dst);
   assert_int_equal(oc_state_copy(dst, src), 0);
@@ -194,8 +200,7 @@ static void ramp_state(oc_state_t *s, uint32_t id) {
   oc_brick_codes_t codes;
   oc_range_t r[2];
   assert_int_equal(oc_brick_encode(sig, tau, &codes, r), OC_NODE_BRICK);
-  oc_state_init(s);
-  s->sun_dir = oc_dv3(0, 0, 1);
+  empty_state(s);
   add_node(s, node(OC_KEY_ROOT, OC_NODE_BRICK, id, r[0].lo, r[0].hi, r[1].lo, r[1].hi));
   assert_int_equal(oc_state_add_brick(s, id, &codes), 0);
   expect_valid(s);
@@ -207,6 +212,15 @@ static void build_ok(ocv_interp_t *ip, const oc_state_t *P, const oc_state_t *N)
   assert_int_equal(ip->node_count, N->node_count);
 }
 
+/* A new ocv_interp_t built from P to N. @return its stats. */
+static ocv_interp_stats_t build_new(ocv_interp_t *ip, const oc_state_t *P, const oc_state_t *N) {
+  ocv_interp_stats_t st;
+  ocv_interp_init(ip);
+  build_ok(ip, P, N);
+  ocv_interp_stats(ip, &st);
+  return st;
+}
+
 /*-*** Identity, no previous state ***/
 
 static void test_interp__identity_is_same(void **state) {
@@ -215,10 +229,7 @@ static void test_interp__identity_is_same(void **state) {
   assert_int_equal(golden_state(&P), 0);
   copy_state(&N, &P);
   ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, &P, &N);
-  ocv_interp_stats_t st;
-  ocv_interp_stats(&ip, &st);
+  ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count);
   assert_int_equal(st.pooled, 0);
   assert_int_equal(st.uniform, 0);
@@ -241,10 +252,7 @@ static void test_interp__null_prev_is_none(void **state) {
   oc_state_t N;
   assert_int_equal(golden_state(&N), 0);
   ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, NULL, &N);
-  ocv_interp_stats_t st;
-  ocv_interp_stats(&ip, &st);
+  ocv_interp_stats_t st = build_new(&ip, NULL, &N);
   assert_int_equal(st.count[OCV_INTERP_NONE], N.node_count);
   assert_int_equal(ip.pool_count, 0);
   assert_null(ip.pool);
@@ -267,15 +275,11 @@ static void test_interp__split_ramp(void **state) {
   (void)state;
   oc_state_t P, N;
   ramp_state(&P, 5);
-  oc_state_init(&N);
-  N.sun_dir = oc_dv3(0, 0, 1);
+  empty_state(&N);
   for (int c = 0; c < 8; c++) add_uniform(&N, child(OC_KEY_ROOT, c), 0.3f, 0.3f);
   expect_valid(&N);
   ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, &P, &N);
-  ocv_interp_stats_t st;
-  ocv_interp_stats(&ip, &st);
+  ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_PARENT], 8);
   assert_int_equal(st.pooled, 8);
   assert_int_equal(ip.pool_count, 8);
@@ -308,8 +312,7 @@ static void test_interp__split_multilevel(void **state) {
   (void)state;
   oc_state_t P, N;
   ramp_state(&P, 9);
-  oc_state_init(&N);
-  N.sun_dir = oc_dv3(0, 0, 1);
+  empty_state(&N);
   oc_key_t c5 = child(OC_KEY_ROOT, 5), g2 = child(c5, 2);
   for (int c = 0; c < 8; c++)
     if (c != 5) add_uniform(&N, child(OC_KEY_ROOT, c), 0.3f, 0.3f);
@@ -319,10 +322,7 @@ static void test_interp__split_multilevel(void **state) {
   oc_state_canonicalize(&N);
   expect_valid(&N);
   ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, &P, &N);
-  ocv_interp_stats_t st;
-  ocv_interp_stats(&ip, &st);
+  ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_PARENT], N.node_count);
   assert_int_equal(ip.pool_count, N.node_count);
   double bound = oc_code_rel_error_bound(P.nodes[0].range[0]);
@@ -357,10 +357,7 @@ static void test_interp__split_empty_uniform_brick(void **state) {
   oc_state_canonicalize(&N);
   expect_valid(&N);
   ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, &P, &N);
-  ocv_interp_stats_t st;
-  ocv_interp_stats(&ip, &st);
+  ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_PARENT], 32);
   assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 32);
   assert_int_equal(st.uniform, 16);
@@ -399,8 +396,7 @@ static void test_interp__merge_uniform_children(void **state) {
   (void)state;
   for (int same = 0; same < 2; same++) {
     oc_state_t P, N;
-    oc_state_init(&P);
-    P.sun_dir = oc_dv3(0, 0, 1);
+    empty_state(&P);
     float cs[8], ct[8];
     double ms = 0, mt = 0;
     for (int c = 0; c < 8; c++) {
@@ -411,14 +407,10 @@ static void test_interp__merge_uniform_children(void **state) {
       add_uniform(&P, child(OC_KEY_ROOT, c), cs[c], ct[c]);
     }
     expect_valid(&P);
-    oc_state_init(&N);
-    N.sun_dir = oc_dv3(0, 0, 1);
+    empty_state(&N);
     add_uniform(&N, OC_KEY_ROOT, 0.3f, 0.3f);
     ocv_interp_t ip;
-    ocv_interp_init(&ip);
-    build_ok(&ip, &P, &N);
-    ocv_interp_stats_t st;
-    ocv_interp_stats(&ip, &st);
+    ocv_interp_stats_t st = build_new(&ip, &P, &N);
     assert_int_equal(ip.prev[0].source, OCV_INTERP_CHILDREN);
     assert_int_equal(st.count[OCV_INTERP_CHILDREN], 1);
     if (same) {
@@ -478,8 +470,7 @@ static void test_interp__merge_bricks(void **state) {
   oc_state_t P, N;
   assert_int_equal(golden_state(&P), 0);
   for (int pass = 0; pass < 2; pass++) {
-    oc_state_init(&N);
-    N.sun_dir = oc_dv3(0, 0, 1);
+    empty_state(&N);
     oc_key_t merged = pass == 0 ? child(OC_KEY_ROOT, 7) : OC_KEY_ROOT;
     if (pass == 0) {
       copy_state(&N, &P);
@@ -489,10 +480,7 @@ static void test_interp__merge_bricks(void **state) {
     oc_state_canonicalize(&N);
     expect_valid(&N);
     ocv_interp_t ip;
-    ocv_interp_init(&ip);
-    build_ok(&ip, &P, &N);
-    ocv_interp_stats_t st;
-    ocv_interp_stats(&ip, &st);
+    ocv_interp_stats_t st = build_new(&ip, &P, &N);
     assert_int_equal(st.count[OCV_INTERP_CHILDREN], 1);
     assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 1);
     assert_int_equal(st.fine, 1);
@@ -560,10 +548,7 @@ static void test_interp__refresh_is_own(void **state) {
   expect_valid(&N);
 
   ocv_interp_t ip;
-  ocv_interp_init(&ip);
-  build_ok(&ip, &P, &N);
-  ocv_interp_stats_t st;
-  ocv_interp_stats(&ip, &st);
+  ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_OWN], 5);
   assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 5);
   assert_int_equal(st.pooled, 3);
@@ -599,16 +584,14 @@ static void test_interp__refresh_is_own(void **state) {
 static void test_interp__constant_brick_is_uniform(void **state) {
   (void)state;
   oc_state_t P, N;
-  oc_state_init(&P);
-  P.sun_dir = oc_dv3(0, 0, 1);
+  empty_state(&P);
   add_node(&P, node(OC_KEY_ROOT, OC_NODE_BRICK, 1, 0.5f, 1.0f, 0.0f, 0.0f));
   oc_brick_codes_t codes;
   memset(&codes, 0, sizeof codes);
   for (int q = 0; q < 512; q++) codes.code[0][q] = OC_CODE_MAX;
   assert_int_equal(oc_state_add_brick(&P, 1, &codes), 0);
   expect_valid(&P);
-  oc_state_init(&N);
-  N.sun_dir = oc_dv3(0, 0, 1);
+  empty_state(&N);
   for (int c = 0; c < 8; c++) add_uniform(&N, child(OC_KEY_ROOT, c), 0.3f, 0.3f);
   ocv_interp_t ip;
   ocv_interp_init(&ip);
@@ -758,8 +741,7 @@ static void grow(oc_state_t *s, oc_key_t key, int level, uint64_t seed, int is_n
 }
 
 static void random_state(oc_state_t *s, uint64_t seed, int is_n) {
-  oc_state_init(s);
-  s->sun_dir = oc_dv3(0, 0, 1);
+  empty_state(s);
   grow(s, OC_KEY_ROOT, 0, seed, is_n);
   oc_state_canonicalize(s);
   expect_valid(s);
