@@ -16,15 +16,10 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build build -j"$(nproc)" --target overcast-server overcast-view >&2
 OUT=${OC_OUT:-out}
 mkdir -p "$OUT"
-build/bin/overcast-server --listen 127.0.0.1:0 >"$OUT/server.addr" 2>"$OUT/server.log" &
-SERVER=$!
-trap 'kill -TERM $SERVER 2>/dev/null; wait $SERVER 2>/dev/null || true' EXIT
-for _ in $(seq 100); do
-  grep -q "listening on" "$OUT/server.addr" 2>/dev/null && break
-  kill -0 $SERVER 2>/dev/null || { cat "$OUT/server.log" >&2; exit 1; }
-  sleep 0.1
-done
-ADDR=$(sed -n 's/^listening on //p' "$OUT/server.addr")
+SERVER=''
+trap '[ -z "$SERVER" ] || { kill -TERM $SERVER 2>/dev/null; wait $SERVER 2>/dev/null || true; }' EXIT
+. scripts/server_start.sh
+oc_server_start build/bin "$OUT" || exit 1
 echo "run: overcast-server on $ADDR (log: $OUT/server.log)" >&2
 # The main job's camera: 6 km over fair-weather cumulus west of France, looking down 15° (the
 # scene's own camera, 2 km over a stretch with few clouds, stays for the benches). Test

@@ -38,14 +38,8 @@ for _ in $(seq 100); do [ -s "$OUT/display" ] && break; sleep 0.1; done
 [ -s "$OUT/display" ] || { echo "window_fps: Xvfb did not start" >&2; cat "$OUT/xvfb.log" >&2; exit 1; }
 export DISPLAY=:$(cat "$OUT/display")
 
-"$BIN/overcast-server" --listen 127.0.0.1:0 >"$OUT/server.addr" 2>"$OUT/server.log" &
-SERVER=$!
-for _ in $(seq 100); do
-  grep -q "listening on" "$OUT/server.addr" 2>/dev/null && break
-  kill -0 $SERVER 2>/dev/null || { cat "$OUT/server.log" >&2; exit 1; }
-  sleep 0.1
-done
-ADDR=$(sed -n 's/^listening on //p' "$OUT/server.addr")
+. scripts/server_start.sh
+oc_server_start "$BIN" "$OUT" || exit 1
 
 CAMERA=45,0,2000,260,-5,60 # the built-in planet's camera (scripts/run.sh)
 echo "window_fps: overcast-view --connect $ADDR --window --camera $CAMERA --size 1280x720 $* for $SECONDS_RUN s" \

@@ -1,6 +1,7 @@
 /* gl_fixture.h — what the GL tests of client/gl share (header-only): one context and renderer per
  * test program (skipped without GL unless OC_GL_REQUIRE=1), the analytic sphere voxelized for a
- * camera, and the RMSE of two images on the 0–255 scale after the viewer's tone mapping. */
+ * camera, the RMSE of two images on the 0–255 scale after the viewer's tone mapping, and the largest
+ * difference of two 8-bit pictures. */
 #ifndef OC_TESTS_GL_FIXTURE_H
 #define OC_TESTS_GL_FIXTURE_H
 
@@ -85,6 +86,16 @@ static inline double rmse(const oc_image_t *a, const oc_image_t *b) {
   free(ra);
   free(rb);
   return sqrt(se / (double)n);
+}
+
+/* The largest difference between two byte arrays of n bytes (8-bit pictures: in steps). */
+static inline int max_step(const uint8_t *a, const uint8_t *b, size_t n) {
+  int m = 0;
+  for (size_t i = 0; i < n; i++) {
+    int d = abs((int)a[i] - (int)b[i]);
+    if (d > m) m = d;
+  }
+  return m;
 }
 
 #endif /* OC_TESTS_GL_FIXTURE_H */

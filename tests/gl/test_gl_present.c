@@ -29,14 +29,7 @@
 #define H 54
 #define N ((size_t)W * H * 3)
 
-static int max_diff(const uint8_t *a, const uint8_t *b) {
-  int m = 0;
-  for (size_t i = 0; i < N; i++) {
-    int d = abs((int)a[i] - (int)b[i]);
-    if (d > m) m = d;
-  }
-  return m;
-}
+static int max_diff(const uint8_t *a, const uint8_t *b) { return max_step(a, b, N); }
 
 static void test_gl_present__matches_cpu(void **state) {
   (void)state;

@@ -28,7 +28,7 @@
 #include "oc_render.h"
 #include "ocv_gl.h"
 
-#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, const_bg_desc, rmse */
+#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, const_bg_desc, max_step */
 
 #define W 256
 #define H 144 /* the coarsest scale keeping ≥ 32 rows: 1/4 (36 rows) */
@@ -149,15 +149,6 @@ static void upsample_cpu(const oc_image_t *src, oc_image_t *dst) {
         dst->px[((size_t)y * (size_t)dst->w + (size_t)x) * 4 + (size_t)c] = a + (b - a) * fy;
       }
     }
-}
-
-static int max_step(const uint8_t *a, const uint8_t *b, size_t n) {
-  int m = 0;
-  for (size_t i = 0; i < n; i++) {
-    int d = abs((int)a[i] - (int)b[i]);
-    if (d > m) m = d;
-  }
-  return m;
 }
 
 static void test_gl_window_scale__upsampled_picture(void **state) {
