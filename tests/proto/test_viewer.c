@@ -232,23 +232,51 @@ static void handshake(ocp_viewer_t *v, int kept, oc_buf_t *out) {
 
 /*-*** Tests ***/
 
+/* The golden state as s, sent whole (every record and brick) into b. */
+static void put_golden_epoch(oc_buf_t *b, oc_state_t *s) {
+  uint32_t ids[8];
+  golden_state(s);
+  put_epoch(b, s, NULL, ids, all_bricks(s, ids));
+}
+
+/* A viewer under test: its events, what the server sends it (in), what it sends back (out), and
+ * the reason when a feed fails. */
+typedef struct {
+  events_t ev;
+  ocp_viewer_t *v;
+  oc_buf_t in, out;
+  char why[256];
+} rig_t;
+
+static void rig_open(rig_t *x, int role) {
+  memset(x, 0, sizeof *x);
+  x->v = make_viewer(&x->ev, role);
+}
+
+/* Feeds x->in to the viewer; its replies are appended to x->out. @return feed()'s result. */
+static int rig_feed(rig_t *x) { return feed(x->v, &x->in, &x->out, x->why, sizeof x->why); }
+
+static void rig_close(rig_t *x) {
+  oc_buf_free(&x->in);
+  oc_buf_free(&x->out);
+  ocp_viewer_free(x->v);
+}
+
 static void test_viewer__hello_and_welcome(void **state) {
   (void)state;
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
-  assert_false(ocp_viewer_ready(v));
-  assert_null(ocp_viewer_welcome(v));
+  rig_t x;
+  rig_open(&x, OCP_ROLE_VIEWER);
+  assert_false(ocp_viewer_ready(x.v));
+  assert_null(ocp_viewer_welcome(x.v));
   /* a camera set before WELCOME is held and sent right after it */
   ocp_camera_t cam = {oc_dv3(0, 0, 6.4e6), oc_dv3(1, 0, 0), oc_dv3(0, 0, 1), 50.0, 1280, 720};
-  assert_int_equal(ocp_viewer_camera(v, &cam, &out), 0);
-  assert_int_equal(out.len, 0);
+  assert_int_equal(ocp_viewer_camera(x.v, &cam, &x.out), 0);
+  assert_int_equal(x.out.len, 0);
   ocp_camera_t bad = cam;
   bad.vfov_deg = 200.0;
-  assert_int_equal(ocp_viewer_camera(v, &bad, &out), OC_EINVAL);
-  ocp_viewer_connected(v, &out);
-  ocp_hello_t h = hello_of(&out);
+  assert_int_equal(ocp_viewer_camera(x.v, &bad, &x.out), OC_EINVAL);
+  ocp_viewer_connected(x.v, &x.out);
+  ocp_hello_t h = hello_of(&x.out);
   assert_int_equal(h.min_version, OCP_VERSION_MIN);
   assert_int_equal(h.max_version, OCP_VERSION_MAX);
   assert_int_equal(h.role, OCP_ROLE_VIEWER);
@@ -262,93 +290,87 @@ static void test_viewer__hello_and_welcome(void **state) {
   assert_int_equal(h.resume_session, 0);
   assert_int_equal(h.token_len, 6);
   assert_memory_equal(h.token, "sesame", 6);
-  put_welcome(&in, 3, 0, SESSION, 1u << 20);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), 0);
-  assert_int_equal(ev.welcomes, 1);
-  assert_int_equal(ev.last_resumed, 0);
-  assert_true(ocp_viewer_ready(v));
-  assert_int_equal(ocp_viewer_welcome(v)->session, SESSION);
-  assert_string_equal(ocp_viewer_welcome(v)->name, "test scene");
-  frames_t f = parse_out(&out);
+  put_welcome(&x.in, 3, 0, SESSION, 1u << 20);
+  assert_int_equal(rig_feed(&x), 0);
+  assert_int_equal(x.ev.welcomes, 1);
+  assert_int_equal(x.ev.last_resumed, 0);
+  assert_true(ocp_viewer_ready(x.v));
+  assert_int_equal(ocp_viewer_welcome(x.v)->session, SESSION);
+  assert_string_equal(ocp_viewer_welcome(x.v)->name, "test scene");
+  frames_t f = parse_out(&x.out);
   assert_int_equal(f.n, 1);
   assert_int_equal(f.h[0].type, OCP_MSG_CAMERA);
   ocp_camera_t back;
-  assert_int_equal(ocp_get_camera(f.p[0], f.h[0].length, &back, why, sizeof why), 0);
+  assert_int_equal(ocp_get_camera(f.p[0], f.h[0].length, &back, x.why, sizeof x.why), 0);
   assert_memory_equal(&back, &cam, sizeof cam);
   /* after WELCOME a camera goes out at once; keepalive and goodbye too */
-  out.len = 0;
-  assert_int_equal(ocp_viewer_camera(v, &cam, &out), 0);
-  ocp_viewer_keepalive(v, &out);
-  ocp_viewer_goodbye(v, &out);
-  f = parse_out(&out);
+  x.out.len = 0;
+  assert_int_equal(ocp_viewer_camera(x.v, &cam, &x.out), 0);
+  ocp_viewer_keepalive(x.v, &x.out);
+  ocp_viewer_goodbye(x.v, &x.out);
+  f = parse_out(&x.out);
   assert_int_equal(f.n, 3);
   assert_int_equal(f.h[0].type, OCP_MSG_CAMERA);
   assert_int_equal(f.h[1].type, OCP_MSG_KEEPALIVE);
   assert_int_equal(f.h[2].type, OCP_MSG_GOODBYE);
   /* a second WELCOME on the same connection is unexpected */
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "welcome"));
-  expect_error_frame(&out, OCP_CODE_UNEXPECTED);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
-  ocp_viewer_free(v);
+  assert_int_equal(rig_feed(&x), OC_ECORRUPT);
+  assert_non_null(strstr(x.why, "welcome"));
+  expect_error_frame(&x.out, OCP_CODE_UNEXPECTED);
+  rig_close(&x);
 }
 
 static void test_viewer__epochs_and_acks(void **state) {
   (void)state;
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
+  rig_t x;
+  rig_open(&x, OCP_ROLE_VIEWER);
   oc_state_t s1, s2;
-  uint32_t ids[8];
-  handshake(v, 3, &out);
+  handshake(x.v, 3, &x.out);
   /* first epoch: every record and brick */
-  golden_state(&s1);
-  put_epoch(&in, &s1, NULL, ids, all_bricks(&s1, ids));
-  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
-  assert_int_equal(ev.states, 1);
-  assert_int_equal(ev.last_epoch, 42);
-  assert_true(ev.last_checksum == oc_state_checksum(&s1));
-  assert_true(ev.last_checksum == 0xc9d949fa8e9ec21bull); /* the golden checksum */
-  assert_int_equal(ev.last_bricks, 3);
-  assert_int_equal(ev.stats, 1);
-  assert_int_equal(ev.last_stats_epoch, 42);
-  frames_t f = parse_out(&out);
+  put_golden_epoch(&x.in, &s1);
+  if (rig_feed(&x)) fail_msg("%s", x.why);
+  assert_int_equal(x.ev.states, 1);
+  assert_int_equal(x.ev.last_epoch, 42);
+  assert_true(x.ev.last_checksum == oc_state_checksum(&s1));
+  assert_true(x.ev.last_checksum == 0xc9d949fa8e9ec21bull); /* the golden checksum */
+  assert_int_equal(x.ev.last_bricks, 3);
+  assert_int_equal(x.ev.stats, 1);
+  assert_int_equal(x.ev.last_stats_epoch, 42);
+  frames_t f = parse_out(&x.out);
   assert_int_equal(f.n, 1);
   assert_int_equal(f.h[0].type, OCP_MSG_ACK);
   assert_int_equal(f.h[0].version, 1);
   ocp_ack_t ack;
-  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &ack, why, sizeof why), 0);
+  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &ack, x.why, sizeof x.why), 0);
   assert_int_equal(ack.epoch, 42);
   assert_true(ack.checksum == oc_state_checksum(&s1));
-  const oc_state_t *held = ocp_viewer_state(v, 0);
+  const oc_state_t *held = ocp_viewer_state(x.v, 0);
   assert_non_null(held);
   assert_true(oc_state_checksum(held) == oc_state_checksum(&s1));
-  assert_null(ocp_viewer_state(v, 1));
+  assert_null(ocp_viewer_state(x.v, 1));
   ocp_viewer_stats_t st;
-  ocp_viewer_stats(v, &st);
+  ocp_viewer_stats(x.v, &st);
   assert_int_equal(st.states, 1);
   assert_int_equal(st.bricks_in, 3);
   assert_int_equal(st.resident_bytes, 3 * 2048 + 15 * 32);
   /* second epoch as a difference: one refreshed brick (a delta of 42), the rest held */
   evolve(&s1, &s2, 43);
-  in.len = 0;
+  x.in.len = 0;
   uint32_t lack[] = {43};
-  put_epoch(&in, &s2, &s1, lack, 1);
-  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
-  assert_int_equal(ev.states, 2);
-  assert_int_equal(ev.last_epoch, 43);
-  assert_int_equal(ev.last_bricks, 1);
-  assert_true(ev.last_checksum == oc_state_checksum(&s2));
-  f = parse_out(&out);
+  put_epoch(&x.in, &s2, &s1, lack, 1);
+  if (rig_feed(&x)) fail_msg("%s", x.why);
+  assert_int_equal(x.ev.states, 2);
+  assert_int_equal(x.ev.last_epoch, 43);
+  assert_int_equal(x.ev.last_bricks, 1);
+  assert_true(x.ev.last_checksum == oc_state_checksum(&s2));
+  f = parse_out(&x.out);
   assert_int_equal(f.n, 1);
-  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &ack, why, sizeof why), 0);
+  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &ack, x.why, sizeof x.why), 0);
   assert_int_equal(ack.epoch, 43);
   assert_true(ack.checksum == oc_state_checksum(&s2));
-  assert_int_equal(ocp_viewer_state(v, 0)->epoch, 43);
-  assert_int_equal(ocp_viewer_state(v, 1)->epoch, 42); /* K = 3 keeps two */
-  ocp_viewer_stats(v, &st);
+  assert_int_equal(ocp_viewer_state(x.v, 0)->epoch, 43);
+  assert_int_equal(ocp_viewer_state(x.v, 1)->epoch, 42); /* K = 3 keeps two */
+  ocp_viewer_stats(x.v, &st);
   assert_int_equal(st.states, 2);
   assert_int_equal(st.bricks_in, 4);
   assert_int_equal(st.resident_bytes, 4 * 2048 + 30 * 32); /* bricks 3, 7, 42, 43; 2 × 15 records */
@@ -357,51 +379,43 @@ static void test_viewer__epochs_and_acks(void **state) {
   assert_int_equal(st.frames_in, 1 + 2 * 5); /* WELCOME; BEGIN, RECORDS, BRICKS, END, STATS twice */
   oc_state_free(&s1);
   oc_state_free(&s2);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
-  ocp_viewer_free(v);
+  rig_close(&x);
 }
 
 /* K = 2 keeps 1 state, K = 3 keeps 2, over several epochs. */
 static void run_kept(int kept) {
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
+  rig_t x;
+  rig_open(&x, OCP_ROLE_VIEWER);
   oc_state_t s[5];
-  uint32_t ids[8];
-  handshake(v, kept, &out);
-  golden_state(&s[0]);
-  put_epoch(&in, &s[0], NULL, ids, all_bricks(&s[0], ids));
+  handshake(x.v, kept, &x.out);
+  put_golden_epoch(&x.in, &s[0]);
   for (int i = 1; i < 5; i++) {
     evolve(&s[i - 1], &s[i], 100 + (uint32_t)i);
     uint32_t lack[] = {100 + (uint32_t)i};
-    put_epoch(&in, &s[i], &s[i - 1], lack, 1);
+    put_epoch(&x.in, &s[i], &s[i - 1], lack, 1);
   }
-  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why); /* all five epochs in one feed */
-  assert_int_equal(ev.states, 5);
-  frames_t f = parse_out(&out);
+  if (rig_feed(&x)) fail_msg("%s", x.why); /* all five epochs in one feed */
+  assert_int_equal(x.ev.states, 5);
+  frames_t f = parse_out(&x.out);
   assert_int_equal(f.n, 5);
   for (int i = 0; i < 5; i++) {
     ocp_ack_t a;
     assert_int_equal(f.h[i].type, OCP_MSG_ACK);
-    assert_int_equal(ocp_get_ack(f.p[i], f.h[i].length, &a, why, sizeof why), 0);
+    assert_int_equal(ocp_get_ack(f.p[i], f.h[i].length, &a, x.why, sizeof x.why), 0);
     assert_int_equal(a.epoch, 42 + i);
     assert_true(a.checksum == oc_state_checksum(&s[i]));
   }
   for (int i = 0; i < kept - 1; i++) {
-    assert_non_null(ocp_viewer_state(v, i));
-    assert_true(oc_state_checksum(ocp_viewer_state(v, i)) == oc_state_checksum(&s[4 - i]));
+    assert_non_null(ocp_viewer_state(x.v, i));
+    assert_true(oc_state_checksum(ocp_viewer_state(x.v, i)) == oc_state_checksum(&s[4 - i]));
   }
-  assert_null(ocp_viewer_state(v, kept - 1));
+  assert_null(ocp_viewer_state(x.v, kept - 1));
   ocp_viewer_stats_t st;
-  ocp_viewer_stats(v, &st);
+  ocp_viewer_stats(x.v, &st);
   /* the window is the K newest states: 3 shared bricks (3, 7) + one refreshed brick each */
   assert_int_equal(st.resident_bytes, (uint64_t)(2 + kept) * 2048 + (uint64_t)kept * 15 * 32);
   for (int i = 0; i < 5; i++) oc_state_free(&s[i]);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
-  ocp_viewer_free(v);
+  rig_close(&x);
 }
 
 static void test_viewer__kept_states(void **state) {
@@ -412,81 +426,75 @@ static void test_viewer__kept_states(void **state) {
 
 static void test_viewer__resume(void **state) {
   (void)state;
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
+  rig_t x;
+  rig_open(&x, OCP_ROLE_VIEWER);
   oc_state_t s1, s2;
-  uint32_t ids[8];
-  handshake(v, 3, &out);
-  golden_state(&s1);
-  put_epoch(&in, &s1, NULL, ids, all_bricks(&s1, ids));
+  handshake(x.v, 3, &x.out);
+  put_golden_epoch(&x.in, &s1);
   evolve(&s1, &s2, 43);
   uint32_t lack[] = {43};
-  put_epoch(&in, &s2, &s1, lack, 1);
+  put_epoch(&x.in, &s2, &s1, lack, 1);
   /* the connection drops in the middle of a third epoch: half of it is fed */
   oc_state_t s3;
   evolve(&s2, &s3, 44);
-  size_t whole = in.len;
+  size_t whole = x.in.len;
   uint32_t lack3[] = {44};
-  put_epoch(&in, &s3, &s2, lack3, 1);
-  in.len = whole + (in.len - whole) / 2;
-  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
-  assert_int_equal(ev.states, 2);
+  put_epoch(&x.in, &s3, &s2, lack3, 1);
+  x.in.len = whole + (x.in.len - whole) / 2;
+  if (rig_feed(&x)) fail_msg("%s", x.why);
+  assert_int_equal(x.ev.states, 2);
   /* reconnect: HELLO names the session, its secret and the newest complete state */
-  out.len = 0;
-  ocp_viewer_connected(v, &out);
-  assert_false(ocp_viewer_ready(v));
-  ocp_hello_t h = hello_of(&out);
+  x.out.len = 0;
+  ocp_viewer_connected(x.v, &x.out);
+  assert_false(ocp_viewer_ready(x.v));
+  ocp_hello_t h = hello_of(&x.out);
   assert_int_equal(h.resume_session, SESSION);
   assert_true(h.resume_secret == SECRET);
   assert_int_equal(h.held_epoch, 43);
   assert_true(h.held_checksum == oc_state_checksum(&s2));
   /* resumed: the states stay, and the epoch continues as a difference from 43 */
-  in.len = 0;
-  put_welcome(&in, 3, 1, SESSION, 1u << 20);
-  put_epoch(&in, &s3, &s2, lack3, 1);
-  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
-  assert_int_equal(ev.welcomes, 2);
-  assert_int_equal(ev.last_resumed, 1);
-  assert_int_equal(ev.states, 3);
-  assert_int_equal(ocp_viewer_state(v, 0)->epoch, 44);
-  assert_int_equal(ocp_viewer_state(v, 1)->epoch, 43);
+  x.in.len = 0;
+  put_welcome(&x.in, 3, 1, SESSION, 1u << 20);
+  put_epoch(&x.in, &s3, &s2, lack3, 1);
+  if (rig_feed(&x)) fail_msg("%s", x.why);
+  assert_int_equal(x.ev.welcomes, 2);
+  assert_int_equal(x.ev.last_resumed, 1);
+  assert_int_equal(x.ev.states, 3);
+  assert_int_equal(ocp_viewer_state(x.v, 0)->epoch, 44);
+  assert_int_equal(ocp_viewer_state(x.v, 1)->epoch, 43);
   ocp_viewer_stats_t st;
-  ocp_viewer_stats(v, &st);
+  ocp_viewer_stats(x.v, &st);
   assert_int_equal(st.reconnects, 1);
   assert_int_equal(st.resumed, 1);
   /* a server that lost the session starts a new one: everything held is dropped */
-  out.len = 0;
-  ocp_viewer_connected(v, &out);
-  h = hello_of(&out);
+  x.out.len = 0;
+  ocp_viewer_connected(x.v, &x.out);
+  h = hello_of(&x.out);
   assert_int_equal(h.held_epoch, 44);
-  in.len = 0;
-  put_welcome(&in, 3, 0, SESSION + 1, 1u << 20);
-  if (feed(v, &in, &out, why, sizeof why)) fail_msg("%s", why);
-  assert_int_equal(ev.last_resumed, 0);
-  assert_null(ocp_viewer_state(v, 0));
+  x.in.len = 0;
+  put_welcome(&x.in, 3, 0, SESSION + 1, 1u << 20);
+  if (rig_feed(&x)) fail_msg("%s", x.why);
+  assert_int_equal(x.ev.last_resumed, 0);
+  assert_null(ocp_viewer_state(x.v, 0));
   /* and the next HELLO names the new session with no state */
-  out.len = 0;
-  ocp_viewer_connected(v, &out);
-  h = hello_of(&out);
+  x.out.len = 0;
+  ocp_viewer_connected(x.v, &x.out);
+  h = hello_of(&x.out);
   assert_int_equal(h.resume_session, SESSION + 1);
   assert_int_equal(h.held_epoch, 0);
   assert_int_equal(h.held_checksum, 0);
   /* a WELCOME claiming to resume a session that was not asked for is refused */
-  in.len = 0;
-  put_welcome(&in, 3, 1, SESSION + 7, 1u << 20);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "resume"));
-  expect_error_frame(&out, OCP_CODE_MALFORMED);
-  ocp_viewer_stats(v, &st);
+  x.in.len = 0;
+  put_welcome(&x.in, 3, 1, SESSION + 7, 1u << 20);
+  assert_int_equal(rig_feed(&x), OC_ECORRUPT);
+  assert_non_null(strstr(x.why, "resume"));
+  expect_error_frame(&x.out, OCP_CODE_MALFORMED);
+  ocp_viewer_stats(x.v, &st);
   assert_int_equal(st.reconnects, 3);
   oc_state_free(&s1);
   oc_state_free(&s2);
   oc_state_free(&s3);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
-  ocp_viewer_free(v);
+  rig_close(&x);
 }
 
 /* Offset of the n-th frame of `type` in b. */
@@ -508,9 +516,7 @@ static void test_viewer__corrupt_bricks(void **state) {
   oc_buf_t out = {0}, in = {0};
   char why[256];
   oc_state_t s1;
-  uint32_t ids[8];
-  golden_state(&s1);
-  put_epoch(&in, &s1, NULL, ids, all_bricks(&s1, ids));
+  put_golden_epoch(&in, &s1);
   size_t at = find_frame(&in, OCP_MSG_BRICKS, 0);
   /* (a) the raw length of the batch disagrees with its zstd frame: malformed */
   for (int variant = 0; variant < 2; variant++) {
@@ -662,75 +668,67 @@ static void test_viewer__unexpected(void **state) {
 
 static void test_viewer__byte_at_a_time(void **state) {
   (void)state;
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
+  rig_t x;
+  rig_open(&x, OCP_ROLE_VIEWER);
   oc_state_t s1, s2;
   uint32_t ids[8];
-  ocp_viewer_connected(v, &out);
-  out.len = 0;
+  ocp_viewer_connected(x.v, &x.out);
+  x.out.len = 0;
   golden_state(&s1);
   evolve(&s1, &s2, 43);
   uint32_t lack[] = {43};
-  put_welcome(&in, 2, 0, SESSION, 1u << 20);
-  ocp_put_empty(&in, 1, OCP_MSG_KEEPALIVE);
-  put_epoch(&in, &s1, NULL, ids, all_bricks(&s1, ids));
-  put_epoch(&in, &s2, &s1, lack, 1);
-  for (size_t i = 0; i < in.len; i++)
-    if (ocp_viewer_feed(v, in.data + i, 1, &out, why, sizeof why)) fail_msg("byte %zu: %s", i, why);
-  assert_int_equal(ev.states, 2);
-  assert_int_equal(ev.stats, 2);
-  assert_true(ev.last_checksum == oc_state_checksum(&s2));
-  assert_int_equal(ocp_viewer_state(v, 0)->epoch, 43);
-  assert_null(ocp_viewer_state(v, 1)); /* K = 2 keeps one */
+  put_welcome(&x.in, 2, 0, SESSION, 1u << 20);
+  ocp_put_empty(&x.in, 1, OCP_MSG_KEEPALIVE);
+  put_epoch(&x.in, &s1, NULL, ids, all_bricks(&s1, ids));
+  put_epoch(&x.in, &s2, &s1, lack, 1);
+  for (size_t i = 0; i < x.in.len; i++)
+    if (ocp_viewer_feed(x.v, x.in.data + i, 1, &x.out, x.why, sizeof x.why)) fail_msg("byte %zu: %s", i, x.why);
+  assert_int_equal(x.ev.states, 2);
+  assert_int_equal(x.ev.stats, 2);
+  assert_true(x.ev.last_checksum == oc_state_checksum(&s2));
+  assert_int_equal(ocp_viewer_state(x.v, 0)->epoch, 43);
+  assert_null(ocp_viewer_state(x.v, 1)); /* K = 2 keeps one */
   ocp_viewer_stats_t st;
-  ocp_viewer_stats(v, &st);
-  assert_int_equal(st.bytes_in, in.len);
+  ocp_viewer_stats(x.v, &st);
+  assert_int_equal(st.bytes_in, x.in.len);
   assert_int_equal(st.frames_in, 2 + 2 * 5);
-  assert_int_equal(parse_out(&out).n, 2); /* two ACKs */
+  assert_int_equal(parse_out(&x.out).n, 2); /* two ACKs */
   oc_state_free(&s1);
   oc_state_free(&s2);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
-  ocp_viewer_free(v);
+  rig_close(&x);
 }
 
 static void test_viewer__over_budget_and_close(void **state) {
   (void)state;
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
+  rig_t x;
+  rig_open(&x, OCP_ROLE_VIEWER);
   oc_state_t s1;
   uint32_t ids[8];
   golden_state(&s1);
-  ocp_viewer_connected(v, &out);
-  put_welcome(&in, 3, 0, SESSION, 1000); /* a grant the state does not fit in */
-  put_epoch(&in, &s1, NULL, ids, all_bricks(&s1, ids));
-  ocp_put_text(&in, 1, OCP_MSG_GOODBYE, OCP_CODE_SHUTDOWN, "server shutting down");
-  ocp_put_empty(&in, 1, 0xEE); /* after GOODBYE: not looked at */
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), 0);
+  ocp_viewer_connected(x.v, &x.out);
+  put_welcome(&x.in, 3, 0, SESSION, 1000); /* a grant the state does not fit in */
+  put_epoch(&x.in, &s1, NULL, ids, all_bricks(&s1, ids));
+  ocp_put_text(&x.in, 1, OCP_MSG_GOODBYE, OCP_CODE_SHUTDOWN, "server shutting down");
+  ocp_put_empty(&x.in, 1, 0xEE); /* after GOODBYE: not looked at */
+  assert_int_equal(rig_feed(&x), 0);
   ocp_viewer_stats_t st;
-  ocp_viewer_stats(v, &st);
+  ocp_viewer_stats(x.v, &st);
   assert_int_equal(st.over_budget, 1);
   assert_int_equal(st.resident_bytes, 3 * 2048 + 15 * 32);
-  assert_int_equal(ev.closes, 1);
-  assert_int_equal(ev.close_code, OCP_CODE_SHUTDOWN);
-  assert_string_equal(ev.close_text, "server shutting down");
+  assert_int_equal(x.ev.closes, 1);
+  assert_int_equal(x.ev.close_code, OCP_CODE_SHUTDOWN);
+  assert_string_equal(x.ev.close_text, "server shutting down");
   /* an ERROR from the server before WELCOME is reported the same way */
-  out.len = 0;
-  ocp_viewer_connected(v, &out);
-  in.len = 0;
-  ocp_put_text(&in, 1, OCP_MSG_ERROR, OCP_CODE_TOKEN, "bad token");
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), 0);
-  assert_int_equal(ev.closes, 2);
-  assert_int_equal(ev.close_code, OCP_CODE_TOKEN);
-  assert_int_equal(out.len, 0);
+  x.out.len = 0;
+  ocp_viewer_connected(x.v, &x.out);
+  x.in.len = 0;
+  ocp_put_text(&x.in, 1, OCP_MSG_ERROR, OCP_CODE_TOKEN, "bad token");
+  assert_int_equal(rig_feed(&x), 0);
+  assert_int_equal(x.ev.closes, 2);
+  assert_int_equal(x.ev.close_code, OCP_CODE_TOKEN);
+  assert_int_equal(x.out.len, 0);
   oc_state_free(&s1);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
-  ocp_viewer_free(v);
+  rig_close(&x);
 }
 
 /*-*** BUDGET (version 3) ***/
@@ -865,68 +863,62 @@ static void test_viewer__budget_refused(void **state) {
 
 static void test_viewer__control(void **state) {
   (void)state;
-  events_t ev;
-  ocp_viewer_t *v = make_viewer(&ev, OCP_ROLE_CONTROL);
-  oc_buf_t out = {0}, in = {0};
-  char why[256];
-  assert_int_equal(ocp_viewer_control(v, 1, "{\"op\": \"pause\"}", &out), OC_EINVAL); /* before WELCOME */
-  ocp_viewer_connected(v, &out);
-  ocp_hello_t h = hello_of(&out);
+  rig_t x;
+  rig_open(&x, OCP_ROLE_CONTROL);
+  assert_int_equal(ocp_viewer_control(x.v, 1, "{\"op\": \"pause\"}", &x.out), OC_EINVAL); /* before WELCOME */
+  ocp_viewer_connected(x.v, &x.out);
+  ocp_hello_t h = hello_of(&x.out);
   assert_int_equal(h.role, OCP_ROLE_CONTROL);
   assert_int_equal(h.budget, 0);
   assert_int_equal(h.width, 0);
-  put_welcome(&in, 0, 0, SESSION, 0);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), 0);
-  assert_true(ocp_viewer_ready(v));
-  out.len = 0;
-  assert_int_equal(ocp_viewer_control(v, 7, "{\"op\": \"pause\"}", &out), 0);
-  frames_t f = parse_out(&out);
+  put_welcome(&x.in, 0, 0, SESSION, 0);
+  assert_int_equal(rig_feed(&x), 0);
+  assert_true(ocp_viewer_ready(x.v));
+  x.out.len = 0;
+  assert_int_equal(ocp_viewer_control(x.v, 7, "{\"op\": \"pause\"}", &x.out), 0);
+  frames_t f = parse_out(&x.out);
   assert_int_equal(f.n, 1);
   assert_int_equal(f.h[0].type, OCP_MSG_CONTROL);
   ocp_control_t c;
-  assert_int_equal(ocp_get_control(f.p[0], f.h[0].length, &c, why, sizeof why), 0);
+  assert_int_equal(ocp_get_control(f.p[0], f.h[0].length, &c, x.why, sizeof x.why), 0);
   assert_int_equal(c.request, 7);
   assert_int_equal(c.status, 0);
   assert_memory_equal(c.json, "{\"op\": \"pause\"}", c.json_len);
   ocp_camera_t cam = {oc_dv3(0, 0, 1), oc_dv3(1, 0, 0), oc_dv3(0, 1, 0), 60, 1, 1};
-  assert_int_equal(ocp_viewer_camera(v, &cam, &out), OC_EINVAL);
-  in.len = 0;
+  assert_int_equal(ocp_viewer_camera(x.v, &cam, &x.out), OC_EINVAL);
+  x.in.len = 0;
   ocp_control_t rep = {7, 0, "{\"ok\": true}", 12};
-  ocp_put_control(&in, 1, OCP_MSG_CONTROL_REPLY, &rep);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), 0);
-  assert_int_equal(ev.replies, 1);
-  assert_int_equal(ev.reply_request, 7);
-  assert_string_equal(ev.reply, "{\"ok\": true}");
+  ocp_put_control(&x.in, 1, OCP_MSG_CONTROL_REPLY, &rep);
+  assert_int_equal(rig_feed(&x), 0);
+  assert_int_equal(x.ev.replies, 1);
+  assert_int_equal(x.ev.reply_request, 7);
+  assert_string_equal(x.ev.reply, "{\"ok\": true}");
   /* epochs are not for control clients */
-  in.len = 0;
+  x.in.len = 0;
   oc_state_t s1;
-  uint32_t ids[8];
-  golden_state(&s1);
-  put_epoch(&in, &s1, NULL, ids, all_bricks(&s1, ids));
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), OC_ECORRUPT);
-  expect_error_frame(&out, OCP_CODE_UNEXPECTED);
+  put_golden_epoch(&x.in, &s1);
+  assert_int_equal(rig_feed(&x), OC_ECORRUPT);
+  expect_error_frame(&x.out, OCP_CODE_UNEXPECTED);
   /* a viewer never takes a control reply, nor a control client a viewer's grant */
-  ocp_viewer_free(v);
-  v = make_viewer(&ev, OCP_ROLE_VIEWER);
-  handshake(v, 2, &out);
-  assert_int_equal(ocp_viewer_control(v, 1, "{}", &out), OC_EINVAL);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), 0); /* the epoch above is fine here */
-  in.len = 0;
-  ocp_put_control(&in, 1, OCP_MSG_CONTROL_REPLY, &rep);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), OC_ECORRUPT);
-  expect_error_frame(&out, OCP_CODE_UNEXPECTED);
-  ocp_viewer_free(v);
-  v = make_viewer(&ev, OCP_ROLE_CONTROL);
-  out.len = 0;
-  ocp_viewer_connected(v, &out);
-  in.len = 0;
-  put_welcome(&in, 3, 0, SESSION, 1u << 20);
-  assert_int_equal(feed(v, &in, &out, why, sizeof why), OC_ECORRUPT);
-  assert_non_null(strstr(why, "kept_states 3 for a control client"));
-  ocp_viewer_free(v);
+  ocp_viewer_free(x.v);
+  x.v = make_viewer(&x.ev, OCP_ROLE_VIEWER);
+  handshake(x.v, 2, &x.out);
+  assert_int_equal(ocp_viewer_control(x.v, 1, "{}", &x.out), OC_EINVAL);
+  assert_int_equal(rig_feed(&x), 0); /* the epoch above is fine here */
+  x.in.len = 0;
+  ocp_put_control(&x.in, 1, OCP_MSG_CONTROL_REPLY, &rep);
+  assert_int_equal(rig_feed(&x), OC_ECORRUPT);
+  expect_error_frame(&x.out, OCP_CODE_UNEXPECTED);
+  ocp_viewer_free(x.v);
+  x.v = make_viewer(&x.ev, OCP_ROLE_CONTROL);
+  x.out.len = 0;
+  ocp_viewer_connected(x.v, &x.out);
+  x.in.len = 0;
+  put_welcome(&x.in, 3, 0, SESSION, 1u << 20);
+  assert_int_equal(rig_feed(&x), OC_ECORRUPT);
+  assert_non_null(strstr(x.why, "kept_states 3 for a control client"));
   oc_state_free(&s1);
-  oc_buf_free(&in);
-  oc_buf_free(&out);
+  rig_close(&x);
 }
 
 static void test_viewer__create_rejects(void **state) {
