@@ -44,6 +44,27 @@ static int payload_ok(const ocs_cache_entry_t *e, uint64_t id, size_t n) {
   return 1;
 }
 
+/* Each test's cache, of the cap given as its initial state (CACHE_TEST), freed after it. */
+static int cache_setup(void **state) {
+  ocs_cache_t *c = NULL;
+  if (ocs_cache_create(&c, (uint64_t)(uintptr_t)*state) != 0) return -1;
+  *state = c;
+  return 0;
+}
+
+static int cache_teardown(void **state) {
+  ocs_cache_free(*state);
+  return 0;
+}
+
+#define CACHE_TEST(f, cap) cmocka_unit_test_prestate_setup_teardown(f, cache_setup, cache_teardown, (void *)(uintptr_t)(cap))
+
+static ocs_cache_stats_t stats_of(const ocs_cache_t *c) {
+  ocs_cache_stats_t s;
+  ocs_cache_stats(c, &s);
+  return s;
+}
+
 /* Acquire (must miss), publish PAYLOAD bytes, release. */
 static void insert(ocs_cache_t *c, uint64_t id) {
   ocs_cache_key_t k = key_of(id);
@@ -79,7 +100,7 @@ static void sleep_us(long us) {
 static void wait_for_waits(ocs_cache_t *c, uint64_t n) {
   ocs_cache_stats_t s;
   for (int i = 0; i < 20000; i++) {
-    ocs_cache_stats(c, &s);
+    s = stats_of(c);
     if (s.waits >= n) return;
     sleep_us(500);
   }
@@ -98,9 +119,7 @@ static void test_brick_cache__create_rejects_zero_cap(void **st) {
 }
 
 static void test_brick_cache__miss_publish_then_hit(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   assert_true(ocs_cache_hit_rate(c) == 0.0);
   ocs_cache_key_t k = key_of(42), other = key_of(43);
   ocs_cache_entry_t *e = NULL, *e2 = NULL;
@@ -126,8 +145,7 @@ static void test_brick_cache__miss_publish_then_hit(void **st) {
   ocs_cache_release(c, e2);
   assert_int_equal(ocs_cache_peek(c, &other, &e2), 0);
 
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.hits, 1); /* peeks are not counted */
   assert_int_equal(s.misses, 1);
   assert_int_equal(s.waits, 0);
@@ -151,26 +169,21 @@ static void test_brick_cache__miss_publish_then_hit(void **st) {
   ocs_cache_publish(c, e2, NULL, 0);
   ocs_cache_release(c, e2);
   assert_int_equal(present(c, 43), 1);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.bytes, PAYLOAD + 2 * OVH);
-  ocs_cache_free(c);
 }
 
-/* Cap fits exactly 3 entries: touching A then inserting D evicts B (the least recent), not A. */
 /* try_acquire: a miss reserves, a reservation in progress is BUSY without a wait or a pin, a ready
  * entry is a pinned hit. */
 static void test_brick_cache__try_acquire_never_waits(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   ocs_cache_key_t k = key_of(7);
   ocs_cache_entry_t *e = NULL, *e2 = (ocs_cache_entry_t *)&k;
   assert_int_equal(ocs_cache_try_acquire(c, &k, &e), OCS_CACHE_MISS);
   assert_non_null(e);
   assert_int_equal(ocs_cache_try_acquire(c, &k, &e2), OCS_CACHE_BUSY); /* would wait: returns at once */
   assert_null(e2);
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.waits, 0);
   assert_int_equal(s.misses, 1);
   ocs_cache_publish(c, e, make_payload(7, PAYLOAD), PAYLOAD);
@@ -179,15 +192,13 @@ static void test_brick_cache__try_acquire_never_waits(void **st) {
   assert_true(payload_ok(e2, 7, PAYLOAD));
   ocs_cache_release(c, e2);
   ocs_cache_set_cap(c, 1); /* unpinned: evicted, so BUSY left no pin behind */
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.entries, 0);
-  ocs_cache_free(c);
 }
 
+/* Cap fits exactly 3 entries: touching A then inserting D evicts B (the least recent), not A. */
 static void test_brick_cache__lru_evicts_least_recent(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 3 * (PAYLOAD + OVH)), 0);
+  ocs_cache_t *c = *st;
   insert(c, 'A');
   insert(c, 'B');
   insert(c, 'C');
@@ -196,8 +207,7 @@ static void test_brick_cache__lru_evicts_least_recent(void **st) {
   assert_int_equal(ocs_cache_acquire(c, &ka, &e), OCS_CACHE_HIT);
   ocs_cache_release(c, e);
   insert(c, 'D'); /* order now C, A, D */
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.evictions, 1);
   assert_int_equal(s.entries, 3);
   assert_int_equal(s.bytes, 3 * (PAYLOAD + OVH));
@@ -211,22 +221,18 @@ static void test_brick_cache__lru_evicts_least_recent(void **st) {
   insert(c, 'F');                       /* evicts A */
   assert_int_equal(present(c, 'A'), 0);
   assert_int_equal(present(c, 'D'), 1);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.evictions, 3);
   assert_int_equal(s.misses, 6);
   assert_int_equal(s.hits, 1);
-  ocs_cache_free(c);
 }
 
 /* Pinned entries survive any pressure (over_cap is counted) and go once released if still over. */
 static void test_brick_cache__pinned_never_evicted(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 3 * (PAYLOAD + OVH)), 0);
+  ocs_cache_t *c = *st;
   ocs_cache_entry_t *a = insert_pinned(c, 'A'), *b = insert_pinned(c, 'B'), *cc = insert_pinned(c, 'C');
   ocs_cache_entry_t *d = insert_pinned(c, 'D');
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.evictions, 0);
   assert_int_equal(s.over_cap, 1);
   assert_int_equal(s.entries, 4);
@@ -236,14 +242,14 @@ static void test_brick_cache__pinned_never_evicted(void **st) {
   assert_true(payload_ok(d, 'D', PAYLOAD));
 
   ocs_cache_release(c, a); /* the cache is over its cap: A goes at once */
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.evictions, 1);
   assert_int_equal(s.bytes, 3 * (PAYLOAD + OVH));
   assert_int_equal(present(c, 'A'), 0);
   ocs_cache_release(c, b);
   ocs_cache_release(c, cc);
   ocs_cache_release(c, d);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.evictions, 1);
   assert_int_equal(s.entries, 3);
 
@@ -252,22 +258,19 @@ static void test_brick_cache__pinned_never_evicted(void **st) {
   ocs_cache_entry_t *z = NULL;
   assert_int_equal(ocs_cache_acquire(c, &kb, &z), OCS_CACHE_MISS);
   ocs_cache_publish(c, z, make_payload('Z', 4 * PAYLOAD), 4 * PAYLOAD);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.over_cap, 2);
   assert_int_equal(s.entries, 1); /* everything else was evicted trying */
   assert_true(payload_ok(z, 'Z', 4 * PAYLOAD));
   ocs_cache_release(c, z);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.entries, 0);
   assert_int_equal(s.bytes, 0);
-  ocs_cache_free(c);
 }
 
 /* Memory bound: even empty payloads are charged the overhead, so the entry count stays bounded. */
 static void test_brick_cache__overhead_bounds_entries(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 64 * OVH), 0);
+  ocs_cache_t *c = *st;
   for (uint64_t i = 0; i < 20000; i++) {
     ocs_cache_key_t k = key_of(i);
     ocs_cache_entry_t *e = NULL;
@@ -275,35 +278,29 @@ static void test_brick_cache__overhead_bounds_entries(void **st) {
     ocs_cache_publish(c, e, NULL, 0);
     ocs_cache_release(c, e);
   }
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.entries, 64);
   assert_int_equal(s.bytes, 64 * OVH);
   assert_int_equal(s.evictions, 20000 - 64);
   assert_int_equal(s.peak_bytes, 64 * OVH); /* room is made before a reservation is charged */
-  ocs_cache_free(c);
 }
 
 static void test_brick_cache__abandon_without_waiters_removes(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   ocs_cache_key_t k = key_of(5);
   ocs_cache_entry_t *e = NULL;
   assert_int_equal(ocs_cache_acquire(c, &k, &e), OCS_CACHE_MISS);
   ocs_cache_abandon(c, e);
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.abandoned, 1);
   assert_int_equal(s.entries, 0);
   assert_int_equal(s.bytes, 0);
   assert_int_equal(ocs_cache_acquire(c, &k, &e), OCS_CACHE_MISS); /* nothing was cached */
   ocs_cache_publish(c, e, make_payload(5, 10), 10);
   ocs_cache_release(c, e);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.misses, 2);
   assert_int_equal(s.entries, 1);
-  ocs_cache_free(c);
 }
 
 typedef struct {
@@ -330,24 +327,31 @@ static void *waiter_main(void *arg) {
   return NULL;
 }
 
+/* Starts n threads, each acquiring key_of(id) (publish: produces and publishes on a miss, else
+ * abandons), then until `n` more acquires wait, so that all of them are waiting for the caller. */
+static void start_waiters(ocs_cache_t *c, waiter_t *ws, pthread_t *ts, int n, uint64_t id, int publish) {
+  ocs_cache_stats_t s = stats_of(c);
+  for (int i = 0; i < n; i++) {
+    ws[i] = (waiter_t){c, id, -1, 0, publish};
+    assert_int_equal(pthread_create(&ts[i], NULL, waiter_main, &ws[i]), 0);
+  }
+  wait_for_waits(c, s.waits + (uint64_t)n);
+}
+
 /* Production fails while another thread waits: the waiter inherits the reservation (a miss). */
 static void test_brick_cache__abandon_hands_reservation_to_waiter(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   ocs_cache_key_t k = key_of(9);
   ocs_cache_entry_t *e = NULL;
   assert_int_equal(ocs_cache_acquire(c, &k, &e), OCS_CACHE_MISS);
-  waiter_t w = {c, 9, -1, 0, 1};
+  waiter_t w;
   pthread_t t;
-  assert_int_equal(pthread_create(&t, NULL, waiter_main, &w), 0);
-  wait_for_waits(c, 1);
+  start_waiters(c, &w, &t, 1, 9, 1);
   ocs_cache_abandon(c, e);
   pthread_join(t, NULL);
   assert_int_equal(w.result, OCS_CACHE_MISS);
   assert_true(w.data_ok);
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.misses, 2);
   assert_int_equal(s.hits, 0);
   assert_int_equal(s.waits, 1);
@@ -364,40 +368,29 @@ static void test_brick_cache__abandon_hands_reservation_to_waiter(void **st) {
   assert_int_equal(ocs_cache_acquire(c, &k2, &e), OCS_CACHE_MISS);
   waiter_t ws[3];
   pthread_t ts[3];
-  for (int i = 0; i < 3; i++) {
-    ws[i] = (waiter_t){c, 10, -1, 0, 0};
-    assert_int_equal(pthread_create(&ts[i], NULL, waiter_main, &ws[i]), 0);
-  }
-  wait_for_waits(c, 4);
+  start_waiters(c, ws, ts, 3, 10, 0);
   ocs_cache_abandon(c, e);
   for (int i = 0; i < 3; i++) {
     pthread_join(ts[i], NULL);
     assert_int_equal(ws[i].result, OCS_CACHE_MISS);
   }
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.misses, 2 + 1 + 3);
   assert_int_equal(s.hits, 1);
   assert_int_equal(s.waits, 4);
   assert_int_equal(s.abandoned, 1 + 1 + 3);
   assert_int_equal(s.entries, 1);
   assert_int_equal(s.bytes, 64 + OVH);
-  ocs_cache_free(c);
 }
 
 static void test_brick_cache__waiters_get_published_entry(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   ocs_cache_key_t k = key_of(11);
   ocs_cache_entry_t *e = NULL;
   assert_int_equal(ocs_cache_acquire(c, &k, &e), OCS_CACHE_MISS);
   waiter_t ws[4];
   pthread_t ts[4];
-  for (int i = 0; i < 4; i++) {
-    ws[i] = (waiter_t){c, 11, -1, 0, 1};
-    assert_int_equal(pthread_create(&ts[i], NULL, waiter_main, &ws[i]), 0);
-  }
-  wait_for_waits(c, 4);
+  start_waiters(c, ws, ts, 4, 11, 1);
   ocs_cache_publish(c, e, make_payload(11, 64), 64);
   ocs_cache_release(c, e);
   for (int i = 0; i < 4; i++) {
@@ -405,13 +398,11 @@ static void test_brick_cache__waiters_get_published_entry(void **st) {
     assert_int_equal(ws[i].result, OCS_CACHE_HIT);
     assert_true(ws[i].data_ok);
   }
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.hits, 4);
   assert_int_equal(s.misses, 1);
   assert_int_equal(s.waits, 4);
   assert_int_equal(s.entries, 1);
-  ocs_cache_free(c);
 }
 
 /* ---- single flight: 8 threads × the same 200 keys in different orders ---- */
@@ -467,9 +458,7 @@ static void *sf_main(void *arg) {
 }
 
 static void test_brick_cache__single_flight_under_concurrency(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 64u << 20), 0);
+  ocs_cache_t *c = *st;
   atomic_int produced[SF_KEYS], bad = 0;
   for (int i = 0; i < SF_KEYS; i++) atomic_init(&produced[i], 0);
   pthread_barrier_t start;
@@ -484,8 +473,7 @@ static void test_brick_cache__single_flight_under_concurrency(void **st) {
   pthread_barrier_destroy(&start);
   assert_int_equal(atomic_load(&bad), 0);
   for (int i = 0; i < SF_KEYS; i++) assert_int_equal(atomic_load(&produced[i]), 1);
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   printf("single flight: hits %llu misses %llu waits %llu\n", (unsigned long long)s.hits,
          (unsigned long long)s.misses, (unsigned long long)s.waits);
   assert_int_equal(s.hits + s.misses, SF_THREADS * SF_KEYS);
@@ -493,20 +481,16 @@ static void test_brick_cache__single_flight_under_concurrency(void **st) {
   assert_int_equal(s.entries, SF_KEYS);
   assert_int_equal(s.evictions, 0);
   assert_true(s.waits <= s.hits);
-  ocs_cache_free(c);
 }
 
 static void test_brick_cache__set_cap_lowering_evicts(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   for (uint64_t i = 0; i < 10; i++) insert(c, i);
   ocs_cache_entry_t *p0 = NULL;
   ocs_cache_key_t k0 = key_of(0);
   assert_int_equal(ocs_cache_acquire(c, &k0, &p0), OCS_CACHE_HIT); /* oldest, but pinned */
   ocs_cache_set_cap(c, 4 * (PAYLOAD + OVH));
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.cap_bytes, 4 * (PAYLOAD + OVH));
   assert_int_equal(s.entries, 4); /* the pinned 0 and the 3 newest */
   assert_int_equal(s.evictions, 6);
@@ -515,31 +499,27 @@ static void test_brick_cache__set_cap_lowering_evicts(void **st) {
   for (uint64_t i = 7; i < 10; i++) assert_int_equal(present(c, i), 1);
   assert_true(payload_ok(p0, 0, PAYLOAD));
   ocs_cache_set_cap(c, 2 * (PAYLOAD + OVH)); /* 0 stays while pinned */
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.entries, 2);
   assert_int_equal(present(c, 0), 1); /* a peek pins and releases: still within the cap */
   ocs_cache_release(c, p0);
   ocs_cache_set_cap(c, 0); /* ignored */
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.cap_bytes, 2 * (PAYLOAD + OVH));
   ocs_cache_set_cap(c, 1); /* smaller than any entry: all unpinned go */
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.entries, 0);
   assert_int_equal(s.bytes, 0);
-  ocs_cache_free(c);
 }
 
 static void test_brick_cache__clear_keeps_pinned(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, 1u << 20), 0);
+  ocs_cache_t *c = *st;
   for (uint64_t i = 0; i < 5; i++) insert(c, i);
   ocs_cache_entry_t *p = insert_pinned(c, 5), *r = NULL;
   ocs_cache_key_t k6 = key_of(6);
   assert_int_equal(ocs_cache_acquire(c, &k6, &r), OCS_CACHE_MISS); /* a reservation survives too */
   ocs_cache_clear(c);
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   assert_int_equal(s.entries, 2);
   assert_int_equal(s.bytes, PAYLOAD + 2 * OVH);
   assert_int_equal(s.evictions, 0);
@@ -550,10 +530,9 @@ static void test_brick_cache__clear_keeps_pinned(void **st) {
   ocs_cache_release(c, p);
   assert_int_equal(present(c, 5), 1);
   ocs_cache_clear(c);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.entries, 0);
   assert_int_equal(s.bytes, 0);
-  ocs_cache_free(c);
 }
 
 /* ---- random stress: many threads, random keys, small cap, abandons, peeks, clears ---- */
@@ -629,9 +608,7 @@ static void *st_main(void *arg) {
 }
 
 static void test_brick_cache__random_stress(void **st) {
-  (void)st;
-  ocs_cache_t *c = NULL;
-  assert_int_equal(ocs_cache_create(&c, ST_CAP), 0);
+  ocs_cache_t *c = *st;
   atomic_int bad = 0, over = 0;
   atomic_llong acquires = 0, abandons = 0;
   pthread_barrier_t bar;
@@ -644,8 +621,7 @@ static void test_brick_cache__random_stress(void **st) {
   }
   for (int t = 0; t < ST_THREADS; t++) pthread_join(ts[t], NULL);
   pthread_barrier_destroy(&bar);
-  ocs_cache_stats_t s;
-  ocs_cache_stats(c, &s);
+  ocs_cache_stats_t s = stats_of(c);
   printf("stress: hits %llu misses %llu waits %llu evictions %llu abandoned %llu over_cap %llu entries %llu "
          "bytes %llu peak %llu cap %llu\n",
          (unsigned long long)s.hits, (unsigned long long)s.misses, (unsigned long long)s.waits,
@@ -661,23 +637,22 @@ static void test_brick_cache__random_stress(void **st) {
   assert_true(s.entries * OVH <= s.bytes);
   /* Accounting is exact: with nothing pinned, clear() leaves nothing. */
   ocs_cache_clear(c);
-  ocs_cache_stats(c, &s);
+  s = stats_of(c);
   assert_int_equal(s.entries, 0);
   assert_int_equal(s.bytes, 0);
-  ocs_cache_free(c);
 }
 
 OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_brick_cache__create_rejects_zero_cap),
-             cmocka_unit_test(test_brick_cache__miss_publish_then_hit),
-             cmocka_unit_test(test_brick_cache__try_acquire_never_waits),
-             cmocka_unit_test(test_brick_cache__lru_evicts_least_recent),
-             cmocka_unit_test(test_brick_cache__pinned_never_evicted),
-             cmocka_unit_test(test_brick_cache__overhead_bounds_entries),
-             cmocka_unit_test(test_brick_cache__abandon_without_waiters_removes),
-             cmocka_unit_test(test_brick_cache__abandon_hands_reservation_to_waiter),
-             cmocka_unit_test(test_brick_cache__waiters_get_published_entry),
-             cmocka_unit_test(test_brick_cache__single_flight_under_concurrency),
-             cmocka_unit_test(test_brick_cache__set_cap_lowering_evicts),
-             cmocka_unit_test(test_brick_cache__clear_keeps_pinned),
-             cmocka_unit_test(test_brick_cache__random_stress))
+             CACHE_TEST(test_brick_cache__miss_publish_then_hit, 1u << 20),
+             CACHE_TEST(test_brick_cache__try_acquire_never_waits, 1u << 20),
+             CACHE_TEST(test_brick_cache__lru_evicts_least_recent, 3 * (PAYLOAD + OVH)),
+             CACHE_TEST(test_brick_cache__pinned_never_evicted, 3 * (PAYLOAD + OVH)),
+             CACHE_TEST(test_brick_cache__overhead_bounds_entries, 64 * OVH),
+             CACHE_TEST(test_brick_cache__abandon_without_waiters_removes, 1u << 20),
+             CACHE_TEST(test_brick_cache__abandon_hands_reservation_to_waiter, 1u << 20),
+             CACHE_TEST(test_brick_cache__waiters_get_published_entry, 1u << 20),
+             CACHE_TEST(test_brick_cache__single_flight_under_concurrency, 64u << 20),
+             CACHE_TEST(test_brick_cache__set_cap_lowering_evicts, 1u << 20),
+             CACHE_TEST(test_brick_cache__clear_keeps_pinned, 1u << 20),
+             CACHE_TEST(test_brick_cache__random_stress, ST_CAP))
