@@ -18,6 +18,7 @@
 #include "ocp_epoch.h"
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
+#include "wire_any.h" /* wire_get_any */
 #include "state_fixture.h" /* child, node, golden_codes, golden_state */
 
 #define SESSION 0x5151u
@@ -191,15 +192,21 @@ static frames_t parse_out(const oc_buf_t *out) {
   return f;
 }
 
-static ocp_hello_t hello_of(const oc_buf_t *out) {
+/* The one frame in out, of `type`, decoded. */
+static wire_msg_t only_msg(const oc_buf_t *out, uint8_t type) {
   frames_t f = parse_out(out);
-  ocp_hello_t h;
+  wire_msg_t m;
   char why[256];
   assert_int_equal(f.n, 1);
-  assert_int_equal(f.h[0].type, OCP_MSG_HELLO);
-  if (ocp_get_hello(f.p[0], f.h[0].length, &h, why, sizeof why)) fail_msg("%s", why);
-  return h;
+  assert_int_equal(f.h[0].type, type);
+  if (wire_get_any(f.h[0].version, type, f.p[0], f.h[0].length, &m, why, sizeof why)) fail_msg("%s", why);
+  return m;
 }
+
+static ocp_hello_t hello_of(const oc_buf_t *out) { return only_msg(out, OCP_MSG_HELLO).hello; }
+
+/* The one ACK in out. */
+static ocp_ack_t ack_of(const oc_buf_t *out) { return only_msg(out, OCP_MSG_ACK).ack; }
 
 /* The single ERROR frame in out, with its code. */
 static void expect_error_frame(const oc_buf_t *out, uint32_t code) {
@@ -336,12 +343,8 @@ static void test_viewer__epochs_and_acks(void **state) {
   assert_int_equal(x.ev.last_bricks, 3);
   assert_int_equal(x.ev.stats, 1);
   assert_int_equal(x.ev.last_stats_epoch, 42);
-  frames_t f = parse_out(&x.out);
-  assert_int_equal(f.n, 1);
-  assert_int_equal(f.h[0].type, OCP_MSG_ACK);
-  assert_int_equal(f.h[0].version, 1);
-  ocp_ack_t ack;
-  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &ack, x.why, sizeof x.why), 0);
+  ocp_ack_t ack = ack_of(&x.out);
+  assert_int_equal(parse_out(&x.out).h[0].version, 1);
   assert_int_equal(ack.epoch, 42);
   assert_true(ack.checksum == oc_state_checksum(&s1));
   const oc_state_t *held = ocp_viewer_state(x.v, 0);
@@ -363,9 +366,7 @@ static void test_viewer__epochs_and_acks(void **state) {
   assert_int_equal(x.ev.last_epoch, 43);
   assert_int_equal(x.ev.last_bricks, 1);
   assert_true(x.ev.last_checksum == oc_state_checksum(&s2));
-  f = parse_out(&x.out);
-  assert_int_equal(f.n, 1);
-  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &ack, x.why, sizeof x.why), 0);
+  ack = ack_of(&x.out);
   assert_int_equal(ack.epoch, 43);
   assert_true(ack.checksum == oc_state_checksum(&s2));
   assert_int_equal(ocp_viewer_state(x.v, 0)->epoch, 43);
@@ -1049,17 +1050,6 @@ static ocp_viewer_t *make_lean_viewer(events_t *ev) {
   ocp_viewer_t *v = NULL;
   assert_int_equal(ocp_viewer_create(&v, &d, &cb), 0);
   return v;
-}
-
-/* The one ACK in out. */
-static ocp_ack_t ack_of(const oc_buf_t *out) {
-  frames_t f = parse_out(out);
-  ocp_ack_t a;
-  char why[256];
-  assert_int_equal(f.n, 1);
-  assert_int_equal(f.h[0].type, OCP_MSG_ACK);
-  assert_int_equal(ocp_get_ack(f.p[0], f.h[0].length, &a, why, sizeof why), 0);
-  return a;
 }
 
 /* A lean session holds state i as s's records and the digests of s's bricks. */
