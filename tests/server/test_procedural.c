@@ -242,6 +242,19 @@ static void test_procedural__deterministic(void **st) {
   c->vt->destroy(c);
 }
 
+/* The storm at coverage and σt scale 1 (seed 1) of the tests that use it, made before and
+ * destroyed after each. */
+static int storm_setup(void **state) {
+  *state = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  return 0;
+}
+
+static int storm_teardown(void **state) {
+  ocs_source_t *s = *state;
+  s->vt->destroy(s);
+  return 0;
+}
+
 /*-*** The box filter ***/
 
 static double point_cb(void *ctx, oc_dvec3 p) {
@@ -254,8 +267,7 @@ static double point_cb(void *ctx, oc_dvec3 p) {
  * and the per-voxel bounds change nothing. Where the vertical axis gets more strata (a 450 m voxel
  * at level 12 gets 4×4×5), the brick mean agrees with a dense isotropic reference (12³). */
 static void test_procedural__sample_is_box_average_of_point(void **st) {
-  (void)st;
-  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  ocs_source_t *s = *st;
   uint64_t rng = 3;
   int nonzero = 0;
   for (int i = 0; i < SIZE(4, 2); i++) {
@@ -281,7 +293,6 @@ static void test_procedural__sample_is_box_average_of_point(void **st) {
   }
   oc_report("procedural", "level-12 brick mean vs 12^3 box average", 100.0 * worst, 3.0, "%");
   assert_true(worst < 0.03);
-  s->vt->destroy(s);
 }
 
 /* The exact filter. Where the vertical axis gets more strata (levels ≤ 12), each voxel's strata are walked column
@@ -291,8 +302,7 @@ static void test_procedural__sample_is_box_average_of_point(void **st) {
  * horizontal and 100 m vertical spacing, 4..6 and 4..1024 strata), the sums differ only in their
  * order. */
 static void test_procedural__coarse_strata_are_all_counted(void **st) {
-  (void)st;
-  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  ocs_source_t *s = *st;
   uint64_t rng = 29;
   int checked = 0, nonzero = 0;
   for (int level = 4; level <= 12; level += SIZE(1, 4)) {
@@ -332,7 +342,6 @@ static void test_procedural__coarse_strata_are_all_counted(void **st) {
   }
   print_message("  %d voxels checked against every stratum, %d with cloud\n", checked, nonzero);
   assert_true(nonzero >= SIZE(20, 2));
-  s->vt->destroy(s);
 }
 
 /* A sample on a face shared by two nodes of a level is the same bits in both bricks: its strata
@@ -366,14 +375,12 @@ static int faces_agree(const ocs_source_t *s, sampler_t fn, int lo, int hi, int 
 }
 
 static void test_procedural__shared_faces_agree(void **st) {
-  (void)st;
-  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
+  ocs_source_t *s = *st;
   uint64_t rng = 13;
   int fast = faces_agree(s, sample, 5, 16, SIZE(24, 6), &rng);
   int exact = faces_agree(s, sample_exact, 9, 14, SIZE(9, 3), &rng); /* 6×6×37 at level 9 ... 4³ */
   print_message("  non-zero face samples compared: %d fast, %d exact\n", fast, exact);
   assert_true(fast > 0 && exact > 0);
-  s->vt->destroy(s);
 }
 
 /* The fast filter (what bricks hold) against the exact one, per level: over bricks at cloudy
@@ -383,10 +390,9 @@ static void test_procedural__shared_faces_agree(void **st) {
  * horizontal strata over cells of 2 km at level 8), which the tolerances include: they are about
  * twice what docs/numerics.md measured, and a wrong table, normalisation or split fails them. */
 static void test_procedural__fast_matches_exact(void **st) {
-  (void)st;
+  ocs_source_t *s = *st;
   static const int levels[] = {5, 8, 10, 12, 14, 16};
   static const double mean_tol[] = {0.03, 0.03, 0.02, 0.01, 0.01, 0.01}, rms_tol[] = {0.08, 0.05, 0.03, 0.02, 0.02, 0.02};
-  ocs_source_t *s = mk(OC_PRESET_STORM, 1.0, 1.0, 1);
   uint64_t rng = 41;
   for (size_t li = 0; li < sizeof levels / sizeof *levels; li++) {
     int L = levels[li], n = SIZE(16, 2);
@@ -416,7 +422,6 @@ static void test_procedural__fast_matches_exact(void **st) {
       assert_true(rms < rms_tol[li]);
     }
   }
-  s->vt->destroy(s);
 }
 
 /* The Conventions' test. A single node's trapezoid mean and its descendants' differ by a kernel
@@ -902,10 +907,10 @@ static void test_procedural__bench(void **st) {
 OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_procedural__rejects_bad_desc),
              cmocka_unit_test(test_procedural__deterministic),
-             cmocka_unit_test(test_procedural__sample_is_box_average_of_point),
-             cmocka_unit_test(test_procedural__shared_faces_agree),
-             cmocka_unit_test(test_procedural__coarse_strata_are_all_counted),
-             cmocka_unit_test(test_procedural__fast_matches_exact),
+             cmocka_unit_test_setup_teardown(test_procedural__sample_is_box_average_of_point, storm_setup, storm_teardown),
+             cmocka_unit_test_setup_teardown(test_procedural__shared_faces_agree, storm_setup, storm_teardown),
+             cmocka_unit_test_setup_teardown(test_procedural__coarse_strata_are_all_counted, storm_setup, storm_teardown),
+             cmocka_unit_test_setup_teardown(test_procedural__fast_matches_exact, storm_setup, storm_teardown),
              cmocka_unit_test(test_procedural__filter_mean_coarse),
              cmocka_unit_test(test_procedural__filter_mean_mid),
              cmocka_unit_test(test_procedural__filter_mean_fine),
