@@ -33,6 +33,12 @@ static void expect_valid(const oc_state_t *s) {
   if (e) fail_msg("test state invalid: %s", why);
 }
 
+/* s put in canonical order, then checked. */
+static void canonical(oc_state_t *s) {
+  oc_state_canonicalize(s);
+  expect_valid(s);
+}
+
 static void add_node(oc_state_t *s, oc_node_t n) { assert_int_equal(oc_state_add_node(s, &n), 0); }
 
 static void add_uniform(oc_state_t *s, oc_key_t key, float sigma, float tau) {
@@ -57,6 +63,12 @@ static void remove_node(oc_state_t *s, oc_key_t key) {
 }
 
 /* Replaces leaf `key` by its 8 children, uniform (sigma + 0.01·i, tau). */
+/* The node at key (a leaf) becomes uniform. */
+static void replace_uniform(oc_state_t *s, oc_key_t key, float sigma, float tau) {
+  remove_node(s, key);
+  add_uniform(s, key, sigma, tau);
+}
+
 static void split_uniform(oc_state_t *s, oc_key_t key, float sigma, float tau) {
   remove_node(s, key);
   for (int i = 0; i < 8; i++) add_uniform(s, child(key, i), sigma + 0.01f * (float)i, tau);
@@ -212,9 +224,30 @@ static void build_ok(ocv_interp_t *ip, const oc_state_t *P, const oc_state_t *N)
   assert_int_equal(ip->node_count, N->node_count);
 }
 
-/* A new ocv_interp_t built from P to N. @return its stats. */
-static ocv_interp_stats_t build_new(ocv_interp_t *ip, const oc_state_t *P, const oc_state_t *N) {
+/* What a test made: the interpolation and its two states. */
+static void free_all(ocv_interp_t *ip, oc_state_t *P, oc_state_t *N) {
+  ocv_interp_free(ip);
+  oc_state_free(P);
+  oc_state_free(N);
+}
+
+/* P the golden state, N a copy of it to change. */
+static void golden_pair(oc_state_t *P, oc_state_t *N) {
+  assert_int_equal(golden_state(P), 0);
+  copy_state(N, P);
+}
+
+/* n nodes take their previous samples from `source`, the other nodes of total are the same. */
+static void expect_changed(const ocv_interp_stats_t *st, int source, uint32_t n, uint32_t total) {
+  assert_int_equal(st->count[source], n);
+  assert_int_equal(st->count[OCV_INTERP_SAME], total - n);
+}
+
+/* N made canonical and checked (canonical()), then a new ocv_interp_t built from P to it. @return its
+ * stats. */
+static ocv_interp_stats_t build_new(ocv_interp_t *ip, const oc_state_t *P, oc_state_t *N) {
   ocv_interp_stats_t st;
+  canonical(N);
   ocv_interp_init(ip);
   build_ok(ip, P, N);
   ocv_interp_stats(ip, &st);
@@ -226,8 +259,7 @@ static ocv_interp_stats_t build_new(ocv_interp_t *ip, const oc_state_t *P, const
 static void test_interp__identity_is_same(void **state) {
   (void)state;
   oc_state_t P, N;
-  assert_int_equal(golden_state(&P), 0);
-  copy_state(&N, &P);
+  golden_pair(&P, &N);
   ocv_interp_t ip;
   ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count);
@@ -242,9 +274,7 @@ static void test_interp__identity_is_same(void **state) {
   build_ok(&ip, &N, &N); /* the same object, and a reused result */
   ocv_interp_stats(&ip, &st);
   assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count);
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 static void test_interp__null_prev_is_none(void **state) {
@@ -277,7 +307,6 @@ static void test_interp__split_ramp(void **state) {
   ramp_state(&P, 5);
   empty_state(&N);
   for (int c = 0; c < 8; c++) add_uniform(&N, child(OC_KEY_ROOT, c), 0.3f, 0.3f);
-  expect_valid(&N);
   ocv_interp_t ip;
   ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_PARENT], 8);
@@ -302,9 +331,7 @@ static void test_interp__split_ramp(void **state) {
       expect_close(t, rt, P.nodes[0].range[1].hi, "renderer tau", i, q);
     }
   }
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 /* Several levels below the P leaf (children, grandchildren, great-grandchildren of the root). */
@@ -319,8 +346,6 @@ static void test_interp__split_multilevel(void **state) {
   for (int c = 0; c < 8; c++)
     if (c != 2) add_uniform(&N, child(c5, c), 0.3f, 0.3f);
   for (int c = 0; c < 8; c++) add_uniform(&N, child(g2, c), 0.3f, 0.3f);
-  oc_state_canonicalize(&N);
-  expect_valid(&N);
   ocv_interp_t ip;
   ocv_interp_stats_t st = build_new(&ip, &P, &N);
   assert_int_equal(st.count[OCV_INTERP_PARENT], N.node_count);
@@ -338,28 +363,22 @@ static void test_interp__split_multilevel(void **state) {
       assert_true(fabs(s - es) <= (2.0 * bound + 1e-6) * es);
     }
   }
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 /* Golden state: split its empty, uniform and brick children (and a level-2 brick) one level. */
 static void test_interp__split_empty_uniform_brick(void **state) {
   (void)state;
   oc_state_t P, N;
-  assert_int_equal(golden_state(&P), 0);
-  copy_state(&N, &P);
+  golden_pair(&P, &N);
   oc_key_t root = OC_KEY_ROOT, c7 = child(root, 7);
   split_uniform(&N, child(root, 0), 0.2f, 0.1f); /* empty parent */
   split_uniform(&N, child(root, 1), 0.2f, 0.1f); /* uniform 0.01, 2 */
   split_uniform(&N, child(root, 3), 0.2f, 0.1f); /* brick 7 */
   split_uniform(&N, child(c7, 7), 0.2f, 0.1f);   /* brick 42, level 2 */
-  oc_state_canonicalize(&N);
-  expect_valid(&N);
   ocv_interp_t ip;
   ocv_interp_stats_t st = build_new(&ip, &P, &N);
-  assert_int_equal(st.count[OCV_INTERP_PARENT], 32);
-  assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 32);
+  expect_changed(&st, OCV_INTERP_PARENT, 32, N.node_count);
   assert_int_equal(st.uniform, 16);
   assert_int_equal(st.pooled, 16);
   for (uint32_t i = 0; i < N.node_count; i++) {
@@ -381,9 +400,7 @@ static void test_interp__split_empty_uniform_brick(void **state) {
       assert_int_equal(e->source, OCV_INTERP_SAME);
     }
   }
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 /*-*** Merges ***/
@@ -450,9 +467,7 @@ static void test_interp__merge_uniform_children(void **state) {
       assert_true(fabs(trap_t - mt) <= 1e-6 * mt);
     }
     check_children(&ip, &P, &N, 0);
-    ocv_interp_free(&ip);
-    oc_state_free(&P);
-    oc_state_free(&N);
+    free_all(&ip, &P, &N);
   }
 }
 
@@ -477,12 +492,9 @@ static void test_interp__merge_bricks(void **state) {
       for (int c = 0; c < 8; c++) remove_node(&N, child(merged, c));
     }
     add_uniform(&N, merged, 0.3f, 0.3f);
-    oc_state_canonicalize(&N);
-    expect_valid(&N);
     ocv_interp_t ip;
     ocv_interp_stats_t st = build_new(&ip, &P, &N);
-    assert_int_equal(st.count[OCV_INTERP_CHILDREN], 1);
-    assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 1);
+    expect_changed(&st, OCV_INTERP_CHILDREN, 1, N.node_count);
     assert_int_equal(st.fine, 1);
     assert_int_equal(ip.pool_count, OCV_INTERP_FINE_ENTRIES);
     int64_t m = oc_state_find_node(&N, merged);
@@ -522,8 +534,7 @@ static void test_interp__merge_bricks(void **state) {
 static void test_interp__refresh_is_own(void **state) {
   (void)state;
   oc_state_t P, N;
-  assert_int_equal(golden_state(&P), 0);
-  copy_state(&N, &P);
+  golden_pair(&P, &N);
   oc_key_t root = OC_KEY_ROOT, c7 = child(root, 7);
   /* brick 42 → brick 43 (new content, same range) */
   int64_t i42 = oc_state_find_node(&N, child(c7, 7));
@@ -538,19 +549,12 @@ static void test_interp__refresh_is_own(void **state) {
   int64_t i3 = oc_state_find_node(&N, child(c7, 0));
   N.nodes[i3].range[0].hi = 0.75f;
   /* uniform 0.01/2 → 0.02/2; empty → uniform; brick 7 → uniform */
-  remove_node(&N, child(root, 1));
-  add_uniform(&N, child(root, 1), 0.02f, 2.0f);
-  remove_node(&N, child(root, 0));
-  add_uniform(&N, child(root, 0), 0.02f, 2.0f);
-  remove_node(&N, child(root, 3));
-  add_uniform(&N, child(root, 3), 0.02f, 2.0f);
-  oc_state_canonicalize(&N);
-  expect_valid(&N);
-
+  replace_uniform(&N, child(root, 1), 0.02f, 2.0f);
+  replace_uniform(&N, child(root, 0), 0.02f, 2.0f);
+  replace_uniform(&N, child(root, 3), 0.02f, 2.0f);
   ocv_interp_t ip;
   ocv_interp_stats_t st = build_new(&ip, &P, &N);
-  assert_int_equal(st.count[OCV_INTERP_OWN], 5);
-  assert_int_equal(st.count[OCV_INTERP_SAME], N.node_count - 5);
+  expect_changed(&st, OCV_INTERP_OWN, 5, N.node_count);
   assert_int_equal(st.pooled, 3);
   assert_int_equal(st.uniform, 2);
   float ds[512], dt[512];
@@ -575,9 +579,7 @@ static void test_interp__refresh_is_own(void **state) {
   assert_int_equal(e0->source, OCV_INTERP_OWN);
   assert_int_equal(e0->uniform, 1);
   assert_true(e0->value[0] == 0.0f && e0->value[1] == 0.0f);
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 /* A constant brick's previous value is stored as uniform, not in the pool. */
@@ -602,9 +604,7 @@ static void test_interp__constant_brick_is_uniform(void **state) {
     assert_int_equal(ip.prev[i].uniform, 1);
     assert_true(ip.prev[i].value[0] == 1.0f && ip.prev[i].value[1] == 0.0f);
   }
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 /*-*** Corrupt input, arguments ***/
@@ -646,9 +646,7 @@ static void test_interp__corrupt_input(void **state) {
   assert_int_equal(ocv_interp_build(&ip, &P, &N), OC_ECORRUPT);
   assert_int_equal(ocv_interp_build(&ip, &N, &P), OC_ECORRUPT);
   build_ok(&ip, &P, &P); /* usable again */
-  ocv_interp_free(&ip);
-  oc_state_free(&P);
-  oc_state_free(&N);
+  free_all(&ip, &P, &N);
 }
 
 /*-*** Blend weights ***/
@@ -743,8 +741,7 @@ static void grow(oc_state_t *s, oc_key_t key, int level, uint64_t seed, int is_n
 static void random_state(oc_state_t *s, uint64_t seed, int is_n) {
   empty_state(s);
   grow(s, OC_KEY_ROOT, 0, seed, is_n);
-  oc_state_canonicalize(s);
-  expect_valid(s);
+  canonical(s);
 }
 
 static void test_interp__random_consistency(void **state) {
