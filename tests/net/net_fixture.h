@@ -80,20 +80,22 @@ static inline void start_server_log(server_t *s, const char *const *extra, const
 
 static inline void start_server(server_t *s, const char *const *extra) { start_server_log(s, extra, NULL); }
 
-/* Starts overcast-server on the sphere scene (scene_sphere), with more options: a NULL-terminated
- * list of them. */
-static inline void start_sphere(server_t *s, ...) {
+/* overcast-server started on the sphere scene (scene_sphere), with more options: a NULL-terminated
+ * list of them (NULL alone: none). */
+static inline server_t sphere_server(const char *option, ...) {
   const char *extra[32] = {"--scene", scene_sphere};
   int n = 2;
   va_list ap;
-  va_start(ap, s);
-  for (const char *o; (o = va_arg(ap, const char *)) != NULL;) {
+  va_start(ap, option);
+  for (const char *o = option; o; o = va_arg(ap, const char *)) {
     assert_true(n < 31);
     extra[n++] = o;
   }
   va_end(ap);
   extra[n] = NULL;
-  start_server(s, extra);
+  server_t s;
+  start_server(&s, extra);
+  return s;
 }
 
 /* SIGTERM and the exit status (must be 0). SIGTERM drains: a viewer still open must leave (be
@@ -113,6 +115,15 @@ static inline int stop_server(server_t *s) {
   waitpid(s->pid, &st, 0);
   fclose(s->out);
   return -1;
+}
+
+/* Closes the connections given (a NULL-terminated list), then stops the server: it must exit 0. */
+static inline void close_and_stop(server_t *s, ...) {
+  va_list ap;
+  va_start(ap, s);
+  for (ocv_conn_t *c; (c = va_arg(ap, ocv_conn_t *)) != NULL;) ocv_conn_close(c);
+  va_end(ap);
+  assert_int_equal(stop_server(s), 0);
 }
 
 /* Writes text to path (created or truncated). */

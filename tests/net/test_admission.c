@@ -62,8 +62,7 @@ static int file_has(const char *path, const char *text) {
  * right after it three viewers asking 64 MiB are each welcomed with at least 16 MiB. */
 static void test_admission__greedy_then_vanish(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   int fd = raw_connect(s.port), code;
   uint64_t greedy = raw_hello(fd, GREEDY, &code);
   assert_int_equal(code, OCP_CODE_OK);
@@ -117,10 +116,7 @@ static void test_admission__lingering_give_back_then_largest_fit(void **state) {
   char *r = control(s.port, NULL, "{\"op\":\"stats\"}", &st);
   assert_true(json_num(r, "\"refusals\"", "budget") == 1);
   free(r);
-  ocv_conn_close(a.c);
-  ocv_conn_close(b.c);
-  ocv_conn_close(c.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, a.c, b.c, c.c, NULL);
   assert_true(file_has(log, "lingering session let go: session"));
   assert_true(file_has(log, c.closed_text));
   unlink(log);
@@ -130,8 +126,7 @@ static void test_admission__lingering_give_back_then_largest_fit(void **state) {
  * is still welcomed with a usable budget (default settings). */
 static void test_admission__greedy_connected(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   viewer_t g, v;
   viewer_open(&g, s.port, GREEDY, NULL);
   assert_int_equal(viewer_admitted(&g), 0);
@@ -147,17 +142,14 @@ static void test_admission__greedy_connected(void **state) {
     assert_int_equal(viewer_wait(&v, e - 1, 120), 0);
   }
   assert_int_equal(g.closed_code, 0);
-  ocv_conn_close(g.c);
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, g.c, v.c, NULL);
 }
 
 /* --max-lingering 1: a second vanished viewer makes the first one go; and a session over the
  * lingering budget does not linger at all. */
 static void test_admission__lingering_caps(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, "--max-lingering", "1", "--linger-budget", "16", NULL);
+  server_t s = sphere_server("--max-lingering", "1", "--linger-budget", "16", NULL);
   int code, f1 = raw_connect(s.port), f2 = raw_connect(s.port), f3 = raw_connect(s.port);
   assert_true(raw_hello(f1, 8 * MIB, &code) == 8 * MIB);
   assert_true(raw_hello(f2, 8 * MIB, &code) == 8 * MIB);
@@ -186,8 +178,7 @@ static void test_admission__lingering_caps(void **state) {
  * refused at once, naming it, and a viewer from 127.0.0.2 is still welcomed and served. */
 static void test_admission__connect_storm(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   enum { STORM = 500 };
   static int fds[STORM];
   for (int i = 0; i < STORM; i++) fds[i] = raw_connect_from(1, s.port);
@@ -206,16 +197,14 @@ static void test_admission__connect_storm(void **state) {
   assert_true(json_num(r, "\"refusals\"", "per_address") >= STORM - 32 - 1);
   free(r);
   for (int i = 0; i < STORM - 1; i++) close(fds[i]);
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, v.c, NULL);
 }
 
 /* The handshake rate: a bucket of --max-per-address handshakes refilled at --handshake-rate per
  * second; quick reconnects past it are refused, naming the rate, and other addresses are not. */
 static void test_admission__handshake_rate(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, "--max-per-address", "4", "--handshake-rate", "0.1", NULL);
+  server_t s = sphere_server("--max-per-address", "4", "--handshake-rate", "0.1", NULL);
   int code;
   for (int i = 0; i < 4; i++) { /* within the bucket (a refill takes 10 s) */
     int fd = raw_connect_from(3, s.port);

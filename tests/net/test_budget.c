@@ -123,8 +123,7 @@ static void test_budget__lowered_by_ctl(void **state) {
   int afd = mkstemp(audit);
   assert_true(afd >= 0);
   close(afd);
-  server_t s;
-  start_sphere(&s, "--audit-log", audit, NULL);
+  server_t s = sphere_server("--audit-log", audit, NULL);
   bviewer_t v;
   bv_open(&v, s.port, 8 * MIB, 0);
   assert_int_equal(v.in_force, 8 * MIB);
@@ -159,8 +158,7 @@ static void test_budget__lowered_by_ctl(void **state) {
   expect_refused(s.port, 999, 4 * MIB, "no session 999");
   expect_refused(s.port, v.session, 1, "below the minimum");
   expect_refused(s.port, v.session, 1ull << 40, "above the per-viewer maximum");
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, v.c, NULL);
   char *log = read_file(audit);
   assert_non_null(log);
   assert_non_null(strstr(log, "\"op\":\"budget\""));
@@ -205,10 +203,7 @@ static void test_budget__v1_fixed(void **state) {
   char text[64];
   snprintf(text, sizeof text, "session %u is a control session", (unsigned)cid);
   expect_refused(s.port, cid, 2 * MIB, text);
-  ocv_conn_close(ctl);
-  ocv_conn_close(a.c);
-  ocv_conn_close(b.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, ctl, a.c, b.c, NULL);
 }
 
 /* Admission: a greedy version-3 viewer (6 of 8 MiB) is lowered to a fair share (2 MiB) when a new
@@ -243,9 +238,7 @@ static void test_budget__admission_lowers_greedy(void **state) {
   assert_int_equal(code, 0);
   assert_true(json_num(r, NULL, "budget_lowerings") == 1.0);
   free(r);
-  ocv_conn_close(g.c);
-  ocv_conn_close(n.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, g.c, n.c, NULL);
 }
 
 OC_TEST_MAIN(net_setup, NULL,

@@ -66,9 +66,11 @@ static int teardown(void **state) {
 }
 
 /* redis-server on a free port, killed by the teardown if the test fails. */
-static void start_redis(redis_proc_t *r) {
-  assert_int_equal(redis_start(r, 0), 0);
-  children[0] = r->pid;
+static redis_proc_t started_redis(void) {
+  redis_proc_t r;
+  assert_int_equal(redis_start(&r, 0), 0);
+  children[0] = r.pid;
+  return r;
 }
 
 /* Both front-ends stopped (each must exit 0), then Redis. */
@@ -148,10 +150,8 @@ static void start_front_end(server_t *s, int redis_port, const char *log) {
 
 static void test_cluster__made_once_then_without_redis(void **state) {
   (void)state;
-  redis_proc_t r;
-  assert_int_equal(redis_start(&r, 0), 0);
+  redis_proc_t r = started_redis();
   server_t a, b;
-  children[0] = r.pid;
   start_front_end(&a, r.port, getenv("OC_CLUSTER_LOG_A"));
   children[1] = a.pid;
   start_front_end(&b, r.port, getenv("OC_CLUSTER_LOG_B"));
@@ -208,8 +208,7 @@ static void test_cluster__made_once_then_without_redis(void **state) {
  * deadline, or without a lookup once the connection is judged stuck; the viewer's states go on. */
 static void test_cluster__redis_stopped(void **state) {
   (void)state;
-  redis_proc_t r;
-  start_redis(&r);
+  redis_proc_t r = started_redis();
   char addr[64];
   snprintf(addr, sizeof addr, "127.0.0.1:%d", r.port);
   const char *extra[] = {"--scene", scene_sphere, "--epoch-period", "0.25", "--redis", addr, "--handshake-rate", "1000", NULL};
@@ -263,8 +262,7 @@ static uint64_t newest(viewer_t *v, uint64_t *epoch) {
  * the step or a sun move was sent to. */
 static void test_cluster__stepped_steps_shared(void **state) {
   (void)state;
-  redis_proc_t r;
-  start_redis(&r);
+  redis_proc_t r = started_redis();
   server_t a, b;
   start_control_front_end(&a, 1, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_A"));
   start_control_front_end(&b, 2, r.port, 0, scene_sphere, getenv("OC_CLUSTER_LOG_B"));
@@ -318,8 +316,7 @@ static void test_cluster__weather_same_world_time(void **state) {
   (void)state;
   char planet[4200];
   snprintf(planet, sizeof planet, "%s/scenes/planet.json", getenv("OC_SOURCE_DIR"));
-  redis_proc_t r;
-  start_redis(&r);
+  redis_proc_t r = started_redis();
   server_t a, b;
   start_control_front_end(&a, 1, r.port, 1, planet, getenv("OC_CLUSTER_LOG_A"));
   redis_sleep_ms(600); /* B starts later: its clock would differ without the shared origin */
@@ -348,8 +345,7 @@ static void test_cluster__weather_same_world_time(void **state) {
  * restart they are accepted again, and apply on both front-ends. */
 static void test_cluster__control_refused_without_redis(void **state) {
   (void)state;
-  redis_proc_t r;
-  start_redis(&r);
+  redis_proc_t r = started_redis();
   server_t a, b;
   start_control_front_end(&a, 1, r.port, 1, scene_sphere, NULL);
   start_control_front_end(&b, 2, r.port, 1, scene_sphere, NULL);
@@ -398,8 +394,7 @@ static void redis_raw(int port, int argc, const char **argv, char *line, size_t 
  * (a newer version, an unknown op, a malformed one) are skipped on both, by id, without harm. */
 static void test_cluster__late_front_end_reads_history(void **state) {
   (void)state;
-  redis_proc_t r;
-  start_redis(&r);
+  redis_proc_t r = started_redis();
   server_t a, c;
   start_control_front_end(&a, 1, r.port, 1, scene_sphere, NULL);
   char line[256];

@@ -40,8 +40,7 @@
  * second viewer looking at the same place costs no extra generation; the server exits 0. */
 static void test_server__two_viewers(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   viewer_t a, b;
   viewer_open(&a, s.port, 8u << 20, NULL);
   viewer_open(&b, s.port, 8u << 20, NULL);
@@ -82,9 +81,7 @@ static void test_server__two_viewers(void **state) {
   assert_int_equal(st, 0);
   assert_non_null(strstr(sess, "\"role\":\"viewer\""));
   free(sess);
-  ocv_conn_close(a.c);
-  ocv_conn_close(b.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, a.c, b.c, NULL);
 }
 
 /* Runs a program to completion; returns its exit status. */
@@ -116,8 +113,7 @@ static void test_server__matches_offline(void **state) {
   if (oc_state_load(&offline, path, why, sizeof why) < 0) fail_msg("%s", why);
   remove(path);
 
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   viewer_t v;
   viewer_open(&v, s.port, 8u << 20, NULL);
   for (int e = 1; e <= 3; e++) {
@@ -135,16 +131,14 @@ static void test_server__matches_offline(void **state) {
   assert_int_equal(net->brick_count, offline.brick_count);
   assert_int_equal(oc_state_checksum(net), oc_state_checksum(&offline));
   oc_state_free(&offline);
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, v.c, NULL);
 }
 
 /* Garbage, oversized frames, a foreign version, a vanished peer: each closed with an ERROR naming
  * the problem, while a viewer on the same server keeps getting its epochs. */
 static void test_server__hostile_peers(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   viewer_t v;
   viewer_open(&v, s.port, 8u << 20, NULL);
   char why[256], text[1100];
@@ -196,15 +190,13 @@ static void test_server__hostile_peers(void **state) {
   char *stats = control(s.port, NULL, "{\"op\":\"stats\"}", &st);
   assert_true(json_num(stats, NULL, "closed_errors") >= 5);
   free(stats);
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, v.c, NULL);
 }
 
 /* --token: refused without it (viewer and control), served with it. */
 static void test_server__token(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, "--token", "s3cret", NULL);
+  server_t s = sphere_server("--token", "s3cret", NULL);
   viewer_t v;
   char why[256];
   viewer_open(&v, s.port, 8u << 20, "wrong");
@@ -236,8 +228,7 @@ static void test_server__token(void **state) {
  * --control-token. */
 static void test_server__control_token(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, "--token", "viewer-secret", "--control-token", "control-secret", NULL);
+  server_t s = sphere_server("--token", "viewer-secret", "--control-token", "control-secret", NULL);
   static const struct {
     const char *token, *expect;
   } refused[] = {{"viewer-secret", "the viewer token cannot run control requests"},
@@ -284,8 +275,7 @@ static void test_server__control_token(void **state) {
  * next one is a difference), and after losing an epoch in flight (it is sent again). */
 static void test_server__resume(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   viewer_t v;
   char why[256];
   viewer_welcomed(&v, s.port, 8u << 20);
@@ -314,8 +304,7 @@ static void test_server__resume(void **state) {
   ocp_viewer_stats_t vs;
   ocp_viewer_stats(ocv_conn_session(v.c), &vs);
   assert_int_equal(vs.resumed, 2);
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, v.c, NULL);
 }
 
 /* A lean viewer (digest checksum, no codes kept) beside a full one with the same camera: both get
@@ -324,8 +313,7 @@ static void test_server__resume(void **state) {
  * epoch and after losing one in flight). A HELLO asking for digests and deltas is refused. */
 static void test_server__lean_viewer(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   viewer_t full, lean;
   char why[256], text[1100];
   viewer_open_as(&full, s.port, 8u << 20, NULL, 0);
@@ -414,9 +402,7 @@ static void test_server__lean_viewer(void **state) {
   raw_send_hello(fd, &h, NULL);
   assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_MALFORMED);
   if (!strstr(text, "digest") || !strstr(text, "delta")) fail_msg("'%s' does not name the conflict", text);
-  ocv_conn_close(full.c);
-  ocv_conn_close(lean.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, full.c, lean.c, NULL);
 }
 
 /* A viewer that never reads does not hold up the others: they get every epoch, it is coalesced,
@@ -424,8 +410,7 @@ static void test_server__lean_viewer(void **state) {
  * the stall timeout closes it. Small socket buffers make its backlog visible to the server. */
 static void test_server__slow_viewer(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, "--stall-timeout", "2", "--send-buffer", "8", NULL);
+  server_t s = sphere_server("--stall-timeout", "2", "--send-buffer", "8", NULL);
   viewer_t v;
   char why[256];
   viewer_open(&v, s.port, 8u << 20, NULL);
@@ -471,8 +456,7 @@ static void test_server__slow_viewer(void **state) {
   close(slow);
   step(s.port, 1);
   assert_int_equal(viewer_wait(&v, 4, 60), 0);
-  ocv_conn_close(v.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, v.c, NULL);
 }
 
 /* Silent connections time out with ERROR TIMEOUT: before HELLO and after WELCOME. */
@@ -513,8 +497,7 @@ static void test_server__stalled_in_kernel(void **state) {
 
 static void test_server__idle_timeout(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, "--idle-timeout", "1", NULL);
+  server_t s = sphere_server("--idle-timeout", "1", NULL);
   char text[1100];
   int fd = raw_connect(s.port);
   assert_int_equal(raw_read_close_code(fd, 5, text, sizeof text), OCP_CODE_TIMEOUT);
@@ -528,7 +511,6 @@ static void test_server__idle_timeout(void **state) {
   assert_int_equal(stop_server(&s), 0);
 }
 
-
 /* A HELLO that arrives while a step runs waits for the step's end, however long: the handshake
  * timeout is for peers that send nothing, not for a busy server (overcast-stress --faults found
  * viewers timed out behind planet steps longer than 10 s). The step's producer is held by the test
@@ -537,11 +519,10 @@ static void test_server__idle_timeout(void **state) {
  * waiting peer must get nothing, then released. */
 static void test_server__hello_during_step(void **state) {
   (void)state;
-  server_t s;
   char gate[64];
   snprintf(gate, sizeof gate, "/tmp/oc_step_gate_%d", (int)getpid());
   unlink(gate);
-  start_sphere(&s, "--idle-timeout", "1", "--step-gate", gate, NULL);
+  server_t s = sphere_server("--idle-timeout", "1", "--step-gate", gate, NULL);
   char why[512];
   viewer_t a;
   memset(&a, 0, sizeof a);
@@ -605,9 +586,7 @@ static void test_server__hello_during_step(void **state) {
   ocp_reader_free(&rd);
   close(fd);
   assert_int_equal(type, OCP_MSG_WELCOME);
-  ocv_conn_close(ctl);
-  ocv_conn_close(a.c);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, ctl, a.c, NULL);
 }
 
 /* The control channel: every op answers; bad requests are refused with a reason; reload sends
@@ -683,8 +662,7 @@ static void ev_reply_status(void *ctx, const ocp_control_t *c) {
  * the first is still answered (before, the second overwrote it and it was never answered). */
 static void test_server__step_while_stepping(void **state) {
   (void)state;
-  server_t s;
-  start_sphere(&s, NULL);
+  server_t s = sphere_server(NULL);
   int got[4] = {0};
   char why[512];
   ocp_viewer_desc_t cd = {.role = OCP_ROLE_CONTROL};
@@ -697,8 +675,7 @@ static void test_server__step_while_stepping(void **state) {
   for (int i = 0; i < 1200 && !(got[1] && got[2]); i++) assert_int_equal(ocv_conn_poll(ctl, 0.1, why, sizeof why), 0);
   assert_int_equal(got[1], OCP_CODE_OK + 1);
   assert_int_equal(got[2], OCP_CODE_REQUEST + 1);
-  ocv_conn_close(ctl);
-  assert_int_equal(stop_server(&s), 0);
+  close_and_stop(&s, ctl, NULL);
 }
 
 OC_TEST_MAIN(net_setup, NULL,
