@@ -81,10 +81,10 @@ static int tick(ocs_world_t *w, ocs_viewer_t *v, uint64_t n) {
   return 1;
 }
 
-static uint64_t produced(const ocs_world_t *w) {
+static ocs_world_stats_t world_stats(const ocs_world_t *w) {
   ocs_world_stats_t s;
   ocs_world_stats(w, &s);
-  return s.bricks_produced;
+  return s;
 }
 
 /* Held production: ticks still go out (no state yet: the root's content does not exist), nothing
@@ -96,7 +96,7 @@ static void test_clocked__held_then_released(void **st) {
   ocs_viewer_t *v = viewer(w, 0.0);
   for (uint64_t n = 1; n <= 3; n++) assert_int_equal(tick(w, v, n), 0);
   assert_int_equal(ocs_world_produce(w, 0.0, 0), 0); /* no time: the queue is made, nothing else */
-  assert_true(produced(w) == 0);
+  assert_true(world_stats(w).bricks_produced == 0);
   assert_true(ocs_world_queue_length(w) > 0);
   uint64_t n = 4;
   int states = 0;
@@ -149,7 +149,7 @@ static void test_clocked__deadline(void **st) {
   assert_int_equal(ocs_world_produce(w, 0.0, 0), 0); /* already due: nothing is made */
   size_t q = ocs_world_queue_length(w);
   assert_true(q > 0);
-  assert_true(produced(w) == 0);
+  assert_true(world_stats(w).bricks_produced == 0);
   tick(w, v, 2);
   assert_int_equal(ocs_world_produce(w, 0.0, 0), 0);
   assert_true(ocs_world_queue_length(w) == q); /* still wanted, asked again */
@@ -171,9 +171,10 @@ static void test_clocked__shared_and_dropped(void **st) {
     ocs_world_produce(one, 1e9, 0);
     ocs_world_produce(two, 1e9, 0);
   }
-  print_message("one viewer: %llu bricks produced; two with the same view: %llu\n", (unsigned long long)produced(one),
-                (unsigned long long)produced(two));
-  assert_true(produced(one) > 0 && produced(two) == produced(one));
+  uint64_t by_one = world_stats(one).bricks_produced, by_two = world_stats(two).bricks_produced;
+  print_message("one viewer: %llu bricks produced; two with the same view: %llu\n", (unsigned long long)by_one,
+                (unsigned long long)by_two);
+  assert_true(by_one > 0 && by_two == by_one);
   ocs_world_free(one);
   /* a viewer that leaves */
   ocs_world_t *w = world(1);
@@ -186,7 +187,7 @@ static void test_clocked__shared_and_dropped(void **st) {
   ocs_world_step_at(w, 2, 2.0);
   assert_true(ocs_world_queue_length(w) == 0);
   assert_int_equal(ocs_world_produce(w, 1e9, 0), 0);
-  assert_true(produced(w) == 0);
+  assert_true(world_stats(w).bricks_produced == 0);
   ocs_world_free(w);
   ocs_world_free(two);
   /* one of two viewers leaves between the tick and the queue (the server removes viewers that
@@ -469,8 +470,7 @@ static void test_clocked__producer_error_retried(void **st) {
   failing = OC_KEY_ROOT;
   int made = ocs_world_produce(w, 1e9, 0);
   assert_true(made == (int)q - 1); /* the others are made: one failure stops nothing else */
-  ocs_world_stats_t ws;
-  ocs_world_stats(w, &ws);
+  ocs_world_stats_t ws = world_stats(w);
   assert_true(ws.produce_errors == 1 && ws.last_error == OC_EIO && ws.last_error_key == OC_KEY_ROOT);
   assert_true(ocs_world_queue_length(w) == 1 && queued(w, OC_KEY_ROOT)); /* still queued */
   assert_int_equal(tick(w, v, 2), 0); /* the tick goes out; without the root nothing can show */
