@@ -111,6 +111,16 @@ static int ocp__unexpected(ocp_viewer_t *v, oc_buf_t *out, const ocp_header_t *h
   return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_UNEXPECTED, why, why_len, "%s: not valid %s", name, when);
 }
 
+/* The frame's message into m (ocp_get_msg); a malformed one fails the connection with the decoder's
+ * reason. @return 0 or the negative OC_E*. */
+static int ocp__decode(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, ocp_msg_t *m, oc_buf_t *out, char *why,
+                       size_t why_len) {
+  char reason[OCP_TEXT_MAX + 1];
+  reason[0] = '\0';
+  int e = ocp_get_msg(h->version, h->type, p, h->length, m, reason, sizeof reason);
+  return e ? ocp__abort_err(v, out, e, reason, why, why_len) : 0;
+}
+
 static const oc_brick_codes_t *ocp__lookup(void *ctx, uint32_t id) {
   const ocp_viewer_t *v = ctx;
   for (int i = 0; i < v->nheld; i++) {
@@ -225,10 +235,9 @@ static void ocp__budget_settle(ocp_viewer_t *v) {
 
 static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
                            size_t why_len) {
-  char reason[OCP_TEXT_MAX + 1];
-  ocp_welcome_t w;
-  int e = ocp_get_welcome(p, h->length, &w, reason, sizeof reason);
-  if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
+  ocp_msg_t msg;
+  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
+  const ocp_welcome_t w = msg.welcome;
   if (w.version < OCP_VERSION_MIN || w.version > v->desc.max_version)
     return ocp__abort(v, out, OC_EVERSION, OCP_CODE_VERSION, why, why_len, "welcome: version %u is outside %d..%u",
                       (unsigned)w.version, OCP_VERSION_MIN, (unsigned)v->desc.max_version);
@@ -261,10 +270,9 @@ static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t
 
 static int ocp__on_epoch_begin(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
                                size_t why_len) {
-  char reason[OCP_TEXT_MAX + 1];
-  ocp_epoch_begin_t m;
-  int e = ocp_get_epoch_begin(p, h->length, &m, reason, sizeof reason);
-  if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
+  ocp_msg_t msg;
+  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
+  const ocp_epoch_begin_t m = msg.begin;
   const oc_state_t *base = NULL;
   if (m.base_epoch != OCP_NO_BASE) {
     for (int i = 0; i < v->nheld && !base; i++)
@@ -273,9 +281,10 @@ static int ocp__on_epoch_begin(ocp_viewer_t *v, const ocp_header_t *h, const uin
       return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
                         "epoch-begin: base_epoch %" PRIu64 " is not a state this viewer holds", m.base_epoch);
   }
+  char reason[OCP_TEXT_MAX + 1];
   reason[0] = '\0';
-  e = v->desc.lean ? ocp_epoch_dec_begin_lean(v->dec, &m, base, ocp__dlookup, v, reason, sizeof reason)
-                   : ocp_epoch_dec_begin(v->dec, &m, base, ocp__lookup, v, reason, sizeof reason);
+  int e = v->desc.lean ? ocp_epoch_dec_begin_lean(v->dec, &m, base, ocp__dlookup, v, reason, sizeof reason)
+                       : ocp_epoch_dec_begin(v->dec, &m, base, ocp__lookup, v, reason, sizeof reason);
   if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
   v->begin = m;
   v->phase = OCP__EP_BEGUN;
@@ -284,10 +293,9 @@ static int ocp__on_epoch_begin(ocp_viewer_t *v, const ocp_header_t *h, const uin
 
 static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
                              size_t why_len) {
-  char reason[OCP_TEXT_MAX + 1];
-  ocp_epoch_end_t m;
-  int e = ocp_get_epoch_end(p, h->length, &m, reason, sizeof reason);
-  if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
+  ocp_msg_t msg;
+  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
+  const ocp_epoch_end_t m = msg.end;
   v->phase = OCP__EP_NONE;
   if (m.epoch != v->begin.epoch)
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
@@ -296,9 +304,10 @@ static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8
   if (!s) return ocp__abort(v, out, OC_ENOMEM, OCP_CODE_INTERNAL, why, why_len, "epoch-end: out of memory");
   oc_state_init(s);
   oc_brick_digests_t dig = {0};
+  char reason[OCP_TEXT_MAX + 1];
   reason[0] = '\0';
-  e = v->desc.lean ? ocp_epoch_dec_end_lean(v->dec, &m, s, &dig, reason, sizeof reason)
-                   : ocp_epoch_dec_end(v->dec, &m, s, reason, sizeof reason);
+  int e = v->desc.lean ? ocp_epoch_dec_end_lean(v->dec, &m, s, &dig, reason, sizeof reason)
+                       : ocp_epoch_dec_end(v->dec, &m, s, reason, sizeof reason);
   if (e) {
     oc_state_free(s);
     free(s);
@@ -341,15 +350,14 @@ static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8
 /* BUDGET (version 3): between epochs, at least the minimum, for an epoch after the newest held. */
 static int ocp__on_budget(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
                           size_t why_len) {
-  char reason[OCP_TEXT_MAX + 1];
   if (v->desc.role != OCP_ROLE_VIEWER) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
   if (v->version < OCP_VERSION_BUDGET)
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_UNEXPECTED, why, why_len, "budget: not in protocol version %u",
                       (unsigned)v->version);
   if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
-  ocp_budget_t m;
-  int e = ocp_get_budget(p, h->length, &m, reason, sizeof reason);
-  if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
+  ocp_msg_t msg;
+  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
+  const ocp_budget_t m = msg.budget;
   uint64_t mn = oc_budget_min(&v->welcome.grant);
   if (m.budget < mn)
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
@@ -379,6 +387,7 @@ static int ocp__on_budget(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t 
 /* One whole frame from the server. */
 static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why, size_t why_len) {
   char reason[OCP_TEXT_MAX + 1];
+  ocp_msg_t m;
   int viewer = v->desc.role == OCP_ROLE_VIEWER, e;
   reason[0] = '\0';
   if (v->ready && h->version != v->version)
@@ -388,11 +397,9 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
   switch (h->type) {
     case OCP_MSG_GOODBYE:
     case OCP_MSG_ERROR: {
-      ocp_text_msg_t t;
-      e = ocp_get_text(p, h->length, &t, reason, sizeof reason);
-      if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
+      OC_TRY(ocp__decode(v, h, p, &m, out, why, why_len));
       v->closed = 1;
-      if (v->ev.closed) v->ev.closed(v->ev.ctx, t.code, t.text);
+      if (v->ev.closed) v->ev.closed(v->ev.ctx, m.text.code, m.text.text);
       return 0;
     }
     case OCP_MSG_WELCOME:
@@ -404,8 +411,7 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
   if (!v->ready) return ocp__unexpected(v, out, h, "before welcome", why, why_len);
   switch (h->type) {
     case OCP_MSG_KEEPALIVE:
-      e = ocp_get_empty(p, h->length, reason, sizeof reason);
-      return e ? ocp__abort_err(v, out, e, reason, why, why_len) : 0;
+      return ocp__decode(v, h, p, &m, out, why, why_len);
     case OCP_MSG_DICT:
       if (!viewer) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
       e = ocp_epoch_dec_dict(v->dec, p, h->length, reason, sizeof reason);
@@ -432,20 +438,16 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
     case OCP_MSG_STATS: {
       if (!viewer) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
       if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
-      ocp_stats_t s;
-      e = ocp_get_stats(h->version, p, h->length, &s, reason, sizeof reason);
-      if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
-      if (v->ev.stats) v->ev.stats(v->ev.ctx, &s);
+      OC_TRY(ocp__decode(v, h, p, &m, out, why, why_len));
+      if (v->ev.stats) v->ev.stats(v->ev.ctx, &m.stats);
       return 0;
     }
     case OCP_MSG_BUDGET:
       return ocp__on_budget(v, h, p, out, why, why_len);
     case OCP_MSG_CONTROL_REPLY: {
       if (viewer) return ocp__unexpected(v, out, h, "for a viewer", why, why_len);
-      ocp_control_t c;
-      e = ocp_get_control(p, h->length, &c, reason, sizeof reason);
-      if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
-      if (v->ev.control_reply) v->ev.control_reply(v->ev.ctx, &c);
+      OC_TRY(ocp__decode(v, h, p, &m, out, why, why_len));
+      if (v->ev.control_reply) v->ev.control_reply(v->ev.ctx, &m.control);
       return 0;
     }
     default: /* unknown, or a client's message */

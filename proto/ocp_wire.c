@@ -766,3 +766,55 @@ int ocp_get_control(const uint8_t *p, size_t n, ocp_control_t *m, char *why, siz
   if (m->json_len && memchr(m->json, 0, m->json_len)) return oc_errorf(OC_ECORRUPT, why, why_len, "control: json contains a NUL byte");
   return 0;
 }
+
+/*-*** Any message by its type ***/
+
+int ocp_get_msg(uint8_t version, uint8_t type, const uint8_t *p, size_t n, ocp_msg_t *m, char *why, size_t why_len) {
+  switch (type) {
+    case OCP_MSG_HELLO:
+      return ocp_get_hello(p, n, &m->hello, why, why_len);
+    case OCP_MSG_WELCOME:
+      return ocp_get_welcome(p, n, &m->welcome, why, why_len);
+    case OCP_MSG_CAMERA:
+      return ocp_get_camera(p, n, &m->camera, why, why_len);
+    case OCP_MSG_ACK:
+      return ocp_get_ack(p, n, &m->ack, why, why_len);
+    case OCP_MSG_BUDGET:
+      return ocp_get_budget(p, n, &m->budget, why, why_len);
+    case OCP_MSG_ERROR:
+    case OCP_MSG_GOODBYE:
+      return ocp_get_text(p, n, &m->text, why, why_len);
+    case OCP_MSG_KEEPALIVE:
+      return ocp_get_empty(p, n, why, why_len);
+    case OCP_MSG_EPOCH_BEGIN:
+      return ocp_get_epoch_begin(p, n, &m->begin, why, why_len);
+    case OCP_MSG_EPOCH_END:
+      return ocp_get_epoch_end(p, n, &m->end, why, why_len);
+    case OCP_MSG_STATS:
+      return ocp_get_stats(version, p, n, &m->stats, why, why_len);
+    case OCP_MSG_CONTROL:
+    case OCP_MSG_CONTROL_REPLY:
+      return ocp_get_control(p, n, &m->control, why, why_len);
+    default:
+      return 1;
+  }
+}
+
+void ocp_put_msg(oc_buf_t *b, uint8_t version, uint8_t type, const ocp_msg_t *m) {
+  switch (type) {
+    case OCP_MSG_HELLO: ocp_put_hello(b, &m->hello); break;
+    case OCP_MSG_WELCOME: ocp_put_welcome(b, version, &m->welcome); break;
+    case OCP_MSG_CAMERA: ocp_put_camera(b, version, &m->camera); break;
+    case OCP_MSG_ACK: ocp_put_ack(b, version, &m->ack); break;
+    case OCP_MSG_BUDGET: ocp_put_budget(b, version, &m->budget); break;
+    case OCP_MSG_ERROR:
+    case OCP_MSG_GOODBYE: ocp_put_text(b, version, type, m->text.code, m->text.text); break;
+    case OCP_MSG_KEEPALIVE: ocp_put_empty(b, version, type); break;
+    case OCP_MSG_EPOCH_BEGIN: ocp_put_epoch_begin(b, version, &m->begin); break;
+    case OCP_MSG_EPOCH_END: ocp_put_epoch_end(b, version, &m->end); break;
+    case OCP_MSG_STATS: ocp_put_stats(b, version, &m->stats); break;
+    case OCP_MSG_CONTROL:
+    case OCP_MSG_CONTROL_REPLY: ocp_put_control(b, version, type, &m->control); break;
+    default: break;
+  }
+}

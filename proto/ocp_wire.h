@@ -278,6 +278,28 @@ int ocp_get_epoch_end(const uint8_t *p, size_t n, ocp_epoch_end_t *m, char *why,
 int ocp_get_stats(uint8_t version, const uint8_t *p, size_t n, ocp_stats_t *m, char *why, size_t why_len);
 int ocp_get_control(const uint8_t *p, size_t n, ocp_control_t *m, char *why, size_t why_len);
 
+/*! Any one message, of the type it was decoded as (ocp_get_msg). */
+typedef union {
+  ocp_hello_t hello;
+  ocp_welcome_t welcome;
+  ocp_camera_t camera;
+  ocp_ack_t ack;
+  ocp_budget_t budget;
+  ocp_text_msg_t text;   /**< ERROR, GOODBYE */
+  ocp_epoch_begin_t begin;
+  ocp_epoch_end_t end;
+  ocp_stats_t stats;
+  ocp_control_t control; /**< CONTROL, CONTROL_REPLY */
+} ocp_msg_t;
+
+/*! ocp_get_msg() : the payload decoded by the decoder of `type` (STATS as of `version`; KEEPALIVE
+ *  leaves m alone). @return the decoder's result, or 1 for a type without a message decoder here
+ *  (epoch payloads: ocp_epoch.h; unknown types). */
+int ocp_get_msg(uint8_t version, uint8_t type, const uint8_t *p, size_t n, ocp_msg_t *m, char *why, size_t why_len);
+/*! ocp_put_msg() : appends m, a message of `type` (as ocp_get_msg accepts it), as one frame; nothing
+ *  for a type ocp_get_msg has no decoder for. */
+void ocp_put_msg(oc_buf_t *b, uint8_t version, uint8_t type, const ocp_msg_t *m);
+
 /*! ocp_version_pick() : the highest version in both [min, max] ranges, or 0 when none. */
 uint16_t ocp_version_pick(uint16_t their_min, uint16_t their_max);
 

@@ -17,7 +17,6 @@
 #include "oc_state.h"
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
-#include "proto/wire_any.h" /* wire_get_any, wire_put_any */
 
 /*-*** Decoders ***/
 
@@ -33,11 +32,11 @@ static void check_frame(const ocp_header_t *h, const uint8_t *payload) {
   memcpy(p, payload, h->length);
   size_t n = h->length;
   char why[256];
-  wire_msg_t m;
-  int e = wire_get_any(h->version, h->type, p, n, &m, why, sizeof why);
+  ocp_msg_t m;
+  int e = ocp_get_msg(h->version, h->type, p, n, &m, why, sizeof why);
   if (e == 0) { /* what a decoder accepts has one byte form */
     oc_buf_t b = {0};
-    wire_put_any(&b, h->version, h->type, &m);
+    ocp_put_msg(&b, h->version, h->type, &m);
     check_same(&b, p, n);
     oc_buf_free(&b);
     if (h->type == OCP_MSG_HELLO) (void)ocp_version_pick(m.hello.min_version, m.hello.max_version);

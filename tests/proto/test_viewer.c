@@ -18,7 +18,6 @@
 #include "ocp_epoch.h"
 #include "ocp_viewer.h"
 #include "ocp_wire.h"
-#include "wire_any.h" /* wire_get_any */
 #include "state_fixture.h" /* child, node, golden_codes, golden_state */
 
 #define SESSION 0x5151u
@@ -193,13 +192,13 @@ static frames_t parse_out(const oc_buf_t *out) {
 }
 
 /* The one frame in out, of `type`, decoded. */
-static wire_msg_t only_msg(const oc_buf_t *out, uint8_t type) {
+static ocp_msg_t only_msg(const oc_buf_t *out, uint8_t type) {
   frames_t f = parse_out(out);
-  wire_msg_t m;
+  ocp_msg_t m;
   char why[256];
   assert_int_equal(f.n, 1);
   assert_int_equal(f.h[0].type, type);
-  if (wire_get_any(f.h[0].version, type, f.p[0], f.h[0].length, &m, why, sizeof why)) fail_msg("%s", why);
+  if (ocp_get_msg(f.h[0].version, type, f.p[0], f.h[0].length, &m, why, sizeof why)) fail_msg("%s", why);
   return m;
 }
 

@@ -16,7 +16,6 @@
 #include "oc_err.h"
 #include "oc_state.h"
 #include "ocp_wire.h"
-#include "wire_any.h" /* wire_get_any */
 
 /*-*** Helpers ***/
 
@@ -31,8 +30,8 @@ static const uint8_t *only_frame(const oc_buf_t *b, ocp_header_t *h) {
 
 /* Any message's decoder by type (STATS as version 1); the decoded value is discarded. */
 static int decode_any(uint8_t type, const uint8_t *p, size_t n, char *why, size_t why_len) {
-  wire_msg_t m;
-  int e = wire_get_any(1, type, p, n, &m, why, why_len);
+  ocp_msg_t m;
+  int e = ocp_get_msg(1, type, p, n, &m, why, why_len);
   if (e == 1) fail_msg("no decoder for type 0x%02x", type);
   return e;
 }
@@ -144,8 +143,8 @@ static const ocp_stats_t sample_stats = {
 };
 
 /* The sample of `type` in a message cleared first (its padding compares too). */
-static wire_msg_t sample_of(uint8_t type) {
-  wire_msg_t m;
+static ocp_msg_t sample_of(uint8_t type) {
+  ocp_msg_t m;
   memset(&m, 0, sizeof m);
   switch (type) {
     case OCP_MSG_HELLO: m.hello = sample_hello; break;
@@ -266,16 +265,16 @@ static void test_wire__golden_camera(void **state) {
 
 /* m, a message of `type`, encoded as `version` is one frame of that type whose payload is `length`
  * bytes and decodes back to m (its first `size` bytes). @return the frame's header. */
-static ocp_header_t expect_round_trip(uint8_t version, uint8_t type, const wire_msg_t *m, size_t size, size_t length) {
+static ocp_header_t expect_round_trip(uint8_t version, uint8_t type, const ocp_msg_t *m, size_t size, size_t length) {
   oc_buf_t b = {0};
   ocp_header_t h;
   char why[256];
-  wire_msg_t back;
-  wire_put_any(&b, version, type, m);
+  ocp_msg_t back;
+  ocp_put_msg(&b, version, type, m);
   const uint8_t *p = only_frame(&b, &h);
   assert_int_equal(h.type, type);
   assert_int_equal(h.length, length);
-  if (wire_get_any(version, type, p, h.length, &back, why, sizeof why)) fail_msg("%s: %s", ocp_msg_name(type), why);
+  if (ocp_get_msg(version, type, p, h.length, &back, why, sizeof why)) fail_msg("%s: %s", ocp_msg_name(type), why);
   assert_memory_equal(&back, m, size);
   oc_buf_free(&b);
   return h;
@@ -283,7 +282,7 @@ static ocp_header_t expect_round_trip(uint8_t version, uint8_t type, const wire_
 
 static void test_wire__round_trip_hello(void **state) {
   (void)state;
-  wire_msg_t m = sample_of(OCP_MSG_HELLO);
+  ocp_msg_t m = sample_of(OCP_MSG_HELLO);
   ocp_header_t h = expect_round_trip(1, OCP_MSG_HELLO, &m, sizeof m.hello, 64 + 2);
   assert_int_equal(h.version, m.hello.max_version);
   /* a control client: viewer fields zero, the longest token */
@@ -296,7 +295,7 @@ static void test_wire__round_trip_hello(void **state) {
 
 static void test_wire__round_trip_welcome(void **state) {
   (void)state;
-  wire_msg_t m = sample_of(OCP_MSG_WELCOME);
+  ocp_msg_t m = sample_of(OCP_MSG_WELCOME);
   expect_round_trip(1, OCP_MSG_WELCOME, &m, sizeof m.welcome, 178 + strlen(m.welcome.name));
   /* control grant: K = 0, nothing granted; the longest name */
   memset(&m, 0, sizeof m);
@@ -308,7 +307,7 @@ static void test_wire__round_trip_welcome(void **state) {
 
 static void test_wire__round_trip_small(void **state) {
   (void)state;
-  wire_msg_t m = sample_of(OCP_MSG_CAMERA);
+  ocp_msg_t m = sample_of(OCP_MSG_CAMERA);
   m.camera.pos = oc_dv3(6371000.5, -1234.25, 1e-3);
   m.camera.forward = oc_dnorm(oc_dv3(1, 2, 3));
   m.camera.up = oc_dnorm(oc_dcross(oc_dcross(m.camera.forward, oc_dv3(0, 0, 1)), m.camera.forward));
@@ -371,7 +370,7 @@ static void test_wire__stats_versions(void **state) {
 
 static void test_wire__round_trip_text(void **state) {
   (void)state;
-  wire_msg_t m;
+  ocp_msg_t m;
   memset(&m, 0, sizeof m);
   m.text.code = OCP_CODE_CHECKSUM;
   snprintf(m.text.text, sizeof m.text.text, "epoch 43: checksum mismatch");
@@ -453,16 +452,16 @@ static void test_wire__round_trip_control(void **state) {
 /*-*** Exact lengths ***/
 
 /* m encoded as `type`: the frame decodes; with one byte less or one zero byte more it does not. */
-static void expect_exact_length_of(uint8_t type, const wire_msg_t *m) {
+static void expect_exact_length_of(uint8_t type, const ocp_msg_t *m) {
   oc_buf_t b = {0};
-  wire_put_any(&b, 1, type, m);
+  ocp_put_msg(&b, 1, type, m);
   expect_exact_length(&b);
   oc_buf_free(&b);
 }
 
 static void test_wire__exact_lengths(void **state) {
   (void)state;
-  wire_msg_t m = {.hello = sample_hello};
+  ocp_msg_t m = {.hello = sample_hello};
   expect_exact_length_of(OCP_MSG_HELLO, &m);
   m.hello.token_len = 0;
   expect_exact_length_of(OCP_MSG_HELLO, &m);
@@ -500,20 +499,20 @@ static void test_wire__exact_lengths(void **state) {
 /*-*** Field checks ***/
 
 /* Encodes m as `type`, overwrites n payload bytes at off, decodes. */
-static int decode_patched(uint8_t type, const wire_msg_t *m, size_t off, const uint8_t *bytes, size_t n, char *why,
+static int decode_patched(uint8_t type, const ocp_msg_t *m, size_t off, const uint8_t *bytes, size_t n, char *why,
                           size_t why_len) {
   oc_buf_t b = {0};
-  wire_msg_t back;
-  wire_put_any(&b, 1, type, m);
+  ocp_msg_t back;
+  ocp_put_msg(&b, 1, type, m);
   assert_true(off + n <= b.len - OCP_HEADER_BYTES);
   memcpy(b.data + OCP_HEADER_BYTES + off, bytes, n);
-  int e = wire_get_any(1, type, b.data + OCP_HEADER_BYTES, b.len - OCP_HEADER_BYTES, &back, why, why_len);
+  int e = ocp_get_msg(1, type, b.data + OCP_HEADER_BYTES, b.len - OCP_HEADER_BYTES, &back, why, why_len);
   oc_buf_free(&b);
   return e;
 }
 
 static int hello_with(const ocp_hello_t *m, size_t off, const uint8_t *bytes, size_t n, char *why, size_t why_len) {
-  return decode_patched(OCP_MSG_HELLO, &(wire_msg_t){.hello = *m}, off, bytes, n, why, why_len);
+  return decode_patched(OCP_MSG_HELLO, &(ocp_msg_t){.hello = *m}, off, bytes, n, why, why_len);
 }
 
 static void test_wire__hello_fields(void **state) {
@@ -554,7 +553,7 @@ static void test_wire__hello_fields(void **state) {
 }
 
 static int welcome_with(size_t off, const uint8_t *bytes, size_t n, char *why, size_t why_len) {
-  return decode_patched(OCP_MSG_WELCOME, &(wire_msg_t){.welcome = sample_welcome}, off, bytes, n, why, why_len);
+  return decode_patched(OCP_MSG_WELCOME, &(ocp_msg_t){.welcome = sample_welcome}, off, bytes, n, why, why_len);
 }
 
 static void test_wire__welcome_fields(void **state) {
