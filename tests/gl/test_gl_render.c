@@ -90,6 +90,12 @@ static void require_gl(void) {
   skip();
 }
 
+/* require_gl(), and the atmosphere tables the fixture made. */
+static void require_atmo(void) {
+  require_gl();
+  assert_non_null(fx.atmo);
+}
+
 /* The analytic sphere scene, optionally with another camera pose or sun, voxelized for that view. */
 static void make_scene(oc_scene_t *sc, oc_state_t *st, oc_camera_t *cam, const oc_scene_camera_t *pose_over,
                        const oc_dvec3 *sun_over) {
@@ -200,98 +206,103 @@ static oc_render_desc_t base_desc(const oc_scene_t *sc, oc_camera_t cam) {
   return d;
 }
 
-static void test_gl_render__constant_background(void **state) {
-  (void)state;
-  require_gl();
+/* The analytic sphere scene voxelized for its camera (make_scene()), freed by view_close(). */
+typedef struct {
   oc_scene_t sc;
   oc_state_t st;
   oc_camera_t cam;
-  make_scene(&sc, &st, &cam, NULL, NULL);
-  oc_render_desc_t d = base_desc(&sc, cam);
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
-  compare("constant_background", &st, &d, CMP_RMSE, CMP_MAX);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+} view_t;
+
+/* make_scene() into v, once require_gl() lets the test go on. @return the base description of a
+ * render of it (base_desc()). */
+static oc_render_desc_t view_open(view_t *v, const oc_scene_camera_t *pose_over, const oc_dvec3 *sun_over) {
+  require_gl();
+  make_scene(&v->sc, &v->st, &v->cam, pose_over, sun_over);
+  return base_desc(&v->sc, v->cam);
+}
+
+/* The constant background of the comparisons without atmosphere (radiance 0.02). */
+static void constant_background(oc_render_desc_t *d) {
+  d->background = OC_BG_CONSTANT;
+  d->background_radiance = 0.02f;
+}
+
+/* view_open() with the scene's camera and sun, before the constant background. */
+static oc_render_desc_t constant_view(view_t *v) {
+  oc_render_desc_t d = view_open(v, NULL, NULL);
+  constant_background(&d);
+  return d;
+}
+
+static void view_close(view_t *v) {
+  oc_state_free(&v->st);
+  oc_scene_free(&v->sc);
+}
+
+/* compare() of the scene seen with that camera and sun (NULL: the scene's), against the CPU. */
+static void compare_view(const char *name, const oc_scene_camera_t *pose_over, const oc_dvec3 *sun_over) {
+  view_t vw;
+  oc_render_desc_t d = view_open(&vw, pose_over, sun_over);
+  compare(name, &vw.st, &d, CMP_RMSE, CMP_MAX);
+  view_close(&vw);
+}
+
+static void test_gl_render__constant_background(void **state) {
+  (void)state;
+  view_t vw;
+  oc_render_desc_t d = constant_view(&vw);
+  compare("constant_background", &vw.st, &d, CMP_RMSE, CMP_MAX);
+  view_close(&vw);
 }
 
 /* The model before the truth fit matches the CPU as the fitted one does; optics outside their domain
  * are refused by name, never drawn as NaN. */
 static void test_gl_render__cloud_model(void **state) {
   (void)state;
-  require_gl();
-  oc_scene_t sc;
-  oc_state_t st;
-  oc_camera_t cam;
-  make_scene(&sc, &st, &cam, NULL, NULL);
-  oc_render_desc_t d = base_desc(&sc, cam);
+  view_t vw;
+  oc_render_desc_t d = view_open(&vw, NULL, NULL);
   d.ms_model = OC_MS_MODEL_OCTAVES;
   d.ms_a = d.ms_b = d.ms_c = 0.5f;
-  compare("octaves_before_fit", &st, &d, CMP_RMSE, CMP_MAX);
+  compare("octaves_before_fit", &vw.st, &d, CMP_RMSE, CMP_MAX);
   ocv_gl_state_t gs;
   char why[1024] = "";
-  if (ocv_gl_state_upload(&gs, &st, why, sizeof why)) fail_msg("upload: %s", why);
+  if (ocv_gl_state_upload(&gs, &vw.st, why, sizeof why)) fail_msg("upload: %s", why);
   oc_image_t img = {0};
   assert_int_equal(oc_image_alloc(&img, W, H), 0);
-  oc_render_desc_t bad = base_desc(&sc, cam);
+  oc_render_desc_t bad = base_desc(&vw.sc, vw.cam);
   bad.ms_b = NAN;
   assert_int_equal(ocv_gl_render_state(fx.r, &gs, &bad, &img, why, sizeof why), OC_EINVAL);
   assert_non_null(strstr(why, "ms_b"));
-  bad = base_desc(&sc, cam);
+  bad = base_desc(&vw.sc, vw.cam);
   bad.albedo = 1.5f;
   assert_int_equal(ocv_gl_render_state(fx.r, &gs, &bad, &img, why, sizeof why), OC_EINVAL);
   assert_non_null(strstr(why, "albedo"));
   oc_image_free(&img);
   ocv_gl_state_free(&gs);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+  view_close(&vw);
 }
 
 static void test_gl_render__atmosphere(void **state) {
   (void)state;
-  require_gl();
-  assert_non_null(fx.atmo);
-  oc_scene_t sc;
-  oc_state_t st;
-  oc_camera_t cam;
-  make_scene(&sc, &st, &cam, NULL, NULL);
-  oc_render_desc_t d = base_desc(&sc, cam);
-  compare("atmosphere", &st, &d, CMP_RMSE, CMP_MAX);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+  require_atmo();
+  compare_view("atmosphere", NULL, NULL);
 }
 
 static void test_gl_render__camera_inside(void **state) {
   (void)state;
-  require_gl();
-  assert_non_null(fx.atmo);
+  require_atmo();
   /* 1950 m east of the centre of the 2000 m sphere (lat 0, lon 0, alt 3 km), looking east and up. */
   oc_scene_camera_t pose = {{0.0, 1950.0 / (OC_PLANET_RADIUS + 3000.0) / OC_DEG, 3000.0}, 90.0, 10.0, 60.0};
-  oc_scene_t sc;
-  oc_state_t st;
-  oc_camera_t cam;
-  make_scene(&sc, &st, &cam, &pose, NULL);
-  oc_render_desc_t d = base_desc(&sc, cam);
-  compare("camera_inside", &st, &d, CMP_RMSE, CMP_MAX);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+  compare_view("camera_inside", &pose, NULL);
 }
 
 static void test_gl_render__low_sun(void **state) {
   (void)state;
-  require_gl();
-  assert_non_null(fx.atmo);
+  require_atmo();
   /* At (0°N, 0°E) up is +X, east +Y, north +Z: the sun 3° above the north-eastern horizon. */
   double el = 3.0 * OC_DEG;
   oc_dvec3 sun = oc_dnorm(oc_dv3(sin(el), cos(el) * sqrt(0.5), cos(el) * sqrt(0.5)));
-  oc_scene_t sc;
-  oc_state_t st;
-  oc_camera_t cam;
-  make_scene(&sc, &st, &cam, NULL, &sun);
-  oc_render_desc_t d = base_desc(&sc, cam);
-  compare("low_sun", &st, &d, CMP_RMSE, CMP_MAX);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+  compare_view("low_sun", NULL, &sun);
 }
 
 /* The bound is tight: the GLSL image matches the CPU reference within STEP_BOUND at the same step
@@ -326,8 +337,7 @@ static void render_small(const oc_state_t *st, const oc_render_desc_t *d, int gl
 
 static void test_gl_render__step_factor_sensitivity(void **state) {
   (void)state;
-  require_gl();
-  assert_non_null(fx.atmo);
+  require_atmo();
   static const struct {
     const char *name;
     int atmosphere;
@@ -337,34 +347,29 @@ static void test_gl_render__step_factor_sensitivity(void **state) {
   assert_non_null(cpu);
   assert_non_null(gpu);
   for (int v = 0; v < 2; v++) {
-    oc_scene_t sc;
-    oc_state_t st;
-    oc_camera_t cam;
-    make_scene(&sc, &st, &cam, NULL, NULL);
-    oc_render_desc_t d = base_desc(&sc, cam);
+    view_t vw;
+    oc_render_desc_t d = view_open(&vw, NULL, NULL);
     d.width = STEP_W;
     d.height = STEP_H;
     if (!views[v].atmosphere) {
-      d.background = OC_BG_CONSTANT;
-      d.background_radiance = 0.02f;
+      constant_background(&d);
     }
     d.step_factor = views[v].step;
-    render_small(&st, &d, 0, cpu);
-    render_small(&st, &d, 1, gpu);
+    render_small(&vw.st, &d, 0, cpu);
+    render_small(&vw.st, &d, 1, gpu);
     double same = oc_rgb8_rmse(cpu, gpu, STEP_W, STEP_H);
     d.step_factor = views[v].step * 1.1;
-    render_small(&st, &d, 1, gpu);
+    render_small(&vw.st, &d, 1, gpu);
     double longer = oc_rgb8_rmse(cpu, gpu, STEP_W, STEP_H);
     d.step_factor = views[v].step * 0.9;
-    render_small(&st, &d, 1, gpu);
+    render_small(&vw.st, &d, 1, gpu);
     double shorter = oc_rgb8_rmse(cpu, gpu, STEP_W, STEP_H);
     printf("step factor %.1f, %-19s GLSL vs CPU RMSE %.3f (bound %.2f); GLSL at ×1.1 %.3f, at ×0.9 %.3f\n",
            views[v].step, views[v].name, same, STEP_BOUND, longer, shorter);
     assert_true(same <= STEP_BOUND);   /* the same step factor: within the bound */
     assert_true(longer > STEP_BOUND);  /* negative controls: a 10 % change breaks it */
     assert_true(shorter > STEP_BOUND);
-    oc_state_free(&st);
-    oc_scene_free(&sc);
+    view_close(&vw);
   }
   free(cpu);
   free(gpu);
@@ -374,8 +379,7 @@ static void test_gl_render__step_factor_sensitivity(void **state) {
  * looking at the cloud from below), and 1 m from the cloud's surface. */
 static void test_gl_render__space_and_ground(void **state) {
   (void)state;
-  require_gl();
-  assert_non_null(fx.atmo);
+  require_atmo();
   static const struct {
     const char *name;
     oc_scene_camera_t pose;
@@ -387,14 +391,7 @@ static void test_gl_render__space_and_ground(void **state) {
       {"one_metre", {{0.0, -2001.0 / (OC_PLANET_RADIUS + 3000.0) * 180.0 / 3.14159265358979323846, 3000.0}, 90.0, 0.0, 60.0}},
   };
   for (int i = 0; i < 3; i++) {
-    oc_scene_t sc;
-    oc_state_t st;
-    oc_camera_t cam;
-    make_scene(&sc, &st, &cam, &views[i].pose, NULL);
-    oc_render_desc_t d = base_desc(&sc, cam);
-    compare(views[i].name, &st, &d, CMP_RMSE, CMP_MAX);
-    oc_state_free(&st);
-    oc_scene_free(&sc);
+    compare_view(views[i].name, &views[i].pose, NULL);
   }
 }
 
@@ -402,28 +399,21 @@ static void test_gl_render__space_and_ground(void **state) {
  * sides, so jittered frames agree too, and two frames differ from each other. */
 static void test_gl_render__jitter(void **state) {
   (void)state;
-  require_gl();
-  oc_scene_t sc;
-  oc_state_t st;
-  oc_camera_t cam;
-  make_scene(&sc, &st, &cam, NULL, NULL);
-  oc_render_desc_t d = base_desc(&sc, cam);
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  view_t vw;
+  oc_render_desc_t d = constant_view(&vw);
   d.flags = OC_RF_JITTER;
   d.frame = 7;
-  compare("jitter", &st, &d, CMP_RMSE, CMP_MAX);
+  compare("jitter", &vw.st, &d, CMP_RMSE, CMP_MAX);
   oc_image_t a = {0}, b = {0};
   assert_int_equal(oc_image_alloc(&a, W, H), 0);
   assert_int_equal(oc_image_alloc(&b, W, H), 0);
-  assert_int_equal(oc_render_state(&st, &d, &a, NULL), 0);
+  assert_int_equal(oc_render_state(&vw.st, &d, &a, NULL), 0);
   d.frame = 8;
-  assert_int_equal(oc_render_state(&st, &d, &b, NULL), 0);
+  assert_int_equal(oc_render_state(&vw.st, &d, &b, NULL), 0);
   assert_memory_not_equal(a.px, b.px, sizeof(float) * 4 * W * H);
   oc_image_free(&a);
   oc_image_free(&b);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+  view_close(&vw);
 }
 
 /* Debug views: a pixel that differs from the normal image shows a LOD colour of a level present in
@@ -431,24 +421,18 @@ static void test_gl_render__jitter(void **state) {
  * and τ views, a few (the edges) in the bounds view. */
 static void test_gl_render__debug_views(void **state) {
   (void)state;
-  require_gl();
-  oc_scene_t sc;
-  oc_state_t st;
-  oc_camera_t cam;
-  make_scene(&sc, &st, &cam, NULL, NULL);
-  oc_render_desc_t d = base_desc(&sc, cam);
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = 0.02f;
+  view_t vw;
+  oc_render_desc_t d = constant_view(&vw);
   char why[512];
   ocv_gl_state_t gs;
-  assert_int_equal(ocv_gl_state_upload(&gs, &st, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_state_upload(&gs, &vw.st, why, sizeof why), 0);
   oc_image_t normal = {0}, v = {0};
   assert_int_equal(oc_image_alloc(&normal, W, H), 0);
   assert_int_equal(oc_image_alloc(&v, W, H), 0);
   assert_int_equal(ocv_gl_render_state(fx.r, &gs, &d, &normal, why, sizeof why), 0);
   int levels[22] = {0};
-  for (uint32_t i = 0; i < st.node_count; i++)
-    if (st.nodes[i].range[0].hi > 0) levels[oc_key_level(st.nodes[i].key)] = 1;
+  for (uint32_t i = 0; i < vw.st.node_count; i++)
+    if (vw.st.nodes[i].range[0].hi > 0) levels[oc_key_level(vw.st.nodes[i].key)] = 1;
   for (int view = OC_DEBUG_LOD; view <= OC_DEBUG_BOUNDS; view++) {
     d.debug_view = view;
     assert_int_equal(ocv_gl_render_state(fx.r, &gs, &d, &v, why, sizeof why), 0);
@@ -483,8 +467,7 @@ static void test_gl_render__debug_views(void **state) {
   oc_image_free(&normal);
   oc_image_free(&v);
   ocv_gl_state_free(&gs);
-  oc_state_free(&st);
-  oc_scene_free(&sc);
+  view_close(&vw);
 }
 
 /* A kernel error names the kernel file and line; a missing shader folder says where it looked. */
