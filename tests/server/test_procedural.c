@@ -63,6 +63,18 @@ static ocs_source_t *mk_bound_preset(int pi, uint64_t seed) {
   return mk(presets[pi], pi == 0 ? 2.0 : 1.0, 1.0, seed);
 }
 
+/* Runs check(s, pi, rng, ctx) on each of the four (s = mk_bound_preset(pi, seed)), drawing from
+ * one random stream that starts at rng_seed. */
+static void each_bound_preset(uint64_t seed, uint64_t rng_seed, void (*check)(ocs_source_t *, int, uint64_t *, void *),
+                              void *ctx) {
+  uint64_t rng = rng_seed;
+  for (int pi = 0; pi < 4; pi++) {
+    ocs_source_t *s = mk_bound_preset(pi, seed);
+    check(s, pi, &rng, ctx);
+    s->vt->destroy(s);
+  }
+}
+
 /* What bricks hold: the fast estimate of the box filter (procedural_columns.c). */
 static void sample(const ocs_source_t *s, oc_key_t k, double t, float out[512]) {
   memset(out, 0, 512 * sizeof(float));
@@ -492,49 +504,53 @@ static void test_procedural__filter_mean_fine(void **st) {
 /* Random nodes near the cloud shell at levels 5..17, several presets and times (one inside a
  * weather change): every sample within [min, max], and point() at random points of the
  * footprint never above max (so an "empty" bound is checked without trusting sample()). */
+typedef struct {
+  int checked, empty;
+} bound_counts_t;
+
+static void bound_check_preset(ocs_source_t *s, int pi, uint64_t *rng, void *ctx) {
+  bound_counts_t *c = ctx;
+  if (pi == 1) {
+    /* Static, in the middle of a change: at a transition step's start the brick's (quantised)
+     * weather and point()'s (continuous) one are the same, so point() checks the bound there. */
+    assert_int_equal(s->vt->set_weather(s, OC_PRESET_CIRRUS, 3000.0, 1200.0), 0);
+    s->animated = 0;
+  }
+  for (int n = 0; n < SIZE(60, 12); n++) {
+    int level = 5 + (int)(rng_split(rng) % 13);
+    double t = pi == 1 ? 3000.0 + 37.5 * (double)(rng_split(rng) % 33) : (n % 3 ? 3600.0 * rng_split_unit(rng) : 0.0);
+    int exact = pi == 1 || t == 0.0; /* point() sees what the brick holds */
+    oc_dvec3 p = n % 2 ? cloudy_point(s, t, 0.0, 15000.0, rng)
+                       : at_alt(rand_dir(rng), -1000.0 + 18000.0 * rng_split_unit(rng));
+    oc_key_t k = oc_key_from_point(level, p);
+    float mn, mx, b[512];
+    bound_key(s, k, t, &mn, &mx);
+    assert_true(mn >= 0.0f && mn <= mx);
+    sample(s, k, t, b);
+    for (int v = 0; v < 512; v++)
+      if (b[v] < mn || b[v] > mx)
+        fail_msg("level %d t %g: sample %d = %g outside [%g, %g]", level, t, v, b[v], mn, mx);
+    if (exact) {
+      oc_dvec3 lo, hi;
+      footprint(k, &lo, &hi);
+      for (int i = 0; i < SIZE(200, 50); i++) {
+        oc_dvec3 q = oc_dv3(lo.x + (hi.x - lo.x) * rng_split_unit(rng), lo.y + (hi.y - lo.y) * rng_split_unit(rng),
+                            lo.z + (hi.z - lo.z) * rng_split_unit(rng));
+        double v = s->vt->point(s, q, t);
+        if (v > mx) fail_msg("level %d t %g: point %g above bound %g", level, t, v, mx);
+      }
+    }
+    c->checked++;
+    c->empty += mx == 0.0f;
+  }
+}
+
 static void test_procedural__bound_is_conservative(void **st) {
   (void)st;
-  uint64_t rng = 77;
-  int checked = 0, empty = 0;
-  for (int pi = 0; pi < 4; pi++) {
-    ocs_source_t *s = mk_bound_preset(pi, 3);
-    if (pi == 1) {
-      /* Static, in the middle of a change: at a transition step's start the brick's (quantised)
-       * weather and point()'s (continuous) one are the same, so point() checks the bound there. */
-      assert_int_equal(s->vt->set_weather(s, OC_PRESET_CIRRUS, 3000.0, 1200.0), 0);
-      s->animated = 0;
-    }
-    for (int n = 0; n < SIZE(60, 12); n++) {
-      int level = 5 + (int)(rng_split(&rng) % 13);
-      double t = pi == 1 ? 3000.0 + 37.5 * (double)(rng_split(&rng) % 33) : (n % 3 ? 3600.0 * rng_split_unit(&rng) : 0.0);
-      int exact = pi == 1 || t == 0.0; /* point() sees what the brick holds */
-      oc_dvec3 p = n % 2 ? cloudy_point(s, t, 0.0, 15000.0, &rng)
-                         : at_alt(rand_dir(&rng), -1000.0 + 18000.0 * rng_split_unit(&rng));
-      oc_key_t k = oc_key_from_point(level, p);
-      float mn, mx, b[512];
-      bound_key(s, k, t, &mn, &mx);
-      assert_true(mn >= 0.0f && mn <= mx);
-      sample(s, k, t, b);
-      for (int v = 0; v < 512; v++)
-        if (b[v] < mn || b[v] > mx)
-          fail_msg("level %d t %g: sample %d = %g outside [%g, %g]", level, t, v, b[v], mn, mx);
-      if (exact) {
-        oc_dvec3 lo, hi;
-        footprint(k, &lo, &hi);
-        for (int i = 0; i < SIZE(200, 50); i++) {
-          oc_dvec3 q = oc_dv3(lo.x + (hi.x - lo.x) * rng_split_unit(&rng), lo.y + (hi.y - lo.y) * rng_split_unit(&rng),
-                              lo.z + (hi.z - lo.z) * rng_split_unit(&rng));
-          double v = s->vt->point(s, q, t);
-          if (v > mx) fail_msg("level %d t %g: point %g above bound %g", level, t, v, mx);
-        }
-      }
-      checked++;
-      empty += mx == 0.0f;
-    }
-    s->vt->destroy(s);
-  }
-  printf("  %d nodes checked, %d bounded as empty\n", checked, empty);
-  assert_true(empty > 0 && empty < checked);
+  bound_counts_t c = {0};
+  each_bound_preset(3, 77, bound_check_preset, &c);
+  printf("  %d nodes checked, %d bounded as empty\n", c.checked, c.empty);
+  assert_true(c.empty > 0 && c.empty < c.checked);
 }
 
 /* The per-voxel bounds (ocs__voxel_bounds: each voxel's cube, the layers that may be non-zero
@@ -543,47 +559,52 @@ static void test_procedural__bound_is_conservative(void **st) {
  * each voxel called empty checked at a 4³ grid over its closed cube (corners and faces included),
  * against point() and against the brick's own sample. Fails with the voxels' Lipschitz margin
  * lowered to 0.8× (their chord × 0.8). */
+typedef struct {
+  long masked, near_cloud;
+} voxel_counts_t;
+
+static void voxel_bounds_check_preset(ocs_source_t *s, int pi, uint64_t *rng, void *ctx) {
+  voxel_counts_t *counts = ctx;
+  (void)pi;
+  for (int n = 0; n < SIZE(40, 8); n++) {
+    int level = 5 + (int)(rng_split(rng) % 13);
+    oc_key_t k = oc_key_from_point(level, cloudy_point(s, 0.0, 0.0, 15000.0, rng));
+    ocs__brick_t B;
+    if (ocs__brick_begin(s, k, 0.0, &B) <= 0) continue;
+    uint8_t vmask[512], vwone[512];
+    ocs__voxel_bounds(&B, k, vmask, vwone, NULL);
+    float b[512];
+    sample(s, k, 0.0, b);
+    double u = oc_key_size(level) / 7.0;
+    for (int v = 0; v < 512; v++) {
+      if (vmask[v]) continue;
+      counts->masked++;
+      if (b[v] != 0.0f) fail_msg("level %d: voxel %d bounded empty, estimate %g", level, v, b[v]);
+      oc_dvec3 c = ocs_brick_sample_pos(k, v % 8, v / 8 % 8, v / 64);
+      int seen = 0;
+      for (int q = 0; q < 64; q++) {
+        oc_dvec3 p = oc_dv3(c.x + u * ((q & 3) / 3.0 - 0.5), c.y + u * ((q >> 2 & 3) / 3.0 - 0.5),
+                            c.z + u * ((q >> 4) / 3.0 - 0.5));
+        double x = s->vt->point(s, p, 0.0);
+        if (x > 0.0) fail_msg("level %d: voxel %d bounded empty, point() %g at corner grid %d", level, v, x, q);
+      }
+      for (int a = 0; a < 3 && !seen; a++) /* a neighbour with cloud: the bound was close to an edge */
+        for (int sgn = -1; sgn <= 1; sgn += 2) {
+          int ijk[3] = {v % 8, v / 8 % 8, v / 64};
+          ijk[a] += sgn;
+          if (ijk[a] >= 0 && ijk[a] < 8 && b[ijk[0] + 8 * ijk[1] + 64 * ijk[2]] > 0.0f) seen = 1;
+        }
+      counts->near_cloud += seen;
+    }
+  }
+}
+
 static void test_procedural__voxel_bounds_are_conservative(void **st) {
   (void)st;
-  uint64_t rng = 91;
-  long masked = 0, near_cloud = 0;
-  for (int pi = 0; pi < 4; pi++) {
-    ocs_source_t *s = mk_bound_preset(pi, 5);
-    for (int n = 0; n < SIZE(40, 8); n++) {
-      int level = 5 + (int)(rng_split(&rng) % 13);
-      oc_key_t k = oc_key_from_point(level, cloudy_point(s, 0.0, 0.0, 15000.0, &rng));
-      ocs__brick_t B;
-      if (ocs__brick_begin(s, k, 0.0, &B) <= 0) continue;
-      uint8_t vmask[512], vwone[512];
-      ocs__voxel_bounds(&B, k, vmask, vwone, NULL);
-      float b[512];
-      sample(s, k, 0.0, b);
-      double u = oc_key_size(level) / 7.0;
-      for (int v = 0; v < 512; v++) {
-        if (vmask[v]) continue;
-        masked++;
-        if (b[v] != 0.0f) fail_msg("level %d: voxel %d bounded empty, estimate %g", level, v, b[v]);
-        oc_dvec3 c = ocs_brick_sample_pos(k, v % 8, v / 8 % 8, v / 64);
-        int seen = 0;
-        for (int q = 0; q < 64; q++) {
-          oc_dvec3 p = oc_dv3(c.x + u * ((q & 3) / 3.0 - 0.5), c.y + u * ((q >> 2 & 3) / 3.0 - 0.5),
-                              c.z + u * ((q >> 4) / 3.0 - 0.5));
-          double x = s->vt->point(s, p, 0.0);
-          if (x > 0.0) fail_msg("level %d: voxel %d bounded empty, point() %g at corner grid %d", level, v, x, q);
-        }
-        for (int a = 0; a < 3 && !seen; a++) /* a neighbour with cloud: the bound was close to an edge */
-          for (int sgn = -1; sgn <= 1; sgn += 2) {
-            int ijk[3] = {v % 8, v / 8 % 8, v / 64};
-            ijk[a] += sgn;
-            if (ijk[a] >= 0 && ijk[a] < 8 && b[ijk[0] + 8 * ijk[1] + 64 * ijk[2]] > 0.0f) seen = 1;
-          }
-        near_cloud += seen;
-      }
-    }
-    s->vt->destroy(s);
-  }
-  printf("  %ld voxels bounded empty checked, %ld of them next to a voxel with cloud\n", masked, near_cloud);
-  assert_true(masked > 0 && near_cloud > 0);
+  voxel_counts_t c = {0};
+  each_bound_preset(5, 91, voxel_bounds_check_preset, &c);
+  printf("  %ld voxels bounded empty checked, %ld of them next to a voxel with cloud\n", c.masked, c.near_cloud);
+  assert_true(c.masked > 0 && c.near_cloud > 0);
 }
 
 /*-*** Layers ***/
