@@ -712,23 +712,30 @@ static void test_epoch__lean(void **state) {
 
 /*-*** Hostile input ***/
 
+/* A new decoder's result for fs on base (the reason in why); a failed decode leaves the state empty. */
+static int decode_once(const frames_t *fs, const oc_state_t *base, char *why, size_t why_len) {
+  ocp_epoch_dec_t *d = NULL;
+  assert_int_equal(ocp_epoch_dec_create(&d), 0);
+  held_t h = {{base, NULL}, 0, NULL, 0};
+  oc_state_t t;
+  oc_state_init(&t);
+  int r = decode_frames(d, fs, base, &h, &t, why, why_len);
+  if (r) assert_int_equal(t.node_count, 0);
+  oc_state_free(&t);
+  ocp_epoch_dec_free(d);
+  return r;
+}
+
 /* Decodes fs with frame `at` replaced by (p, n); expects `err` with `needle` in the reason. */
 static void expect_bad(const frames_t *fs, int at, const uint8_t *p, uint32_t n, const oc_state_t *base, int err, const char *needle) {
   frames_t g = {malloc(sizeof *g.f * (size_t)fs->n), fs->n};
   assert_non_null(g.f);
   memcpy(g.f, fs->f, sizeof *g.f * (size_t)fs->n);
   if (at >= 0) g.f[at].p = p, g.f[at].n = n;
-  ocp_epoch_dec_t *d = NULL;
-  assert_int_equal(ocp_epoch_dec_create(&d), 0);
-  held_t h = {{base, NULL}, 0, NULL, 0};
-  oc_state_t t;
-  oc_state_init(&t);
   char why[512] = "";
-  int r = decode_frames(d, &g, base, &h, &t, why, sizeof why);
+  int r = decode_once(&g, base, why, sizeof why);
   if (r != err) fail_msg("expected %s (%s), got %d: %s", oc_err_name(err), needle, r, why);
   if (needle && !strstr(why, needle)) fail_msg("reason '%s' lacks '%s'", why, needle);
-  assert_int_equal(t.node_count, 0);
-  ocp_epoch_dec_free(d);
   free(g.f);
 }
 
@@ -776,15 +783,9 @@ static void test_epoch__bad_zstd(void **state) {
     frames_t g = {malloc(sizeof *g.f * (size_t)fs.n), fs.n};
     memcpy(g.f, fs.f, sizeof *g.f * (size_t)fs.n);
     g.f[bri].p = copy;
-    ocp_epoch_dec_t *d = NULL;
-    assert_int_equal(ocp_epoch_dec_create(&d), 0);
-    held_t h = {{NULL, NULL}, 0, NULL, 0};
-    oc_state_t t;
-    oc_state_init(&t);
     char why[512];
-    int r = decode_frames(d, &g, NULL, &h, &t, why, sizeof why);
+    int r = decode_once(&g, NULL, why, sizeof why);
     assert_true(r == OC_ECORRUPT || r == OC_ECHECKSUM);
-    ocp_epoch_dec_free(d);
     free(g.f);
   }
   /* an unknown dictionary */
@@ -940,15 +941,11 @@ static void test_epoch__dictionary(void **state) {
   assert_int_equal(fs.f[0].type, OCP_MSG_DICT);
   int bri = find_type(&fs, OCP_MSG_BRICKS, 0);
   assert_int_equal(oc_get_u32(fs.f[bri].p), 77);
-  ocp_epoch_dec_t *d = NULL;
-  assert_int_equal(ocp_epoch_dec_create(&d), 0);
-  held_t h = {{NULL, NULL}, 0, NULL, 0};
   oc_state_t t;
-  oc_state_init(&t);
-  char why[512];
-  int r = decode_frames(d, &fs, NULL, &h, &t, why, sizeof why);
-  if (r) fail_msg("decode failed (%d): %s", r, why);
+  ocp_epoch_dec_t *d = decode_ok(&fs, NULL, &t);
   states_equal(&s, &t);
+  held_t h = {{NULL, NULL}, 0, NULL, 0};
+  char why[512];
   /* without the DICT frame the BRICKS cannot be read */
   frames_t g = {fs.f + 1, fs.n - 1};
   ocp_epoch_dec_t *d2 = NULL;
@@ -960,7 +957,7 @@ static void test_epoch__dictionary(void **state) {
   oc_put_u32(raw, 77);
   for (int i = 0; i < 300; i++) raw[4 + i] = (uint8_t)(i * 7);
   assert_int_equal(ocp_epoch_dec_dict(d2, raw, sizeof raw, why, sizeof why), 0);
-  r = decode_frames(d2, &g, NULL, &h, &t, why, sizeof why);
+  int r = decode_frames(d2, &g, NULL, &h, &t, why, sizeof why);
   assert_true(r == OC_ECORRUPT || r == OC_ECHECKSUM);
   /* bad DICT payloads */
   assert_int_equal(ocp_epoch_dec_dict(d2, raw, 4, why, sizeof why), OC_ECORRUPT);
@@ -1061,14 +1058,8 @@ static void test_epoch__chunks(void **state) {
   assert_true(st.records_added > 10 && st.records_added < 100);
   frames_t g;
   split_frames(&b2, &g);
-  ocp_epoch_dec_t *d = NULL;
-  assert_int_equal(ocp_epoch_dec_create(&d), 0);
-  held_t h = {{&s, NULL}, 0, NULL, 0};
   oc_state_t u;
-  oc_state_init(&u);
-  char why[512];
-  int r = decode_frames(d, &g, &s, &h, &u, why, sizeof why);
-  if (r) fail_msg("decode failed (%d): %s", r, why);
+  ocp_epoch_dec_t *d = decode_ok(&g, &s, &u);
   states_equal(&t, &u);
   ocp_epoch_dec_free(d);
   oc_state_free(&u);
