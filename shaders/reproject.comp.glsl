@@ -31,6 +31,10 @@ layout(location = 11) uniform vec3 u_peye; /* previous eye − current eye, m */
 layout(location = 12) uniform float u_alpha; /* < 1: the traced pixel blends into its history (jitter
                                                 averages out, Ford's temporal accumulation) */
 layout(location = 13) uniform int u_moved;   /* the camera moved since the history was made */
+layout(location = 14) uniform int u_refresh; /* the state changed since the history was made: history is
+                                                clamped to what is traced around it now... */
+layout(location = 15) uniform uint u_fresh;  /* ...unless its block position (bit x | y<<2) was traced
+                                                since the change */
 
 /* The history pixel this pixel's ray came from last frame, or -1 (off screen, behind, or its depth
  * disagrees with the reprojected point's). */
@@ -123,7 +127,15 @@ void main() {
     int ji = ocv_history_of(px, i);
     if (ji >= 0 && u_moved != 0 && (ocv_behind_fresh(px, hist_depth[ji]) || ocv_covered(px, hist_depth[ji]))) ji = -1;
     if (ji >= 0) {
-      out_color[i] = hist[ji];
+      vec4 c = hist[ji];
+      uint pos = uint((ji % u_size.x) & 3) | (uint((ji / u_size.x) & 3) << 2);
+      if (u_refresh != 0 && ((u_fresh >> pos) & 1u) == 0u) {
+        /* a new state: what changed shows at once, detail the history holds stays */
+        vec4 lo, hi;
+        ocv_neighbourhood(px, lo, hi);
+        c = clamp(c, lo, hi);
+      }
+      out_color[i] = c;
       out_depth[i] = hist_depth[i];
       out_count[i] = hist_count[ji];
       atomicAdd(stats[0], 1u);

@@ -324,6 +324,8 @@ struct ocv_gl_history_s {
   int newest;                                       /* index of the newest history; -1: none */
   oc_camera_t cam;                                  /* the camera of the newest history */
   uint32_t frame;
+  int refresh;                                      /* a new state: history not traced since is clamped */
+  uint32_t fresh;                                   /* block positions traced since (bit x | y<<2) */
 };
 
 ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len) {
@@ -365,6 +367,12 @@ void ocv_gl_history_reset(ocv_gl_history_t *hs) {
   if (hs) hs->newest = -1;
 }
 
+void ocv_gl_history_refresh(ocv_gl_history_t *hs) {
+  if (!hs) return;
+  hs->refresh = 1; /* until every position of the 4×4 blocks was traced again */
+  hs->fresh = 0;
+}
+
 int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,
                         int reproject, oc_image_t *img, ocv_gl_frame_stats_t *fs, char *why, size_t why_len) {
   if (!r || !hs || !gs || !desc || (img && !img->px)) return ocv__bad(why, why_len, "argument (NULL)");
@@ -403,6 +411,10 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
       int moved = hs->newest >= 0 && (memcmp(&c->pos, &pc->pos, sizeof c->pos) || memcmp(&c->forward, &pc->forward, sizeof c->forward) ||
                                       memcmp(&c->up, &pc->up, sizeof c->up) || c->vfov_deg != pc->vfov_deg);
       glProgramUniform1i(p, 13, moved);
+      glProgramUniform1i(p, 14, hs->newest >= 0 && hs->refresh);
+      glProgramUniform1ui(p, 15, hs->fresh);
+      hs->fresh |= 1u << phase;
+      if (hs->fresh == 0xFFFFu) hs->refresh = 0;
       uint32_t zero[2] = {0, 0};
       glNamedBufferSubData(hs->stats, 0, sizeof zero, zero);
       glUseProgram(p);
@@ -434,6 +446,7 @@ int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl
   hs->newest = next;
   hs->cam = desc->camera;
   hs->frame++;
+  if (!reproject) hs->refresh = 0; /* every pixel traced */
   if (fs) *fs = st;
   return 0;
 }

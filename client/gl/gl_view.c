@@ -158,7 +158,10 @@ static int ocv__switch(ocv_gl_view_t *v, double now, char *why, size_t why_len) 
   v->have_shown = 1;
   v->have_staged = 0;
   v->shown_at = now;
-  if (v->hist) ocv_gl_history_reset(v->hist); /* the history shows the state before */
+  /* the history shows the state before: blended in from it, the picture goes on from the history
+   * (clamped to what is traced now), else it starts again */
+  if (v->hist && v->have_prev) ocv_gl_history_refresh(v->hist);
+  else if (v->hist) ocv_gl_history_reset(v->hist);
   return 0;
 }
 

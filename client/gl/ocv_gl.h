@@ -239,6 +239,12 @@ ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len)
 void ocv_gl_history_free(ocv_gl_history_t *hs);
 /*! ocv_gl_history_reset() : forget the history (a new state, a teleport). */
 void ocv_gl_history_reset(ocv_gl_history_t *hs);
+/*! ocv_gl_history_refresh() : a new state whose first frames continue the picture (blended from the
+ *  state before): the history is kept, but a pixel taken from it whose block position was not traced
+ *  since is clamped to the range of the pixels traced around it in that frame (the 3×3 blocks), so
+ *  what the new state changes shows in the first frame instead of 4×4 blocks filled from one traced
+ *  pixel; after 16 frames every position was traced again and nothing is clamped. */
+void ocv_gl_history_refresh(ocv_gl_history_t *hs);
 /*! ocv_gl_render_frame() : one frame of desc's view into img (the history's size); reproject 0
  *  traces every pixel (and keeps it as history). @return 0 or a negative OC_E* with why. */
 int ocv_gl_render_frame(ocv_gl_renderer_t *r, ocv_gl_history_t *hs, const ocv_gl_state_t *gs, const oc_render_desc_t *desc,

@@ -9,6 +9,8 @@
  *     full-size picture; at the picture's own size the pass is the plain tone mapping;
  *   - uploads with a target go on while time is left (a state arriving is shown in that frame) and
  *     stop after one step when none is;
+ *   - a new state blended in under reprojection continues the picture in its first frame (no 4×4
+ *     blocks), and 16 frames later is exactly the new state's picture;
  *   - the HUD names the traced size. */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
@@ -28,7 +30,7 @@
 #include "oc_render.h"
 #include "ocv_gl.h"
 
-#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, const_bg_desc, max_step */
+#include "gl/gl_fixture.h" /* ctx, ren, setup, teardown, require_gl, sphere_state, const_bg_desc, max_step, rmse */
 
 #define W 256
 #define H 144 /* the coarsest scale keeping ≥ 32 rows: 1/4 (36 rows) */
@@ -240,6 +242,72 @@ static void test_gl_window_scale__uploads(void **state) {
   oc_state_free(&s);
 }
 
+/* Reprojected frames of the view at times t0, t0 + dt, ... until epoch `epoch` is shown, then `more`
+ * frames; the last into img. */
+static void reprojected(ocv_gl_view_t *v, const oc_render_desc_t *d, double t0, double dt, uint64_t epoch, int more,
+                        oc_image_t *img) {
+  char why[512];
+  ocv_gl_view_stats_t st;
+  int n = 0;
+  do assert_int_equal(ocv_gl_view_frame(v, d, t0 + dt * n++, 1, img, &st, why, sizeof why), 0);
+  while (st.epoch != epoch);
+  for (int f = 0; f < more; f++) assert_int_equal(ocv_gl_view_frame(v, d, t0 + dt * n++, 1, img, &st, why, sizeof why), 0);
+}
+
+/* A new state blended in under reprojection: its first frame continues the picture (the history,
+ * clamped to what is traced now), where it was 4×4 blocks filled from one traced pixel each. */
+static void test_gl_window_scale__new_state_continues(void **state) {
+  (void)state;
+  require_gl();
+  char why[512];
+  oc_camera_pose_t near = {{0.0, -0.045, 3000.0}, 90.0, 0.0, 40.0};
+  oc_state_t s1, s2;
+  sphere_state(&s1, oc_camera_from_pose(pose), H, 0);
+  sphere_state(&s2, oc_camera_from_pose(near), H, 1000000);
+  s1.epoch = 1;
+  s2.epoch = 2;
+  oc_render_desc_t d = const_bg_desc(oc_camera_from_pose(pose), W, H);
+  oc_image_t r1 = {0}, r2 = {0}, img = {0};
+  assert_int_equal(oc_image_alloc(&r1, W, H), 0);
+  assert_int_equal(oc_image_alloc(&r2, W, H), 0);
+  assert_int_equal(oc_image_alloc(&img, W, H), 0);
+  ocv_gl_state_t g1, g2;
+  assert_int_equal(ocv_gl_state_upload(&g1, &s1, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_state_upload(&g2, &s2, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_state(ren, &g1, &d, &r1, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_render_state(ren, &g2, &d, &r2, why, sizeof why), 0);
+  ocv_gl_state_free(&g1);
+  ocv_gl_state_free(&g2);
+
+  uint32_t nslots = s1.brick_count + s2.brick_count + 8;
+  oc_budget_t g = {.budget = (uint64_t)nslots * (OC_SLOT_BYTES + OC_RECORD_BYTES), .slot_bytes = OC_SLOT_BYTES,
+                   .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
+  ocv_gl_view_desc_t vd = {.grant = g, .animated = 1, .epoch_period = 1.0};
+  ocv_gl_view_t *v = ocv_gl_view_create(ren, &vd, why, sizeof why);
+  if (!v) fail_msg("%s", why);
+  assert_int_equal(ocv_gl_view_push(v, &s1, why, sizeof why), 0);
+  reprojected(v, &d, 0.0, 0.1, 1, 16, &img); /* a still camera: 16 frames trace every pixel */
+  assert_memory_equal(img.px, r1.px, sizeof(float) * 4 * W * H);
+  /* epoch 2 at t = 10 s: its first frame (blend t = 0) */
+  assert_int_equal(ocv_gl_view_push(v, &s2, why, sizeof why), 0);
+  reprojected(v, &d, 10.0, 0.0, 2, 0, &img);
+  double first = rmse(&img, &r1), p12 = rmse(&r1, &r2);
+  /* past the blend, 16 frames: every position traced again, nothing clamped any more */
+  reprojected(v, &d, 11.5, 0.1, 2, 16, &img);
+  double last = rmse(&img, &r2);
+  printf("new state under reprojection: first frame vs the picture before RMSE %.2f (the states differ by %.2f); "
+         "16 frames later vs the new state %.3f\n", first, p12, last);
+  assert_true(first < p12 / 3);
+  assert_memory_equal(img.px, r2.px, sizeof(float) * 4 * W * H);
+
+  ocv_gl_view_free(v);
+  oc_image_free(&r1);
+  oc_image_free(&r2);
+  oc_image_free(&img);
+  oc_state_free(&s1);
+  oc_state_free(&s2);
+}
+
 static void test_gl_window_scale__hud(void **state) {
   (void)state;
   ocv_hud_stats_t hs = {.frame_ms = 95.0, .trace_ms = -1, .reproject_ms = -1, .renderer = "gl",
@@ -259,4 +327,4 @@ static void test_gl_window_scale__hud(void **state) {
 
 OC_TEST_MAIN(setup, teardown, cmocka_unit_test(test_gl_window_scale__controller),
              cmocka_unit_test(test_gl_window_scale__upsampled_picture), cmocka_unit_test(test_gl_window_scale__uploads),
-             cmocka_unit_test(test_gl_window_scale__hud))
+             cmocka_unit_test(test_gl_window_scale__new_state_continues), cmocka_unit_test(test_gl_window_scale__hud))
