@@ -233,81 +233,70 @@ static void ocp__budget_settle(ocp_viewer_t *v) {
   if (v->ev.budget) v->ev.budget(v->ev.ctx, &v->welcome.grant);
 }
 
-static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
+static int ocp__on_welcome(ocp_viewer_t *v, const ocp_header_t *h, const ocp_welcome_t *w, oc_buf_t *out, char *why,
                            size_t why_len) {
-  ocp_msg_t msg;
-  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
-  const ocp_welcome_t w = msg.welcome;
-  if (w.version < OCP_VERSION_MIN || w.version > v->desc.max_version)
+  if (w->version < OCP_VERSION_MIN || w->version > v->desc.max_version)
     return ocp__abort(v, out, OC_EVERSION, OCP_CODE_VERSION, why, why_len, "welcome: version %u is outside %d..%u",
-                      (unsigned)w.version, OCP_VERSION_MIN, (unsigned)v->desc.max_version);
-  if (h->version != w.version)
+                      (unsigned)w->version, OCP_VERSION_MIN, (unsigned)v->desc.max_version);
+  if (h->version != w->version)
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
                       "welcome: frame version %u differs from the chosen version %u", (unsigned)h->version,
-                      (unsigned)w.version);
-  if ((v->desc.role == OCP_ROLE_VIEWER) != (w.kept_states != 0))
+                      (unsigned)w->version);
+  if ((v->desc.role == OCP_ROLE_VIEWER) != (w->kept_states != 0))
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len, "welcome: kept_states %u for a %s",
-                      (unsigned)w.kept_states, v->desc.role == OCP_ROLE_VIEWER ? "viewer" : "control client");
-  int resumed = (w.flags & OCP_WELCOME_RESUMED) != 0;
-  if (resumed && (v->asked_session == 0 || w.session != v->asked_session))
+                      (unsigned)w->kept_states, v->desc.role == OCP_ROLE_VIEWER ? "viewer" : "control client");
+  int resumed = (w->flags & OCP_WELCOME_RESUMED) != 0;
+  if (resumed && (v->asked_session == 0 || w->session != v->asked_session))
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
-                      "welcome: resumed session %" PRIu32 ", but hello asked to resume %" PRIu32, w.session,
+                      "welcome: resumed session %" PRIu32 ", but hello asked to resume %" PRIu32, w->session,
                       v->asked_session);
-  v->welcome = w;
+  v->welcome = *w;
   v->have_welcome = 1;
   v->ready = 1;
-  v->version = (uint8_t)w.version;
+  v->version = (uint8_t)w->version;
   /* a new session: nothing held is valid any more (its bricks' ids mean other content) */
   ocp__drop_held(v, resumed ? ocp__keep(v) : 0);
   /* WELCOME names the budget in force; a BUDGET still pending is sent again after it */
   v->have_pend = 0;
-  for (int i = 0; i < v->nheld; i++) v->hbudget[i] = w.budget;
+  for (int i = 0; i < v->nheld; i++) v->hbudget[i] = w->budget;
   if (resumed) v->st.resumed++;
   if (v->ev.welcome) v->ev.welcome(v->ev.ctx, &v->welcome, resumed);
   if (v->have_camera && v->desc.role == OCP_ROLE_VIEWER) ocp_put_camera(out, v->version, &v->camera);
   return 0;
 }
 
-static int ocp__on_epoch_begin(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
-                               size_t why_len) {
-  ocp_msg_t msg;
-  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
-  const ocp_epoch_begin_t m = msg.begin;
+static int ocp__on_epoch_begin(ocp_viewer_t *v, const ocp_epoch_begin_t *m, oc_buf_t *out, char *why, size_t why_len) {
   const oc_state_t *base = NULL;
-  if (m.base_epoch != OCP_NO_BASE) {
+  if (m->base_epoch != OCP_NO_BASE) {
     for (int i = 0; i < v->nheld && !base; i++)
-      if (v->held[i]->epoch == m.base_epoch) base = v->held[i];
+      if (v->held[i]->epoch == m->base_epoch) base = v->held[i];
     if (!base)
       return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
-                        "epoch-begin: base_epoch %" PRIu64 " is not a state this viewer holds", m.base_epoch);
+                        "epoch-begin: base_epoch %" PRIu64 " is not a state this viewer holds", m->base_epoch);
   }
   char reason[OCP_TEXT_MAX + 1];
   reason[0] = '\0';
-  int e = v->desc.lean ? ocp_epoch_dec_begin_lean(v->dec, &m, base, ocp__dlookup, v, reason, sizeof reason)
-                       : ocp_epoch_dec_begin(v->dec, &m, base, ocp__lookup, v, reason, sizeof reason);
+  int e = v->desc.lean ? ocp_epoch_dec_begin_lean(v->dec, m, base, ocp__dlookup, v, reason, sizeof reason)
+                       : ocp_epoch_dec_begin(v->dec, m, base, ocp__lookup, v, reason, sizeof reason);
   if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
-  v->begin = m;
+  v->begin = *m;
   v->phase = OCP__EP_BEGUN;
   return 0;
 }
 
-static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, oc_buf_t *out, char *why,
-                             size_t why_len) {
-  ocp_msg_t msg;
-  OC_TRY(ocp__decode(v, h, p, &msg, out, why, why_len));
-  const ocp_epoch_end_t m = msg.end;
+static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_epoch_end_t *m, oc_buf_t *out, char *why, size_t why_len) {
   v->phase = OCP__EP_NONE;
-  if (m.epoch != v->begin.epoch)
+  if (m->epoch != v->begin.epoch)
     return ocp__abort(v, out, OC_ECORRUPT, OCP_CODE_MALFORMED, why, why_len,
-                      "epoch-end: epoch %" PRIu64 " differs from epoch-begin's %" PRIu64, m.epoch, v->begin.epoch);
+                      "epoch-end: epoch %" PRIu64 " differs from epoch-begin's %" PRIu64, m->epoch, v->begin.epoch);
   oc_state_t *s = malloc(sizeof *s);
   if (!s) return ocp__abort(v, out, OC_ENOMEM, OCP_CODE_INTERNAL, why, why_len, "epoch-end: out of memory");
   oc_state_init(s);
   oc_brick_digests_t dig = {0};
   char reason[OCP_TEXT_MAX + 1];
   reason[0] = '\0';
-  int e = v->desc.lean ? ocp_epoch_dec_end_lean(v->dec, &m, s, &dig, reason, sizeof reason)
-                       : ocp_epoch_dec_end(v->dec, &m, s, reason, sizeof reason);
+  int e = v->desc.lean ? ocp_epoch_dec_end_lean(v->dec, m, s, &dig, reason, sizeof reason)
+                       : ocp_epoch_dec_end(v->dec, m, s, reason, sizeof reason);
   if (e) {
     oc_state_free(s);
     free(s);
@@ -325,7 +314,7 @@ static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8
   if (resident > v->st.resident_peak) v->st.resident_peak = resident;
   /* the window's budget: the largest its states were planned under (an old one stays reserved
    * until its states have left) */
-  uint64_t planned = v->have_pend && m.epoch >= v->pend.epoch ? v->pend.budget : v->welcome.budget, allowed = planned;
+  uint64_t planned = v->have_pend && m->epoch >= v->pend.epoch ? v->pend.budget : v->welcome.budget, allowed = planned;
   for (int i = 0; i < v->nheld && i < ocp__keep(v); i++)
     if (v->hbudget[i] > allowed) allowed = v->hbudget[i];
   if (resident > allowed) v->st.over_budget++;
@@ -341,7 +330,7 @@ static int ocp__on_epoch_end(ocp_viewer_t *v, const ocp_header_t *h, const uint8
   ocp__budget_settle(v);
   v->st.states++;
   v->st.bricks_in += v->begin.bricks_sent;
-  ocp_ack_t ack = {m.epoch, m.checksum};
+  ocp_ack_t ack = {m->epoch, m->checksum};
   ocp_put_ack(out, v->version, &ack);
   if (v->ev.state) v->ev.state(v->ev.ctx, s, v->begin.bricks_sent);
   return 0;
@@ -404,7 +393,8 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
     }
     case OCP_MSG_WELCOME:
       if (v->ready) return ocp__unexpected(v, out, h, "twice on one connection", why, why_len);
-      return ocp__on_welcome(v, h, p, out, why, why_len);
+      OC_TRY(ocp__decode(v, h, p, &m, out, why, why_len));
+      return ocp__on_welcome(v, h, &m.welcome, out, why, why_len);
     default:
       break;
   }
@@ -419,7 +409,8 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
     case OCP_MSG_EPOCH_BEGIN:
       if (!viewer) return ocp__unexpected(v, out, h, "for a control client", why, why_len);
       if (v->phase != OCP__EP_NONE) return ocp__unexpected(v, out, h, "inside an epoch", why, why_len);
-      return ocp__on_epoch_begin(v, h, p, out, why, why_len);
+      OC_TRY(ocp__decode(v, h, p, &m, out, why, why_len));
+      return ocp__on_epoch_begin(v, &m.begin, out, why, why_len);
     case OCP_MSG_RECORDS:
     case OCP_MSG_BRICKS:
     case OCP_MSG_EPOCH_END: { /* RECORDS follow the BEGIN or RECORDS; BRICKS and the END, RECORDS or BRICKS */
@@ -428,7 +419,10 @@ static int ocp__frame(ocp_viewer_t *v, const ocp_header_t *h, const uint8_t *p, 
       if (v->phase != after && v->phase != next)
         return ocp__unexpected(v, out, h, v->phase == OCP__EP_NONE ? "outside an epoch" : records ? "after bricks" : "before records",
                                why, why_len);
-      if (h->type == OCP_MSG_EPOCH_END) return ocp__on_epoch_end(v, h, p, out, why, why_len);
+      if (h->type == OCP_MSG_EPOCH_END) {
+        OC_TRY(ocp__decode(v, h, p, &m, out, why, why_len));
+        return ocp__on_epoch_end(v, &m.end, out, why, why_len);
+      }
       e = records ? ocp_epoch_dec_records(v->dec, p, h->length, reason, sizeof reason)
                   : ocp_epoch_dec_bricks(v->dec, p, h->length, reason, sizeof reason);
       if (e) return ocp__abort_err(v, out, e, reason, why, why_len);
