@@ -301,9 +301,7 @@ static void test_gl_window_scale__new_state_continues(void **state) {
   assert_memory_equal(img.px, r2.px, sizeof(float) * 4 * W * H);
 
   ocv_gl_view_free(v);
-  oc_image_free(&r1);
-  oc_image_free(&r2);
-  oc_image_free(&img);
+  for (oc_image_t *im[] = {&r1, &r2, &img}, **i = im; i < im + 3; i++) oc_image_free(*i);
   oc_state_free(&s1);
   oc_state_free(&s2);
 }
