@@ -1,6 +1,6 @@
 /* test_planet_loopback.c — the main job in small: overcast-server on the built-in procedural planet
  * (127.0.0.1, a free port, stepped by command) and a headless overcast-view fetching three epochs
- * over the wire and rendering them with GL at 96×54 from the planet's camera. The picture must be
+ * over the wire and rendering them with GL at 96×54 from the main job's camera. The picture must be
  * a recognisable cloudy sky:
  *   - the CPU reference renderer draws the same received state (--save-state, then --state) within
  *     RMSE 1 on the 0–255 scale (the GL picture is not garbage that happens to look plausible);
@@ -27,7 +27,7 @@
 
 #define W 96
 #define H 54
-#define CAMERA "45,0,2000,260,-5,60" /* the built-in planet's camera, as scripts/run.sh */
+#define CAMERA "45.5,-4,6000,260,-15,60" /* the main job's camera (scripts/run.sh) */
 
 static char bin[2048], tmp[256];
 static uint8_t *gl_rgb, *cpu_rgb;
