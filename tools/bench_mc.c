@@ -58,6 +58,12 @@ double oct_mc_uniform(oct_mc_rng_t *r) {
   return (double)(out >> 11) * 0x1.0p-53;
 }
 
+void oct_mc_mean_se(double s1, double s2, double n, double *mean, double *se) {
+  *mean = s1 / n;
+  double var = n > 1.0 ? (s2 - s1 * s1 / n) / (n - 1.0) : 0.0;
+  *se = sqrt(fmax(var, 0.0) / n);
+}
+
 /* ---- Phase functions ------------------------------------------------------------------------------- */
 
 double oct_mc_phase_eval(const oct_mc_phase_t *ph, double mu) {

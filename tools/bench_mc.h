@@ -32,6 +32,9 @@ typedef struct {
 void oct_mc_rng_seed(oct_mc_rng_t *r, uint64_t seed, uint64_t stream);
 /*! oct_mc_uniform() : a double in [0, 1) with 53 random bits. */
 double oct_mc_uniform(oct_mc_rng_t *r);
+/*! oct_mc_mean_se() : the mean and the standard error of the mean from a sum s1 and a sum of
+ *  squares s2 over n samples. */
+void oct_mc_mean_se(double s1, double s2, double n, double *mean, double *se);
 
 /* ---- Phase functions ----------------------------------------------------------------------------- */
 

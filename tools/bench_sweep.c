@@ -13,6 +13,10 @@
  * mean MSE). On analytic scenes (only spheres, boxes, slabs) each image's cloud transmittance
  * (alpha) is also compared with the closed form e^−τ along every pixel's ray, τ the exact optical
  * depth of the analytic medium up to the ground (server/analytic.h): mean and max |ΔT|.
+ * And against a Monte Carlo truth (bench_sweep_truth.c, --truth-size, --truth-paths): each setting
+ * rendered once more in the truth's light, box-averaged to the truth's size, scored with
+ * oct_truth_score (image-mean relative error, RMSE 0–255, the truth's own seed-to-seed RMSE);
+ * --max-truth-error makes the bench exit 1 past a bound.
  *
  * Cost: render ms (the CPU reference's process CPU time over its threads, which other jobs on a
  * shared machine do not inflate; the GL renderer's GPU timer queries on a GPU, its wall time
@@ -35,6 +39,7 @@
 #include "bench_sweep_int.h"
 #include "ocs.h"
 #include "ocv.h"
+#include "truth.h" /* oct_truth_scale */
 
 #define MAXV 64   /* views */
 #define MAXK 16   /* values per knob */
@@ -48,7 +53,9 @@ typedef struct {
   const char *scene, *views, *path, *csv, *md, *plot, *images;
   const char *cameras[MAXV];
   int ncameras;
-  int size[2], plan_size[2];
+  int size[2], plan_size[2], truth_size[2];
+  int truth_paths;
+  double tau, max_truth_error; /* 0: the scene's σt; no check */
   int gl, threads, repeat, path_n, frames, epochs, srv_threads, ref_exact;
   oct_dlist_t budgets, steps;
   oct_list_t depths, octs, reps, ints; /* octs.n 0: the scene's */
@@ -106,6 +113,7 @@ static int opt_ref_filter(const char *prog, const oc_cli_opt_t *o, const char *t
 #define KNOBS "Knobs (each a list; the grid is their product)"
 #define RUN "The runs"
 #define OUT "Outputs"
+#define TRUTH "Error against a Monte Carlo truth (analytic scenes)"
 
 static const oc_cli_opt_t sweep_opts[] = {
     {.name = "scene", .type = OC_CLI_STRING, .offset = AT(scene), .arg = "FILE",
@@ -169,6 +177,17 @@ static const oc_cli_opt_t sweep_opts[] = {
      .help = "the reference image's bricks from the sources' fast box filter (as every setting's) or their "
              "exact one (a server run of its own at the reference's budget and depth): the RMSE column is then "
              "each setting's error against the exact filter, the fast filter's included"},
+    {.name = "tau", .type = OC_CLI_DOUBLE, .offset = AT(tau), .arg = "T", .lo = 1e-6, .hi = 1e4,
+     .def_note = "the scene's σt", .group = TRUTH,
+     .help = "analytic scenes: every source's σt scaled so that the first has optical depth T across (sphere "
+             "diameter, box or slab height), as `overcast-bench truth --tau` (the truth's cost grows as T²)"},
+    {.name = "truth-size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = AT(truth_size), .arg = "WxH",
+     .def = "32x18", .group = TRUTH, .help = "the Monte Carlo truth's size; --size must be a multiple of it"},
+    {.name = "truth-paths", .type = OC_CLI_INT, .offset = AT(truth_paths), .arg = "N", .lo = 0, .hi = 100000000,
+     .def = "256", .group = TRUTH, .help = "paths per truth pixel; 0: no truth column"},
+    {.name = "max-truth-error", .type = OC_CLI_DOUBLE, .offset = AT(max_truth_error), .arg = "PCT", .lo = 1e-9,
+     .hi = 1e9, .group = TRUTH,
+     .help = "exit 1 unless every setting's image mean is within PCT % of the truth's (a positive, finite truth)"},
     {.name = "csv", .type = OC_CLI_STRING, .offset = AT(csv), .arg = "FILE", .group = OUT,
      .help = "one row per setting and view"},
     {.name = "md", .type = OC_CLI_STRING, .offset = AT(md), .arg = "FILE", .group = OUT,
@@ -197,6 +216,8 @@ static int sweep_check(const char *prog, sweep_opts_t *o) {
 #ifndef OC_HAVE_GL
   if (o->path) return oc_cli_fail(prog, -1, "--path: this build has no client library (camera paths)");
 #endif
+  if (o->max_truth_error > 0.0 && o->truth_paths == 0)
+    return oc_cli_fail(prog, -1, "--max-truth-error needs the truth (--truth-paths > 0)");
   return 0;
 }
 
@@ -223,12 +244,14 @@ typedef struct { /* one server setting at one view */
 
 typedef struct { /* one setting at one view */
   double ms, wall, cpu, mse, dt_mean, dt_max;
+  octs_truth_err_t t; /* against the Monte Carlo truth (analytic scenes, --truth-paths > 0) */
 } cell_t;
 
 typedef struct { /* one setting over the views */
   int s, r;      /* server and render setting */
   int b, d, st, o, rp, ip; /* knob indices */
   double ms, rmse, psnr, cpu_ms, wall_ms, wire, resident, dt_mean, dt_max;
+  double t_rel, t_rmse8, t_noise8; /* against the truth: mean relative error, RMSEs pooled over the views */
   int pareto, reference;
 } agg_t;
 
@@ -284,6 +307,8 @@ typedef struct {
   long depths[MAXK], octs[MAXK], reps[2], ints[2];
   int nb, nd, ns, no, nr, ni;
   int analytic;
+  int truth, tw, th, tpaths; /* the truth column: on, its size and paths per pixel */
+  double tau;                /* --tau, 0: the scene's */
   int ref_exact;
   const agg_t *agg;
   int nagg;
@@ -343,14 +368,26 @@ static void write_report(FILE *f, const report_t *R) {
     fprintf(f, "Closed form (analytic scene): mean and max |ΔT| of each image's cloud transmittance (alpha) against e^−τ, "
                "τ the exact optical depth of the medium along the pixel's ray up to the ground (server/analytic.h); "
                "the max comes from pixels grazing a surface, which the box-filtered voxels soften over a voxel.\n\n");
+  if (R->truth)
+    fprintf(f, "Against the truth (analytic scene%s): a Monte Carlo image per view (`overcast-bench truth`'s kernel, every "
+               "scattering order, %d paths per pixel at %dx%d, through a state voxelized from the analytic sources, not the "
+               "swept ones) in the truth's light — a delta sun of irradiance 1, constant background 0, no atmosphere, no "
+               "planet — in which each setting is rendered once more for this column (its own image has the sky and "
+               "ground); that image box-averaged to %dx%d. Mean error: the image mean's relative error (mean over the "
+               "views); RMSE 0–255 at exposure 10; truth noise: the RMSE two truth seeds would show. The model's known "
+               "errors against the truth are in docs/numerics.md.\n\n",
+            R->tau > 0.0 ? ", σt scaled to --tau" : "", R->tpaths, R->tw, R->th, R->tw, R->th);
+  else
+    fprintf(f, "Against the truth: — (%s).\n\n", R->analytic ? "--truth-paths 0" : "not an analytic scene");
 
   /* Table 6.1 form: one table per combination of the other knobs (when budget × step is a grid) */
   for (int d = 0; d < R->nd && R->nb * R->ns > 1; d++)
     for (int o = 0; o < R->no; o++)
       for (int rp = 0; rp < R->nr; rp++)
         for (int ip = 0; ip < R->ni; ip++) {
-          fprintf(f, "**Render ms / RMSE (0–255)** — depth %ld, %ld octave%s, reprojection %s, interpolation %s:\n\n",
-                  R->depths[d], R->octs[o], R->octs[o] == 1 ? "" : "s", onoff[R->reps[rp]], onoff[R->ints[ip]]);
+          fprintf(f, "**Render ms / RMSE (0–255) against the best setting / against the Monte Carlo truth (at %dx%d)** — "
+                     "depth %ld, %ld octave%s, reprojection %s, interpolation %s:\n\n",
+                  R->tw, R->th, R->depths[d], R->octs[o], R->octs[o] == 1 ? "" : "s", onoff[R->reps[rp]], onoff[R->ints[ip]]);
           fprintf(f, "| budget \\ step factor |");
           for (int s = 0; s < R->ns; s++) fprintf(f, " %g |", R->steps[s]);
           fprintf(f, " server CPU ms/epoch | KiB/epoch | resident MiB |\n|---|");
@@ -366,7 +403,9 @@ static void write_report(FILE *f, const report_t *R) {
                 continue;
               }
               any = a;
-              fprintf(f, " %s%.1f / %.2f%s |", a->pareto ? "**" : "", a->ms, a->rmse, a->pareto ? "**" : "");
+              char tb[32] = "—";
+              if (R->truth) snprintf(tb, sizeof tb, "%.2f", a->t_rmse8);
+              fprintf(f, " %s%.1f / %.2f / %s%s |", a->pareto ? "**" : "", a->ms, a->rmse, tb, a->pareto ? "**" : "");
             }
             if (any)
               fprintf(f, " %.0f | %.1f | %.2f |\n", any->cpu_ms, any->wire / 1024.0, any->resident / 1048576.0);
@@ -380,15 +419,18 @@ static void write_report(FILE *f, const report_t *R) {
 
   /* every setting */
   fprintf(f, "| budget MiB | depth | step | octaves | reproj. | interp. | render ms | server CPU ms/epoch | KiB/epoch | "
-             "resident MiB | RMSE | PSNR dB |%s Pareto |\n",
+             "resident MiB | RMSE | PSNR dB |%s truth: mean error | truth: RMSE | truth noise | Pareto |\n",
           R->analytic ? " mean abs ΔT | max abs ΔT |" : "");
-  fprintf(f, "|---:|---:|---:|---:|---|---|---:|---:|---:|---:|---:|---:|%s---|\n", R->analytic ? "---:|---:|" : "");
+  fprintf(f, "|---:|---:|---:|---:|---|---|---:|---:|---:|---:|---:|---:|%s---:|---:|---:|---|\n",
+          R->analytic ? "---:|---:|" : "");
   for (int i = 0; i < R->nagg; i++) {
     const agg_t *a = &R->agg[i];
     fprintf(f, "| %g | %ld | %g | %ld | %s | %s | %.1f | %.0f | %.1f | %.2f | %.2f | %s |", R->budgets[a->b], R->depths[a->d],
             R->steps[a->st], R->octs[a->o], onoff[R->reps[a->rp]], onoff[R->ints[a->ip]], a->ms, a->cpu_ms, a->wire / 1024.0,
             a->resident / 1048576.0, a->rmse, fmt_psnr(a->psnr, pb, sizeof pb));
     if (R->analytic) fprintf(f, " %.4f | %.4f |", a->dt_mean, a->dt_max);
+    if (R->truth) fprintf(f, " %+.1f %% | %.2f | %.2f |", 100.0 * a->t_rel, a->t_rmse8, a->t_noise8);
+    else fprintf(f, " — | — | — |");
     fprintf(f, " %s |\n", a->reference ? "reference" : a->pareto ? "yes" : "");
   }
   fprintf(f, "\n");
@@ -407,6 +449,7 @@ typedef struct {
   octs_renderer_t *ren;
   char rinfo[512];
   float *truth;      /* per view: e^−τ of each pixel's ray (analytic scenes) */
+  octs_truth_t *mc[MAXV]; /* per view: the Monte Carlo truth (analytic scenes, --truth-paths > 0) */
   uint8_t *ref_rgb;  /* per view: the reference image */
   uint8_t *rgb;
   srv_t *srv;
@@ -537,6 +580,16 @@ static int sweep_open(sweep_t *W) {
       oc_image_alloc(&W->img, w, h) < 0)
     return oc_cli_fail(W->prog, -1, "out of memory");
   if (!W->R.analytic) return 0;
+  W->R.truth = o->truth_paths > 0;
+  octs_truth_desc_t td = {o->truth_size[0], o->truth_size[1], w, h, o->truth_paths, o->threads};
+  for (int v = 0; v < W->nv && W->R.truth; v++) {
+    double t0 = oct_now();
+    fprintf(stderr, "%s: Monte Carlo truth, view %d/%d: %dx%d, %d paths per pixel ...", W->prog, v + 1, W->nv,
+            td.w, td.h, o->truth_paths);
+    if (!(W->mc[v] = octs_truth_make(W->sc, W->views[v].pose, &td, why, sizeof why)))
+      return oc_cli_fail(W->prog, -1, "\n--truth-size/--truth-paths: %s", why);
+    fprintf(stderr, " %.1f s\n", oct_now() - t0);
+  }
   int ground = oc_scene_has(W->sc, OC_FEATURE_PLANET_SURFACE);
   for (int v = 0; v < W->nv; v++) {
     oc_camera_t cam = oc_camera_from_pose(W->views[v].pose);
@@ -553,6 +606,7 @@ static int sweep_open(sweep_t *W) {
 static void sweep_close(sweep_t *W) {
   oc_image_free(&W->img);
   free(W->truth);
+  for (int v = 0; v < W->nv; v++) octs_truth_free(W->mc[v]);
   free(W->ref_rgb);
   free(W->rgb);
   free(W->srv);
@@ -568,7 +622,7 @@ static int sweep_reference(sweep_t *W, int v, octs_server_desc_t sd, const octs_
   const sweep_opts_t *o = W->o;
   const char *prog = W->prog;
   const size_t npx = (size_t)o->size[0] * (size_t)o->size[1];
-  octs_render_knobs_t k = {W->R.steps[0], (int)W->R.octs[0], 0, 0};
+  octs_render_knobs_t k = {W->R.steps[0], (int)W->R.octs[0], 0, 0, 0};
   octs_times_t tm;
   octs_server_out_t ro; /* --reference-filter exact: the same setting, bricks from the exact filter */
   char why[1024];
@@ -605,7 +659,7 @@ static int sweep_cell(sweep_t *W, int s, int rs, int v) {
   const size_t npx = (size_t)w * (size_t)h;
   int b = s / R->nd, d = s % R->nd;
   int ip = rs % R->ni, rp = rs / R->ni % R->nr, oc = rs / (R->ni * R->nr) % R->no, st = rs / (R->ni * R->nr * R->no);
-  octs_render_knobs_t k = {R->steps[st], (int)R->octs[oc], (int)R->reps[rp], (int)R->ints[ip]};
+  octs_render_knobs_t k = {R->steps[st], (int)R->octs[oc], (int)R->reps[rp], (int)R->ints[ip], 0};
   octs_times_t tm;
   char why[1024];
   double t1 = oct_now();
@@ -634,6 +688,13 @@ static int sweep_cell(sweep_t *W, int s, int rs, int v) {
     }
     ce->dt_mean = sum / (double)npx;
     ce->dt_max = mx;
+  }
+  if (W->mc[v]) { /* once more in the truth's light (not timed) */
+    k.truth_light = 1;
+    octs_times_t tt;
+    if (octs_render(W->ren, W->views[v].pose, &k, &W->img, &tt, why, sizeof why) < 0)
+      return oc_cli_fail(prog, -1, "render in the truth's light: %s", why);
+    if (octs_truth_score(W->mc[v], &W->img, &ce->t) < 0) return oc_cli_fail(prog, -1, "out of memory");
   }
   W->done++;
   fprintf(stderr, "%s: setting %d/%d: budget %g MiB, depth %ld, step %g, octaves %ld, reprojection %s, interpolation %s, "
@@ -694,7 +755,9 @@ static void sweep_aggregate(sweep_t *W) {
         a->ms += ce->ms / nv, mse += ce->mse / nv;
         a->cpu_ms += sv->cpu_ms / nv, a->wall_ms += sv->wall_ms / nv, a->wire += sv->wire / nv, a->resident += (double)sv->resident / nv;
         a->dt_mean += ce->dt_mean / nv, a->dt_max = fmax(a->dt_max, ce->dt_max);
+        a->t_rel += ce->t.rel / nv, a->t_rmse8 += ce->t.rmse8 * ce->t.rmse8 / nv, a->t_noise8 += ce->t.noise8 * ce->t.noise8 / nv;
       }
+      a->t_rmse8 = sqrt(a->t_rmse8), a->t_noise8 = sqrt(a->t_noise8);
       a->rmse = sqrt(mse);
       a->psnr = psnr_of(a->rmse);
       a->reference = s == 0 && a->st == 0 && a->o == 0 && R->reps[a->rp] == 0 && R->ints[a->ip] == 0;
@@ -719,7 +782,7 @@ static int sweep_csv(const sweep_t *W) {
                "interpolation,reconstruction,refresh,render_ms,render_wall_ms,render_cpu_ms,render_threads,"
                "server_cpu_ms_per_epoch,server_wall_ms_per_epoch,"
                "server_cpu_ms_last,wire_bytes_per_epoch,wire_bytes_last,resident_bytes,nodes,bricks,bricks_sent,rmse,psnr,"
-               "analytic_mean_abs_dT,analytic_max_abs_dT,reference,pareto\n");
+               "analytic_mean_abs_dT,analytic_max_abs_dT,truth_rel_error,truth_rmse,truth_noise_rmse,truth_mean,reference,pareto\n");
   for (int i = 0; i < R->nagg; i++) {
     const agg_t *a = &R->agg[i];
     for (int v = 0; v < W->nv; v++) {
@@ -737,6 +800,8 @@ static int sweep_csv(const sweep_t *W) {
               (unsigned long long)sv->resident, sv->nodes, sv->bricks, sv->sent, e, fmt_psnr(psnr_of(e), pb, sizeof pb));
       if (R->analytic) fprintf(csv, "%.6f,%.6f,", ce->dt_mean, ce->dt_max);
       else fprintf(csv, ",,");
+      if (R->truth) fprintf(csv, "%.6f,%.4f,%.4f,%.6g,", ce->t.rel, ce->t.rmse8, ce->t.noise8, ce->t.truth_mean);
+      else fprintf(csv, ",,,,");
       fprintf(csv, "%d,%d\n", a->reference, a->pareto);
     }
   }
@@ -799,6 +864,7 @@ static int sweep_outputs(sweep_t *W, int argc, char **argv) {
   R->epochs = o->epochs, R->threads = o->threads, R->frames = o->frames, R->repeat = o->repeat;
   R->motion = o->motion, R->interp_t = o->interp_t, R->split = o->split, R->reserve = o->reserve, R->views = W->views;
   R->ref_exact = o->ref_exact;
+  R->tw = o->truth_size[0], R->th = o->truth_size[1], R->tpaths = o->truth_paths, R->tau = o->tau;
   fprintf(stderr, "%s: sweep done in %.1f s\n", W->prog, oct_now() - W->t_start);
   write_report(stdout, R);
   if (o->md) {
@@ -810,6 +876,23 @@ static int sweep_outputs(sweep_t *W, int argc, char **argv) {
   if (o->csv && sweep_csv(W)) return -1;
   if (o->plot && sweep_plot(W)) return -1;
   return 0;
+}
+
+/* --max-truth-error: every setting at every view within PCT % of a positive, finite truth. */
+static int sweep_truth_check(const sweep_t *W) {
+  const double pct = W->o->max_truth_error;
+  if (!(pct > 0.0)) return OC_EXIT_OK;
+  if (!W->R.truth) return oc_cli_fail(W->prog, OC_EXIT_RUNTIME, "--max-truth-error: no truth column (not an analytic scene)");
+  int bad = 0;
+  for (size_t i = 0; i < (size_t)W->S * W->RS * W->nv; i++) {
+    const octs_truth_err_t *t = &W->cell[i].t;
+    if (!(t->truth_mean > 0.0) || !isfinite(t->truth_mean) || !isfinite(t->rmse8) || !(fabs(100.0 * t->rel) <= pct)) bad++;
+  }
+  if (bad)
+    return oc_cli_fail(W->prog, OC_EXIT_RUNTIME, "--max-truth-error %g: %d of %d images off the truth by more (or no truth)",
+                       pct, bad, W->S * W->RS * W->nv);
+  fprintf(stderr, "%s: every image within %g %% of the truth's image mean\n", W->prog, pct);
+  return OC_EXIT_OK;
 }
 
 /* The whole sweep; @return the exit status. */
@@ -832,7 +915,8 @@ static int sweep_run(sweep_t *W, int argc, char **argv) {
     for (int v = 0; v < W->nv; v++)
       if (sweep_server(W, s, v)) return OC_EXIT_RUNTIME;
   sweep_aggregate(W);
-  return sweep_outputs(W, argc, argv) ? OC_EXIT_RUNTIME : OC_EXIT_OK;
+  if (sweep_outputs(W, argc, argv)) return OC_EXIT_RUNTIME;
+  return sweep_truth_check(W);
 }
 
 int oct_bench_sweep(const char *prog, int argc, char **argv) {
@@ -845,6 +929,10 @@ int oct_bench_sweep(const char *prog, int argc, char **argv) {
   if (rc != OCT_GO) return rc;
   if (sweep_check(prog, &o)) return OC_EXIT_USAGE;
   if (oct_load_scene(prog, o.scene, &sc)) return OC_EXIT_RUNTIME;
+  if (o.tau > 0.0 && oct_truth_scale(&sc, o.tau) < 0) {
+    oc_scene_free(&sc);
+    return oc_cli_fail(prog, OC_EXIT_USAGE, "--tau: the scene has no sphere, box or slab with extinction to scale");
+  }
   W = (sweep_t){.prog = prog, .o = &o, .sc = &sc, .views = views};
   sweep_knobs(&W);
   rc = sweep_run(&W, argc, argv);

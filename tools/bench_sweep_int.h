@@ -55,6 +55,8 @@ typedef struct {
   int ms_octaves;
   int reproject;         /**< GL only: a frame sequence with one pixel in 16 traced per frame */
   int interp;            /**< GL only: blend previous → newest state at interp_t */
+  int truth_light;       /**< lit as the Monte Carlo truth is (oct_truth_light: OC_BG_CONSTANT 0, no
+                              atmosphere, no planet, sun irradiance 1) instead of the scene's light */
 } octs_render_knobs_t;
 
 typedef struct {
@@ -92,6 +94,35 @@ typedef struct {
  *  after the first. @return 0 or OC_E* with why. */
 int octs_render(octs_renderer_t *r, oc_camera_pose_t pose, const octs_render_knobs_t *k, oc_image_t *img, octs_times_t *tm,
                 char *why, size_t why_len);
+
+/*-*** Error against a Monte Carlo truth (bench_sweep_truth.c) ***/
+
+typedef struct octs_truth_s octs_truth_t;
+
+typedef struct {
+  int w, h;              /**< the truth's size; the sweep's size is a multiple of it */
+  int full_w, full_h;    /**< the sweep's image size */
+  long paths;            /**< per truth pixel, spread evenly over the sweep pixels it covers */
+  int threads;
+} octs_truth_desc_t;
+
+typedef struct {
+  double rel;            /**< (image mean − truth mean) / truth mean */
+  double rmse8;          /**< RMSE 0–255 (exposure 10) at the truth's size */
+  double noise8;         /**< the RMSE 0–255 two truth seeds would show (oct_truth_score's noise8) */
+  double truth_mean;     /**< the truth's image mean (> 0 for a scene with a lit cloud in view) */
+} octs_truth_err_t;
+
+/*! octs_truth_make() : the Monte Carlo truth of view `pose` of analytic scene sc (bench_mc.c, every
+ *  scattering order, lit by oct_truth_light with background 0) through a state voxelized from the
+ *  analytic sources as `overcast-bench truth` voxelizes (independent of the swept knobs). Each
+ *  truth pixel averages the rays of the sweep pixels it covers. @return NULL with why. */
+octs_truth_t *octs_truth_make(const oc_scene_t *sc, oc_camera_pose_t pose, const octs_truth_desc_t *d, char *why,
+                              size_t why_len);
+void octs_truth_free(octs_truth_t *t);
+/*! octs_truth_score() : img (the sweep's size, rendered with truth_light) box-averaged to the
+ *  truth's size and scored against it. @return 0 or OC_ENOMEM. */
+int octs_truth_score(const octs_truth_t *t, const oc_image_t *img, octs_truth_err_t *e);
 
 /*-*** Plot: tools/plot.h (octs_plot_png, shared with overcast-stress) ***/
 

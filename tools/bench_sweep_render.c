@@ -21,6 +21,7 @@
 #include "bench.h"
 #include "bench_util.h"
 #include "bench_sweep_int.h"
+#include "truth.h" /* oct_truth_light */
 #include "ocv.h"
 
 struct octs_renderer_s {
@@ -142,6 +143,7 @@ static oc_render_desc_t make_desc(const octs_renderer_t *r, oc_camera_pose_t pos
   d.atmo = r->d.atmo;
   d.threads = r->d.threads;
   d.flags = (r->d.atmo ? 0 : OC_RF_NO_ATMOSPHERE) | (oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE) ? 0 : OC_RF_NO_PLANET);
+  if (k->truth_light) oct_truth_light(&d, 0.0);
   return d;
 }
 

@@ -35,12 +35,6 @@ static void oct__stats_add(oct_mc_stats_t *sum, const oct_mc_stats_t *s) {
 #undef OCT__STATS_ADD
 }
 
-/* Mean and standard error of the mean from a sum and a sum of squares over n samples. */
-static void oct__mean_se(double s1, double s2, double n, double *mean, double *se) {
-  *mean = s1 / n;
-  double var = n > 1.0 ? (s2 - s1 * s1 / n) / (n - 1.0) : 0.0;
-  *se = sqrt(fmax(var, 0.0) / n);
-}
 
 /* ---- Transport checks on a homogeneous slab -----------------------------------------------------------
  * Photons enter the slab 0 ≤ z ≤ τ (σt = 1) at the top, at normal incidence, and are followed with
@@ -120,10 +114,10 @@ static void oct__slab_run(double tau, double albedo, oct_mc_phase_t phase, long 
   }
   memset(res, 0, sizeof *res);
   double n = (double)photons;
-  oct__mean_se(s.r1, s.r2, n, &res->R, &res->R_se);
-  oct__mean_se(s.t1, s.t2, n, &res->T, &res->T_se);
-  oct__mean_se(s.rs1, s.rs2, n, &res->Rs, &res->Rs_se);
-  oct__mean_se(s.ts1, s.ts2, n, &res->Ts, &res->Ts_se);
+  oct_mc_mean_se(s.r1, s.r2, n, &res->R, &res->R_se);
+  oct_mc_mean_se(s.t1, s.t2, n, &res->T, &res->T_se);
+  oct_mc_mean_se(s.rs1, s.rs2, n, &res->Rs, &res->Rs_se);
+  oct_mc_mean_se(s.ts1, s.ts2, n, &res->Ts, &res->Ts_se);
   res->RT = res->R + res->T; /* exactly 1 per photon at albedo 1: checked without an SE */
   for (int i = 0; i < threads; i++) oct__stats_add(&res->stats, &job.stats[i]);
 }
@@ -233,8 +227,8 @@ static int oct__check_slab(long photons, uint64_t seed, int threads) {
     s4 += mu * mu * mu * mu;
   }
   double n = (double)photons, mean1, se1, mean2, se2;
-  oct__mean_se(s1, s2, n, &mean1, &se1);
-  oct__mean_se(s2, s4, n, &mean2, &se2);
+  oct_mc_mean_se(s1, s2, n, &mean1, &se1);
+  oct_mc_mean_se(s2, s4, n, &mean2, &se2);
   oct__check_row(&v, "HG+Draine sampler", "⟨μ⟩ (mean cosine)", mean1, se1, oct__phase_moment(1), 1e-5,
                  "quadrature of ocg_phase_hg_draine");
   oct__check_row(&v, "HG+Draine sampler", "⟨μ²⟩", mean2, se2, oct__phase_moment(2), 1e-5,
@@ -293,10 +287,10 @@ static void oct__truth_row(void *ctx, int y, int thread) {
       f1 += p.first_escaped;
     }
     double n = (double)job->paths;
-    oct__mean_se(l1, l2, n, &job->L[i], &job->L_se[i]);
-    oct__mean_se(s1, s2, n, &job->L1[i], &job->L1_se[i]);
-    oct__mean_se(e1, e2, n, &job->env[i], &job->env_se[i]);
-    oct__mean_se(f1, f1, n, &job->esc[i], &job->esc_se[i]); /* indicator: its square is itself */
+    oct_mc_mean_se(l1, l2, n, &job->L[i], &job->L_se[i]);
+    oct_mc_mean_se(s1, s2, n, &job->L1[i], &job->L1_se[i]);
+    oct_mc_mean_se(e1, e2, n, &job->env[i], &job->env_se[i]);
+    oct_mc_mean_se(f1, f1, n, &job->esc[i], &job->esc_se[i]); /* indicator: its square is itself */
     job->t_exact[i] = exp(-oct_mc_optical_depth(job->medium, job->cam.pos, dir));
   }
   int done = atomic_fetch_add(&job->rows_done, 1) + 1;
@@ -398,9 +392,7 @@ static oc_render_desc_t oct__ref_desc(const oc_scene_t *sc, oc_camera_t cam, int
   d.ms_c = (float)sc->optics.ms_c;
   d.albedo = (float)sc->optics.albedo;
   d.albedo_zero = sc->optics.albedo == 0.0;
-  d.background = OC_BG_CONSTANT; /* no atmosphere, no planet: sun irradiance 1, no sky ambient */
-  d.background_radiance = (float)background;
-  d.flags = OC_RF_NO_ATMOSPHERE;
+  oct_truth_light(&d, background); /* no atmosphere, no planet: sun irradiance 1, sky ambient B */
   d.threads = threads;
   return d;
 }

@@ -27,6 +27,19 @@ double *oct_truth_source_sigma(oc_source_t *src) {
   }
 }
 
+int oct_truth_scale(oc_scene_t *sc, double tau) {
+  double len = 0.0, *first = NULL;
+  for (int i = 0; i < sc->nsources && !first; i++)
+    if ((len = oct_truth_source_length(&sc->sources[i])) > 0.0) first = oct_truth_source_sigma(&sc->sources[i]);
+  if (!first || !(*first > 0.0)) return -1;
+  double f = tau / (*first * len); /* every source scaled alike, as the bench does */
+  for (int i = 0; i < sc->nsources; i++) {
+    double *s = oct_truth_source_sigma(&sc->sources[i]);
+    if (s) *s *= f;
+  }
+  return 0;
+}
+
 void oct_truth_case_free(oct_truth_case_t *c) {
   free(c->L);
   free(c->se);
@@ -83,18 +96,10 @@ int oct_truth_case_state(const oct_truth_case_t *c, const char *root, oc_scene_t
   snprintf(path, sizeof path, "%s%s%s", root ? root : "", root ? "/" : "", c->scene);
   int rc = oc_scene_load(sc, path, why, why_len);
   if (rc < 0) return rc;
-  double len = 0.0, *first = NULL;
-  for (int i = 0; i < sc->nsources && !first; i++)
-    if ((len = oct_truth_source_length(&sc->sources[i])) > 0.0) first = oct_truth_source_sigma(&sc->sources[i]);
-  if (!first || !(*first > 0.0)) {
+  if (oct_truth_scale(sc, c->tau) < 0) {
     snprintf(why, why_len, "%s: the first source has no extinction to scale", path);
     oc_scene_free(sc);
     return OC_EINVAL;
-  }
-  double f = c->tau / (*first * len); /* every source scaled alike, as the bench does */
-  for (int i = 0; i < sc->nsources; i++) {
-    double *s = oct_truth_source_sigma(&sc->sources[i]);
-    if (s) *s *= f;
   }
   sc->optics.albedo = c->albedo;
   oc_camera_pose_t pose = {sc->camera.pos, sc->camera.heading, sc->camera.pitch, sc->camera.fov};
@@ -124,11 +129,17 @@ oc_render_desc_t oct_truth_case_desc(const oct_truth_case_t *c, const oc_scene_t
   d.ms_c = (float)sc->optics.ms_c;
   d.albedo = (float)c->albedo;
   d.albedo_zero = c->albedo == 0.0;
-  d.background = OC_BG_CONSTANT;
-  d.background_radiance = (float)c->background;
-  d.flags = OC_RF_NO_ATMOSPHERE;
+  oct_truth_light(&d, c->background);
   d.threads = 1;
   return d;
+}
+
+void oct_truth_light(oc_render_desc_t *d, double background) {
+  d->background = OC_BG_CONSTANT;
+  d->background_radiance = (float)background;
+  d->flags = OC_RF_NO_ATMOSPHERE;
+  d->atmo = NULL;
+  d->sun_irradiance = 0.0f; /* the default, 1 */
 }
 
 /* One grey value through the benches' tone map (exposure 10, ACES fit, sRGB), 0–255, unrounded. */

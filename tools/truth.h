@@ -35,6 +35,9 @@ typedef struct {
  *  slab thickness); 0 for other sources. oct_truth_source_sigma() : its σt field, or NULL. */
 double oct_truth_source_length(const oc_source_t *src);
 double *oct_truth_source_sigma(oc_source_t *src);
+/*! oct_truth_scale() : every source's σt scaled alike so that the first source with a length has
+ *  optical depth tau across it. @return 0, or -1 when it has no extinction to scale. */
+int oct_truth_scale(oc_scene_t *sc, double tau);
 
 /*! oct_truth_case_load() : reads a file of `overcast-bench truth --save`. @return 0 or OC_EINVAL (why). */
 int oct_truth_case_load(oct_truth_case_t *c, const char *path, char *why, size_t why_len);
@@ -49,6 +52,11 @@ int oct_truth_case_state(const oct_truth_case_t *c, const char *root, oc_scene_t
 /*! oct_truth_case_desc() : the reference render the truth was made for: OC_BG_CONSTANT, no atmosphere,
  *  the scene's octaves and albedo, step factor 0.25, the case's size. */
 oc_render_desc_t oct_truth_case_desc(const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam);
+
+/*! oct_truth_light() : the light the truth is traced in, on a render description: OC_BG_CONSTANT
+ *  with radiance `background` (also a uniform sky on the clouds), no atmosphere, no planet, the
+ *  delta sun of irradiance 1. */
+void oct_truth_light(oc_render_desc_t *d, double background);
 
 /*! oct_truth_ambient() : the model's image mean lit by a uniform sky of radiance 1 alone (no sun):
  *  what the truth's env line measures. @return 0 or a negative OC_E*. */
