@@ -55,7 +55,7 @@ typedef struct {
   int ncameras;
   int size[2], plan_size[2], truth_size[2];
   int truth_paths;
-  double tau, max_truth_error; /* 0: the scene's σt; no check */
+  double tau, max_truth_error, max_truth_rmse; /* 0: the scene's σt; no check; no check */
   int gl, threads, repeat, path_n, frames, epochs, srv_threads, ref_exact;
   oct_dlist_t budgets, steps;
   oct_list_t depths, octs, reps, ints; /* octs.n 0: the scene's */
@@ -188,6 +188,8 @@ static const oc_cli_opt_t sweep_opts[] = {
     {.name = "max-truth-error", .type = OC_CLI_DOUBLE, .offset = AT(max_truth_error), .arg = "PCT", .lo = 1e-9,
      .hi = 1e9, .group = TRUTH,
      .help = "exit 1 unless every setting's image mean is within PCT % of the truth's (a positive, finite truth)"},
+    {.name = "max-truth-rmse", .type = OC_CLI_DOUBLE, .offset = AT(max_truth_rmse), .arg = "X", .lo = 1e-9, .hi = 255,
+     .group = TRUTH, .help = "exit 1 unless every setting's RMSE 0–255 against the truth is at most X"},
     {.name = "csv", .type = OC_CLI_STRING, .offset = AT(csv), .arg = "FILE", .group = OUT,
      .help = "one row per setting and view"},
     {.name = "md", .type = OC_CLI_STRING, .offset = AT(md), .arg = "FILE", .group = OUT,
@@ -216,8 +218,8 @@ static int sweep_check(const char *prog, sweep_opts_t *o) {
 #ifndef OC_HAVE_GL
   if (o->path) return oc_cli_fail(prog, -1, "--path: this build has no client library (camera paths)");
 #endif
-  if (o->max_truth_error > 0.0 && o->truth_paths == 0)
-    return oc_cli_fail(prog, -1, "--max-truth-error needs the truth (--truth-paths > 0)");
+  if ((o->max_truth_error > 0.0 || o->max_truth_rmse > 0.0) && o->truth_paths == 0)
+    return oc_cli_fail(prog, -1, "--max-truth-error and --max-truth-rmse need the truth (--truth-paths > 0)");
   return 0;
 }
 
@@ -878,20 +880,22 @@ static int sweep_outputs(sweep_t *W, int argc, char **argv) {
   return 0;
 }
 
-/* --max-truth-error: every setting at every view within PCT % of a positive, finite truth. */
+/* --max-truth-error, --max-truth-rmse: every setting at every view within PCT % of a positive,
+ * finite truth's image mean, and within X of it in RMSE 0–255. */
 static int sweep_truth_check(const sweep_t *W) {
-  const double pct = W->o->max_truth_error;
-  if (!(pct > 0.0)) return OC_EXIT_OK;
-  if (!W->R.truth) return oc_cli_fail(W->prog, OC_EXIT_RUNTIME, "--max-truth-error: no truth column (not an analytic scene)");
+  const double pct = W->o->max_truth_error > 0.0 ? W->o->max_truth_error : INFINITY;
+  const double rmse = W->o->max_truth_rmse > 0.0 ? W->o->max_truth_rmse : INFINITY;
+  if (isinf(pct) && isinf(rmse)) return OC_EXIT_OK;
+  if (!W->R.truth) return oc_cli_fail(W->prog, OC_EXIT_RUNTIME, "--max-truth-*: no truth column (not an analytic scene)");
   int bad = 0;
   for (size_t i = 0; i < (size_t)W->S * W->RS * W->nv; i++) {
     const octs_truth_err_t *t = &W->cell[i].t;
-    if (!(t->truth_mean > 0.0) || !isfinite(t->truth_mean) || !isfinite(t->rmse8) || !(fabs(100.0 * t->rel) <= pct)) bad++;
+    if (!(t->truth_mean > 0.0) || !isfinite(t->truth_mean) || !(fabs(100.0 * t->rel) <= pct) || !(t->rmse8 <= rmse)) bad++;
   }
   if (bad)
-    return oc_cli_fail(W->prog, OC_EXIT_RUNTIME, "--max-truth-error %g: %d of %d images off the truth by more (or no truth)",
-                       pct, bad, W->S * W->RS * W->nv);
-  fprintf(stderr, "%s: every image within %g %% of the truth's image mean\n", W->prog, pct);
+    return oc_cli_fail(W->prog, OC_EXIT_RUNTIME, "--max-truth-error %g %%, --max-truth-rmse %g: %d of %d images off the "
+                       "truth by more (or no lit truth)", pct, rmse, bad, W->S * W->RS * W->nv);
+  fprintf(stderr, "%s: every image within %g %% of the truth's image mean and RMSE %g\n", W->prog, pct, rmse);
   return OC_EXIT_OK;
 }
 
