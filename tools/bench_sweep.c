@@ -586,11 +586,10 @@ static int sweep_open(sweep_t *W) {
   octs_truth_desc_t td = {o->truth_size[0], o->truth_size[1], w, h, o->truth_paths, o->threads};
   for (int v = 0; v < W->nv && W->R.truth; v++) {
     double t0 = oct_now();
-    fprintf(stderr, "%s: Monte Carlo truth, view %d/%d: %dx%d, %d paths per pixel ...", W->prog, v + 1, W->nv,
-            td.w, td.h, o->truth_paths);
     if (!(W->mc[v] = octs_truth_make(W->sc, W->views[v].pose, &td, why, sizeof why)))
-      return oc_cli_fail(W->prog, -1, "\n--truth-size/--truth-paths: %s", why);
-    fprintf(stderr, " %.1f s\n", oct_now() - t0);
+      return oc_cli_fail(W->prog, -1, "--truth-size, --truth-paths: %s", why);
+    fprintf(stderr, "%s: Monte Carlo truth, view %d/%d: %dx%d, %d paths per pixel ... %.1f s\n", W->prog, v + 1, W->nv,
+            td.w, td.h, o->truth_paths, oct_now() - t0);
   }
   int ground = oc_scene_has(W->sc, OC_FEATURE_PLANET_SURFACE);
   for (int v = 0; v < W->nv; v++) {
