@@ -180,7 +180,7 @@ static const oc_cli_opt_t sweep_opts[] = {
     {.name = "tau", .type = OC_CLI_DOUBLE, .offset = AT(tau), .arg = "T", .lo = 1e-6, .hi = 1e4,
      .def_note = "the scene's σt", .group = TRUTH,
      .help = "analytic scenes: every source's σt scaled so that the first has optical depth T across (sphere "
-             "diameter, box or slab height), as `overcast-bench truth --tau` (the truth's cost grows as T²)"},
+             "diameter, box or slab height), as `overcast-bench truth --tau`"},
     {.name = "truth-size", .type = OC_CLI_CUSTOM, .parse = oct_opt_size, .offset = AT(truth_size), .arg = "WxH",
      .def = "32x18", .group = TRUTH, .help = "the Monte Carlo truth's size; --size must be a multiple of it"},
     {.name = "truth-paths", .type = OC_CLI_INT, .offset = AT(truth_paths), .arg = "N", .lo = 0, .hi = 100000000,
@@ -203,9 +203,9 @@ static const oc_cli_opt_t sweep_opts[] = {
 
 const oc_cli_spec_t oct_bench_sweep_spec = {
     .prog = "overcast-bench sweep",
-    .about = "Error against run time: quality knobs swept, RMSE/PSNR against the best setting. The grid is the\n"
-             "product of the lists; the reference is its highest-quality setting; outputs a Markdown report on\n"
-             "stdout, progress on stderr.\n",
+    .about = "Error against run time: quality knobs swept, RMSE/PSNR against the best setting (and on analytic\n"
+             "scenes against a Monte Carlo truth). The grid is the product of the lists; the reference is its\n"
+             "highest-quality setting; outputs a Markdown report on stdout, progress on stderr.\n",
     .opts = sweep_opts};
 
 /* The checks between options; 0, or -1 after printing the error. */
