@@ -581,6 +581,8 @@ static int sweep_open(sweep_t *W) {
   if (!W->srv || !W->cell || !W->agg || !W->ref_rgb || !W->rgb || (W->R.analytic && !W->truth) ||
       oc_image_alloc(&W->img, w, h) < 0)
     return oc_cli_fail(W->prog, -1, "out of memory");
+  if (!W->R.analytic && (o->max_truth_error > 0.0 || o->max_truth_rmse > 0.0))
+    return oc_cli_fail(W->prog, -1, "--max-truth-error, --max-truth-rmse: no truth (not an analytic scene)");
   if (!W->R.analytic) return 0;
   W->R.truth = o->truth_paths > 0;
   octs_truth_desc_t td = {o->truth_size[0], o->truth_size[1], w, h, o->truth_paths, o->threads};
