@@ -335,6 +335,7 @@ typedef struct {
   uint64_t have_epoch;  /* newest complete state, acknowledged, next camera sent */
   uint64_t have_states; /* complete states so far */
   double last_input;    /* when bytes last arrived */
+  int busy;             /* reading input now (a state being decoded and verified may take seconds under ASan) */
 
   /* the thread's own; read by the coordinator after the join */
   ocv_conn_t *conn;

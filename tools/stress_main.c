@@ -285,8 +285,9 @@ static server_work_t server_work(ocv_conn_t *ctl, long pid, double timeout) {
 
 /* Steps the server one epoch at a time: the next once every live viewer has this one's state, or
  * once the server has gone quiet for 2 s after the step's reply (a viewer skipped by this step
- * gets nothing more), or after the timeout. Quiet means nothing reached a viewer and the server
- * did no work: a cold server's first epoch (after a restart, under ASan) may work for a minute
+ * gets nothing more), or after the timeout. Quiet means nothing reached a viewer, no viewer is
+ * reading (decoding and verifying a state may take seconds under ASan on a loaded machine, with
+ * the server idle, waiting for its ACK), and the server did no work: a cold server's first epoch (after a restart, under ASan) may work for a minute
  * before it sends a byte, and stepping on then would coalesce a viewer's epoch. */
 static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, stress_summary_t *sum) {
   const stress_opts_t *o = run->o;
@@ -328,16 +329,17 @@ static void run_stepped(stress_run_t *run, ocv_conn_t **ctlp, fault_ctx_t *fx, s
     uint64_t target = run->epoch0 + (k - run->step0);
     pthread_mutex_lock(&run->mu);
     for (;;) {
-      int missing = 0;
+      int missing = 0, busy = 0;
       double last_in = 0;
       for (int i = 0; i < run->nv; i++) {
         stress_viewer_t *v = &run->v[i];
         if (!v->done && v->have_epoch < target) missing++;
         if (v->last_input > last_in) last_in = v->last_input;
+        busy |= v->busy;
       }
       if (!missing) break;
       now = stress_now();
-      int silent = now - replied >= 2.0 && now - last_in >= 2.0;
+      int silent = !busy && now - replied >= 2.0 && now - last_in >= 2.0;
       if (!silent) {
         still = 0;
         made = (server_work_t){-1, -1};

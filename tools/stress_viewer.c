@@ -429,6 +429,7 @@ static void sv_publish(stress_viewer_t *v, double input_at) {
   stress_run_t *run = v->run;
   pthread_mutex_lock(&run->mu);
   if (input_at > 0) v->last_input = input_at;
+  v->busy = 0;
   if (v->new_state) {
     v->have_epoch = v->last_epoch;
     v->have_states = v->states;
@@ -578,6 +579,9 @@ static void sv_loop(stress_viewer_t *v, double t_start) {
   char why[1024] = "";
   int stepped = v->welcome.epoch_period == 0;
   double tick = 1.0 / o->tick_hz, next_tick = t_start + tick;
+  const char *hook = getenv("OC_STRESS_ACK_DELAY_MS");
+  long ack_delay = hook ? strtol(hook, NULL, 10) : 0; /* viewer 0 holds each state's ACK this long */
+  if (ack_delay < 0 || ack_delay > 60000) ack_delay = 0;
   while (!atomic_load(&run->stop)) {
     double now = stress_now();
     if (!stepped && now >= next_tick) {
@@ -595,6 +599,12 @@ static void sv_loop(stress_viewer_t *v, double t_start) {
     v->poll_utc = stress_utc();
     int readable = k > 0 && (pf.revents & (POLLIN | POLLHUP | POLLERR));
     int marked = 0;
+    if (readable) { /* seen before it is read: the stepped driver must not take this viewer for idle */
+      pthread_mutex_lock(&run->mu);
+      v->busy = 1;
+      v->last_input = t_in;
+      pthread_mutex_unlock(&run->mu);
+    }
     if (readable && v->between) {
       v->epoch_first_byte = t_in;
       v->between = 0;
@@ -605,6 +615,7 @@ static void sv_loop(stress_viewer_t *v, double t_start) {
     uint64_t got = sv_bytes_in(v) - before;
     if (marked && got == OCP_HEADER_BYTES && !v->new_state) v->between = 1; /* a lone KEEPALIVE */
     if (r) {
+      sv_publish(v, got ? t_in : 0); /* what came before the loss counts; not busy while away */
       if (sv_should_reconnect(v, r)) {
         if (sv_reconnect(v, why[0] ? why : "connection lost") < 0) break;
         continue;
@@ -612,13 +623,18 @@ static void sv_loop(stress_viewer_t *v, double t_start) {
       if (!atomic_load(&run->stop) || r < 0) sv_poll_failed(v, r, why);
       break;
     }
+    if (v->new_state && v->index == 0 && ack_delay > 0) { /* test hook: a slow viewer (OC_STRESS_ACK_DELAY_MS) */
+      struct timespec ts = {(time_t)(ack_delay / 1000), (long)(ack_delay % 1000) * 1000000L};
+      nanosleep(&ts, NULL);
+    }
     if (v->new_state && stepped) {
       int a = sv_answer_step(v, t_in);
       if (a < 0) break;
       if (a > 0) continue;
     }
-    if (got || v->new_state) sv_publish(v, got ? t_in : 0);
+    if (got || v->new_state || readable) sv_publish(v, got ? t_in : 0);
   }
+  sv_publish(v, 0); /* not busy any more */
 }
 
 void *stress_viewer_main(void *arg) {
