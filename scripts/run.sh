@@ -21,7 +21,7 @@ trap '[ -z "$SERVER" ] || { kill -TERM $SERVER 2>/dev/null; wait $SERVER 2>/dev/
 . scripts/server_start.sh
 oc_server_start build/bin "$OUT" || exit 1
 echo "run: overcast-server on $ADDR (log: $OUT/server.log)" >&2
-# The main job's camera: 6 km over fair-weather cumulus west of France, looking down 15° (the
+# The main job's camera: 6 km over fair-weather cumulus at 45.5°N 4°W, looking down 15° (the
 # scene's own camera, 2 km over a stretch with few clouds, stays for the benches). Test
 # bench_look_main_job holds this view to cloud on >= 15 % of the frame and lit / dark cloud >= 2.
 CAMERA=45.5,-4,6000,260,-15,60
