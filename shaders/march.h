@@ -34,6 +34,7 @@ typedef struct ocg_march {
   ocg_real Tc;      /**< transmittance of the clouds alone: the alpha channel */
   ocg_vec3 L_ms;    /**< multiply scattered radiance of the current cloud run, before its chord factor */
   ocg_real tau_run; /**< cloud optical depth crossed so far in the current run (0 outside clouds) */
+  ocg_vec3 L_far;   /**< sky light of the current run from its far side, decayed by the depth crossed since */
 #if defined(OC_GLSL)
 };
 #else
@@ -51,9 +52,14 @@ typedef struct ocg_march {
 #ifndef OCG_MS_ALBEDO_POWER
 #define OCG_MS_ALBEDO_POWER OCG_R(0.0053)
 #endif
-/*! Sky ambient falls as exp(−k·κ_d·min(τ, τ_run)), κ_d the diffusion constant (occluded ambient). */
+/*! Sky ambient from each side of a cloud falls as exp(−k·κ_d·d) with the depth d to that side, κ_d
+ *  the diffusion constant (occluded ambient; fitted to the uniform-sky truth, not to the sun cases). */
 #ifndef OCG_AMBIENT_DEPTH_K
-#define OCG_AMBIENT_DEPTH_K OCG_R(21.62)
+#define OCG_AMBIENT_DEPTH_K OCG_R(0.35)
+#endif
+/*! The face of a thick cloud keeps α = R∞ + c·(1 − R∞) of the sky's fluence (ocg_ambient_face). */
+#ifndef OCG_AMBIENT_FACE_C
+#define OCG_AMBIENT_FACE_C OCG_R(0.1)
 #endif
 /*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
  *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
@@ -94,6 +100,7 @@ OC_INLINE ocg_march ocg_march_begin(void) {
   m.Tc = OCG_R(1.0);
   m.L_ms = ocg_v3s(OCG_R(0.0));
   m.tau_run = OCG_R(0.0);
+  m.L_far = ocg_v3s(OCG_R(0.0));
   return m;
 }
 
@@ -120,26 +127,59 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
  *
  * Occluded ambient: the sky fluence F reaches a sample through the cloud around it. In a
  * conservative cloud (ω = 1) the diffuse field under a uniform sky is the sky itself at every depth
- * (radiative equilibrium), so A = 1; with absorption it decays over the diffusion length,
- * $A = e^{-k\,\kappa_d\,d}$, $\kappa_d = \sqrt{3(1 - \omega)(1 - \omega \bar g)}$ with the phase function's
- * mean cosine ḡ = 0.864, and d = min(τ, τ_run), the sample's depth toward the sun and toward the
- * camera (the sky comes from all sides; the nearer boundary dominates).
+ * (radiative equilibrium), so A = 1; with absorption it decays over the diffusion length, from the
+ * near side of the cloud and, where the cloud is thin, from its far side too:
+ * $A = e^{-\kappa\,d_n}\,[\alpha + (1 - \alpha)\,e^{-\kappa\,d_f}]$, $\kappa = k\,\kappa_d$,
+ * $\kappa_d = \sqrt{3(1 - \omega)(1 - \omega \bar g)}$ with the phase function's mean cosine ḡ = 0.864,
+ * and α = R∞ + c(1 − R∞) what the face of a semi-infinite cloud keeps. The cloud's phase function is
+ * strongly forward, so a sample scatters toward the camera mostly light that travels toward the
+ * camera: what comes out of the cloud behind it, its diffuse reflectance R∞ where the cloud is thick
+ * (van de Hulst's similarity fit, $R_\infty = \frac{(1 - s)(1 - 0.139 s)}{1 + 1.17 s}$,
+ * $s = \sqrt{\frac{1 - \omega}{1 - \omega \bar g}}$), plus a share c of the rest for the sky seen off the
+ * forward lobe (c = 0.1, k = 0.35: docs/numerics.md, "Sky ambient under a uniform sky"). A thin
+ * cloud gives A → 1, a thick one's face α, its core 0; ω = 1 gives A = 1 at any depth. The near side's
+ * depth d_n = min(τ, τ_run) (toward the sun or the camera, whichever is nearer) is known at the
+ * sample; the far side's d_f = D − τ_run only where the run ends, so that term is gathered apart
+ * (L_far) and decayed by e^{−κ σ_c d} over every later segment of the run, chord steps included.
  *
  * legacy = 1 is the model before the fit: Σ_{i<n} b^i e^{−a^i τ} p(μ; c^i) now, unoccluded ambient.
  * Domain: σ_c ≥ 0, τ ≥ 0, μ ∈ [−1, 1], ω ∈ [0, 1], a, b, c ∈ (0, 1]. */
 #define OCG_PHASE_MEAN_COS OCG_R(0.864)
+/* κ = k·κ_d, the ambient's decay per unit optical depth (0 for the legacy model and at ω = 1). */
+OC_INLINE ocg_real ocg_ambient_kappa(OC_IN(ocg_cloud_model) cm) {
+  if (cm.legacy != 0) return OCG_R(0.0);
+  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
+  return cm.ambient_k * ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+}
+
+/* α = R∞ + c·(1 − R∞): the share of A that a thick cloud keeps at its face (1 at ω = 1). */
+OC_INLINE ocg_real ocg_ambient_face(OC_IN(ocg_cloud_model) cm) {
+  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
+  ocg_real s = ocg_safe_sqrt((OCG_R(1.0) - w) / (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+  ocg_real r_inf = (OCG_R(1.0) - s) * (OCG_R(1.0) - OCG_R(0.139) * s) / (OCG_R(1.0) + OCG_R(1.17) * s);
+  return r_inf + OCG_AMBIENT_FACE_C * (OCG_R(1.0) - r_inf);
+}
+
+/* e^{−κ d_n}: the near side's decay at the sample (the legacy model: 1, unoccluded). */
 OC_INLINE ocg_real ocg_ambient_occlusion(OC_IN(ocg_cloud_model) cm, ocg_real tau, ocg_real tau_run) {
   if (cm.legacy != 0) return OCG_R(1.0);
-  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
-  ocg_real kd = ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
-  return ocg_exp(-cm.ambient_k * kd * ocg_max(ocg_min(tau, tau_run), OCG_R(0.0)));
+  return ocg_exp(-ocg_ambient_kappa(cm) * ocg_max(ocg_min(tau, tau_run), OCG_R(0.0)));
+}
+
+/* The far side's source ω σ_c F/(4π)·(1 − α)·e^{−κ d_n}, before its decay (0 for the legacy model). */
+OC_INLINE ocg_vec3 ocg_cloud_source_far(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real tau_run,
+                                        ocg_vec3 e_fluence) {
+  if (cm.legacy != 0) return ocg_v3s(OCG_R(0.0));
+  ocg_real a = (OCG_R(1.0) - ocg_ambient_face(cm)) * ocg_ambient_occlusion(cm, tau, tau_run);
+  return ocg_scale3(e_fluence, a * OCG_INV_4PI * cm.albedo * sig);
 }
 
 OC_INLINE ocg_vec3 ocg_cloud_source(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real tau_run, ocg_real mu,
                                     ocg_vec3 e_sun, ocg_vec3 e_fluence) {
   ocg_real n = cm.legacy != 0 ? ocg_ms_octaves(tau, mu, cm.ms_a, cm.ms_b, cm.ms_c, cm.ms_n)
                               : ocg_exp(-ocg_max(tau, OCG_R(0.0))) * ocg_phase_hg_draine(mu);
-  ocg_real amb = OCG_INV_4PI * ocg_ambient_occlusion(cm, tau, tau_run);
+  ocg_real face = cm.legacy != 0 ? OCG_R(1.0) : ocg_ambient_face(cm);
+  ocg_real amb = OCG_INV_4PI * face * ocg_ambient_occlusion(cm, tau, tau_run);
   ocg_vec3 s = ocg_add3(ocg_scale3(e_sun, n), ocg_scale3(e_fluence, amb));
   return ocg_scale3(s, cm.albedo * sig);
 }
@@ -183,10 +223,14 @@ OC_INLINE ocg_vec3 ocg_air_source(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_rea
  * Over a segment of length d with constant σ_t (RGB, clouds and air) and source J (Hillaire 2015):
  * $L \mathrel{+}= T\,J\,\frac{1 - e^{-\sigma_t d}}{\sigma_t}$, then $T \mathrel{*}= e^{-\sigma_t d}$ and
  * $T_c \mathrel{*}= e^{-\sigma_c d}$. Exact for a homogeneous segment at any length; the weight's series
- * (optics.h) keeps σ_t → 0 finite. */
+ * (optics.h) keeps σ_t → 0 finite. The far-side ambient j_far joins L_far at the segment's middle depth
+ * and L_far decays by e^{−κ σ_c d} (κ = ocg_ambient_kappa). */
 OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_real sig, ocg_vec3 j, ocg_vec3 j_ms,
-                                  ocg_real d) {
+                                  ocg_vec3 j_far, ocg_real kappa, ocg_real d) {
   ocg_vec3 w = ocg_segment_weight3(sigma_t, d);
+  ocg_real decay = ocg_exp(-kappa * sig * d);
+  OC_DEREF(m).L_far = ocg_add3(ocg_scale3(OC_DEREF(m).L_far, decay),
+                               ocg_scale3(ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_far, w)), ocg_exp(OCG_R(-0.5) * kappa * sig * d)));
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j, w)));
   OC_DEREF(m).L_ms = ocg_add3(OC_DEREF(m).L_ms, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_ms, w)));
   OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
@@ -195,10 +239,12 @@ OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_re
 }
 
 /* The end of a cloud run (a cloud-free segment, the ground, the end or the early exit): its multiple
- * scattering joins L with the chord factor of the depth crossed. */
+ * scattering joins L with the chord factor of the depth crossed, its far-side ambient as decayed. */
 OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
   if (OC_DEREF(m).tau_run > OCG_R(0.0))
     OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(OC_DEREF(m).L_ms, ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run)));
+  OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, OC_DEREF(m).L_far);
+  OC_DEREF(m).L_far = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).L_ms = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).tau_run = OCG_R(0.0);
 }
@@ -218,10 +264,12 @@ OC_INLINE ocg_atmo_bool ocg_march_wants_chord(OC_IN(ocg_march) m, OC_IN(ocg_clou
   return cm.legacy == 0 && cm.ms_n > 1 && m.tau_run > OCG_R(0.0);
 }
 
-/* One chord-only step of length d: @return whether to go on (still in cloud, D below the cap). */
-OC_INLINE ocg_atmo_bool ocg_march_chord(OC_INOUT(ocg_march) m, ocg_real sig, ocg_real d) {
+/* One chord-only step of length d (κ: ocg_ambient_kappa): @return whether to go on (still in cloud, D
+ * below the cap). */
+OC_INLINE ocg_atmo_bool ocg_march_chord(OC_INOUT(ocg_march) m, ocg_real sig, ocg_real kappa, ocg_real d) {
   ocg_atmo_bool in_cloud = sig > OCG_R(0.0);
   if (in_cloud) OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
+  if (in_cloud) OC_DEREF(m).L_far = ocg_scale3(OC_DEREF(m).L_far, ocg_exp(-kappa * sig * d));
   return in_cloud && OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX;
 }
 

@@ -304,6 +304,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   ocg_march m = ocg_march_begin();
   ocg_cloud_model cm = ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves, u_ms_model, OCG_MS_CHORD_HALF,
                                        OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A);
+  float kap = ocg_ambient_kappa(cm);
 
   float t0 = 0.0, t1 = 0.0, a0, a1;
   vec3 box_lo = vec3(-u_cam_cell) * u_cell, box_hi = vec3(ivec3(OCV_CELLS21) - u_cam_cell) * u_cell;
@@ -383,7 +384,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     }
     if (chord) {
       t = te;
-      if (!ocg_march_chord(m, sig, seg)) break;
+      if (!ocg_march_chord(m, sig, kap, seg)) break;
       continue;
     }
     if (OCV_DEBUG && sig > 0.0) {
@@ -395,13 +396,14 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     float mu_s = (u_sun_o + tm * mu) / r;
     vec3 Esun = u_sun_e * ocv_sun_transmittance(r, mu_s);
     vec3 sigma_t = vec3(sig);
-    vec3 J = vec3(0.0), Jms = vec3(0.0);
+    vec3 J = vec3(0.0), Jms = vec3(0.0), Jfar = vec3(0.0);
     if (sig > 0.0) {
       vec3 F = vec3(0.0);
       if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s);
       else if (u_bg_constant != 0 && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = vec3(4.0 * OCG_PI * u_bg_radiance);
       J = ocg_cloud_source(cm, sig, tau, m.tau_run, mu, Esun, F);
       Jms = ocg_cloud_source_ms(cm, sig, tau, mu, Esun);
+      Jfar = ocg_cloud_source_far(cm, sig, tau, m.tau_run, F);
     } else {
       ocg_march_end_run(m, cm);
     }
@@ -410,7 +412,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       J += ocg_air_source(u_atm, r, mu, Esun, tau, u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
     }
     bool above = max(m.T.x, max(m.T.y, m.T.z)) >= 0.5;
-    ocg_march_segment(m, sigma_t, sig, J, Jms, seg);
+    ocg_march_segment(m, sigma_t, sig, J, Jms, Jfar, kap, seg);
     if (above && max(m.T.x, max(m.T.y, m.T.z)) < 0.5 && depth == OCV_FAR) depth = tm;
     t = te;
     if (ocg_march_done(m, u_exit_t)) {
