@@ -6,6 +6,7 @@
 #include "oc_render.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,10 +19,13 @@
 #include "march.h"    /* the march: sources, segment update, ground, sun disc */
 #include "optics.h"   /* phase functions, segment weights, octaves */
 #include "sampling.h" /* ocg_jitter */
+#include "shadow.h"   /* the cloud shadow volume's addressing and reconstruction */
 
 /* Locating a leaf looks this far ahead along the ray so that a point on a shared face is found in
  * the node being entered, not the one being left (leaves are ≥ 6 m; doubles resolve 1e-9 m here). */
 #define OC__LOCATE_EPS 1e-4
+/* A shadow volume texel not walked yet (a NaN's bits: no walk returns it). */
+#define OC__SHADOW_UNSET 0xFFFFFFFFu
 
 typedef struct {
   int64_t idx;         /**< leaf index, -1 outside the root cube */
@@ -42,7 +46,12 @@ typedef struct {
   double ground_r;     /**< planet radius, or 0 without a planet */
   double air_top;      /**< atmosphere top radius */
   oc_render_stats_t *thread_stats;
+  oc_shadow_frame_t shf; /**< the cloud shadow volume's place (shf.n[0] = 0: none) */
+  ocg_shadow_grid sg;    /**< the same for shadow.h */
+  _Atomic uint32_t *shadow; /**< its τ texels (float bits; OC__SHADOW_UNSET until walked), or NULL */
 } oc__ctx_t;
+
+static int oc__bad(const char *field);
 
 /* ---- State sampling ------------------------------------------------------------------------------ */
 
@@ -169,6 +178,103 @@ static double oc__air_step(const oc__ctx_t *cx, oc_dvec3 p, oc_dvec3 dir, double
   return ocg_march_air_step((float)h, (float)(oc_ddot(p, dir) / r), (float)air_step);
 }
 
+/* ---- The cloud shadow volume (shaders/shadow.h) ------------------------------------------------------- */
+
+int oc_render_shadow_frame(const oc_render_desc_t *desc, oc_dvec3 camera, double ground_r, oc_shadow_frame_t *f) {
+  memset(f, 0, sizeof *f);
+  double ext = desc->shadow_extent != 0.0 ? desc->shadow_extent : OC_RENDER_DEFAULT_SHADOW_EXTENT;
+  double top = desc->shadow_top != 0.0 ? desc->shadow_top : OC_RENDER_DEFAULT_SHADOW_TOP;
+  int cells = desc->shadow_cells ? desc->shadow_cells : OC_RENDER_DEFAULT_SHADOW_CELLS;
+  int levels = desc->shadow_levels ? desc->shadow_levels : OC_RENDER_DEFAULT_SHADOW_LEVELS;
+  if (!(ext >= 100.0 && ext <= 2e6)) return oc__bad("shadow_extent [100, 2e6] m");
+  if (!(top >= 100.0 && top <= OCG_SHADOW_WALK_TOP)) return oc__bad("shadow_top [100, 30000] m");
+  if (cells < 2 || cells > 4096) return oc__bad("shadow_cells [2, 4096]");
+  if (levels < 2 || levels > 1024) return oc__bad("shadow_levels [2, 1024]");
+  if ((desc->flags & OC_RF_NO_CLOUD_SHADOW) || !(ground_r > 0.0) || !(oc_dlen(camera) > 0.0)) return 0;
+  oc_enu_t e = oc_enu_at(camera);
+  double half = 0.5 * ext, drop = half * half / ground_r; /* the ground at a corner of the grid: (2·half²)/(2R) below */
+  f->c0 = oc_dscale(e.up, ground_r);
+  f->east = e.east;
+  f->north = e.north;
+  f->up = e.up;
+  f->n[0] = f->n[1] = cells;
+  f->n[2] = levels;
+  f->lo[0] = f->lo[1] = -half;
+  f->lo[2] = -drop;
+  f->cell[0] = f->cell[1] = ext / (cells - 1);
+  f->cell[2] = (top + drop) / (levels - 1);
+  return 0;
+}
+
+/* The τ toward the sun at p: the τ channel where the sun ray from p first enters a leaf with σt > 0. */
+static float oc__shadow_walk(const oc__ctx_t *cx, oc_dvec3 p, float z0, float sun_z) {
+  const oc_dvec3 sun = cx->s->sun_dir;
+  oc__leaf_t lf;
+  double t = 0.0;
+  for (int i = 0; i < OCG_SHADOW_MAX_LEAVES; i++) {
+    if (z0 + (float)t * sun_z > OCG_SHADOW_WALK_TOP && sun_z >= 0.0f) return 0.0f;
+    oc_dvec3 q = oc_dmad(p, sun, t);
+    oc__leaf_locate(cx->s, oc_dmad(p, sun, t + OC__LOCATE_EPS), &lf);
+    if (!lf.n) return 0.0f;
+    if (lf.n->range[OC_CH_SIGMA].hi > 0.0f) {
+      ocg_vec3 u = ocg_max3(ocg_min3(oc__leaf_local(&lf, q), ocg_v3s(1.0f)), ocg_v3s(0.0f));
+      return oc__leaf_channel(&lf, OC_CH_TAU, u);
+    }
+    t += fmax(oc__node_exit(&lf, q, sun), OC__LOCATE_EPS);
+  }
+  return 0.0f;
+}
+
+/* Texel (i, j, k) of the shadow volume, walked the first time it is asked for (lazily: a render
+ * pays only for the texels its rays touch). Threads may walk the same texel at once; they store the
+ * same value, so the image does not depend on the thread count. */
+static float oc__shadow_texel(const oc__ctx_t *cx, int i, int j, int k) {
+  _Atomic uint32_t *slot = &cx->shadow[ocg_shadow_index(cx->sg, i, j, k)];
+  uint32_t bits = atomic_load_explicit(slot, memory_order_relaxed);
+  float v;
+  if (bits != OC__SHADOW_UNSET) {
+    memcpy(&v, &bits, sizeof v);
+    return v;
+  }
+  const oc_shadow_frame_t *f = &cx->shf;
+  ocg_vec3 q = ocg_shadow_texel(cx->sg, i, j, k);
+  oc_dvec3 p = oc_dadd(oc_dadd(f->c0, oc_dscale(f->east, q.x)), oc_dadd(oc_dscale(f->north, q.y), oc_dscale(f->up, q.z)));
+  v = oc__shadow_walk(cx, p, q.z, (float)oc_ddot(cx->s->sun_dir, f->up));
+  memcpy(&bits, &v, sizeof bits);
+  atomic_store_explicit(slot, bits, memory_order_relaxed);
+  return v;
+}
+
+static int oc__shadow_build(oc__ctx_t *cx) {
+  const oc_shadow_frame_t *f = &cx->shf;
+  cx->sg.lo = ocg_v3((float)f->lo[0], (float)f->lo[1], (float)f->lo[2]);
+  cx->sg.cell = ocg_v3((float)f->cell[0], (float)f->cell[1], (float)f->cell[2]);
+  cx->sg.nx = f->n[0];
+  cx->sg.ny = f->n[1];
+  cx->sg.nz = f->n[2];
+  if (f->n[0] == 0) return 0;
+  size_t n = (size_t)f->n[0] * (size_t)f->n[1] * (size_t)f->n[2];
+  cx->shadow = malloc(sizeof *cx->shadow * n);
+  if (!cx->shadow) return OC_ENOMEM;
+  for (size_t i = 0; i < n; i++) atomic_init(&cx->shadow[i], OC__SHADOW_UNSET);
+  return 0;
+}
+
+/* τ of the shadow volume at p (0 without one, or outside it). */
+static float oc__shadow_tau(const oc__ctx_t *cx, oc_dvec3 p) {
+  if (!cx->shadow) return 0.0f;
+  const oc_shadow_frame_t *f = &cx->shf;
+  oc_dvec3 d = oc_dsub(p, f->c0);
+  ocg_vec4 c = ocg_shadow_coord(cx->sg, ocg_v3((float)oc_ddot(d, f->east), (float)oc_ddot(d, f->north),
+                                                (float)oc_ddot(d, f->up)));
+  if (c.w == 0.0f) return 0.0f;
+  ocg_vec3 b = ocg_shadow_base(cx->sg, c);
+  int i = (int)b.x, j = (int)b.y, k = (int)b.z;
+  float v[8];
+  for (int q = 0; q < 8; q++) v[q] = oc__shadow_texel(cx, i + (q & 1), j + ((q >> 1) & 1), k + (q >> 2));
+  return ocg_shadow_tau(c, b, ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]));
+}
+
 /* ---- One ray ----------------------------------------------------------------------------------------- */
 
 static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitter, float out[4], oc_render_stats_t *st) {
@@ -237,6 +343,8 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       ocg_vec3 u = oc__leaf_local(&lf, pm);
       if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, u);
       if (!chord) tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
+    } else if (!chord && cx->have_atmo) {
+      tau = oc__shadow_tau(cx, pm); /* a node without τ: the shadow volume's */
     }
     if (chord) {
       st->samples++;
@@ -282,8 +390,10 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       oc_dvec3 pg = oc_dmad(o, dir, t1);
       double r = oc_dlen(pg);
       float mu_s = (float)(oc_ddot(pg, sun) / r);
-      float sg, tg;
-      oc_render_sample_state(cx->s, pg, &sg, &tg);
+      oc__leaf_t g;
+      oc__leaf_locate(cx->s, pg, &g);
+      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_channel(&g, OC_CH_TAU, oc__leaf_local(&g, pg))
+                                                   : oc__shadow_tau(cx, pg);
       ocg_vec3 I = cx->have_atmo ? oc_atmo_sky_irradiance(d->atmo, r, mu_s) : ocg_v3s(0.0f);
       ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);
       ocg_march_background(&m, ocg_ground_radiance(oc__sun_transmittance(cx, r, mu_s), mu_s, tg, I, albedo, cx->sun_e));
@@ -379,8 +489,14 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   cx.ground_r = (d->background == OC_BG_CONSTANT || (d->flags & OC_RF_NO_PLANET)) ? 0.0
                 : cx.have_atmo ? cx.atm.bottom_radius : OC_PLANET_RADIUS;
 
+  int rc = oc_render_shadow_frame(d, d->camera.pos, cx.ground_r, &cx.shf);
+  if (rc < 0) return rc;
+  if ((rc = oc__shadow_build(&cx)) < 0) return rc;
   cx.thread_stats = calloc((size_t)d->threads, sizeof *cx.thread_stats);
-  if (!cx.thread_stats) return OC_ENOMEM;
+  if (!cx.thread_stats) {
+    free((void *)cx.shadow);
+    return OC_ENOMEM;
+  }
   oc_parallel(d->height, d->threads, oc__row, &cx);
 
   oc_render_stats_t sum = {0};
@@ -393,5 +509,6 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   }
   if (stats) *stats = sum;
   free(cx.thread_stats);
+  free((void *)cx.shadow);
   return 0;
 }

@@ -12,7 +12,9 @@
  *     (fluence / 4π from the atmosphere tables);
  *   - air in-scattering: Rayleigh and Mie single scattering (shadowed by the cloud τ) plus
  *     Hillaire's multiple-scattering term;
- *   - the planet sphere: Lambertian ground lit by the sun (with cloud shadow from τ) and the sky.
+ *   - the planet sphere: Lambertian ground lit by the sun (with cloud shadow from τ) and the sky;
+ *   - in empty nodes, which carry no τ, the τ of the cloud shadow volume (shaders/shadow.h) built
+ *     from the state during each render (each texel when a ray first needs it), centred under the camera.
  * Positions are double on the CPU. Output is deterministic for any thread count. */
 #ifndef OC_COMMON_RENDER_H
 #define OC_COMMON_RENDER_H
@@ -30,6 +32,11 @@
 #define OC_RENDER_DEFAULT_EXIT_T 1e-3      /**< early exit when max RGB transmittance drops below */
 #define OC_RENDER_DEFAULT_MS_OCTAVES 4
 #define OC_RENDER_DEFAULT_EXPOSURE 10.0
+/* The cloud shadow volume (shaders/shadow.h): a grid centred under the camera. */
+#define OC_RENDER_DEFAULT_SHADOW_EXTENT 64000.0 /**< m, its horizontal edge */
+#define OC_RENDER_DEFAULT_SHADOW_CELLS 128      /**< texels along each horizontal edge */
+#define OC_RENDER_DEFAULT_SHADOW_LEVELS 24      /**< texels from the ground to its top */
+#define OC_RENDER_DEFAULT_SHADOW_TOP 12000.0    /**< m, its top: air above it is unshadowed */
 /* The octave factors fitted with march.h's constants to the Monte Carlo truth (docs/numerics.md). */
 #define OC_RENDER_DEFAULT_MS_A 0.482f      /**< octave extinction factor a */
 #define OC_RENDER_DEFAULT_MS_B 0.9755f     /**< octave contribution factor b */
@@ -52,7 +59,8 @@ typedef enum {
   OC_RF_NO_AMBIENT = 1 << 2,    /**< no sky ambient on clouds */
   OC_RF_NO_SUN_DISC = 1 << 3,
   OC_RF_JITTER = 1 << 4,        /**< per-pixel jitter of the ray start (hash of pixel and frame) */
-  OC_RF_NO_EARLY_EXIT = 1 << 5
+  OC_RF_NO_EARLY_EXIT = 1 << 5,
+  OC_RF_NO_CLOUD_SHADOW = 1 << 6 /**< no shadow volume: air and ground in empty nodes unshadowed (before issue 21) */
 } oc_render_flags_t;
 
 /*! Debug views of the GL renderer: what the first cloudy sample along each ray sees. */
@@ -84,6 +92,10 @@ typedef struct {
   int debug_view;        /**< OC_DEBUG_*: the GL renderer's debug views; the CPU reference renders
                               the normal image whatever this says */
   int threads;           /**< default: 1 */
+  double shadow_extent;  /**< cloud shadow volume's horizontal edge, m; default OC_RENDER_DEFAULT_SHADOW_EXTENT */
+  int shadow_cells;      /**< its texels per horizontal edge [2, 4096]; default OC_RENDER_DEFAULT_SHADOW_CELLS */
+  int shadow_levels;     /**< its texels from the ground to its top [2, 1024]; default OC_RENDER_DEFAULT_SHADOW_LEVELS */
+  double shadow_top;     /**< its top, m above the ground; default OC_RENDER_DEFAULT_SHADOW_TOP */
   const oc_atmo_t *atmo; /**< required unless OC_RF_NO_ATMOSPHERE or OC_BG_CONSTANT */
 } oc_render_desc_t;
 
@@ -98,6 +110,18 @@ typedef struct {
 /*! oc_render_state() : renders a validated state into img (allocated by the caller, w×h of desc).
  *  @return 0, or OC_EINVAL for a bad desc (with an oc_log_error line naming the field). */
 int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_t *img, oc_render_stats_t *stats);
+
+/*! The cloud shadow volume's place (shaders/shadow.h): the grid both renderers build. */
+typedef struct {
+  int n[3];                          /**< texels per axis; n[0] = 0: no shadow volume */
+  double lo[3], cell[3];             /**< texel (0, 0, 0) and spacing in the local frame, m */
+  oc_dvec3 c0, east, north, up;      /**< the local frame: c0 = ground_r·up under the camera */
+} oc_shadow_frame_t;
+
+/*! oc_render_shadow_frame() : the shadow volume of desc (its shadow_* options, defaults applied) under
+ *  the camera at `camera` over a ground of radius ground_r (> 0); f->n[0] = 0 when desc's flags turn
+ *  it off. @return 0, or OC_EINVAL for a bad option (with an oc_log_error line naming the field). */
+int oc_render_shadow_frame(const oc_render_desc_t *desc, oc_dvec3 camera, double ground_r, oc_shadow_frame_t *f);
 
 /*! oc_render_sample_state() : σt and τ of the state at a planet-frame point (0, 0 outside the
  *  root cube): the reconstruction the renderer and the shaders use. */

@@ -2,7 +2,8 @@
  * common/oc_render.c, step for step, with the same shared march (shaders/march.h): this kernel only
  * finds the samples (octree, atlas, tables).
  *
- * Assembled after oc_port.h, sampling.h, optics.h, brick.h, atmosphere.h and march.h by client/gl/gl_program.c;
+ * Assembled after oc_port.h, sampling.h, optics.h, brick.h, shadow.h, atmosphere.h and march.h by
+ * client/gl/gl_program.c;
  * the OCV_* constants come from client/gl/gl_render.c. GPU data layout: client/gl/README.md.
  *
  * Positions (design.md, Conventions): the shader never holds an absolute planet coordinate in float.
@@ -28,6 +29,8 @@ struct OcPrev {
 };
 layout(std430, binding = 4) readonly buffer OcPrevs { OcPrev oc_prev[]; };
 layout(binding = 5) uniform sampler3D u_prev_pool; /* RG32F: resampled previous bricks */
+/* The cloud shadow volume (shaders/shadow.h): written by the shadow pass (OCV_SHADOW_PASS), read by the trace. */
+layout(std430, binding = 6) buffer OcShadow { float oc_shadow[]; };
 layout(std140, binding = 0) uniform OcAtmo { ocg_atmosphere u_atm; };
 
 layout(binding = 0) uniform usampler3D u_atlas;
@@ -73,6 +76,13 @@ layout(location = 33) uniform ivec3 u_pool_bricks;
 layout(location = 34) uniform int u_map_level;   /* octree map: 0 none, else its level (gl_state.c) */
 layout(location = 35) uniform uint u_map_offset; /* its first word in oc_tree */
 layout(location = 36) uniform int u_ms_model;    /* oc_ms_model_t: 0 fitted depth model, 1 legacy octaves */
+layout(location = 37) uniform vec3 u_sh_lo;      /* the shadow volume (ocg_shadow_grid): texel 0, local m */
+layout(location = 38) uniform vec3 u_sh_cell;    /* its spacing, m */
+layout(location = 39) uniform ivec3 u_sh_n;      /* its texels per axis; x < 2: none */
+layout(location = 40) uniform vec3 u_sh_cam;     /* the camera in its local frame, m */
+layout(location = 41) uniform vec3 u_sh_e;       /* its local frame: east, north, up */
+layout(location = 42) uniform vec3 u_sh_nn;
+layout(location = 43) uniform vec3 u_sh_u;
 
 /* Shader variants (client/gl/gl_render.c): the renderer compiles one program per combination of the
  * features a frame uses, defining each of these as a constant, so the compiler drops the code of the
@@ -294,12 +304,45 @@ float ocv_air_step(float b, float t, float air_step) {
   return ocg_march_air_step(r - u_atm.bottom_radius, (b + t) / r, air_step);
 }
 
+/* ---- The cloud shadow volume (shaders/shadow.h; oc_render.c's oc__shadow_*) ------------------------------ */
+
+ocg_shadow_grid ocv_shadow_grid() { return ocg_shadow_grid(u_sh_lo, u_sh_cell, u_sh_n.x, u_sh_n.y, u_sh_n.z); }
+
+/* τ of the shadow volume at the local point q (oc__shadow_tau). */
+float ocv_shadow_tau(vec3 q) {
+  ocg_shadow_grid g = ocv_shadow_grid();
+  vec4 c = ocg_shadow_coord(g, q);
+  if (c.w == 0.0) return 0.0;
+  vec3 b = ocg_shadow_base(g, c);
+  ivec3 i = ivec3(b);
+  float v[8];
+  for (int k = 0; k < 8; k++) v[k] = oc_shadow[ocg_shadow_index(g, i.x + (k & 1), i.y + ((k >> 1) & 1), i.z + (k >> 2))];
+  return ocg_shadow_tau(c, b, vec4(v[0], v[1], v[2], v[3]), vec4(v[4], v[5], v[6], v[7]));
+}
+
+/* The τ channel where the sun ray from the local point q0 first enters a leaf with σt > 0 (oc__shadow_walk). */
+float ocv_shadow_walk(vec3 q0) {
+  vec3 rel = u_cam_frac + u_sh_e * (q0.x - u_sh_cam.x) + u_sh_nn * (q0.y - u_sh_cam.y) + u_sh_u * (q0.z - u_sh_cam.z);
+  float sun_z = dot(u_sun, u_sh_u), t = 0.0;
+  for (int i = 0; i < OCG_SHADOW_MAX_LEAVES; i++) {
+    if (q0.z + t * sun_z > OCG_SHADOW_WALK_TOP && sun_z >= 0.0) return 0.0;
+    vec3 p = rel + u_sun * t;
+    float eps = max(OCV_LOCATE_EPS, length(p) * 1e-6);
+    OcvLeaf lf = ocv_locate_cell(ocv_cell_of(p + u_sun * eps));
+    if (lf.idx < 0) return 0.0;
+    if (oc_leaf[lf.idx].range.y > 0.0) return ocv_leaf_sample(lf, clamp(ocv_local(lf, p), 0.0, 1.0)).y;
+    t += max(ocv_node_exit(lf, p, u_sun), eps);
+  }
+  return 0.0;
+}
+
 /* ---- One ray (oc__trace) ------------------------------------------------------------------------------ */
 
 vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   depth = OCV_FAR;
   float mu = dot(dir, u_sun);
   float b = dot(u_cam_hi, dir) + dot(u_cam_lo, dir); /* o·d without the 0.5 m rounding of a float o */
+  vec3 sh_dir = vec3(dot(dir, u_sh_e), dot(dir, u_sh_nn), dot(dir, u_sh_u)); /* dir in the shadow volume's frame */
   vec3 o = u_cam_frac;
   ocg_march m = ocg_march_begin();
   ocg_cloud_model cm = ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves, u_ms_model, OCG_MS_CHORD_HALF,
@@ -381,6 +424,8 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       if (blend) st = mix(ocv_prev_sample(lf.idx, u), st, u_t);
       if (cloudy) sig = st.x;
       tau = st.y;
+    } else if (!chord && OCV_ATMO) {
+      tau = ocv_shadow_tau(u_sh_cam + sh_dir * tm); /* a node without τ: the shadow volume's */
     }
     if (chord) {
       t = te;
@@ -430,7 +475,8 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       float r = ocv_radius(b, t1);
       float mu_s = (u_sun_o + t1 * mu) / r;
       OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
-      float tg = g.idx >= 0 ? ocv_leaf_sample(g, ocv_local(g, pg)).y : 0.0;
+      float tg = g.idx >= 0 && oc_leaf[g.idx].info.x != 0u ? ocv_leaf_sample(g, ocv_local(g, pg)).y
+                                                           : ocv_shadow_tau(u_sh_cam + sh_dir * t1);
       vec3 I = OCV_ATMO ? ocv_atmo_rmus(u_tab_irradiance, r, mu_s) : vec3(0.0);
       vec3 albedo = OCV_ATMO ? u_atm.ground_albedo : vec3(0.1);
       ocg_march_background(m, ocg_ground_radiance(ocv_sun_transmittance(r, mu_s), mu_s, tg, I, albedo, u_sun_e));
@@ -443,6 +489,16 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   return vec4(m.L, m.Tc);
 }
 
+#ifdef OCV_SHADOW_PASS
+/* The shadow pass: texel (x, y % n_y, y / n_y) of the shadow volume. */
+void main() {
+  ivec2 g = ivec2(gl_GlobalInvocationID.xy);
+  if (g.x >= u_sh_n.x || g.y >= u_sh_n.y * u_sh_n.z) return;
+  ocg_shadow_grid sg = ocv_shadow_grid();
+  int j = g.y % u_sh_n.y, k = g.y / u_sh_n.y;
+  oc_shadow[ocg_shadow_index(sg, g.x, j, k)] = ocv_shadow_walk(ocg_shadow_texel(sg, g.x, j, k));
+}
+#else
 void main() {
   ivec2 px = ivec2(gl_GlobalInvocationID.xy);
   if (px.x >= u_size.x || px.y >= u_size.y) return;
@@ -455,3 +511,4 @@ void main() {
   oc_out[px.y * u_size.x + px.x] = ocv_trace(dir, j, depth);
   oc_depth[px.y * u_size.x + px.x] = depth;
 }
+#endif

@@ -20,7 +20,8 @@
 #endif
 
 /* The shared headers, in the order each needs the ones before it. */
-static const char *const ocv__headers[] = {"oc_port.h", "sampling.h", "optics.h", "brick.h", "atmosphere.h", "march.h"};
+static const char *const ocv__headers[] = {"oc_port.h", "sampling.h",   "optics.h", "brick.h",
+                                           "shadow.h",  "atmosphere.h", "march.h"};
 
 const char *ocv_gl_shader_dir(void) {
   const char *d = getenv("OC_SHADER_DIR");

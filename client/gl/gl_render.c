@@ -29,6 +29,7 @@ _Static_assert(sizeof(ocg_atmosphere) == 96, "ocg_atmosphere is the std140 block
 struct ocv_gl_renderer_s {
   GLuint prog[OCV__VARIANTS + 1]; /* compiled on first use, but for the common one at creation */
   char defines[512];
+  char sh_defines[600];           /* defines + OCV_SHADOW_PASS */
   int generic;                    /* always the generic program (benchmarks) */
   GLuint atmo_ubo;
   GLuint tab[OC_ATMO_TABLE_COUNT];
@@ -41,6 +42,13 @@ struct ocv_gl_renderer_s {
   GLuint query[2];       /* GL_TIME_ELAPSED of the trace and the reprojection pass */
   double pass_ms[2];     /* the last measured, < 0 before the first */
   int no_map;            /* descend from the root (benchmarks, tests) */
+  /* The cloud shadow volume (shaders/shadow.h), built by the kernel's shadow pass. */
+  GLuint sh_prog, sh_buf;
+  size_t sh_bytes;
+  oc_shadow_frame_t shf; /* where it is (shf.n[0] = 0: none) */
+  GLuint sh_tree;        /* the state it was built from (its octree buffer), 0: none yet */
+  uint32_t sh_leaves;
+  oc_dvec3 sh_sun;
 };
 
 void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on) {
@@ -101,6 +109,7 @@ ocv_gl_renderer_t *ocv_gl_renderer_create(char *why, size_t why_len) {
            "#define OCV_DEBUG_LOD %d\n#define OCV_DEBUG_TAU %d\n#define OCV_DEBUG_BOUNDS %d\n",
            (unsigned)OC_RF_NO_AMBIENT, (unsigned)OC_RF_NO_SUN_DISC, (unsigned)OC_RF_JITTER, OC_DEBUG_LOD, OC_DEBUG_TAU,
            OC_DEBUG_BOUNDS);
+  snprintf(r->sh_defines, sizeof r->sh_defines, "%s#define OCV_SHADOW_PASS 1\n", r->defines);
   r->pass_ms[0] = r->pass_ms[1] = -1.0;
   GLuint common = ocv__program(r, 1, why, why_len); /* atmosphere, no blend, no debug view */
   if (common) r->reproject = ocv_gl_compute_program("reproject.comp.glsl", NULL, why, why_len);
@@ -132,6 +141,8 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r) {
   for (int v = 0; v <= OCV__VARIANTS; v++)
     if (r->prog[v]) glDeleteProgram(r->prog[v]);
   if (r->reproject) glDeleteProgram(r->reproject);
+  if (r->sh_prog) glDeleteProgram(r->sh_prog);
+  if (r->sh_buf) glDeleteBuffers(1, &r->sh_buf);
   for (int k = 0; k < 2; k++)
     if (r->query[k]) glDeleteQueries(1, &r->query[k]);
   free(r);
@@ -160,6 +171,71 @@ static int ocv__upload_tables(ocv_gl_renderer_t *r, const oc_atmo_t *a) {
 static int ocv__bad(char *why, size_t wl, const char *field) {
   (void)oc_errorf(0, why, wl, "gl render: invalid %s", field);
   return OC_EINVAL;
+}
+
+/* A device buffer of exactly `bytes` (re-created when the size changes). */
+static void ocv__buffer(GLuint *b, size_t *have, size_t bytes);
+
+/* Whether the shadow volume must be rebuilt for frame f: a new state, sun or grid, or the camera over
+ * an eighth of its edge from its centre. */
+static int ocv__shadow_stale(const ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_shadow_frame_t *f) {
+  const oc_shadow_frame_t *o = &r->shf;
+  if (r->sh_tree != gs->tree || r->sh_leaves != gs->leaf_count || memcmp(&r->sh_sun, &gs->sun_dir, sizeof r->sh_sun))
+    return 1;
+  if (memcmp(o->n, f->n, sizeof o->n) || memcmp(o->cell, f->cell, sizeof o->cell) || o->lo[2] != f->lo[2]) return 1;
+  return f->n[0] && oc_dlen(oc_dsub(o->c0, f->c0)) > 0.125 * (f->n[0] - 1) * f->cell[0];
+}
+
+/* Sets the shadow volume's uniforms on program p (the camera o in its frame). */
+static void ocv__shadow_uniforms(GLuint p, const oc_shadow_frame_t *f, oc_dvec3 o) {
+  oc_dvec3 d = oc_dsub(o, f->c0);
+  glProgramUniform3f(p, 37, (float)f->lo[0], (float)f->lo[1], (float)f->lo[2]);
+  glProgramUniform3f(p, 38, (float)f->cell[0], (float)f->cell[1], (float)f->cell[2]);
+  glProgramUniform3i(p, 39, f->n[0], f->n[1], f->n[2]);
+  glProgramUniform3f(p, 40, (float)oc_ddot(d, f->east), (float)oc_ddot(d, f->north), (float)oc_ddot(d, f->up));
+  glProgramUniform3f(p, 41, (float)f->east.x, (float)f->east.y, (float)f->east.z);
+  glProgramUniform3f(p, 42, (float)f->north.x, (float)f->north.y, (float)f->north.z);
+  glProgramUniform3f(p, 43, (float)f->up.x, (float)f->up.y, (float)f->up.z);
+}
+
+/* The cloud shadow volume for desc's camera over a ground of radius ground_r (oc_render_state()'s):
+ * rebuilt by the shadow pass when stale (ic, fr: the camera's level-21 cell and offset), then bound to
+ * binding 6 and its uniforms set on the trace program p. */
+static int ocv__shadow(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *d, double ground_r, GLuint p,
+                       const int ic[3], const double fr[3], char *why, size_t why_len) {
+  oc_shadow_frame_t f;
+  if (oc_render_shadow_frame(d, d->camera.pos, ground_r, &f) < 0) return ocv__bad(why, why_len, "shadow volume option");
+  if (ocv__shadow_stale(r, gs, &f)) {
+    r->shf = f;
+    r->sh_tree = gs->tree;
+    r->sh_leaves = gs->leaf_count;
+    r->sh_sun = gs->sun_dir;
+    if (f.n[0]) {
+      if (!r->sh_prog) r->sh_prog = ocv_gl_compute_program(OCV__KERNEL, r->sh_defines, why, why_len);
+      if (!r->sh_prog) return OC_EIO;
+      GLuint q = r->sh_prog;
+      ocv__buffer(&r->sh_buf, &r->sh_bytes, sizeof(float) * (size_t)f.n[0] * (size_t)f.n[1] * (size_t)f.n[2]);
+      ocv__shadow_uniforms(q, &f, d->camera.pos);
+      glProgramUniform3i(q, 0, ic[0], ic[1], ic[2]);
+      glProgramUniform3f(q, 1, (float)fr[0], (float)fr[1], (float)fr[2]);
+      glProgramUniform3f(q, 10, (float)gs->sun_dir.x, (float)gs->sun_dir.y, (float)gs->sun_dir.z);
+      glProgramUniform1f(q, 12, (float)OC_CELL21_SIZE);
+      glProgramUniform3i(q, 28, gs->atlas_bricks[0], gs->atlas_bricks[1], gs->atlas_bricks[2]);
+      glProgramUniform1i(q, 34, r->no_map ? 0 : gs->map_level);
+      glProgramUniform1ui(q, 35, gs->map_offset);
+      glUseProgram(q);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, r->sh_buf);
+      glBindTextureUnit(0, gs->atlas);
+      glDispatchCompute((GLuint)((f.n[0] + OCV__GROUP - 1) / OCV__GROUP),
+                        (GLuint)((f.n[1] * f.n[2] + OCV__GROUP - 1) / OCV__GROUP), 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    }
+  }
+  ocv__shadow_uniforms(p, &r->shf, d->camera.pos);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, r->shf.n[0] ? r->sh_buf : gs->leaves); /* unread without a volume */
+  return 0;
 }
 
 /* Sets the kernel's uniforms for desc and traces into out (vec4 per pixel) and depth (float per
@@ -263,6 +339,8 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   glProgramUniform1i(p, 34, r->no_map ? 0 : gs->map_level);
   glProgramUniform1ui(p, 35, gs->map_offset);
   glProgramUniform1i(p, 36, d.ms_model);
+  int rc = ocv__shadow(r, gs, &d, ground_r, p, ic, fr, why, why_len);
+  if (rc < 0) return rc;
   glUseProgram(p);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);

@@ -303,6 +303,98 @@ static void test_render__air_integral_converges(void **st) {
   oc_state_free(&s);
 }
 
+/* ---- Cloud shadows in the air and on the ground (issue 21; shaders/shadow.h) ---------------------------- */
+
+/* A planet-wide slab 14–15 km up of extinction sigma, voxelized to level 10 (12.6 km leaves: coarser
+ * than the ground's τ level 11) within 90 km of 0°N 0°E, the sun 15° up in the east. Leaves without
+ * cloud are made empty, as the planner sends them: only the slab's leaves carry τ. */
+#define SHADOW_BASE 14000.0
+#define SHADOW_TOP 15000.0
+#define SHADOW_ELEV 15.0
+static void shadow_state(oc_state_t *s, double sigma) {
+  ocs_medium_t m;
+  ocs_prim_t p;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_prim_slab(&p, SHADOW_BASE, SHADOW_TOP, sigma), 0);
+  assert_int_equal(ocs_medium_add(&m, &p), 0);
+  oc_dvec3 ground = oc_geo_to_xyz((oc_geo_t){0.0, 0.0, 0.0});
+  oc_dvec3 sun = sun_from(ground, SHADOW_ELEV, 90.0);
+  slab_refine_t rc = {{&m, sun, 0.0}, ground, 90000.0};
+  ocs_aabb_t box = {oc_dsub(ground, oc_dv3(90000, 90000, 90000)), oc_dadd(ground, oc_dv3(90000, 90000, 90000))};
+  ocs_voxelize_desc_t vd = {.sigma = ocs_medium_sigma_cb, .tau = ocs_medium_tau_cb, .ctx = &rc.mc, .min_level = 3,
+                            .max_level = 10, .aabbs = &box, .aabb_count = 1, .refine = slab_refine,
+                            .refine_ctx = &rc, .sun_dir = sun, .threads = 2};
+  oc_state_init(s);
+  if (sigma > 0.0) assert_int_equal(ocs_voxelize(s, &vd), 0);
+  else {
+    oc_node_t n = {.key = OC_KEY_ROOT, .kind = OC_NODE_EMPTY};
+    assert_int_equal(oc_state_add_node(s, &n), 0);
+    s->sun_dir = sun;
+  }
+  for (uint32_t i = 0; i < s->node_count; i++)
+    if (!(s->nodes[i].range[OC_CH_SIGMA].hi > 0.0f)) {
+      memset(&s->nodes[i].range, 0, sizeof s->nodes[i].range);
+      s->nodes[i].kind = OC_NODE_EMPTY;
+    }
+}
+
+/* The slab's optical depth along the sun ray from p: σ × the chord between the shells R + base and
+ * R + top (a spherical planet). */
+static double shadow_tau(oc_dvec3 p, oc_dvec3 sun, double sigma) {
+  double r = oc_dlen(p), mu = oc_ddot(p, sun) / r;
+  double a = OC_PLANET_RADIUS + SHADOW_TOP, b = OC_PLANET_RADIUS + SHADOW_BASE;
+  double dt = -r * mu + sqrt(r * r * mu * mu - r * r + a * a), db = -r * mu + sqrt(r * r * mu * mu - r * r + b * b);
+  return sigma * (dt - db);
+}
+
+/* Sum of RGB of the centre pixel of a 9×9 view 8 km up at 0°N 0°E looking west 20° down (to the ground
+ * 22 km away, all of it under the slab, none of it seeing the slab). */
+static double shadow_pixel(const oc_state_t *s, const oc_atmo_t *a, uint32_t flags) {
+  oc_camera_pose_t pose = {{0.0, 0.0, 8000.0}, 270.0, -20.0, 2.0};
+  oc_render_desc_t d = {.width = 9, .height = 9, .camera = oc_camera_from_pose(pose), .atmo = a, .threads = 2,
+                        .flags = flags};
+  oc_image_t img;
+  assert_int_equal(oc_image_alloc(&img, d.width, d.height), 0);
+  assert_int_equal(oc_render_state(s, &d, &img, NULL), 0);
+  const float *px = img.px + 4 * (4 * d.width + 4);
+  double v = (double)px[0] + px[1] + px[2];
+  assert_true(px[3] == 1.0f); /* no cloud along the view */
+  oc_image_free(&img);
+  return v;
+}
+
+/* A cloud between the sun and the air darkens the air and the ground under it by e^{-τ}, τ its optical
+ * depth along the sun, though no leaf there carries τ. Radiance is L(τ) = A + B·e^{-τ} (A: the air's
+ * multiple scattering and the sky, which the model does not shadow); with the slab at σ and 2σ,
+ * (L(τ) − L(2τ)) / (L(0) − L(τ)) = e^{-τ} whatever A and B are. Checked for the air alone (black
+ * ground) and for ground and air; the second also shows ground under a level-10 cloud leaf shadowed. */
+static void test_render__cloud_shadows_air_and_ground(void **st) {
+  (void)st;
+  const double sigma = 0.5 * sin(SHADOW_ELEV * OC_DEG) / (SHADOW_TOP - SHADOW_BASE); /* τ ≈ 0.5 */
+  oc_state_t s[3];
+  for (int k = 0; k < 3; k++) shadow_state(&s[k], sigma * k);
+  ocg_atmosphere p;
+  oc_atmo_params_default(&p);
+  p.ground_albedo = ocg_v3s(0.0f);
+  oc_atmo_t *black = oc_atmo_create(&p, 2);
+  assert_non_null(black);
+  oc_dvec3 mid = oc_geo_to_xyz((oc_geo_t){0.0, -11000.0 / (OC_PLANET_RADIUS * OC_DEG), 4000.0});
+  double truth = exp(-shadow_tau(mid, s[1].sun_dir, sigma));
+  for (int g = 0; g < 2; g++) {
+    double L[3];
+    for (int k = 0; k < 3; k++) L[k] = shadow_pixel(&s[k], g ? atmo() : black, 0);
+    double got = (L[1] - L[2]) / (L[0] - L[1]), off = shadow_pixel(&s[1], g ? atmo() : black, OC_RF_NO_CLOUD_SHADOW);
+    printf("cloud shadow, %s: L %.5g / %.5g / %.5g (τ 0, τ, 2τ; %.5g without the shadow volume), e^-τ %.4f, closed "
+           "form %.4f\n", g ? "ground and air" : "air alone", L[0], L[1], L[2], off, got, truth);
+    oc_report("render", g ? "cloud shadow e^-τ, ground and air" : "cloud shadow e^-τ, air alone", fabs(got - truth), 0.02,
+              "abs");
+    assert_true(L[1] < 0.9 * L[0]);
+    assert_true(fabs(got - truth) < 0.02);
+  }
+  oc_atmo_free(black);
+  for (int k = 0; k < 3; k++) oc_state_free(&s[k]);
+}
+
 /* Data with NaN, ±Inf and negative extinction: sanitised (and counted) before it reaches a brick,
  * so the integral stays finite and transmittance stays in [0, 1]. */
 static double bad_data(void *ctx, oc_dvec3 p) {
@@ -409,6 +501,7 @@ int main(void) {
       cmocka_unit_test(test_render__deterministic_across_thread_counts),
       cmocka_unit_test(test_render__extreme_views_are_finite_and_plausible),
       cmocka_unit_test(test_render__air_integral_converges),
+      cmocka_unit_test(test_render__cloud_shadows_air_and_ground),
       cmocka_unit_test(test_render__bad_data_sanitised),
       cmocka_unit_test(test_render__rejects_bad_descriptions),
   };

@@ -8,7 +8,8 @@
  *   2. atmosphere: the same state with atmosphere, planet and sun disc;
  *   3. camera_inside: the camera inside the sphere near its edge, looking out;
  *   4. low_sun: the sun 3° above the horizon (τ baked for it);
- *   5. jitter, space, ground, one metre from the cloud: likewise;
+ *   5. jitter, space, ground, one metre from the cloud, the sphere's shadow in the air and on the
+ *      ground (cloud_shadow): likewise;
  *   6. step_factor_sensitivity: the bound is tight — a 10 % change of the GLSL step factor breaks it;
  *   7. errors_name_file_and_line: a broken kernel's compile error names shaders/FILE:LINE.
  * Bounds (1–6): RMSE ≤ CMP_RMSE = 0.25 and no channel off by more than CMP_MAX = 8; measured on
@@ -305,6 +306,46 @@ static void test_gl_render__low_sun(void **state) {
   compare_view("low_sun", NULL, &sun);
 }
 
+/* The sphere's shadow in the air and on the ground, which lie in empty leaves (the cloud shadow volume,
+ * shaders/shadow.h): the sun 20° up in the east, the camera 17 km west of the sphere looking east and
+ * down at its shadow. The leaves without cloud are made empty, as the planner sends them (the local
+ * voxelizer gives them τ). The shadow volume changes the CPU image here (RMSE > 1 against it switched
+ * off), and the GPU's is the CPU's within the usual bounds. */
+static void test_gl_render__cloud_shadow(void **state) {
+  (void)state;
+  require_atmo();
+  double el = 20.0 * OC_DEG;
+  oc_dvec3 sun = oc_dv3(sin(el), cos(el), 0.0);
+  oc_scene_camera_t pose = {{0.0, -0.15, 3000.0}, 90.0, -12.0, 40.0};
+  view_t vw;
+  oc_render_desc_t d = view_open(&vw, &pose, &sun);
+  for (uint32_t i = 0; i < vw.st.node_count; i++)
+    if (!(vw.st.nodes[i].range[OC_CH_SIGMA].hi > 0.0f)) {
+      memset(&vw.st.nodes[i].range, 0, sizeof vw.st.nodes[i].range);
+      vw.st.nodes[i].kind = OC_NODE_EMPTY;
+    }
+  compare("cloud_shadow", &vw.st, &d, CMP_RMSE, CMP_MAX);
+  oc_image_t on = {0}, off = {0};
+  assert_int_equal(oc_image_alloc(&on, W, H), 0);
+  assert_int_equal(oc_image_alloc(&off, W, H), 0);
+  assert_int_equal(oc_render_state(&vw.st, &d, &on, NULL), 0);
+  d.flags |= OC_RF_NO_CLOUD_SHADOW;
+  assert_int_equal(oc_render_state(&vw.st, &d, &off, NULL), 0);
+  uint8_t *a = malloc(W * H * 3), *b = malloc(W * H * 3);
+  assert_non_null(a);
+  assert_non_null(b);
+  assert_int_equal(oc_image_tonemap(&on, EXPOSURE, a), 0);
+  assert_int_equal(oc_image_tonemap(&off, EXPOSURE, b), 0);
+  double rmse = oc_rgb8_rmse(a, b, W, H);
+  printf("cloud_shadow: CPU with the shadow volume against without: RMSE %.2f\n", rmse);
+  assert_true(rmse > 1.0);
+  free(a);
+  free(b);
+  oc_image_free(&on);
+  oc_image_free(&off);
+  view_close(&vw);
+}
+
 /* The bound is tight: the GLSL image matches the CPU reference within STEP_BOUND at the same step
  * factor, and rendering the GLSL side with the step factor changed by 10 % (either way) breaks
  * that bound — so a kernel that stepped differently from oc__trace (another step length, another
@@ -476,8 +517,9 @@ static void test_gl_render__errors_name_file_and_line(void **state) {
   require_gl();
   char dir[] = "/tmp/oc_gl_render_XXXXXX", path[1200], src[1200], why[2048] = "";
   assert_non_null(mkdtemp(dir));
-  static const char *const headers[] = {"oc_port.h", "sampling.h", "optics.h", "brick.h", "atmosphere.h", "march.h"};
-  for (int i = 0; i < 6; i++) { /* the real headers, then a broken kernel */
+  static const char *const headers[] = {"oc_port.h", "sampling.h",   "optics.h", "brick.h",
+                                        "shadow.h",  "atmosphere.h", "march.h"};
+  for (int i = 0; i < 7; i++) { /* the real headers, then a broken kernel */
     snprintf(src, sizeof src, "%s/%s", ocv_gl_shader_dir(), headers[i]);
     snprintf(path, sizeof path, "%s/%s", dir, headers[i]);
     FILE *in = fopen(src, "rb"), *out = fopen(path, "wb");
@@ -524,6 +566,7 @@ int main(void) {
       cmocka_unit_test(test_gl_render__cloud_model),
       cmocka_unit_test(test_gl_render__camera_inside),
       cmocka_unit_test(test_gl_render__low_sun),
+      cmocka_unit_test(test_gl_render__cloud_shadow),
       cmocka_unit_test(test_gl_render__jitter),
       cmocka_unit_test(test_gl_render__step_factor_sensitivity),
       cmocka_unit_test(test_gl_render__space_and_ground),

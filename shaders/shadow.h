@@ -1,0 +1,83 @@
+/* shadow.h — the cloud shadow volume: the sun optical depth τ in the nodes that carry none (empty
+ * nodes, and air outside the root cube), shared by the CPU reference (common/oc_render.c) and the GL
+ * renderer (shaders/raymarch.comp.glsl) (design.md: one implementation of each formula).
+ *
+ * Empty space adds nothing to τ, so the τ toward the sun at a point p is the state's τ channel where
+ * the sun ray from p first enters a leaf with σt > 0 (0 if it meets none). Each renderer builds, from
+ * the state it holds and per camera region, a grid of that value (the walk to the first cloudy leaf is
+ * the renderer's own, as its leaf look-up is), and the march looks it up here with the same addressing
+ * and the trilinear reconstruction of brick.h. Nothing of it is on the wire or in a state file.
+ *
+ * The grid lives in a local frame at the ground point c0 under the camera: x east, y north (metres
+ * from c0 along the tangent plane), z = p·up − R (the height above the tangent sphere's level, which
+ * the curved ground undercuts by at most (x² + y²)/(2R): the grid starts that far below 0). Texel
+ * (i, j, k) sits at lo + (i, j, k)·cell, n_x·n_y·n_z texels, x fastest in memory.
+ *
+ * GLSL: the includer prepends oc_port.h and brick.h. */
+#ifndef OC_SHADERS_SHADOW_H
+#define OC_SHADERS_SHADOW_H
+
+#ifndef OC_GLSL
+#include "brick.h"   /* ocg_trilerp */
+#include "oc_port.h" /* ocg_real, ocg_vec3, OC_IN */
+#endif
+
+#if defined(OC_GLSL)
+struct ocg_shadow_grid {
+#else
+typedef struct ocg_shadow_grid {
+#endif
+  ocg_vec3 lo;   /**< local coordinates of texel (0, 0, 0), m */
+  ocg_vec3 cell; /**< texel spacing along x, y, z, m (> 0) */
+  ocg_int nx, ny, nz; /**< texels per axis, each ≥ 2; nx = 0: no grid (τ 0 everywhere) */
+#if defined(OC_GLSL)
+};
+#else
+} ocg_shadow_grid;
+#endif
+
+/* Local coordinates of texel (i, j, k). */
+OC_INLINE ocg_vec3 ocg_shadow_texel(OC_IN(ocg_shadow_grid) g, ocg_int i, ocg_int j, ocg_int k) {
+  return ocg_add3(g.lo, ocg_mul3(ocg_v3(OCG_TO_REAL(i), OCG_TO_REAL(j), OCG_TO_REAL(k)), g.cell));
+}
+
+/* Memory index of texel (i, j, k). */
+OC_INLINE ocg_int ocg_shadow_index(OC_IN(ocg_shadow_grid) g, ocg_int i, ocg_int j, ocg_int k) {
+  return i + g.nx * (j + g.ny * k);
+}
+
+/*! The shadow fades out over this many texels inside the grid's sides, so its edge is not a line. */
+#define OCG_SHADOW_FADE_TEXELS OCG_R(8.0)
+
+/* Continuous texel coordinates of the local point q (xyz), and in w the weight of the grid's τ there:
+ * 1 inside, falling linearly to 0 over the OCG_SHADOW_FADE_TEXELS next to its sides, 0 outside it
+ * horizontally or above its top (below its bottom, inside the planet, the bottom layer holds). Where
+ * w = 0, τ is taken as 0: the empty space of the renderers before the grid. */
+OC_INLINE ocg_vec4 ocg_shadow_coord(OC_IN(ocg_shadow_grid) g, ocg_vec3 q) {
+  if (g.nx < 2) return ocg_v4(OCG_R(0.0), OCG_R(0.0), OCG_R(0.0), OCG_R(0.0));
+  ocg_vec3 c = ocg_div3(ocg_sub3(q, g.lo), g.cell);
+  ocg_real ex = OCG_TO_REAL(g.nx - 1), ey = OCG_TO_REAL(g.ny - 1), ez = OCG_TO_REAL(g.nz - 1);
+  ocg_real side = ocg_min(ocg_min(c.x, ex - c.x), ocg_min(c.y, ey - c.y));
+  ocg_real w = c.z <= ez ? ocg_clamp(side / OCG_SHADOW_FADE_TEXELS, OCG_R(0.0), OCG_R(1.0)) : OCG_R(0.0);
+  return ocg_v4(c.x, c.y, ocg_max(c.z, OCG_R(0.0)), w);
+}
+
+/* The texel whose corner cell holds coordinates c (from ocg_shadow_coord with w > 0): base in
+ * [0, n − 2] per axis, so base + 1 is a texel too. */
+OC_INLINE ocg_vec3 ocg_shadow_base(OC_IN(ocg_shadow_grid) g, ocg_vec4 c) {
+  return ocg_v3(ocg_min(ocg_floor(c.x), OCG_TO_REAL(g.nx - 2)), ocg_min(ocg_floor(c.y), OCG_TO_REAL(g.ny - 2)),
+                ocg_min(ocg_floor(c.z), OCG_TO_REAL(g.nz - 2)));
+}
+
+/* τ at coordinates c from the 8 texels at base + (i, j, k): z0 = (v000, v100, v010, v110), z1 the k = 1
+ * layer (brick.h's order), trilinear as between brick samples, times c's weight w. */
+OC_INLINE ocg_real ocg_shadow_tau(ocg_vec4 c, ocg_vec3 base, ocg_vec4 z0, ocg_vec4 z1) {
+  return c.w * ocg_trilerp(z0, z1, ocg_sub3(ocg_v3(c.x, c.y, c.z), base));
+}
+
+/*! The walk from a texel toward the sun gives up after this many leaves (τ 0: a light leak, counted
+ *  in docs/numerics.md) and above this height while climbing (no cloud is that high). */
+#define OCG_SHADOW_MAX_LEAVES 512
+#define OCG_SHADOW_WALK_TOP OCG_R(30000.0)
+
+#endif /* OC_SHADERS_SHADOW_H */
