@@ -227,6 +227,17 @@ double oc_fbm3(double x, double y, double z, const oc_fbm_t *p) {
 
 #define OC__FBM_CHUNK 256 /* points per pass over the octaves: the partial sums stay in L1 */
 
+/* Octaves [first, last) at m points added to sum[]: octaves outermost, the same additions in the
+ * same order as oc_fbm3(), per point. */
+OC__INLINE void oc__fbm_octaves(const oc__fbm_plan_t *pl, const double *q, int m, int first, int last, double *sum) {
+  for (int i = first; i < last; i++) {
+    double f = pl->freq[i], a = pl->amp[i], ox = pl->off[i][0], oy = pl->off[i][1], oz = pl->off[i][2];
+    uint64_t s = pl->s[i];
+    for (int j = 0; j < m; j++)
+      sum[j] += a * oc__noise(q[3 * j] * f + ox, q[3 * j + 1] * f + oy, q[3 * j + 2] * f + oz, s);
+  }
+}
+
 OC__BATCH int oc_fbm3_batch(const double *xyz, int n, const oc_fbm_t *p, float *out) {
   oc__fbm_plan_t pl;
   double sum[OC__FBM_CHUNK];
@@ -237,14 +248,41 @@ OC__BATCH int oc_fbm3_batch(const double *xyz, int n, const oc_fbm_t *p, float *
     int m = n - base < OC__FBM_CHUNK ? n - base : OC__FBM_CHUNK;
     const double *q = xyz + 3 * (size_t)base;
     for (int j = 0; j < m; j++) sum[j] = 0.0;
-    /* Octaves outermost: the same additions in the same order as oc_fbm3(), per point. */
-    for (int i = 0; i < pl.octaves; i++) {
-      double f = pl.freq[i], a = pl.amp[i], ox = pl.off[i][0], oy = pl.off[i][1], oz = pl.off[i][2];
-      uint64_t s = pl.s[i];
-      for (int j = 0; j < m; j++)
-        sum[j] += a * oc__noise(q[3 * j] * f + ox, q[3 * j + 1] * f + oy, q[3 * j + 2] * f + oz, s);
-    }
+    oc__fbm_octaves(&pl, q, m, 0, pl.octaves, sum);
     for (int j = 0; j < m; j++) out[base + j] = (float)oc__fbm_finish(sum[j], pl.inv_norm);
+  }
+  return 0;
+}
+
+OC__BATCH int oc_fbm3_batch_octaves(const double *xyz, int n, const oc_fbm_t *p, int first, int last, double *sum) {
+  oc__fbm_plan_t pl;
+  if (n < 0 || (n > 0 && (!xyz || !sum))) return OC_EINVAL;
+  OC_TRY(oc_fbm_check(p));
+  if (first < 0 || first > last || last > p->octaves) return OC_EINVAL;
+  oc__fbm_plan(p, &pl);
+  oc__fbm_octaves(&pl, xyz, n, first, last, sum);
+  return 0;
+}
+
+OC__BATCH int oc_fbm3_batch_finish(const double *sum, int n, const oc_fbm_t *p, float *out) {
+  oc__fbm_plan_t pl;
+  if (n < 0 || (n > 0 && (!sum || !out))) return OC_EINVAL;
+  OC_TRY(oc_fbm_check(p));
+  oc__fbm_plan(p, &pl);
+  for (int j = 0; j < n; j++) out[j] = (float)oc__fbm_finish(sum[j], pl.inv_norm);
+  return 0;
+}
+
+OC__BATCH int oc_fbm3_batch_top(const double *sum, int n, const oc_fbm_t *p, int first, float *out) {
+  oc__fbm_plan_t pl;
+  if (n < 0 || (n > 0 && (!sum || !out))) return OC_EINVAL;
+  OC_TRY(oc_fbm_check(p));
+  if (first < 0 || first > p->octaves) return OC_EINVAL;
+  oc__fbm_plan(p, &pl);
+  for (int j = 0; j < n; j++) {
+    double t = sum[j];
+    for (int i = first; i < pl.octaves; i++) t += pl.amp[i];
+    out[j] = (float)oc__fbm_finish(t, pl.inv_norm);
   }
   return 0;
 }

@@ -86,4 +86,27 @@ double oc_fbm3(double x, double y, double z, const oc_fbm_t *p);
  *  @return 0, or OC_EINVAL for invalid parameters, n < 0, or NULL pointers with n > 0. */
 int oc_fbm3_batch(const double *xyz, int n, const oc_fbm_t *p, float *out);
 
+/*! oc_fbm3_batch_octaves() :
+ *  Adds octaves [first, last) of the fBm p at n points to sum[i], gain^k · n_k(...) one octave
+ *  after the other, unnormalised: from sum[i] = 0, octaves [0, j) then [j, octaves), and
+ *  oc_fbm3_batch_finish(), give the bits of oc_fbm3_batch() (the same additions in the same
+ *  order). So an fBm can be evaluated in two passes, with oc_fbm3_batch_top() deciding between them
+ *  which points need the rest.
+ *  @return 0, or OC_EINVAL (invalid parameters, 0 ≤ first ≤ last ≤ octaves violated, n < 0, NULL
+ *  pointers with n > 0). */
+int oc_fbm3_batch_octaves(const double *xyz, int n, const oc_fbm_t *p, int first, int last, double *sum);
+
+/*! oc_fbm3_batch_finish() : out[i] = the fBm's value from its full sum[i] (sum / Σ gain^k, clamped
+ *  to [-1, 1], as float), as oc_fbm3_batch() finishes it. @return 0 or OC_EINVAL. */
+int oc_fbm3_batch_finish(const double *sum, int n, const oc_fbm_t *p, float *out);
+
+/*! oc_fbm3_batch_top() :
+ *  out[i] = oc_fbm3_batch_finish() of sum[i] + gain^k for each octave k in [first, octaves), added
+ *  in the same order in double: the largest value the fBm can take at a point whose partial sum
+ *  over octaves [0, first) is sum[i]. Every noise value is in [-1, 1], so an octave adds a rounded
+ *  gain^k · n ≤ gain^k, and rounding, the normalisation, the clamp and the float conversion are
+ *  monotone: out[i] ≥ the fBm's value there, exactly (no margin needed).
+ *  @return 0, or OC_EINVAL (invalid parameters, first outside [0, octaves], n < 0, NULL pointers). */
+int oc_fbm3_batch_top(const double *sum, int n, const oc_fbm_t *p, int first, float *out);
+
 #endif /* OC_COMMON_NOISE_H */

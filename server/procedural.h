@@ -7,6 +7,7 @@
 #define OC_SERVER_PROCEDURAL_H
 
 #include <math.h>
+#include <stdatomic.h> /* ocs__col_cell_dropped */
 #include <stdint.h>
 
 #include "oc_noise.h"
@@ -297,6 +298,15 @@ int ocs__col_tables(void);
  * values up to kmargin beyond the evaluated octaves, A' up to amargin (one table step); 0 for
  * level < 0 (points). ocs__frame() puts them in the frame, ocs__box_max() adds them. */
 void ocs__col_margins(int level, int layer, double *kmargin, double *amargin);
+
+/* The fast filter's two-pass cells (procedural_columns.c, ocs__cells): 1 (the default) adds the
+ * last resolved cell octave only at pieces the first ones leave in doubt; 0 evaluates every octave
+ * at every piece; 2 does as 1 and also checks each dropped piece against its exact value. All give
+ * the same bits; tests switch it (no thread may sample meanwhile) and read how many pieces the
+ * first pass dropped and how many of those the exact value would have kept (relaxed atomics,
+ * summed over every thread; the claim is that the second stays 0). */
+extern int ocs__col_cell_split;
+extern _Atomic long ocs__col_cell_dropped, ocs__col_cell_wrong;
 
 /* The two samplers of a brick (the vtable's sample() and sample_exact()): ADD the source's σt. */
 int ocs__proc_sample_strata(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]);

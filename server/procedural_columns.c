@@ -379,13 +379,13 @@ typedef struct {
   const double *cc; /* the layer's coverage at each voxel's centre (ocs__voxel_bounds) */
   /* scratch */
   int idx[OCS__CHUNK], sel[OCS__CHUNK];
-  double q[3 * OCS__CHUNK], xyz[3 * OCS__CHUNK], w[OCS__CHUNK], k[OCS__CHUNK];
+  double q[3 * OCS__CHUNK], xyz[3 * OCS__CHUNK], w[OCS__CHUNK], k[OCS__CHUNK], ksum[OCS__CHUNK];
   float val[OCS__CHUNK];
   double sum[OC_BRICK_VOXELS];
 } ocs__cws_t;
 
 /* The least altitude cost over [a, b], as ocs__box_max() takes it. */
-static double ocs__qmin(const ocs__layer_t *L, double a, double b) {
+static inline double ocs__qmin(const ocs__layer_t *L, double a, double b) {
   double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c), q = ocs__q_mono(L, hq);
   if (L->anvil > 0.0) {
     double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
@@ -394,11 +394,18 @@ static double ocs__qmin(const ocs__layer_t *L, double a, double b) {
   return q;
 }
 
-/* Evaluates one pattern (OCS__COV or OCS__CELL, on the reference sphere) at the chunk's points
- * listed in idx[0..m), except those whose W is proven 1 (coverage); values to ws->val by position
- * in idx (entries skipped are left as 1 in `one`). */
-static void ocs__pattern(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, int f, const oc_fbm_t *fb,
-                         ocs__cws_t *ws, int m, double *out) {
+/* ocs__layer_pieces' cell test: whether a piece of weight W with cell value K (× k.scale), raised
+ * by the quadrature's reach, may beat the least altitude cost over its altitudes [h0, h1]. */
+static inline int ocs__cell_passes(const ocs__layer_t *L, double W, double K, double reach, double h0, double h1) {
+  return W * ocs__v(L, (float)(K + reach)) > ocs__qmin(L, h0, h1);
+}
+
+/* The noise coordinates of one pattern (OCS__COV or OCS__CELL, on the reference sphere) at the
+ * chunk's points listed in idx[0..m), to ws->xyz, and their positions in idx to ws->sel, except
+ * those whose W is proven 1 (coverage: out[j] = 2 marks them; out is not read for cells).
+ * @return how many. */
+static inline int ocs__pattern_xyz(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, int f, ocs__cws_t *ws, int m,
+                                   double *out) {
   const ocs__lstate_t *S = &P->L[l];
   int n = 0;
   for (int j = 0; j < m; j++) {
@@ -413,8 +420,76 @@ static void ocs__pattern(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, i
     ocs__coords(S, f, X, lf->off[f], &ws->xyz[3 * n]);
     ws->sel[n++] = j;
   }
+  return n;
+}
+
+/* Evaluates one pattern at the chunk's points listed in idx[0..m) (ocs__pattern_xyz): values to
+ * out by position in idx. */
+static void ocs__pattern(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, int f, const oc_fbm_t *fb,
+                         ocs__cws_t *ws, int m, double *out) {
+  int n = ocs__pattern_xyz(P, lf, l, f, ws, m, out);
   oc_fbm3_batch(ws->xyz, n, fb, ws->val);
   for (int t = 0; t < n; t++) out[ws->sel[t]] = (double)ws->val[t];
+}
+
+int ocs__col_cell_split = 1;
+_Atomic long ocs__col_cell_dropped, ocs__col_cell_wrong;
+
+/* ocs__col_cell_split 2: also the last octave at every piece, and how many the first pass dropped
+ * that pass the cell test with their exact K (the claim is none), to ocs__col_cell_wrong. */
+static void ocs__cells_check(const ocs__layer_t *L, const ocs__plan_t *pl, const oc_fbm_t *kres, double reach,
+                             ocs__cws_t *ws, int m) {
+  float exact[OCS__CHUNK];
+  for (int j = 0; j < m; j++) ws->k[j] = ws->ksum[j];
+  oc_fbm3_batch_octaves(ws->xyz, m, kres, pl->k.n - 1, pl->k.n, ws->k);
+  oc_fbm3_batch_finish(ws->k, m, kres, exact);
+  long wrong = 0;
+  for (int j = 0; j < m; j++) {
+    double h0 = ws->h0[ws->idx[j]], h1 = ws->h1[ws->idx[j]];
+    wrong += !ocs__cell_passes(L, ws->w[j], (double)ws->val[j] * pl->k.scale, reach, h0, h1) &&
+             ocs__cell_passes(L, ws->w[j], (double)exact[j] * pl->k.scale, reach, h0, h1);
+  }
+  atomic_fetch_add_explicit(&ocs__col_cell_wrong, wrong, memory_order_relaxed);
+}
+
+/* The resolved cells at the chunk's pieces idx[0..m) (weights w): K = the resolved octaves' fBm ×
+ * k.scale into ws->k, for the pieces that may pass ocs__layer_pieces' cell test, W·V(K + the
+ * quadrature's reach) > the least altitude cost; the others are dropped from idx, w (order kept).
+ * With two or more resolved octaves the last is added only where the first ones' sum, raised by
+ * oc_fbm3_batch_top() to the most the last can add, still passes that test through the same
+ * operations: rounding and V (a1 > 0 in every layer) are monotone, so a piece dropped there fails
+ * the test with its exact K too, and the survivors' K are the bits of a one-pass oc_fbm3_batch().
+ * @return m left. */
+static int ocs__cells(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, const ocs__plan_t *pl, double kx,
+                      ocs__cws_t *ws, int m) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  const ocs__lstate_t *S = &P->L[l];
+  oc_fbm_t kres = S->fcell;
+  kres.octaves = pl->k.n;
+  double reach = pl->qk == 3 ? kx : 0.0;
+  if (!ocs__col_cell_split || pl->k.n < 2) {
+    ocs__pattern(P, lf, l, OCS__CELL, &kres, ws, m, ws->k);
+    for (int j = 0; j < m; j++) ws->k[j] *= pl->k.scale;
+    return m;
+  }
+  ocs__pattern_xyz(P, lf, l, OCS__CELL, ws, m, NULL); /* every piece, in order (no W = 1 skip) */
+  for (int j = 0; j < m; j++) ws->ksum[j] = 0.0;
+  int last = pl->k.n - 1, k = 0;
+  oc_fbm3_batch_octaves(ws->xyz, m, &kres, 0, last, ws->ksum);
+  oc_fbm3_batch_top(ws->ksum, m, &kres, last, ws->val);
+  if (ocs__col_cell_split == 2) ocs__cells_check(L, pl, &kres, reach, ws, m);
+  for (int j = 0; j < m; j++) {
+    int i = ws->idx[j];
+    if (!ocs__cell_passes(L, ws->w[j], (double)ws->val[j] * pl->k.scale, reach, ws->h0[i], ws->h1[i])) continue;
+    ws->idx[k] = i, ws->w[k] = ws->w[j], ws->ksum[k] = ws->ksum[j];
+    for (int c = 0; c < 3; c++) ws->xyz[3 * k + c] = ws->xyz[3 * j + c];
+    k++;
+  }
+  if (k < m) atomic_fetch_add_explicit(&ocs__col_cell_dropped, m - k, memory_order_relaxed);
+  oc_fbm3_batch_octaves(ws->xyz, k, &kres, last, pl->k.n, ws->ksum);
+  oc_fbm3_batch_finish(ws->ksum, k, &kres, ws->val);
+  for (int j = 0; j < k; j++) ws->k[j] = (double)ws->val[j] * pl->k.scale;
+  return k;
 }
 
 /* One layer over the chunk's pieces: W, then (coarse) Ĵ, or (finer) the resolved cells and detail
@@ -458,17 +533,12 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
   /* the resolved cells: V at the piece, and the largest V the quadrature may reach */
   static const double wq[3] = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0}, xq[3] = {-1.7320508075688772, 0.0, 1.7320508075688772};
   double kx = fmin(1.7320508075688772 * pl->k.sd, pl->k.amp), dx = fmin(1.7320508075688772 * pl->d.sd, pl->d.amp);
-  if (pl->k.n > 0) {
-    oc_fbm_t kres = S->fcell;
-    kres.octaves = pl->k.n;
-    ocs__pattern(P, lf, l, OCS__CELL, &kres, ws, m, ws->k);
-  }
+  if (pl->k.n > 0) m = ocs__cells(P, lf, l, pl, kx, ws, m);
   k = 0;
   for (int j = 0; j < m; j++) {
     int i = ws->idx[j];
-    double K = pl->k.n > 0 ? ws->k[j] * pl->k.scale : 0.0;
-    double vmax = ocs__v(L, (float)(K + (pl->qk == 3 ? kx : 0.0)));
-    if (!(ws->w[j] * vmax > ocs__qmin(L, ws->h0[i], ws->h1[i]))) continue;
+    double K = pl->k.n > 0 ? ws->k[j] : 0.0;
+    if (!ocs__cell_passes(L, ws->w[j], K, pl->qk == 3 ? kx : 0.0, ws->h0[i], ws->h1[i])) continue;
     ws->idx[k] = i, ws->w[k] = ws->w[j], ws->k[k++] = K;
   }
   m = k;
