@@ -18,6 +18,7 @@
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 #include "bench.h"
@@ -250,6 +251,17 @@ static void field_tail(const field_run_t *R, int shadows) {
          (unsigned long long)R->dig_t);
 }
 
+/* The procedural source builds a layer's tables at its first use (up to 0.1 s, docs/procedural.md
+ * "Filtering"), which the first level timed used to carry (its µs per brick 2–3× the same level's
+ * run again). One untimed sample of the level-6 node holding the centre, whose bound spans every
+ * layer active there, builds them first. @return 0, or -1 after printing the error. */
+static int field_warm(field_run_t *R, oc_dvec3 centre) {
+  memset(R->s, 0, sizeof(float) * OC_BRICK_VOXELS);
+  if (ocs_field_sample(R->f, oc_key_from_point(6, centre), R->o->time, R->s) < 0)
+    return oc_cli_fail(R->prog, -1, "sampling failed");
+  return 0;
+}
+
 /* Every level of the block; 0, or -1 after printing the error. */
 static int field_run(field_run_t *R, const oc_scene_t *sc, oc_geo_t g) {
   char why[1024];
@@ -266,6 +278,7 @@ static int field_run(field_run_t *R, const oc_scene_t *sc, oc_geo_t g) {
   printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   double sink = 0.0, anchor = 0.0;
   oc_dvec3 centre = oc_geo_to_xyz(g);
+  if (field_warm(R, centre)) return -1;
   for (int li = 0; li < o->levels.n; li++) {
     int level = (int)o->levels.v[li];
     if (field_level(R, level, centre, &sink, &anchor)) return -1;
