@@ -46,8 +46,7 @@ struct ocv_gl_renderer_s {
   GLuint sh_prog, sh_buf;
   size_t sh_bytes;
   oc_shadow_frame_t shf; /* where it is (shf.n[0] = 0: none) */
-  GLuint sh_tree;        /* the state it was built from (its octree buffer), 0: none yet */
-  uint32_t sh_leaves;
+  uint64_t sh_serial;    /* the state it was built from (ocv_gl_state_t.serial), 0: none yet */
   oc_dvec3 sh_sun;
 };
 
@@ -180,8 +179,7 @@ static void ocv__buffer(GLuint *b, size_t *have, size_t bytes);
  * an eighth of its edge from its centre. */
 static int ocv__shadow_stale(const ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_shadow_frame_t *f) {
   const oc_shadow_frame_t *o = &r->shf;
-  if (r->sh_tree != gs->tree || r->sh_leaves != gs->leaf_count || memcmp(&r->sh_sun, &gs->sun_dir, sizeof r->sh_sun))
-    return 1;
+  if (r->sh_serial != gs->serial || memcmp(&r->sh_sun, &gs->sun_dir, sizeof r->sh_sun)) return 1;
   if (memcmp(o->n, f->n, sizeof o->n) || memcmp(o->cell, f->cell, sizeof o->cell) || o->lo[2] != f->lo[2]) return 1;
   return f->n[0] && oc_dlen(oc_dsub(o->c0, f->c0)) > 0.125 * (f->n[0] - 1) * f->cell[0];
 }
@@ -207,8 +205,7 @@ static int ocv__shadow(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_
   if (oc_render_shadow_frame(d, d->camera.pos, ground_r, &f) < 0) return ocv__bad(why, why_len, "shadow volume option");
   if (ocv__shadow_stale(r, gs, &f)) {
     r->shf = f;
-    r->sh_tree = gs->tree;
-    r->sh_leaves = gs->leaf_count;
+    r->sh_serial = gs->serial;
     r->sh_sun = gs->sun_dir;
     if (f.n[0]) {
       if (!r->sh_prog) r->sh_prog = ocv_gl_compute_program(OCV__KERNEL, r->sh_defines, why, why_len);

@@ -6,6 +6,7 @@
  * the integer level-21 cell of a point, one level per step, never touching a float position. */
 #include <epoxy/gl.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -139,7 +140,11 @@ static int ocv__map_level(const ocv__leaf_rec_t *rec, uint32_t nrec, uint32_t in
   return level;
 }
 
+/* Serial numbers of the states' GPU copies (ocv_gl_state_t.serial), across contexts and threads. */
+static _Atomic uint64_t ocv__gl_serial;
+
 void ocv__gl_buffers(ocv_gl_state_t *gs, const void *rec, uint32_t nrec, const uint32_t *tree, uint32_t inner) {
+  gs->serial = atomic_fetch_add(&ocv__gl_serial, 1) + 1;
   gs->inner_count = inner;
   size_t tree_words = 1 + (size_t)inner * 8;
   int level = ocv__map_level(rec, nrec, inner);

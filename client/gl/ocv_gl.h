@@ -116,6 +116,8 @@ typedef struct {
   uint64_t resident_bytes; /**< atlas + tree + leaf records actually allocated on the GPU */
   oc_dvec3 sun_dir;        /**< the state's sun */
   int shared_atlas;        /**< the atlas belongs to an ocv_gl_store_t: ocv_gl_state_free() keeps it */
+  uint64_t serial;         /**< this GPU copy's serial number (never 0, never reused): what the renderer's
+                                cloud shadow volume was built from */
 } ocv_gl_state_t;
 
 /*! ocv_gl_state_upload() : the GPU copy of a validated state (gs is overwritten; free it first if it

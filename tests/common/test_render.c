@@ -459,6 +459,19 @@ static void test_render__rejects_bad_descriptions(void **st) {
   bad = d;
   bad.ms_octaves = 99;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  /* The cloud shadow volume's options, checked even where it is not built. */
+  bad = d;
+  bad.shadow_cells = 1;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  bad = d;
+  bad.shadow_cells = 4096; /* 4096² × 24 texels: too many */
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  bad = d;
+  bad.shadow_extent = NAN;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  bad = d;
+  bad.shadow_top = 1e5;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
   /* The cloud model's domain: albedo [0, 1], octave factors (0, 1], the model enum, fit overrides. */
   const float outside[] = {-0.1f, 1.5f, NAN, INFINITY};
   float *const in_unit[] = {&bad.albedo, &bad.ms_a, &bad.ms_b, &bad.ms_c}; /* fields of bad */
