@@ -48,7 +48,18 @@ struct ocv_gl_renderer_s {
   oc_shadow_frame_t shf; /* where it is (shf.n[0] = 0: none) */
   uint64_t sh_serial;    /* the state it was built from (ocv_gl_state_t.serial), 0: none yet */
   oc_dvec3 sh_sun;
+  double sh_max_age, sh_now; /* a volume this young (s) is kept for a new state; 0: rebuilt (one-shot) */
+  double sh_built;           /* when it was built, in sh_now's clock */
+  uint64_t sh_passes;        /* shadow passes run */
 };
+
+void ocv_gl_renderer_set_shadow_age(ocv_gl_renderer_t *r, double max_age_s, double now_s) {
+  if (!r) return;
+  r->sh_max_age = max_age_s > 0.0 && isfinite(max_age_s) ? max_age_s : 0.0;
+  r->sh_now = now_s;
+}
+
+uint64_t ocv_gl_renderer_shadow_passes(const ocv_gl_renderer_t *r) { return r ? r->sh_passes : 0; }
 
 void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on) {
   if (r) r->no_map = !on;
@@ -175,11 +186,16 @@ static int ocv__bad(char *why, size_t wl, const char *field) {
 /* A device buffer of exactly `bytes` (re-created when the size changes). */
 static void ocv__buffer(GLuint *b, size_t *have, size_t bytes);
 
-/* Whether the shadow volume must be rebuilt for frame f: a new state, sun or grid, or the camera over
- * an eighth of its edge from its centre. */
+/* Whether the shadow volume must be rebuilt for frame f: a new sun or grid, the camera over an eighth
+ * of its edge from its centre, none yet, or a new state unless the volume is younger than sh_max_age
+ * (the window's frame loop; ocv_gl_renderer_set_shadow_age). */
 static int ocv__shadow_stale(const ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_shadow_frame_t *f) {
   const oc_shadow_frame_t *o = &r->shf;
-  if (r->sh_serial != gs->serial || memcmp(&r->sh_sun, &gs->sun_dir, sizeof r->sh_sun)) return 1;
+  if (!r->sh_serial || memcmp(&r->sh_sun, &gs->sun_dir, sizeof r->sh_sun)) return 1;
+  if (r->sh_serial != gs->serial) {
+    double age = r->sh_now - r->sh_built;
+    if (!(r->sh_max_age > 0.0 && age >= 0.0 && age < r->sh_max_age)) return 1;
+  }
   if (memcmp(o->n, f->n, sizeof o->n) || memcmp(o->cell, f->cell, sizeof o->cell) || o->lo[2] != f->lo[2]) return 1;
   return f->n[0] && oc_dlen(oc_dsub(o->c0, f->c0)) > 0.125 * (f->n[0] - 1) * f->cell[0];
 }
@@ -207,9 +223,11 @@ static int ocv__shadow(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_
     r->shf = f;
     r->sh_serial = gs->serial;
     r->sh_sun = gs->sun_dir;
+    r->sh_built = r->sh_now;
     if (f.n[0]) {
       if (!r->sh_prog) r->sh_prog = ocv_gl_compute_program(OCV__KERNEL, r->sh_defines, why, why_len);
       if (!r->sh_prog) return OC_EIO;
+      r->sh_passes++;
       GLuint q = r->sh_prog;
       ocv__buffer(&r->sh_buf, &r->sh_bytes, sizeof(float) * (size_t)f.n[0] * (size_t)f.n[1] * (size_t)f.n[2]);
       ocv__shadow_uniforms(q, &f, d->camera.pos);

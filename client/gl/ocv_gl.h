@@ -192,6 +192,17 @@ void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on);
  *  compiled when first used; the common one (atmosphere only) when the renderer is created. */
 void ocv_gl_renderer_set_variants(ocv_gl_renderer_t *r, int on);
 
+/*! ocv_gl_renderer_set_shadow_age() : keep the cloud shadow volume (shaders/shadow.h) for a new state
+ *  while it is younger than max_age_s, at time now_s (s, any monotonic clock), instead of rerunning
+ *  its pass; a new sun or grid option, the camera leaving the grid's centre region, or no volume yet
+ *  still rebuild it at once. The clouds' own τ comes from the new state either way; only shadows in
+ *  empty leaves lag. 0 (the default): rebuilt for every new state, the one-shot render exactly. The
+ *  view sets OCV_GL_SHADOW_MAX_AGE_S around each frame when it has a frame-time target. */
+void ocv_gl_renderer_set_shadow_age(ocv_gl_renderer_t *r, double max_age_s, double now_s);
+#define OCV_GL_SHADOW_MAX_AGE_S 5.0
+/*! ocv_gl_renderer_shadow_passes() : how many shadow passes r has run (tests). */
+uint64_t ocv_gl_renderer_shadow_passes(const ocv_gl_renderer_t *r);
+
 /*! ocv_gl_renderer_timings() : GPU time of the last trace and reprojection passes (timer queries),
  *  ms; −1 for a pass not run yet. */
 void ocv_gl_renderer_timings(const ocv_gl_renderer_t *r, double *trace_ms, double *reproject_ms);
@@ -275,7 +286,10 @@ typedef struct {
   double frame_ms;             /**< frame-time target, ms: the view traces at full, 1/2, 1/4 or 1/8 of
                                     desc's size per axis, chosen from the frame times reported
                                     (ocv_gl_view_frame_time), and the picture is upsampled
-                                    (ocv_gl_present_upsample); 0: off, every frame at full size */
+                                    (ocv_gl_present_upsample), and a new state reuses a cloud
+                                    shadow volume younger than OCV_GL_SHADOW_MAX_AGE_S
+                                    (ocv_gl_renderer_set_shadow_age); 0: off, every frame at full
+                                    size, the shadow volume rebuilt for every new state */
 } ocv_gl_view_desc_t;
 
 typedef struct {

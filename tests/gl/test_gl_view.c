@@ -3,7 +3,8 @@
  * period from the state shown before (t = 0: the previous image, t = 1: the new one exactly), the
  * resident bytes stay within the budget, reprojection runs through the same loop, and a state over
  * the budget is refused while the shown one stays; with a moving camera over a static field, through
- * epochs of splits and merges, the picture changes little from frame to frame (no popping). */
+ * epochs of splits and merges, the picture changes little from frame to frame (no popping); in the
+ * window a new state keeps a young cloud shadow volume, a one-shot frame rebuilds it. */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -262,6 +263,63 @@ static void test_gl_view__no_popping(void **state) {
   for (int k = 0; k < PATH_E; k++) oc_state_free(&states[k]);
 }
 
+/* Shadow passes the view runs for three states arriving at times at[] (s), each shown before the next:
+ * with a frame-time target (window) or without (one-shot), the camera held, over a planet. */
+static uint64_t shadow_passes(double frame_ms, const double at[3]) {
+  char why[512];
+  oc_camera_t cam = oc_camera_from_pose((oc_camera_pose_t){{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0});
+  oc_state_t s[3];
+  uint32_t bricks = 0;
+  for (int k = 0; k < 3; k++) {
+    make_state(&s[k], cam, 1000000u * (uint32_t)k, (uint64_t)k + 1);
+    bricks += s[k].brick_count;
+  }
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
+  d.background = OC_BG_DEFAULT; /* a planet without an atmosphere: a shadow volume, no tables */
+  d.flags |= OC_RF_NO_ATMOSPHERE;
+  d.shadow_cells = 16;
+  d.shadow_levels = 4;
+  uint64_t budget = (uint64_t)(bricks + 8) * (OC_SLOT_BYTES + OC_RECORD_BYTES);
+  oc_budget_t g = {.budget = budget, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
+  ocv_gl_view_desc_t vd = {.grant = g, .animated = 1, .epoch_period = 1.0, .frame_ms = frame_ms,
+                           .upload_per_frame = (uint64_t)(bricks + 8) * OC_SLOT_BYTES};
+  ocv_gl_view_t *v = ocv_gl_view_create(ren, &vd, why, sizeof why);
+  if (!v) fail_msg("%s", why);
+  static double base = 0.0; /* each call's clock 1000 s after the last's: no volume young enough left */
+  base += 1000.0;
+  uint64_t p0 = ocv_gl_renderer_shadow_passes(ren);
+  ocv_gl_view_stats_t st;
+  for (int k = 0; k < 3; k++) {
+    assert_int_equal(ocv_gl_view_push(v, &s[k], why, sizeof why), 0);
+    int frames = 0;
+    do {
+      if (ocv_gl_view_frame(v, &d, base + at[k] + 0.01 * frames, 0, NULL, &st, why, sizeof why)) fail_msg("%s", why);
+      assert_true(++frames < 100);
+    } while (st.epoch != (uint64_t)k + 1);
+    assert_int_equal(ocv_gl_view_frame(v, &d, base + at[k] + 0.5, 0, NULL, &st, why, sizeof why), 0); /* blended in */
+  }
+  uint64_t n = ocv_gl_renderer_shadow_passes(ren) - p0;
+  ocv_gl_view_free(v);
+  for (int k = 0; k < 3; k++) oc_state_free(&s[k]);
+  return n;
+}
+
+/* In the window (a frame-time target) a new state keeps a shadow volume younger than
+ * OCV_GL_SHADOW_MAX_AGE_S: one pass for three states a second apart, a second pass once the volume is
+ * older; without a target (one-shot) every new state reruns it. The made-up times need no clock. */
+static void test_gl_view__shadow_age(void **state) {
+  (void)state;
+  require_gl();
+  const double close[3] = {0.0, 1.0, 2.0}, late[3] = {0.0, 1.0, 1.0 + OCV_GL_SHADOW_MAX_AGE_S};
+  uint64_t window = shadow_passes(100.0, close), aged = shadow_passes(100.0, late), oneshot = shadow_passes(0.0, close);
+  printf("shadow age: passes for 3 states, window %llu (the third after %.0f s: %llu), one-shot %llu\n",
+         (unsigned long long)window, OCV_GL_SHADOW_MAX_AGE_S, (unsigned long long)aged, (unsigned long long)oneshot);
+  assert_int_equal(window, 1);
+  assert_int_equal(aged, 2);
+  assert_int_equal(oneshot, 3);
+}
+
 OC_TEST_MAIN(setup, teardown,
              cmocka_unit_test(test_gl_view__epochs),
+             cmocka_unit_test(test_gl_view__shadow_age),
              cmocka_unit_test(test_gl_view__no_popping))
