@@ -357,7 +357,8 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     float mu_s = (float)(oc_ddot(pm, sun) / r);
     ocg_vec3 Esun = ocg_mul3(cx->sun_e, oc__sun_transmittance(cx, r, mu_s));
     ocg_vec3 sigma_t = ocg_v3s(sig);
-    ocg_vec3 J = ocg_v3s(0.0f), Jms = ocg_v3s(0.0f), Jfar = ocg_v3s(0.0f); /* σs·S per metre: now, run end, far side */
+    /* σs·S per metre: now; at the run's end (octaves, diffuse); the far side's ambient */
+    ocg_vec3 J = ocg_v3s(0.0f), Jms = ocg_v3s(0.0f), Jmsd = ocg_v3s(0.0f), Jfar = ocg_v3s(0.0f);
     if (sig > 0.0f) {
       ocg_vec3 F = ocg_v3s(0.0f);
       if (cx->have_atmo && !(d->flags & OC_RF_NO_AMBIENT)) F = ocg_mul3(cx->sun_e, oc_atmo_sky_fluence(d->atmo, r, mu_s));
@@ -365,6 +366,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
         F = ocg_v3s(4.0f * OCG_PI * d->background_radiance); /* a uniform sky */
       J = ocg_cloud_source(cx->cm, sig, tau, m.tau_run, mu, Esun, F);
       Jms = ocg_cloud_source_ms(cx->cm, sig, tau, mu, Esun);
+      Jmsd = ocg_cloud_source_msd(cx->cm, sig, tau, Esun);
       Jfar = ocg_cloud_source_far(cx->cm, sig, tau, m.tau_run, F);
     } else {
       ocg_march_end_run(&m, cx->cm);
@@ -374,7 +376,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       sigma_t = ocg_add3(sigma_t, ocg_atmo_extinction(cx->atm, rf));
       J = ocg_add3(J, ocg_air_source(cx->atm, rf, mu, Esun, tau, ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s))));
     }
-    ocg_march_segment(&m, sigma_t, sig, J, Jms, Jfar, kap, (float)seg);
+    ocg_march_segment(&m, sigma_t, sig, J, Jms, Jmsd, Jfar, kap, (float)seg);
     st->samples++;
     t = te;
     if (ocg_march_done(m, (float)d->exit_t)) {

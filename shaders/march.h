@@ -33,6 +33,7 @@ typedef struct ocg_march {
   ocg_vec3 T;       /**< transmittance from the camera (clouds and air, RGB) */
   ocg_real Tc;      /**< transmittance of the clouds alone: the alpha channel */
   ocg_vec3 L_ms;    /**< multiply scattered radiance of the current cloud run, before its chord factor */
+  ocg_vec3 L_msd;   /**< its diffuse (isotropic) part, before its chord factors */
   ocg_real tau_run; /**< cloud optical depth crossed so far in the current run (0 outside clouds) */
   ocg_vec3 L_far;   /**< sky light of the current run from its far side, decayed by the depth crossed since */
 #if defined(OC_GLSL)
@@ -64,7 +65,12 @@ typedef struct ocg_march {
 /*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
  *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
 #ifndef OCG_MS_DIFFUSE_B
-#define OCG_MS_DIFFUSE_B OCG_R(1.854)
+#define OCG_MS_DIFFUSE_B OCG_R(2.5)
+#endif
+/*! ...and its own growth with the run's chord depth D, D/(D + D_d): a thin cloud's multiply scattered
+ *  light is a few forward bounces, a thick one's diffuse (docs/numerics.md). */
+#ifndef OCG_MS_DIFFUSE_D
+#define OCG_MS_DIFFUSE_D OCG_R(1.5)
 #endif
 #ifndef OCG_MS_DIFFUSE_A
 #define OCG_MS_DIFFUSE_A OCG_R(0.1286)
@@ -99,6 +105,7 @@ OC_INLINE ocg_march ocg_march_begin(void) {
   m.T = ocg_v3s(OCG_R(1.0));
   m.Tc = OCG_R(1.0);
   m.L_ms = ocg_v3s(OCG_R(0.0));
+  m.L_msd = ocg_v3s(OCG_R(0.0));
   m.tau_run = OCG_R(0.0);
   m.L_far = ocg_v3s(OCG_R(0.0));
   return m;
@@ -123,7 +130,10 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
  * the march weights a run's J_ms by $G(D) = D/(D + D_{1/2})$ once it knows the run's chord optical depth
  * D (where the ray leaves the cloud, or stops). The octaves alone (Wrenninge) give a thin cloud as
  * much multiple scattering as a thick one; G brings in how much cloud there is to scatter in, and the
- * ω^{qi} factor that each octave is several more bounces, each losing 1 − ω.
+ * ω^{qi} factor that each octave is several more bounces, each losing 1 − ω. The isotropic part
+ * $J_{msd} = \omega\,\sigma_c\,E_{sun}\,\frac{b_d\,\omega^q}{4\pi (1 + a_d \tau)}$ is deferred apart and weighted by
+ * G(D)·H(D), H(D) = D/(D + D_d): a thin cloud's multiply scattered light is a few forward bounces,
+ * still peaked like the phase function; only a thick cloud's is diffuse.
  *
  * Occluded ambient: the sky fluence F reaches a sample through the cloud around it. In a
  * conservative cloud (ω = 1) the diffuse field under a uniform sky is the sky itself at every depth
@@ -189,7 +199,7 @@ OC_INLINE ocg_vec3 ocg_cloud_source_ms(OC_IN(ocg_cloud_model) cm, ocg_real sig, 
   ocg_real t = ocg_max(tau, OCG_R(0.0));
   ocg_real wq = cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
   ocg_real bw = cm.ms_b * wq;
-  ocg_real sum = cm.diffuse_b * wq * OCG_INV_4PI / (OCG_R(1.0) + cm.diffuse_a * t), ai = cm.ms_a, bi = bw, ci = cm.ms_c;
+  ocg_real sum = OCG_R(0.0), ai = cm.ms_a, bi = bw, ci = cm.ms_c;
   for (ocg_int i = 1; i < cm.ms_n; ++i) {
     sum += bi / (OCG_R(1.0) + ai * t) * ocg_phase_hg_draine_scaled(mu, ci);
     ai *= cm.ms_a;
@@ -197,6 +207,19 @@ OC_INLINE ocg_vec3 ocg_cloud_source_ms(OC_IN(ocg_cloud_model) cm, ocg_real sig, 
     ci *= cm.ms_c;
   }
   return ocg_scale3(e_sun, sum * cm.albedo * sig);
+}
+
+/* The diffuse part of the multiply scattered light, b_d·ω^q/(1 + a_d·τ)/(4π), deferred apart. */
+OC_INLINE ocg_vec3 ocg_cloud_source_msd(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_vec3 e_sun) {
+  if (cm.legacy != 0 || cm.ms_n < 2) return ocg_v3s(OCG_R(0.0));
+  ocg_real wq = cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
+  ocg_real t = ocg_max(tau, OCG_R(0.0));
+  return ocg_scale3(e_sun, cm.diffuse_b * wq * OCG_INV_4PI / (OCG_R(1.0) + cm.diffuse_a * t) * cm.albedo * sig);
+}
+
+/* The diffuse part's own growth with the run's depth, H(D) = D/(D + D_d). */
+OC_INLINE ocg_real ocg_ms_diffuse_factor(ocg_real d) {
+  return d / (d + OCG_MS_DIFFUSE_D);
 }
 
 /* The chord factor G(D) = D/(D + D½) of a run of chord optical depth D ≥ 0. */
@@ -226,13 +249,14 @@ OC_INLINE ocg_vec3 ocg_air_source(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_rea
  * (optics.h) keeps σ_t → 0 finite. The far-side ambient j_far joins L_far at the segment's middle depth
  * and L_far decays by e^{−κ σ_c d} (κ = ocg_ambient_kappa). */
 OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_real sig, ocg_vec3 j, ocg_vec3 j_ms,
-                                  ocg_vec3 j_far, ocg_real kappa, ocg_real d) {
+                                  ocg_vec3 j_msd, ocg_vec3 j_far, ocg_real kappa, ocg_real d) {
   ocg_vec3 w = ocg_segment_weight3(sigma_t, d);
   ocg_real decay = ocg_exp(-kappa * sig * d);
   OC_DEREF(m).L_far = ocg_add3(ocg_scale3(OC_DEREF(m).L_far, decay),
                                ocg_scale3(ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_far, w)), ocg_exp(OCG_R(-0.5) * kappa * sig * d)));
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j, w)));
   OC_DEREF(m).L_ms = ocg_add3(OC_DEREF(m).L_ms, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_ms, w)));
+  OC_DEREF(m).L_msd = ocg_add3(OC_DEREF(m).L_msd, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_msd, w)));
   OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
   OC_DEREF(m).T = ocg_mul3(OC_DEREF(m).T, ocg_exp3(ocg_scale3(sigma_t, -d)));
   OC_DEREF(m).Tc = OC_DEREF(m).Tc * ocg_exp(-sig * d);
@@ -241,11 +265,14 @@ OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_re
 /* The end of a cloud run (a cloud-free segment, the ground, the end or the early exit): its multiple
  * scattering joins L with the chord factor of the depth crossed, its far-side ambient as decayed. */
 OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
-  if (OC_DEREF(m).tau_run > OCG_R(0.0))
-    OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(OC_DEREF(m).L_ms, ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run)));
+  if (OC_DEREF(m).tau_run > OCG_R(0.0)) {
+    ocg_real g = ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run), h = ocg_ms_diffuse_factor(OC_DEREF(m).tau_run);
+    OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(ocg_add3(OC_DEREF(m).L_ms, ocg_scale3(OC_DEREF(m).L_msd, h)), g));
+  }
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, OC_DEREF(m).L_far);
   OC_DEREF(m).L_far = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).L_ms = ocg_v3s(OCG_R(0.0));
+  OC_DEREF(m).L_msd = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).tau_run = OCG_R(0.0);
 }
 

@@ -441,13 +441,14 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     float mu_s = (u_sun_o + tm * mu) / r;
     vec3 Esun = u_sun_e * ocv_sun_transmittance(r, mu_s);
     vec3 sigma_t = vec3(sig);
-    vec3 J = vec3(0.0), Jms = vec3(0.0), Jfar = vec3(0.0);
+    vec3 J = vec3(0.0), Jms = vec3(0.0), Jmsd = vec3(0.0), Jfar = vec3(0.0);
     if (sig > 0.0) {
       vec3 F = vec3(0.0);
       if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s);
       else if (u_bg_constant != 0 && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = vec3(4.0 * OCG_PI * u_bg_radiance);
       J = ocg_cloud_source(cm, sig, tau, m.tau_run, mu, Esun, F);
       Jms = ocg_cloud_source_ms(cm, sig, tau, mu, Esun);
+      Jmsd = ocg_cloud_source_msd(cm, sig, tau, Esun);
       Jfar = ocg_cloud_source_far(cm, sig, tau, m.tau_run, F);
     } else {
       ocg_march_end_run(m, cm);
@@ -457,7 +458,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       J += ocg_air_source(u_atm, r, mu, Esun, tau, u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
     }
     bool above = max(m.T.x, max(m.T.y, m.T.z)) >= 0.5;
-    ocg_march_segment(m, sigma_t, sig, J, Jms, Jfar, kap, seg);
+    ocg_march_segment(m, sigma_t, sig, J, Jms, Jmsd, Jfar, kap, seg);
     if (above && max(m.T.x, max(m.T.y, m.T.z)) < 0.5 && depth == OCV_FAR) depth = tm;
     t = te;
     if (ocg_march_done(m, u_exit_t)) {
