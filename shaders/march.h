@@ -155,11 +155,16 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
  * legacy = 1 is the model before the fit: Σ_{i<n} b^i e^{−a^i τ} p(μ; c^i) now, unoccluded ambient.
  * Domain: σ_c ≥ 0, τ ≥ 0, μ ∈ [−1, 1], ω ∈ [0, 1], a, b, c ∈ (0, 1]. */
 #define OCG_PHASE_MEAN_COS OCG_R(0.864)
+/* κ_d = √(3(1 − ω)(1 − ω ḡ)), the diffusion constant of the cloud's albedo (0 at ω = 1). */
+OC_INLINE ocg_real ocg_diffusion_kappa(OC_IN(ocg_cloud_model) cm) {
+  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
+  return ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+}
+
 /* κ = k·κ_d, the ambient's decay per unit optical depth (0 for the legacy model and at ω = 1). */
 OC_INLINE ocg_real ocg_ambient_kappa(OC_IN(ocg_cloud_model) cm) {
   if (cm.legacy != 0) return OCG_R(0.0);
-  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
-  return cm.ambient_k * ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+  return cm.ambient_k * ocg_diffusion_kappa(cm);
 }
 
 /* α = R∞ + c·(1 − R∞): the share of A that a thick cloud keeps at its face (1 at ω = 1). */
@@ -194,10 +199,15 @@ OC_INLINE ocg_vec3 ocg_cloud_source(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg
   return ocg_scale3(s, cm.albedo * sig);
 }
 
+/* ω^q: each octave (and the diffuse part) stands for about q more bounces, each ×ω. */
+OC_INLINE ocg_real ocg_ms_albedo_weight(OC_IN(ocg_cloud_model) cm) {
+  return cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
+}
+
 OC_INLINE ocg_vec3 ocg_cloud_source_ms(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real mu, ocg_vec3 e_sun) {
   if (cm.legacy != 0 || cm.ms_n < 2) return ocg_v3s(OCG_R(0.0));
   ocg_real t = ocg_max(tau, OCG_R(0.0));
-  ocg_real wq = cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
+  ocg_real wq = ocg_ms_albedo_weight(cm);
   ocg_real bw = cm.ms_b * wq;
   ocg_real sum = OCG_R(0.0), ai = cm.ms_a, bi = bw, ci = cm.ms_c;
   for (ocg_int i = 1; i < cm.ms_n; ++i) {
@@ -212,7 +222,7 @@ OC_INLINE ocg_vec3 ocg_cloud_source_ms(OC_IN(ocg_cloud_model) cm, ocg_real sig, 
 /* The diffuse part of the multiply scattered light, b_d·ω^q/(1 + a_d·τ)/(4π), deferred apart. */
 OC_INLINE ocg_vec3 ocg_cloud_source_msd(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_vec3 e_sun) {
   if (cm.legacy != 0 || cm.ms_n < 2) return ocg_v3s(OCG_R(0.0));
-  ocg_real wq = cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
+  ocg_real wq = ocg_ms_albedo_weight(cm);
   ocg_real t = ocg_max(tau, OCG_R(0.0));
   return ocg_scale3(e_sun, cm.diffuse_b * wq * OCG_INV_4PI / (OCG_R(1.0) + cm.diffuse_a * t) * cm.albedo * sig);
 }
@@ -224,8 +234,7 @@ OC_INLINE ocg_real ocg_ms_diffuse_factor(ocg_real d) {
 
 /* The chord factor G(D) = D/(D + D½) of a run of chord optical depth D ≥ 0. */
 OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d) {
-  ocg_real w = ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0));
-  ocg_real kd = ocg_safe_sqrt(OCG_R(3.0) * (OCG_R(1.0) - w) * (OCG_R(1.0) - w * OCG_PHASE_MEAN_COS));
+  ocg_real kd = ocg_diffusion_kappa(cm);
   ocg_real de = kd * d > OCG_R(1e-3) ? (OCG_R(1.0) - ocg_exp(-kd * d)) / kd : d;
   return de / (de + cm.chord_half);
 }
