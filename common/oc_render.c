@@ -45,6 +45,9 @@ typedef struct {
   ocg_cloud_model cm;  /**< albedo and multiple-scattering model */
   double ground_r;     /**< planet radius, or 0 without a planet */
   double air_top;      /**< atmosphere top radius */
+  float air_sigma;     /**< thin air's σ (0: none; never with an atmosphere) */
+  float sky;           /**< the uniform sky's radiance the thin air scatters (OC_BG_CONSTANT with ambient) */
+  double thin_top;     /**< its shell's top above OC_PLANET_RADIUS */
   oc_render_stats_t *thread_stats;
   oc_shadow_frame_t shf; /**< the cloud shadow volume's place (shf.n[0] = 0: none) */
   ocg_shadow_grid sg;    /**< the same for shadow.h */
@@ -119,6 +122,24 @@ static int oc__ray_sphere(oc_dvec3 o, oc_dvec3 d, double r, double *t0, double *
   *t0 = a0 < a1 ? a0 : a1;
   *t1 = a0 < a1 ? a1 : a0;
   return 1;
+}
+
+int oc_render_air_shell(oc_dvec3 o, oc_dvec3 d, double top, double *t0, double *t1, double *t_ground) {
+  double a0, a1, g0, g1;
+  *t_ground = INFINITY;
+  if (oc_ddot(o, o) < OC_PLANET_RADIUS * OC_PLANET_RADIUS) return 0;
+  if (oc__ray_sphere(o, d, OC_PLANET_RADIUS, &g0, &g1) && g0 > 0.0) *t_ground = g0;
+  if (!oc__ray_sphere(o, d, OC_PLANET_RADIUS + top, &a0, &a1) || !(a1 > 0.0)) return 0;
+  *t0 = fmax(a0, 0.0);
+  *t1 = fmin(a1, *t_ground);
+  return *t1 > *t0;
+}
+
+/* e^{−σ ℓ_sun}: the thin air's transmittance toward the sun from p (ℓ_sun to the shell's top). */
+static float oc__thin_air_sun(const oc__ctx_t *cx, oc_dvec3 p) {
+  double a0, a1, g;
+  if (!oc_render_air_shell(p, cx->s->sun_dir, cx->thin_top, &a0, &a1, &g)) return 1.0f;
+  return (float)exp(-(double)cx->air_sigma * (a1 - a0));
 }
 
 /* Ray–AABB interval; false when missed. */
@@ -317,7 +338,9 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     }
   }
   if (cx->have_atmo) air_len = fmin(air1, t1) - air0; /* the air actually crossed, up to the ground */
-  double air_step = cx->have_atmo && air_len > 0.0 ? air_len / d->air_steps : INFINITY;
+  double thin0 = INFINITY, thin1 = -INFINITY; /* thin air: its first shell crossing (shell ⊂ root cube) */
+  if (cx->air_sigma > 0.0f && oc_render_air_shell(o, dir, cx->thin_top, &thin0, &thin1, &a0)) air_len = thin1 - thin0;
+  double air_step = air_len > 0.0 ? air_len / d->air_steps : INFINITY;
 
   oc__leaf_t lf = {.idx = -2};
   int exited = 0, chord = 0; /* chord: past the early exit, measuring the run's depth only */
@@ -336,15 +359,17 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     if (cloudy) te = fmin(te, t + d->step_factor * lf.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0));
     else if (lf.n) st->skipped_nodes++;
     if (cx->have_atmo) te = fmin(te, t + oc__air_step(cx, p, dir, air_step));
+    else if (t < thin1) te = fmin(te, t < thin0 ? thin0 : fmin(thin1, t + air_step));
     double seg = te - t;
     oc_dvec3 pm = oc_dmad(o, dir, t + jitter * seg);
+    int thin = t >= thin0 && t < thin1; /* the whole segment is in the thin air */
 
     float sig = 0.0f, tau = 0.0f;
     if (lf.n && lf.n->kind != OC_NODE_EMPTY) {
       ocg_vec3 u = oc__leaf_local(&lf, pm);
       if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, u);
       if (!chord) tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
-    } else if (!chord && cx->have_atmo) {
+    } else if (!chord && (cx->have_atmo || thin)) {
       tau = oc__shadow_tau(cx, pm); /* a node without τ: the shadow volume's */
     }
     if (chord) {
@@ -356,6 +381,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     double r = oc_dlen(pm);
     float mu_s = (float)(oc_ddot(pm, sun) / r);
     ocg_vec3 Esun = ocg_mul3(cx->sun_e, oc__sun_transmittance(cx, r, mu_s));
+    if (thin) Esun = ocg_scale3(Esun, oc__thin_air_sun(cx, pm));
     ocg_vec3 sigma_t = ocg_v3s(sig);
     /* σs·S per metre: now; at the run's end (octaves, diffuse); the far side's ambient */
     ocg_vec3 J = ocg_v3s(0.0f), Jms = ocg_v3s(0.0f), Jmsd = ocg_v3s(0.0f), Jfar = ocg_v3s(0.0f);
@@ -375,6 +401,9 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       float rf = (float)r;
       sigma_t = ocg_add3(sigma_t, ocg_atmo_extinction(cx->atm, rf));
       J = ocg_add3(J, ocg_air_source(cx->atm, rf, mu, Esun, tau, ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s))));
+    } else if (thin) {
+      sigma_t = ocg_add3(sigma_t, ocg_v3s(cx->air_sigma));
+      J = ocg_add3(J, ocg_thin_air_source(cx->air_sigma, Esun, tau, cx->sky));
     }
     ocg_march_segment(&m, sigma_t, sig, J, Jms, Jmsd, Jfar, kap, (float)seg);
     st->samples++;
@@ -491,8 +520,16 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   }
   cx.ground_r = (d->background == OC_BG_CONSTANT || (d->flags & OC_RF_NO_PLANET)) ? 0.0
                 : cx.have_atmo ? cx.atm.bottom_radius : OC_PLANET_RADIUS;
+  if (!(d->air_sigma >= 0.0f && d->air_sigma <= (float)OC_RENDER_MAX_AIR_SIGMA)) return oc__bad("air_sigma [0, 1e-3] m⁻¹");
+  if (d->air_top == 0.0) d->air_top = OC_RENDER_DEFAULT_AIR_TOP;
+  if (!(d->air_top >= 100.0 && d->air_top <= OC_ATMOSPHERE_HEIGHT)) return oc__bad("air_top [100, 1e5] m");
+  cx.air_sigma = cx.have_atmo ? 0.0f : d->air_sigma; /* the atmosphere has its own air */
+  cx.thin_top = d->air_top;
+  cx.sky = d->background == OC_BG_CONSTANT && !(d->flags & OC_RF_NO_AMBIENT) ? d->background_radiance : 0.0f;
 
-  int rc = oc_render_shadow_frame(d, d->camera.pos, cx.ground_r, &cx.shf);
+  /* The shadow volume stands on the ground, or under thin air on the sphere of the planet radius. */
+  double shadow_r = cx.ground_r > 0.0 ? cx.ground_r : cx.air_sigma > 0.0f ? OC_PLANET_RADIUS : 0.0;
+  int rc = oc_render_shadow_frame(d, d->camera.pos, shadow_r, &cx.shf);
   if (rc < 0) return rc;
   if ((rc = oc__shadow_build(&cx)) < 0) return rc;
   cx.thread_stats = calloc((size_t)d->threads, sizeof *cx.thread_stats);

@@ -14,7 +14,9 @@
  *     Hillaire's multiple-scattering term;
  *   - the planet sphere: Lambertian ground lit by the sun (with cloud shadow from τ) and the sky;
  *   - in empty nodes, which carry no τ, the τ of the cloud shadow volume (shaders/shadow.h) built
- *     from the state during each render (each texel when a ray first needs it), centred under the camera.
+ *     from the state during each render (each texel when a ray first needs it), centred under the camera;
+ *   - without an atmosphere, optionally thin homogeneous air (air_sigma): grey, isotropic, single
+ *     scattering in the cloud's shadow, the Monte Carlo truth's air medium (docs/numerics.md).
  * Positions are double on the CPU. Output is deterministic for any thread count. */
 #ifndef OC_COMMON_RENDER_H
 #define OC_COMMON_RENDER_H
@@ -37,6 +39,9 @@
 #define OC_RENDER_DEFAULT_SHADOW_CELLS 128      /**< texels along each horizontal edge */
 #define OC_RENDER_DEFAULT_SHADOW_LEVELS 24      /**< texels from the ground to its top */
 #define OC_RENDER_DEFAULT_SHADOW_TOP 12000.0    /**< m, its top: air above it is unshadowed */
+/* Thin homogeneous air (air_sigma, with no atmosphere): the shell from the planet radius up to this. */
+#define OC_RENDER_DEFAULT_AIR_TOP 12000.0       /**< m above OC_PLANET_RADIUS */
+#define OC_RENDER_MAX_AIR_SIGMA 1e-3            /**< m⁻¹: τ 1 per km; "thin" means far less */
 /* The octave factors fitted with march.h's constants to the Monte Carlo truth (docs/numerics.md). */
 #define OC_RENDER_DEFAULT_MS_A 0.482f      /**< octave extinction factor a */
 #define OC_RENDER_DEFAULT_MS_B 0.9755f     /**< octave contribution factor b */
@@ -97,6 +102,11 @@ typedef struct {
   int shadow_levels;     /**< its texels from the ground to its top [2, 1024]; default OC_RENDER_DEFAULT_SHADOW_LEVELS */
   double shadow_top;     /**< its top, m above the ground; default OC_RENDER_DEFAULT_SHADOW_TOP */
   const oc_atmo_t *atmo; /**< required unless OC_RF_NO_ATMOSPHERE or OC_BG_CONSTANT */
+  float air_sigma;       /**< thin homogeneous air where there is no atmosphere (OC_BG_CONSTANT or
+                              OC_RF_NO_ATMOSPHERE): scattering coefficient, m⁻¹, [0, OC_RENDER_MAX_AIR_SIGMA];
+                              grey, isotropic, no absorption, in the first crossing of the shell
+                              oc_render_air_shell(); lit through the cloud shadow volume. Default 0: none */
+  double air_top;        /**< that shell's top, m above OC_PLANET_RADIUS, [100, 1e5]; default OC_RENDER_DEFAULT_AIR_TOP */
 } oc_render_desc_t;
 
 typedef struct {
@@ -122,6 +132,13 @@ typedef struct {
  *  the camera at `camera` over a ground of radius ground_r (> 0); f->n[0] = 0 when desc's flags turn
  *  it off. @return 0, or OC_EINVAL for a bad option (with an oc_log_error line naming the field). */
 int oc_render_shadow_frame(const oc_render_desc_t *desc, oc_dvec3 camera, double ground_r, oc_shadow_frame_t *f);
+
+/*! oc_render_air_shell() : where the ray o + t·d (d unit, t ≥ 0) first crosses the thin air's shell
+ *  OC_PLANET_RADIUS ≤ r ≤ OC_PLANET_RADIUS + top, up to the sphere of the planet radius (the ground,
+ *  which ends the air: a ray does not come out on the planet's far side): [*t0, *t1], and *t_ground the
+ *  distance to that sphere (INFINITY if the ray misses it). The truth (tools/bench_mc.c) and the
+ *  renderer both use it. @return 1, or 0 when the ray crosses no air (or starts inside the planet). */
+int oc_render_air_shell(oc_dvec3 o, oc_dvec3 d, double top, double *t0, double *t1, double *t_ground);
 
 /*! oc_render_sample_state() : σt and τ of the state at a planet-frame point (0, 0 outside the
  *  root cube): the reconstruction the renderer and the shaders use. */

@@ -251,6 +251,17 @@ OC_INLINE ocg_vec3 ocg_air_source(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_rea
   return ocg_add3(ocg_mul3(single, lit), ocg_mul3(ocg_add3(sr, ocg_v3s(sm)), e_multi));
 }
 
+/* Thin homogeneous air (oc_render_desc_t.air_sigma, where there is no atmosphere): grey, no absorption,
+ * isotropic phase 1/(4π) (as the Monte Carlo truth's air medium, tools/bench_mc.c): single scattering
+ * of the sun in the cloud's shadow τ, plus a uniform sky of radiance B (OC_BG_CONSTANT):
+ * $J_a = \sigma\,[E_{sun} e^{-\tau}/(4\pi) + B]$, with E_sun already through the air toward the sun,
+ * $e^{-\sigma \ell_{sun}}$ (the caller's: the same E_sun lights the clouds in the air).
+ * Its multiple scattering is left out: of order σ·ℓ of the single (docs/numerics.md, "Thin air"). */
+OC_INLINE ocg_vec3 ocg_thin_air_source(ocg_real sigma, ocg_vec3 e_sun, ocg_real tau, ocg_real sky) {
+  ocg_real lit = ocg_exp(-ocg_max(tau, OCG_R(0.0))) * OCG_INV_4PI;
+  return ocg_add3(ocg_scale3(e_sun, sigma * lit), ocg_v3s(sigma * sky));
+}
+
 /* ---- One segment -----------------------------------------------------------------------------------
  * Over a segment of length d with constant σ_t (RGB, clouds and air) and source J (Hillaire 2015):
  * $L \mathrel{+}= T\,J\,\frac{1 - e^{-\sigma_t d}}{\sigma_t}$, then $T \mathrel{*}= e^{-\sigma_t d}$ and

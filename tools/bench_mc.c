@@ -25,6 +25,9 @@
 #define OCT_MC_TAU_CUTOFF 100.0
 /* Russian roulette below this throughput (reached with albedo < 1, or through sun-lobe weights). */
 #define OCT_MC_RR_THRESHOLD 0.1
+#define OCT_MC_INV_4PI 0.0795774715459476679 /* 1/(4π): the thin air's isotropic phase function */
+
+static const oct_mc_phase_t oct__isotropic = {OCT_MC_PHASE_HG, 0.0};
 
 /* ---- Random numbers: splitmix64 seeding xoshiro256** (Blackman & Vigna 2018) ---------------------- */
 
@@ -412,9 +415,16 @@ static double oct__slab_optical_depth(double tau, oc_dvec3 o, oc_dvec3 d) {
   return INFINITY;
 }
 
+/* The thin air along o + t·d: [*a0, *a1] and the ground at *tg (oc_render_air_shell); 0 without air. */
+static int oct__air(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d, double *a0, double *a1, double *tg) {
+  *tg = INFINITY;
+  return m->kind == OCT_MC_MEDIUM_STATE && m->air_sigma > 0.0 && oc_render_air_shell(o, d, m->air_top, a0, a1, tg);
+}
+
 double oct_mc_optical_depth(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d) {
   if (m->kind == OCT_MC_MEDIUM_SLAB) return oct__slab_optical_depth(m->slab_tau, o, d);
-  double tau = 0.0, t = 0.0;
+  double a0, a1, tg;
+  double tau = oct__air(m, o, d, &a0, &a1, &tg) ? m->air_sigma * (a1 - a0) : 0.0, t = 0.0;
   oct__span_t sp;
   for (;;) {
     oct__state_span(m, o, d, t, 0, &sp);
@@ -426,13 +436,16 @@ double oct_mc_optical_depth(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d) {
 
 /* ---- Delta tracking ------------------------------------------------------------------------------------ */
 
-int oct_mc_flight(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d, oct_mc_rng_t *r, double *t, oct_mc_stats_t *st) {
+/* Delta tracking through the cloud up to t_max: 1 with *t at a real collision before it, else 0. */
+static int oct__cloud_flight(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d, double t_max, oct_mc_rng_t *r, double *t,
+                             oct_mc_stats_t *st) {
   double tt = 0.0;
   oct__span_t sp;
   for (;;) {
     if (m->kind == OCT_MC_MEDIUM_SLAB) oct__slab_span(m->slab_tau, o, d, tt, &sp);
     else oct__state_span(m, o, d, tt, 1, &sp);
-    if (sp.escape) return 0;
+    if (sp.escape || tt >= t_max) return 0;
+    sp.t_end = fmin(sp.t_end, t_max);
     if (!(sp.maj > 0.0)) { /* nothing to hit: skip the whole span */
       tt = sp.t_end;
       continue;
@@ -454,6 +467,20 @@ int oct_mc_flight(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d, oct_mc_rng_t
       st->null_collisions++;
     }
   }
+}
+
+int oct_mc_flight(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d, oct_mc_rng_t *r, double *t, oct_mc_stats_t *st) {
+  double a0, a1, tg, t_air = INFINITY;
+  if (oct__air(m, o, d, &a0, &a1, &tg)) { /* homogeneous: the free path in closed form */
+    double s = a0 - log1p(-oct_mc_uniform(r)) / m->air_sigma;
+    if (s < a1) t_air = s;
+  }
+  if (oct__cloud_flight(m, o, d, fmin(t_air, tg), r, t, st)) return 1;
+  if (t_air < tg) {
+    *t = t_air;
+    return 2;
+  }
+  return 0;
 }
 
 /* ---- Paths -------------------------------------------------------------------------------------------------- */
@@ -498,18 +525,21 @@ void oct_mc_trace(const oct_mc_medium_t *m, const oct_mc_params_t *p, oc_dvec3 o
     st->real_collisions++;
     out->bounces = b + 1;
     o = oc_dmad(o, d, t);
-    beta *= p->albedo;
+    int air = hit == 2; /* the thin air: albedo 1, isotropic (oct_mc_medium_t) */
+    if (!air) beta *= p->albedo;
     if (!(beta > 0.0)) return;
     if (p->sun_irradiance > 0.0) {
       /* Next-event estimation of the delta sun: light travelling along -sun scattered into -d, so
        * mu = cos(angle between the propagation directions) = dot(d, sun), as the renderer's mu. */
       double tau = oct_mc_optical_depth(m, o, p->sun);
       st->nee_rays++;
-      double l = beta * p->sun_irradiance * oct_mc_phase_eval(&p->phase, oc_ddot(d, p->sun)) * exp(-tau);
+      double ph = air ? OCT_MC_INV_4PI : oct_mc_phase_eval(&p->phase, oc_ddot(d, p->sun));
+      double l = beta * p->sun_irradiance * ph * exp(-tau);
       out->sun += l;
+      if (air) out->sun_air += l;
       if (b == 0) out->sun_single = l;
     }
-    d = oct__next_direction(p, d, r, &beta);
+    d = air ? oct_mc_phase_sample(&oct__isotropic, d, r) : oct__next_direction(p, d, r, &beta);
     if (beta < OCT_MC_RR_THRESHOLD) {
       if (oct_mc_uniform(r) * OCT_MC_RR_THRESHOLD >= beta) return;
       beta = OCT_MC_RR_THRESHOLD;

@@ -67,6 +67,10 @@ typedef struct {
   const oc_state_t *state;     /**< OCT_MC_MEDIUM_STATE (set up with oct_mc_medium_state) */
   struct oct_mc_index *index;  /**< its leaf index */
   double slab_tau;             /**< OCT_MC_MEDIUM_SLAB */
+  double air_sigma;            /**< OCT_MC_MEDIUM_STATE: thin homogeneous air, σ in m⁻¹ (0: none), in the
+                                    shell of oc_render_air_shell(): grey, isotropic, no absorption; a
+                                    path that reaches the planet radius leaves (as through the top) */
+  double air_top;              /**< that shell's top, m above OC_PLANET_RADIUS */
 } oct_mc_medium_t;
 
 /*! oct_mc_medium_state() : the medium of a state (kept by pointer), with its leaf index.
@@ -99,7 +103,9 @@ typedef struct {
  *  reconstruction (see the file comment); d unit. */
 double oct_mc_optical_depth(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d);
 /*! oct_mc_flight() : delta tracking from o along unit d. @return 1 with *t the distance to a real
- *  collision, or 0 when the ray leaves the medium. */
+ *  collision in the cloud, 2 with the distance to one in the thin air, or 0 when the ray leaves the
+ *  medium. The air's free path is drawn analytically and the cloud tracked up to it: the first of
+ *  the two independent collisions is the first collision in their sum. */
 int oct_mc_flight(const oct_mc_medium_t *m, oc_dvec3 o, oc_dvec3 d, oct_mc_rng_t *r, double *t, oct_mc_stats_t *st);
 
 /* ---- Paths ----------------------------------------------------------------------------------------- */
@@ -116,6 +122,7 @@ typedef struct {
 
 typedef struct {
   double sun;            /**< radiance brought by next-event estimation toward the sun */
+  double sun_air;        /**< its share from collisions in the thin air (all orders) */
   double sun_single;     /**< its first-collision share: single scattering alone */
   double escape_weight;  /**< throughput with which the path left the medium (0: absorbed or cut) */
   oc_dvec3 escape_dir;   /**< its direction then */

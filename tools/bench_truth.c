@@ -237,6 +237,82 @@ static int oct__check_slab(long photons, uint64_t seed, int threads) {
   return v.failed;
 }
 
+/* ---- Thin air against its closed form -------------------------------------------------------------------
+ * The thin homogeneous air medium (oct_mc_medium_t.air_sigma) with no cloud: an empty state, the
+ * camera 1 km up in a shell 4 km deep, σ = 2e-5 m⁻¹, the sun 40° up. Along a view ray that crosses
+ * the air over [0, ℓ], single scattering is
+ *   L1 = ∫0..ℓ σ e^{−σt} (1/4π) E e^{−σ ℓ_sun(t)} dt,
+ * ℓ_sun(t) the sun ray's length in the shell from the point at t (oc_render_air_shell, exact
+ * spherical geometry; Simpson in t), and the first flight leaves with probability e^{−σℓ}. The truth
+ * traces every order; the excess of all orders over single scattering is printed (of order σℓ). */
+
+typedef struct {
+  oc_dvec3 o, d, sun;
+  double sigma, top;
+} oct__air_case_t;
+
+static double oct__air_l1_integrand(double t, const double *p) {
+  const oct__air_case_t *c = (const oct__air_case_t *)(const void *)p;
+  double a0, a1, g;
+  oc_dvec3 x = oc_dmad(c->o, c->d, t);
+  double ls = oc_render_air_shell(x, c->sun, c->top, &a0, &a1, &g) ? a1 - a0 : 0.0;
+  return c->sigma * exp(-c->sigma * t) * exp(-c->sigma * ls) / (2.0 * OCT_TWO_PI);
+}
+
+/* @return the number of failed rows. */
+static int oct__check_air(long photons, uint64_t seed) {
+  oct__verdicts_t v = {0};
+  oc_state_t st;
+  oc_state_init(&st);
+  oct_mc_medium_t m;
+  if (oct_mc_medium_state(&m, &st) < 0) return 1;
+  m.air_sigma = 2e-5;
+  m.air_top = 4000.0;
+  oc_dvec3 o = oc_geo_to_xyz((oc_geo_t){0.0, 0.0, 1000.0});
+  oc_enu_t enu = oc_enu_at(o);
+  oct_mc_params_t prm = {.albedo = 1.0, .phase = {OCT_MC_PHASE_HG, 0.0}, .sun = oc_heading_pitch_dir(enu, 180.0, 40.0),
+                         .sun_irradiance = 1.0, .max_bounces = 1000000};
+  printf("# Thin air (σ %g m⁻¹, isotropic, shell 0–%g m, camera at 1 km, sun 40° up), no cloud, %ld paths per ray\n\n",
+         m.air_sigma, m.air_top, photons);
+  printf("| case | quantity | measured ± SE | reference | source | deviation / SE | verdict |\n"
+         "|---|---|---:|---:|---|---:|---|\n");
+  const double pitch[3] = {60.0, 10.0, -20.0};
+  for (int k = 0; k < 3; k++) {
+    oct__air_case_t c = {o, oc_heading_pitch_dir(enu, 90.0, pitch[k]), prm.sun, m.air_sigma, m.air_top};
+    double a0, a1, g;
+    oc_render_air_shell(o, c.d, c.top, &a0, &a1, &g);
+    oct_mc_rng_t rng;
+    oct_mc_rng_seed(&rng, seed, (6u + (unsigned)k) << 20);
+    oct_mc_stats_t stats = {0};
+    double s1 = 0, s2 = 0, l1 = 0, l2 = 0, f1 = 0;
+    for (long i = 0; i < photons; i++) {
+      oct_mc_path_t path;
+      oct_mc_trace(&m, &prm, o, c.d, &rng, &path, &stats);
+      s1 += path.sun_single;
+      s2 += path.sun_single * path.sun_single;
+      l1 += path.sun;
+      l2 += path.sun * path.sun;
+      f1 += path.first_escaped;
+    }
+    double n = (double)photons, ms, ms_se, ma, ma_se, fe, fe_se;
+    oct_mc_mean_se(s1, s2, n, &ms, &ms_se);
+    oct_mc_mean_se(l1, l2, n, &ma, &ma_se);
+    oct_mc_mean_se(f1, f1, n, &fe, &fe_se);
+    char name[96];
+    snprintf(name, sizeof name, "view pitch %+g°, air %.0f m", pitch[k], a1 - a0);
+    oct__check_row(&v, name, "single scattering L1", ms, ms_se,
+                   oct__simpson(oct__air_l1_integrand, (const double *)(const void *)&c, a0, a1, 4000), 1e-9,
+                   "closed form (quadrature)");
+    oct__check_row(&v, name, "view transmittance", fe, fe_se, exp(-m.air_sigma * (a1 - a0)), 1e-9, "e^{−σℓ}");
+    printf("| %s | all orders (info): (L − L1)/L1 | %+.4f ± %.4f | — | — | — | — |\n", name, (ma - ms) / ms,
+           sqrt(ma_se * ma_se + ms_se * ms_se) / ms);
+  }
+  printf("\n%d checks, %d failed\n\n", v.run, v.failed);
+  oct_mc_medium_free(&m);
+  oc_state_free(&st);
+  return v.failed;
+}
+
 /* ---- Scene scaling ------------------------------------------------------------------------------------------ */
 
 /* The length across which --tau is measured and the σt it scales: oct_truth_source_length/_sigma. */
@@ -410,6 +486,7 @@ typedef struct {
   oc_camera_t cam;
   int w, h, threads, nref;
   double tau, sigma, step, background;
+  double air_sigma, air_top; /* thin air (0: none) */
   oc_state_t st;
   oct_mc_medium_t medium;
   oct__truth_job_t *job;
@@ -448,6 +525,8 @@ static int oct__run_setup(oct__run_t *r) {
   r->rgb_r = malloc(3 * n);
   if (!r->buf || !r->rgb_t || !r->rgb_t1 || !r->rgb_r || oct_mc_medium_state(&r->medium, &r->st) < 0)
     return oc_cli_fail(r->prog, OC_EXIT_RUNTIME, "out of memory");
+  r->medium.air_sigma = r->air_sigma;
+  r->medium.air_top = r->air_top;
   long differ = oct_mc_check_reconstruction(&r->medium, r->job->seed, 200000, &r->tested);
   if (differ)
     return oc_cli_fail(r->prog, OC_EXIT_RUNTIME, "truth: %ld of %ld σt samples differ from oc_render_sample_state",
@@ -508,6 +587,8 @@ static int oct__run_references(oct__run_t *r) {
   r->nref = octs[0] == 1 ? 1 : 2;
   for (int k = 0; k < r->nref; k++) {
     oc_render_desc_t d = oct__ref_desc(r->sc, r->cam, r->w, r->h, r->step, octs[k], r->background, r->threads);
+    d.air_sigma = (float)r->air_sigma;
+    d.air_top = r->air_top;
     oc_render_stats_t rs;
     if (oc_image_alloc(&r->ref[k], r->w, r->h) < 0) return oc_cli_fail(r->prog, OC_EXIT_RUNTIME, "out of memory");
     double t0 = oct_now();
@@ -620,6 +701,7 @@ static int oct__run_save(const oct__run_t *r, const char *prefix, const char *ca
   fprintf(f, "scene %s\ntau %.9g\nsize %d %d\npaths %ld\nseed %llu\nalbedo %.9g\nbackground %.9g\n", r->scene_path,
           r->tau, r->w, r->h, r->job->paths, (unsigned long long)r->job->seed, r->sc->optics.albedo, r->background);
   if (camera_text) fprintf(f, "camera %s\n", camera_text);
+  if (r->air_sigma > 0.0) fprintf(f, "air_sigma %.9g\nair_top %.9g\n", r->air_sigma, r->air_top);
   double env, env_se;
   oct__image_mean(r->job->env, r->job->env_se, n, &env, &env_se);
   fprintf(f, "mean %.6g %.6g\nenv %.6g %.6g\npixels\n", mean, mean_se, env, env_se);
@@ -670,6 +752,7 @@ typedef struct {
   int size[2], paths, seed, threads, max_bounces, photons, check_only, no_check;
   oct_dlist_t taus;
   double sigma_scale, step, background, albedo, sun_lobe; /* sigma_scale 0: --tau */
+  double air_sigma, air_top; /* thin air (0: none) */
 } truth_opts_t;
 
 #define AT(f) offsetof(truth_opts_t, f)
@@ -697,6 +780,12 @@ static const oc_cli_opt_t truth_opts[] = {
      .def = "0", .help = "constant background radiance for both; 0: sun only"},
     {.name = "albedo", .type = OC_CLI_DOUBLE, .offset = AT(albedo), .arg = "A", .lo = 0, .hi = 1,
      .def_note = "the scene's", .help = "single-scattering albedo for both"},
+    {.name = "air-sigma", .type = OC_CLI_DOUBLE, .offset = AT(air_sigma), .arg = "S", .lo = 0,
+     .hi = OC_RENDER_MAX_AIR_SIGMA, .def = "0",
+     .help = "thin homogeneous air for both, m⁻¹: grey, isotropic, no absorption, from the planet radius to "
+             "--air-top (oc_render_air_shell); 0: none"},
+    {.name = "air-top", .type = OC_CLI_DOUBLE, .offset = AT(air_top), .arg = "H", .lo = 100, .hi = OC_ATMOSPHERE_HEIGHT,
+     .def = "12000", .help = "the thin air's top, m above the planet radius"},
     {.name = "max-bounces", .type = OC_CLI_INT, .offset = AT(max_bounces), .arg = "N", .lo = 1, .hi = 1000000000,
      .def = "1000000", .help = "scattering events before a path is cut and counted"},
     {.name = "sun-lobe", .type = OC_CLI_DOUBLE, .offset = AT(sun_lobe), .arg = "X", .lo = 0, .hi = 0.9, .def = "0.02",
@@ -775,9 +864,9 @@ static int truth_run(const char *prog, truth_opts_t *o, oc_scene_t *sc, oc_camer
                  "rel_err,rel_err_se,rmse_lin,rmse_lin_denoised,rmse_8bit,frac_over_3se,mc_seconds\n");
   }
   printf("# Monte Carlo truth: %s, albedo %g, HG+Draine phase, sun-lobe share %g, delta sun of irradiance 1 (no "
-         "atmosphere), background %g; reference: CPU renderer, OC_BG_CONSTANT, %d octaves (a %g, b %g, c %g) and 1, step factor %g\n\n",
-         o->scene, sc->optics.albedo, o->sun_lobe, o->background, sc->optics.ms_octaves, sc->optics.ms_a, sc->optics.ms_b,
-         sc->optics.ms_c, o->step);
+         "atmosphere), background %g, thin air σ %g m⁻¹ to %g m; reference: CPU renderer, OC_BG_CONSTANT, %d octaves (a %g, b %g, c %g) and 1, step factor %g\n\n",
+         o->scene, sc->optics.albedo, o->sun_lobe, o->background, o->air_sigma, o->air_top, sc->optics.ms_octaves,
+         sc->optics.ms_a, sc->optics.ms_b, sc->optics.ms_c, o->step);
   oct__summary_t sums[OCT_TRUTH_MAX_TAUS];
   int rc = OC_EXIT_OK, done = 0;
   for (int k = 0; k < o->taus.n && rc == OC_EXIT_OK; k++) {
@@ -787,7 +876,8 @@ static int truth_run(const char *prog, truth_opts_t *o, oc_scene_t *sc, oc_camer
       if (s) *s = sigma0[i] * f;
     }
     oct__run_t run = {.prog = prog, .scene_path = o->scene, .sc = sc, .cam = cam, .w = o->size[0], .h = o->size[1],
-                      .threads = o->threads, .tau = o->taus.v[k], .step = o->step, .background = o->background};
+                      .threads = o->threads, .tau = o->taus.v[k], .step = o->step, .background = o->background,
+                      .air_sigma = o->air_sigma, .air_top = o->air_top};
     rc = oct__truth_one(&run, o->paths, (uint64_t)o->seed, o->max_bounces, o->sun_lobe, o->png, o->save, o->camera, csv,
                         &sums[k]);
     if (rc == OC_EXIT_OK) done++;
@@ -808,7 +898,7 @@ int oct_bench_truth(const char *prog, int argc, char **argv) {
     return oc_cli_fail(prog, OC_EXIT_USAGE, "truth: --check-slab and --no-slab-check exclude each other");
   if (!o.taus.n) o.taus = (oct_dlist_t){{1, 5, 20}, 3};
   int failed = 0;
-  if (!o.no_check) failed = oct__check_slab(o.photons, (uint64_t)o.seed, o.threads);
+  if (!o.no_check) failed = oct__check_slab(o.photons, (uint64_t)o.seed, o.threads) + oct__check_air(o.photons / 4, (uint64_t)o.seed);
   if (o.check_only) return failed ? OC_EXIT_RUNTIME : OC_EXIT_OK;
 
   char why[512];

@@ -71,7 +71,8 @@ int oct_truth_case_load(oct_truth_case_t *c, const char *path, char *why, size_t
         sscanf(line, "tau %lf", &c->tau) == 1 || sscanf(line, "size %d %d", &c->w, &c->h) == 2 ||
         sscanf(line, "paths %ld", &c->paths) == 1 || sscanf(line, "albedo %lf", &c->albedo) == 1 ||
         sscanf(line, "background %lf", &c->background) == 1 || sscanf(line, "mean %lf %lf", &c->mean, &c->mean_se) == 2 ||
-        sscanf(line, "env %lf %lf", &c->env, &c->env_se) == 2 ||
+        sscanf(line, "env %lf %lf", &c->env, &c->env_se) == 2 || sscanf(line, "air_sigma %lf", &c->air_sigma) == 1 ||
+        sscanf(line, "air_top %lf", &c->air_top) == 1 ||
         strncmp(line, "seed ", 5) == 0)
       continue;
     return oc__truth_bad(f, c, why, why_len, path, "unknown line");
@@ -79,6 +80,10 @@ int oct_truth_case_load(oct_truth_case_t *c, const char *path, char *why, size_t
   if (!have || !c->scene[0] || !(c->tau > 0.0) || c->w <= 0 || c->h <= 0 || c->w > 4096 || c->h > 4096 ||
       !(c->albedo >= 0.0 && c->albedo <= 1.0))
     return oc__truth_bad(f, c, why, why_len, path, "missing or invalid parameters");
+  if (!(c->air_sigma >= 0.0 && c->air_sigma <= OC_RENDER_MAX_AIR_SIGMA))
+    return oc__truth_bad(f, c, why, why_len, path, "air_sigma: outside [0, 1e-3] m⁻¹");
+  if (c->air_sigma > 0.0 && !(c->air_top >= 100.0 && c->air_top <= OC_ATMOSPHERE_HEIGHT))
+    return oc__truth_bad(f, c, why, why_len, path, "air_top: outside [100, 1e5] m");
   size_t n = (size_t)c->w * (size_t)c->h;
   c->L = malloc(n * sizeof *c->L);
   c->se = malloc(n * sizeof *c->se);
@@ -130,6 +135,8 @@ oc_render_desc_t oct_truth_case_desc(const oct_truth_case_t *c, const oc_scene_t
   d.albedo = (float)c->albedo;
   d.albedo_zero = c->albedo == 0.0;
   oct_truth_light(&d, c->background);
+  d.air_sigma = (float)c->air_sigma;
+  d.air_top = c->air_top;
   d.threads = 1;
   return d;
 }

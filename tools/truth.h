@@ -20,6 +20,7 @@ typedef struct {
   long paths;
   double mean, mean_se; /**< the truth's image mean and its standard error */
   double env, env_se;   /**< image mean of the radiance per unit uniform-sky radiance (no sun); 0: not stored */
+  double air_sigma, air_top; /**< the thin air the truth was traced in (oc_render_desc_t.air_sigma, air_top); 0: none */
   double *L, *se;       /**< per pixel, row-major from the top */
 } oct_truth_case_t;
 
@@ -50,7 +51,7 @@ int oct_truth_case_state(const oct_truth_case_t *c, const char *root, oc_scene_t
                         char *why, size_t why_len);
 
 /*! oct_truth_case_desc() : the reference render the truth was made for: OC_BG_CONSTANT, no atmosphere,
- *  the scene's octaves and albedo, step factor 0.25, the case's size. */
+ *  the scene's octaves and albedo, step factor 0.25, the case's size, its thin air. */
 oc_render_desc_t oct_truth_case_desc(const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam);
 
 /*! oct_truth_light() : the light the truth is traced in, on a render description: OC_BG_CONSTANT
