@@ -131,7 +131,7 @@ static void test_truth__ambient_under_uniform_sky(void **state) {
 }
 
 /* ---- A cloud's shadow in thin air ----------------------------------------------------------------------
- * shaft-tau10.txt, shaft_a0-tau10.txt (albedo 1 and 0): `overcast-bench truth` with thin homogeneous air (σ 1e-5 m⁻¹, isotropic, 0–4 km)
+ * air/shaft-tau10.txt, air/shaft_a0-tau10.txt (albedo 1 and 0): `overcast-bench truth` with thin homogeneous air (σ 1e-5 m⁻¹, isotropic, 0–4 km)
  * under a sphere of τ 10 at 5.5 km, the sun 60° up in the south; the camera 5 km west looks east
  * 25° up at the column of air in the sphere's shadow (docs/numerics.md, "Thin air and the cloud's
  * shadow in it"). Pixels whose ray passes within 0.5 R of the shadow's axis (below the sphere, in the
@@ -239,8 +239,8 @@ static void empty_cloudless_leaves(oc_state_t *s) {
  * is; at albedo 1 the cloud sends diffusely transmitted light into its own shadow, which the model
  * (e^{−τ} alone) leaves out: it darkens the column too much (below). */
 static const case_t shaft_cases[] = {
-    {"shaft_a0-tau10.txt", 0.10, 0}, /* τ channel −4.4 %, shadow volume −1.9 %, truth SE 1.8 %; no volume −67 % */
-    /* shaft-tau10.txt (albedo 1) is not held to a bound: τ channel +32 %, shadow volume +35 %, no volume
+    {"air/shaft_a0-tau10.txt", 0.10, 0}, /* τ channel −4.4 %, shadow volume −1.9 %, truth SE 1.8 %; no volume −67 % */
+    /* air/shaft-tau10.txt (albedo 1) is not held to a bound: τ channel +32 %, shadow volume +35 %, no volume
      * −55 %, and the truth's SE of Δ, 4.7 %, hardly shrank from 16 384 to 65 536 paths (heavy tails
      * through the cloud): the model error and the noise together leave no bound that the switched-off
      * shadow would fail (docs/numerics.md). */
