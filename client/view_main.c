@@ -441,6 +441,7 @@ typedef struct {
   struct { uint64_t epoch; double at; } arrived[WIN_ARRIVALS]; /* when the newest states arrived */
   uint64_t newest; /* the newest epoch received */
   double stats_at, shown_lag; /* the last stats line; the shown state's wait from arrival to screen */
+  double stats_worst;         /* the longest frame drawn since the last stats line, ms */
   long stats_frames;
 } win_loop_t;
 
@@ -658,19 +659,21 @@ static void win_title(const view_win_t *v, win_loop_t *L, double t) {
   L->title_at = t;
 }
 
-/* Every WIN_STATS_S s, a line for benchmarks (scripts/window_fps.sh): frames/s, the traced size, and
- * the shown state against the newest received. */
+/* Every WIN_STATS_S s, a line for benchmarks (scripts/window_fps.sh): frames/s, the longest frame, the
+ * traced size, and the shown state against the newest received. */
 static void win_stats(const view_win_t *v, win_loop_t *L, double t, int drawn) {
   L->stats_frames += drawn;
+  if (drawn && L->frame_ms > L->stats_worst) L->stats_worst = L->frame_ms;
   if (t - L->stats_at < WIN_STATS_S) return;
   if (L->have_gs)
-    oc_log_info("window: %.2f frames/s over %.1f s, trace %dx%d (1/%d) of %dx%d, epoch %llu shown (%.2f s from its "
-                "arrival to the screen), newest received %llu, %s",
-                (double)L->stats_frames / (t - L->stats_at), t - L->stats_at, L->vs.trace_w, L->vs.trace_h, L->vs.scale,
-                L->iw, L->ih, (unsigned long long)L->epoch, L->shown_lag,
+    oc_log_info("window: %.2f frames/s over %.1f s, worst frame %.0f ms, trace %dx%d (1/%d) of %dx%d, epoch %llu shown "
+                "(%.2f s from its arrival to the screen), newest received %llu, %s",
+                (double)L->stats_frames / (t - L->stats_at), t - L->stats_at, L->stats_worst, L->vs.trace_w,
+                L->vs.trace_h, L->vs.scale, L->iw, L->ih, (unsigned long long)L->epoch, L->shown_lag,
                 (unsigned long long)(v->net ? L->newest : L->epoch), L->reproject ? "reprojected" : "every pixel traced");
   L->stats_at = t;
   L->stats_frames = 0;
+  L->stats_worst = 0.0;
 }
 
 /* One local state (--state, --scene): a GL view whose budget holds it, nothing to blend. */

@@ -13,6 +13,7 @@ PKGS=(
   prometheus curl                       # tests: promtool checks a /metrics scrape (the daemon never runs)
   haproxy openssl socat                 # tests: TLS and PROXY v2 in front of the server (only the test runs it)
   libhiredis-dev redis-server           # the shared brick store; tests start redis-server themselves
+  xvfb                                  # scripts/window_fps.sh: the window's frame rate without a display
 )
 
 # Daemons that come with test packages (haproxy, prometheus, redis-server) must not start as services: a

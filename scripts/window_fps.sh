@@ -2,9 +2,10 @@
 # The window's frame rate without a GPU: starts Xvfb on a free display, overcast-server on the
 # built-in procedural planet (127.0.0.1, a free port, 1 s epochs) and overcast-view --window
 # connected to it (the main job of scripts/run.sh) at 1280×720, lets it run for SECONDS (default 60),
-# and prints what the viewer logs every 5 s ("window: F frames/s ..., trace WxH (1/S), epoch E shown
-# (A s from its arrival to the screen), newest received N") and a summary over the run after the
-# first 10 s: frames/s, the traced sizes, and how far the shown state trailed the newest received.
+# and prints what the viewer logs every 5 s ("window: F frames/s ..., worst frame M ms, trace WxH (1/S),
+# epoch E shown (A s from its arrival to the screen), newest received N") and a summary over the run
+# after the first 10 s: frames/s, the longest frame, the traced sizes, and how far the shown state
+# trailed the newest received.
 # Not a test: CI never times it (docs/performance.md, "The window without a GPU").
 #
 # usage: scripts/window_fps.sh [SECONDS] [overcast-view options, e.g. --frame-ms 0 or --size 640x360]
@@ -57,6 +58,7 @@ grep "window: " "$OUT/view.log" || { echo "window_fps: no frame drawn in $SECOND
 grep "window: " "$OUT/view.log" | awk '
   NR > 2 {
     n++; match($0, /window: [0-9.]+ frames/); fps += substr($0, RSTART + 8, RLENGTH - 15)
+    if (match($0, /worst frame [0-9]+ ms/)) { w = substr($0, RSTART + 12, RLENGTH - 15) + 0; if (w > slow) slow = w }
     match($0, /trace [0-9]+x[0-9]+ \(1\/[0-9]+\)/); sizes[substr($0, RSTART + 6, RLENGTH - 6)]++
     match($0, /epoch [0-9]+ shown/); e = substr($0, RSTART + 6, RLENGTH - 12) + 0
     match($0, /\([0-9.]+ s from/); a = substr($0, RSTART + 1, RLENGTH - 8) + 0
@@ -66,7 +68,7 @@ grep "window: " "$OUT/view.log" | awk '
   END {
     if (!n) { print "window_fps: too short a run for a summary (give more than 15 s)"; exit }
     s = ""; for (k in sizes) s = s sprintf(" %s×%d", k, sizes[k])
-    printf "window_fps: %.2f frames/s (mean of %d 5-s windows after the first 10 s); traced:%s; " \
+    printf "window_fps: %.2f frames/s (mean of %d 5-s windows after the first 10 s), worst frame %d ms; traced:%s; " \
            "shown state %.1f epochs behind the newest on average (at most %d); %.2f s from arrival to screen\n",
-           fps / n, n, s, behind / n, worst, age / n
+           fps / n, n, slow, s, behind / n, worst, age / n
   }'

@@ -496,9 +496,11 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
 }
 
 #ifdef OCV_SHADOW_PASS
+layout(location = 44) uniform ivec2 u_sh_slice; /* (s, slices): rows of work groups s, s + slices, … (gl_render.c) */
 /* The shadow pass: texel (x, y % n_y, y / n_y) of the shadow volume. */
 void main() {
-  ivec2 g = ivec2(gl_GlobalInvocationID.xy);
+  int gy = int(gl_WorkGroupID.y) * u_sh_slice.y + u_sh_slice.x;
+  ivec2 g = ivec2(gl_GlobalInvocationID.x, gy * int(gl_WorkGroupSize.y) + int(gl_LocalInvocationID.y));
   if (g.x >= u_sh_n.x || g.y >= u_sh_n.y * u_sh_n.z) return;
   ocg_shadow_grid sg = ocv_shadow_grid();
   int j = g.y % u_sh_n.y, k = g.y / u_sh_n.y;

@@ -26,6 +26,21 @@ _Static_assert(sizeof(ocg_atmosphere) == 96, "ocg_atmosphere is the std140 block
 #define OCV__VARIANTS 8
 #define OCV__GENERIC OCV__VARIANTS
 
+/* A cloud shadow volume: its buffer, and the state, sun and camera its shadow pass runs for. */
+typedef struct {
+  GLuint buf;
+  size_t bytes;
+  oc_shadow_frame_t f; /* where it is (f.n[0] = 0: none) */
+  uint64_t serial;     /* the state it was begun from (ocv_gl_state_t.serial), 0: none yet */
+  int mixed;           /* a slice ran on a later state than serial (the window only) */
+  oc_dvec3 sun;
+  double built;        /* when it was completed, in sh_now's clock */
+  int ic[3];           /* the camera's level-21 cell and offset, and its position: the pass's uniforms */
+  double fr[3];
+  oc_dvec3 cam;
+  int slices, done;    /* it is built in `slices` passes, `done` of them run */
+} ocv__shvol_t;
+
 struct ocv_gl_renderer_s {
   GLuint prog[OCV__VARIANTS + 1]; /* compiled on first use, but for the common one at creation */
   char defines[512];
@@ -42,15 +57,15 @@ struct ocv_gl_renderer_s {
   GLuint query[2];       /* GL_TIME_ELAPSED of the trace and the reprojection pass */
   double pass_ms[2];     /* the last measured, < 0 before the first */
   int no_map;            /* descend from the root (benchmarks, tests) */
-  /* The cloud shadow volume (shaders/shadow.h), built by the kernel's shadow pass. */
-  GLuint sh_prog, sh_buf;
-  size_t sh_bytes;
-  oc_shadow_frame_t shf; /* where it is (shf.n[0] = 0: none) */
-  uint64_t sh_serial;    /* the state it was built from (ocv_gl_state_t.serial), 0: none yet */
-  oc_dvec3 sh_sun;
+  /* The cloud shadow volume (shaders/shadow.h), built by the kernel's shadow pass: sh[sh_cur] is read,
+   * the other one is built over frames while sh_building (ocv_gl_renderer_set_shadow_slices). */
+  GLuint sh_prog;
+  ocv__shvol_t sh[2];
+  int sh_cur, sh_building;
+  int sh_slices;             /* frames a rebuild is spread over; ≤ 1: built whole (one-shot) */
   double sh_max_age, sh_now; /* a volume this young (s) is kept for a new state; 0: rebuilt (one-shot) */
-  double sh_built;           /* when it was built, in sh_now's clock */
-  uint64_t sh_passes;        /* shadow passes run */
+  uint64_t sh_passes;        /* shadow volumes begun */
+  uint64_t sh_texels;        /* texels written by shadow passes */
 };
 
 void ocv_gl_renderer_set_shadow_age(ocv_gl_renderer_t *r, double max_age_s, double now_s) {
@@ -59,7 +74,20 @@ void ocv_gl_renderer_set_shadow_age(ocv_gl_renderer_t *r, double max_age_s, doub
   r->sh_now = now_s;
 }
 
+void ocv_gl_renderer_set_shadow_slices(ocv_gl_renderer_t *r, int slices) {
+  if (r) r->sh_slices = slices > 1 ? slices : 1;
+}
+
 uint64_t ocv_gl_renderer_shadow_passes(const ocv_gl_renderer_t *r) { return r ? r->sh_passes : 0; }
+
+uint64_t ocv_gl_renderer_shadow_texels(const ocv_gl_renderer_t *r) { return r ? r->sh_texels : 0; }
+
+size_t ocv_gl_renderer_shadow_read(const ocv_gl_renderer_t *r, float *out, size_t n) {
+  const ocv__shvol_t *v = r ? &r->sh[r->sh_cur] : NULL;
+  size_t have = v && v->serial ? (size_t)v->f.n[0] * (size_t)v->f.n[1] * (size_t)v->f.n[2] : 0;
+  if (have && out && n >= have) glGetNamedBufferSubData(v->buf, 0, (GLsizeiptr)(have * sizeof(float)), out);
+  return have;
+}
 
 void ocv_gl_renderer_set_map(ocv_gl_renderer_t *r, int on) {
   if (r) r->no_map = !on;
@@ -152,7 +180,8 @@ void ocv_gl_renderer_free(ocv_gl_renderer_t *r) {
     if (r->prog[v]) glDeleteProgram(r->prog[v]);
   if (r->reproject) glDeleteProgram(r->reproject);
   if (r->sh_prog) glDeleteProgram(r->sh_prog);
-  if (r->sh_buf) glDeleteBuffers(1, &r->sh_buf);
+  for (int k = 0; k < 2; k++)
+    if (r->sh[k].buf) glDeleteBuffers(1, &r->sh[k].buf);
   for (int k = 0; k < 2; k++)
     if (r->query[k]) glDeleteQueries(1, &r->query[k]);
   free(r);
@@ -186,18 +215,23 @@ static int ocv__bad(char *why, size_t wl, const char *field) {
 /* A device buffer of exactly `bytes` (re-created when the size changes). */
 static void ocv__buffer(GLuint *b, size_t *have, size_t bytes);
 
-/* Whether the shadow volume must be rebuilt for frame f: a new sun or grid, the camera over an eighth
- * of its edge from its centre, none yet, or a new state unless the volume is younger than sh_max_age
- * (the window's frame loop; ocv_gl_renderer_set_shadow_age). */
-static int ocv__shadow_stale(const ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_shadow_frame_t *f) {
-  const oc_shadow_frame_t *o = &r->shf;
-  if (!r->sh_serial || memcmp(&r->sh_sun, &gs->sun_dir, sizeof r->sh_sun)) return 1;
-  if (r->sh_serial != gs->serial) {
-    double age = r->sh_now - r->sh_built;
+/* Whether volume v has the grid of frame f (its size, spacing and bottom: the options). */
+static int ocv__shadow_same_grid(const ocv__shvol_t *v, const oc_shadow_frame_t *f) {
+  const oc_shadow_frame_t *o = &v->f;
+  return !memcmp(o->n, f->n, sizeof o->n) && !memcmp(o->cell, f->cell, sizeof o->cell) && o->lo[2] == f->lo[2];
+}
+
+/* Whether the shadow volume v must be rebuilt for frame f: a new sun or grid, the camera over an eighth
+ * of its edge from its centre, none yet, or a new state (or one built from several) unless the volume
+ * is younger than sh_max_age (the window's frame loop; ocv_gl_renderer_set_shadow_age). */
+static int ocv__shadow_stale(const ocv_gl_renderer_t *r, const ocv__shvol_t *v, const ocv_gl_state_t *gs,
+                             const oc_shadow_frame_t *f) {
+  if (!v->serial || memcmp(&v->sun, &gs->sun_dir, sizeof v->sun) || !ocv__shadow_same_grid(v, f)) return 1;
+  if (v->serial != gs->serial || v->mixed) {
+    double age = r->sh_now - v->built;
     if (!(r->sh_max_age > 0.0 && age >= 0.0 && age < r->sh_max_age)) return 1;
   }
-  if (memcmp(o->n, f->n, sizeof o->n) || memcmp(o->cell, f->cell, sizeof o->cell) || o->lo[2] != f->lo[2]) return 1;
-  return f->n[0] && oc_dlen(oc_dsub(o->c0, f->c0)) > 0.125 * (f->n[0] - 1) * f->cell[0];
+  return f->n[0] && oc_dlen(oc_dsub(v->f.c0, f->c0)) > 0.125 * (f->n[0] - 1) * f->cell[0];
 }
 
 /* Sets the shadow volume's uniforms on program p (the camera o in its frame). */
@@ -212,44 +246,87 @@ static void ocv__shadow_uniforms(GLuint p, const oc_shadow_frame_t *f, oc_dvec3 
   glProgramUniform3f(p, 43, (float)f->up.x, (float)f->up.y, (float)f->up.z);
 }
 
-/* The cloud shadow volume for desc's camera over a ground of radius ground_r (oc_render_state()'s):
- * rebuilt by the shadow pass when stale (ic, fr: the camera's level-21 cell and offset), then bound to
- * binding 6 and its uniforms set on the trace program p. */
+/* Work groups along y of slice s of v: the rows of groups (OCV__GROUP texel rows of n_x each) s,
+ * s + slices, s + 2·slices, … of the n_y·n_z texel rows; *texels: the texels they write (the last group
+ * may be short). */
+static int ocv__slice_groups(const ocv__shvol_t *v, int s, uint64_t *texels) {
+  int rows = v->f.n[1] * v->f.n[2], groups = (rows + OCV__GROUP - 1) / OCV__GROUP;
+  int mine = s < groups ? (groups - 1 - s) / v->slices + 1 : 0;
+  int short_by = mine && (groups - 1) % v->slices == s ? groups * OCV__GROUP - rows : 0;
+  *texels = (uint64_t)v->f.n[0] * (uint64_t)(mine * OCV__GROUP - short_by);
+  return mine;
+}
+
+/* The next slice of v's shadow pass on the state gs, with the sun and camera v was begun for. */
+static int ocv__shadow_slice(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, ocv__shvol_t *v, char *why, size_t why_len) {
+  if (!r->sh_prog) r->sh_prog = ocv_gl_compute_program(OCV__KERNEL, r->sh_defines, why, why_len);
+  if (!r->sh_prog) return OC_EIO;
+  GLuint q = r->sh_prog;
+  int s = v->done++;
+  uint64_t texels;
+  int mine = ocv__slice_groups(v, s, &texels);
+  if (gs->serial != v->serial) v->mixed = 1;
+  ocv__shadow_uniforms(q, &v->f, v->cam);
+  glProgramUniform3i(q, 0, v->ic[0], v->ic[1], v->ic[2]);
+  glProgramUniform3f(q, 1, (float)v->fr[0], (float)v->fr[1], (float)v->fr[2]);
+  glProgramUniform3f(q, 10, (float)v->sun.x, (float)v->sun.y, (float)v->sun.z);
+  glProgramUniform1f(q, 12, (float)OC_CELL21_SIZE);
+  glProgramUniform3i(q, 28, gs->atlas_bricks[0], gs->atlas_bricks[1], gs->atlas_bricks[2]);
+  glProgramUniform1i(q, 34, r->no_map ? 0 : gs->map_level);
+  glProgramUniform1ui(q, 35, gs->map_offset);
+  glProgramUniform2i(q, 44, s, v->slices);
+  glUseProgram(q);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, v->buf);
+  glBindTextureUnit(0, gs->atlas);
+  if (mine) glDispatchCompute((GLuint)((v->f.n[0] + OCV__GROUP - 1) / OCV__GROUP), (GLuint)mine, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  r->sh_texels += texels;
+  return 0;
+}
+
+/* The cloud shadow volume for desc's camera over a ground of radius ground_r (oc_render_state()'s),
+ * bound to binding 6 with its uniforms set on the trace program p. When stale it is rebuilt (ic, fr:
+ * the camera's level-21 cell and offset) into the other buffer: whole, and read at once, without a
+ * volume or with other grid options or with slicing off; else one slice per call, the old volume read
+ * until the last slice. */
 static int ocv__shadow(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_render_desc_t *d, double ground_r, GLuint p,
                        const int ic[3], const double fr[3], char *why, size_t why_len) {
   oc_shadow_frame_t f;
   if (oc_render_shadow_frame(d, d->camera.pos, ground_r, &f) < 0) return ocv__bad(why, why_len, "shadow volume option");
-  if (ocv__shadow_stale(r, gs, &f)) {
-    r->shf = f;
-    r->sh_serial = gs->serial;
-    r->sh_sun = gs->sun_dir;
-    r->sh_built = r->sh_now;
-    if (f.n[0]) {
-      if (!r->sh_prog) r->sh_prog = ocv_gl_compute_program(OCV__KERNEL, r->sh_defines, why, why_len);
-      if (!r->sh_prog) return OC_EIO;
-      r->sh_passes++;
-      GLuint q = r->sh_prog;
-      ocv__buffer(&r->sh_buf, &r->sh_bytes, sizeof(float) * (size_t)f.n[0] * (size_t)f.n[1] * (size_t)f.n[2]);
-      ocv__shadow_uniforms(q, &f, d->camera.pos);
-      glProgramUniform3i(q, 0, ic[0], ic[1], ic[2]);
-      glProgramUniform3f(q, 1, (float)fr[0], (float)fr[1], (float)fr[2]);
-      glProgramUniform3f(q, 10, (float)gs->sun_dir.x, (float)gs->sun_dir.y, (float)gs->sun_dir.z);
-      glProgramUniform1f(q, 12, (float)OC_CELL21_SIZE);
-      glProgramUniform3i(q, 28, gs->atlas_bricks[0], gs->atlas_bricks[1], gs->atlas_bricks[2]);
-      glProgramUniform1i(q, 34, r->no_map ? 0 : gs->map_level);
-      glProgramUniform1ui(q, 35, gs->map_offset);
-      glUseProgram(q);
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, r->sh_buf);
-      glBindTextureUnit(0, gs->atlas);
-      glDispatchCompute((GLuint)((f.n[0] + OCV__GROUP - 1) / OCV__GROUP),
-                        (GLuint)((f.n[1] * f.n[2] + OCV__GROUP - 1) / OCV__GROUP), 1);
-      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  ocv__shvol_t *cur = &r->sh[r->sh_cur], *nv = &r->sh[1 - r->sh_cur];
+  int whole = r->sh_slices <= 1 || !cur->serial || !ocv__shadow_same_grid(cur, &f);
+  if (whole) r->sh_building = 0; /* a volume begun in slices is dropped */
+  if (!r->sh_building && ocv__shadow_stale(r, cur, gs, &f)) {
+    nv->f = f;
+    nv->serial = gs->serial;
+    nv->mixed = 0;
+    nv->sun = gs->sun_dir;
+    memcpy(nv->ic, ic, sizeof nv->ic);
+    memcpy(nv->fr, fr, sizeof nv->fr);
+    nv->cam = d->camera.pos;
+    nv->slices = whole ? 1 : r->sh_slices;
+    nv->done = 0;
+    if (f.n[0]) ocv__buffer(&nv->buf, &nv->bytes, sizeof(float) * (size_t)f.n[0] * (size_t)f.n[1] * (size_t)f.n[2]);
+    r->sh_building = 1;
+    r->sh_passes++;
+  }
+  if (r->sh_building) {
+    if (!nv->f.n[0]) nv->done = nv->slices; /* no grid: nothing to build */
+    else {
+      int rc = ocv__shadow_slice(r, gs, nv, why, why_len);
+      if (rc < 0) return rc;
+    }
+    if (nv->done == nv->slices) { /* complete: read from now on */
+      nv->built = r->sh_now;
+      r->sh_cur = 1 - r->sh_cur;
+      r->sh_building = 0;
+      cur = nv;
     }
   }
-  ocv__shadow_uniforms(p, &r->shf, d->camera.pos);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, r->shf.n[0] ? r->sh_buf : gs->leaves); /* unread without a volume */
+  ocv__shadow_uniforms(p, &cur->f, d->camera.pos);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, cur->f.n[0] ? cur->buf : gs->leaves); /* unread without a volume */
   return 0;
 }
 

@@ -219,6 +219,7 @@ int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now
       if (!v->hist) rc = OC_ENOMEM;
     }
     ocv_gl_renderer_set_shadow_age(v->r, v->d.frame_ms > 0.0 ? OCV_GL_SHADOW_MAX_AGE_S : 0.0, now);
+    ocv_gl_renderer_set_shadow_slices(v->r, v->d.frame_ms > 0.0 ? OCV_GL_SHADOW_SLICES : 1);
     if (rc == 0) {
       if (reproject) rc = ocv_gl_render_frame(v->r, v->hist, gs, desc, 1, img, &s.frame, why, why_len);
       else {
@@ -228,6 +229,7 @@ int ocv_gl_view_frame(ocv_gl_view_t *v, const oc_render_desc_t *desc, double now
     }
     ocv_gl_renderer_set_prev(v->r, NULL, 1.0f);
     ocv_gl_renderer_set_shadow_age(v->r, 0.0, now);
+    ocv_gl_renderer_set_shadow_slices(v->r, 1);
     s.shown = rc == 0;
     if (s.shown) v->out = reproject ? ocv_gl_history_output(v->hist) : ocv_gl_renderer_output(v->r);
     v->count_last = s.shown && !s.switched;

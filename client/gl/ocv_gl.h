@@ -200,8 +200,22 @@ void ocv_gl_renderer_set_variants(ocv_gl_renderer_t *r, int on);
  *  view sets OCV_GL_SHADOW_MAX_AGE_S around each frame when it has a frame-time target. */
 void ocv_gl_renderer_set_shadow_age(ocv_gl_renderer_t *r, double max_age_s, double now_s);
 #define OCV_GL_SHADOW_MAX_AGE_S 5.0
-/*! ocv_gl_renderer_shadow_passes() : how many shadow passes r has run (tests). */
+/*! ocv_gl_renderer_set_shadow_slices() : build a new cloud shadow volume over `slices` renders, a slice
+ *  each (an interleaved 1/slices of its texel rows), into a second buffer while the old volume is read,
+ *  read from the render of its last slice on; ≤ 1 (the default): built whole before the render that
+ *  needs it, the one-shot render exactly. Built whole either way without a volume or with other grid
+ *  options. A slice runs with the state of its render (a volume spread over states is stale for a
+ *  new state as an old one is), with the sun and camera of the first. The view sets
+ *  OCV_GL_SHADOW_SLICES around each frame when it has a frame-time target. */
+void ocv_gl_renderer_set_shadow_slices(ocv_gl_renderer_t *r, int slices);
+#define OCV_GL_SHADOW_SLICES 8
+/*! ocv_gl_renderer_shadow_passes() : how many shadow volumes r has begun to build (tests). */
 uint64_t ocv_gl_renderer_shadow_passes(const ocv_gl_renderer_t *r);
+/*! ocv_gl_renderer_shadow_texels() : how many texels r's shadow passes have written (tests). */
+uint64_t ocv_gl_renderer_shadow_texels(const ocv_gl_renderer_t *r);
+/*! ocv_gl_renderer_shadow_read() : the texels of the shadow volume read by the last render (shaders/shadow.h's
+ *  order) into out when n holds them (tests). @return their count, 0 without a volume. */
+size_t ocv_gl_renderer_shadow_read(const ocv_gl_renderer_t *r, float *out, size_t n);
 
 /*! ocv_gl_renderer_timings() : GPU time of the last trace and reprojection passes (timer queries),
  *  ms; −1 for a pass not run yet. */

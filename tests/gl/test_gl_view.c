@@ -4,7 +4,8 @@
  * resident bytes stay within the budget, reprojection runs through the same loop, and a state over
  * the budget is refused while the shown one stays; with a moving camera over a static field, through
  * epochs of splits and merges, the picture changes little from frame to frame (no popping); in the
- * window a new state keeps a young cloud shadow volume, a one-shot frame rebuilds it. */
+ * window a new state keeps a young cloud shadow volume, a one-shot frame rebuilds it, and a rebuild is
+ * spread over frames and ends as the one-shot build. */
 #include <setjmp.h> /* cmocka needs these three before cmocka.h */
 #include <stdarg.h>
 #include <stddef.h>
@@ -263,63 +264,181 @@ static void test_gl_view__no_popping(void **state) {
   for (int k = 0; k < PATH_E; k++) oc_state_free(&states[k]);
 }
 
+/* The camera of the shadow tests, and a view from it over a planet without an atmosphere (a shadow
+ * volume, no tables). */
+static const oc_camera_pose_t SHADOW_POSE = {{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0};
+static oc_render_desc_t planet_desc(oc_camera_t cam) {
+  oc_render_desc_t d = const_bg_desc(cam, W, H);
+  d.background = OC_BG_DEFAULT;
+  d.flags |= OC_RF_NO_ATMOSPHERE;
+  d.shadow_cells = 16;
+  d.shadow_levels = 4;
+  return d;
+}
+
 /* Shadow passes the view runs for three states arriving at times at[] (s), each shown before the next:
- * with a frame-time target (window) or without (one-shot), the camera held, over a planet. */
-static uint64_t shadow_passes(double frame_ms, const double at[3]) {
+ * with a frame-time target (window) or without (one-shot), the camera held, over a planet; *most: the
+ * most texels the passes wrote in one frame after the first state's. */
+static uint64_t shadow_passes(double frame_ms, const double at[3], uint64_t *most) {
   char why[512];
-  oc_camera_t cam = oc_camera_from_pose((oc_camera_pose_t){{0.0, -0.09, 3000.0}, 90.0, 0.0, 40.0});
+  oc_camera_t cam = oc_camera_from_pose(SHADOW_POSE);
   oc_state_t s[3];
   uint32_t bricks = 0;
   for (int k = 0; k < 3; k++) {
     make_state(&s[k], cam, 1000000u * (uint32_t)k, (uint64_t)k + 1);
     bricks += s[k].brick_count;
   }
-  oc_render_desc_t d = const_bg_desc(cam, W, H);
-  d.background = OC_BG_DEFAULT; /* a planet without an atmosphere: a shadow volume, no tables */
-  d.flags |= OC_RF_NO_ATMOSPHERE;
-  d.shadow_cells = 16;
-  d.shadow_levels = 4;
+  oc_render_desc_t d = planet_desc(cam);
   uint64_t budget = (uint64_t)(bricks + 8) * (OC_SLOT_BYTES + OC_RECORD_BYTES);
   oc_budget_t g = {.budget = budget, .slot_bytes = OC_SLOT_BYTES, .record_bytes = OC_RECORD_BYTES, .kept_states = 3};
   ocv_gl_view_desc_t vd = {.grant = g, .animated = 1, .epoch_period = 1.0, .frame_ms = frame_ms,
                            .upload_per_frame = (uint64_t)(bricks + 8) * OC_SLOT_BYTES};
-  ocv_gl_view_t *v = ocv_gl_view_create(ren, &vd, why, sizeof why);
+  ocv_gl_renderer_t *r = ocv_gl_renderer_create(why, sizeof why); /* no volume yet */
+  ocv_gl_view_t *v = r ? ocv_gl_view_create(r, &vd, why, sizeof why) : NULL;
   if (!v) fail_msg("%s", why);
-  static double base = 0.0; /* each call's clock 1000 s after the last's: no volume young enough left */
-  base += 1000.0;
-  uint64_t p0 = ocv_gl_renderer_shadow_passes(ren);
+  const double base = 1000.0;
   ocv_gl_view_stats_t st;
+  *most = 0;
   for (int k = 0; k < 3; k++) {
     assert_int_equal(ocv_gl_view_push(v, &s[k], why, sizeof why), 0);
-    int frames = 0;
-    do {
-      if (ocv_gl_view_frame(v, &d, base + at[k] + 0.01 * frames, 0, NULL, &st, why, sizeof why)) fail_msg("%s", why);
-      assert_true(++frames < 100);
-    } while (st.epoch != (uint64_t)k + 1);
-    assert_int_equal(ocv_gl_view_frame(v, &d, base + at[k] + 0.5, 0, NULL, &st, why, sizeof why), 0); /* blended in */
+    for (int frames = 0; frames < 100; frames++) {
+      uint64_t t0 = ocv_gl_renderer_shadow_texels(r);
+      int shown = st.epoch == (uint64_t)k + 1; /* then one more frame: blended in */
+      double now = base + at[k] + (shown ? 0.5 : 0.01 * frames);
+      if (ocv_gl_view_frame(v, &d, now, 0, NULL, &st, why, sizeof why)) fail_msg("%s", why);
+      uint64_t dt = ocv_gl_renderer_shadow_texels(r) - t0;
+      if (k > 0 && dt > *most) *most = dt;
+      if (shown) break;
+      assert_true(frames < 98);
+    }
   }
-  uint64_t n = ocv_gl_renderer_shadow_passes(ren) - p0;
+  uint64_t n = ocv_gl_renderer_shadow_passes(r);
   ocv_gl_view_free(v);
+  ocv_gl_renderer_free(r);
   for (int k = 0; k < 3; k++) oc_state_free(&s[k]);
   return n;
 }
 
 /* In the window (a frame-time target) a new state keeps a shadow volume younger than
  * OCV_GL_SHADOW_MAX_AGE_S: one pass for three states a second apart, a second pass once the volume is
- * older; without a target (one-shot) every new state reruns it. The made-up times need no clock. */
+ * older, spread over frames (a frame writes at most an eighth of its texels and a row of work groups);
+ * without a target (one-shot) every new state reruns it whole. The made-up times need no clock. */
 static void test_gl_view__shadow_age(void **state) {
   (void)state;
   require_gl();
   const double close[3] = {0.0, 1.0, 2.0}, late[3] = {0.0, 1.0, 1.0 + OCV_GL_SHADOW_MAX_AGE_S};
-  uint64_t window = shadow_passes(100.0, close), aged = shadow_passes(100.0, late), oneshot = shadow_passes(0.0, close);
-  printf("shadow age: passes for 3 states, window %llu (the third after %.0f s: %llu), one-shot %llu\n",
-         (unsigned long long)window, OCV_GL_SHADOW_MAX_AGE_S, (unsigned long long)aged, (unsigned long long)oneshot);
+  uint64_t most_w, most_a, most_o;
+  uint64_t window = shadow_passes(100.0, close, &most_w), aged = shadow_passes(100.0, late, &most_a);
+  uint64_t oneshot = shadow_passes(0.0, close, &most_o);
+  printf("shadow age: passes for 3 states, window %llu (the third after %.0f s: %llu), one-shot %llu; most texels "
+         "written in one frame after the first state's: window %llu, aged %llu, one-shot %llu (a whole volume)\n",
+         (unsigned long long)window, OCV_GL_SHADOW_MAX_AGE_S, (unsigned long long)aged, (unsigned long long)oneshot,
+         (unsigned long long)most_w, (unsigned long long)most_a, (unsigned long long)most_o);
   assert_int_equal(window, 1);
   assert_int_equal(aged, 2);
   assert_int_equal(oneshot, 3);
+  assert_true(most_w == 0 && most_a > 0);
+  assert_true(most_a * OCV_GL_SHADOW_SLICES <= most_o + most_o / 8); /* the slices are even to a group row */
+}
+
+/* The shadow volume of a render: its texels (*n of them), malloc'd. */
+static float *shadow_texels(const ocv_gl_renderer_t *r, size_t *n) {
+  *n = ocv_gl_renderer_shadow_read(r, NULL, 0);
+  assert_true(*n > 0);
+  float *v = malloc(*n * sizeof *v);
+  assert_non_null(v);
+  assert_int_equal(ocv_gl_renderer_shadow_read(r, v, *n), *n);
+  return v;
+}
+
+/* The window's settings (ocv_gl_view_frame's with a frame-time target) at time now, or the one-shot's. */
+static void window_mode(ocv_gl_renderer_t *r, int on, double now) {
+  ocv_gl_renderer_set_shadow_age(r, on ? OCV_GL_SHADOW_MAX_AGE_S : 0.0, now);
+  ocv_gl_renderer_set_shadow_slices(r, on ? OCV_GL_SHADOW_SLICES : 1);
+}
+
+/* In the window a rebuilt shadow volume is built over OCV_GL_SHADOW_SLICES frames, a slice per frame,
+ * while the old one is read; from the frame of its last slice on it is read, and it equals the one-shot
+ * build of the same state and camera texel for texel: a one-shot render then gives the same image. */
+static void test_gl_view__shadow_slices(void **state) {
+  (void)state;
+  require_gl();
+  char why[512];
+  oc_camera_t cam = oc_camera_from_pose(SHADOW_POSE);
+  oc_state_t s1, s2; /* the second with other leaves and the sun turned: another volume */
+  make_state(&s1, cam, 0, 1);
+  make_state(&s2, oc_camera_from_pose((oc_camera_pose_t){{0.0, -0.045, 3000.0}, 90.0, 0.0, 40.0}), 1000000, 2);
+  oc_dvec3 sun = s2.sun_dir;
+  s2.sun_dir = oc_dnorm((oc_dvec3){sun.x + 0.2, sun.y - 0.2, sun.z});
+  ocv_gl_state_t g1, g2;
+  assert_int_equal(ocv_gl_state_upload(&g1, &s1, why, sizeof why), 0);
+  assert_int_equal(ocv_gl_state_upload(&g2, &s2, why, sizeof why), 0);
+  oc_render_desc_t d = planet_desc(cam);
+  oc_image_t ref, img, old;
+  assert_int_equal(oc_image_alloc(&ref, W, H), 0);
+  assert_int_equal(oc_image_alloc(&img, W, H), 0);
+  assert_int_equal(oc_image_alloc(&old, W, H), 0);
+
+  /* the one-shot references: a renderer of its own builds each volume whole; the window's its own too */
+  ocv_gl_renderer_t *one = ocv_gl_renderer_create(why, sizeof why), *win = ocv_gl_renderer_create(why, sizeof why);
+  if (!one || !win) fail_msg("%s", why);
+  size_t n, n2;
+  assert_int_equal(ocv_gl_render_state(one, &g1, &d, NULL, why, sizeof why), 0);
+  float *v1 = shadow_texels(one, &n);
+  assert_int_equal(ocv_gl_render_state(one, &g2, &d, &ref, why, sizeof why), 0);
+  float *v2 = shadow_texels(one, &n2), *got = malloc(n * sizeof *got);
+  assert_true(n2 == n && got && memcmp(v1, v2, n * sizeof *v1) != 0);
+
+  /* the window: the first volume whole (none before), the next one, 10 s later, in slices */
+  const double base = 100.0;
+  window_mode(win, 1, base);
+  assert_int_equal(ocv_gl_render_state(win, &g1, &d, NULL, why, sizeof why), 0);
+  int frames = 0, sliced = 0;
+  uint64_t most = 0, sum = 0;
+  for (;; frames++) {
+    assert_true(frames < 4 * OCV_GL_SHADOW_SLICES);
+    window_mode(win, 1, base + 10.0 + 0.1 * frames);
+    uint64_t t0 = ocv_gl_renderer_shadow_texels(win);
+    assert_int_equal(ocv_gl_render_state(win, &g2, &d, &img, why, sizeof why), 0);
+    uint64_t dt = ocv_gl_renderer_shadow_texels(win) - t0;
+    sliced += dt > 0;
+    sum += dt;
+    most = dt > most ? dt : most;
+    assert_int_equal(ocv_gl_renderer_shadow_read(win, got, n), n);
+    if (!memcmp(got, v2, n * sizeof *got)) break;
+    assert_memory_equal(got, v1, n * sizeof *got); /* the old volume until the last slice */
+    memcpy(old.px, img.px, sizeof(float) * 4 * W * H);
+  }
+  /* the one-shot render keeps the complete volume (same state and camera) and equals the reference */
+  window_mode(win, 0, base + 20.0);
+  uint64_t t0 = ocv_gl_renderer_shadow_texels(win);
+  assert_int_equal(ocv_gl_render_state(win, &g2, &d, &img, why, sizeof why), 0);
+  double before = rmse(&old, &ref);
+  printf("shadow slices: a %zu-texel volume rebuilt in %d frames (%d with a slice), at most %llu texels (1/%.1f) a "
+         "frame, %llu in all; the frame before its last slice vs the one-shot image RMSE %.3f, after 0\n", n,
+         frames + 1, sliced, (unsigned long long)most, (double)n / (double)most, (unsigned long long)sum, before);
+  assert_int_equal(ocv_gl_renderer_shadow_texels(win), t0);
+  assert_memory_equal(img.px, ref.px, sizeof(float) * 4 * W * H);
+  assert_int_equal(frames + 1, OCV_GL_SHADOW_SLICES);
+  assert_int_equal(sliced, OCV_GL_SHADOW_SLICES);
+  assert_true(sum == n && most * OCV_GL_SHADOW_SLICES <= n + n / 8);
+  assert_true(before > 0.0); /* the old volume's shadows show */
+  free(v1);
+  free(v2);
+  free(got);
+  ocv_gl_renderer_free(one);
+  ocv_gl_renderer_free(win);
+  oc_image_free(&ref);
+  oc_image_free(&img);
+  oc_image_free(&old);
+  ocv_gl_state_free(&g1);
+  ocv_gl_state_free(&g2);
+  oc_state_free(&s1);
+  oc_state_free(&s2);
 }
 
 OC_TEST_MAIN(setup, teardown,
              cmocka_unit_test(test_gl_view__epochs),
              cmocka_unit_test(test_gl_view__shadow_age),
+             cmocka_unit_test(test_gl_view__shadow_slices),
              cmocka_unit_test(test_gl_view__no_popping))
