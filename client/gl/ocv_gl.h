@@ -302,8 +302,10 @@ typedef struct {
                                     (ocv_gl_view_frame_time), and the picture is upsampled
                                     (ocv_gl_present_upsample), and a new state reuses a cloud
                                     shadow volume younger than OCV_GL_SHADOW_MAX_AGE_S
-                                    (ocv_gl_renderer_set_shadow_age); 0: off, every frame at full
-                                    size, the shadow volume rebuilt for every new state */
+                                    (ocv_gl_renderer_set_shadow_age), a rebuild spread over
+                                    OCV_GL_SHADOW_SLICES frames (ocv_gl_renderer_set_shadow_slices);
+                                    0: off, every frame at full size, the shadow volume rebuilt
+                                    whole for every new state */
 } ocv_gl_view_desc_t;
 
 typedef struct {
