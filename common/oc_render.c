@@ -304,7 +304,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
   const oc_dvec3 sun = cx->s->sun_dir;
   const float mu = (float)oc_ddot(dir, sun);
   const double S = OC_ROOT_HALF;
-  ocg_march m = ocg_march_begin();
+  ocg_march m = ocg_march_begin(mu);
   const float kap = ocg_ambient_kappa(cx->cm);
 
   /* The marched interval: the root cube (clouds) and, with air, the atmosphere sphere; cut by the ground. */
@@ -487,10 +487,9 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   if (!(d->ms_b > 0.0f && d->ms_b <= 1.0f)) return oc__bad("ms_b (0, 1]");
   if (!(d->ms_c > 0.0f && d->ms_c <= 1.0f)) return oc__bad("ms_c (0, 1]");
   if (d->ms_model != OC_MS_MODEL_DEPTH && d->ms_model != OC_MS_MODEL_OCTAVES) return oc__bad("ms_model");
-  if (d->ms_fit && !(d->ms_fit[0] > 0.0f && d->ms_fit[0] < 1e6f && d->ms_fit[1] >= 0.0f && d->ms_fit[1] < 1e3f &&
-                     d->ms_fit[2] >= 0.0f && d->ms_fit[2] < 1e3f && d->ms_fit[3] >= 0.0f &&
-                     d->ms_fit[3] < 1e3f && d->ms_fit[4] >= 0.0f && d->ms_fit[4] < 1e3f))
-    return oc__bad("ms_fit");
+  for (int i = 0; d->ms_fit && i < OC_RENDER_MS_FIT_N; i++)
+    if (!(d->ms_fit[i] >= 0.0f && d->ms_fit[i] < (i == 0 ? 1e6f : 1e3f)) || (i == 0 && d->ms_fit[0] == 0.0f))
+      return oc__bad("ms_fit");
   if (d->albedo == 0.0f) d->albedo = 1.0f;
   if (d->albedo_zero) d->albedo = 0.0f;
   if (!(d->albedo >= 0.0f && d->albedo <= 1.0f)) return oc__bad("albedo [0, 1]");
@@ -509,6 +508,7 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   cx.cm.ambient_k = d->ms_fit ? d->ms_fit[2] : OCG_AMBIENT_DEPTH_K;
   cx.cm.diffuse_b = d->ms_fit ? d->ms_fit[3] : OCG_MS_DIFFUSE_B;
   cx.cm.diffuse_a = d->ms_fit ? d->ms_fit[4] : OCG_MS_DIFFUSE_A;
+  cx.cm.ms_forward = d->ms_fit ? d->ms_fit[5] : OCG_MS_FORWARD;
   cx.have_atmo = d->background != OC_BG_CONSTANT && !(d->flags & OC_RF_NO_ATMOSPHERE);
   if (cx.have_atmo && !d->atmo) return oc__bad("atmo (required with an atmosphere)");
   cx.air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;

@@ -36,6 +36,7 @@ typedef struct ocg_march {
   ocg_vec3 L_msd;   /**< its diffuse (isotropic) part, before its chord factors */
   ocg_real tau_run; /**< cloud optical depth crossed so far in the current run (0 outside clouds) */
   ocg_vec3 L_far;   /**< sky light of the current run from its far side, decayed by the depth crossed since */
+  ocg_real mu;      /**< cos(view, sun) of the ray (the chord factor's half-depth depends on it) */
 #if defined(OC_GLSL)
 };
 #else
@@ -47,11 +48,11 @@ typedef struct ocg_march {
  * against the truth"); the CPU reference can override them (oc_render_desc_t.ms_fit) to fit them. */
 /*! Chord depth at which a run's multiple scattering reaches half its thick-cloud value. */
 #ifndef OCG_MS_CHORD_HALF
-#define OCG_MS_CHORD_HALF OCG_R(23.44)
+#define OCG_MS_CHORD_HALF OCG_R(16.47)
 #endif
 /*! Octave i is weighted by (b·ω^q)^i: each octave stands for about q more bounces, each ×ω. */
 #ifndef OCG_MS_ALBEDO_POWER
-#define OCG_MS_ALBEDO_POWER OCG_R(0.0053)
+#define OCG_MS_ALBEDO_POWER OCG_R(0.0194)
 #endif
 /*! Sky ambient from each side of a cloud falls as exp(−k·κ_d·d) with the depth d to that side, κ_d
  *  the diffusion constant (occluded ambient; fitted to the uniform-sky truth, not to the sun cases). */
@@ -65,7 +66,7 @@ typedef struct ocg_march {
 /*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
  *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
 #ifndef OCG_MS_DIFFUSE_B
-#define OCG_MS_DIFFUSE_B OCG_R(2.5)
+#define OCG_MS_DIFFUSE_B OCG_R(2.326)
 #endif
 /*! ...and its own growth with the run's chord depth D, D/(D + D_d): a thin cloud's multiply scattered
  *  light is a few forward bounces, a thick one's diffuse (docs/numerics.md). */
@@ -73,7 +74,13 @@ typedef struct ocg_march {
 #define OCG_MS_DIFFUSE_D OCG_R(1.5)
 #endif
 #ifndef OCG_MS_DIFFUSE_A
-#define OCG_MS_DIFFUSE_A OCG_R(0.1286)
+#define OCG_MS_DIFFUSE_A OCG_R(0.2619)
+#endif
+/*! The chord factor's half-depth shrinks toward the sun, D½·exp(−β·max(μ, 0)): light multiply scattered
+ *  forward is a few small-angle bounces of the sun's beam and needs no cloud behind the sample to come
+ *  back from (docs/numerics.md, "The chord factor toward the sun"). */
+#ifndef OCG_MS_FORWARD
+#define OCG_MS_FORWARD OCG_R(3.0)
 #endif
 
 /* The cloud model's parameters (oc_render_desc_t; the scene's optics). */
@@ -93,14 +100,16 @@ typedef struct ocg_cloud_model {
   ocg_real ambient_k;    /**< OCG_AMBIENT_DEPTH_K */
   ocg_real diffuse_b;    /**< OCG_MS_DIFFUSE_B */
   ocg_real diffuse_a;    /**< OCG_MS_DIFFUSE_A */
+  ocg_real ms_forward;   /**< OCG_MS_FORWARD */
 #if defined(OC_GLSL)
 };
 #else
 } ocg_cloud_model;
 #endif
 
-OC_INLINE ocg_march ocg_march_begin(void) {
+OC_INLINE ocg_march ocg_march_begin(ocg_real mu) {
   ocg_march m;
+  m.mu = mu;
   m.L = ocg_v3s(OCG_R(0.0));
   m.T = ocg_v3s(OCG_R(1.0));
   m.Tc = OCG_R(1.0);
@@ -126,10 +135,11 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
  * scattering and the sky are modelled:
  *
  * $J_c = \omega\,\sigma_c\,[E_{sun} e^{-\tau} p(\mu) + E\,\frac{F}{4\pi}\,A]$ now, and
- * $J_{ms} = \omega\,\sigma_c\,E_{sun} \sum_{i=1}^{n-1} (b\,\omega^q)^i e^{-a^i \tau} p(\mu; c^i)$ deferred:
- * the march weights a run's J_ms by $G(D) = D/(D + D_{1/2})$ once it knows the run's chord optical depth
- * D (where the ray leaves the cloud, or stops). The octaves alone (Wrenninge) give a thin cloud as
- * much multiple scattering as a thick one; G brings in how much cloud there is to scatter in, and the
+ * $J_{ms} = \omega\,\sigma_c\,E_{sun} \sum_{i=1}^{n-1} (b\,\omega^q)^i \frac{p(\mu; c^i)}{1 + a^i \tau}$ deferred:
+ * the march weights a run's J_ms by $G(D) = D/(D + D_{1/2} e^{-\beta \max(\mu, 0)})$ once it knows the run's
+ * chord optical depth D (where the ray leaves the cloud, or stops). The octaves alone (Wrenninge) give
+ * a thin cloud as much multiple scattering as a thick one; G brings in how much cloud there is behind
+ * the sample to send light back (toward the sun little is needed: forward bounces), and the
  * ω^{qi} factor that each octave is several more bounces, each losing 1 − ω. The isotropic part
  * $J_{msd} = \omega\,\sigma_c\,E_{sun}\,\frac{b_d\,\omega^q}{4\pi (1 + a_d \tau)}$ is deferred apart and weighted by
  * G(D)·H(D), H(D) = D/(D + D_d): a thin cloud's multiply scattered light is a few forward bounces,
@@ -232,11 +242,12 @@ OC_INLINE ocg_real ocg_ms_diffuse_factor(ocg_real d) {
   return d / (d + OCG_MS_DIFFUSE_D);
 }
 
-/* The chord factor G(D) = D/(D + D½) of a run of chord optical depth D ≥ 0. */
-OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d) {
+/* The chord factor G(D) = D/(D + D½(μ)) of a run of chord optical depth D ≥ 0 seen at μ = cos(view, sun),
+ * D½(μ) = D½·exp(−β·max(μ, 0)). */
+OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d, ocg_real mu) {
   ocg_real kd = ocg_diffusion_kappa(cm);
   ocg_real de = kd * d > OCG_R(1e-3) ? (OCG_R(1.0) - ocg_exp(-kd * d)) / kd : d;
-  return de / (de + cm.chord_half);
+  return de / (de + cm.chord_half * ocg_exp(-cm.ms_forward * ocg_max(mu, OCG_R(0.0))));
 }
 
 /* Air at radius r: $J_a = (\beta_R p_R(\mu) + \beta_M p_{CS}(\mu, g_M))\,E_{sun} e^{-\tau}
@@ -286,7 +297,7 @@ OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_re
  * scattering joins L with the chord factor of the depth crossed, its far-side ambient as decayed. */
 OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
   if (OC_DEREF(m).tau_run > OCG_R(0.0)) {
-    ocg_real g = ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run), h = ocg_ms_diffuse_factor(OC_DEREF(m).tau_run);
+    ocg_real g = ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run, OC_DEREF(m).mu), h = ocg_ms_diffuse_factor(OC_DEREF(m).tau_run);
     OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(ocg_add3(OC_DEREF(m).L_ms, ocg_scale3(OC_DEREF(m).L_msd, h)), g));
   }
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, OC_DEREF(m).L_far);

@@ -341,7 +341,7 @@ float ocv_shadow_walk(vec3 q0) {
 /* The scene's cloud model (optics uniforms) with march.h's fitted constants. */
 ocg_cloud_model ocv_cloud_model() {
   return ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves, u_ms_model, OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER,
-                         OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A);
+                         OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A, OCG_MS_FORWARD);
 }
 
 vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
@@ -350,7 +350,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   float b = dot(u_cam_hi, dir) + dot(u_cam_lo, dir); /* o·d without the 0.5 m rounding of a float o */
   vec3 sh_dir = vec3(dot(dir, u_sh_e), dot(dir, u_sh_nn), dot(dir, u_sh_u)); /* dir in the shadow volume's frame */
   vec3 o = u_cam_frac;
-  ocg_march m = ocg_march_begin();
+  ocg_march m = ocg_march_begin(mu);
   ocg_cloud_model cm = ocv_cloud_model();
   float kap = ocg_ambient_kappa(cm);
 

@@ -15,7 +15,7 @@
 #include "truth.h"
 
 typedef struct {
-  float fit[5];
+  float fit[OC_RENDER_MS_FIT_N];
   int have_fit, have_abc, legacy, quiet, search;
   double abc[3];
 } oct__model_opts_t;
@@ -103,14 +103,15 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
   return cost;
 }
 
-/* The eight numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
-static void oct__model_unpack(const double x[8], oct__model_opts_t *o) {
+/* The nine numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
+static void oct__model_unpack(const double x[3 + OC_RENDER_MS_FIT_N], oct__model_opts_t *o) {
   for (int i = 0; i < 3; i++) o->abc[i] = fmin(1.0 / (1.0 + exp(-x[i])), 0.999);
-  for (int i = 0; i < 5; i++) o->fit[i] = (float)fmin(exp(x[3 + i]), 999.0);
+  for (int i = 0; i < OC_RENDER_MS_FIT_N; i++) o->fit[i] = (float)fmin(exp(x[3 + i]), 999.0);
   o->have_abc = o->have_fit = 1;
 }
 
-static double oct__model_eval(const char *prog, oct__mcase_t *cs, int n, oct__model_opts_t *o, const double x[8]) {
+static double oct__model_eval(const char *prog, oct__mcase_t *cs, int n, oct__model_opts_t *o,
+                              const double x[3 + OC_RENDER_MS_FIT_N]) {
   oct__model_unpack(x, o);
   double c = oct__model_all(prog, cs, n, o, 0);
   return isnan(c) ? 1e300 : c;
@@ -118,14 +119,15 @@ static double oct__model_eval(const char *prog, oct__mcase_t *cs, int n, oct__mo
 
 /* Nelder-Mead (reflection 1, expansion 2, contraction ½, shrink ½) from the start in o. */
 static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__model_opts_t *o, int iters) {
-  enum { N = 8 };
+  enum { N = 3 + OC_RENDER_MS_FIT_N };
   double p[N + 1][N], v[N + 1];
-  const double fit0[5] = {OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A};
+  const double fit0[OC_RENDER_MS_FIT_N] = {OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K,
+                                           OCG_MS_DIFFUSE_B,  OCG_MS_DIFFUSE_A,    OCG_MS_FORWARD};
   for (int j = 0; j < 3; j++) {
     double a = o->have_abc ? o->abc[j] : 0.5;
     p[0][j] = log(a / (1.0 - a));
   }
-  for (int j = 0; j < 5; j++) p[0][3 + j] = log(fmax(o->have_fit ? o->fit[j] : fit0[j], 1e-6));
+  for (int j = 0; j < OC_RENDER_MS_FIT_N; j++) p[0][3 + j] = log(fmax(o->have_fit ? o->fit[j] : fit0[j], 1e-6));
   for (int i = 1; i <= N; i++) {
     memcpy(p[i], p[0], sizeof p[0]);
     p[i][i - 1] += 0.7;
@@ -173,19 +175,19 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
   for (int i = 1; i <= N; i++)
     if (v[i] < v[best]) best = i;
   oct__model_unpack(p[best], o);
-  printf("search: %d iterations, objective %.6g: --abc %.4f,%.4f,%.4f --fit %.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters, v[best],
-         o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1], o->fit[2], o->fit[3], o->fit[4]);
+  printf("search: %d iterations, objective %.6g: --abc %.4f,%.4f,%.4f --fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters,
+         v[best], o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1], o->fit[2], o->fit[3], o->fit[4], o->fit[5]);
 }
 
-/* --fit D,Q,K,BD,AD and --abc A,B,C: five or three numbers. */
+/* --fit D,Q,K,BD,AD,B and --abc A,B,C: six or three numbers. */
 static int opt_numbers(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
   oct__model_opts_t *m = base;
-  int fit = !strcmp(o->name, "fit"), want = fit ? 5 : 3;
-  double v[5];
-  if (sscanf(text, "%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4]) != want)
+  int fit = !strcmp(o->name, "fit"), want = fit ? OC_RENDER_MS_FIT_N : 3;
+  double v[OC_RENDER_MS_FIT_N];
+  if (sscanf(text, "%lf,%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5]) != want)
     return oc_cli_fail(prog, -1, "model: --%s wants %d comma-separated numbers", o->name, want);
   if (fit) {
-    for (int i = 0; i < 5; i++) m->fit[i] = (float)v[i];
+    for (int i = 0; i < OC_RENDER_MS_FIT_N; i++) m->fit[i] = (float)v[i];
     m->have_fit = 1;
   } else {
     memcpy(m->abc, v, sizeof m->abc);
@@ -195,15 +197,15 @@ static int opt_numbers(const char *prog, const oc_cli_opt_t *o, const char *text
 }
 
 static const oc_cli_opt_t model_opts[] = {
-    {.name = "fit", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "D,Q,K,BD,AD", .def_note = "march.h's",
+    {.name = "fit", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "D,Q,K,BD,AD,B", .def_note = "march.h's",
      .help = "override march.h's fitted constants: chord half-depth, albedo power, ambient depth, diffuse weight, "
-             "diffuse decay"},
+             "diffuse decay, the half-depth's shrink toward the sun"},
     {.name = "abc", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "A,B,C", .def_note = "the scene's",
      .help = "octave factors"},
     OCT_FLAG(oct__model_opts_t, legacy, "legacy", "also score the plain octaves (the model before the fit)"),
     OCT_FLAG(oct__model_opts_t, quiet, "quiet", "only the summary and the fit objective"),
     OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
-        "eight numbers from the given (or default) start; prints the best --abc and --fit, then scores the cases "
+        "nine numbers from the given (or default) start; prints the best --abc and --fit, then scores the cases "
         "with them"),
     OCT_OPTS_END};
 

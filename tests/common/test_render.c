@@ -484,11 +484,15 @@ static void test_render__rejects_bad_descriptions(void **st) {
   bad = d;
   bad.ms_model = 7;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
-  const float fit_bad[5] = {0.0f, 1.0f, 1.0f, 1.0f, 1.0f}, fit_nan[5] = {1.0f, NAN, 1.0f, 1.0f, 1.0f};
+  const float fit_bad[OC_RENDER_MS_FIT_N] = {0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f},
+              fit_nan[OC_RENDER_MS_FIT_N] = {1.0f, NAN, 1.0f, 1.0f, 1.0f, 1.0f},
+              fit_neg[OC_RENDER_MS_FIT_N] = {1.0f, 1.0f, 1.0f, 1.0f, 1.0f, -1.0f};
   bad = d;
   bad.ms_fit = fit_bad;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
   bad.ms_fit = fit_nan;
+  assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  bad.ms_fit = fit_neg;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
   /* The edges of the domain draw finite pictures: every factor 1 with 16 octaves, albedo 1e-30 and 1. */
   oc_render_desc_t edge = d;
