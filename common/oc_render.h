@@ -107,7 +107,8 @@ typedef struct {
   float air_sigma;       /**< thin homogeneous air where there is no atmosphere (OC_BG_CONSTANT or
                               OC_RF_NO_ATMOSPHERE): scattering coefficient, m⁻¹, [0, OC_RENDER_MAX_AIR_SIGMA];
                               grey, isotropic, no absorption, in the first crossing of the shell
-                              oc_render_air_shell(); lit through the cloud shadow volume. Default 0: none */
+                              oc_render_air_shell(); lit through the cloud shadow volume. Default 0: none.
+                              CPU reference only: the GL renderer refuses it (OC_EINVAL) */
   double air_top;        /**< that shell's top, m above OC_PLANET_RADIUS, [100, 1e5]; default OC_RENDER_DEFAULT_AIR_TOP */
 } oc_render_desc_t;
 

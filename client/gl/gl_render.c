@@ -354,6 +354,7 @@ static int ocv__dispatch(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const o
   if (!(d.ms_c > 0.0f && d.ms_c <= 1.0f)) return ocv__bad(why, why_len, "ms_c (0, 1]");
   if (d.ms_model != OC_MS_MODEL_DEPTH && d.ms_model != OC_MS_MODEL_OCTAVES) return ocv__bad(why, why_len, "ms_model");
   if (d.ms_fit) return ocv__bad(why, why_len, "ms_fit (CPU reference only: the shader compiles march.h's constants)");
+  if (d.air_sigma != 0.0f) return ocv__bad(why, why_len, "air_sigma (CPU reference only: the truth's thin air)");
   if (d.albedo == 0.0f) d.albedo = 1.0f;
   if (d.albedo_zero) d.albedo = 0.0f;
   if (!(d.albedo >= 0.0f && d.albedo <= 1.0f)) return ocv__bad(why, why_len, "albedo [0, 1]");

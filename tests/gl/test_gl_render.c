@@ -278,6 +278,10 @@ static void test_gl_render__cloud_model(void **state) {
   bad.albedo = 1.5f;
   assert_int_equal(ocv_gl_render_state(fx.r, &gs, &bad, &img, why, sizeof why), OC_EINVAL);
   assert_non_null(strstr(why, "albedo"));
+  bad = base_desc(&vw.sc, vw.cam); /* drawn by the CPU reference only: refused, never silently left out */
+  bad.air_sigma = 1e-5f;
+  assert_int_equal(ocv_gl_render_state(fx.r, &gs, &bad, &img, why, sizeof why), OC_EINVAL);
+  assert_non_null(strstr(why, "air_sigma"));
   oc_image_free(&img);
   ocv_gl_state_free(&gs);
   view_close(&vw);
