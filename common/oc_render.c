@@ -487,9 +487,10 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   if (!(d->ms_b > 0.0f && d->ms_b <= 1.0f)) return oc__bad("ms_b (0, 1]");
   if (!(d->ms_c > 0.0f && d->ms_c <= 1.0f)) return oc__bad("ms_c (0, 1]");
   if (d->ms_model != OC_MS_MODEL_DEPTH && d->ms_model != OC_MS_MODEL_OCTAVES) return oc__bad("ms_model");
-  for (int i = 0; d->ms_fit && i < OC_RENDER_MS_FIT_N; i++)
-    if (!(d->ms_fit[i] >= 0.0f && d->ms_fit[i] < (i == 0 ? 1e6f : 1e3f)) || (i == 0 && d->ms_fit[0] == 0.0f))
-      return oc__bad("ms_fit");
+  for (int i = 0; d->ms_fit && i < OC_RENDER_MS_FIT_N; i++) { /* the half-depth > 0, the rest ≥ 0; NaN fails */
+    float v = d->ms_fit[i];
+    if (!((i == 0 ? v > 0.0f : v >= 0.0f) && v < (i == 0 ? 1e6f : 1e3f))) return oc__bad("ms_fit");
+  }
   if (d->albedo == 0.0f) d->albedo = 1.0f;
   if (d->albedo_zero) d->albedo = 0.0f;
   if (!(d->albedo >= 0.0f && d->albedo <= 1.0f)) return oc__bad("albedo [0, 1]");
