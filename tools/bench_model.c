@@ -184,8 +184,11 @@ static int opt_numbers(const char *prog, const oc_cli_opt_t *o, const char *text
   oct__model_opts_t *m = base;
   int fit = !strcmp(o->name, "fit"), want = fit ? OC_RENDER_MS_FIT_N : 3;
   double v[OC_RENDER_MS_FIT_N];
-  if (sscanf(text, "%lf,%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5]) != want)
-    return oc_cli_fail(prog, -1, "model: --%s wants %d comma-separated numbers", o->name, want);
+  int got = 0, used = 0;
+  const char *p = text;
+  for (; got < want && sscanf(p, got ? ",%lf%n" : "%lf%n", &v[got], &used) == 1; got++) p += used;
+  if (got != want || *p != '\0') /* exactly `want` numbers, nothing after */
+    return oc_cli_fail(prog, -1, "--%s wants %d comma-separated numbers", o->name, want);
   if (fit) {
     for (int i = 0; i < OC_RENDER_MS_FIT_N; i++) m->fit[i] = (float)v[i];
     m->have_fit = 1;
