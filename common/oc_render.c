@@ -400,10 +400,11 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     if (cx->have_atmo && r < cx->air_top) {
       float rf = (float)r;
       sigma_t = ocg_add3(sigma_t, ocg_atmo_extinction(cx->atm, rf));
-      J = ocg_add3(J, ocg_air_source(cx->atm, rf, mu, Esun, tau, ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s))));
+      ocg_vec3 e_multi = ocg_mul3(cx->sun_e, oc_atmo_multiscatter(d->atmo, r, mu_s));
+      J = ocg_add3(J, ocg_air_source(cx->atm, rf, mu, Esun, ocg_cloud_shadow(cx->cm, tau), e_multi));
     } else if (thin) {
       sigma_t = ocg_add3(sigma_t, ocg_v3s(cx->air_sigma));
-      J = ocg_add3(J, ocg_thin_air_source(cx->air_sigma, Esun, tau, cx->sky));
+      J = ocg_add3(J, ocg_thin_air_source(cx->air_sigma, Esun, ocg_cloud_shadow(cx->cm, tau), cx->sky));
     }
     ocg_march_segment(&m, sigma_t, sig, J, Jms, Jmsd, Jfar, kap, (float)seg);
     st->samples++;
@@ -424,11 +425,11 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       float mu_s = (float)(oc_ddot(pg, sun) / r);
       oc__leaf_t g;
       oc__leaf_locate(cx->s, pg, &g);
-      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_channel(&g, OC_CH_TAU, oc__leaf_local(&g, pg))
-                                                   : oc__shadow_tau(cx, pg);
+      float sg = ocg_cloud_shadow(cx->cm, g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_channel(&g, OC_CH_TAU, oc__leaf_local(&g, pg))
+                                                                           : oc__shadow_tau(cx, pg));
       ocg_vec3 I = cx->have_atmo ? oc_atmo_sky_irradiance(d->atmo, r, mu_s) : ocg_v3s(0.0f);
       ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);
-      ocg_march_background(&m, ocg_ground_radiance(oc__sun_transmittance(cx, r, mu_s), mu_s, tg, I, albedo, cx->sun_e));
+      ocg_march_background(&m, ocg_ground_radiance(oc__sun_transmittance(cx, r, mu_s), mu_s, sg, I, albedo, cx->sun_e));
     } else if (d->background == OC_BG_CONSTANT) {
       ocg_march_background(&m, ocg_v3s(d->background_radiance));
     } else if (cx->have_atmo && !(d->flags & OC_RF_NO_SUN_DISC)) {

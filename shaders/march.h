@@ -250,26 +250,47 @@ OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d, oc
   return de / (de + cm.chord_half * ocg_exp(-cm.ms_forward * ocg_max(mu, OCG_R(0.0))));
 }
 
-/* Air at radius r: $J_a = (\beta_R p_R(\mu) + \beta_M p_{CS}(\mu, g_M))\,E_{sun} e^{-\tau}
- * + (\beta_R + \beta_M)\,E\,\Psi_{ms}$: single scattering in the cloud's shadow (τ of the state at the
- * sample) plus Hillaire's multiple-scattering term (e_multi = E·Ψ_ms from the table). */
-OC_INLINE ocg_vec3 ocg_air_source(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_real mu, ocg_vec3 e_sun, ocg_real tau,
+/* ---- The cloud's shadow ------------------------------------------------------------------------------
+ * The share of the sun's light that reaches a point with sun optical depth τ (air or ground below or
+ * beside a cloud): the direct beam e^{−τ} plus what the cloud transmits diffusely,
+ * $S = e^{-\tau} + \omega\,\max(T_d - e^{-\tau}, 0)$, $T_d = \frac{2 e^{-x}}{1 + e^{-2x} + a_s\tau\,(1 - e^{-2x})/x}$,
+ * x = κ_d τ: the two-stream slab's transmission, 1/(1 + a_s τ) at ω = 1 (diffusion falls linearly
+ * with depth, not exponentially), e^{−κ_d τ}-like with absorption. A slab would have a_s = ¾(1 − ḡ)
+ * = 0.10; a finite cloud spreads what it transmits beyond its own shadow, faster the thicker it is,
+ * so a_s is fitted to the thin-air truth (docs/numerics.md "Thin air and the cloud's shadow in it").
+ * Written with e^{−x} only, so a deep τ cannot overflow; the legacy model keeps e^{−τ}. */
+#ifndef OCG_SHADOW_DIFFUSE_A
+#define OCG_SHADOW_DIFFUSE_A OCG_R(0.5)
+#endif
+OC_INLINE ocg_real ocg_cloud_shadow(OC_IN(ocg_cloud_model) cm, ocg_real tau) {
+  ocg_real t = ocg_max(tau, OCG_R(0.0)), direct = ocg_exp(-t);
+  if (cm.legacy != 0 || !(t > OCG_R(0.0))) return direct;
+  ocg_real x = ocg_diffusion_kappa(cm) * t, e = ocg_exp(-x);
+  ocg_real span = x > OCG_R(1e-3) ? (OCG_R(1.0) - e * e) / x : OCG_R(2.0) * (OCG_R(1.0) - x); /* (1 − e^{−2x})/x */
+  ocg_real td = OCG_R(2.0) * e / (OCG_R(1.0) + e * e + OCG_SHADOW_DIFFUSE_A * t * span);
+  return direct + ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0)) * ocg_max(td - direct, OCG_R(0.0));
+}
+
+/* Air at radius r: $J_a = (\beta_R p_R(\mu) + \beta_M p_{CS}(\mu, g_M))\,E_{sun} S
+ * + (\beta_R + \beta_M)\,E\,\Psi_{ms}$: single scattering in the cloud's shadow (S = ocg_cloud_shadow of
+ * the state's τ at the sample) plus Hillaire's multiple-scattering term (e_multi = E·Ψ_ms from the table). */
+OC_INLINE ocg_vec3 ocg_air_source(OC_IN(ocg_atmosphere) atm, ocg_real r, ocg_real mu, ocg_vec3 e_sun, ocg_real shadow,
                                   ocg_vec3 e_multi) {
   ocg_vec3 sr = ocg_atmo_rayleigh_scattering(atm, r);
   ocg_real sm = ocg_atmo_mie_scattering(atm, r);
   ocg_vec3 single = ocg_add3(ocg_scale3(sr, ocg_phase_rayleigh(mu)), ocg_v3s(sm * ocg_phase_cornette_shanks(mu, atm.mie_g)));
-  ocg_vec3 lit = ocg_scale3(e_sun, ocg_exp(-tau));
+  ocg_vec3 lit = ocg_scale3(e_sun, shadow);
   return ocg_add3(ocg_mul3(single, lit), ocg_mul3(ocg_add3(sr, ocg_v3s(sm)), e_multi));
 }
 
 /* Thin homogeneous air (oc_render_desc_t.air_sigma, where there is no atmosphere): grey, no absorption,
  * isotropic phase 1/(4π) (as the Monte Carlo truth's air medium, tools/bench_mc.c): single scattering
- * of the sun in the cloud's shadow τ, plus a uniform sky of radiance B (OC_BG_CONSTANT):
- * $J_a = \sigma\,[E_{sun} e^{-\tau}/(4\pi) + B]$, with E_sun already through the air toward the sun,
+ * of the sun in the cloud's shadow S (ocg_cloud_shadow), plus a uniform sky of radiance B (OC_BG_CONSTANT):
+ * $J_a = \sigma\,[E_{sun} S/(4\pi) + B]$, with E_sun already through the air toward the sun,
  * $e^{-\sigma \ell_{sun}}$ (the caller's: the same E_sun lights the clouds in the air).
  * Its multiple scattering is left out: of order σ·ℓ of the single (docs/numerics.md, "Thin air"). */
-OC_INLINE ocg_vec3 ocg_thin_air_source(ocg_real sigma, ocg_vec3 e_sun, ocg_real tau, ocg_real sky) {
-  ocg_real lit = ocg_exp(-ocg_max(tau, OCG_R(0.0))) * OCG_INV_4PI;
+OC_INLINE ocg_vec3 ocg_thin_air_source(ocg_real sigma, ocg_vec3 e_sun, ocg_real shadow, ocg_real sky) {
+  ocg_real lit = shadow * OCG_INV_4PI;
   return ocg_add3(ocg_scale3(e_sun, sigma * lit), ocg_v3s(sigma * sky));
 }
 
@@ -338,12 +359,12 @@ OC_INLINE ocg_atmo_bool ocg_march_done(OC_IN(ocg_march) m, ocg_real exit_t) {
 }
 
 /* ---- The end of the ray ---------------------------------------------------------------------------
- * Lambertian ground of albedo ρ: $L_g = \frac{\rho}{\pi} E\,[T_{sun} \max(\mu_s, 0)\,e^{-\tau_g} + I]$,
- * τ_g the state's sun optical depth at the ground (cloud shadow), I the sky irradiance per unit solar
- * irradiance (0 without a sky). */
-OC_INLINE ocg_vec3 ocg_ground_radiance(ocg_vec3 t_sun, ocg_real mu_s, ocg_real tau_g, ocg_vec3 sky_irr, ocg_vec3 albedo,
+ * Lambertian ground of albedo ρ: $L_g = \frac{\rho}{\pi} E\,[T_{sun} \max(\mu_s, 0)\,S_g + I]$,
+ * S_g the cloud's shadow (ocg_cloud_shadow of the state's sun optical depth at the ground), I the sky
+ * irradiance per unit solar irradiance (0 without a sky). */
+OC_INLINE ocg_vec3 ocg_ground_radiance(ocg_vec3 t_sun, ocg_real mu_s, ocg_real shadow, ocg_vec3 sky_irr, ocg_vec3 albedo,
                                        ocg_vec3 e) {
-  ocg_vec3 irr = ocg_add3(ocg_scale3(t_sun, ocg_max(mu_s, OCG_R(0.0)) * ocg_exp(-tau_g)), sky_irr);
+  ocg_vec3 irr = ocg_add3(ocg_scale3(t_sun, ocg_max(mu_s, OCG_R(0.0)) * shadow), sky_irr);
   return ocg_mul3(ocg_scale3(albedo, OCG_R(1.0) / OCG_PI), ocg_mul3(e, irr));
 }
 

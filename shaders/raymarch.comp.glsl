@@ -460,7 +460,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     }
     if (OCV_ATMO && r < u_atm.top_radius) {
       sigma_t += ocg_atmo_extinction(u_atm, r);
-      J += ocg_air_source(u_atm, r, mu, Esun, tau, u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
+      J += ocg_air_source(u_atm, r, mu, Esun, ocg_cloud_shadow(cm, tau), u_sun_e * ocv_atmo_rmus(u_tab_multiscatter, r, mu_s));
     }
     bool above = max(m.T.x, max(m.T.y, m.T.z)) >= 0.5;
     ocg_march_segment(m, sigma_t, sig, J, Jms, Jmsd, Jfar, kap, seg);
@@ -481,11 +481,11 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       float r = ocv_radius(b, t1);
       float mu_s = (u_sun_o + t1 * mu) / r;
       OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
-      float tg = g.idx >= 0 && oc_leaf[g.idx].info.x != 0u ? ocv_leaf_sample(g, ocv_local(g, pg)).y
-                                                           : ocv_shadow_tau(u_sh_cam + sh_dir * t1);
+      float sg = ocg_cloud_shadow(cm, g.idx >= 0 && oc_leaf[g.idx].info.x != 0u ? ocv_leaf_sample(g, ocv_local(g, pg)).y
+                                                                              : ocv_shadow_tau(u_sh_cam + sh_dir * t1));
       vec3 I = OCV_ATMO ? ocv_atmo_rmus(u_tab_irradiance, r, mu_s) : vec3(0.0);
       vec3 albedo = OCV_ATMO ? u_atm.ground_albedo : vec3(0.1);
-      ocg_march_background(m, ocg_ground_radiance(ocv_sun_transmittance(r, mu_s), mu_s, tg, I, albedo, u_sun_e));
+      ocg_march_background(m, ocg_ground_radiance(ocv_sun_transmittance(r, mu_s), mu_s, sg, I, albedo, u_sun_e));
     } else if (u_bg_constant != 0) {
       ocg_march_background(m, vec3(u_bg_radiance));
     } else if (OCV_ATMO && (u_flags & OCV_RF_NO_SUN_DISC) == 0u) {

@@ -352,7 +352,7 @@ static double shadow_tau(oc_dvec3 p, oc_dvec3 sun, double sigma) {
 static double shadow_pixel(const oc_state_t *s, const oc_atmo_t *a, uint32_t flags) {
   oc_camera_pose_t pose = {{0.0, 0.0, 8000.0}, 270.0, -20.0, 2.0};
   oc_render_desc_t d = {.width = 9, .height = 9, .camera = oc_camera_from_pose(pose), .atmo = a, .threads = 2,
-                        .flags = flags};
+                        .flags = flags, .albedo_zero = 1};
   oc_image_t img;
   assert_int_equal(oc_image_alloc(&img, d.width, d.height), 0);
   assert_int_equal(oc_render_state(s, &d, &img, NULL), 0);
@@ -364,7 +364,9 @@ static double shadow_pixel(const oc_state_t *s, const oc_atmo_t *a, uint32_t fla
 }
 
 /* A cloud between the sun and the air darkens the air and the ground under it by e^{-τ}, τ its optical
- * depth along the sun, though no leaf there carries τ. Radiance is L(τ) = A + B·e^{-τ} (A: the air's
+ * depth along the sun, though no leaf there carries τ. The cloud is a pure absorber (albedo 0), so that
+ * its shadow is e^{-τ} exactly (ocg_cloud_shadow; with albedo it also sends its diffuse transmission
+ * there, tested in test_optics.c and against the truth). Radiance is L(τ) = A + B·e^{-τ} (A: the air's
  * multiple scattering and the sky, which the model does not shadow); with the slab at σ and 2σ,
  * (L(τ) − L(2τ)) / (L(0) − L(τ)) = e^{-τ} whatever A and B are. Checked for the air alone (black
  * ground) and for ground and air; the second also shows ground under a level-10 cloud leaf shadowed. */

@@ -19,6 +19,7 @@
 #include <string.h> /* strlen */
 
 #include "optics.h" /* the header under test (shaders/ is on oc_common's include path) */
+#include "march.h"  /* ocg_cloud_shadow: the cloud's shadow with its diffuse transmission */
 
 #if defined(OCG_REAL_DOUBLE)
 #define EPS ((long double)DBL_EPSILON)
@@ -480,6 +481,46 @@ static void test_ms_octaves__sum_and_limits(void **state) {
   assert_true(deep8 > 1e6 * deep1);
 }
 
+/* The cloud's shadow: e^{-τ} exactly for a pure absorber and for the legacy model; at ω = 1 the closed
+ * form max(1/(1 + a_s τ), e^{-τ}); in [e^{-τ}, 1], 1 at τ = 0, never rising with τ or with absorption,
+ * finite at absurd τ. */
+static void test_cloud_shadow__limits(void **state) {
+  (void)state;
+  ocg_cloud_model cm;
+  memset(&cm, 0, sizeof cm);
+  const ocg_real ws[] = {OCG_R(0.0), OCG_R(0.5), OCG_R(0.9), OCG_R(0.99), OCG_R(1.0)};
+  ocg_real prev_w[61];
+  for (size_t iw = 0; iw < sizeof ws / sizeof ws[0]; ++iw) {
+    cm.albedo = ws[iw];
+    ocg_real prev = OCG_R(2.0);
+    for (int it = 0; it <= 60; ++it) {
+      ocg_real tau = it == 0 ? OCG_R(0.0) : (ocg_real)pow(10.0, -6.0 + it * 0.15); /* 0, 1e-6 .. 1e3 */
+      ld direct = (ld)ocg_exp(-tau), v = (ld)ocg_cloud_shadow(cm, tau); /* S adds a term ≥ 0 to this */
+      assert_true(isfinite((double)v) && v >= direct * (1 - 4 * EPS) && v <= 1 + 4 * EPS);
+      assert_true(v <= (ld)prev * (1 + 4 * EPS)); /* deeper is darker */
+      if (iw > 0) assert_true(v >= (ld)prev_w[it] * (1 - 4 * EPS)); /* more albedo, more light */
+      if (ws[iw] == OCG_R(0.0)) assert_true(rel_err(v, direct) <= 4 * EPS);
+      if (ws[iw] == OCG_R(1.0)) {
+        ld td = 1.0L / (1.0L + (ld)OCG_SHADOW_DIFFUSE_A * (ld)tau); /* the diffusion law, or the beam */
+        assert_true(fabsl(v - (td > direct ? td : direct)) <= 16 * EPS);
+      }
+      prev = (ocg_real)v;
+      prev_w[it] = (ocg_real)v;
+    }
+    assert_true(ocg_cloud_shadow(cm, OCG_R(0.0)) == OCG_R(1.0));
+    ocg_real huge = ocg_cloud_shadow(cm, OCG_R(1e30));
+    assert_true(isfinite(huge) && huge >= OCG_R(0.0) && huge < OCG_R(1e-20));
+  }
+  cm.albedo = OCG_R(1.0);
+  cm.legacy = 1;
+  assert_true(rel_err((ld)ocg_cloud_shadow(cm, OCG_R(3.0)), expl(-3.0L)) <= 4 * EPS);
+  cm.legacy = 0;
+  ocg_real s1 = ocg_cloud_shadow(cm, OCG_R(10.0));
+  cm.albedo = OCG_R(0.9);
+  printf("[" PREC "] cloud shadow at tau 10: e^-tau %.3g, albedo 0.9 %.3g, albedo 1 %.3g\n", exp(-10.0),
+         (double)ocg_cloud_shadow(cm, OCG_R(10.0)), (double)s1);
+}
+
 static void test_beer_powder__finite_and_bounded(void **state) {
   (void)state;
   ld peak = 2.0L / (3.0L * sqrtl(3.0L)); /* at tau = ln(3)/2 */
@@ -577,6 +618,7 @@ int main(void) {
       cmocka_unit_test(test_segment__telescopes_to_one_minus_exp),
       cmocka_unit_test(test_integrators__error_against_step_count),
       cmocka_unit_test(test_ms_octaves__sum_and_limits),
+      cmocka_unit_test(test_cloud_shadow__limits),
       cmocka_unit_test(test_beer_powder__finite_and_bounded),
       cmocka_unit_test(test_markl__water_content_to_extinction),
       cmocka_unit_test(test_aces__monotone_and_in_unit_range),
