@@ -588,23 +588,32 @@ static int ocs__column_clear(ocs__ctx_t *c, oc_key_t key) {
   return 1;
 }
 
+/* The clear-sky proof of ocs_tau_direct() (note 1), counted: 1 when τ is all 0 and need not be
+ * marched (tau zeroed), else 0 and c ready for the march (what the proof fetched stays memoised). */
+static int ocs__proven_clear(ocs__ctx_t *c, const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
+  if (du->stats) atomic_fetch_add_explicit(&du->stats->direct, 1, memory_order_relaxed);
+  int clear = ocs__column_clear(c, key);
+  c->err = 0; /* a failed proof (out of memory in its memo) leaves the march to find out */
+  if (!clear) return 0;
+  if (du->stats) atomic_fetch_add_explicit(&du->stats->clear_proven, 1, memory_order_relaxed);
+  if (du->march_clear) {
+    if (du->stats) atomic_fetch_add_explicit(&du->stats->clear_marched, 1, memory_order_relaxed);
+    return 0;
+  }
+  memset(tau, 0, sizeof(float) * OC_BRICK_VOXELS);
+  return 1;
+}
+
 int ocs_tau_direct(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
   ocs__desc_t d;
   if (!tau || !oc_key_valid(key)) return OC_EINVAL;
   OC_TRY(ocs__desc(du, &d));
   ocs__ctx_t c;
   OC_TRY(ocs__ctx_init(&c, &d, oc_key_level(key)));
-  if (du->stats) atomic_fetch_add_explicit(&du->stats->direct, 1, memory_order_relaxed);
-  if (ocs__column_clear(&c, key)) {
-    if (du->stats) atomic_fetch_add_explicit(&du->stats->clear_proven, 1, memory_order_relaxed);
-    if (!du->march_clear) {
-      ocs__ctx_free(&c);
-      memset(tau, 0, sizeof(float) * OC_BRICK_VOXELS);
-      return 0;
-    }
-    if (du->stats) atomic_fetch_add_explicit(&du->stats->clear_marched, 1, memory_order_relaxed);
+  if (ocs__proven_clear(&c, du, key, tau)) {
+    ocs__ctx_free(&c);
+    return 0;
   }
-  c.err = 0; /* a failed proof (out of memory in its memo) leaves the march to find out */
   for (int k = 0; k < 8 && !c.err; k++)
     for (int j = 0; j < 8; j++)
       for (int i = 0; i < 8; i++) tau[i + 8 * j + 64 * k] = ocs__to_float(ocs__tau_point(&c, ocs_brick_sample_pos(key, i, j, k), 0.0));
@@ -939,6 +948,26 @@ int ocs_tau_volume_lookup(const void *vol, oc_key_t key, float tau[OC_BRICK_VOXE
     tau[vi] = ocs__to_float(x0 + (x1 - x0) * wb);
   }
   return 0;
+}
+
+int ocs_tau_columns(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
+  ocs__desc_t d;
+  if (!tau || !oc_key_valid(key)) return OC_EINVAL;
+  OC_TRY(ocs__desc(du, &d));
+  ocs__ctx_t c;
+  OC_TRY(ocs__ctx_init(&c, &d, oc_key_level(key)));
+  int clear = ocs__proven_clear(&c, du, key, tau);
+  ocs__ctx_free(&c);
+  if (clear) return 0;
+  if (du->stats) atomic_fetch_add_explicit(&du->stats->columns, 1, memory_order_relaxed);
+  ocs_tau_desc_t all = *du;
+  all.cover_all = 1;
+  void *vol = NULL;
+  size_t bytes = 0;
+  OC_TRY(ocs_tau_volume_build(&all, key, oc_key_level(key), &vol, &bytes));
+  int r = ocs_tau_volume_lookup(vol, key, tau);
+  free(vol);
+  return r;
 }
 
 int ocs_tau_node(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {

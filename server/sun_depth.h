@@ -111,11 +111,14 @@
 /*! ocs_tau_stats_t : what the direct march did, counted where a caller asks (ocs_tau_desc_t.stats);
  *  relaxed atomic increments, so one struct may serve every thread. Zero-initialise it. */
 typedef struct {
-  atomic_long direct;        /**< ocs_tau_direct() calls that got as far as marching or proving */
+  atomic_long direct;        /**< ocs_tau_direct() and ocs_tau_columns() calls that got as far as
+                                  marching or proving */
   atomic_long clear_proven;  /**< of those, nodes whose sun column was proven clear (bounds, and
                                   samples at the level walked: ocs_tau_direct(), note 1) */
   atomic_long clear_marched; /**< of those, provably clear nodes marched anyway (march_clear set):
                                   wasted work; 0 whenever march_clear is 0 */
+  atomic_long columns;       /**< of those, nodes not proven clear whose τ came from their own
+                                  columns (ocs_tau_columns()) */
 } ocs_tau_stats_t;
 
 /* How τ is computed. Zero-initialise (ocs_tau_desc_t d = {0};), set the callbacks and the sun;
@@ -164,6 +167,15 @@ typedef struct {
  *           Ground nodes under clear air are the common case.
  *  @return 0; OC_EINVAL for a bad desc or key; OC_ENOMEM; or the sigma callback's error. */
 int ocs_tau_direct(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOXELS]);
+
+/*! ocs_tau_columns() : τ of a node from a volume of its own (ocs_tau_volume_build() with the node
+ *  as its group, cover_all), after the clear-sky proof of ocs_tau_direct() (note 1, the same bits
+ *  when it holds). For nodes that need τ but hold no σt, which no group volume covers: the ground,
+ *  which the renderer lights through τ (cloud shadows on the ground and in the air above it). The
+ *  node's own sun columns, about 100–170 for its 512 samples, are marched once each instead of 512
+ *  rays, with a group volume's interpolation error (docs/numerics.md, "The group volume").
+ *  @return as ocs_tau_direct(). */
+int ocs_tau_columns(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOXELS]);
 
 /*! ocs_tau_group_of() : the ancestor `group_levels` (default 2) up of key, clamped at the root;
  *  OC_KEY_INVALID for an invalid key or desc. */

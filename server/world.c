@@ -169,6 +169,7 @@ struct ocs_world_s {
   ocs_cache_t *cache;
   ocs_pool_t *pool;
   int K, shadows, ground_tau;
+  int ground_direct; /* OCS_TAU_GROUND_DIRECT=1: ground τ ray by ray (before/after benches), not by columns */
   uint64_t field_gen;
   uint64_t epoch;
   ocs_clock_t clock; /* the control history: world time from the instant */
@@ -324,9 +325,11 @@ static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait
   }
   r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
   ocs_cache_release(w->cache, e);
-  /* the volume covers the nodes its march level says may hold σt; others (the ground under a
-   * cloud, a wisp the coarser level missed) are marched on their own */
-  return r == OC_ENOENT ? ocs_tau_direct(&p->tau, key, out) : r;
+  /* the volume covers the nodes its march level says may hold σt; the ground gets its own
+   * columns, and a wisp the coarser level missed is marched ray by ray */
+  if (r != OC_ENOENT) return r;
+  int columns = w->ground_tau && !w->ground_direct && ocs_plan_ground_tau(key);
+  return columns ? ocs_tau_columns(&p->tau, key, out) : ocs_tau_direct(&p->tau, key, out);
 }
 
 /* A request's end: τ where it is needed, the codes, published. !wait: OCS_CACHE_BUSY, with the
@@ -604,6 +607,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->K = ocs_field_animated(w->field) ? 3 : 2;
   w->shadows = oc_scene_has(&w->scene, OC_FEATURE_SHADOWS);
   w->ground_tau = w->shadows && oc_scene_has(&w->scene, OC_FEATURE_PLANET_SURFACE);
+  const char *env = getenv("OCS_TAU_GROUND_DIRECT");
+  w->ground_direct = env && strcmp(env, "1") == 0;
   w->field_gen = 1;
   w->utc = isfinite(w->d.start_utc) ? w->d.start_utc : 0.0;
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;
@@ -1809,6 +1814,7 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .target_seconds = w->target_seconds,
                              .tau_direct = (uint64_t)atomic_load(&w->tau_stats.direct),
                              .tau_clear = (uint64_t)atomic_load(&w->tau_stats.clear_proven),
+                             .tau_columns = (uint64_t)atomic_load(&w->tau_stats.columns),
                              .produce_errors = w->produce_errors,
                              .brick_cpu = w->brick_cpu,
                              .brick_cpu_empty = w->brick_cpu_empty,

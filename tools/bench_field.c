@@ -9,7 +9,8 @@
  * same nodes, as bricks/s per core, and each level's ratio to it. Non-empty bricks (some σt > 0)
  * per second count all the nodes' time. When the scene has shadows, σt + τ together as the world
  * makes them (server/world.c, produce_finish): τ for nodes with σt and for empty ground nodes
- * (ocs_plan_ground_tau), from each group's volume with the direct march as the fallback, through a
+ * (ocs_plan_ground_tau), from each group's volume, the empty ground from its own columns
+ * (ocs_tau_columns) and a wisp no volume covers by the direct march, as the world does, through a
  * brick cache that starts cold at each level (coarse σt read only by τ columns is counted). Each
  * brick's CPU is timed and split by whether it ends up empty (σt and τ all 0): the wasted share.
  * The τ counters (sun_depth.h, ocs_tau_stats_t) say how many direct marches were proven clear and
@@ -46,7 +47,8 @@ typedef struct {
   void *vol;
 } oct__vol_t;
 
-static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int cap, oc_key_t key, float tau[OC_BRICK_VOXELS]) {
+static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int cap, oc_key_t key, int ground,
+                    float tau[OC_BRICK_VOXELS]) {
   oc_key_t g = ocs_tau_group_of(d, key);
   int i = 0;
   while (i < *nvols && vols[i].group != g) i++;
@@ -58,7 +60,8 @@ static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int c
     (*nvols)++;
   }
   int r = ocs_tau_volume_lookup(vols[i].vol, key, tau);
-  return r == OC_ENOENT ? ocs_tau_direct(d, key, tau) : r;
+  if (r != OC_ENOENT) return r;
+  return ground ? ocs_tau_columns(d, key, tau) : ocs_tau_direct(d, key, tau); /* as the world's tau_get */
 }
 
 /* FNV-1a over bytes: the digest line lets a lever that claims to change no bit show it. */
@@ -179,6 +182,8 @@ static int field_exact(field_run_t *R, int level, char *row, size_t cap) {
 static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anchor, char *row, size_t cap) {
   const long block = R->o->block;
   int ground_tau = oc_scene_has(sc, OC_FEATURE_PLANET_SURFACE);
+  const char *env = getenv("OCS_TAU_GROUND_DIRECT"); /* "1": the ground ray by ray, as the world (before/after) */
+  int ground_direct = env && strcmp(env, "1") == 0;
   oct_fcache_t cache = {.f = R->f, .t = R->o->time};
   ocs_tau_stats_t st = {0};
   ocs_tau_desc_t d = {.sigma = oct_fcache_sigma, .bound = oct_fcache_bound, .ctx = &cache, .sun_dir = sc->sun_dir,
@@ -202,7 +207,7 @@ static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anc
     int gt = !any && ground_tau && ocs_plan_ground_tau(k);
     if (!rc && (any || gt)) {
       double t1 = oct_now();
-      if (oct__tau(&d, vols, &nvols, vcap, k, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
+      if (oct__tau(&d, vols, &nvols, vcap, k, ground_tau && ocs_plan_ground_tau(k) && !ground_direct, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
       for (int i = 0; i < OC_BRICK_VOXELS; i++) tany |= tau[i] > 0.0f;
       R->dig_t = oct__fnv(R->dig_t, tau, sizeof tau);
       with_tau++;
@@ -217,10 +222,10 @@ static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anc
   for (int i = 0; i < nvols; i++) free(vols[i].vol);
   free(vols);
   oct_fcache_free(&cache);
-  snprintf(row, cap, "| %d | %ld | %ld | %ld | %d | %.1f | %.1f | %.0f | %.2f× | %.1f %% | %ld | %ld | %ld |\n", level,
+  snprintf(row, cap, "| %d | %ld | %ld | %ld | %d | %.1f | %.1f | %.0f | %.2f× | %.1f %% | %ld | %ld | %ld | %ld |\n", level,
            ne, with_tau, ground, nvols, 1e3 * t_all, 1e3 * t_tau, ne / t_all, ne / t_all / anchor,
            t_all > 0.0 ? 100.0 * t_empty / t_all : 0.0, (long)atomic_load(&st.direct),
-           (long)atomic_load(&st.clear_proven), (long)atomic_load(&st.clear_marched));
+           (long)atomic_load(&st.clear_proven), (long)atomic_load(&st.clear_marched), (long)atomic_load(&st.columns));
   return rc;
 }
 
@@ -236,8 +241,8 @@ static void field_tail(const field_run_t *R, int shadows) {
   if (shadows) {
     printf("\nσt + τ together, as the world produces them (cold brick cache per level; %s):\n\n"
            "| level | non-empty bricks | with τ | of which empty ground | τ volumes | CPU ms | of which τ ms | non-empty bricks/s per core | / anchor |"
-           " CPU on bricks that end up empty | τ direct marches | proven clear | clear marched |\n"
-           "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+           " CPU on bricks that end up empty | τ single-node | proven clear | clear marched | ground by columns |\n"
+           "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
            R->o->march_clear ? "--march-clear: provably clear columns marched anyway" : "clear columns skipped");
     for (int li = 0; li < n; li++) fputs(R->tau_rows[li], stdout);
   }

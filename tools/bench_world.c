@@ -125,10 +125,10 @@ static void world_totals(const world_run_t *R) {
   ocs_world_stats_t ws;
   ocs_world_stats(R->w, &ws);
   printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings, %llu τ volumes, "
-         "%llu single-node τ (%llu proven clear toward the sun: no march)\n",
+         "%llu single-node τ (%llu proven clear toward the sun: no march; %llu ground nodes by their own columns)\n",
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
          (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_direct,
-         (unsigned long long)ws.tau_clear);
+         (unsigned long long)ws.tau_clear, (unsigned long long)ws.tau_columns);
   printf("wasted work: %llu of %llu bricks made ended up empty (σt and τ all zero), %.2f of %.2f s on made bricks "
          "(%.1f %%; per-brick timers on the producer threads)\n",
          (unsigned long long)ws.bricks_empty, (unsigned long long)ws.bricks_produced, ws.brick_cpu_empty, ws.brick_cpu,
