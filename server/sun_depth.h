@@ -172,8 +172,9 @@ int ocs_tau_direct(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOX
  *  as its group, cover_all), after the clear-sky proof of ocs_tau_direct() (note 1, the same bits
  *  when it holds). For nodes that need τ but hold no σt, which no group volume covers: the ground,
  *  which the renderer lights through τ (cloud shadows on the ground and in the air above it). The
- *  node's own sun columns, about 100–170 for its 512 samples, are marched once each instead of 512
- *  rays, with a group volume's interpolation error (docs/numerics.md, "The group volume").
+ *  node's own sun columns, one voxel apart over its shadow across the sun (about 80–130), are
+ *  marched once each instead of 512 rays, with a group volume's interpolation error
+ *  (docs/numerics.md, "The group volume"; larger on the ground, which shadow edges cross).
  *  @return as ocs_tau_direct(). */
 int ocs_tau_columns(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOXELS]);
 
