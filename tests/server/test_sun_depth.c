@@ -833,7 +833,7 @@ static void test_sun_depth__ground_columns_match_direct(void **st) {
   stat_t s = {0};
   ocs_tau_stats_t cs = {0};
   long shaded = 0, nodes = 0;
-  int n = SIZE(6, 2);
+  int n = 6; /* the bounds are the whole set's: a smaller one (2 × 2) has RMS 0.056 */
   for (int z = 0; z < 2; z++) {
     double zen = z ? 60.0 : 28.0;
     for (int a = 0; a < n; a++)
