@@ -1,7 +1,8 @@
 /* bench_world.c — `overcast-bench world`: the server core stepped for a number of epochs.
  *
  * Viewers orbit slowly around the scene camera (or stand still); every epoch is planned, produced
- * and acknowledged. Reports per epoch the plan and production times, the bricks produced and the
+ * and acknowledged. Reports per epoch the plan and production times, the process CPU (getrusage:
+ * issue 17's measure, with epoch 0, the median and the largest epoch), the bricks produced and the
  * cache hit rate, and over the run the leaves refreshed against refreshing every leaf every epoch, with the error that saving costs: how much a brick's σt can change
  * within one of its level's time steps (the most stale content can be off by), relative L1. */
 #include <math.h>
@@ -70,7 +71,15 @@ typedef struct {
   ocs_viewer_t *v[64];
   oc_camera_pose_t pose;
   uint64_t refresh_all, refreshed, last_produced;
+  double *cpu; /* process CPU seconds of each epoch (getrusage) */
 } world_run_t;
+
+/* The process's CPU seconds so far, user and system, all threads. */
+static double process_cpu(void) {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec + 1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
 
 /* Viewer 0's output; zeroes when it has none (clocked: no state until the root exists). */
 static ocs_epoch_out_t first_output(const world_run_t *R) {
@@ -96,6 +105,7 @@ static int world_epoch(world_run_t *R, long e) {
     if (ocs_viewer_output(R->v[0], &o) == 0) leaves_before = o.state->node_count;
   }
   int rc;
+  double cpu0 = process_cpu();
   if ((rc = ocs_world_step(R->w)) < 0) return rc;
   ocs_world_stats_t ws;
   ocs_world_stats(R->w, &ws);
@@ -112,9 +122,10 @@ static int world_epoch(world_run_t *R, long e) {
     R->refresh_all += leaves_before;
     R->refreshed += o.plan.refreshed;
   }
-  printf("%5ld %7u %7u %6u %9u %8u %9llu %9.3f %8.1f %9.1f %10.1f %6zu\n", e, o.plan.leaves, o.plan.splits,
+  R->cpu[e] = process_cpu() - cpu0;
+  printf("%5ld %7u %7u %6u %9u %8u %9llu %9.3f %8.1f %9.1f %10.1f %6zu %7.2f\n", e, o.plan.leaves, o.plan.splits,
          o.plan.merges, o.plan.refreshed, o.plan.deferred, (unsigned long long)(ws.bricks_produced - R->last_produced),
-         ws.cache_hit_rate, 1e3 * plan_s, 1e3 * target_s, 1e3 * ws.produce_seconds, queue);
+         ws.cache_hit_rate, 1e3 * plan_s, 1e3 * target_s, 1e3 * ws.produce_seconds, queue, R->cpu[e]);
   fflush(stdout);
   R->last_produced = ws.bricks_produced;
   return 0;
@@ -134,16 +145,43 @@ static void world_totals(const world_run_t *R) {
          (unsigned long long)ws.bricks_empty, (unsigned long long)ws.bricks_produced, ws.brick_cpu_empty, ws.brick_cpu,
          ws.brick_cpu > 0.0 ? 100.0 * ws.brick_cpu_empty / ws.brick_cpu : 0.0);
   ocs_field_stats_t fs;
-  struct rusage ru;
   ocs_field_stats(ocs_world_field(R->w), &fs);
-  getrusage(RUSAGE_SELF, &ru);
-  double cpu = (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
-               1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  double cpu = process_cpu();
   int epochs = R->o->epochs;
   printf("bounds: %llu field bounds, cache %llu hits / %llu misses (hit rate %.3f); process CPU %.1f s (%.2f s per epoch)\n",
          (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
          fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0, cpu,
          epochs > 0 ? cpu / (double)epochs : 0.0);
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Issue 17's CPU figures: epoch 0, the median of the later epochs, and the largest against it. */
+static void world_cpu(const world_run_t *R) {
+  int n = R->o->epochs - 1;
+  printf("CPU per epoch (getrusage, the process): epoch 0 %.2f s", R->cpu[0]);
+  if (n < 1) {
+    printf("\n");
+    return;
+  }
+  double *v = malloc((size_t)n * sizeof *v), mx = 0.0;
+  long at = 1;
+  if (!v) {
+    printf("\n");
+    return;
+  }
+  for (int i = 0; i < n; i++) {
+    v[i] = R->cpu[i + 1];
+    if (v[i] > mx) mx = v[i], at = i + 1;
+  }
+  qsort(v, (size_t)n, sizeof *v, cmp_double);
+  double med = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  printf("; epochs 1..%d median %.2f s, largest %.2f s (epoch %ld, %.1f× the median)\n", n, med, mx, at,
+         med > 0.0 ? mx / med : 0.0);
+  free(v);
 }
 
 /* Animated fields: the refresh savings, and the error of not refreshing within a step: how far
@@ -200,7 +238,12 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
     rc = OC_EXIT_RUNTIME;
     goto out;
   }
-  printf("epoch  leaves  splits merges refreshed deferred  produced  hit-rate  plan-ms target-ms produce-ms  queue\n");
+  printf("epoch  leaves  splits merges refreshed deferred  produced  hit-rate  plan-ms target-ms produce-ms  queue  cpu-s\n");
+  R.cpu = calloc((size_t)o.epochs, sizeof *R.cpu);
+  if (!R.cpu) {
+    rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+    goto out;
+  }
   int r = 0;
   for (long e = 0; e < o.epochs && r == 0; e++) r = world_epoch(&R, e);
   if (r < 0) {
@@ -208,9 +251,11 @@ int oct_bench_world(const char *prog, int argc, char **argv) {
     goto out;
   }
   world_totals(&R);
+  world_cpu(&R);
   if (ocs_field_animated(ocs_world_field(R.w)) && o.epochs > 1) world_refresh(&R);
   rc = OC_EXIT_OK;
 out:
+  free(R.cpu);
   ocs_world_free(R.w);
   oc_scene_free(&sc);
   return rc;
