@@ -425,8 +425,9 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       float mu_s = (float)(oc_ddot(pg, sun) / r);
       oc__leaf_t g;
       oc__leaf_locate(cx->s, pg, &g);
-      float sg = ocg_cloud_shadow(cx->cm, g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_channel(&g, OC_CH_TAU, oc__leaf_local(&g, pg))
-                                                                           : oc__shadow_tau(cx, pg));
+      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_channel(&g, OC_CH_TAU, oc__leaf_local(&g, pg))
+                                                   : oc__shadow_tau(cx, pg);
+      float sg = ocg_cloud_shadow(cx->cm, tg);
       ocg_vec3 I = cx->have_atmo ? oc_atmo_sky_irradiance(d->atmo, r, mu_s) : ocg_v3s(0.0f);
       ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);
       ocg_march_background(&m, ocg_ground_radiance(oc__sun_transmittance(cx, r, mu_s), mu_s, sg, I, albedo, cx->sun_e));

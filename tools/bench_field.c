@@ -207,7 +207,8 @@ static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anc
     int gt = !any && ground_tau && ocs_plan_ground_tau(k);
     if (!rc && (any || gt)) {
       double t1 = oct_now();
-      if (oct__tau(&d, vols, &nvols, vcap, k, ground_tau && ocs_plan_ground_tau(k) && !ground_direct, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
+      int columns = ground_tau && ocs_plan_ground_tau(k) && !ground_direct;
+      if (oct__tau(&d, vols, &nvols, vcap, k, columns, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
       for (int i = 0; i < OC_BRICK_VOXELS; i++) tany |= tau[i] > 0.0f;
       R->dig_t = oct__fnv(R->dig_t, tau, sizeof tau);
       with_tau++;
