@@ -883,9 +883,13 @@ static void test_sun_depth__bad_arguments(void **st) {
   assert_int_equal(ocs_tau_direct(&d, OC_KEY_INVALID, t), OC_EINVAL);
   assert_int_equal(ocs_tau_direct(NULL, k, t), OC_EINVAL);
   assert_int_equal(ocs_tau_direct(&d, k, NULL), OC_EINVAL);
+  assert_int_equal(ocs_tau_columns(&d, OC_KEY_INVALID, t), OC_EINVAL);
+  assert_int_equal(ocs_tau_columns(NULL, k, t), OC_EINVAL);
+  assert_int_equal(ocs_tau_columns(&d, k, NULL), OC_EINVAL);
   ocs_tau_desc_t bad = d;
   bad.sun_dir = oc_dv3(0.0, 0.0, 0.0);
   assert_int_equal(ocs_tau_direct(&bad, k, t), OC_EINVAL);
+  assert_int_equal(ocs_tau_columns(&bad, k, t), OC_EINVAL);
   bad = d, bad.sun_dir.x = NAN;
   assert_int_equal(ocs_tau_node(&bad, k, t), OC_EINVAL);
   bad = d, bad.sigma = NULL;
@@ -940,6 +944,7 @@ static void test_sun_depth__bad_arguments(void **st) {
   ocs_tau_desc_t d2 = desc_for(&c2, oc_dv3(0.0, 0.0, 1.0));
   assert_int_equal(ocs_tau_direct(&d2, inside, t), OC_EIO);
   assert_int_equal(ocs_tau_node(&d2, inside, t), OC_EIO);
+  assert_int_equal(ocs_tau_columns(&d2, inside, t), OC_EIO);
   assert_int_equal(ocs_tau_volume_build(&d2, ocs_tau_group_of(&d2, inside), 15, &vol, &bytes), OC_EIO);
   assert_null(vol);
   tc_free(&c2);
