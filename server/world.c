@@ -73,6 +73,16 @@ typedef struct {
   uint32_t first, count;
 } queued_t;
 
+/* A node whose σt of a coming time step is sampled ahead, or (tau) whose group's τ volume of its
+ * level's coming light stamp is built ahead (ahead_collect). */
+typedef struct {
+  oc_key_t key;
+  oc_key_t group; /* tau: the volume's group (ocs_tau_group_of) */
+  uint64_t ts;    /* σt: the step */
+  double time;    /* σt: an instant in it */
+  int tau;
+} ahead_t;
+
 /* A produced brick as the cache keeps it: codes only when kind is OC_NODE_BRICK. */
 typedef struct {
   uint8_t kind;
@@ -170,6 +180,18 @@ struct ocs_world_s {
   ocs_pool_t *pool;
   int K, shadows, ground_tau;
   int ground_direct; /* OCS_TAU_GROUND_DIRECT=1: ground τ ray by ray (before/after benches), not by columns */
+  /* ahead (ahead_collect): per level, the epochs until its own time step next changes (0: not within
+   * OCS_AHEAD_EPOCHS, or it changes every epoch: nothing to spread), that step and an instant in it;
+   * the items chosen for this epoch */
+  int ahead_off; /* OCS_AHEAD=0 (before/after benches) */
+  uint32_t ahead_in[OC_KEY_MAX_LEVEL + 1];
+  uint64_t ahead_ts[OC_KEY_MAX_LEVEL + 1];
+  double ahead_t[OC_KEY_MAX_LEVEL + 1];
+  uint32_t light_in[OC_KEY_MAX_LEVEL + 1]; /* likewise for each level's light stamp (τ volumes) */
+  double light_t[OC_KEY_MAX_LEVEL + 1];
+  prod_t ahead_at[OC_KEY_MAX_LEVEL + 1]; /* the world at light_t[l], what its τ volumes read */
+  ahead_t *ahead;
+  size_t nahead, ahead_cap;
   uint64_t field_gen;
   uint64_t epoch;
   ocs_clock_t clock; /* the control history: world time from the instant */
@@ -210,6 +232,9 @@ struct ocs_world_s {
   /* producer-thread seconds on made bricks, and on those that ended up empty (σt and τ all zero) */
   _Atomic double brick_cpu, brick_cpu_empty;
   _Atomic uint64_t bricks_empty;
+  _Atomic uint64_t ahead_sigma, ahead_empty;  /* σt sampled ahead, and those all zero */
+  _Atomic uint64_t ahead_tau;                 /* τ volumes built ahead */
+  _Atomic double ahead_cpu, ahead_cpu_empty; /* producer-thread seconds on them */
   _Atomic int last_error;
   _Atomic oc_key_t last_error_key;
   uint64_t brick_requests;
@@ -258,23 +283,23 @@ static ocs_cache_key_t ckey(const ocs_world_t *w, int type, uint64_t a, uint64_t
 
 /*-*** Content: σt, τ, codes ***/
 
-/* σt samples of a node at this epoch, through the cache (sanitised). */
-static int sigma_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS]) {
-  ocs_world_t *w = p->w;
-  int level = oc_key_level(key);
-  if (level < 0) return OC_EINVAL;
-  ocs_cache_key_t k = ckey(w, T_SIGMA, key, p->ts[level], 0);
+/* σt samples of a node at its level's time step ts, sampled at world time `time` (any instant of
+ * that step: content is a function of the step), through the cache (sanitised); out: a copy, or
+ * NULL. @return 1 when sampled here, 0 when found, or an OC_E*. */
+static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, float *out) {
+  ocs_cache_key_t k = ckey(w, T_SIGMA, key, ts, 0);
   ocs_cache_entry_t *e;
   int r = ocs_cache_acquire(w->cache, &k, &e);
   if (r < 0) return r;
-  if (r == OCS_CACHE_MISS) {
+  int sampled = r == OCS_CACHE_MISS;
+  if (sampled) {
     float *s = malloc(OC_BRICK_VOXELS * sizeof *s);
     if (!s) {
       ocs_cache_abandon(w->cache, e);
       return OC_ENOMEM;
     }
     memset(s, 0, OC_BRICK_VOXELS * sizeof *s);
-    r = ocs_field_sample(w->field, key, p->time, s);
+    r = ocs_field_sample(w->field, key, time, s);
     if (r < 0) {
       free(s);
       ocs_cache_abandon(w->cache, e);
@@ -284,9 +309,17 @@ static int sigma_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS]) {
     ocs_cache_publish(w->cache, e, s, OC_BRICK_VOXELS * sizeof *s);
     w->sigma_produced++;
   }
-  memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
+  if (out) memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
   ocs_cache_release(w->cache, e);
-  return 0;
+  return sampled;
+}
+
+/* σt samples of a node at this epoch. */
+static int sigma_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS]) {
+  int level = oc_key_level(key);
+  if (level < 0) return OC_EINVAL;
+  int r = sigma_entry(p->w, key, p->ts[level], p->time, out);
+  return r < 0 ? r : 0;
 }
 
 static int tau_sigma_cb(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) { return sigma_get(ctx, key, out); }
@@ -303,26 +336,33 @@ static ocs_cache_key_t tau_key(const prod_t *p, oc_key_t key) {
   return ckey(p->w, T_TAUVOL, ocs_tau_group_of(&p->tau, key), p->light[level], ((uint64_t)level) | (p->sun_version << 8));
 }
 
-static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait, int *built) {
+/* The volume of key's group and level at p's light stamp, pinned in *e: built into the cache when
+ * missing (*built = 1). !wait: OCS_CACHE_BUSY, nothing pinned, when another thread is building it. */
+static int tau_volume_acquire(prod_t *p, oc_key_t key, int wait, ocs_cache_entry_t **e, int *built) {
   ocs_world_t *w = p->w;
-  int level = oc_key_level(key);
-  oc_key_t group = ocs_tau_group_of(&p->tau, key);
   ocs_cache_key_t k = tau_key(p, key);
-  ocs_cache_entry_t *e;
-  int r = wait ? ocs_cache_acquire(w->cache, &k, &e) : ocs_cache_try_acquire(w->cache, &k, &e);
+  int r = wait ? ocs_cache_acquire(w->cache, &k, e) : ocs_cache_try_acquire(w->cache, &k, e);
   if (r < 0 || r == OCS_CACHE_BUSY) return r;
   if (r == OCS_CACHE_MISS) {
     void *vol = NULL;
     size_t bytes = 0;
-    r = ocs_tau_volume_build(&p->tau, group, level, &vol, &bytes);
+    r = ocs_tau_volume_build(&p->tau, ocs_tau_group_of(&p->tau, key), oc_key_level(key), &vol, &bytes);
     if (r < 0) {
-      ocs_cache_abandon(w->cache, e);
+      ocs_cache_abandon(w->cache, *e);
       return r;
     }
-    ocs_cache_publish(w->cache, e, vol, bytes);
+    ocs_cache_publish(w->cache, *e, vol, bytes);
     w->tau_volumes++;
     *built = 1;
   }
+  return 0;
+}
+
+static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait, int *built) {
+  ocs_world_t *w = p->w;
+  ocs_cache_entry_t *e;
+  int r = tau_volume_acquire(p, key, wait, &e, built);
+  if (r < 0 || r == OCS_CACHE_BUSY) return r;
   r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
   ocs_cache_release(w->cache, e);
   /* the volume covers the nodes its march level says may hold σt; the ground gets its own
@@ -543,7 +583,29 @@ static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t st
   }
 }
 
+/* Production's view of the world at a later world time t (the same sun): what τ ahead builds from. */
+static void prod_snapshot_at(ocs_world_t *w, prod_t *p, double t) {
+  prod_snapshot(w, p);
+  p->time = t;
+  stamps_at(w, t, p->ts, NULL, p->light);
+}
+
 #define OCS_RATE_EPOCHS 64
+
+/* The first two epochs (1 … OCS_RATE_EPOCHS) at which a stamp changes. */
+static void note_change(int k, int *first, int *second) {
+  if (!*first) *first = k;
+  else if (!*second) *second = k;
+}
+
+/* Work for a change `first` epochs away is spread over those epochs when the stamp it brings lasts
+ * two epochs or more (one of one epoch has nothing to spread), and it is at most OCS_AHEAD_EPOCHS
+ * away (the farther, the likelier the tree has moved on by then): first, or 0. */
+#define OCS_AHEAD_EPOCHS 16
+static uint32_t epochs_to_spread(int first, int second) {
+  int lasts = second ? second - first : OCS_RATE_EPOCHS + 1 - first;
+  return first && first <= OCS_AHEAD_EPOCHS && lasts >= 2 ? (uint32_t)first : 0;
+}
 
 static void clock_update(ocs_world_t *w) {
   uint64_t stamp[OC_KEY_MAX_LEVEL + 1];
@@ -560,15 +622,36 @@ static void clock_update(ocs_world_t *w) {
    * brick weighed by 1 + (K - 1) x rate) moved with it from one tick to the next. */
   double dt = w->scene.epoch_period * ocs_clock_scale(&w->clock, w->utc);
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) w->rate[l] = 0.0;
+  memset(w->ahead_in, 0, sizeof w->ahead_in);
+  memset(w->light_in, 0, sizeof w->light_in);
   if (!ocs_field_animated(w->field) || !(dt > 0.0)) return;
-  uint64_t prev[OC_KEY_MAX_LEVEL + 1], next[OC_KEY_MAX_LEVEL + 1];
+  uint64_t prev[OC_KEY_MAX_LEVEL + 1], next[OC_KEY_MAX_LEVEL + 1], ts[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1];
+  uint64_t ts_prev[OC_KEY_MAX_LEVEL + 1], light_prev[OC_KEY_MAX_LEVEL + 1];
+  int first[OC_KEY_MAX_LEVEL + 1] = {0}, second[OC_KEY_MAX_LEVEL + 1] = {0};
+  int lfirst[OC_KEY_MAX_LEVEL + 1] = {0}, lsecond[OC_KEY_MAX_LEVEL + 1] = {0};
   memcpy(prev, w->stamp, sizeof prev);
+  memcpy(ts_prev, w->ts, sizeof ts_prev);
+  memcpy(light_prev, w->light, sizeof light_prev);
   for (int k = 1; k <= OCS_RATE_EPOCHS; k++) {
-    stamps_at(w, w->time + k * dt, NULL, next, NULL);
+    double t = w->time + k * dt;
+    stamps_at(w, t, ts, next, light);
     for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
       if (next[l] != prev[l]) w->rate[l] += 1.0 / OCS_RATE_EPOCHS;
       prev[l] = next[l];
+      if (ts[l] != ts_prev[l] && !first[l]) { /* the level's own next step: what σt ahead samples */
+        w->ahead_ts[l] = ts[l];
+        w->ahead_t[l] = t;
+      }
+      if (light[l] != light_prev[l] && !lfirst[l]) w->light_t[l] = t; /* its next light stamp: τ ahead */
+      if (ts[l] != ts_prev[l]) note_change(k, &first[l], &second[l]);
+      if (light[l] != light_prev[l]) note_change(k, &lfirst[l], &lsecond[l]);
+      ts_prev[l] = ts[l];
+      light_prev[l] = light[l];
     }
+  }
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    w->ahead_in[l] = epochs_to_spread(first[l], second[l]);
+    w->light_in[l] = epochs_to_spread(lfirst[l], lsecond[l]);
   }
 }
 
@@ -609,6 +692,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->ground_tau = w->shadows && oc_scene_has(&w->scene, OC_FEATURE_PLANET_SURFACE);
   const char *env = getenv("OCS_TAU_GROUND_DIRECT");
   w->ground_direct = env && strcmp(env, "1") == 0;
+  env = getenv("OCS_AHEAD");
+  w->ahead_off = env && strcmp(env, "0") == 0;
   w->field_gen = 1;
   w->utc = isfinite(w->d.start_utc) ? w->d.start_utc : 0.0;
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;
@@ -631,6 +716,7 @@ void ocs_world_free(ocs_world_t *w) {
   free(w->pins);
   free(w->wish);
   free(w->queue);
+  free(w->ahead);
   ocs_pool_free(w->pool);
   ocs_pool_free(w->tick_pool);
   pthread_mutex_destroy(&w->tick_mu); /* calloc'd zeros are glibc's static initialiser, also before init */
@@ -1475,6 +1561,139 @@ static int produce_requests(prod_t *p, int serial) {
   return r < 0 && rc >= 0 ? r : rc;
 }
 
+/*-*** Ahead: a slow level's next σt and τ, spread over the epochs before they are due ***/
+
+/* A level whose own time step lasts n epochs resamples all its leaves' σt in the epoch the step
+ * changes, and a level whose light stamp (what its τ volumes read) lasts n epochs rebuilds all its
+ * volumes then, while the finest levels change every epoch anyway: on the planet every 4th, 8th and
+ * 16th epoch cost 3–5× the median (docs/performance.md, lever 10). Content is a function of the
+ * stamps, so both can be made before they are due: each epoch makes its share, what is missing
+ * over the epochs left, and the change finds them in the cache. */
+
+/* Items sort by kind, then σt by node, τ by volume (group and level), so duplicates are adjacent. */
+static int cmp_ahead(const void *a, const void *b) {
+  const ahead_t *x = a, *y = b;
+  if (x->tau != y->tau) return x->tau - y->tau;
+  if (x->tau && x->group != y->group) return (x->group > y->group) - (x->group < y->group);
+  int lx = oc_key_level(x->key), ly = oc_key_level(y->key);
+  if (x->tau && lx != ly) return lx - ly;
+  return x->tau ? 0 : (x->key > y->key) - (x->key < y->key);
+}
+
+static int ahead_same(const ahead_t *x, const ahead_t *y) { return cmp_ahead(x, y) == 0; }
+
+/* 1 when what the item makes is in the cache already. */
+static int ahead_cached(ocs_world_t *w, const ahead_t *x) {
+  ocs_cache_key_t k = x->tau ? tau_key(&w->ahead_at[oc_key_level(x->key)], x->key) : ckey(w, T_SIGMA, x->key, x->ts, 0);
+  ocs_cache_entry_t *e;
+  if (!ocs_cache_peek(w->cache, &k, &e)) return 0;
+  ocs_cache_release(w->cache, e);
+  return 1;
+}
+
+static int ahead_push(ocs_world_t *w, ahead_t x) {
+  ahead_t *a = oc_grow(w->ahead, &w->ahead_cap, w->nahead, sizeof *a, 1024);
+  if (!a) return OC_ENOMEM;
+  w->ahead = a;
+  w->ahead[w->nahead++] = x;
+  return 0;
+}
+
+/* The candidates: the leaves of the viewers' newest states that hold σt now (one empty then is
+ * proven so cheaply by its bound), at levels whose σt or light stamp ahead_in / light_in name. */
+static int ahead_candidates(ocs_world_t *w) {
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
+    if (w->shadows && w->light_in[l]) prod_snapshot_at(w, &w->ahead_at[l], w->light_t[l]);
+  for (int vi = 0; vi < w->nviewers; vi++) {
+    const ocs_viewer_t *v = w->viewers[vi];
+    for (uint32_t i = 0; v->nheld && i < v->held[0].node_count; i++) {
+      const oc_node_t *nd = &v->held[0].nodes[i];
+      int l = oc_key_level(nd->key);
+      if (l < 0 || !(nd->range[0].hi > 0.0f)) continue;
+      if (w->ahead_in[l]) OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .ts = w->ahead_ts[l], .time = w->ahead_t[l]}));
+      if (w->shadows && w->light_in[l])
+        OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .group = ocs_tau_group_of(&w->tau, nd->key), .tau = 1}));
+    }
+  }
+  return 0;
+}
+
+/* This epoch's share: of the distinct candidates not in the cache, per level and kind, the first
+ * ceil(missing / epochs left). Runs while the world is idle (it reads the held states). */
+static int ahead_collect(ocs_world_t *w) {
+  w->nahead = 0;
+  if (w->ahead_off) return 0;
+  OC_TRY(ahead_candidates(w));
+  if (w->nahead) qsort(w->ahead, w->nahead, sizeof *w->ahead, cmp_ahead);
+  size_t n = 0, missing[2][OC_KEY_MAX_LEVEL + 1] = {{0}};
+  for (size_t i = 0; i < w->nahead; i++)
+    if ((!n || !ahead_same(&w->ahead[n - 1], &w->ahead[i])) && !ahead_cached(w, &w->ahead[i])) {
+      w->ahead[n++] = w->ahead[i];
+      missing[w->ahead[i].tau][oc_key_level(w->ahead[i].key)]++;
+    }
+  size_t m = 0, taken[2][OC_KEY_MAX_LEVEL + 1] = {{0}};
+  for (size_t i = 0; i < n; i++) {
+    const ahead_t *x = &w->ahead[i];
+    int l = oc_key_level(x->key);
+    uint32_t left = x->tau ? w->light_in[l] : w->ahead_in[l];
+    if (taken[x->tau][l] < (missing[x->tau][l] + left - 1) / left) {
+      taken[x->tau][l]++;
+      w->ahead[m++] = *x;
+    }
+  }
+  w->nahead = m;
+  return 0;
+}
+
+typedef struct {
+  ocs_world_t *w;
+  double deadline; /* none is started that is expected to end after it (0: none) */
+} ahead_run_t;
+
+static void ahead_make_sigma(ocs_world_t *w, const ahead_t *x, double c0) {
+  float s[OC_BRICK_VOXELS];
+  if (sigma_entry(w, x->key, x->ts, x->time, s) <= 0) return; /* found, or failed: made when due */
+  double took = now_s() - c0;
+  int any = 0;
+  for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= s[j] > 0.0f;
+  atomic_fetch_add(&w->ahead_sigma, 1);
+  atomic_add_double(&w->ahead_cpu, took);
+  if (!any) {
+    atomic_fetch_add(&w->ahead_empty, 1);
+    atomic_add_double(&w->ahead_cpu_empty, took);
+  }
+}
+
+static void ahead_make_tau(ocs_world_t *w, const ahead_t *x, double c0) {
+  ocs_cache_entry_t *e;
+  int built = 0;
+  if (tau_volume_acquire(&w->ahead_at[oc_key_level(x->key)], x->key, 1, &e, &built) < 0) return;
+  ocs_cache_release(w->cache, e);
+  if (!built) return;
+  atomic_fetch_add(&w->ahead_tau, 1);
+  atomic_add_double(&w->ahead_cpu, now_s() - c0);
+}
+
+static int ahead_one(void *ctx, size_t i, int worker) {
+  (void)worker;
+  const ahead_run_t *a = ctx;
+  ocs_world_t *w = a->w;
+  const ahead_t *x = &w->ahead[i];
+  double c0 = now_s();
+  if (a->deadline > 0 && c0 + atomic_load(&w->cost[oc_key_level(x->key)][x->tau]) > a->deadline) return 0;
+  if (x->tau) ahead_make_tau(w, x, c0);
+  else ahead_make_sigma(w, x, c0);
+  return 0;
+}
+
+/* Makes ahead_collect()'s share on the producer pool (best effort: what fails is made when due). */
+static void ahead_run(ocs_world_t *w, double deadline) {
+  if (!w->nahead) return;
+  ahead_run_t a = {w, deadline};
+  ocs_pool_run(w->pool, w->nahead, ahead_one, &a);
+  w->nahead = 0;
+}
+
 /* Content age of the plan's leaves, per level: time steps behind current (0..OCS_STAMP_HISTORY,
  * 255 older), p50 and p99. */
 static void content_age(const ocs_world_t *w, ocs_viewer_t *v) {
@@ -1594,6 +1813,11 @@ static int step(ocs_world_t *w) {
   }
   w->produce_seconds = now_s() - t1;
   if (rc >= 0) rc = emit_states(w);
+  if (rc >= 0 && !w->d.clocked) { /* the states are out: the coming steps' σt */
+    double t2 = now_s();
+    if (ahead_collect(w) >= 0) ahead_run(w, 0.0);
+    w->produce_seconds += now_s() - t2;
+  }
   budgets_settle(w);
   if (rc < 0)
     for (int vi = 0; vi < w->nviewers; vi++)
@@ -1727,6 +1951,7 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
   p->start = now_s(); /* after the targets: the window the bricks have */
   atomic_store(&p->busy_until, 0.0);
   int rc = round_fill(w, p, limit && limit < w->nqueue ? limit : w->nqueue);
+  if (rc >= 0 && ahead_collect(w) < 0) w->nahead = 0; /* sampled in what is left of the window */
   if (rc < 0) {
     p->nreq = 0;
     return rc;
@@ -1740,7 +1965,9 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
 
 int ocs_world_produce_run(ocs_world_t *w) {
   if (!w || !w->in_production) return 0;
-  return w->produce_rc = produce_requests(&w->producing, 0);
+  w->produce_rc = produce_requests(&w->producing, 0);
+  if (w->produce_rc >= 0) ahead_run(w, w->producing.deadline);
+  return w->produce_rc;
 }
 
 static void made_log(ocs_world_t *w, oc_key_t key, uint64_t stamp);
@@ -1819,6 +2046,11 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .brick_cpu = w->brick_cpu,
                              .brick_cpu_empty = w->brick_cpu_empty,
                              .bricks_empty = w->bricks_empty,
+                             .ahead_sigma = w->ahead_sigma,
+                             .ahead_empty = w->ahead_empty,
+                             .ahead_tau = w->ahead_tau,
+                             .ahead_cpu = w->ahead_cpu,
+                             .ahead_cpu_empty = w->ahead_cpu_empty,
                              .last_error = w->last_error,
                              .last_error_key = w->last_error_key};
   ocs_cache_stats(w->cache, &out->cache);

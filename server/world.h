@@ -15,7 +15,15 @@
  * step at that level); τ, when the scene has shadows and the node's σt is not all zero, from the
  * sun-aligned optical-depth volume of the node's group (sun_depth.h; cache entry "tau volume",
  * keyed by group, level, light stamp and sun), marching through "sigma" entries of coarser levels;
- * then the codes (cache entry "brick", keyed by key and stamp). */
+ * then the codes (cache entry "brick", keyed by key and stamp).
+ *
+ * Ahead: a level whose own time step lasts several epochs would resample all its leaves' σt in the
+ * epoch its step changes, and one whose light stamp lasts several epochs would rebuild all its τ
+ * volumes then. After each step (stepped) or in what is left of production's window (clocked), the
+ * leaves holding σt at such levels get their next step's "sigma" entry and their group's next "tau
+ * volume", each epoch its share of those still missing, up to 16 epochs before they are due;
+ * OCS_AHEAD=0 turns it off for before/after benches. It changes no byte: entries are keyed by the
+ * stamps they are made for, and content is a function of them. */
 #ifndef OC_SERVER_WORLD_H
 #define OC_SERVER_WORLD_H
 
@@ -83,6 +91,11 @@ typedef struct {
                                   per-brick wall timers on threads that run nothing else) */
   double brick_cpu_empty;    /**< of that, on bricks that ended up empty (σt and τ all zero) */
   uint64_t bricks_empty;     /**< bricks made that ended up empty */
+  uint64_t ahead_sigma;      /**< σt sampled ahead for a slow level's next time step (in sigma_produced) */
+  uint64_t ahead_empty;      /**< of those, all zero */
+  uint64_t ahead_tau;        /**< τ volumes built ahead for a level's next light stamp (in tau_volumes) */
+  double ahead_cpu;          /**< seconds producer threads spent on both (not in brick_cpu) */
+  double ahead_cpu_empty;    /**< of that, on the all-zero ones */
   int last_error;            /**< the last failure's OC_E* and brick */
   oc_key_t last_error_key;
   ocs_hist_view_t brick_seconds; /**< what each brick made took (wall s on its producer thread) */

@@ -140,10 +140,15 @@ static void world_totals(const world_run_t *R) {
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
          (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_direct,
          (unsigned long long)ws.tau_clear, (unsigned long long)ws.tau_columns);
+  printf("ahead: %llu σt samplings of slow levels' next time steps (%llu all zero), %llu τ volumes of their next light "
+         "stamps, %.2f s (%.2f s on the all-zero σt)\n",
+         (unsigned long long)ws.ahead_sigma, (unsigned long long)ws.ahead_empty, (unsigned long long)ws.ahead_tau, ws.ahead_cpu,
+         ws.ahead_cpu_empty);
+  double spent = ws.brick_cpu + ws.ahead_cpu, empty = ws.brick_cpu_empty + ws.ahead_cpu_empty;
   printf("wasted work: %llu of %llu bricks made ended up empty (σt and τ all zero), %.2f of %.2f s on made bricks "
-         "(%.1f %%; per-brick timers on the producer threads)\n",
-         (unsigned long long)ws.bricks_empty, (unsigned long long)ws.bricks_produced, ws.brick_cpu_empty, ws.brick_cpu,
-         ws.brick_cpu > 0.0 ? 100.0 * ws.brick_cpu_empty / ws.brick_cpu : 0.0);
+         "and ahead (%.1f %%; per-brick timers on the producer threads)\n",
+         (unsigned long long)ws.bricks_empty, (unsigned long long)ws.bricks_produced, empty, spent,
+         spent > 0.0 ? 100.0 * empty / spent : 0.0);
   ocs_field_stats_t fs;
   ocs_field_stats(ocs_world_field(R->w), &fs);
   double cpu = process_cpu();
