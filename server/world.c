@@ -1813,7 +1813,7 @@ static int step(ocs_world_t *w) {
   }
   w->produce_seconds = now_s() - t1;
   if (rc >= 0) rc = emit_states(w);
-  if (rc >= 0 && !w->d.clocked) { /* the states are out: the coming steps' σt */
+  if (rc >= 0 && !w->d.clocked) { /* the states are out: the coming changes' σt and τ */
     double t2 = now_s();
     if (ahead_collect(w) >= 0) ahead_run(w, 0.0);
     w->produce_seconds += now_s() - t2;
@@ -1951,7 +1951,7 @@ int ocs_world_produce_begin(ocs_world_t *w, double seconds, size_t limit) {
   p->start = now_s(); /* after the targets: the window the bricks have */
   atomic_store(&p->busy_until, 0.0);
   int rc = round_fill(w, p, limit && limit < w->nqueue ? limit : w->nqueue);
-  if (rc >= 0 && ahead_collect(w) < 0) w->nahead = 0; /* sampled in what is left of the window */
+  if (rc >= 0 && ahead_collect(w) < 0) w->nahead = 0; /* made in what is left of the window */
   if (rc < 0) {
     p->nreq = 0;
     return rc;
