@@ -206,8 +206,8 @@ static void test_cluster__made_once_then_without_redis(void **state) {
   moved = sun(a.port, -20, 50); /* both front-ends apply it, at one epoch */
   for (int i = 0; i < 200 && control_of(b.port, "last_epoch") < moved; i++) redis_sleep_ms(50);
   assert_true(control_of(b.port, "last_epoch") == moved);
-  /* the viewers start once the sun moved on both: a tree begun under the old sun grows (split and
-   * merge thresholds) into a slightly different one than a tree begun under the new */
+  /* the viewers start once the sun moved on both (reading the entry is not applying it), so that
+   * both trees are made under the one sun the counts compare */
   for (int i = 0; i < 200 && !(stat_of(a.port, "epoch") >= moved && stat_of(b.port, "epoch") >= moved); i++) redis_sleep_ms(50);
   double taken_before = share_of(b.port, "taken"), made_before = stat_of(b.port, "bricks_produced");
   double made_a_before = stat_of(a.port, "bricks_produced");
