@@ -592,10 +592,11 @@ static void prod_snapshot_at(ocs_world_t *w, prod_t *p, double t) {
 
 #define OCS_RATE_EPOCHS 64
 
-/* The first two epochs (1 … OCS_RATE_EPOCHS) at which a stamp changes. */
-static void note_change(int k, int *first, int *second) {
-  if (!*first) *first = k;
-  else if (!*second) *second = k;
+/* The first two epochs (1 … OCS_RATE_EPOCHS) at which a stamp changes. @return 1 when k is the first. */
+static int note_change(int k, int *first, int *second) {
+  if (!*first) return *first = k, 1;
+  if (!*second) *second = k;
+  return 0;
 }
 
 /* Work for a change `first` epochs away is spread over those epochs when the stamp it brings lasts
@@ -638,13 +639,11 @@ static void clock_update(ocs_world_t *w) {
     for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
       if (next[l] != prev[l]) w->rate[l] += 1.0 / OCS_RATE_EPOCHS;
       prev[l] = next[l];
-      if (ts[l] != ts_prev[l] && !first[l]) { /* the level's own next step: what σt ahead samples */
+      if (ts[l] != ts_prev[l] && note_change(k, &first[l], &second[l])) { /* its next step: σt ahead */
         w->ahead_ts[l] = ts[l];
         w->ahead_t[l] = t;
       }
-      if (light[l] != light_prev[l] && !lfirst[l]) w->light_t[l] = t; /* its next light stamp: τ ahead */
-      if (ts[l] != ts_prev[l]) note_change(k, &first[l], &second[l]);
-      if (light[l] != light_prev[l]) note_change(k, &lfirst[l], &lsecond[l]);
+      if (light[l] != light_prev[l] && note_change(k, &lfirst[l], &lsecond[l])) w->light_t[l] = t; /* next light: τ ahead */
       ts_prev[l] = ts[l];
       light_prev[l] = light[l];
     }
@@ -1602,8 +1601,12 @@ static int ahead_push(ocs_world_t *w, ahead_t x) {
 /* The candidates: the leaves of the viewers' newest states that hold σt now (one empty then is
  * proven so cheaply by its bound), at levels whose σt or light stamp ahead_in / light_in name. */
 static int ahead_candidates(ocs_world_t *w) {
-  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++)
+  int any = 0;
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
     if (w->shadows && w->light_in[l]) prod_snapshot_at(w, &w->ahead_at[l], w->light_t[l]);
+    any |= w->ahead_in[l] || (w->shadows && w->light_in[l]);
+  }
+  if (!any) return 0; /* a static field, or no slow level: the held states are not walked */
   for (int vi = 0; vi < w->nviewers; vi++) {
     const ocs_viewer_t *v = w->viewers[vi];
     for (uint32_t i = 0; v->nheld && i < v->held[0].node_count; i++) {
