@@ -276,7 +276,8 @@ typedef struct {
  * 0 when it is empty, or OC_EINVAL (a bad key). */
 int ocs__brick_begin(const ocs_source_t *s, oc_key_t key, double t, ocs__brick_t *B);
 
-/* The per-voxel bounds of a brick (ocs__box_max() with grid 0 on each voxel's cube, batched):
+/* The per-voxel bounds of a brick (ocs__box_max() with grid 0 on each voxel's cube, batched, after
+ * a first pass over blocks of 2³ voxels that skips the voxels of blocks proven empty):
  * the layers that may be non-zero, and those whose W is 1, per voxel. B->nb is the node's bound,
  * whose ranges the layers in B->reuse take. ccentre (may be NULL) gets each layer's coverage value
  * C at each voxel's centre where it was evaluated (+inf where the layer took the node's ranges:
