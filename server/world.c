@@ -232,6 +232,8 @@ struct ocs_world_s {
   /* producer-thread seconds on made bricks, and on those that ended up empty (σt and τ all zero) */
   _Atomic double brick_cpu, brick_cpu_empty;
   _Atomic uint64_t bricks_empty;
+  _Atomic uint64_t level_made[OC_KEY_MAX_LEVEL + 1], level_empty[OC_KEY_MAX_LEVEL + 1];
+  _Atomic double level_cpu[OC_KEY_MAX_LEVEL + 1], level_cpu_empty[OC_KEY_MAX_LEVEL + 1];
   _Atomic uint64_t ahead_sigma, ahead_empty;  /* σt sampled ahead, and those all zero */
   _Atomic uint64_t ahead_tau;                 /* τ volumes built ahead */
   _Atomic double ahead_cpu, ahead_cpu_empty; /* producer-thread seconds on them */
@@ -512,10 +514,15 @@ static void atomic_add_double(_Atomic double *a, double v) {
 static void account_cpu(ocs_world_t *w, req_t *q, double since) {
   q->cpu += now_s() - since;
   if (!q->made || q->sigma) return; /* set aside: its second pass counts it */
+  int l = oc_key_level(q->key);
   atomic_add_double(&w->brick_cpu, q->cpu);
+  atomic_add_double(&w->level_cpu[l], q->cpu);
+  atomic_fetch_add_explicit(&w->level_made[l], 1, memory_order_relaxed);
   if (q->kind == OC_NODE_EMPTY) {
     atomic_add_double(&w->brick_cpu_empty, q->cpu);
+    atomic_add_double(&w->level_cpu_empty[l], q->cpu);
     atomic_fetch_add_explicit(&w->bricks_empty, 1, memory_order_relaxed);
+    atomic_fetch_add_explicit(&w->level_empty[l], 1, memory_order_relaxed);
   }
 }
 
@@ -2056,6 +2063,10 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .ahead_cpu_empty = w->ahead_cpu_empty,
                              .last_error = w->last_error,
                              .last_error_key = w->last_error_key};
+  for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    out->level[l].made = w->level_made[l], out->level[l].empty = w->level_empty[l];
+    out->level[l].cpu = w->level_cpu[l], out->level[l].cpu_empty = w->level_cpu_empty[l];
+  }
   ocs_cache_stats(w->cache, &out->cache);
   for (int i = 0; i < w->nviewers; i++)
     for (int j = 0; j < w->viewers[i]->nheld; j++) {

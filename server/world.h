@@ -91,6 +91,10 @@ typedef struct {
                                   per-brick wall timers on threads that run nothing else) */
   double brick_cpu_empty;    /**< of that, on bricks that ended up empty (σt and τ all zero) */
   uint64_t bricks_empty;     /**< bricks made that ended up empty */
+  struct {                   /**< the same three per level: where the wasted work is */
+    uint64_t made, empty;
+    double cpu, cpu_empty;
+  } level[OC_KEY_MAX_LEVEL + 1];
   uint64_t ahead_sigma;      /**< σt sampled ahead for a slow level's next time step (in sigma_produced) */
   uint64_t ahead_empty;      /**< of those, all zero */
   uint64_t ahead_tau;        /**< τ volumes built ahead for a level's next light stamp (in tau_volumes) */
