@@ -595,10 +595,11 @@ int ocs_ctl_open(ocs_ctl_t **out, ocs_server_t *srv, uint64_t frontend_id, char 
                          .on_state = ocs__on_state, .state_ctx = c};
   int r = ocs_redis_open(&c->rd, &srv->loop, &ro);
   if (r >= 0) r = ocs_redis_open(&c->wr, &srv->loop, &ro);
-  if (r < 0) {
+  if (r < 0) { /* the message names c->host: written before c is freed */
+    oc_errorf(r, why, why_len, "--redis %s: %s", c->host, oc_strerror(r));
     ocs_redis_close(c->rd);
     free(c);
-    return oc_errorf(r, why, why_len, "--redis %s: %s", c->host, oc_strerror(r));
+    return r;
   }
   uv_timer_init(&srv->loop, &c->kick);
   uv_timer_init(&srv->loop, &c->catchup);
