@@ -15,7 +15,7 @@
  * and written relaxed, ordered by the fences (the seqlock of Boehm, "Can seqlocks get along with
  * programming language memory models?", 2012). */
 typedef struct {
-  atomic_ullong seq, key, step, val;
+  _Atomic uint64_t seq, key, step, val;
 } ocs__bslot_t;
 
 _Static_assert((OCS_FIELD_BOUND_CACHE_SLOTS & (OCS_FIELD_BOUND_CACHE_SLOTS - 1)) == 0, "a power of two");
