@@ -586,7 +586,7 @@ static void ocs__cube_bounds(const ocs__brick_t *B, int n, ocs__cubes_t *w, doub
 /* The per-voxel bounds of a brick, in two passes: blocks of 2³ voxels first, then the voxels of the
  * blocks that may hold cloud (a voxel inside a block proven empty is empty: the block's bound
  * holds over the voxel's cube too). A block costs what a voxel costs; around the planet's camera
- * 60 % of the blocks at levels 14–16 are proven empty, and the process CPU fell 2.6 % (a first
+ * 60 % of the blocks at levels 14–16 are proven empty, and the process CPU fell 2–3 % (a first
  * pass of 4³ octants saved less than it cost; docs/performance.md, lever 11). */
 void ocs__voxel_bounds(const ocs__brick_t *B, oc_key_t key, uint8_t vmask[OC_BRICK_VOXELS], uint8_t vwone[OC_BRICK_VOXELS],
                        double (*ccentre)[OC_BRICK_VOXELS]) {
