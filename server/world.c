@@ -229,9 +229,8 @@ struct ocs_world_s {
   size_t queue_left;        /* what the last production left queued (reported until the next queue) */
   /* counters (production runs on many threads) */
   _Atomic uint64_t bricks_produced, sigma_produced, tau_volumes, produce_errors;
-  /* producer-thread seconds on made bricks, and on those that ended up empty (σt and τ all zero) */
-  _Atomic double brick_cpu, brick_cpu_empty;
-  _Atomic uint64_t bricks_empty;
+  /* per level, bricks made and those that ended up empty (σt and τ all zero), and the producer-thread
+   * seconds on each (the stats' totals are their sums) */
   _Atomic uint64_t level_made[OC_KEY_MAX_LEVEL + 1], level_empty[OC_KEY_MAX_LEVEL + 1];
   _Atomic double level_cpu[OC_KEY_MAX_LEVEL + 1], level_cpu_empty[OC_KEY_MAX_LEVEL + 1];
   _Atomic uint64_t ahead_sigma, ahead_empty;  /* σt sampled ahead, and those all zero */
@@ -515,13 +514,10 @@ static void account_cpu(ocs_world_t *w, req_t *q, double since) {
   q->cpu += now_s() - since;
   if (!q->made || q->sigma) return; /* set aside: its second pass counts it */
   int l = oc_key_level(q->key);
-  atomic_add_double(&w->brick_cpu, q->cpu);
   atomic_add_double(&w->level_cpu[l], q->cpu);
   atomic_fetch_add_explicit(&w->level_made[l], 1, memory_order_relaxed);
   if (q->kind == OC_NODE_EMPTY) {
-    atomic_add_double(&w->brick_cpu_empty, q->cpu);
     atomic_add_double(&w->level_cpu_empty[l], q->cpu);
-    atomic_fetch_add_explicit(&w->bricks_empty, 1, memory_order_relaxed);
     atomic_fetch_add_explicit(&w->level_empty[l], 1, memory_order_relaxed);
   }
 }
@@ -2053,9 +2049,6 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .tau_clear = (uint64_t)atomic_load(&w->tau_stats.clear_proven),
                              .tau_columns = (uint64_t)atomic_load(&w->tau_stats.columns),
                              .produce_errors = w->produce_errors,
-                             .brick_cpu = w->brick_cpu,
-                             .brick_cpu_empty = w->brick_cpu_empty,
-                             .bricks_empty = w->bricks_empty,
                              .ahead_sigma = w->ahead_sigma,
                              .ahead_empty = w->ahead_empty,
                              .ahead_tau = w->ahead_tau,
@@ -2066,6 +2059,8 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
     out->level[l].made = w->level_made[l], out->level[l].empty = w->level_empty[l];
     out->level[l].cpu = w->level_cpu[l], out->level[l].cpu_empty = w->level_cpu_empty[l];
+    out->bricks_empty += out->level[l].empty;
+    out->brick_cpu += out->level[l].cpu, out->brick_cpu_empty += out->level[l].cpu_empty;
   }
   ocs_cache_stats(w->cache, &out->cache);
   for (int i = 0; i < w->nviewers; i++)

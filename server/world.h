@@ -91,7 +91,8 @@ typedef struct {
                                   per-brick wall timers on threads that run nothing else) */
   double brick_cpu_empty;    /**< of that, on bricks that ended up empty (σt and τ all zero) */
   uint64_t bricks_empty;     /**< bricks made that ended up empty */
-  struct {                   /**< the same three per level: where the wasted work is */
+  struct {                   /**< the same per level (the three above are their sums): where the
+                                  wasted work is */
     uint64_t made, empty;
     double cpu, cpu_empty;
   } level[OC_KEY_MAX_LEVEL + 1];

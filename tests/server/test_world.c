@@ -103,20 +103,18 @@ static void test_world__states_valid_under_budget_and_static_converges(void **st
   assert_int_equal(lacking[7], 0);
   assert_int_equal(produced[7], produced[6]);
   assert_true(leaves > 64);
-  /* the wasted work per level adds up to the totals (overcast-bench world's table) */
+  /* the wasted work per level (overcast-bench world's table): every brick made is counted at its
+   * level once (against the cache's own count), and some of the sphere's surroundings came back empty */
   ocs_world_stats_t ws;
   ocs_world_stats(w, &ws);
-  uint64_t made = 0, empty = 0;
-  double cpu = 0.0, cpu_empty = 0.0;
+  uint64_t made = 0;
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
     assert_true(ws.level[l].empty <= ws.level[l].made && ws.level[l].cpu_empty <= ws.level[l].cpu);
-    made += ws.level[l].made, empty += ws.level[l].empty;
-    cpu += ws.level[l].cpu, cpu_empty += ws.level[l].cpu_empty;
+    made += ws.level[l].made;
   }
   assert_int_equal(made, ws.bricks_produced);
-  assert_int_equal(empty, ws.bricks_empty);
-  assert_true(empty > 0 && empty < made);
-  assert_true(fabs(cpu - ws.brick_cpu) <= 1e-9 * ws.brick_cpu && fabs(cpu_empty - ws.brick_cpu_empty) <= 1e-9 * cpu);
+  assert_true(ws.bricks_empty > 0 && ws.bricks_empty < made);
+  assert_true(ws.brick_cpu_empty > 0.0 && ws.brick_cpu_empty < ws.brick_cpu);
   ocs_world_free(w);
 }
 
