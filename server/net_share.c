@@ -106,10 +106,6 @@ static void ocs__on_found(void *ctx, int outcome, const uint8_t *content, size_t
 int ocs_share_open(ocs_server_t *srv, char *why, size_t why_len) {
   const ocs_server_desc_t *d = &srv->desc;
   if (!d->redis_host) return 0;
-  size_t hl = strlen(d->redis_host);
-  if (hl == 0 || hl > 255 || d->redis_port < 1 || d->redis_port > 65535) /* the API's callers: the CLI checks first */
-    return oc_errorf(OC_EINVAL, why, why_len, "--redis %.64s%s:%d: %s", d->redis_host, hl > 64 ? "…" : "", d->redis_port,
-                     hl == 0 ? "no host" : hl > 255 ? "host name longer than 255 bytes" : "port outside 1..65535");
   ocs_share_t *sh = calloc(1, sizeof *sh);
   if (!sh) return OC_ENOMEM;
   sh->srv = srv;

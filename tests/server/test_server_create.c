@@ -1,9 +1,10 @@
 /* test_server_create.c — ocs_server_create() through the library API with a bad --redis: a clear
  * error naming it, nothing left behind (ASan: no use after free, LeakSanitizer: no leak). The CLI
- * refuses these addresses first (server_config.c); the API is checked in ocs_share_open(). Before
- * that check, stepped mode (which opens only the control stream's connections) reached
- * ocs_ctl_open()'s failure path, which wrote its message from the stream after freeing it: this test
- * failed there under ASan (heap-use-after-free), as gcc's -Wuse-after-free had warned. */
+ * refuses these addresses first (server_config.c); through the API the Redis client's own check
+ * (ocs_redis_open) refuses them. Stepped mode opens only the control stream's connections, so it
+ * meets that refusal in ocs_ctl_open(), whose failure path used to write its message from the
+ * stream after freeing it: this test failed there under ASan (heap-use-after-free), as gcc's
+ * -Wuse-after-free had warned. Clocked mode meets it first in the brick store's connection. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
