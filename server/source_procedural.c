@@ -510,7 +510,7 @@ static void ocs__cube_geoms(const uint32_t ic[3], double u, int c, double band_l
   }
 }
 
-/* The bounds' workspace: one brick's cubes (thread-local: 60 kB). */
+/* The bounds' workspace: one brick's cubes (156 KiB, thread-local: made once per producer thread). */
 typedef struct {
   ocs__geom_t g[OC_BRICK_VOXELS];
   ocs__bb_t bb[OC_BRICK_VOXELS];
