@@ -76,6 +76,11 @@ int ocs_scene_voxelize(oc_state_t *out, const oc_scene_t *sc, const ocs_scene_vo
   vd.max_level = d->max_level > 0 ? d->max_level : 16;
   vd.refine = oc__lod_refine;
   vd.refine_ctx = &lod;
+  /* τ box-filtered as σt is: then it is the optical depth through the σt channel that the renderer
+   * and the truth read (a line integral commutes with the filter). Point-sampled, it is the exact
+   * medium's, which lights a voxel straddling a sunlit face as if none of its σt lay above the face
+   * (docs/numerics.md, "The reference states' τ"). */
+  vd.sub_sigma = vd.sub_tau = OCS_SCENE_VOXELIZE_SUB;
   vd.sun_dir = sc->sun_dir;
   vd.threads = d->threads > 0 ? d->threads : 1;
   vd.max_nodes = d->max_nodes > 0 ? d->max_nodes : 500000;

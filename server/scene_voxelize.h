@@ -16,6 +16,10 @@
 #include "oc_scene.h"    /* oc_scene_t */
 #include "oc_state.h"    /* oc_state_t */
 
+/*! Sub-samples per axis of both channels' box filter: σt's (the Conventions') and τ's, the same
+ *  filter so that τ is the optical depth through the σt channel. */
+#define OCS_SCENE_VOXELIZE_SUB 4
+
 typedef struct {
   oc_camera_t camera;   /**< refinement follows its position and field of view */
   int viewport_height;  /**< pixels; default 0 → 360 */
