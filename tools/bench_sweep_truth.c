@@ -78,7 +78,9 @@ octs_truth_t *octs_truth_make(const oc_scene_t *sc, oc_camera_pose_t pose, const
    * and of the slab move by ≤ 1.1 % (the slab's voxelization costs 11 s at 90 rows, 55 s at 360). */
   ocs_scene_voxelize_desc_t vd = {cam, d->full_h * 2 > 90 ? d->full_h * 2 : 90, 2.0, 16, 0, threads};
   oct_mc_medium_t m = {0};
-  int rc = ocs_scene_voxelize(&st, sc, &vd, why, why_len);
+  oc_scene_t sigma_only = *sc; /* the Monte Carlo reads σt alone: no τ channel to filter */
+  sigma_only.features &= ~(1u << OC_FEATURE_SHADOWS);
+  int rc = ocs_scene_voxelize(&st, &sigma_only, &vd, why, why_len);
   if (rc >= 0 && oct_mc_medium_state(&m, &st) < 0) rc = oc_errorf(OC_ENOMEM, why, why_len, "out of memory");
   if (rc >= 0) {
     truth_job_t j = {.m = &m, .cam = cam, .d = d, .kx = t->kx, .ky = t->ky, .c = &t->c, .stats = stats};
