@@ -56,6 +56,8 @@ typedef struct {
   oc_state_t st;
   oc_camera_t cam;
   const char *name;
+  double rel, rmse8, amb; /**< the last scoring: mean error, RMSE 0–255, uniform-sky error (NaN: none) */
+  int ok;                 /**< within both bounds */
 } oct__mcase_t;
 
 /* Scores every case with o's numbers; prints a row per case unless quiet. @return the objective, or
@@ -85,6 +87,8 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     }
     double bound = fmax(6.0, 2.0 * s.noise8), lim = m->tc.tau > 20.0 ? 0.2 : 0.1;
     int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
+    m->rel = s.rel, m->rmse8 = s.rmse8, m->ok = ok;
+    m->amb = m->tc.env > 0.0 && m->tc.albedo < 1.0 ? amb_new : NAN;
     cost += oct__model_cost(&s);
     worst_rel = fmax(worst_rel, fabs(s.rel));
     worst_rmse = fmax(worst_rmse, s.rmse8 / bound);
@@ -101,6 +105,80 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     printf("\n%d cases, %d within bounds; worst |mean error| %.1f %%, worst RMSE / bound %.2f, worst uniform-sky error "
            "%.1f %%\nCOST %.6g\n", n, pass, 100.0 * worst_rel, worst_rmse, 100.0 * worst_amb, cost);
   return cost;
+}
+
+/* The case's view and shape, from its scene file's name (tests/data/truth/<shape>_<sun>.json). */
+static int oct__scene_is(const oct__mcase_t *m, const char *word) {
+  const char *slash = strrchr(m->tc.scene, '/');
+  return strstr(slash ? slash + 1 : m->tc.scene, word) != NULL;
+}
+
+/* The fitted set of docs/numerics.md: sun behind or in front, albedo 1 or 0.9, τ 1, 5 or 20. The
+ * uniform sky's: sun behind, τ 1, 5 or 20. Every other case is held out. */
+static int oct__fitted(const oct__mcase_t *m, int sky) {
+  double t = m->tc.tau, a = m->tc.albedo;
+  int tau_ok = t == 1.0 || t == 5.0 || t == 20.0;
+  if (sky) return tau_ok && oct__scene_is(m, "_behind");
+  return tau_ok && (a == 1.0 || a == 0.9) && (oct__scene_is(m, "_behind") || oct__scene_is(m, "_front"));
+}
+
+static int oct__cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+static double oct__median(double *v, int n) {
+  qsort(v, (size_t)n, sizeof *v, oct__cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* One summary row over the cases `sel` picks (view: 0 all, else a word of the scene's name;
+ * fitted: -1 either, 0 held out, 1 fitted; tau: 0 any). */
+static void oct__set_row(const char *label, const oct__mcase_t *cs, int n, const char *shape, const char *sun,
+                         int fitted, double tau) {
+  double *e = malloc(2 * sizeof(double) * (size_t)(n > 0 ? n : 1)), *r = e + n, worst = 0.0;
+  int k = 0, ok = 0;
+  if (!e) return;
+  for (int i = 0; i < n; i++) {
+    const oct__mcase_t *m = &cs[i];
+    if ((shape && !oct__scene_is(m, shape)) || (sun && !oct__scene_is(m, sun)) ||
+        (fitted >= 0 && oct__fitted(m, 0) != fitted) || (tau > 0.0 && m->tc.tau != tau))
+      continue;
+    e[k] = fabs(m->rel), r[k] = m->rmse8, ok += m->ok, worst = fmax(worst, e[k]);
+    k++;
+  }
+  if (k) printf("| %s | %d | %d | %.1f %% | %.1f %% | %.1f |\n", label, k, ok, 100.0 * oct__median(e, k), 100.0 * worst,
+                oct__median(r, k));
+  free(e);
+}
+
+/* The issue's report: the fitted set and the held-out set apart, then by view and by τ; the uniform
+ * sky's worst error in its own fitted and held-out sets. */
+static void oct__model_sets(const oct__mcase_t *cs, int n) {
+  printf("\n| set | cases | within both bounds | median \\|mean error\\| | worst | median RMSE 0–255 |\n"
+         "|---|---:|---:|---:|---:|---:|\n");
+  oct__set_row("fitted", cs, n, NULL, NULL, 1, 0.0);
+  oct__set_row("held out", cs, n, NULL, NULL, 0, 0.0);
+  static const char *shapes[] = {"sphere", "slab"}, *suns[] = {"_behind", "_beside", "_front"};
+  for (int a = 0; a < 2; a++)
+    for (int b = 0; b < 3; b++) {
+      char label[64];
+      snprintf(label, sizeof label, "%s, sun %s", shapes[a], suns[b] + 1);
+      oct__set_row(label, cs, n, shapes[a], suns[b], -1, 0.0);
+    }
+  static const double taus[] = {0.5, 1, 2, 5, 10, 20, 50};
+  for (int t = 0; t < 7; t++) {
+    char label[32];
+    snprintf(label, sizeof label, "τ %g", taus[t]);
+    oct__set_row(label, cs, n, NULL, NULL, -1, taus[t]);
+  }
+  double worst[2] = {-1.0, -1.0};
+  for (int i = 0; i < n; i++)
+    if (!isnan(cs[i].amb)) worst[oct__fitted(&cs[i], 1)] = fmax(worst[oct__fitted(&cs[i], 1)], fabs(cs[i].amb));
+  char w[2][32];
+  for (int f = 0; f < 2; f++)
+    snprintf(w[f], sizeof w[f], worst[f] >= 0.0 ? "%.1f %%" : "no case", 100.0 * worst[f]);
+  if (worst[0] >= 0.0 || worst[1] >= 0.0) printf("\nuniform sky, worst |error|: fitted %s, held out %s\n", w[1], w[0]);
 }
 
 /* The nine numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
@@ -250,6 +328,7 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
              "new (unoccluded) |\n|---|---:|---:|---:|---:|%s---:|---:|---:|---:|\n",
              o.legacy ? "old: mean error | RMSE 0–255 | " : "", o.legacy ? "---:|---:|" : "");
     if (isnan(oct__model_all(prog, cs, n, &o, 1))) rc = OC_EXIT_RUNTIME;
+    else oct__model_sets(cs, n);
   }
   for (int i = 0; i < loaded; i++) {
     oc_state_free(&cs[i].st);
