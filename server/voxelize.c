@@ -26,34 +26,66 @@ oc_dvec3 ocs_brick_sample_pos(oc_key_t key, int i, int j, int k) {
                 -OC_ROOT_HALF + (double)(7 * (int64_t)iz + k) * u);
 }
 
-/* ocs_brick_sample() : every coordinate is −S + (g + f)·u with g the integer lattice index of the
- * sample and f the sub-sample offset; both are the same whichever node computes them, and the
- * evaluation order of the sub-samples is fixed, so shared face samples agree bit for bit. */
-void ocs_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub, float out[512]) {
+/* Sub-sample coordinates: every one is −S + (g + f)·u with g the integer lattice index of the
+ * sample and f the sub-sample offset; both are the same whichever node computes them. */
+static int oc__sub_positions(oc_key_t key, int sub, double pos[3][8][OCS_VOXELIZE_MAX_SUB]) {
   if (sub < 1) sub = 1;
   if (sub > OCS_VOXELIZE_MAX_SUB) sub = OCS_VOXELIZE_MAX_SUB;
-  int level = oc_key_level(key);
   uint32_t ic[3];
   oc_key_coords(key, &ic[0], &ic[1], &ic[2]);
-  double u = oc__spacing(level);
-  double off[OCS_VOXELIZE_MAX_SUB];
-  for (int m = 0; m < sub; m++) off[m] = ((double)m + 0.5) / (double)sub - 0.5;
-  double pos[3][8][OCS_VOXELIZE_MAX_SUB]; /* [axis][sample][sub-sample] */
+  double u = oc__spacing(oc_key_level(key));
   for (int a = 0; a < 3; a++)
     for (int i = 0; i < 8; i++) {
       double g = (double)(7 * (int64_t)ic[a] + i);
-      for (int m = 0; m < sub; m++) pos[a][i][m] = -OC_ROOT_HALF + (g + off[m]) * u;
+      for (int m = 0; m < sub; m++) pos[a][i][m] = -OC_ROOT_HALF + (g + (((double)m + 0.5) / (double)sub - 0.5)) * u;
     }
-  double inv = 1.0 / ((double)sub * sub * sub);
+  return sub;
+}
+
+/* The mean of fn over sample (i, j, k)'s sub³ sub-samples, in a fixed order. */
+static double oc__box_mean(double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub,
+                           const double pos[3][8][OCS_VOXELIZE_MAX_SUB], int i, int j, int k) {
+  double sum = 0.0;
+  for (int mz = 0; mz < sub; mz++)
+    for (int my = 0; my < sub; my++)
+      for (int mx = 0; mx < sub; mx++) sum += fn(ctx, oc_dv3(pos[0][i][mx], pos[1][j][my], pos[2][k][mz]));
+  return sub == 1 ? sum : sum * (1.0 / ((double)sub * sub * sub));
+}
+
+/* ocs_brick_sample() : the positions are the same from either node and the order of the sub-samples
+ * is fixed, so shared face samples agree bit for bit. */
+void ocs_brick_sample(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub, float out[512]) {
+  double pos[3][8][OCS_VOXELIZE_MAX_SUB];
+  sub = oc__sub_positions(key, sub, pos);
+  for (int k = 0; k < 8; k++)
+    for (int j = 0; j < 8; j++)
+      for (int i = 0; i < 8; i++) out[i + 8 * j + 64 * k] = (float)oc__box_mean(fn, ctx, sub, pos, i, j, k);
+}
+
+/* The box filter of a smooth field (τ): where the mean of the 8 corner sub-samples matches the value
+ * at the sample within 1e-3 (relative; absolute below 1e-2) the field is taken as trilinear over the
+ * box, whose lattice mean is exactly that corner mean; elsewhere (a face inside the box) every
+ * sub-sample is averaged. 9 evaluations instead of sub³ almost everywhere; the test reads only
+ * positions either node computes alike, so shared face samples still agree bit for bit. */
+static void oc__brick_sample_smooth(oc_key_t key, double (*fn)(void *ctx, oc_dvec3 p), void *ctx, int sub,
+                                    float out[512]) {
+  if (sub <= 1) {
+    ocs_brick_sample(key, fn, ctx, sub, out);
+    return;
+  }
+  double pos[3][8][OCS_VOXELIZE_MAX_SUB];
+  sub = oc__sub_positions(key, sub, pos);
+  int e = sub - 1;
   for (int k = 0; k < 8; k++)
     for (int j = 0; j < 8; j++)
       for (int i = 0; i < 8; i++) {
-        double sum = 0.0;
-        for (int mz = 0; mz < sub; mz++)
-          for (int my = 0; my < sub; my++)
-            for (int mx = 0; mx < sub; mx++)
-              sum += fn(ctx, oc_dv3(pos[0][i][mx], pos[1][j][my], pos[2][k][mz]));
-        out[i + 8 * j + 64 * k] = (float)(sub == 1 ? sum : sum * inv);
+        double q = 0.0;
+        for (int c = 0; c < 8; c++)
+          q += fn(ctx, oc_dv3(pos[0][i][c & 1 ? e : 0], pos[1][j][c & 2 ? e : 0], pos[2][k][c & 4 ? e : 0]));
+        q *= 0.125;
+        double centre = fn(ctx, ocs_brick_sample_pos(key, i, j, k));
+        int smooth = fabs(centre - q) <= 1e-3 * fmax(fabs(q), 1e-2);
+        out[i + 8 * j + 64 * k] = (float)(smooth ? q : oc__box_mean(fn, ctx, sub, pos, i, j, k));
       }
 }
 
@@ -199,7 +231,7 @@ static void *oc__worker(void *arg) {
       oc_key_t key = job->leaves[li];
       ocs_brick_sample(key, v->sigma, v->ctx, v->sub_sigma, sigma);
       if (v->tau)
-        ocs_brick_sample(key, v->tau, v->ctx, v->sub_tau, tau);
+        oc__brick_sample_smooth(key, v->tau, v->ctx, v->sub_tau, tau);
       else
         memset(tau, 0, sizeof tau);
       oc_sanitize_stats_t s1 = {0}, s2 = {0};

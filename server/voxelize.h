@@ -83,7 +83,9 @@ typedef struct {
   int sub_tau;        /**< sub-samples per axis for τ, 1..16; default 0 → 1: τ is a lighting
                            quantity (an optical depth toward the sun, smooth along the sun ray) and
                            the Conventions define the box filter for σt only, so τ is point-sampled
-                           at the sample position unless asked otherwise */
+                           at the sample position unless asked otherwise. Above 1, where the
+                           mean of a box's 8 corner sub-samples matches its centre within 1e-3,
+                           τ is taken as trilinear there and that mean is used (9 evaluations) */
   uint64_t epoch;     /**< copied into the state; default 0 */
   double time;        /**< copied into the state, finite; default 0 */
   oc_dvec3 sun_dir;   /**< toward the sun, copied into the state (normalised unless already unit
