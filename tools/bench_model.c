@@ -122,15 +122,6 @@ static int oct__fitted(const oct__mcase_t *m, int sky) {
   return tau_ok && (a == 1.0 || a == 0.9) && (oct__scene_is(m, "_behind") || oct__scene_is(m, "_front"));
 }
 
-static int oct__cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-static double oct__median(double *v, int n) {
-  qsort(v, (size_t)n, sizeof *v, oct__cmp_double);
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /* One summary row over the cases `sel` picks (view: 0 all, else a word of the scene's name;
  * fitted: -1 either, 0 held out, 1 fitted; tau: 0 any). */
@@ -147,8 +138,8 @@ static void oct__set_row(const char *label, const oct__mcase_t *cs, int n, const
     e[k] = fabs(m->rel), r[k] = m->rmse8, ok += m->ok, worst = fmax(worst, e[k]);
     k++;
   }
-  if (k) printf("| %s | %d | %d | %.1f %% | %.1f %% | %.1f |\n", label, k, ok, 100.0 * oct__median(e, k), 100.0 * worst,
-                oct__median(r, k));
+  if (k) printf("| %s | %d | %d | %.1f %% | %.1f %% | %.1f |\n", label, k, ok, 100.0 * oct_median(e, k), 100.0 * worst,
+                oct_median(r, k));
   free(e);
 }
 

@@ -85,15 +85,6 @@ static int settle(run_t *r, oc_camera_pose_t pose, long leaves, int max_epochs, 
   return max_epochs;
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-static double median(double *v, int n) {
-  qsort(v, (size_t)n, sizeof *v, cmp_double);
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 typedef struct {
   double plan_ms[64], commit_ms[64];
@@ -114,7 +105,7 @@ static void record(series_t *s, const run_t *r) {
 static void row(const char *name, series_t *s) {
   double n = s->n;
   printf("| %s | %.0f | %.0f | %.0f | %.1f | %.1f | %.1f |\n", name, s->leaves / n, s->splits / n, s->merges / n,
-         median(s->plan_ms, s->n), s->max_plan_ms, median(s->commit_ms, s->n));
+         oct_median(s->plan_ms, s->n), s->max_plan_ms, oct_median(s->commit_ms, s->n));
 }
 
 typedef struct {

@@ -15,6 +15,16 @@ double oct_now(void) {
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
+static int oct__cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+double oct_median(double *v, int n) {
+  qsort(v, (size_t)n, sizeof *v, oct__cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 int oct_parse_list(const char *p, const char *opt, const char *text, long lo, long hi, long *out, int cap, int *n) {
   char buf[256];
   *n = 0;

@@ -11,6 +11,8 @@
 
 /*! oct_now() : monotonic seconds. */
 double oct_now(void);
+/*! oct_median() : the median of v[0..n) (n ≥ 1), sorting v in place. */
+double oct_median(double *v, int n);
 /*! oct_parse_list() : "a,b,c" of integers in [lo, hi]; 0, or -1 after printing the error. */
 int oct_parse_list(const char *prog, const char *opt, const char *text, long lo, long hi, long *out, int cap, int *n);
 /*! oct_load_scene() : the scene at path, or the built-in planet when path is NULL; 0, or -1 after
