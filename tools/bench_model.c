@@ -72,6 +72,7 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, &s);
     if (rc != OC_EXIT_OK) return NAN;
     double amb_new = 0.0, amb_old = 0.0; /* image mean under a uniform sky alone, against tc.env */
+    m->amb = NAN;
     if (m->tc.env > 0.0 && m->tc.albedo < 1.0) {
       oc_render_desc_t d = oct_truth_case_desc(&m->tc, &m->sc, m->cam);
       if (o->have_fit) d.ms_fit = o->fit;
@@ -82,13 +83,13 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
       if (print && oct_truth_ambient(&m->tc, &m->st, d, &amb_old) < 0) return NAN;
       amb_new = amb_new / m->tc.env - 1.0;
       amb_old = amb_old / m->tc.env - 1.0;
+      m->amb = amb_new;
       cost += (amb_new / 0.05) * (amb_new / 0.05);
       worst_amb = fmax(worst_amb, fabs(amb_new));
     }
     double bound = fmax(6.0, 2.0 * s.noise8), lim = m->tc.tau > 20.0 ? 0.2 : 0.1;
     int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
     m->rel = s.rel, m->rmse8 = s.rmse8, m->ok = ok;
-    m->amb = m->tc.env > 0.0 && m->tc.albedo < 1.0 ? amb_new : NAN;
     cost += oct__model_cost(&s);
     worst_rel = fmax(worst_rel, fabs(s.rel));
     worst_rmse = fmax(worst_rmse, s.rmse8 / bound);
@@ -122,9 +123,8 @@ static int oct__fitted(const oct__mcase_t *m, int sky) {
   return tau_ok && (a == 1.0 || a == 0.9) && (oct__scene_is(m, "_behind") || oct__scene_is(m, "_front"));
 }
 
-
-/* One summary row over the cases `sel` picks (view: 0 all, else a word of the scene's name;
- * fitted: -1 either, 0 held out, 1 fitted; tau: 0 any). */
+/* One summary row over the cases whose scene name holds `shape` and `sun` (NULL: any), in the
+ * fitted set (1), the held-out set (0) or either (-1), at optical depth `tau` (0: any). */
 static void oct__set_row(const char *label, const oct__mcase_t *cs, int n, const char *shape, const char *sun,
                          int fitted, double tau) {
   double *e = malloc(2 * sizeof(double) * (size_t)(n > 0 ? n : 1)), *r = e + n, worst = 0.0;
@@ -165,7 +165,10 @@ static void oct__model_sets(const oct__mcase_t *cs, int n) {
   }
   double worst[2] = {-1.0, -1.0};
   for (int i = 0; i < n; i++)
-    if (!isnan(cs[i].amb)) worst[oct__fitted(&cs[i], 1)] = fmax(worst[oct__fitted(&cs[i], 1)], fabs(cs[i].amb));
+    if (!isnan(cs[i].amb)) {
+      int f = oct__fitted(&cs[i], 1);
+      worst[f] = fmax(worst[f], fabs(cs[i].amb));
+    }
   char w[2][32];
   for (int f = 0; f < 2; f++)
     snprintf(w[f], sizeof w[f], worst[f] >= 0.0 ? "%.1f %%" : "no case", 100.0 * worst[f]);
