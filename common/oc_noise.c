@@ -133,6 +133,27 @@ OC__INLINE double oc__noise(double x, double y, double z, uint64_t s) {
   return oc__cell(g, fx, fy, fz);
 }
 
+/* The noise at one point with the lattice wrapped every n cells along each axis (n ≥ 1): the
+ * corners' indices are reduced modulo n before they are hashed. */
+static inline uint64_t oc__wrap(uint64_t i, uint64_t n) {
+  int64_t r = (int64_t)i % (int64_t)n;
+  return (uint64_t)(r < 0 ? r + (int64_t)n : r);
+}
+static double oc__noise_wrapped(double x, double y, double z, uint64_t s, uint64_t n) {
+  uint64_t i[3], lo[3], hi[3];
+  double fx = x - oc__floor(x, &i[0]), fy = y - oc__floor(y, &i[1]), fz = z - oc__floor(z, &i[2]);
+  for (int a = 0; a < 3; a++) {
+    lo[a] = oc__wrap(i[a], n);
+    hi[a] = lo[a] + 1 == n ? 0 : lo[a] + 1;
+  }
+  uint64_t hx0 = lo[0] * OC__PX + s, hx1 = hi[0] * OC__PX + s;
+  uint64_t hy0 = lo[1] * OC__PY, hy1 = hi[1] * OC__PY, hz0 = lo[2] * OC__PZ, hz1 = hi[2] * OC__PZ;
+  uint64_t g[8] = {oc__corner(hx0 + hy0 + hz0), oc__corner(hx1 + hy0 + hz0), oc__corner(hx0 + hy1 + hz0),
+                   oc__corner(hx1 + hy1 + hz0), oc__corner(hx0 + hy0 + hz1), oc__corner(hx1 + hy0 + hz1),
+                   oc__corner(hx0 + hy1 + hz1), oc__corner(hx1 + hy1 + hz1)};
+  return oc__cell(g, fx, fy, fz);
+}
+
 /*-*** Noise ***/
 
 /*! OC__BATCH : the batch loops are built for baseline x86-64, AVX2 (x86-64-v3) and AVX-512
@@ -221,6 +242,22 @@ double oc_fbm3(double x, double y, double z, const oc_fbm_t *p) {
   for (int i = 0; i < pl.octaves; i++) {
     double f = pl.freq[i];
     sum += pl.amp[i] * oc__noise(x * f + pl.off[i][0], y * f + pl.off[i][1], z * f + pl.off[i][2], pl.s[i]);
+  }
+  return oc__fbm_finish(sum, pl.inv_norm);
+}
+
+double oc_fbm3_periodic(double x, double y, double z, const oc_fbm_t *p, int period) {
+  oc__fbm_plan_t pl;
+  if (oc_fbm_check(p) < 0 || period < 1 || p->lacunarity != (double)(int)p->lacunarity) return 0.0;
+  double n = (double)period;
+  for (int i = 1; i < p->octaves; i++) n *= p->lacunarity;
+  if (n > 1073741824.0) return 0.0;
+  oc__fbm_plan(p, &pl);
+  double sum = 0.0;
+  for (int i = 0; i < pl.octaves; i++) {
+    double f = pl.freq[i];
+    uint64_t cells = (uint64_t)((double)period * f);
+    sum += pl.amp[i] * oc__noise_wrapped(x * f + pl.off[i][0], y * f + pl.off[i][1], z * f + pl.off[i][2], pl.s[i], cells);
   }
   return oc__fbm_finish(sum, pl.inv_norm);
 }

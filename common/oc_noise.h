@@ -81,6 +81,15 @@ int oc_fbm_check(const oc_fbm_t *p);
  *  inside the noise domain (|coordinate| < 2^50). */
 double oc_fbm3(double x, double y, double z, const oc_fbm_t *p);
 
+/*! oc_fbm3_periodic() :
+ *  The fBm p with each octave's lattice wrapped so that the field repeats every `period` units of
+ *  the first octave's lattice along each axis: octave i hashes its corners' indices modulo
+ *  period·lacunarity^i. The same kernel, octave seeds, offsets and bound as oc_fbm3(), so the same
+ *  distribution, but a different field. For tiled noise volumes (server/noise_volume.h).
+ *  @return a value in [-1, 1]; 0 when the parameters are invalid, the lacunarity is not an integer,
+ *  period < 1, or period·lacunarity^(octaves-1) > 2^30. */
+double oc_fbm3_periodic(double x, double y, double z, const oc_fbm_t *p, int period);
+
 /*! oc_fbm3_batch() :
  *  out[i] = (float)oc_fbm3(point i, p) for i < n, bit for bit.
  *  @return 0, or OC_EINVAL for invalid parameters, n < 0, or NULL pointers with n > 0. */

@@ -358,6 +358,34 @@ static void test_fbm_mean(void **state) {
   assert_true(v >= -1 && v <= 1);
 }
 
+/* oc_fbm3_periodic(): repeats with its period on each axis, has oc_fbm3()'s spread, and refuses
+ * what cannot wrap (a fractional lacunarity, a period < 1). */
+static void test_fbm_periodic(void **state) {
+  (void)state;
+  uint64_t rs = 51;
+  const int period = 3;
+  double worst = 0.0, sum = 0.0, sum2 = 0.0, sum2f = 0.0;
+  int n = 50000;
+  for (int i = 0; i < n; i++) {
+    double x = rng_range(&rs, -50, 50), y = rng_range(&rs, -50, 50), z = rng_range(&rs, -50, 50);
+    double v = oc_fbm3_periodic(x, y, z, &FBM6, period), f = oc_fbm3(x, y, z, &FBM6);
+    int k = (int)(rng_split(&rs) % 3), w = 1 + (int)(rng_split(&rs) % 4);
+    double s[3] = {x, y, z};
+    s[k] += (double)(w * period) * (rng_split(&rs) & 1 ? 1.0 : -1.0);
+    worst = fmax(worst, fabs(oc_fbm3_periodic(s[0], s[1], s[2], &FBM6, period) - v));
+    sum += v, sum2 += v * v, sum2f += f * f;
+  }
+  double sd = sqrt(sum2 / n - (sum / n) * (sum / n)), sdf = sqrt(sum2f / n);
+  printf("periodic fBm: largest change over a period %.3g; sd %.4f against oc_fbm3's %.4f\n", worst, sd, sdf);
+  assert_true(worst < 1e-9); /* rounding of x·f + offset only */
+  assert_true(fabs(sd / sdf - 1.0) < 0.1);
+  assert_true(oc_fbm3_periodic(0.3, 0.4, 0.5, &FBM6, period) != oc_fbm3_periodic(1.3, 0.4, 0.5, &FBM6, period));
+  oc_fbm_t frac = FBM6;
+  frac.lacunarity = 2.5;
+  assert_true(oc_fbm3_periodic(0.3, 0.4, 0.5, &frac, period) == 0.0);
+  assert_true(oc_fbm3_periodic(0.3, 0.4, 0.5, &FBM6, 0) == 0.0);
+}
+
 static void test_args(void **state) {
   (void)state;
   float out[4];
@@ -623,6 +651,7 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_seed_changes_field),
              cmocka_unit_test(test_large_coordinates),
              cmocka_unit_test(test_fbm_mean),
+             cmocka_unit_test(test_fbm_periodic),
              cmocka_unit_test(test_args),
              cmocka_unit_test(test_lipschitz_proven),
              cmocka_unit_test(test_lipschitz_adversarial))
