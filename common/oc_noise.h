@@ -81,13 +81,16 @@ int oc_fbm_check(const oc_fbm_t *p);
  *  inside the noise domain (|coordinate| < 2^50). */
 double oc_fbm3(double x, double y, double z, const oc_fbm_t *p);
 
-/*! oc_fbm3_periodic() :
- *  The fBm p with each octave's lattice wrapped so that the field repeats every `period` units of
- *  the first octave's lattice along each axis: octave i hashes its corners' indices modulo
- *  period·lacunarity^i. The same kernel, octave seeds, offsets and bound as oc_fbm3(), so the same
- *  distribution, but a different field. For tiled noise volumes (server/noise_volume.h).
- *  @return a value in [-1, 1]; 0 when the parameters are invalid, the lacunarity is not an integer,
- *  period < 1, or period·lacunarity^(octaves-1) > 2^30. */
+/*! oc_fbm3_periodic_batch() :
+ *  out[i] = the fBm p at point i with each octave's lattice wrapped so that the field repeats every
+ *  `period` units of the first octave's lattice along each axis: octave i masks its corners' indices
+ *  to period·2^i cells before hashing them. The same kernel, octave seeds, offsets and bound as
+ *  oc_fbm3(), so the same distribution, but a different field (as float, like oc_fbm3_batch()). For
+ *  tiled noise volumes (server/noise_volume.h).
+ *  @return 0, or OC_EINVAL: invalid parameters, a lacunarity other than 2, a period that is not a
+ *  power of two in 1..2^20, period·2^(octaves-1) > 2^30, n < 0, NULL pointers with n > 0. */
+int oc_fbm3_periodic_batch(const double *xyz, int n, const oc_fbm_t *p, int period, float *out);
+/*! oc_fbm3_periodic() : oc_fbm3_periodic_batch() at one point; 0 for invalid parameters. */
 double oc_fbm3_periodic(double x, double y, double z, const oc_fbm_t *p, int period);
 
 /*! oc_fbm3_batch() :

@@ -27,23 +27,26 @@ static int ocs__check(const ocs_nvol_desc_t *d, char *why, int why_len) {
     bad = "no description";
   else if (d->log2_size < 1 || d->log2_size > OCS_NVOL_MAX_LOG2)
     bad = "log2_size outside 1..OCS_NVOL_MAX_LOG2";
-  else if (d->period < 1 || d->period > (1 << d->log2_size))
-    bad = "period outside 1..N (each lattice cell needs a texel)";
+  else if (d->period < 1 || d->period > (1 << d->log2_size) || (d->period & (d->period - 1)))
+    bad = "period not a power of two in 1..N (each lattice cell needs a texel)";
   else if (oc_fbm_check(&d->fbm) < 0 || d->fbm.lacunarity != 2.0)
     bad = "fbm invalid or its lacunarity not 2";
   if (bad && why && why_len > 0) snprintf(why, (size_t)why_len, "noise volume: %s", bad);
   return bad ? OC_EINVAL : 0;
 }
 
-/* Level 0: the periodic fBm at the texel centres. */
-static void ocs__fill(ocs_nvol_t *v, const ocs_nvol_desc_t *d) {
+/* Level 0: the periodic fBm at the texel centres, a row at a time. @return 0 or OC_ENOMEM. */
+static int ocs__fill(ocs_nvol_t *v, const ocs_nvol_desc_t *d) {
   int n = 1 << v->log2n;
-  double h = v->period / (double)n;
-  float *t = v->tex[0];
+  double h = v->period / (double)n, *xyz = malloc(sizeof(double) * 3 * (size_t)n);
+  if (!xyz) return OC_ENOMEM;
   for (int z = 0; z < n; z++)
-    for (int y = 0; y < n; y++)
-      for (int x = 0; x < n; x++)
-        *t++ = (float)oc_fbm3_periodic((x + 0.5) * h, (y + 0.5) * h, (z + 0.5) * h, &d->fbm, d->period);
+    for (int y = 0; y < n; y++) {
+      for (int x = 0; x < n; x++) xyz[3 * x] = (x + 0.5) * h, xyz[3 * x + 1] = (y + 0.5) * h, xyz[3 * x + 2] = (z + 0.5) * h;
+      oc_fbm3_periodic_batch(xyz, n, &d->fbm, d->period, v->tex[0] + ((size_t)z * (size_t)n + (size_t)y) * (size_t)n);
+    }
+  free(xyz);
+  return 0;
 }
 
 /* Level m from level m − 1: each texel the mean of its 2³ children, summed in a fixed order. */
@@ -96,11 +99,10 @@ int ocs_nvol_create(const ocs_nvol_desc_t *d, ocs_nvol_t **out, char *why, int w
     for (int p = 1; m + p <= v->log2n; p++)
       bad |= !(v->lo[m][p] = ocs__alloc(v->log2n - m - p)), bad |= !(v->hi[m][p] = ocs__alloc(v->log2n - m - p));
   }
-  if (bad) {
+  if (bad || ocs__fill(v, d) < 0) {
     ocs_nvol_destroy(v);
     return OC_ENOMEM;
   }
-  ocs__fill(v, d);
   for (int m = 0; m <= v->log2n; m++) {
     if (m > 0) ocs__mip(v, m);
     for (int p = 1; m + p <= v->log2n; p++) ocs__pyramid(v, m, p);

@@ -363,7 +363,7 @@ static void test_fbm_mean(void **state) {
 static void test_fbm_periodic(void **state) {
   (void)state;
   uint64_t rs = 51;
-  const int period = 3;
+  const int period = 4;
   double worst = 0.0, sum = 0.0, sum2 = 0.0, sum2f = 0.0;
   int n = 50000;
   for (int i = 0; i < n; i++) {
@@ -384,6 +384,14 @@ static void test_fbm_periodic(void **state) {
   frac.lacunarity = 2.5;
   assert_true(oc_fbm3_periodic(0.3, 0.4, 0.5, &frac, period) == 0.0);
   assert_true(oc_fbm3_periodic(0.3, 0.4, 0.5, &FBM6, 0) == 0.0);
+  assert_true(oc_fbm3_periodic(0.3, 0.4, 0.5, &FBM6, 3) == 0.0); /* not a power of two */
+  /* the batch gives the scalar's bits */
+  double xyz[3 * 64];
+  float out[64];
+  for (int i = 0; i < 3 * 64; i++) xyz[i] = rng_range(&rs, -20, 20);
+  assert_int_equal(oc_fbm3_periodic_batch(xyz, 64, &FBM6, period, out), 0);
+  for (int i = 0; i < 64; i++) assert_true(out[i] == (float)oc_fbm3_periodic(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2], &FBM6, period));
+  assert_int_equal(oc_fbm3_periodic_batch(xyz, 64, &FBM6, 6, out), OC_EINVAL);
 }
 
 static void test_args(void **state) {

@@ -149,6 +149,8 @@ static void test_bad_descriptions(void **state) {
   assert_non_null(strstr(why, "period"));
   d = DESC, d.period = 64;
   assert_int_equal(ocs_nvol_create(&d, &v, why, sizeof why), OC_EINVAL);
+  d = DESC, d.period = 3;
+  assert_int_equal(ocs_nvol_create(&d, &v, why, sizeof why), OC_EINVAL);
   d = DESC, d.fbm.lacunarity = 3.0;
   assert_int_equal(ocs_nvol_create(&d, &v, why, sizeof why), OC_EINVAL);
   assert_non_null(strstr(why, "lacunarity"));
