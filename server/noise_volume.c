@@ -123,6 +123,14 @@ void ocs_nvol_destroy(ocs_nvol_t *v) {
 int ocs_nvol_levels(const ocs_nvol_t *v) { return v->log2n + 1; }
 double ocs_nvol_texel(const ocs_nvol_t *v, int level) { return ldexp(1.0 / v->scale, level); }
 double ocs_nvol_period(const ocs_nvol_t *v) { return v->period; }
+size_t ocs_nvol_bytes(const ocs_nvol_t *v) {
+  size_t n = 0;
+  for (int m = 0; m <= v->log2n; m++) {
+    n += (size_t)1 << (3 * (v->log2n - m));
+    for (int p = 1; m + p <= v->log2n; p++) n += (size_t)2 << (3 * (v->log2n - m - p));
+  }
+  return n * sizeof(float);
+}
 const float *ocs_nvol_texels(const ocs_nvol_t *v, int level) {
   return level >= 0 && level <= v->log2n ? v->tex[level] : NULL;
 }

@@ -23,6 +23,8 @@
 #ifndef OC_SERVER_NOISE_VOLUME_H
 #define OC_SERVER_NOISE_VOLUME_H
 
+#include <stddef.h>
+
 #include "oc_noise.h"
 
 /*! The largest volume: 2^OCS_NVOL_MAX_LOG2 texels a side (256³ floats are 64 MiB). */
@@ -46,6 +48,8 @@ int ocs_nvol_levels(const ocs_nvol_t *v);
 double ocs_nvol_texel(const ocs_nvol_t *v, int level);
 /*! The tile in the fBm's units (the description's period). */
 double ocs_nvol_period(const ocs_nvol_t *v);
+/*! Bytes held: the mip chain and the pyramids (about 1.47 × N³ floats). */
+size_t ocs_nvol_bytes(const ocs_nvol_t *v);
 
 /*! ocs_nvol_fetch() : the trilinear interpolation of level `level` (clamped to the chain) at p, in
  *  the fBm's units, wrapped into the tile. */

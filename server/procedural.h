@@ -128,6 +128,15 @@ static inline double ocs__q(const ocs__layer_t *L, double h) {
   if (L->anvil > 0.0) q -= L->anvil * ocs__bump((h - L->h_av) / L->w_av);
   return q;
 }
+/* The least altitude cost over [a, b] (Q_mono is least at h_c, the anvil's bump largest at h_av). */
+static inline double ocs__qmin(const ocs__layer_t *L, double a, double b) {
+  double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c), q = ocs__q_mono(L, hq);
+  if (L->anvil > 0.0) {
+    double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
+    q -= L->anvil * ocs__bump((ha - L->h_av) / L->w_av);
+  }
+  return q;
+}
 /* Water-content profile: a non-decreasing factor times a non-increasing one. */
 static inline double ocs__prof_up(const ocs__layer_t *L, double h) {
   return L->prof_dh > 0.0 ? L->prof_lo + (1.0 - L->prof_lo) * ocs__sat((h - L->h_c) / L->prof_dh) : 1.0;

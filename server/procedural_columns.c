@@ -384,16 +384,6 @@ typedef struct {
   double sum[OC_BRICK_VOXELS];
 } ocs__cws_t;
 
-/* The least altitude cost over [a, b], as ocs__box_max() takes it. */
-static inline double ocs__qmin(const ocs__layer_t *L, double a, double b) {
-  double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c), q = ocs__q_mono(L, hq);
-  if (L->anvil > 0.0) {
-    double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
-    q -= L->anvil * ocs__bump((ha - L->h_av) / L->w_av);
-  }
-  return q;
-}
-
 /* ocs__layer_pieces' cell test: whether a piece of weight W with cell value K (× k.scale), raised
  * by the quadrature's reach, may beat the least altitude cost over its altitudes [h0, h1]. */
 static inline int ocs__cell_passes(const ocs__layer_t *L, double W, double K, double reach, double h0, double h1) {

@@ -375,13 +375,7 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   if (!(W > 0.0)) return 0.0;
   double km = kmax + lf->kmargin; /* the fast filter's estimate may reach this far (procedural_columns.c) */
   double A = W * ocs__sat(L->a0 + L->a1 * (km > 1.0 ? 1.0 : km)) + lf->amargin;
-  double hq = L->h_c < a ? a : (L->h_c > b ? b : L->h_c);
-  double qmin = ocs__q_mono(L, hq);
-  if (L->anvil > 0.0) {
-    double ha = L->h_av < a ? a : (L->h_av > b ? b : L->h_av);
-    qmin -= L->anvil * ocs__bump((ha - L->h_av) / L->w_av);
-  }
-  double G = A - qmin + 1e-9;
+  double G = A - ocs__qmin(L, a, b) + 1e-9;
   if (!(G > 0.0)) return 0.0;
   double phi = ocs__sat(G / L->F_w);
   double wc = lf->wc * ocs__prof_up(L, b) * ocs__prof_down(L, a) * phi, rho = ocs__rho_air(a), s;
