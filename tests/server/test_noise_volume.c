@@ -158,5 +158,116 @@ static void test_bad_descriptions(void **state) {
   ocs_nvol_destroy(NULL);
 }
 
+/* ---- An fBm of rotated octaves of one single-octave volume ---- */
+
+static const ocs_nvol_desc_t ONE = {6, 8, {.octaves = 1, .lacunarity = 2.0, .gain = 0.5, .seed = 23}};
+
+/* Its spread is the evaluated fBm's (within 15 %), and it does not repeat with the tile. */
+static void test_nfbm_spread_and_no_tile(void **state) {
+  (void)state;
+  ocs_nvol_t *v = make(&ONE);
+  ocs_nfbm_t f;
+  assert_int_equal(ocs_nfbm_init(&f, v, 4, 0.5, 9), 0);
+  oc_fbm_t g = {.octaves = 4, .lacunarity = 2.0, .gain = 0.5, .seed = 9};
+  uint64_t rs = 17;
+  int n = 40000;
+  double s2 = 0.0, e2 = 0.0, apart = 0.0;
+  for (int i = 0; i < n; i++) {
+    double p[3] = {rng_range(&rs, -500, 500), rng_range(&rs, -500, 500), rng_range(&rs, -500, 500)};
+    double a = ocs_nfbm_fetch(&f, p, 0.0), e = oc_fbm3(p[0], p[1], p[2], &g);
+    double q[3] = {p[0] + ONE.period, p[1], p[2]};
+    s2 += a * a, e2 += e * e, apart = fmax(apart, fabs(ocs_nfbm_fetch(&f, q, 0.0) - a));
+  }
+  double sd = sqrt(s2 / n), sde = sqrt(e2 / n);
+  printf("rotated octaves: sd %.4f against the evaluated fBm's %.4f; largest change one tile away %.3f\n", sd, sde, apart);
+  assert_true(fabs(sd / sde - 1.0) < 0.15);
+  assert_true(apart > 0.1);
+  int bad = ocs_nfbm_init(&f, v, 0, 0.5, 9) == OC_EINVAL && ocs_nfbm_init(&f, v, 4, 1.0, 9) == OC_EINVAL;
+  assert_true(bad);
+  ocs_nvol_destroy(v);
+}
+
+/* Bounds over balls from 1e-3 to 3 units, at three footprints: random fetches inside (half of them
+ * on the sphere) stay within them. The volume's own bound is checked for tightness above
+ * (test_bound_holds); here the price of bounding a ball by its box and of adding the octaves'
+ * bounds is measured: over balls of radius ≤ 0.01 the sum must stay under half the fBm's Lipschitz
+ * bound (measured 0.44 with one octave; the box of a ball holds its corners too). */
+static void nfbm_bounds(int octaves, int *outside, double *caught, double *narrow) {
+  ocs_nvol_t *v = make(&ONE);
+  ocs_nfbm_t f;
+  ocs_nfbm_init(&f, v, octaves, 0.5, 9);
+  static const double foot[3] = {0.0, 0.05, 0.3};
+  uint64_t rs = 19;
+  int balls = SIZE(300, 100), pts = SIZE(300, 100), hits = 0, total = 0, small = 0;
+  double lip = 0.0, amp = 1.0, norm = 0.0, ratio = 0.0;
+  for (int i = 0; i < octaves; i++, amp *= 0.5) lip += amp * ldexp(1.0, i), norm += amp;
+  lip *= OC_NOISE_LIPSCHITZ / norm;
+  *outside = 0;
+  for (int k = 0; k < 3; k++)
+    for (int b = 0; b < balls; b++) {
+      double c[3] = {rng_range(&rs, -300, 300), rng_range(&rs, -300, 300), rng_range(&rs, -300, 300)};
+      double r = exp(rng_range(&rs, log(1e-3), log(3.0)));
+      float lo, hi;
+      ocs_nfbm_bound(&f, c, r, foot[k], &lo, &hi);
+      double mid = 0.5 * (lo + hi), half = 0.4 * (hi - lo), seen_lo = INFINITY, seen_hi = -INFINITY;
+      for (int i = 0; i < pts; i++) {
+        double d[3], n2 = 0.0;
+        for (int a = 0; a < 3; a++) d[a] = rng_range(&rs, -1, 1), n2 += d[a] * d[a];
+        double s = (i < pts / 2 ? r : r * rng_split_unit(&rs)) / sqrt(n2);
+        double p[3] = {c[0] + d[0] * s, c[1] + d[1] * s, c[2] + d[2] * s};
+        double x = ocs_nfbm_fetch(&f, p, foot[k]);
+        *outside += x < lo || x > hi;
+        seen_lo = fmin(seen_lo, x), seen_hi = fmax(seen_hi, x);
+      }
+      hits += seen_lo < mid - half || seen_hi > mid + half;
+      total++;
+      if (r <= 0.01 && foot[k] == 0.0) ratio += (hi - lo) / (2.0 * lip * r), small++;
+    }
+  *caught = (double)hits / total, *narrow = small ? ratio / small : 1.0;
+  printf("rotated octaves (%d): %d balls, %d values outside; a 0.8x bound caught in %.0f %%; at radius <= 0.01 "
+         "the bound is %.2f of the Lipschitz bound's width\n", octaves, total, *outside, 100.0 * *caught, *narrow);
+  ocs_nvol_destroy(v);
+}
+
+static void test_nfbm_bound_holds(void **state) {
+  (void)state;
+  int outside;
+  double caught, narrow;
+  nfbm_bounds(1, &outside, &caught, &narrow);
+  assert_int_equal(outside, 0);
+  assert_true(narrow < 0.5);
+  nfbm_bounds(4, &outside, &caught, &narrow);
+  assert_int_equal(outside, 0);
+  assert_true(narrow < 0.5);
+}
+
+/* Pre-filtering: at footprint w, the fetch is nearer the mean of the fBm over a cube of edge w
+ * around the point than the point's own value is (RMS over random cubes). */
+static void test_nfbm_prefilter(void **state) {
+  (void)state;
+  ocs_nvol_t *v = make(&ONE);
+  ocs_nfbm_t f;
+  ocs_nfbm_init(&f, v, 4, 0.5, 9);
+  uint64_t rs = 29;
+  const double w = 0.5;
+  double epre = 0.0, epoint = 0.0;
+  int n = SIZE(200, 60);
+  for (int i = 0; i < n; i++) {
+    double c[3] = {rng_range(&rs, -300, 300), rng_range(&rs, -300, 300), rng_range(&rs, -300, 300)}, mean = 0.0;
+    for (int j = 0; j < 16 * 16 * 16; j++) {
+      double p[3] = {c[0] + w * ((j % 16 + 0.5) / 16 - 0.5), c[1] + w * ((j / 16 % 16 + 0.5) / 16 - 0.5),
+                     c[2] + w * ((j / 256 + 0.5) / 16 - 0.5)};
+      mean += ocs_nfbm_fetch(&f, p, 0.0) / 4096.0;
+    }
+    double a = ocs_nfbm_fetch(&f, c, w) - mean, b = ocs_nfbm_fetch(&f, c, 0.0) - mean;
+    epre += a * a / n, epoint += b * b / n;
+  }
+  printf("pre-filtered at footprint %.2f: RMS from the cube's mean %.4f, the point value's %.4f\n", w, sqrt(epre), sqrt(epoint));
+  assert_true(sqrt(epre) < 0.5 * sqrt(epoint));
+  ocs_nvol_destroy(v);
+}
+
 OC_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_texels_are_the_fbm), cmocka_unit_test(test_mips_are_means),
-             cmocka_unit_test(test_fetch), cmocka_unit_test(test_bound_holds), cmocka_unit_test(test_bad_descriptions))
+             cmocka_unit_test(test_fetch), cmocka_unit_test(test_bound_holds), cmocka_unit_test(test_bad_descriptions),
+             cmocka_unit_test(test_nfbm_spread_and_no_tile), cmocka_unit_test(test_nfbm_bound_holds),
+             cmocka_unit_test(test_nfbm_prefilter))
