@@ -24,7 +24,6 @@
 #define OC_SERVER_NOISE_VOLUME_H
 
 #include <stddef.h>
-#include <stdint.h>
 
 #include "oc_noise.h"
 
@@ -63,30 +62,5 @@ void ocs_nvol_bound(const ocs_nvol_t *v, int level, const double a[3], const dou
 
 /*! The texels of one level (N/2^level a side, x fastest), for tests and statistics. */
 const float *ocs_nvol_texels(const ocs_nvol_t *v, int level);
-
-/*-*** An fBm of rotated octaves of one volume ***/
-
-/* A tile repeats; an fBm read from one tile repeats with it. Built instead from a volume of ONE
- * octave (fbm.octaves 1), each octave i reads it at f_i·R_i·p + o_i: its own scale (lacunarity 2),
- * a rotation R_i and an offset o_i, all fixed by a seed. The octaves' tiles then lie along different
- * axes at different periods, and their sum does not repeat. Per octave, a fetch may read the mip
- * whose texel matches a footprint (pre-filtered), and a bound sums the octaves' exact bounds over
- * the ball a box fits in. */
-typedef struct {
-  const ocs_nvol_t *vol;
-  int octaves;
-  double rot[OC_FBM_MAX_OCTAVES][9], off[OC_FBM_MAX_OCTAVES][3];
-  double freq[OC_FBM_MAX_OCTAVES], amp[OC_FBM_MAX_OCTAVES], inv_norm;
-} ocs_nfbm_t;
-
-/*! ocs_nfbm_init() : octaves 1..OC_FBM_MAX_OCTAVES of gain `gain` (0 < gain < 1) over `vol` (not
- *  owned), rotations and offsets from `seed`. @return 0 or OC_EINVAL. */
-int ocs_nfbm_init(ocs_nfbm_t *f, const ocs_nvol_t *vol, int octaves, double gain, uint64_t seed);
-/*! ocs_nfbm_fetch() : the fBm at p, each octave read at the mip whose texel is at most half of
- *  `footprint` (in p's units; 0: level 0, the fBm itself): about its mean over a cube of that edge. */
-float ocs_nfbm_fetch(const ocs_nfbm_t *f, const double p[3], double footprint);
-/*! ocs_nfbm_bound() : [*lo, *hi] holds every ocs_nfbm_fetch() at the same footprint at points
- *  within `radius` of c. */
-void ocs_nfbm_bound(const ocs_nfbm_t *f, const double c[3], double radius, double footprint, float *lo, float *hi);
 
 #endif /* OC_SERVER_NOISE_VOLUME_H */

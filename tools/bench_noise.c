@@ -26,8 +26,7 @@ static const oc_cli_opt_t noise_opts[] = {
     OCT_OPTS_END};
 
 OCT_SPEC(noise, "The fBm evaluated against a tiled pre-filtered volume of it: build, ns per point, bounds.", noise_opts,
-         .epilog = "Box edges and radii are in periods of the first octave; 'dense' is the range the fetches at a 9³\n"
-                   "grid over each box (or inside each ball) find.\n"
+         .epilog = "Box edges are in periods of the first octave; 'dense' is the range 9³ fetches inside each box find.\n"
                    "The points are random over 64 periods, so most fetches miss the cache (a brick's are coherent).\n");
 
 /* Uniform in [0, 1) from a 64-bit LCG: the same points for both forms. */
@@ -92,52 +91,6 @@ static int noise_one(const noise_opts_t *o, int octaves, const double *xyz, floa
   return 0;
 }
 
-/* The same over a single-octave volume read as rotated octaves (ocs_nfbm_t): ns per fetch and per
- * bound, and the bound's width against the Lipschitz bound's and the dense range over balls. */
-static int nfbm_one(const noise_opts_t *o, int octaves, const double *xyz) {
-  ocs_nvol_desc_t d = {o->log2_size, o->period, {.octaves = 1, .lacunarity = 2.0, .gain = 0.5, .seed = 17}};
-  ocs_nvol_t *v;
-  char why[256];
-  if (ocs_nvol_create(&d, &v, why, sizeof why) < 0) return fprintf(stderr, "overcast-bench noise: %s\n", why), -1;
-  ocs_nfbm_t f;
-  ocs_nfbm_init(&f, v, octaves, 0.5, 17);
-  double t0 = oct_now(), sink = 0.0;
-  for (int i = 0; i < o->points; i++) sink += ocs_nfbm_fetch(&f, &xyz[3 * i], 0.0);
-  double fetch = oct_now() - t0;
-  enum { NB = 20000 };
-  t0 = oct_now();
-  for (int i = 0; i < NB; i++) {
-    float lo, hi;
-    ocs_nfbm_bound(&f, &xyz[3 * i], 0.05, 0.0, &lo, &hi);
-    sink += hi - lo;
-  }
-  double bound = oct_now() - t0, lip = 0.0, amp = 1.0, norm = 0.0;
-  for (int i = 0; i < octaves; i++, amp *= 0.5) lip += amp * ldexp(1.0, i), norm += amp;
-  lip *= OC_NOISE_LIPSCHITZ / norm;
-  printf("| %d | %.1f | %.0f |", octaves, 1e9 * fetch / o->points, 1e9 * bound / NB);
-  static const double radii[] = {1.0 / 64, 1.0 / 16, 1.0 / 4};
-  uint64_t s = 5;
-  for (int k = 0; k < 3; k++) {
-    double bw = 0.0, dw = 0.0, r = radii[k];
-    for (int b = 0; b < 200; b++) {
-      double c[3] = {64.0 * unit(&s), 64.0 * unit(&s), 64.0 * unit(&s)}, lo = INFINITY, hi = -INFINITY;
-      float bl, bh;
-      ocs_nfbm_bound(&f, c, r, 0.0, &bl, &bh);
-      for (int i = 0; i < 729; i++) {
-        double p[3] = {c[0] + r * ((i % 9) / 4.0 - 1.0), c[1] + r * ((i / 9 % 9) / 4.0 - 1.0), c[2] + r * ((i / 81) / 4.0 - 1.0)};
-        if ((p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) + (p[2] - c[2]) * (p[2] - c[2]) > r * r) continue;
-        double x = ocs_nfbm_fetch(&f, p, 0.0);
-        lo = fmin(lo, x), hi = fmax(hi, x);
-      }
-      bw += (double)(bh - bl) / 200.0, dw += (hi - lo) / 200.0;
-    }
-    printf(" %.3f / %.3f / %.3f |", bw, fmin(2.0, 2.0 * lip * r), dw);
-  }
-  printf("%s\n", sink == 1234.5 ? " " : "");
-  ocs_nvol_destroy(v);
-  return 0;
-}
-
 int oct_bench_noise(const char *prog, int argc, char **argv) {
   noise_opts_t o = {0};
   int rc = oct_begin(&oct_bench_noise_spec, argc, argv, &o, NULL, NULL, NULL, NULL);
@@ -159,12 +112,6 @@ int oct_bench_noise(const char *prog, int argc, char **argv) {
   rc = OC_EXIT_OK;
   for (int i = 0; i < o.octaves.n && rc == OC_EXIT_OK; i++)
     if (noise_one(&o, (int)o.octaves.v[i], xyz, out) < 0) rc = OC_EXIT_RUNTIME;
-  printf("\nThe same octaves read from one single-octave volume, each rotated, scaled and offset (ocs_nfbm_t: no\n"
-         "tile repeats), over balls of radius r:\n\n"
-         "| octaves | fetch ns/point | bound ns/ball (r = 1/20) | r = 1/64: bound / Lipschitz / dense | r = 1/16 | r = 1/4 |\n"
-         "|---:|---:|---:|---:|---:|---:|\n");
-  for (int i = 0; i < o.octaves.n && rc == OC_EXIT_OK; i++)
-    if (nfbm_one(&o, (int)o.octaves.v[i], xyz) < 0) rc = OC_EXIT_RUNTIME;
   free(xyz), free(out);
   return rc;
 }
