@@ -21,7 +21,7 @@ static size_t ocs__idx(int n, int64_t x, int64_t y, int64_t z) {
   return ((size_t)(z & m) * (size_t)n + (size_t)(y & m)) * (size_t)n + (size_t)(x & m);
 }
 
-static int ocs__check(const ocs_nvol_desc_t *d, char *why, int why_len) {
+static int ocs__check(const ocs_nvol_desc_t *d, char *why, size_t why_len) {
   const char *bad = NULL;
   if (!d)
     bad = "no description";
@@ -31,7 +31,7 @@ static int ocs__check(const ocs_nvol_desc_t *d, char *why, int why_len) {
     bad = "period not a power of two in 1..N (each lattice cell needs a texel)";
   else if (oc_fbm_check(&d->fbm) < 0 || d->fbm.lacunarity != 2.0)
     bad = "fbm invalid or its lacunarity not 2";
-  if (bad && why && why_len > 0) snprintf(why, (size_t)why_len, "noise volume: %s", bad);
+  if (bad && why && why_len > 0) snprintf(why, why_len, "noise volume: %s", bad);
   return bad ? OC_EINVAL : 0;
 }
 
@@ -84,7 +84,7 @@ static void ocs__pyramid(ocs_nvol_t *v, int m, int p) {
 
 static float *ocs__alloc(int log2n) { return malloc(((size_t)1 << (3 * log2n)) * sizeof(float)); }
 
-int ocs_nvol_create(const ocs_nvol_desc_t *d, ocs_nvol_t **out, char *why, int why_len) {
+int ocs_nvol_create(const ocs_nvol_desc_t *d, ocs_nvol_t **out, char *why, size_t why_len) {
   if (!out) return OC_EINVAL;
   *out = NULL;
   OC_TRY(ocs__check(d, why, why_len));

@@ -40,7 +40,7 @@ typedef struct ocs_nvol ocs_nvol_t;
 
 /*! ocs_nvol_create() : builds the volume (level 0, its mips, the pyramids) into a new block.
  *  @return 0, OC_EINVAL (an invalid description: `why` says which field) or OC_ENOMEM. */
-int ocs_nvol_create(const ocs_nvol_desc_t *d, ocs_nvol_t **out, char *why, int why_len);
+int ocs_nvol_create(const ocs_nvol_desc_t *d, ocs_nvol_t **out, char *why, size_t why_len);
 void ocs_nvol_destroy(ocs_nvol_t *v);
 
 /*! Levels of the mip chain (log2_size + 1), and a level's texel size in the fBm's units. */
