@@ -9,6 +9,7 @@
 #include "ocp.h"
 #include "analytic.h"       /* closed-form media: ocs_prim_*, ocs_medium_* */
 #include "ocs_field.h"      /* field sources */
+#include "noise_volume.h"   /* tiled pre-filtered noise volumes: ocs_nvol_* */
 #include "ocs_server.h"     /* the server: create, run, stop */
 #include "planner.h"        /* the planner: ocs_plan_* */
 #include "scene_voxelize.h" /* a scene's analytic sources as one state: ocs_scene_voxelize */

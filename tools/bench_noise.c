@@ -9,9 +9,8 @@
 
 #include "bench.h"
 #include "bench_util.h"
-#include "noise_volume.h"
 #include "oc.h"
-#include "oc_noise.h"
+#include "ocs.h"
 
 typedef struct {
   int log2_size, period, points;
