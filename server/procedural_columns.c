@@ -18,8 +18,8 @@
  * (OCS_COL_NA columns in A', rows OCS_COL_DH m apart, each row integrated by the midpoint rule on
  * OCS_COL_SUB sub-steps, which resolves the 3 m ramp of a cumulus base; bilinear between entries).
  *
- * The voxel is cut, as the exact filter cuts it, into nc × nc columns along its most vertical axis
- * (OCS_COL_DH_H metres apart, 4 to 6; two at fine levels), so its volume is partitioned exactly.
+ * The voxel is cut into nc × nc columns along its most vertical axis (OCS_COL_COARSE a side; two at
+ * fine levels), so its volume is partitioned exactly.
  * Along a column dt = (r/|t|)·dh (t the coordinate along the axis), taken at a piece's midpoint.
  * Each pattern's fBm is split per level: octaves at least OCS_COL_KAPPA column spacings long are
  * evaluated ("resolved"), the finer ones are not, and enter through their distribution:
@@ -55,17 +55,17 @@
 
 /*-*** Knobs ***/
 
-/*! Columns of a voxel per horizontal axis: the exact filter's horizontal strata (450 m apart, 4 to
- *  6) down to voxels of OCS_COL_FINE metres, two below. Cells are steep ramps (V = sat(a0 + a1·K),
- *  a1 = 4 for cumulus), and at levels 10–12 where their edges fall decides where cloud shadows
- *  fall: the main job's view at 480×270 is within image RMSE 0.77 of the exact filter's with four
- *  columns a side at level 12 and 1.43 with two (docs/numerics.md). */
+/*! Columns of a voxel per horizontal axis: OCS_COL_COARSE down to voxels of OCS_COL_FINE metres, two
+ *  below. They were the exact filter's horizontal strata (450 m apart, 4 to 6 a side); three a side
+ *  keep the images of the main view, a view from 10 km and the storm within 0.02 of their RMSE
+ *  against the exact filter (the storm 0.06 nearer), for 0.66–0.82× the server's CPU, though a
+ *  voxel's own error grows (docs/performance.md, lever 12; docs/numerics.md). */
 #ifndef OCS_COL_FINE
 #define OCS_COL_FINE 400.0
 #endif
-#define OCS_COL_DH_H 450.0
-#define OCS_COL_MIN_H 4
-#define OCS_COL_MAX_H 6
+#ifndef OCS_COL_COARSE
+#define OCS_COL_COARSE 3
+#endif
 /*! An octave is resolved when its period is at least this many column spacings (or piece
  *  lengths); pieces are cut so that resolved octaves move at most 1/OCS_COL_KAPPA of a period. */
 #ifndef OCS_COL_KAPPA
@@ -270,9 +270,9 @@ static ocs__split_t ocs__split(const oc_fbm_t *f, double lambda, double spacing)
  * counts and gains). */
 static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc_fbm_t *det, int level,
                            ocs__plan_t *pl) {
-  double u = ocs__voxel_size(level), n = ceil(u / OCS_COL_DH_H);
+  double u = ocs__voxel_size(level);
   pl->u = u;
-  pl->nc = u < OCS_COL_FINE ? 2 : (n < OCS_COL_MIN_H ? OCS_COL_MIN_H : (n > OCS_COL_MAX_H ? OCS_COL_MAX_H : (int)n));
+  pl->nc = u < OCS_COL_FINE ? 2 : OCS_COL_COARSE;
   double spacing = u / (double)pl->nc;
   double lk = L->cell.lambda_short > 0.0 ? L->cell.lambda_short : L->cell.lambda;
   double ld = L->det.lambda_short > 0.0 ? L->det.lambda_short : L->det.lambda;
@@ -638,7 +638,7 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
       free(cc);
       return OC_ENOMEM;
     }
-    double off[OCS_COL_MAX_H];
+    double off[OCS_COL_COARSE > 2 ? OCS_COL_COARSE : 2];
     for (int m = 0; m < pl->nc; m++) off[m] = ((double)m + 0.5) / (double)pl->nc - 0.5;
     ws->n = 0;
     ws->cc = cc[l];
