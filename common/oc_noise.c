@@ -117,6 +117,16 @@ OC__INLINE double oc__cell(const uint64_t g[8], double fx, double fy, double fz)
   return oc__sel(oc__mask(r < -1.0), -1.0, r);
 }
 
+/* The noise inside a cell from the axis hashes of its two corners on each axis: the corners'
+ * gradients, then the kernel. Scalars, not arrays, so that gcc still vectorises the batch loops. */
+OC__INLINE double oc__hashed_cell(uint64_t hx0, uint64_t hx1, uint64_t hy0, uint64_t hy1, uint64_t hz0, uint64_t hz1,
+                                  double fx, double fy, double fz) {
+  uint64_t g[8] = {oc__corner(hx0 + hy0 + hz0), oc__corner(hx1 + hy0 + hz0), oc__corner(hx0 + hy1 + hz0),
+                   oc__corner(hx1 + hy1 + hz0), oc__corner(hx0 + hy0 + hz1), oc__corner(hx1 + hy0 + hz1),
+                   oc__corner(hx0 + hy1 + hz1), oc__corner(hx1 + hy1 + hz1)};
+  return oc__cell(g, fx, fy, fz);
+}
+
 /* The noise at one point; `s` is the premixed seed. Shared by every entry point. */
 OC__INLINE double oc__noise(double x, double y, double z, uint64_t s) {
   uint64_t ix, iy, iz;
@@ -124,28 +134,17 @@ OC__INLINE double oc__noise(double x, double y, double z, uint64_t s) {
   double fy = y - oc__floor(y, &iy);
   double fz = z - oc__floor(z, &iz);
   /* Axis hashes of both corners of the cell. */
-  uint64_t hx0 = ix * OC__PX + s, hx1 = hx0 + OC__PX;
-  uint64_t hy0 = iy * OC__PY, hy1 = hy0 + OC__PY;
-  uint64_t hz0 = iz * OC__PZ, hz1 = hz0 + OC__PZ;
-  uint64_t g[8] = {oc__corner(hx0 + hy0 + hz0), oc__corner(hx1 + hy0 + hz0), oc__corner(hx0 + hy1 + hz0),
-                   oc__corner(hx1 + hy1 + hz0), oc__corner(hx0 + hy0 + hz1), oc__corner(hx1 + hy0 + hz1),
-                   oc__corner(hx0 + hy1 + hz1), oc__corner(hx1 + hy1 + hz1)};
-  return oc__cell(g, fx, fy, fz);
+  uint64_t hx0 = ix * OC__PX + s, hy0 = iy * OC__PY, hz0 = iz * OC__PZ;
+  return oc__hashed_cell(hx0, hx0 + OC__PX, hy0, hy0 + OC__PY, hz0, hz0 + OC__PZ, fx, fy, fz);
 }
 
 /* The noise at one point with the lattice wrapped every n = mask + 1 cells along each axis (n a
- * power of two): the corners' indices are masked before they are hashed. Branch-free, like
- * oc__noise(), so the batch loop vectorises. */
+ * power of two): the corners' indices are masked before they are hashed. */
 OC__INLINE double oc__noise_wrapped(double x, double y, double z, uint64_t s, uint64_t mask) {
   uint64_t ix, iy, iz;
   double fx = x - oc__floor(x, &ix), fy = y - oc__floor(y, &iy), fz = z - oc__floor(z, &iz);
-  uint64_t hx0 = (ix & mask) * OC__PX + s, hx1 = ((ix + 1) & mask) * OC__PX + s;
-  uint64_t hy0 = (iy & mask) * OC__PY, hy1 = ((iy + 1) & mask) * OC__PY;
-  uint64_t hz0 = (iz & mask) * OC__PZ, hz1 = ((iz + 1) & mask) * OC__PZ;
-  uint64_t g[8] = {oc__corner(hx0 + hy0 + hz0), oc__corner(hx1 + hy0 + hz0), oc__corner(hx0 + hy1 + hz0),
-                   oc__corner(hx1 + hy1 + hz0), oc__corner(hx0 + hy0 + hz1), oc__corner(hx1 + hy0 + hz1),
-                   oc__corner(hx0 + hy1 + hz1), oc__corner(hx1 + hy1 + hz1)};
-  return oc__cell(g, fx, fy, fz);
+  return oc__hashed_cell((ix & mask) * OC__PX + s, ((ix + 1) & mask) * OC__PX + s, (iy & mask) * OC__PY,
+                         ((iy + 1) & mask) * OC__PY, (iz & mask) * OC__PZ, ((iz + 1) & mask) * OC__PZ, fx, fy, fz);
 }
 
 /*-*** Noise ***/
