@@ -65,7 +65,7 @@ static int noise_one(const noise_opts_t *o, int octaves, const double *xyz, floa
   t0 = oct_now();
   for (int i = 0; i < o->points; i++) sink += ocs_nvol_fetch(v, 0, &xyz[3 * i]);
   double fetch = oct_now() - t0;
-  enum { NB = 20000 };
+  const int NB = o->points < 20000 ? o->points : 20000; /* boxes at the first points */
   t0 = oct_now();
   for (int i = 0; i < NB; i++) {
     double a[3] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]}, c[3] = {a[0] + 0.05, a[1] + 0.05, a[2] + 0.05};

@@ -175,6 +175,10 @@ check "bench: stability, odd size" 2 "--size: expected WxH with even sides" -- "
 check "bench: stability, bad renderer" 2 "--renderer: expected cpu, gl or cpu,gl" -- "$B" stability --renderer vulkan
 check "bench: features, bad epochs" 2 "--epochs: 0 is outside" -- "$B" features --epochs 0
 check "bench: features, bad renderer" 2 "--renderer: expected cpu or gl" -- "$B" features --renderer vulkan
+check "bench: noise, period not a power of two" 2 "--period must be a power of two" -- "$B" noise --period 3
+check "bench: noise, period above the volume" 2 "--period must be a power of two no larger than 2\\^K" -- "$B" noise --log2-size 3 --period 16
+check "bench: noise, bad size" 2 "--log2-size: 9 is outside" -- "$B" noise --log2-size 9
+check "bench: noise, small run" 0 "" -- "$B" noise --log2-size 4 --points 1024 --octaves 3
 
 C=$BIN/overcast-ctl
 check "ctl: --help" 0 "" -- "$C" --help
