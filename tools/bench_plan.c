@@ -85,7 +85,6 @@ static int settle(run_t *r, oc_camera_pose_t pose, long leaves, int max_epochs, 
   return max_epochs;
 }
 
-
 typedef struct {
   double plan_ms[64], commit_ms[64];
   double splits, merges, leaves, max_plan_ms;
