@@ -402,7 +402,11 @@ static double ocs__walk(ocs__ctx_t *c, oc_dvec3 p, double ta, double tb, int lev
       k[0] = b[bi], k[1] = b[bi + 1], k[2] = b[bi + 8], k[3] = b[bi + 9];
       k[4] = b[bi + 64], k[5] = b[bi + 65], k[6] = b[bi + 72], k[7] = b[bi + 73];
       for (int a = 0; a < 3; a++) o[a] = (double)g[a] * v - pv[a];
-#define OCS__F(tt) ocs__tri(k, ((tt) * dv[0] - o[0]) * inv, ((tt) * dv[1] - o[1]) * inv, ((tt) * dv[2] - o[2]) * inv)
+      /* a cell whose corners are all 0 (σt ≥ 0: their sum is 0) interpolates to exactly +0.0, the
+       * value ocs__tri would return, so it is not evaluated: clear cells of a cloudy brick are many */
+      int zero = k[0] + k[1] + k[2] + k[3] + k[4] + k[5] + k[6] + k[7] == 0.0;
+#define OCS__F(tt) \
+  (zero ? 0.0 : ocs__tri(k, ((tt) * dv[0] - o[0]) * inv, ((tt) * dv[1] - o[1]) * inv, ((tt) * dv[2] - o[2]) * inv))
       if (first) fa = OCS__F(t), first = 0;
       double tc = tb;
       int am = -1;
