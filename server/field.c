@@ -7,76 +7,39 @@
 
 #include "oc_err.h"
 #include "ocs_field.h"
-
-/*-*** The bound cache (ocs_field.h) ***/
-
-/* One slot: a seqlock over (key, step, lo|hi). seq is odd while a writer fills the slot; key 0
- * (no sentinel bit) is never a node, so a zeroed slot never hits. All fields are atomics, read
- * and written relaxed, ordered by the fences (the seqlock of Boehm, "Can seqlocks get along with
- * programming language memory models?", 2012). */
-typedef struct {
-  _Atomic uint64_t seq, key, step, val;
-} ocs__bslot_t;
-
-_Static_assert((OCS_FIELD_BOUND_CACHE_SLOTS & (OCS_FIELD_BOUND_CACHE_SLOTS - 1)) == 0, "a power of two");
+#include "seqcache.h"
 
 struct ocs_field_s {
   int count;
   int cache_on;
   int exact; /* sample with each source's sample_exact where it has one */
   ocs_source_t *src[OC_SCENE_MAX_SOURCES];
-  ocs__bslot_t *bc[OC_SCENE_MAX_SOURCES]; /* NULL: the source is not cached */
+  ocs_seqcache_t *bc[OC_SCENE_MAX_SOURCES]; /* the bound cache; NULL: the source is not cached */
   atomic_ullong sampled, bounds, hits, misses;
 };
 
-static size_t ocs__bslot_of(oc_key_t key, uint64_t step) {
-  uint64_t h = (uint64_t)key * 0x9e3779b97f4a7c15ull ^ step * 0xc2b2ae3d27d4eb4full;
-  h ^= h >> 29;
-  h *= 0xbf58476d1ce4e5b9ull;
-  h ^= h >> 32;
-  return (size_t)(h & (OCS_FIELD_BOUND_CACHE_SLOTS - 1));
-}
+/*-*** The bound cache (ocs_field.h): one seqcache per cacheable source, lo|hi in one word ***/
 
-static int ocs__bcache_get(ocs__bslot_t *e, oc_key_t key, uint64_t step, float *lo, float *hi) {
-  uint64_t s1 = atomic_load_explicit(&e->seq, memory_order_acquire);
-  if (s1 & 1u) return 0;
-  uint64_t k = atomic_load_explicit(&e->key, memory_order_relaxed);
-  uint64_t st = atomic_load_explicit(&e->step, memory_order_relaxed);
-  uint64_t v = atomic_load_explicit(&e->val, memory_order_relaxed);
-  atomic_thread_fence(memory_order_acquire);
-  if (atomic_load_explicit(&e->seq, memory_order_relaxed) != s1 || k != key || st != step) return 0;
+static int ocs__bcache_get(const ocs_seqcache_t *c, oc_key_t key, uint64_t step, float *lo, float *hi) {
+  uint64_t v;
+  if (!ocs_seqcache_get(c, key, step, &v)) return 0;
   uint32_t a = (uint32_t)(v >> 32), b = (uint32_t)v;
   memcpy(lo, &a, sizeof a);
   memcpy(hi, &b, sizeof b);
   return 1;
 }
 
-static void ocs__bcache_put(ocs__bslot_t *e, oc_key_t key, uint64_t step, float lo, float hi) {
-  uint64_t s = atomic_load_explicit(&e->seq, memory_order_relaxed);
-  if ((s & 1u) || !atomic_compare_exchange_strong_explicit(&e->seq, &s, s + 1, memory_order_relaxed, memory_order_relaxed))
-    return; /* another writer holds the slot: skip, the next miss inserts */
-  atomic_thread_fence(memory_order_release);
+static void ocs__bcache_put(ocs_seqcache_t *c, oc_key_t key, uint64_t step, float lo, float hi) {
   uint32_t a, b;
   memcpy(&a, &lo, sizeof a);
   memcpy(&b, &hi, sizeof b);
-  atomic_store_explicit(&e->key, key, memory_order_relaxed);
-  atomic_store_explicit(&e->step, step, memory_order_relaxed);
-  atomic_store_explicit(&e->val, ((uint64_t)a << 32) | b, memory_order_relaxed);
-  atomic_store_explicit(&e->seq, s + 2, memory_order_release);
+  uint64_t v = ((uint64_t)a << 32) | b;
+  ocs_seqcache_put(c, key, step, &v);
 }
 
 /* Empties every table (callers serialise against bound()). */
 static void ocs__bcache_clear(ocs_field_t *f) {
-  for (int i = 0; i < f->count; i++) {
-    ocs__bslot_t *t = f->bc[i];
-    if (!t) continue;
-    for (size_t j = 0; j < OCS_FIELD_BOUND_CACHE_SLOTS; j++) {
-      atomic_store_explicit(&t[j].key, 0, memory_order_relaxed);
-      atomic_store_explicit(&t[j].step, 0, memory_order_relaxed);
-      atomic_store_explicit(&t[j].val, 0, memory_order_relaxed);
-    }
-  }
-  atomic_thread_fence(memory_order_seq_cst);
+  for (int i = 0; i < f->count; i++) ocs_seqcache_clear(f->bc[i]);
 }
 
 /*-*** The field ***/
@@ -112,7 +75,7 @@ int ocs_field_create(ocs_field_t **out, const oc_scene_t *sc, char *why, size_t 
     }
     f->count = i + 1;
     if (f->src[i]->vt->bound_by_step) {
-      f->bc[i] = calloc(OCS_FIELD_BOUND_CACHE_SLOTS, sizeof *f->bc[i]); /* zero bits: every atomic 0, no slot valid */
+      f->bc[i] = ocs_seqcache_new(OCS_FIELD_BOUND_CACHE_SLOTS, 1);
       if (!f->bc[i]) {
         ocs_field_free(f);
         return OC_ENOMEM;
@@ -129,7 +92,7 @@ void ocs_field_free(ocs_field_t *f) {
   if (!f) return;
   for (int i = 0; i < f->count; i++)
     if (f->src[i]) f->src[i]->vt->destroy(f->src[i]);
-  for (int i = 0; i < f->count; i++) free(f->bc[i]);
+  for (int i = 0; i < f->count; i++) ocs_seqcache_free(f->bc[i]);
   free(f);
 }
 
@@ -137,6 +100,14 @@ int ocs_field_animated(const ocs_field_t *f) {
   for (int i = 0; i < f->count; i++)
     if (f->src[i]->animated) return 1;
   return 0;
+}
+
+/* One source's bound of node key's footprint [lo, hi]. */
+static void ocs__source_bound(const ocs_source_t *s, oc_key_t key, oc_dvec3 lo, oc_dvec3 hi, double t, float *a, float *b) {
+  if (s->vt->node_bound && oc_key_valid(key))
+    s->vt->node_bound(s, key, t, a, b);
+  else
+    s->vt->bound(s, lo, hi, t, a, b);
 }
 
 /* The sample footprint reaches size/14 beyond the node on every side (box filter of edge size/7). */
@@ -154,16 +125,15 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
     float a, b;
     if (cache && f->bc[i]) {
       uint64_t step = s->vt->time_step(s, level, t);
-      ocs__bslot_t *e = &f->bc[i][ocs__bslot_of(key, step)];
-      if (ocs__bcache_get(e, key, step, &a, &b)) {
+      if (ocs__bcache_get(f->bc[i], key, step, &a, &b)) {
         hits++;
       } else {
-        s->vt->bound(s, lo, hi, t, &a, &b);
-        ocs__bcache_put(e, key, step, a, b);
+        ocs__source_bound(s, key, lo, hi, t, &a, &b);
+        ocs__bcache_put(f->bc[i], key, step, a, b);
         misses++;
       }
     } else {
-      s->vt->bound(s, lo, hi, t, &a, &b);
+      ocs__source_bound(s, key, lo, hi, t, &a, &b);
     }
     mn += a;
     mx += b;
