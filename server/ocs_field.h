@@ -60,6 +60,10 @@ typedef struct {
   /*! sample_exact() : optional; the exact box filter where sample() is a cheaper estimate of it
    *  (NULL: sample() is exact). Tests and benches compare the two (ocs_field_set_exact()). */
   int (*sample_exact)(const ocs_source_t *src, oc_key_t key, double t, float out[OC_BRICK_VOXELS]);
+  /*! node_bound() : optional; bound() over node key's sample footprint, the same bits, for a source
+   *  that keeps more of that answer for its sampler (the procedural source: its per-layer ranges).
+   *  NULL: the field calls bound() with the footprint. */
+  void (*node_bound)(const ocs_source_t *src, oc_key_t key, double t, float *smin, float *smax);
 } ocs_source_vtbl_t;
 
 struct ocs_source_s {

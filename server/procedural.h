@@ -13,6 +13,7 @@
 #include "oc_noise.h"
 #include "oc_planet.h"
 #include "ocs_field.h"
+#include "seqcache.h"
 #include "weather.h"
 
 #define OCG_REAL_DOUBLE /* Märkl's conversions in double, from the one shared implementation */
@@ -164,6 +165,7 @@ typedef struct {
   double vmax; /* m/s: fastest motion of any pattern */
   double dt0;  /* s: motion time step at level 0 */
   ocs__lstate_t L[OCS_LAYER_COUNT];
+  ocs_seqcache_t *nbc; /* node bounds by (key, time step), ocs__brick_begin; NULL: none */
 } ocs__proc_t;
 
 /* What one evaluation needs at one (level, time): snapped motion time, blended weather. */
@@ -259,6 +261,11 @@ typedef struct {
   double cmin[OCS_LAYER_COUNT], cmax[OCS_LAYER_COUNT], kmax[OCS_LAYER_COUNT];
   unsigned mask, wone;
 } ocs__bb_t;
+
+/*! Slots of the node-bound cache (source_procedural.c, ocs__node_max: 136 bytes each). */
+#ifndef OCS_PROC_NODE_CACHE_SLOTS
+#define OCS_PROC_NODE_CACHE_SLOTS 16384
+#endif
 
 /*! Largest grid half-size m of ocs__dir_range(): (2m + 1)² = 289 noise points per field. */
 #ifndef OCS_PROC_BOUND_GRID

@@ -420,6 +420,55 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
   return total;
 }
 
+/*-*** The node bound, remembered ***/
+
+static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t);
+
+/* A node's bound over its sample footprint, as the node-bound cache holds it: the total and the
+ * bb (masks, per-layer ranges) as 64-bit words, bit for bit. */
+enum { OCS__NB_WORDS = 2 + 3 * OCS_LAYER_COUNT };
+
+static void ocs__nb_pack(double total, const ocs__bb_t *bb, uint64_t w[OCS__NB_WORDS]) {
+  memcpy(&w[0], &total, sizeof total);
+  w[1] = (uint64_t)bb->mask << 32 | bb->wone;
+  memcpy(&w[2], bb->cmin, sizeof bb->cmin);
+  memcpy(&w[2 + OCS_LAYER_COUNT], bb->cmax, sizeof bb->cmax);
+  memcpy(&w[2 + 2 * OCS_LAYER_COUNT], bb->kmax, sizeof bb->kmax);
+}
+
+static double ocs__nb_unpack(const uint64_t w[OCS__NB_WORDS], ocs__bb_t *bb) {
+  double total;
+  memcpy(&total, &w[0], sizeof total);
+  bb->mask = (unsigned)(w[1] >> 32), bb->wone = (unsigned)w[1];
+  memcpy(bb->cmin, &w[2], sizeof bb->cmin);
+  memcpy(bb->cmax, &w[2 + OCS_LAYER_COUNT], sizeof bb->cmax);
+  memcpy(bb->kmax, &w[2 + 2 * OCS_LAYER_COUNT], sizeof bb->kmax);
+  return total;
+}
+
+/* σt's maximum over node key's sample footprint (the node grown by size/14) at the frame F of the
+ * key's level at t, with its ranges in nb. The planner's bound of a node and its sampler's
+ * ocs__brick_begin() ask the same question one after the other: the answer, a pure function of
+ * (key, time step) (see ocs__proc_time_step), is remembered in P->nbc and returned bit for bit. */
+static double ocs__node_max(const ocs__proc_t *P, oc_key_t key, double t, const ocs__frame_t *F, ocs__bb_t *nb) {
+  uint64_t step = 0, w[OCS__NB_WORDS];
+  if (P->nbc) {
+    step = ocs__proc_time_step(&P->base, oc_key_level(key), t);
+    if (ocs_seqcache_get(P->nbc, key, step, w)) return ocs__nb_unpack(w, nb);
+  }
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(key, &o, &size);
+  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
+  memset(nb, 0, sizeof *nb); /* layers the box skips leave their ranges unset: cached as 0 */
+  double m = ocs__box_max(P, F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, nb);
+  if (P->nbc) {
+    ocs__nb_pack(m, nb, w);
+    ocs_seqcache_put(P->nbc, key, step, w);
+  }
+  return m;
+}
+
 int ocs__brick_begin(const ocs_source_t *s, oc_key_t key, double t, ocs__brick_t *B) {
   const ocs__proc_t *P = B->P = (const ocs__proc_t *)s;
   ocs__frame_t *F = &B->F;
@@ -428,11 +477,7 @@ int ocs__brick_begin(const ocs_source_t *s, oc_key_t key, double t, ocs__brick_t
   if (level < 0) return OC_EINVAL;
   ocs__frame(P, level, t, F);
   if (!F->mask) return 0;
-  oc_dvec3 o;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
-  if (!(ocs__box_max(P, F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, nb) > 0.0)) return 0;
+  if (!(ocs__node_max(P, key, t, F, nb) > 0.0)) return 0;
   /* Per-voxel bounds re-evaluate a layer's noise only where that can decide something: the node's
    * coverage is in the ramp (a voxel may be all 0 or all 1), or the cell bound is informative at
    * the voxel's size (Lipschitz step below 1/2). Elsewhere they reuse the node's ranges. */
@@ -639,6 +684,17 @@ static void ocs__proc_bound(const ocs_source_t *s, oc_dvec3 lo, oc_dvec3 hi, dou
   *smax = ocs__round_up(ocs__box_max(P, &F, ~0u, l3, h3, OCS_PROC_BOUND_GRID, NULL, 0, &bb));
 }
 
+/* The bound of a node's sample footprint (ocs_source_vtbl_t.node_bound): ocs__proc_bound's bits
+ * (the footprint's level_of_box is the key's level), through the node-bound cache. */
+static void ocs__proc_node_bound(const ocs_source_t *s, oc_key_t key, double t, float *smin, float *smax) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  ocs__frame_t F;
+  ocs__frame(P, oc_key_level(key), t, &F);
+  ocs__bb_t bb;
+  *smin = 0.0f;
+  *smax = F.mask ? ocs__round_up(ocs__node_max(P, key, t, &F, &bb)) : 0.0f;
+}
+
 /*-*** Time ***/
 
 /* The motion part moves one level step every OCS_PROC_STEP_VOXELS voxels of the fastest pattern
@@ -656,14 +712,19 @@ static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t) 
 
 static int ocs__proc_set_weather(ocs_source_t *s, oc_preset_t preset, double t0, double seconds) {
   ocs__proc_t *P = (ocs__proc_t *)s;
+  ocs_seqcache_clear(P->nbc); /* a generation wrap of the time step can never revive an entry */
   return ocs_weather_set(&P->weather, preset, t0, seconds);
 }
 
-static void ocs__proc_destroy(ocs_source_t *s) { free(s); }
+static void ocs__proc_destroy(ocs_source_t *s) {
+  ocs_seqcache_free(((ocs__proc_t *)s)->nbc);
+  free(s);
+}
 
 static const ocs_source_vtbl_t ocs__proc_vt = {
     .name = "procedural",
     .bound = ocs__proc_bound,
+    .node_bound = ocs__proc_node_bound,
     .sample = ocs__proc_sample_columns,
     .sample_exact = ocs__proc_sample_strata,
     .time_step = ocs__proc_time_step,
@@ -763,6 +824,11 @@ int ocs_source_procedural_create(ocs_source_t **out, const oc_source_t *desc, ui
     return OC_ENOMEM;
   }
   P->dt0 = OCS_PROC_STEP_VOXELS * ocs__voxel_size(0) / P->vmax;
+  const char *env = getenv("OCS_PROC_NODE_CACHE"); /* "0": no node-bound cache (before/after benches) */
+  if (!(env && strcmp(env, "0") == 0) && !(P->nbc = ocs_seqcache_new(OCS_PROC_NODE_CACHE_SLOTS, OCS__NB_WORDS))) {
+    ocs__proc_destroy(&P->base);
+    return OC_ENOMEM;
+  }
   *out = &P->base;
   return 0;
 }

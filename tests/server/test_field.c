@@ -165,10 +165,24 @@ static void same_bound(ocs_field_t *c, ocs_field_t *u, oc_key_t k, double t) {
              oc_key_level(k), t, a0, b0, a1, b1, a2, b2);
 }
 
+/* The bricks too: the procedural sampler takes its node's ranges from the source's node-bound
+ * cache (OCS_PROC_NODE_CACHE=0 at creation: none), filled by the bound just asked, or by a sample. */
+static void same_brick(ocs_field_t *c, ocs_field_t *u, oc_key_t k, double t) {
+  float a[OC_BRICK_VOXELS], b[OC_BRICK_VOXELS];
+  assert_int_equal(ocs_field_sample(u, k, t, a), 0);
+  assert_int_equal(ocs_field_sample(c, k, t, b), 0);
+  if (memcmp(a, b, sizeof a))
+    fail_msg("key %llx level %d t %.17g: the brick differs with the node-bound cache", (unsigned long long)k,
+             oc_key_level(k), t);
+}
+
 static void test_field__bound_cache_is_exact(void **st) {
   (void)st;
   const char *json = "{\"sources\": [{\"type\": \"procedural\", \"preset\": \"fair\"}], \"features\": {\"animation\": true}}";
-  ocs_field_t *c = field_from(json), *u = field_from(json);
+  ocs_field_t *c = field_from(json);
+  setenv("OCS_PROC_NODE_CACHE", "0", 1);
+  ocs_field_t *u = field_from(json);
+  unsetenv("OCS_PROC_NODE_CACHE");
   ocs_field_set_bound_cache(u, 0);
   enum { NODES = 160 };
   oc_key_t keys[NODES];
@@ -201,13 +215,18 @@ static void test_field__bound_cache_is_exact(void **st) {
     }
     for (int i = 0; i < NODES; i++)
       for (int j = 0; j < 4; j++) {
+        if (j == 2 && i % 4 == 0) same_brick(c, u, keys[i], times[i][j]); /* before its bound: the sample fills */
         same_bound(c, u, keys[i], times[i][j]);
+        if (i % 4 == 1 && oc_key_level(keys[i]) >= 4) same_brick(c, u, keys[i], times[i][j]); /* after: it hits */
         float lo, hi;
         ocs_field_bound(u, keys[i], times[i][j], &lo, &hi);
         nonzero += hi > 0.0f;
       }
     for (double t = 990.0; t < 1700.0; t += 37.5) /* through the transition's steps */
-      for (int i = 0; i < NODES; i += 7) same_bound(c, u, keys[i], t);
+      for (int i = 0; i < NODES; i += 7) {
+        same_bound(c, u, keys[i], t);
+        if (i % 3 == 0) same_brick(c, u, keys[i], t);
+      }
   }
   ocs_field_stats_t sc, su;
   ocs_field_stats(c, &sc);
