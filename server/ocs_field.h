@@ -14,10 +14,11 @@
  * such source (32 bytes each: 2 MiB per procedural source, allocated at create, never grown),
  * keyed by (key, that source's time_step(level of key, t)). The planner's classify, production's
  * known-empty check and every τ march ask for the same nodes again and again; a hit returns the
- * bits the source would compute. Entries are per-slot seqlocks (lock-free: a reader that meets a
- * write in progress misses, a writer that meets another write skips its insert), and
+ * bits the source would compute. Entries are per-slot seqlocks (seqcache.h: lock-free, a reader
+ * that meets a write in progress misses, a writer that meets another write skips its insert), and
  * ocs_field_set_weather() empties the table, so a generation wrap of the time step can never
- * revive an entry. ocs_field_stats() counts hits and misses. The environment variable
+ * revive an entry. A source with node_bound() is asked through it (it may remember more than the
+ * field does: the procedural source keeps the per-layer ranges its sampler needs). ocs_field_stats() counts hits and misses. The environment variable
  * OCS_FIELD_BOUND_CACHE=0 at ocs_field_create() bypasses the cache (before/after benches).
  *
  * Thread safety: after ocs_field_create(), bound/sample/time_step may be called from any number
