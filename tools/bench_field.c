@@ -26,21 +26,6 @@
 #include "bench_util.h"
 #include "ocs.h"
 
-/* The anchor: 512 scalar oc_fbm3() per node, one per sample position. @return seconds. */
-static double oct__anchor(const oc_key_t *keys, long n, double *sink) {
-  const oc_fbm_t fb = {.octaves = 6, .lacunarity = 2.0, .gain = 0.5, .seed = 17};
-  double acc = 0.0, t0 = oct_now();
-  for (long q = 0; q < n; q++)
-    for (int k = 0; k < 8; k++)
-      for (int j = 0; j < 8; j++)
-        for (int i = 0; i < 8; i++) {
-          oc_dvec3 p = ocs_brick_sample_pos(keys[q], i, j, k);
-          acc += oc_fbm3(p.x * 1e-3, p.y * 1e-3, p.z * 1e-3, &fb);
-        }
-  *sink += acc;
-  return oct_now() - t0;
-}
-
 /* τ volumes of one level's block, built on first use (the world's cache of them). */
 typedef struct {
   oc_key_t group;
@@ -140,7 +125,7 @@ static int field_level(field_run_t *R, int level, oc_dvec3 centre, double *sink,
         nonempty_bricks += any;
       }
   long nodes = R->nodes, sampled = R->sampled;
-  double ta = oct__anchor(R->keys, nodes, sink);
+  double ta = oct_anchor_seconds(R->keys, nodes, sink);
   *anchor = nodes / ta;
   fprintf(stderr, "\r\033[K");
   printf("| %d | %.1f | %ld | %.1f %% | %ld | %.0f | %.1f | %.1f %% | %ld | %.0f | %.0f | %.2f× | %.2f× |\n", level,

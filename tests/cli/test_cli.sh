@@ -162,6 +162,9 @@ check "bench: wire, unknown option" 2 "wire: unknown or incomplete option" -- "$
 check "bench: tau, bad level" 2 "--level: 30 is outside" -- "$B" tau --level 30
 check "bench: tau, bad place" 2 "--at: expected LAT,LON" -- "$B" tau --at 100,0
 check "bench: steps the world" 0 "" -- "$B" world --scene scenes/analytic_sphere.json --epochs 2 --budget 2 --threads 2
+# issue 17: the anchor beside the world's own rate, in the same run
+grep -Eq "^anchor: a scalar 6-octave fBm once per voxel over [0-9]+ of the state's bricks, [0-9]+ bricks/s per core; the world: [0-9]+ non-empty bricks made, [0-9]+ per second of production CPU \([0-9.]+× the anchor\)" "$tmp/out" ||
+  { echo "FAIL bench world: no anchor line: $(grep anchor "$tmp/out")"; fail=$((fail + 1)); }
 check "bench: sweep, unknown option" 2 "sweep: unknown or incomplete option \"--frobnicate\"" -- "$B" sweep --frobnicate
 check "bench: sweep, bad budget list" 2 "--budgets: expected a finite number, got \"x\"" -- "$B" sweep --budgets 4,x
 check "bench: sweep, hardware filtering" 2 "--reconstruction hardware: not available" -- "$B" sweep --reconstruction hardware
