@@ -392,6 +392,28 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   return F->sigma_scale * s * (1.0 + 1e-6);
 }
 
+/* Ranges of layer l's coverage (cmin, cmax) and cells (kmax) over the directions of g. The centre's
+ * values with their Lipschitz margins come first (two noise points); the grid (ocs__dir_range) only
+ * where they leave the layer's bound positive: half the grid bounds the planner asks for are
+ * settled by the centre alone (docs/performance.md, lever 15). Both are conservative, so the
+ * grid's ranges are intersected with the centre's. */
+static void ocs__layer_ranges(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__geom_t *g, int grid,
+                              double *cmin, double *cmax, double *kmax) {
+  const ocs__lframe_t *lf = &F->l[l];
+  double kmin, c0, c1, k1;
+  *kmax = 1.0;
+  ocs__dir_range(P, lf, l, OCS__COV, &g->cap, 0, cmin, cmax);
+  if (*cmax > lf->theta) ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, 0, &kmin, kmax); /* else W = 0 */
+  ocs__bb_t scratch;
+  if (grid <= 0 || !(ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, *cmax, *kmax, &scratch) > 0.0)) return;
+  ocs__dir_range(P, lf, l, OCS__COV, &g->cap, grid, &c0, &c1);
+  *cmin = fmax(*cmin, c0), *cmax = fmin(*cmax, c1);
+  if (*cmax > lf->theta) {
+    ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, grid, &kmin, &k1);
+    *kmax = fmin(*kmax, k1);
+  }
+}
+
 /* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`. The
  * coverage and cell values are bounded by ocs__dir_range() (grid ≤ `grid`, 0: the centre only);
  * layers in `reuse` take their ranges from `inherit` (an enclosing box) instead. */
@@ -408,13 +430,11 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
     if (!(todo >> l & 1u)) continue;
     const ocs__lstate_t *S = &P->L[l];
     if ((g.hmin > S->band_lo ? g.hmin : S->band_lo) > (g.hmax < S->band_hi ? g.hmax : S->band_hi)) continue;
-    double cmin = -1.0, cmax = 1.0, kmin, kmax = 1.0;
-    if (inherit && (reuse >> l & 1u)) {
+    double cmin = -1.0, cmax = 1.0, kmax = 1.0;
+    if (inherit && (reuse >> l & 1u))
       cmin = inherit->cmin[l], cmax = inherit->cmax[l], kmax = inherit->kmax[l];
-    } else if (g.far) {
-      ocs__dir_range(P, &F->l[l], l, OCS__COV, &g.cap, grid, &cmin, &cmax);
-      if (cmax > F->l[l].theta) ocs__dir_range(P, &F->l[l], l, OCS__CELL, &g.cap, grid, &kmin, &kmax); /* else W = 0 */
-    }
+    else if (g.far)
+      ocs__layer_ranges(P, F, l, &g, grid, &cmin, &cmax, &kmax);
     total += ocs__layer_max(P, F, l, g.hmin, g.hmax, cmin, cmax, kmax, bb);
   }
   return total;
