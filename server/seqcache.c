@@ -70,7 +70,3 @@ void ocs_seqcache_clear(ocs_seqcache_t *c) {
     for (size_t i = 1; i < stride; i++) atomic_store_explicit(&c->w[j * stride + i], 0, memory_order_relaxed);
   atomic_thread_fence(memory_order_seq_cst);
 }
-
-size_t ocs_seqcache_bytes(const ocs_seqcache_t *c) {
-  return c ? sizeof *c + c->slots * (size_t)(3 + c->words) * sizeof(uint64_t) : 0;
-}

@@ -30,7 +30,5 @@ int ocs_seqcache_get(const ocs_seqcache_t *c, uint64_t key, uint64_t step, uint6
 void ocs_seqcache_put(ocs_seqcache_t *c, uint64_t key, uint64_t step, const uint64_t *words);
 /*! ocs_seqcache_clear() : empties every slot (not concurrently with get or put). */
 void ocs_seqcache_clear(ocs_seqcache_t *c);
-/*! ocs_seqcache_bytes() : the memory the cache holds. */
-size_t ocs_seqcache_bytes(const ocs_seqcache_t *c);
 
 #endif /* OC_SERVER_SEQCACHE_H */

@@ -169,8 +169,8 @@ void oct_fcache_free(oct_fcache_t *c);
 
 /*! oct_anchor_seconds() : issue 17's anchor, a plain scalar 6-octave Perlin fBm (oc_fbm3(),
  *  lacunarity 2, gain 0.5, a 1 km lattice) once per sample position of each of the n nodes: the
- *  seconds it took, so n / seconds is the anchor's bricks/s per core. Its sum goes into *sink,
- *  which the caller keeps alive so the work is not optimised away. */
+ *  seconds it took, so n / seconds is the anchor's bricks/s per core. Its sum is added to *sink:
+ *  a store the compiler must keep, so the work is not optimised away. */
 double oct_anchor_seconds(const oc_key_t *keys, long n, double *sink);
 
 #endif /* OC_TOOLS_BENCH_UTIL_H */

@@ -195,9 +195,9 @@ static void world_anchor(const world_run_t *R, double cpu) {
   double made = (double)(ws.bricks_produced - ws.bricks_empty), spent = ws.brick_cpu + ws.ahead_cpu;
   printf("anchor: a scalar 6-octave fBm once per voxel over %ld of the state's bricks, %.0f bricks/s per core; the "
          "world: %.0f non-empty bricks made, %.0f per second of production CPU (%.3f× the anchor), %.0f per second of "
-         "process CPU (%.3f×)%s\n",
+         "process CPU (%.3f×)\n",
          n, anchor, made, spent > 0.0 ? made / spent : 0.0, spent > 0.0 ? made / spent / anchor : 0.0,
-         cpu > 0.0 ? made / cpu : 0.0, cpu > 0.0 ? made / cpu / anchor : 0.0, sink == 1234.5 ? " " : "");
+         cpu > 0.0 ? made / cpu : 0.0, cpu > 0.0 ? made / cpu / anchor : 0.0);
 }
 
 static int cmp_double(const void *a, const void *b) {

@@ -29,7 +29,6 @@ static void test_seqcache__hit_miss_clear(void **st) {
   ocs_seqcache_free(NULL);
   ocs_seqcache_t *c = ocs_seqcache_new(1024, WORDS);
   assert_non_null(c);
-  assert_true(ocs_seqcache_bytes(c) >= 1024 * (3 + WORDS) * sizeof(uint64_t));
   uint64_t w[WORDS], r[WORDS];
   assert_false(ocs_seqcache_get(c, 0, 0, r)); /* key 0 is reserved: a zeroed slot holds it */
   ocs_seqcache_put(c, 0, 0, r);
