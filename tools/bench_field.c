@@ -88,7 +88,7 @@ typedef struct {
   oc_key_t *keys, *skeys; /* a level's nodes; those sampled */
   long nodes, sampled;
   float *s, *e;
-  uint64_t dig_s, dig_t; /* FNV-1a of sampled σt and of τ */
+  uint64_t dig_s, dig_n, dig_t; /* FNV-1a of sampled σt, of every node's σt, and of τ */
   char tau_rows[NLEVELS][512], exact_rows[NLEVELS][256];
 } field_run_t;
 
@@ -113,6 +113,8 @@ static int field_level(field_run_t *R, int level, oc_dvec3 centre, double *sink,
         if (lo == hi) {
           classified++;
           ts += oct_now() - t0;
+          for (int i = 0; i < OC_BRICK_VOXELS; i++) R->s[i] = lo; /* what the state holds for it */
+          R->dig_n = oct__fnv(R->dig_n, R->s, sizeof(float) * OC_BRICK_VOXELS);
           nonempty_bricks += hi > 0.0f;
           continue;
         }
@@ -120,6 +122,7 @@ static int field_level(field_run_t *R, int level, oc_dvec3 centre, double *sink,
         ts += oct_now() - t0;
         R->skeys[R->sampled++] = k;
         R->dig_s = oct__fnv(R->dig_s, R->s, sizeof(float) * OC_BRICK_VOXELS);
+        R->dig_n = oct__fnv(R->dig_n, R->s, sizeof(float) * OC_BRICK_VOXELS);
         int any = 0;
         for (int i = 0; i < OC_BRICK_VOXELS; i++) nonempty += R->s[i] > 0.0f, any |= R->s[i] > 0.0f;
         nonempty_bricks += any;
@@ -238,8 +241,9 @@ static void field_tail(const field_run_t *R, int shadows) {
          (unsigned long long)fs.bound_calls, (unsigned long long)fs.bound_hits, (unsigned long long)fs.bound_misses,
          fs.bound_hits + fs.bound_misses ? (double)fs.bound_hits / (double)(fs.bound_hits + fs.bound_misses) : 0.0,
          fs.bound_hits + fs.bound_misses ? "" : "; OCS_FIELD_BOUND_CACHE=0 or no cacheable source");
-  printf("digest (FNV-1a of the bytes): sampled σt %016llx, τ %016llx\n", (unsigned long long)R->dig_s,
-         (unsigned long long)R->dig_t);
+  printf("digest (FNV-1a of the bytes): sampled σt %016llx, τ %016llx; σt of every node %016llx (the bounds "
+         "decide which bricks are sampled, not what any holds)\n",
+         (unsigned long long)R->dig_s, (unsigned long long)R->dig_t, (unsigned long long)R->dig_n);
 }
 
 /* The procedural source builds a layer's tables at its first use (up to 0.1 s, docs/procedural.md
@@ -290,7 +294,8 @@ int oct_bench_field(const char *prog, int argc, char **argv) {
   oc_geo_t g = oct_block_centre(&o.at, o.alt, &sc);
   size_t nk = (size_t)o.block * (size_t)o.block * (size_t)o.block;
   static field_run_t R;
-  R = (field_run_t){.prog = prog, .o = &o, .dig_s = 0xcbf29ce484222325ull, .dig_t = 0xcbf29ce484222325ull};
+  R = (field_run_t){.prog = prog, .o = &o, .dig_s = 0xcbf29ce484222325ull, .dig_n = 0xcbf29ce484222325ull,
+                      .dig_t = 0xcbf29ce484222325ull};
   R.s = malloc(sizeof(float) * OC_BRICK_VOXELS);
   R.e = malloc(sizeof(float) * OC_BRICK_VOXELS);
   R.keys = malloc(sizeof(oc_key_t) * nk);

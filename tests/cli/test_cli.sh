@@ -165,6 +165,10 @@ check "bench: steps the world" 0 "" -- "$B" world --scene scenes/analytic_sphere
 # issue 17: the anchor beside the world's own rate, in the same run
 grep -Eq "^anchor: a scalar 6-octave fBm once per voxel over [0-9]+ of the state's bricks, [0-9]+ bricks/s per core; the world: [0-9]+ non-empty bricks made, [0-9]+ per second of production CPU \([0-9.]+× the anchor\)" "$tmp/out" ||
   { echo "FAIL bench world: no anchor line: $(grep anchor "$tmp/out")"; fail=$((fail + 1)); }
+check "bench: field, a small block" 0 "" -- "$B" field --levels 14 --block 2
+# the digest of every node, sampled or classified by its bound: a lever on the bounds leaves it
+grep -Eq "^digest \(FNV-1a of the bytes\): sampled σt [0-9a-f]{16}, τ [0-9a-f]{16}; σt of every node [0-9a-f]{16} " "$tmp/out" ||
+  { echo "FAIL bench field: no digest of every node: $(grep digest "$tmp/out")"; fail=$((fail + 1)); }
 check "bench: sweep, unknown option" 2 "sweep: unknown or incomplete option \"--frobnicate\"" -- "$B" sweep --frobnicate
 check "bench: sweep, bad budget list" 2 "--budgets: expected a finite number, got \"x\"" -- "$B" sweep --budgets 4,x
 check "bench: sweep, hardware filtering" 2 "--reconstruction hardware: not available" -- "$B" sweep --reconstruction hardware
