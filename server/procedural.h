@@ -267,10 +267,17 @@ typedef struct {
 #define OCS_PROC_NODE_CACHE_SLOTS 16384
 #endif
 
-/*! Largest grid half-size m of ocs__dir_range(): (2m + 1)² = 289 noise points per field. */
+/*! Largest grid half-size m of ocs__dir_range(): (2m + 1)² = 289 noise points per field (after
+ *  grids of at most 5 × 5, and only where they may decide: ocs__grid_first below). */
 #ifndef OCS_PROC_BOUND_GRID
 #define OCS_PROC_BOUND_GRID 8
 #endif
+
+/* The node bound's first grids' largest half-size (source_procedural.c, ocs__layer_ranges): 2 (the
+ * default) evaluates grids of at most 5 × 5 points first, and the full grids only where they may
+ * still bound a layer to 0; OCS_PROC_BOUND_GRID or more evaluates the full grids at once. Both give
+ * the same zero or non-zero bound for every box; tests switch it (no thread may bound meanwhile). */
+extern int ocs__grid_first;
 
 /* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`
  * (source_procedural.c, where it is explained). */

@@ -274,24 +274,31 @@ typedef struct {
  *  evaluating (the noise values span about ±0.6). */
 #define OCS__GRID_EPS 0.02
 #define OCS__GRID_USEFUL 0.3
+/* The first grids' largest half-size (ocs__layer_ranges; procedural.h). */
+int ocs__grid_first = 2;
+
+/* The grid half-size m (≤ grid) of a pattern over a cap: 0 where no grid could bring the Lipschitz
+ * margin under OCS__GRID_USEFUL (or where the whole cap's is already under OCS__GRID_EPS). */
+static int ocs__dir_m(const ocs__proc_t *P, int l, int f, const ocs__cap_t *cap, int grid) {
+  const ocs__lstate_t *S = &P->L[l];
+  double lip = (f == OCS__COV ? S->lip_cov : S->lip_cell) * OCS__R;
+  if (!(grid > 0 && lip * cap->chord > OCS__GRID_EPS && lip * cap->tan_t * 0.70710678 / grid < OCS__GRID_USEFUL)) return 0;
+  double want = ceil(lip * cap->tan_t * 0.70710678 / OCS__GRID_EPS);
+  return want > grid ? grid : (int)want;
+}
 
 /* Range of a pattern on the reference sphere (coverage or cells: functions of direction only)
  * over the directions of a box. m = 0: its value at ĉ ± Lipschitz × R·chord. m > 0: a (2m + 1)²
  * grid over the gnomonic tangent plane at ĉ, t in [-tan θ, tan θ]²; the map t → normalize(ĉ + t)
  * is 1-Lipschitz (|ĉ + t| ≥ 1), so every covered direction's point lies within R·δ/√2 of a grid
  * point's, δ = tan θ / m. The noise Lipschitz bound (OC_NOISE_LIPSCHITZ) turns that into a margin;
- * 1e-6 more covers the float rounding of the noise values. */
-static void ocs__dir_range(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, int f, const ocs__cap_t *cap,
-                           int grid, double *vmin, double *vmax) {
+ * 1e-6 more covers the float rounding of the noise values. *margin: the margin added to the samples'
+ * extremes. */
+static void ocs__dir_range(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, int f, const ocs__cap_t *cap, int m,
+                           double *vmin, double *vmax, double *margin) {
   const ocs__lstate_t *S = &P->L[l];
   const oc_fbm_t *fb = f == OCS__COV ? &S->fcov : &S->fcell;
   double lip = (f == OCS__COV ? S->lip_cov : S->lip_cell) * OCS__R;
-  int m = 0;
-  /* A grid only where its margin can come out small enough to decide something. */
-  if (grid > 0 && lip * cap->chord > OCS__GRID_EPS && lip * cap->tan_t * 0.70710678 / grid < OCS__GRID_USEFUL) {
-    double want = ceil(lip * cap->tan_t * 0.70710678 / OCS__GRID_EPS);
-    m = want > grid ? grid : (int)want;
-  }
   enum { MAXP = (2 * OCS_PROC_BOUND_GRID + 1) * (2 * OCS_PROC_BOUND_GRID + 1) };
   double xyz[3 * MAXP];
   float val[MAXP];
@@ -308,12 +315,12 @@ static void ocs__dir_range(const ocs__proc_t *P, const ocs__lframe_t *lf, int l,
   oc_fbm3_batch(xyz, n, fb, val);
   double lo = val[0], hi = val[0];
   for (int i = 1; i < n; i++) {
-    lo = fmin(lo, (double)val[i]);
-    hi = fmax(hi, (double)val[i]);
+    lo = val[i] < lo ? (double)val[i] : lo;
+    hi = val[i] > hi ? (double)val[i] : hi;
   }
-  double margin = (m > 0 ? lip * delta * 0.70710679 : lip * cap->chord) * (1.0 + 1e-9) + 1e-6;
-  *vmin = lo - margin;
-  *vmax = hi + margin;
+  *margin = (m > 0 ? lip * delta * 0.70710679 : lip * cap->chord) * (1.0 + 1e-9) + 1e-6;
+  *vmin = lo - *margin;
+  *vmax = hi + *margin;
 }
 
 /* The directions and altitudes an axis-aligned box covers. far = 0: the box reaches the planet
@@ -392,25 +399,39 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   return F->sigma_scale * s * (1.0 + 1e-6);
 }
 
-/* Ranges of layer l's coverage (cmin, cmax) and cells (kmax) over the directions of g. The centre's
- * values with their Lipschitz margins come first (two noise points); the grid (ocs__dir_range) only
- * where they leave the layer's bound positive: half the grid bounds the planner asks for are
- * settled by the centre alone (docs/performance.md, lever 15). Both are conservative, so the
- * grid's ranges are intersected with the centre's. */
+/* Ranges of layer l's coverage (cmin, cmax) and cells (kmax) over the directions of g, each the
+ * intersection of conservative ranges, cheapest first (docs/performance.md, levers 15 and 16):
+ *   1. the centre's values with their Lipschitz margins over the whole cap (two noise points);
+ *   2. where the layer stays positive, grids of at most ocs__grid_first a side (up to 25 points);
+ *   3. the full grids (up to (2·grid + 1)² points) only where they may still bound the layer to 0:
+ *      a full grid's upper end is at least every coarse sample (each lies within the full grid's
+ *      δ/√2 of one of its points), so where the coarse samples' extremes, without margins, keep the
+ *      layer positive, the full grid cannot decide, and is not evaluated. */
 static void ocs__layer_ranges(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__geom_t *g, int grid,
                               double *cmin, double *cmax, double *kmax) {
   const ocs__lframe_t *lf = &F->l[l];
-  double kmin, c0, c1, k1;
-  *kmax = 1.0;
-  ocs__dir_range(P, lf, l, OCS__COV, &g->cap, 0, cmin, cmax);
-  if (*cmax > lf->theta) ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, 0, &kmin, kmax); /* else W = 0 */
+  double kmin, c0, c1, k1, mg, rc, rk;
   ocs__bb_t scratch;
+  *kmax = 1.0;
+  ocs__dir_range(P, lf, l, OCS__COV, &g->cap, 0, cmin, cmax, &mg);
+  if (*cmax > lf->theta) ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, 0, &kmin, kmax, &mg); /* else W = 0 */
   if (grid <= 0 || !(ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, *cmax, *kmax, &scratch) > 0.0)) return;
-  ocs__dir_range(P, lf, l, OCS__COV, &g->cap, grid, &c0, &c1);
-  *cmin = fmax(*cmin, c0), *cmax = fmin(*cmax, c1);
-  if (*cmax > lf->theta) {
-    ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, grid, &kmin, &k1);
-    *kmax = fmin(*kmax, k1);
+  int mc = ocs__dir_m(P, l, OCS__COV, &g->cap, grid), mk = ocs__dir_m(P, l, OCS__CELL, &g->cap, grid);
+  for (int pass = 0; pass < 2; pass++) {
+    int pc = pass ? mc : (mc < ocs__grid_first ? mc : ocs__grid_first);
+    int pk = pass ? mk : (mk < ocs__grid_first ? mk : ocs__grid_first);
+    rc = *cmax, rk = *kmax;
+    if (pc > 0 && (pass == 0 || pc > ocs__grid_first)) {
+      ocs__dir_range(P, lf, l, OCS__COV, &g->cap, pc, &c0, &c1, &mg);
+      *cmin = fmax(*cmin, c0), *cmax = fmin(*cmax, c1), rc = fmin(*cmax, c1 - mg);
+    }
+    if (*cmax > lf->theta && pk > 0 && (pass == 0 || pk > ocs__grid_first)) {
+      ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, pk, &kmin, &k1, &mg);
+      *kmax = fmin(*kmax, k1), rk = fmin(*kmax, k1 - mg);
+    }
+    if (pass || (mc <= ocs__grid_first && mk <= ocs__grid_first)) return;
+    if (!(ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, *cmax, *kmax, &scratch) > 0.0)) return;
+    if (ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, rc, rk, &scratch) > 0.0) return; /* 3. cannot decide */
   }
 }
 

@@ -554,6 +554,46 @@ static void test_procedural__bound_is_conservative(void **st) {
   assert_true(c.empty > 0 && c.empty < c.checked);
 }
 
+/* The node bound's grids in two steps (ocs__layer_ranges): grids of at most 5 × 5 first, the full
+ * ones only where they may still bound a layer to 0. The claim is that the bound comes out 0 for
+ * exactly the boxes the full grids alone bound to 0: nodes near cloud and anywhere in the shell at
+ * levels 5–17, four presets, at rest and moving, each bounded both ways. Fails when the test for
+ * "the full grid cannot decide" keeps the coarse samples' margins (it then skips full grids that
+ * would have decided). */
+typedef struct {
+  long nodes, zero, looser;
+} grid_counts_t;
+
+static void two_step_grid_preset(ocs_source_t *s, int pi, uint64_t *rng, void *ctx) {
+  grid_counts_t *c = ctx;
+  (void)pi;
+  for (int n = 0; n < SIZE(300, 60); n++) {
+    int level = 5 + (int)(rng_split(rng) % 13);
+    double t = n % 2 ? 900.0 : 0.0;
+    oc_dvec3 p = n % 4 < 2 ? cloudy_point(s, t, 0.0, 15000.0, rng) : at_alt(rand_dir(rng), 16000.0 * rng_split_unit(rng));
+    oc_key_t k = oc_key_from_point(level, p);
+    float mn, two, full;
+    ocs__grid_first = OCS_PROC_BOUND_GRID;
+    bound_key(s, k, t, &mn, &full);
+    ocs__grid_first = 2;
+    bound_key(s, k, t, &mn, &two);
+    if ((two == 0.0f) != (full == 0.0f))
+      fail_msg("level %d t %g: bound %g in two steps, %g with the full grids", level, t, two, full);
+    c->nodes++;
+    c->zero += full == 0.0f;
+    c->looser += two > full;
+  }
+}
+
+static void test_procedural__two_step_grid_decides_alike(void **st) {
+  (void)st;
+  grid_counts_t c = {0};
+  each_bound_preset(3, 505, two_step_grid_preset, &c);
+  printf("  %ld nodes, %ld bounded to 0 both ways, %ld with a looser non-zero bound in two steps\n", c.nodes, c.zero,
+         c.looser);
+  assert_true(c.zero > 0 && c.zero < c.nodes && c.looser > 0);
+}
+
 /* The per-voxel bounds (ocs__voxel_bounds: each voxel's cube, the layers that may be non-zero
  * there) decide which voxels the fast filter evaluates at all, so a voxel they call empty must be
  * empty in the field and in the estimate. Bricks near cloud edges in four presets at levels 5–17,
@@ -982,6 +1022,7 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_procedural__filter_mean_mid),
              cmocka_unit_test(test_procedural__filter_mean_fine),
              cmocka_unit_test(test_procedural__bound_is_conservative),
+             cmocka_unit_test(test_procedural__two_step_grid_decides_alike),
              cmocka_unit_test(test_procedural__voxel_bounds_are_conservative),
              cmocka_unit_test(test_procedural__cell_split_is_exact),
              cmocka_unit_test(test_procedural__layer_ranges),
