@@ -399,6 +399,23 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   return F->sigma_scale * s * (1.0 + 1e-6);
 }
 
+/* Intersects layer l's ranges with grids of half-sizes pc (coverage) and pk (cells), 0: none. *rc,
+ * *rk: the least the upper ends can be after any finer grid (the samples' extremes without their
+ * margins, within the ranges), or the ranges' own ends where no grid ran. */
+static void ocs__grid_ranges(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, const ocs__geom_t *g, int pc, int pk,
+                             double *cmin, double *cmax, double *kmax, double *rc, double *rk) {
+  double lo, hi, mg;
+  *rc = *cmax, *rk = *kmax;
+  if (pc > 0) {
+    ocs__dir_range(P, lf, l, OCS__COV, &g->cap, pc, &lo, &hi, &mg);
+    *cmin = fmax(*cmin, lo), *cmax = fmin(*cmax, hi), *rc = fmin(*cmax, hi - mg);
+  }
+  if (pk > 0 && *cmax > lf->theta) { /* else W = 0 */
+    ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, pk, &lo, &hi, &mg);
+    *kmax = fmin(*kmax, hi), *rk = fmin(*kmax, hi - mg);
+  }
+}
+
 /* Ranges of layer l's coverage (cmin, cmax) and cells (kmax) over the directions of g, each the
  * intersection of conservative ranges, cheapest first (docs/performance.md, levers 15 and 16):
  *   1. the centre's values with their Lipschitz margins over the whole cap (two noise points);
@@ -410,29 +427,19 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
 static void ocs__layer_ranges(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__geom_t *g, int grid,
                               double *cmin, double *cmax, double *kmax) {
   const ocs__lframe_t *lf = &F->l[l];
-  double kmin, c0, c1, k1, mg, rc, rk;
+  double kmin, mg, rc, rk;
   ocs__bb_t scratch;
   *kmax = 1.0;
   ocs__dir_range(P, lf, l, OCS__COV, &g->cap, 0, cmin, cmax, &mg);
   if (*cmax > lf->theta) ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, 0, &kmin, kmax, &mg); /* else W = 0 */
   if (grid <= 0 || !(ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, *cmax, *kmax, &scratch) > 0.0)) return;
   int mc = ocs__dir_m(P, l, OCS__COV, &g->cap, grid), mk = ocs__dir_m(P, l, OCS__CELL, &g->cap, grid);
-  for (int pass = 0; pass < 2; pass++) {
-    int pc = pass ? mc : (mc < ocs__grid_first ? mc : ocs__grid_first);
-    int pk = pass ? mk : (mk < ocs__grid_first ? mk : ocs__grid_first);
-    rc = *cmax, rk = *kmax;
-    if (pc > 0 && (pass == 0 || pc > ocs__grid_first)) {
-      ocs__dir_range(P, lf, l, OCS__COV, &g->cap, pc, &c0, &c1, &mg);
-      *cmin = fmax(*cmin, c0), *cmax = fmin(*cmax, c1), rc = fmin(*cmax, c1 - mg);
-    }
-    if (*cmax > lf->theta && pk > 0 && (pass == 0 || pk > ocs__grid_first)) {
-      ocs__dir_range(P, lf, l, OCS__CELL, &g->cap, pk, &kmin, &k1, &mg);
-      *kmax = fmin(*kmax, k1), rk = fmin(*kmax, k1 - mg);
-    }
-    if (pass || (mc <= ocs__grid_first && mk <= ocs__grid_first)) return;
-    if (!(ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, *cmax, *kmax, &scratch) > 0.0)) return;
-    if (ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, rc, rk, &scratch) > 0.0) return; /* 3. cannot decide */
-  }
+  int fc = mc < ocs__grid_first ? mc : ocs__grid_first, fk = mk < ocs__grid_first ? mk : ocs__grid_first;
+  ocs__grid_ranges(P, lf, l, g, fc, fk, cmin, cmax, kmax, &rc, &rk);
+  if (mc == fc && mk == fk) return; /* no finer grid */
+  if (!(ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, *cmax, *kmax, &scratch) > 0.0)) return; /* decided */
+  if (ocs__layer_max(P, F, l, g->hmin, g->hmax, *cmin, rc, rk, &scratch) > 0.0) return;             /* cannot decide */
+  ocs__grid_ranges(P, lf, l, g, mc > fc ? mc : 0, mk > fk ? mk : 0, cmin, cmax, kmax, &rc, &rk);
 }
 
 /* Conservative maximum of σt over an axis-aligned box, restricted to the layers in `only`. The
