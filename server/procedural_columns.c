@@ -66,6 +66,9 @@
 #ifndef OCS_COL_COARSE
 #define OCS_COL_COARSE 3
 #endif
+#ifndef OCS_COL_FINE_N
+#define OCS_COL_FINE_N 2
+#endif
 /*! An octave is resolved when its period is at least this many column spacings (or piece
  *  lengths); pieces are cut so that resolved octaves move at most 1/OCS_COL_KAPPA of a period. */
 #ifndef OCS_COL_KAPPA
@@ -272,7 +275,7 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
                            ocs__plan_t *pl) {
   double u = ocs__voxel_size(level);
   pl->u = u;
-  pl->nc = u < OCS_COL_FINE ? 2 : OCS_COL_COARSE;
+  pl->nc = u < OCS_COL_FINE ? OCS_COL_FINE_N : OCS_COL_COARSE;
   double spacing = u / (double)pl->nc;
   double lk = L->cell.lambda_short > 0.0 ? L->cell.lambda_short : L->cell.lambda;
   double ld = L->det.lambda_short > 0.0 ? L->det.lambda_short : L->det.lambda;
@@ -638,7 +641,7 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
       free(cc);
       return OC_ENOMEM;
     }
-    double off[OCS_COL_COARSE > 2 ? OCS_COL_COARSE : 2];
+    double off[OCS_COL_COARSE > OCS_COL_FINE_N ? OCS_COL_COARSE : OCS_COL_FINE_N];
     for (int m = 0; m < pl->nc; m++) off[m] = ((double)m + 0.5) / (double)pl->nc - 0.5;
     ws->n = 0;
     ws->cc = cc[l];

@@ -82,6 +82,12 @@ typedef struct ocg_march {
 #ifndef OCG_MS_FORWARD
 #define OCG_MS_FORWARD OCG_R(3.0)
 #endif
+/*! Absorption along a run's chord, per unit depth and per unit (1 − ω): the light a run returns has
+ *  scattered a few times per unit of depth, each ×ω, so it decays as ω^(c·D) ≈ e^{−c(1−ω)D}, linear in
+ *  1 − ω (diffusion's κ_d, ∝ √(1 − ω), made ω 0.99 35 % dimmer than ω 1 where the truth is 23 %).
+ *  c = κ_d(0.9)/0.1, so the constants fitted at ω 0.9 and 1 keep their values (docs/numerics.md,
+ *  "Absorption along the chord"). */
+#define OCG_MS_CHORD_ABS OCG_R(2.583)
 
 /* The cloud model's parameters (oc_render_desc_t; the scene's optics). */
 #if defined(OC_GLSL)
@@ -136,8 +142,9 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
  *
  * $J_c = \omega\,\sigma_c\,[E_{sun} e^{-\tau} p(\mu) + E\,\frac{F}{4\pi}\,A]$ now, and
  * $J_{ms} = \omega\,\sigma_c\,E_{sun} \sum_{i=1}^{n-1} (b\,\omega^q)^i \frac{p(\mu; c^i)}{1 + a^i \tau}$ deferred:
- * the march weights a run's J_ms by $G(D) = D/(D + D_{1/2} e^{-\beta \max(\mu, 0)})$ once it knows the run's
- * chord optical depth D (where the ray leaves the cloud, or stops). The octaves alone (Wrenninge) give
+ * the march weights a run's J_ms by $G(D) = D_e/(D_e + D_{1/2} e^{-\beta \max(\mu, 0)})$ once it knows the run's
+ * chord optical depth D (where the ray leaves the cloud, or stops; D_e = D at ω = 1, less with absorption:
+ * ocg_ms_chord_factor). The octaves alone (Wrenninge) give
  * a thin cloud as much multiple scattering as a thick one; G brings in how much cloud there is behind
  * the sample to send light back (toward the sun little is needed: forward bounces), and the
  * ω^{qi} factor that each octave is several more bounces, each losing 1 − ω. The isotropic part
@@ -242,11 +249,11 @@ OC_INLINE ocg_real ocg_ms_diffuse_factor(ocg_real d) {
   return d / (d + OCG_MS_DIFFUSE_D);
 }
 
-/* The chord factor G(D) = D/(D + D½(μ)) of a run of chord optical depth D ≥ 0 seen at μ = cos(view, sun),
- * D½(μ) = D½·exp(−β·max(μ, 0)). */
+/* The chord factor G(D) = D_e/(D_e + D½(μ)) of a run of chord optical depth D ≥ 0 seen at μ = cos(view, sun),
+ * D½(μ) = D½·exp(−β·max(μ, 0)), D_e = (1 − e^{−κ_c D})/κ_c the depth that still returns light, κ_c = c·(1 − ω). */
 OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d, ocg_real mu) {
-  ocg_real kd = ocg_diffusion_kappa(cm);
-  ocg_real de = kd * d > OCG_R(1e-3) ? (OCG_R(1.0) - ocg_exp(-kd * d)) / kd : d;
+  ocg_real kc = OCG_MS_CHORD_ABS * (OCG_R(1.0) - ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0)));
+  ocg_real de = kc * d > OCG_R(1e-3) ? (OCG_R(1.0) - ocg_exp(-kc * d)) / kc : d;
   return de / (de + cm.chord_half * ocg_exp(-cm.ms_forward * ocg_max(mu, OCG_R(0.0))));
 }
 
