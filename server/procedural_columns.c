@@ -74,6 +74,13 @@
 #ifndef OCS_COL_KAPPA
 #define OCS_COL_KAPPA 1.0
 #endif
+/*! In fine voxels (below OCS_COL_FINE metres) where the cells' finest resolved octave spans at least
+ *  this many voxels, the cells are evaluated at the voxels' corners and interpolated at the pieces,
+ *  instead of evaluated at every piece; a voxel whose corners all fail the cell test makes no pieces
+ *  (docs/performance.md, lever 17). 0: never. */
+#ifndef OCS_COL_KVOX
+#define OCS_COL_KVOX 4.0
+#endif
 /*! The unresolved rest of a pattern gets a quadrature when its standard deviation moves A' by
  *  more than this fraction of the density ramp F_w. */
 #ifndef OCS_COL_SPREAD
@@ -123,6 +130,7 @@ typedef struct {
   ocs__split_t k, d;
   int qk, qd;
   int cvox;       /* the coverage taken at the voxel's centre (its finest octave ≥ 16 voxels) */
+  int kvox;       /* the cells at the voxels' corners, trilinear at the pieces (ocs__voxel_cells) */
   double kmargin; /* what the estimate may add to the cells' value beyond the evaluated octaves */
 } ocs__plan_t;
 
@@ -291,6 +299,8 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
   pl->piece = piece > 0.0 && piece < spacing ? spacing : piece;
   pl->cvox = ldexp(L->cov.lambda, -(L->cov.octaves - 1)) >= 16.0 * u;
   pl->qk = L->a1 * pl->k.sd > OCS_COL_SPREAD * L->F_w ? 3 : 1;
+  pl->kvox = OCS_COL_KVOX > 0.0 && u < OCS_COL_FINE && pl->k.n > 0 && pl->qk == 1 &&
+             ldexp(lk, -(pl->k.n - 1)) >= OCS_COL_KVOX * u;
   pl->qd = L->e * L->k_d * pl->d.sd > OCS_COL_SPREAD * L->F_w ? 3 : 1;
   pl->kmargin = pl->qk == 3 || (pl->k.n == 0 && pl->d.n == 0) ? 2.0 * pl->k.amp : 0.0;
 }
@@ -372,6 +382,8 @@ static inline double ocs__tab_at(const ocs__tab_t *T, const float *tab, int n, d
 
 /*-*** Columns and pieces of a brick ***/
 
+enum { OCS__KC = 9 }; /* a brick's voxel corners a side (ocs__voxel_cells) */
+
 typedef struct {
   int n;
   double p[3 * OCS__CHUNK];       /* midpoint, planet frame */
@@ -384,6 +396,9 @@ typedef struct {
   int idx[OCS__CHUNK], sel[OCS__CHUNK];
   double q[3 * OCS__CHUNK], xyz[3 * OCS__CHUNK], w[OCS__CHUNK], k[OCS__CHUNK], ksum[OCS__CHUNK];
   float val[OCS__CHUNK];
+  double kv[OCS__KC * OCS__KC * OCS__KC]; /* where the plan says kvox, the cells (× k.scale) at the corners */
+  const uint32_t *ic;                     /* the brick's key coordinates, and its voxel size */
+  double u;
   double sum[OC_BRICK_VOXELS];
 } ocs__cws_t;
 
@@ -485,6 +500,83 @@ static int ocs__cells(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, cons
   return k;
 }
 
+/* The plan's kvox: the resolved cells at the corners of the voxels whose mask holds layer l (9³
+ * corners a brick, shared with its neighbours' faces), to ws->kv, and at a piece the trilinear
+ * interpolation of its voxel's 8 corners (ocs__pieces_cells). That is a convex combination, so no
+ * piece of a voxel has K above its largest corner: a voxel where that fails the cell test over its
+ * whole altitude range (with the W its pieces get: the centre's coverage where the plan takes it
+ * there, else at most 1) loses layer l from its mask and makes no pieces, which would all have
+ * failed the test too. */
+int ocs__col_kvox_pretest = 1;
+_Atomic long ocs__col_kvox_dropped;
+
+/* Corner c (bit 0: +x, 1: +y, 2: +z) of voxel v, as an index of the brick's 9³ corners. */
+static inline int ocs__corner(int v, int c) {
+  return (v % 8 + (c & 1)) + OCS__KC * (v / 8 % 8 + (c >> 1 & 1)) + OCS__KC * OCS__KC * (v / 64 + (c >> 2 & 1));
+}
+
+static void ocs__voxel_cells(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
+                             const uint32_t ic[3], double u, uint8_t vmask[OC_BRICK_VOXELS],
+                             const uint8_t vwone[OC_BRICK_VOXELS], ocs__cws_t *ws) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  const ocs__lstate_t *S = &P->L[l];
+  const ocs__lframe_t *lf = &F->l[l];
+  oc_fbm_t kres = S->fcell;
+  kres.octaves = pl->k.n;
+  uint8_t need[OCS__KC * OCS__KC * OCS__KC] = {0};
+  for (int v = 0; v < OC_BRICK_VOXELS; v++)
+    if (vmask[v] >> l & 1u)
+      for (int c = 0; c < 8; c++) need[ocs__corner(v, c)] = 1;
+  int n = 0, corner[OCS__CHUNK];
+  for (int i = 0; i <= OCS__KC * OCS__KC * OCS__KC; i++) {
+    if (n == OCS__CHUNK || (i == OCS__KC * OCS__KC * OCS__KC && n)) { /* a batch full, or the last */
+      oc_fbm3_batch(ws->xyz, n, &kres, ws->val);
+      for (int j = 0; j < n; j++) ws->kv[corner[j]] = (double)ws->val[j] * pl->k.scale;
+      n = 0;
+    }
+    if (i == OCS__KC * OCS__KC * OCS__KC || !need[i]) continue;
+    double p[3], q[3], X[3];
+    int ijk[3] = {i % OCS__KC, i / OCS__KC % OCS__KC, i / (OCS__KC * OCS__KC)};
+    for (int a = 0; a < 3; a++) p[a] = -OC_ROOT_HALF + ((double)(7 * (int64_t)ic[a] + ijk[a]) - 0.5) * u;
+    ocs__rotate(lf->M, p, q);
+    double sc = OCS__R / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+    for (int a = 0; a < 3; a++) X[a] = q[a] * sc;
+    ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], &ws->xyz[3 * n]);
+    corner[n++] = i;
+  }
+  if (!ocs__col_kvox_pretest) return;
+  long dropped = 0;
+  double half = 0.8660254037844386 * u; /* the cube's half-diagonal bounds its altitude range */
+  for (int v = 0; v < OC_BRICK_VOXELS; v++) {
+    if (!(vmask[v] >> l & 1u)) continue;
+    double K = -INFINITY, gg[3], c[3];
+    for (int k = 0; k < 8; k++) K = fmax(K, ws->kv[ocs__corner(v, k)]);
+    ocs__voxel_centre(ic, v, u, gg, c);
+    double h = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) - OCS__R, C = ws->cc[v];
+    double W = pl->cvox && C < 2.0 && !(vwone[v] >> l & 1u) ? ocs__w(L, lf, (float)C) : 1.0;
+    if (!ocs__cell_passes(L, W, K, 0.0, h - half, h + half)) {
+      vmask[v] &= (uint8_t)~(1u << l);
+      dropped++;
+    }
+  }
+  if (dropped) atomic_fetch_add_explicit(&ocs__col_kvox_dropped, dropped, memory_order_relaxed);
+}
+
+/* The plan's kvox: the cells of the chunk's pieces idx[0..m) to ws->k, each trilinear between its
+ * voxel's 8 corners (ocs__voxel_cells). */
+static void ocs__pieces_cells(ocs__cws_t *ws, int m) {
+  for (int j = 0; j < m; j++) {
+    int i = ws->idx[j], v = ws->vox[i];
+    double gg[3], c[3], f[3], k[8];
+    ocs__voxel_centre(ws->ic, v, ws->u, gg, c);
+    for (int a = 0; a < 3; a++) f[a] = (ws->p[3 * i + a] - c[a]) / ws->u + 0.5; /* 0..1 across the voxel */
+    for (int e = 0; e < 8; e++) k[e] = ws->kv[ocs__corner(v, e)];
+    for (int e = 0; e < 4; e++) k[e] = k[2 * e] + f[0] * (k[2 * e + 1] - k[2 * e]);
+    for (int e = 0; e < 2; e++) k[e] = k[2 * e] + f[1] * (k[2 * e + 1] - k[2 * e]);
+    ws->k[j] = k[0] + f[2] * (k[1] - k[0]);
+  }
+}
+
 /* One layer over the chunk's pieces: W, then (coarse) Ĵ, or (finer) the resolved cells and detail
  * and J over the unresolved rest. Adds σt × length to ws->sum per voxel. */
 static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
@@ -526,7 +618,10 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
   /* the resolved cells: V at the piece, and the largest V the quadrature may reach */
   static const double wq[3] = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0}, xq[3] = {-1.7320508075688772, 0.0, 1.7320508075688772};
   double kx = fmin(1.7320508075688772 * pl->k.sd, pl->k.amp), dx = fmin(1.7320508075688772 * pl->d.sd, pl->d.amp);
-  if (pl->k.n > 0) m = ocs__cells(P, lf, l, pl, kx, ws, m);
+  if (pl->kvox)
+    ocs__pieces_cells(ws, m);
+  else if (pl->k.n > 0)
+    m = ocs__cells(P, lf, l, pl, kx, ws, m);
   k = 0;
   for (int j = 0; j < m; j++) {
     int i = ws->idx[j];
@@ -645,6 +740,9 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
     for (int m = 0; m < pl->nc; m++) off[m] = ((double)m + 0.5) / (double)pl->nc - 0.5;
     ws->n = 0;
     ws->cc = cc[l];
+    ws->ic = ic;
+    ws->u = u;
+    if (pl->kvox) ocs__voxel_cells(B.P, &B.F, l, pl, ic, u, vmask, vwone, ws);
     for (int v = 0; v < OC_BRICK_VOXELS; v++) {
       if (!(vmask[v] >> l & 1u)) continue;
       double gg[3], c[3];

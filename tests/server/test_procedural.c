@@ -650,6 +650,37 @@ static void test_procedural__voxel_bounds_are_conservative(void **st) {
   assert_true(c.masked > 0 && c.near_cloud > 0);
 }
 
+/* A knob of the fast filter that must not change a bit: bricks near cloud at levels lo .. lo + span − 1,
+ * at rest and moving (t = 900 s), sampled with *knob = on and with *knob = off (then put back to
+ * dflt), bit for bit the same; counts the bricks with cloud. */
+typedef struct {
+  int *knob, on, off, dflt, lo, span;
+  long bricks;
+} same_bits_t;
+
+static void same_bits_preset(ocs_source_t *s, int pi, uint64_t *rng, void *ctx) {
+  same_bits_t *c = ctx;
+  (void)pi;
+  for (int n = 0; n < SIZE(40, 10); n++) {
+    int level = c->lo + (int)(rng_split(rng) % (uint64_t)c->span);
+    double t = n % 2 ? 900.0 : 0.0;
+    oc_key_t k = oc_key_from_point(level, cloudy_point(s, t, 0.0, 15000.0, rng));
+    float a[512], b[512];
+    *c->knob = c->on;
+    sample(s, k, t, a);
+    *c->knob = c->off;
+    sample(s, k, t, b);
+    *c->knob = c->dflt;
+    for (int v = 0; v < 512; v++)
+      if (memcmp(&a[v], &b[v], sizeof a[v]) != 0) fail_msg("level %d t %g voxel %d: %a, knob off %a", level, t, v, a[v], b[v]);
+    for (int v = 0; v < 512; v++)
+      if (a[v] > 0.0f) {
+        c->bricks++;
+        break;
+      }
+  }
+}
+
 /* The fast filter's two-pass cells (procedural_columns.c, ocs__cells): a piece whose first cell
  * octaves, raised by the most the last one can add (oc_fbm3_batch_top), cannot pass the cell test
  * is dropped before the last octave; the claim is that it would have failed the test with its
@@ -659,38 +690,33 @@ static void test_procedural__voxel_bounds_are_conservative(void **st) {
  * every piece. Fails when the bound keeps only half of the last octave's amplitude (a brick's bits
  * change); at 0.8 of it no dropped piece here is wrong (the noise exceeds 0.8 too rarely), which
  * test_noise's fbm_two_passes catches directly. */
-static void cell_split_check_preset(ocs_source_t *s, int pi, uint64_t *rng, void *ctx) {
-  long *bricks = ctx;
-  (void)pi;
-  for (int n = 0; n < SIZE(40, 10); n++) {
-    int level = 9 + (int)(rng_split(rng) % 9);
-    double t = n % 2 ? 900.0 : 0.0;
-    oc_key_t k = oc_key_from_point(level, cloudy_point(s, t, 0.0, 15000.0, rng));
-    float a[512], b[512];
-    ocs__col_cell_split = 2;
-    sample(s, k, t, a);
-    ocs__col_cell_split = 0;
-    sample(s, k, t, b);
-    ocs__col_cell_split = 1;
-    for (int v = 0; v < 512; v++)
-      if (memcmp(&a[v], &b[v], sizeof a[v]) != 0) fail_msg("level %d t %g voxel %d: two passes %a, one %a", level, t, v, a[v], b[v]);
-    for (int v = 0; v < 512; v++)
-      if (a[v] > 0.0f) {
-        (*bricks)++;
-        break;
-      }
-  }
-}
-
 static void test_procedural__cell_split_is_exact(void **st) {
   (void)st;
-  long bricks = 0, dropped0 = atomic_load(&ocs__col_cell_dropped), wrong0 = atomic_load(&ocs__col_cell_wrong);
-  each_bound_preset(7, 313, cell_split_check_preset, &bricks);
+  long dropped0 = atomic_load(&ocs__col_cell_dropped), wrong0 = atomic_load(&ocs__col_cell_wrong);
+  same_bits_t c = {&ocs__col_cell_split, 2, 0, 1, 9, 9, 0};
+  each_bound_preset(7, 313, same_bits_preset, &c);
+  long bricks = c.bricks;
   long dropped = atomic_load(&ocs__col_cell_dropped) - dropped0, wrong = atomic_load(&ocs__col_cell_wrong) - wrong0;
   printf("  %ld bricks with cloud the same both ways; %ld pieces dropped before the last cell octave, %ld of them "
          "wrongly\n", bricks, dropped, wrong);
   assert_true(bricks > 0 && dropped > 0);
   assert_int_equal(wrong, 0);
+}
+
+/* The fast filter's cells at the voxels' corners (procedural_columns.c, ocs__voxel_cells): a voxel
+ * whose largest corner fails the cell test over its altitude range makes no pieces; the claim is
+ * that each of its pieces would have failed the test too. Bricks near cloud in four presets at
+ * levels 13–17: the same bits with that pre-test and without it, and some voxels dropped. Fails when
+ * the pre-test takes the smallest corner instead (a level-14 brick's bits change). */
+static void test_procedural__voxel_cells_pretest_is_exact(void **st) {
+  (void)st;
+  long dropped0 = atomic_load(&ocs__col_kvox_dropped);
+  same_bits_t c = {&ocs__col_kvox_pretest, 1, 0, 1, 13, 5, 0};
+  each_bound_preset(9, 517, same_bits_preset, &c);
+  long bricks = c.bricks;
+  long dropped = atomic_load(&ocs__col_kvox_dropped) - dropped0;
+  printf("  %ld bricks with cloud the same both ways; %ld voxel layers made no pieces\n", bricks, dropped);
+  assert_true(bricks > 0 && dropped > 0);
 }
 
 /*-*** Layers ***/
@@ -1025,6 +1051,7 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_procedural__two_step_grid_decides_alike),
              cmocka_unit_test(test_procedural__voxel_bounds_are_conservative),
              cmocka_unit_test(test_procedural__cell_split_is_exact),
+    cmocka_unit_test(test_procedural__voxel_cells_pretest_is_exact),
              cmocka_unit_test(test_procedural__layer_ranges),
              cmocka_unit_test(test_procedural__layer_altitudes),
              cmocka_unit_test(test_procedural__animation),
