@@ -332,9 +332,9 @@ void ocs__col_margins(int level, int layer, double *kmargin, double *amargin);
 extern int ocs__col_cell_split;
 extern _Atomic long ocs__col_cell_dropped, ocs__col_cell_wrong;
 
-/* The fast filter's cells once per voxel (procedural_columns.c, ocs__voxel_cells; fine levels where
- * the cells' finest resolved octave spans OCS_COL_KVOX voxels): 1 (the default) drops the voxels
- * whose linear cells cannot pass the cell test before they make pieces, 0 makes every live voxel's
+/* The fast filter's cells at the voxels' corners (procedural_columns.c, ocs__voxel_cells; fine voxels
+ * where the cells' finest resolved octave spans OCS_COL_KVOX voxels): 1 (the default) drops the voxels
+ * whose largest corner cannot pass the cell test before they make pieces, 0 makes every live voxel's
  * pieces. Both give the same bits; tests switch it (no thread may sample meanwhile) and read how many
  * voxel layers it dropped (relaxed atomic, summed over every thread). */
 extern int ocs__col_kvox_pretest;

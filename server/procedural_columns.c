@@ -66,6 +66,8 @@
 #ifndef OCS_COL_COARSE
 #define OCS_COL_COARSE 3
 #endif
+/*! ...and below OCS_COL_FINE, this many a side (one was tried: 3.5–4× cheaper σt at levels 13–16,
+ *  but the main view's image RMSE against the exact filter 0.69 → 1.27; docs/performance.md, lever 17). */
 #ifndef OCS_COL_FINE_N
 #define OCS_COL_FINE_N 2
 #endif
@@ -516,8 +518,9 @@ static inline int ocs__corner(int v, int c) {
 }
 
 static void ocs__voxel_cells(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
-                             const uint32_t ic[3], double u, uint8_t vmask[OC_BRICK_VOXELS],
-                             const uint8_t vwone[OC_BRICK_VOXELS], ocs__cws_t *ws) {
+                             uint8_t vmask[OC_BRICK_VOXELS], const uint8_t vwone[OC_BRICK_VOXELS], ocs__cws_t *ws) {
+  const uint32_t *ic = ws->ic;
+  double u = ws->u;
   const ocs__layer_t *L = &ocs__layers[l];
   const ocs__lstate_t *S = &P->L[l];
   const ocs__lframe_t *lf = &F->l[l];
@@ -742,7 +745,7 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
     ws->cc = cc[l];
     ws->ic = ic;
     ws->u = u;
-    if (pl->kvox) ocs__voxel_cells(B.P, &B.F, l, pl, ic, u, vmask, vwone, ws);
+    if (pl->kvox) ocs__voxel_cells(B.P, &B.F, l, pl, vmask, vwone, ws);
     for (int v = 0; v < OC_BRICK_VOXELS; v++) {
       if (!(vmask[v] >> l & 1u)) continue;
       double gg[3], c[3];
