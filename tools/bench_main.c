@@ -39,8 +39,6 @@ static const cmd_t cmds[] = {
      oct_bench_noise, &oct_bench_noise_spec},
     {"look", "a view's look measured: cloud pixels, lit against dark cloud, the ground's colour", oct_bench_look,
      &oct_bench_look_spec},
-    {"noise", "the fBm evaluated against a tiled pre-filtered volume of it: build, ns per point, bound widths",
-     oct_bench_noise, &oct_bench_noise_spec},
 };
 #define NCMDS ((int)(sizeof cmds / sizeof *cmds))
 

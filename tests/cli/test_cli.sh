@@ -150,6 +150,9 @@ sst=$?
 
 B=$BIN/overcast-bench
 check "bench: no command" 2 "usage" -- "$B"
+# every command is listed once in the usage (a duplicated table entry printed `noise` twice)
+dups=$("$B" --help 2>/dev/null | sed -n '/^commands:/,/^$/p' | awk 'NF > 1 {print $1}' | sort | uniq -d)
+[ -z "$dups" ] || { echo "FAIL bench: commands listed twice: $dups"; fail=$((fail + 1)); }
 check "bench: unknown command" 2 "unknown command \"frob\"" -- "$B" frob
 check "bench: bad threads" 2 "--threads: expected an integer" -- "$B" render --threads 1,x
 check "bench: renders" 0 "" -- "$B" render --size 16x9 --repeat 1 --threads 1,2
