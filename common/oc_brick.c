@@ -6,14 +6,39 @@
 
 #include <math.h>   /* log, isnan, isinf, signbit */
 #include <stddef.h> /* NULL */
+#include <stdint.h> /* uint32_t */
+#include <string.h> /* memcpy */
 
 #include "brick.h" /* ocg_code_decode */
 
 /*-*** Sanitising ***/
 
+/* Whether every value is already what oc_sanitize() leaves: +0 or in (0, OC_VALUE_MAX]. For a float's
+ * bits read as an unsigned integer that is exactly u ≤ bits(OC_VALUE_MAX): the sign bit (negatives,
+ * −0), infinities and NaNs all lie above it. A branch-free loop the compiler vectorises: nearly every
+ * brick is clean, and the per-value branches below cost 1.5 % of the world's instructions. */
+static int oc__clean(const float *v, int n) {
+  const float vmax = OC_VALUE_MAX;
+  uint32_t lim, bad = 0;
+  memcpy(&lim, &vmax, sizeof lim);
+  int i = 0;
+  for (; i + 8 <= n; i += 8) /* blocks of a fixed 8: gcc's -O2 cost model vectorises those */
+    for (int k = 0; k < 8; k++) {
+      uint32_t u;
+      memcpy(&u, &v[i + k], sizeof u);
+      bad |= (uint32_t)(u > lim);
+    }
+  for (; i < n; i++) {
+    uint32_t u;
+    memcpy(&u, &v[i], sizeof u);
+    bad |= (uint32_t)(u > lim);
+  }
+  return !bad;
+}
+
 void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats) {
   oc_sanitize_stats_t st = {0, 0, 0};
-  if (!v || n <= 0) return;
+  if (!v || n <= 0 || oc__clean(v, n)) return;
   for (int i = 0; i < n; i++) {
     float x = v[i];
     if (isnan(x)) {

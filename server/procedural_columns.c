@@ -512,10 +512,12 @@ static int ocs__cells(const ocs__proc_t *P, const ocs__lframe_t *lf, int l, cons
 int ocs__col_kvox_pretest = 1;
 _Atomic long ocs__col_kvox_dropped;
 
-/* Corner c (bit 0: +x, 1: +y, 2: +z) of voxel v, as an index of the brick's 9³ corners. */
-static inline int ocs__corner(int v, int c) {
-  return (v % 8 + (c & 1)) + OCS__KC * (v / 8 % 8 + (c >> 1 & 1)) + OCS__KC * OCS__KC * (v / 64 + (c >> 2 & 1));
-}
+/* Voxel v's lowest corner as an index of the brick's 9³ corners; corner c (bit 0: +x, 1: +y, 2: +z)
+ * is that plus ocs__corner_off[c] (computed once per voxel: per corner it was 1 % of the world's
+ * instructions). */
+static inline int ocs__corner0(int v) { return v % 8 + OCS__KC * (v / 8 % 8) + OCS__KC * OCS__KC * (v / 64); }
+static const int ocs__corner_off[8] = {0, 1, OCS__KC, OCS__KC + 1, OCS__KC * OCS__KC, OCS__KC * OCS__KC + 1,
+                                       OCS__KC * OCS__KC + OCS__KC, OCS__KC * OCS__KC + OCS__KC + 1};
 
 static void ocs__voxel_cells(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
                              uint8_t vmask[OC_BRICK_VOXELS], const uint8_t vwone[OC_BRICK_VOXELS], ocs__cws_t *ws) {
@@ -529,7 +531,7 @@ static void ocs__voxel_cells(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   uint8_t need[OCS__KC * OCS__KC * OCS__KC] = {0};
   for (int v = 0; v < OC_BRICK_VOXELS; v++)
     if (vmask[v] >> l & 1u)
-      for (int c = 0; c < 8; c++) need[ocs__corner(v, c)] = 1;
+      for (int c = 0, c0 = ocs__corner0(v); c < 8; c++) need[c0 + ocs__corner_off[c]] = 1;
   int n = 0, corner[OCS__CHUNK];
   for (int i = 0; i <= OCS__KC * OCS__KC * OCS__KC; i++) {
     if (n == OCS__CHUNK || (i == OCS__KC * OCS__KC * OCS__KC && n)) { /* a batch full, or the last */
@@ -553,7 +555,8 @@ static void ocs__voxel_cells(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   for (int v = 0; v < OC_BRICK_VOXELS; v++) {
     if (!(vmask[v] >> l & 1u)) continue;
     double K = -INFINITY, gg[3], c[3];
-    for (int k = 0; k < 8; k++) K = fmax(K, ws->kv[ocs__corner(v, k)]);
+    const double *kc = &ws->kv[ocs__corner0(v)];
+    for (int k = 0; k < 8; k++) K = kc[ocs__corner_off[k]] > K ? kc[ocs__corner_off[k]] : K; /* fmax is a libm call */
     ocs__voxel_centre(ic, v, u, gg, c);
     double h = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) - OCS__R, C = ws->cc[v];
     double W = pl->cvox && C < 2.0 && !(vwone[v] >> l & 1u) ? ocs__w(L, lf, (float)C) : 1.0;
@@ -573,7 +576,8 @@ static void ocs__pieces_cells(ocs__cws_t *ws, int m) {
     double gg[3], c[3], f[3], k[8];
     ocs__voxel_centre(ws->ic, v, ws->u, gg, c);
     for (int a = 0; a < 3; a++) f[a] = (ws->p[3 * i + a] - c[a]) / ws->u + 0.5; /* 0..1 across the voxel */
-    for (int e = 0; e < 8; e++) k[e] = ws->kv[ocs__corner(v, e)];
+    const double *kc = &ws->kv[ocs__corner0(v)];
+    for (int e = 0; e < 8; e++) k[e] = kc[ocs__corner_off[e]];
     for (int e = 0; e < 4; e++) k[e] = k[2 * e] + f[0] * (k[2 * e + 1] - k[2 * e]);
     for (int e = 0; e < 2; e++) k[e] = k[2 * e] + f[1] * (k[2 * e + 1] - k[2 * e]);
     ws->k[j] = k[0] + f[2] * (k[1] - k[0]);
@@ -676,7 +680,8 @@ static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, cons
   double hi2 = rhi * rhi - a2, lo2 = rlo * rlo - a2;
   if (!(hi2 > 0.0)) return;
   /* |t| over the voxel (ta..tb never contains 0: |centre| along va is ≥ |centre|/√3 ≫ a voxel) */
-  double sgn = ta + tb < 0.0 ? -1.0 : 1.0, u0 = fmin(fabs(ta), fabs(tb)), u1 = fmax(fabs(ta), fabs(tb));
+  /* ternaries, not fmin/fmax: without -ffinite-math-only those are libm calls, 24 M per 8 epochs */
+  double aa = fabs(ta), ab = fabs(tb), sgn = ta + tb < 0.0 ? -1.0 : 1.0, u0 = aa < ab ? aa : ab, u1 = aa < ab ? ab : aa;
   double b0 = lo2 > 0.0 ? sqrt(lo2) : 0.0, b1 = sqrt(hi2);
   u0 = u0 > b0 ? u0 : b0;
   u1 = u1 < b1 ? u1 : b1;

@@ -370,8 +370,12 @@ static void ocs__box_geom(const double lo[3], const double hi[3], int tangent, o
  * maximum kmax (recorded in bb, with the layer's mask and W = 1 bits). Detail erosion is ≥ 0, so it
  * never raises the bound; the frame's margins cover the fast filter's estimate; small margins
  * cover ulp-level non-monotonicity. */
-static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l, double hmin, double hmax,
-                             double cmin, double cmax, double kmax, ocs__bb_t *bb) {
+/* ocs__layer_max() up to its σt: G, the most the layer's density argument A' − Q(h) may reach over
+ * the box (> 0: the layer may hold cloud there), or 0, with bb's ranges, mask and wone set as
+ * ocs__layer_max() sets them. Where only whether a box may hold cloud matters (the sampler's voxel
+ * bounds) this is enough: the σt after it costs two libm powers, 1 % of the world's instructions. */
+static double ocs__layer_g(const ocs__proc_t *P, const ocs__frame_t *F, int l, double hmin, double hmax, double cmin,
+                           double cmax, double kmax, ocs__bb_t *bb) {
   const ocs__layer_t *L = &ocs__layers[l];
   const ocs__lstate_t *S = &P->L[l];
   const ocs__lframe_t *lf = &F->l[l];
@@ -384,6 +388,19 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
   double A = W * ocs__sat(L->a0 + L->a1 * (km > 1.0 ? 1.0 : km)) + lf->amargin;
   double G = A - ocs__qmin(L, a, b) + 1e-9;
   if (!(G > 0.0)) return 0.0;
+  bb->mask |= 1u << l;
+  if (cmin >= lf->theta + L->s_w + 1e-9) bb->wone |= 1u << l;
+  return G;
+}
+
+static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l, double hmin, double hmax,
+                             double cmin, double cmax, double kmax, ocs__bb_t *bb) {
+  const ocs__layer_t *L = &ocs__layers[l];
+  const ocs__lstate_t *S = &P->L[l];
+  const ocs__lframe_t *lf = &F->l[l];
+  double G = ocs__layer_g(P, F, l, hmin, hmax, cmin, cmax, kmax, bb);
+  if (!(G > 0.0)) return 0.0;
+  double a = hmin > S->band_lo ? hmin : S->band_lo, b = hmax < S->band_hi ? hmax : S->band_hi;
   double phi = ocs__sat(G / L->F_w);
   double wc = lf->wc * ocs__prof_up(L, b) * ocs__prof_down(L, a) * phi, rho = ocs__rho_air(a), s;
   if (L->phase == OCS__LIQUID)
@@ -394,8 +411,6 @@ static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l,
     double sl = ocg_sigma_t_liquid(wc, rho), si = ocg_sigma_t_ice(wc * L->ice_ratio, rho);
     s = sl > si ? sl : si; /* σt is a convex combination of the two */
   }
-  bb->mask |= 1u << l;
-  if (cmin >= lf->theta + L->s_w + 1e-9) bb->wone |= 1u << l;
   return F->sigma_scale * s * (1.0 + 1e-6);
 }
 
@@ -654,7 +669,8 @@ static void ocs__cube_ranges(const ocs__brick_t *B, int l, int n, ocs__cubes_t *
   }
 }
 
-/* What ocs__box_max(grid 0) gives for each of the cubes w->g[0..n): w->total and w->bb. */
+/* For each of the cubes w->g[0..n): w->bb as ocs__box_max(grid 0) gives it, and w->total > 0 where that
+ * bound is > 0 (the sum of the layers' ocs__layer_g(), not σt: only its sign is read). */
 static void ocs__cube_bounds(const ocs__brick_t *B, int n, ocs__cubes_t *w, double (*ccentre)[OC_BRICK_VOXELS]) {
   for (int v = 0; v < n; v++) w->bb[v].mask = w->bb[v].wone = 0, w->total[v] = 0.0;
   unsigned todo = B->F.mask & B->nb.mask;
@@ -665,7 +681,9 @@ static void ocs__cube_bounds(const ocs__brick_t *B, int n, ocs__cubes_t *w, doub
     for (int v = 0; v < n; v++) {
       const ocs__geom_t *g = &w->g[v];
       if ((g->hmin > S->band_lo ? g->hmin : S->band_lo) > (g->hmax < S->band_hi ? g->hmax : S->band_hi)) continue;
-      w->total[v] += ocs__layer_max(B->P, &B->F, l, g->hmin, g->hmax, w->cmin[v], w->cmax[v], w->kmax[v], &w->bb[v]);
+      /* only whether a cube may hold cloud is read (vmask, live): G > 0 for every cube where σt's
+       * bound is > 0 (a few more where the water profile makes it 0: pieces then find 0) */
+      w->total[v] += ocs__layer_g(B->P, &B->F, l, g->hmin, g->hmax, w->cmin[v], w->cmax[v], w->kmax[v], &w->bb[v]);
     }
   }
 }

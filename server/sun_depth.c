@@ -329,7 +329,8 @@ static double ocs__node_exit(const double pv[3], const int sg[3], const double i
   double t = INFINITY;
   for (int a = 0; a < 3; a++) {
     double f = sg[a] > 0 ? ((double)n[a] + 1.0) * size : (double)n[a] * size;
-    if (sg[a] != 0) t = fmin(t, (f - pv[a]) * idv[a]);
+    double x = (f - pv[a]) * idv[a];
+    if (sg[a] != 0 && x < t) t = x; /* fmin's result (x is never NaN): a ternary, not a libm call */
   }
   return t;
 }
@@ -358,7 +359,7 @@ static double ocs__walk(ocs__ctx_t *c, oc_dvec3 p, double ta, double tb, int lev
   int have = 0; /* g holds the cell at t */
   for (long it = 0; t < tb && !c->err && it < OCS__MAX_ITER; it++) {
     if (!have) { /* locate the cell just past t */
-      double tl = t + fmin(eta, 0.5 * (tb - t));
+      double half = 0.5 * (tb - t), tl = t + (half < eta ? half : eta);
       for (int a = 0; a < 3; a++) {
         double u = floor((pv[a] + tl * dv[a]) * inv);
         g[a] = u < 0.0 ? 0 : u >= (double)ncell ? ncell - 1 : (int64_t)u;

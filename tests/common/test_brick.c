@@ -291,6 +291,25 @@ static void test_brick__sanitize(void **state) {
   w[0] = NAN;
   oc_sanitize(w, 1, NULL);
   assert_true(w[0] == 0.0f);
+  /* a clean brick is left as it is (the whole-brick fast path), and one value that is not, anywhere
+   * in it, is still found: −0, a tiny negative, just above OC_VALUE_MAX, ±Inf, NaN */
+  const float bad[] = {-0.0f, -1e-30f, nextafterf(OC_VALUE_MAX, INFINITY), INFINITY, -INFINITY, NAN};
+  const int at[] = {0, 7, 255, OC_BRICK_VOXELS - 1};
+  for (int b = 0; b < (int)(sizeof bad / sizeof bad[0]); b++)
+    for (int a = 0; a < (int)(sizeof at / sizeof at[0]); a++) {
+      float c[OC_BRICK_VOXELS];
+      fill(c, 0.25f);
+      c[1] = OC_VALUE_MAX, c[2] = 0.0f, c[3] = 1e-38f;
+      c[at[a]] = bad[b];
+      oc_sanitize(c, OC_BRICK_VOXELS, NULL);
+      float want = bad[b] > 0.0f ? OC_VALUE_MAX : 0.0f;
+      assert_true(c[at[a]] == want && !signbit(c[at[a]]));
+      for (int i = 0; i < OC_BRICK_VOXELS; i++) {
+        if (i == at[a]) continue;
+        float keep = i == 1 ? OC_VALUE_MAX : i == 2 ? 0.0f : i == 3 ? 1e-38f : 0.25f;
+        assert_true(c[i] == keep && !signbit(c[i]));
+      }
+    }
   /* an unsanitised brick still encodes without NaN ranges */
   float s[OC_BRICK_VOXELS], t[OC_BRICK_VOXELS];
   oc_range_t r[OC_CHANNELS];
