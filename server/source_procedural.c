@@ -366,10 +366,6 @@ static void ocs__box_geom(const double lo[3], const double hi[3], int tangent, o
   cap->e2[2] = cap->u[0] * cap->e1[1] - cap->u[1] * cap->e1[0];
 }
 
-/* A layer's σt maximum over altitudes [hmin, hmax] given its coverage range [cmin, cmax] and cell
- * maximum kmax (recorded in bb, with the layer's mask and W = 1 bits). Detail erosion is ≥ 0, so it
- * never raises the bound; the frame's margins cover the fast filter's estimate; small margins
- * cover ulp-level non-monotonicity. */
 /* ocs__layer_max() up to its σt: G, the most the layer's density argument A' − Q(h) may reach over
  * the box (> 0: the layer may hold cloud there), or 0, with bb's ranges, mask and wone set as
  * ocs__layer_max() sets them. Where only whether a box may hold cloud matters (the sampler's voxel
@@ -393,6 +389,10 @@ static double ocs__layer_g(const ocs__proc_t *P, const ocs__frame_t *F, int l, d
   return G;
 }
 
+/* A layer's σt maximum over altitudes [hmin, hmax] given its coverage range [cmin, cmax] and cell
+ * maximum kmax (recorded in bb, with the layer's mask and W = 1 bits). Detail erosion is ≥ 0, so it
+ * never raises the bound; the frame's margins cover the fast filter's estimate; small margins
+ * cover ulp-level non-monotonicity. */
 static double ocs__layer_max(const ocs__proc_t *P, const ocs__frame_t *F, int l, double hmin, double hmax,
                              double cmin, double cmax, double kmax, ocs__bb_t *bb) {
   const ocs__layer_t *L = &ocs__layers[l];
