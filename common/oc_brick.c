@@ -148,11 +148,28 @@ double oc_code_rel_error_bound(oc_range_t r) {
 
 typedef enum { OC__CH_ZERO, OC__CH_UNIFORM, OC__CH_VARYING } oc__ch_kind_t;
 
+/* Whether every value is +0 (all bits clear), in blocks of 8 that gcc's -O2 cost model vectorises:
+ * most bricks made are empty, and the scan below is not vectorised (1.3 µs a channel). */
+static int oc__all_zero(const float *in) {
+  uint32_t any = 0;
+  for (int i = 0; i < OC_BRICK_VOXELS; i += 8)
+    for (int k = 0; k < 8; k++) {
+      uint32_t u;
+      memcpy(&u, &in[i + k], sizeof u);
+      any |= u;
+    }
+  return any == 0;
+}
+
 /* Reads one channel defensively (non-finite or negative values act as sanitised ones, so even an
- * unsanitised caller cannot produce NaN ranges), classifies it and sets its range. */
+ * unsanitised caller cannot produce NaN ranges), classifies it and sets its range. v is left
+ * unwritten for a zero channel (nothing reads it then). */
 static oc__ch_kind_t oc__channel(const float *in, float v[OC_BRICK_VOXELS], oc_range_t *r) {
+  if (oc__all_zero(in)) {
+    r->lo = r->hi = 0.0f;
+    return OC__CH_ZERO;
+  }
   float mn = OC_VALUE_MAX, mx = 0.0f;
-  double sum = 0.0;
   for (int i = 0; i < OC_BRICK_VOXELS; i++) {
     float x = in[i];
     if (!(x > 0.0f)) x = 0.0f; /* NaN, −0 and negatives */
@@ -160,14 +177,17 @@ static oc__ch_kind_t oc__channel(const float *in, float v[OC_BRICK_VOXELS], oc_r
     v[i] = x;
     if (x < mn) mn = x;
     if (x > mx) mx = x;
-    sum += x;
   }
   if (mx == 0.0f) {
     r->lo = r->hi = 0.0f;
     return OC__CH_ZERO;
   }
   if ((double)mx <= (double)mn * (1.0 + OC_UNIFORM_TOL)) {
-    /* The mean lies in [mn, mx], so it is positive and keeps the channel's level. */
+    /* The mean lies in [mn, mx], so it is positive and keeps the channel's level. Summed only here,
+     * in the same order: few bricks are uniform, and the scan above no longer carries a chain of
+     * 512 dependent double additions. */
+    double sum = 0.0;
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) sum += v[i];
     r->lo = r->hi = (float)(sum / OC_BRICK_VOXELS);
     return OC__CH_UNIFORM;
   }

@@ -271,6 +271,22 @@ static void test_brick__classify(void **state) {
   assert_true(r[0].lo == 1.0f && r[0].hi == 1.0f);
   assert_int_equal(codes.code[0][5], 0);
   assert_int_equal(codes.code[0][6], 1);
+
+  /* one value anywhere makes a channel non-zero (the all-zero check reads every one); −0 and
+   * negatives alone still make it zero */
+  const int at[] = {0, 7, 8, 255, OC_BRICK_VOXELS - 1};
+  for (int a = 0; a < (int)(sizeof at / sizeof at[0]); a++) {
+    fill(s, 0.0f), fill(t, 0.0f);
+    s[at[a]] = 0.25f;
+    assert_int_equal(oc_brick_encode(s, t, &codes, r), OC_NODE_BRICK);
+    assert_true(r[0].hi == 0.25f && codes.code[0][at[a]] != 0);
+    fill(s, 0.0f);
+    t[at[a]] = 4.0f;
+    assert_int_equal(oc_brick_encode(s, t, &codes, r), OC_NODE_BRICK);
+    assert_true(r[1].hi == 4.0f && r[0].hi == 0.0f);
+    t[at[a]] = -0.0f, s[at[a]] = -1.0f;
+    assert_int_equal(oc_brick_encode(s, t, &codes, r), OC_NODE_EMPTY);
+  }
 }
 
 static void test_brick__sanitize(void **state) {
