@@ -1,6 +1,6 @@
 /* bench_model.c — `overcast-bench model`: the real-time cloud model against stored Monte Carlo
  * truth images (`overcast-bench truth --save`), one row per case, old and new model side by side,
- * and the sum the fit minimises (--search: Nelder-Mead over the six numbers). The truth itself is not re-traced: a few
+ * and the sum the fit minimises (--search: Nelder-Mead over the nine numbers, on the fitted set). The truth itself is not re-traced: a few
  * milliseconds per case, so a fit can render every case hundreds of times. */
 #include <math.h>
 #include <stddef.h>
@@ -60,20 +60,25 @@ typedef struct {
   int ok;                 /**< within both bounds */
 } oct__mcase_t;
 
-/* Scores every case with o's numbers; prints a row per case unless quiet. @return the objective, or
- * NaN when a render failed. */
-static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oct__model_opts_t *o, int print) {
+static int oct__fitted(const oct__mcase_t *m, int sky);
+
+/* Scores every case with o's numbers (fitted_only: only the fitted set's terms, as a search does);
+ * prints a row per case unless quiet. @return the objective, or NaN when a render failed. */
+static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oct__model_opts_t *o, int print,
+                             int fitted_only) {
   double cost = 0.0, worst_rel = 0.0, worst_rmse = 0.0, worst_amb = 0.0;
   int pass = 0;
   for (int i = 0; i < n; i++) {
     oct__mcase_t *m = &cs[i];
+    const int fit_sun = !fitted_only || oct__fitted(m, 0), fit_sky = !fitted_only || oct__fitted(m, 1);
+    if (!fit_sun && !fit_sky) continue;
     oct_truth_score_t old = {0}, s;
     int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, &old) : OC_EXIT_OK;
     if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, &s);
     if (rc != OC_EXIT_OK) return NAN;
     double amb_new = 0.0, amb_old = 0.0; /* image mean under a uniform sky alone, against tc.env */
     m->amb = NAN;
-    if (m->tc.env > 0.0 && m->tc.albedo < 1.0) {
+    if (fit_sky && m->tc.env > 0.0 && m->tc.albedo < 1.0) {
       oc_render_desc_t d = oct_truth_case_desc(&m->tc, &m->sc, m->cam);
       if (o->have_fit) d.ms_fit = o->fit;
       if (oct_truth_ambient(&m->tc, &m->st, d, &amb_new) < 0) return NAN;
@@ -90,7 +95,7 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     double bound = fmax(6.0, 2.0 * s.noise8), lim = m->tc.tau > 20.0 ? 0.2 : 0.1;
     int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
     m->rel = s.rel, m->rmse8 = s.rmse8, m->ok = ok;
-    cost += oct__model_cost(&s);
+    if (fit_sun) cost += oct__model_cost(&s);
     worst_rel = fmax(worst_rel, fabs(s.rel));
     worst_rmse = fmax(worst_rmse, s.rmse8 / bound);
     pass += ok;
@@ -185,7 +190,7 @@ static void oct__model_unpack(const double x[3 + OC_RENDER_MS_FIT_N], oct__model
 static double oct__model_eval(const char *prog, oct__mcase_t *cs, int n, oct__model_opts_t *o,
                               const double x[3 + OC_RENDER_MS_FIT_N]) {
   oct__model_unpack(x, o);
-  double c = oct__model_all(prog, cs, n, o, 0);
+  double c = oct__model_all(prog, cs, n, o, 0, 1);
   return isnan(c) ? 1e300 : c;
 }
 
@@ -195,8 +200,9 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
   double p[N + 1][N], v[N + 1];
   const double fit0[OC_RENDER_MS_FIT_N] = {OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K,
                                            OCG_MS_DIFFUSE_B,  OCG_MS_DIFFUSE_A,    OCG_MS_FORWARD};
+  const double abc0[3] = {OC_RENDER_DEFAULT_MS_A, OC_RENDER_DEFAULT_MS_B, OC_RENDER_DEFAULT_MS_C};
   for (int j = 0; j < 3; j++) {
-    double a = o->have_abc ? o->abc[j] : 0.5;
+    double a = o->have_abc ? o->abc[j] : abc0[j];
     p[0][j] = log(a / (1.0 - a));
   }
   for (int j = 0; j < OC_RENDER_MS_FIT_N; j++) p[0][3 + j] = log(fmax(o->have_fit ? o->fit[j] : fit0[j], 1e-6));
@@ -247,7 +253,7 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
   for (int i = 1; i <= N; i++)
     if (v[i] < v[best]) best = i;
   oct__model_unpack(p[best], o);
-  printf("search: %d iterations, objective %.6g: --abc %.4f,%.4f,%.4f --fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters,
+  printf("search: %d iterations, objective on the fitted set %.6g: --abc %.4f,%.4f,%.4f --fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters,
          v[best], o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1], o->fit[2], o->fit[3], o->fit[4], o->fit[5]);
 }
 
@@ -280,8 +286,8 @@ static const oc_cli_opt_t model_opts[] = {
     OCT_FLAG(oct__model_opts_t, legacy, "legacy", "also score the plain octaves (the model before the fit)"),
     OCT_FLAG(oct__model_opts_t, quiet, "quiet", "only the summary and the fit objective"),
     OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
-        "nine numbers from the given (or default) start; prints the best --abc and --fit, then scores the cases "
-        "with them"),
+        "nine numbers from the given (or default) start, scored on the fitted set alone (docs/numerics.md); "
+        "prints the best --abc and --fit, then scores every case with them"),
     OCT_OPTS_END};
 
 OCT_SPEC(model,
@@ -321,7 +327,7 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
       printf("| case | τ | albedo | truth mean ± rel. SE | seed RMSE | %snew: mean error | RMSE 0–255 | bound | uniform sky: "
              "new (unoccluded) |\n|---|---:|---:|---:|---:|%s---:|---:|---:|---:|\n",
              o.legacy ? "old: mean error | RMSE 0–255 | " : "", o.legacy ? "---:|---:|" : "");
-    if (isnan(oct__model_all(prog, cs, n, &o, 1))) rc = OC_EXIT_RUNTIME;
+    if (isnan(oct__model_all(prog, cs, n, &o, 1, 0))) rc = OC_EXIT_RUNTIME;
     else oct__model_sets(cs, n);
   }
   for (int i = 0; i < loaded; i++) {
