@@ -1,7 +1,8 @@
 /* bench_model.c — `overcast-bench model`: the real-time cloud model against stored Monte Carlo
  * truth images (`overcast-bench truth --save`), one row per case, old and new model side by side,
- * and the sum the fit minimises (--search: Nelder-Mead over the nine numbers, on the fitted set). The truth itself is not re-traced: a few
- * milliseconds per case, so a fit can render every case hundreds of times. */
+ * and the sum the fit minimises (--search: Nelder-Mead over the nine numbers, scored on the fitted set).
+ * The truth itself is not re-traced: a few milliseconds per case, so a fit can render every case hundreds
+ * of times. */
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -253,8 +254,9 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
   for (int i = 1; i <= N; i++)
     if (v[i] < v[best]) best = i;
   oct__model_unpack(p[best], o);
-  printf("search: %d iterations, objective on the fitted set %.6g: --abc %.4f,%.4f,%.4f --fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters,
-         v[best], o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1], o->fit[2], o->fit[3], o->fit[4], o->fit[5]);
+  printf("search: %d iterations, objective on the fitted set %.6g: --abc %.4f,%.4f,%.4f "
+         "--fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters, v[best], o->abc[0], o->abc[1], o->abc[2], o->fit[0], o->fit[1],
+         o->fit[2], o->fit[3], o->fit[4], o->fit[5]);
 }
 
 /* --fit D,Q,K,BD,AD,B and --abc A,B,C: six or three numbers. */
@@ -321,6 +323,10 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
       break;
     }
   }
+  int fitted = 0;
+  for (int i = 0; i < loaded; i++) fitted += oct__fitted(&cs[i], 0) || oct__fitted(&cs[i], 1);
+  if (rc == OC_EXIT_OK && iters > 0 && fitted == 0)
+    rc = oc_cli_fail(prog, OC_EXIT_USAGE, "model --search: none of the files is in the fitted set (docs/numerics.md)");
   if (rc == OC_EXIT_OK) {
     if (iters > 0) oct__model_search(prog, cs, n, &o, (int)iters);
     if (!o.quiet)
