@@ -17,15 +17,17 @@
 
 typedef struct {
   float fit[OC_RENDER_MS_FIT_N];
-  int have_fit, have_abc, legacy, quiet, search;
+  int have_fit, have_abc, legacy, quiet, search, split;
   double abc[3];
 } oct__model_opts_t;
 
-/* Renders one case with one model; @return 0 or an exit status. */
+/* Renders one case with one model (single: single scattering alone); @return 0 or an exit status. */
 static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam,
-                           const oc_state_t *st, const oct__model_opts_t *o, int legacy, oct_truth_score_t *s) {
+                           const oc_state_t *st, const oct__model_opts_t *o, int legacy, int single,
+                           oct_truth_score_t *s) {
   oc_render_desc_t d = oct_truth_case_desc(c, sc, cam);
   d.ms_model = legacy ? OC_MS_MODEL_OCTAVES : OC_MS_MODEL_DEPTH;
+  if (single) d.ms_octaves = 1;
   if (!legacy && o->have_fit) d.ms_fit = o->fit;
   if (!legacy && o->have_abc) {
     d.ms_a = (float)o->abc[0];
@@ -63,6 +65,19 @@ typedef struct {
 
 static int oct__fitted(const oct__mcase_t *m, int sky);
 
+/* --split: the case once more with single scattering alone (exact given τ; the stored cases have no
+ * sky, so the rest is multiply scattered light). Prints the truth's multiply scattered share and k,
+ * the factor by which the model's multiply scattered part would give the truth's image mean. */
+static int oct__model_split(const char *prog, const oct__mcase_t *m, const oct__model_opts_t *o,
+                            const oct_truth_score_t *s) {
+  oct_truth_score_t one;
+  int rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 1, &one);
+  if (rc != OC_EXIT_OK) return rc;
+  double ms_truth = m->tc.mean - one.mean, ms_model = s->mean - one.mean;
+  printf(" %.2f | %.2f |", ms_truth / m->tc.mean, ms_model > 0.0 ? ms_truth / ms_model : NAN);
+  return OC_EXIT_OK;
+}
+
 /* Scores every case with o's numbers (fitted_only: only the fitted set's terms, as a search does);
  * prints a row per case unless quiet. @return the objective, or NaN when a render failed. */
 static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oct__model_opts_t *o, int print,
@@ -74,8 +89,8 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     const int fit_sun = !fitted_only || oct__fitted(m, 0), fit_sky = !fitted_only || oct__fitted(m, 1);
     if (!fit_sun && !fit_sky) continue;
     oct_truth_score_t old = {0}, s;
-    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, &old) : OC_EXIT_OK;
-    if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, &s);
+    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, 0, &old) : OC_EXIT_OK;
+    if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 0, &s);
     if (rc != OC_EXIT_OK) return NAN;
     double amb_new = 0.0, amb_old = 0.0; /* image mean under a uniform sky alone, against tc.env */
     m->amb = NAN;
@@ -104,8 +119,10 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
       printf("| %s | %g | %g | %.4g ± %.1f %% | %.2f | ", m->name, m->tc.tau, m->tc.albedo, m->tc.mean, 100.0 * s.rel_se,
              s.noise8);
       if (o->legacy) printf("%+.1f %% | %.1f | ", 100.0 * old.rel, old.rmse8);
-      printf("%+.1f %% | %.1f | %.1f%s | %+.2f %% (%+.2f %%) |\n", 100.0 * s.rel, s.rmse8, bound, ok ? "" : " ✗",
+      printf("%+.1f %% | %.1f | %.1f%s | %+.2f %% (%+.2f %%) |", 100.0 * s.rel, s.rmse8, bound, ok ? "" : " ✗",
              100.0 * amb_new, 100.0 * amb_old);
+      if (o->split && oct__model_split(prog, m, o, &s) != OC_EXIT_OK) return NAN;
+      printf("\n");
     }
   }
   if (print)
@@ -287,6 +304,8 @@ static const oc_cli_opt_t model_opts[] = {
      .help = "octave factors"},
     OCT_FLAG(oct__model_opts_t, legacy, "legacy", "also score the plain octaves (the model before the fit)"),
     OCT_FLAG(oct__model_opts_t, quiet, "quiet", "only the summary and the fit objective"),
+    OCT_FLAG(oct__model_opts_t, split, "split", "also render each case with single scattering alone and print "
+             "the truth's multiply scattered share and k, the factor the model's multiply scattered part lacks"),
     OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
         "nine numbers from the given (or default) start, scored on the fitted set alone (docs/numerics.md); "
         "prints the best --abc and --fit, then scores every case with them"),
@@ -331,8 +350,9 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
     if (iters > 0) oct__model_search(prog, cs, n, &o, (int)iters);
     if (!o.quiet)
       printf("| case | τ | albedo | truth mean ± rel. SE | seed RMSE | %snew: mean error | RMSE 0–255 | bound | uniform sky: "
-             "new (unoccluded) |\n|---|---:|---:|---:|---:|%s---:|---:|---:|---:|\n",
-             o.legacy ? "old: mean error | RMSE 0–255 | " : "", o.legacy ? "---:|---:|" : "");
+             "new (unoccluded) |%s\n|---|---:|---:|---:|---:|%s---:|---:|---:|---:|%s\n",
+             o.legacy ? "old: mean error | RMSE 0–255 | " : "", o.split ? " multiply scattered share | k |" : "",
+             o.legacy ? "---:|---:|" : "", o.split ? "---:|---:|" : "");
     if (isnan(oct__model_all(prog, cs, n, &o, 1, 0))) rc = OC_EXIT_RUNTIME;
     else oct__model_sets(cs, n);
   }
