@@ -65,6 +65,10 @@ typedef struct {
 
 static int oct__fitted(const oct__mcase_t *m, int sky);
 
+/* Whether the stored truth has a uniform-sky image the model is scored against (ω = 1 is the sky
+ * itself at every depth, so it is not scored). */
+static int oct__has_sky(const oct__mcase_t *m) { return m->tc.env > 0.0 && m->tc.albedo < 1.0; }
+
 /* --split: the case once more with single scattering alone (exact given τ; the stored cases have no
  * sky, so the rest is multiply scattered light). Prints the truth's multiply scattered share and k,
  * the factor by which the model's multiply scattered part would give the truth's image mean. */
@@ -86,15 +90,10 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
   int pass = 0;
   for (int i = 0; i < n; i++) {
     oct__mcase_t *m = &cs[i];
-    const int fit_sun = !fitted_only || oct__fitted(m, 0), fit_sky = !fitted_only || oct__fitted(m, 1);
-    if (!fit_sun && !fit_sky) continue;
-    oct_truth_score_t old = {0}, s;
-    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, 0, &old) : OC_EXIT_OK;
-    if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 0, &s);
-    if (rc != OC_EXIT_OK) return NAN;
+    const int fit_sky = (!fitted_only || oct__fitted(m, 1)) && oct__has_sky(m);
     double amb_new = 0.0, amb_old = 0.0; /* image mean under a uniform sky alone, against tc.env */
     m->amb = NAN;
-    if (fit_sky && m->tc.env > 0.0 && m->tc.albedo < 1.0) {
+    if (fit_sky) {
       oc_render_desc_t d = oct_truth_case_desc(&m->tc, &m->sc, m->cam);
       if (o->have_fit) d.ms_fit = o->fit;
       if (oct_truth_ambient(&m->tc, &m->st, d, &amb_new) < 0) return NAN;
@@ -108,10 +107,15 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
       cost += (amb_new / 0.05) * (amb_new / 0.05);
       worst_amb = fmax(worst_amb, fabs(amb_new));
     }
+    if (fitted_only && !oct__fitted(m, 0)) continue; /* a search renders no sun case it does not fit */
+    oct_truth_score_t old = {0}, s;
+    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, 0, &old) : OC_EXIT_OK;
+    if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 0, &s);
+    if (rc != OC_EXIT_OK) return NAN;
     double bound = fmax(6.0, 2.0 * s.noise8), lim = m->tc.tau > 20.0 ? 0.2 : 0.1;
     int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
     m->rel = s.rel, m->rmse8 = s.rmse8, m->ok = ok;
-    if (fit_sun) cost += oct__model_cost(&s);
+    cost += oct__model_cost(&s);
     worst_rel = fmax(worst_rel, fabs(s.rel));
     worst_rmse = fmax(worst_rmse, s.rmse8 / bound);
     pass += ok;
@@ -343,7 +347,7 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
     }
   }
   int fitted = 0;
-  for (int i = 0; i < loaded; i++) fitted += oct__fitted(&cs[i], 0) || oct__fitted(&cs[i], 1);
+  for (int i = 0; i < loaded; i++) fitted += oct__fitted(&cs[i], 0) || (oct__fitted(&cs[i], 1) && oct__has_sky(&cs[i]));
   if (rc == OC_EXIT_OK && iters > 0 && fitted == 0)
     rc = oc_cli_fail(prog, OC_EXIT_USAGE, "model --search: none of the files is in the fitted set (docs/numerics.md)");
   if (rc == OC_EXIT_OK) {
