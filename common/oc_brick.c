@@ -4,6 +4,7 @@
  * encoder can pick each code by comparing what the renderer will actually see. */
 #include "oc_brick.h"
 
+#include <float.h>  /* FLT_MAX */
 #include <math.h>   /* log, isnan, isinf, signbit */
 #include <stddef.h> /* NULL */
 #include <stdint.h> /* uint32_t */
@@ -73,47 +74,62 @@ void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats) {
 
 /*-*** Codes ***/
 
-static float oc__dec(uint32_t c, float lo, float hi) { return ocg_code_decode(c, lo, hi); }
+/* A varying range's decoder, its logarithm taken once (ocg_code_decode_at: the decoder's bits). */
+typedef struct {
+  float lo, hi, l2;
+} oc__dec_t;
 
-/* Largest code c in 1..65535 with decode(c) ≤ v, given decode(1) = lo ≤ v. The decoded sequence
- * is non-decreasing in c (exp2f and the products are monotonic), so this is a bracket search.
- * The log-space guess is almost always within one code, so the neighbourhood is tried first (two
- * or three decodes); a binary search covers the rare case where float rounding of the decoder is
- * larger than one code step (ratios within ~1e-3 of 1, where many codes decode to one float). */
-static uint32_t oc__code_floor(float v, float lo, float hi, uint32_t guess) {
+static oc__dec_t oc__decoder(float lo, float hi) { return (oc__dec_t){lo, hi, ocg_code_log2_ratio(lo, hi)}; }
+static float oc__dec(const oc__dec_t *d, uint32_t c) { return ocg_code_decode_at(c, d->lo, d->l2); }
+
+/* Largest code c in 1..65535 with decode(c) ≤ v, given decode(1) = lo ≤ v, and the decoded values
+ * of c and c + 1 (FLT_MAX past the top) to *dc, *dn. The decoded sequence is non-decreasing in c
+ * (exp2f and the products are monotonic), so this is a bracket search. The log-space guess is
+ * almost always within one code, so the neighbourhood is tried first (two or three decodes, which
+ * the caller's fix-up reuses); a binary search covers the rare case where float rounding of the
+ * decoder is larger than one code step (ratios within ~1e-3 of 1, where many codes decode to one
+ * float). */
+static uint32_t oc__code_floor(float v, const oc__dec_t *d, uint32_t guess, float *dc, float *dn) {
   uint32_t a, b; /* invariant: decode(a) ≤ v; b == 65536 or decode(b) > v */
   if (guess <= 1) guess = 1;
   if (guess > OC_CODE_MAX) guess = OC_CODE_MAX;
-  if (oc__dec(guess, lo, hi) <= v) {
-    if (guess == OC_CODE_MAX || oc__dec(guess + 1, lo, hi) > v) return guess;
-    if (guess + 1 == OC_CODE_MAX || oc__dec(guess + 2, lo, hi) > v) return guess + 1;
+  float g = oc__dec(d, guess);
+  if (g <= v) {
+    float g1 = guess == OC_CODE_MAX ? FLT_MAX : oc__dec(d, guess + 1);
+    if (g1 > v) return *dc = g, *dn = g1, guess;
+    float g2 = guess + 1 == OC_CODE_MAX ? FLT_MAX : oc__dec(d, guess + 2);
+    if (g2 > v) return *dc = g1, *dn = g2, guess + 1;
     a = guess + 2;
     b = OC_CODE_MAX + 1;
   } else {
-    if (guess == 1) return 1; /* only if decode(1) ≠ lo, which the decoder rules out */
-    if (oc__dec(guess - 1, lo, hi) <= v) return guess - 1;
+    if (guess == 1) return *dc = g, *dn = oc__dec(d, 2), 1; /* only if decode(1) ≠ lo, which the decoder rules out */
+    float g0 = oc__dec(d, guess - 1);
+    if (g0 <= v) return *dc = g0, *dn = g, guess - 1;
     a = 1;
     b = guess - 1;
   }
   while (b - a > 1) {
     uint32_t m = a + (b - a) / 2;
-    if (oc__dec(m, lo, hi) <= v)
+    if (oc__dec(d, m) <= v)
       a = m;
     else
       b = m;
   }
+  *dc = oc__dec(d, a);
+  *dn = a == OC_CODE_MAX ? FLT_MAX : oc__dec(d, a + 1);
   return a;
 }
 
 /* Best code for lo ≤ v (v may exceed hi) against a range with 0 < lo < hi: nearest in log space,
  * then fixed up so |decode(code) − v| is the smallest any code achieves (ties go to the lower). */
-static uint16_t oc__encode_log(float v, float lo, float hi, double inv_log_ratio) {
-  double x = log((double)v / (double)lo) * inv_log_ratio * (double)OC_CODE_STEPS + 1.0;
+static uint16_t oc__encode_log(float v, const oc__dec_t *d, double inv_log_ratio) {
+  double x = log((double)v / (double)d->lo) * inv_log_ratio * (double)OC_CODE_STEPS + 1.0;
   uint32_t guess = x >= (double)OC_CODE_MAX ? OC_CODE_MAX : x <= 1.0 ? 1u : (uint32_t)(x + 0.5);
-  uint32_t c = oc__code_floor(v, lo, hi, guess);
+  float dc, dn;
+  uint32_t c = oc__code_floor(v, d, guess, &dc, &dn);
   if (c < OC_CODE_MAX) {
-    double below = (double)v - (double)oc__dec(c, lo, hi);
-    double above = (double)oc__dec(c + 1, lo, hi) - (double)v;
+    double below = (double)v - (double)dc;
+    double above = (double)dn - (double)v;
     if (above < below) c++;
   }
   return (uint16_t)c;
@@ -125,7 +141,8 @@ uint16_t oc_code_encode(float v, oc_range_t r) {
   if ((double)v < (double)r.hi / OC_CODE_MAX_RATIO) return OC_CODE_ZERO; /* flushed */
   if (v < r.lo) return 2.0 * (double)v >= (double)r.lo ? 1 : OC_CODE_ZERO; /* nearer of 0 and lo */
   if (!(r.hi > r.lo)) return 1;                                             /* uniform range */
-  return oc__encode_log(v, r.lo, r.hi, 1.0 / log((double)r.hi / (double)r.lo));
+  oc__dec_t d = oc__decoder(r.lo, r.hi);
+  return oc__encode_log(v, &d, 1.0 / log((double)r.hi / (double)r.lo));
 }
 
 /* Exact for the C float decoder: decoded values are non-decreasing in the code, so any v in
@@ -136,9 +153,9 @@ uint16_t oc_code_encode(float v, oc_range_t r) {
  * largest ratio, while the real decoder stays below it. */
 double oc_code_rel_error_bound(oc_range_t r) {
   if (!(r.lo > 0.0f) || !(r.hi > r.lo)) return 0.0; /* zero channel, or uniform: exact */
-  double worst = 0.0, prev = (double)oc__dec(1, r.lo, r.hi);
+  double worst = 0.0, prev = (double)ocg_code_decode(1, r.lo, r.hi);
   for (uint32_t c = 2; c <= OC_CODE_MAX; c++) {
-    double d = (double)oc__dec(c, r.lo, r.hi);
+    double d = (double)ocg_code_decode(c, r.lo, r.hi);
     double e = fabs(d - prev) / (d + prev);
     if (e > worst) worst = e;
     prev = d;
@@ -205,8 +222,9 @@ static void oc__channel_codes(const float v[OC_BRICK_VOXELS], oc__ch_kind_t kind
     return;
   }
   double inv = 1.0 / log((double)r.hi / (double)r.lo);
+  oc__dec_t d = oc__decoder(r.lo, r.hi);
   for (int i = 0; i < OC_BRICK_VOXELS; i++)
-    code[i] = (double)v[i] < flush ? OC_CODE_ZERO : oc__encode_log(v[i], r.lo, r.hi, inv);
+    code[i] = (double)v[i] < flush ? OC_CODE_ZERO : oc__encode_log(v[i], &d, inv);
 }
 
 oc_node_kind_t oc_brick_encode(const float sigma[OC_BRICK_VOXELS], const float tau[OC_BRICK_VOXELS],
@@ -228,5 +246,5 @@ void oc_brick_decode(const oc_brick_codes_t *codes, const oc_range_t range[OC_CH
                      float sigma[OC_BRICK_VOXELS], float tau[OC_BRICK_VOXELS]) {
   float *out[OC_CHANNELS] = {sigma, tau};
   for (int c = 0; c < OC_CHANNELS; c++)
-    for (int i = 0; i < OC_BRICK_VOXELS; i++) out[c][i] = oc__dec(codes->code[c][i], range[c].lo, range[c].hi);
+    for (int i = 0; i < OC_BRICK_VOXELS; i++) out[c][i] = ocg_code_decode(codes->code[c][i], range[c].lo, range[c].hi);
 }

@@ -34,12 +34,20 @@
  *  note 1 : hi/lo, not log2(hi) − log2(lo): one rounded division costs ≈ 6e-8 relative, while two
  *           logarithms of values near 2^±20 cost ≈ 2e-6 absolute in the exponent.
  *  note 2 : no 0/0 (lo > 0 is checked first) and no overflow: the result is at most lo·(hi/lo). */
+OC_INLINE ocg_real ocg_code_log2_ratio(ocg_real lo, ocg_real hi) { return ocg_log2(ocg_min(hi / lo, OCG_CODE_RATIO_CLAMP)); }
+
+/*! ocg_code_decode_at() : code 1..65535 of a varying range (0 < lo < hi) given l2 =
+ *  ocg_code_log2_ratio(lo, hi): the same operations as ocg_code_decode, so the same bits, with the
+ *  logarithm taken once per range (the encoder decodes 2–4 codes per value). */
+OC_INLINE ocg_real ocg_code_decode_at(ocg_uint code, ocg_real lo, ocg_real l2) {
+  ocg_real t = OCG_TO_REAL(code - 1u) / OCG_R(65534.0);
+  return lo * ocg_exp2(l2 * t);
+}
+
 OC_INLINE ocg_real ocg_code_decode(ocg_uint code, ocg_real lo, ocg_real hi) {
   if (code == 0u || !(lo > OCG_R(0.0))) return OCG_R(0.0);
   if (!(hi > lo)) return lo;
-  ocg_real ratio = ocg_min(hi / lo, OCG_CODE_RATIO_CLAMP);
-  ocg_real t = OCG_TO_REAL(code - 1u) / OCG_R(65534.0);
-  return lo * ocg_exp2(ocg_log2(ratio) * t);
+  return ocg_code_decode_at(code, lo, ocg_code_log2_ratio(lo, hi));
 }
 
 /*! ocg_brick_voxel() : memory index of sample (i, j, k), each 0..7: i + 8j + 64k (x fastest). */
