@@ -853,6 +853,11 @@ int ocs_tau_volume_build(const ocs_tau_desc_t *du, oc_key_t group, int level, vo
       r = cv;
       goto out;
     }
+    if (!cv && du->ground && du->ground(du->ctx, oc_key_make(level, kx, ky, kz))) {
+      float zero[OC_BRICK_VOXELS]; /* the proof writes the τ it proves (0), not needed here */
+      cv = !ocs__proven_clear(&c, du, oc_key_make(level, kx, ky, kz), zero);
+      if (cv && du->stats) atomic_fetch_add_explicit(&du->stats->columns, 1, memory_order_relaxed);
+    }
     if (!cv) continue;
     cov[q / 8] |= (unsigned char)(1u << (q % 8));
     ocs__grid_of(&hv, kx, ky, kz, f);

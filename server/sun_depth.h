@@ -111,14 +111,16 @@
 /*! ocs_tau_stats_t : what the direct march did, counted where a caller asks (ocs_tau_desc_t.stats);
  *  relaxed atomic increments, so one struct may serve every thread. Zero-initialise it. */
 typedef struct {
-  atomic_long direct;        /**< ocs_tau_direct() and ocs_tau_columns() calls that got as far as
-                                  marching or proving */
+  atomic_long direct;        /**< clear-sky proofs tried: ocs_tau_direct() and ocs_tau_columns()
+                                  calls that got as far as marching or proving, and ground nodes a
+                                  volume considers (ocs_tau_desc_t.ground) */
   atomic_long clear_proven;  /**< of those, nodes whose sun column was proven clear (bounds, and
                                   samples at the level walked: ocs_tau_direct(), note 1) */
   atomic_long clear_marched; /**< of those, provably clear nodes marched anyway (march_clear set):
                                   wasted work; 0 whenever march_clear is 0 */
   atomic_long columns;       /**< of those, nodes not proven clear whose τ came from their own
-                                  columns (ocs_tau_columns()) */
+                                  columns (ocs_tau_columns()) or whom a group volume covers as
+                                  ground (ocs_tau_desc_t.ground) */
 } ocs_tau_stats_t;
 
 /* How τ is computed. Zero-initialise (ocs_tau_desc_t d = {0};), set the callbacks and the sun;
@@ -148,6 +150,12 @@ typedef struct {
                            0 → 2 (64 nodes share one volume) */
   int cover_all;      /**< volumes cover every descendant; default 0: only those the march level's
                            σt says may hold σt (ocs_tau_volume_build(), note 2) */
+  /*! ground() : whether a node that holds no σt needs τ all the same: the ground, which the
+   *  renderer lights through τ (cloud shadows on it and in the air above it). NULL: none does.
+   *  Volumes cover these too, unless the clear-sky proof gives their τ as 0 (ocs_tau_direct(),
+   *  note 1), so the ground nodes of a group share its columns (ocs_tau_volume_build(), note 2).
+   *  Called with ctx; it must be a pure function of the key (a volume's bits depend on it). */
+  int (*ground)(void *ctx, oc_key_t key);
   int march_clear;    /**< march even nodes whose sun column is proven clear (ocs_tau_direct(),
                            note 1; the result is the same bits): for tests and before/after
                            figures; default 0 */
@@ -170,8 +178,9 @@ int ocs_tau_direct(const ocs_tau_desc_t *d, oc_key_t key, float tau[OC_BRICK_VOX
 
 /*! ocs_tau_columns() : τ of a node from a volume of its own (ocs_tau_volume_build() with the node
  *  as its group, cover_all), after the clear-sky proof of ocs_tau_direct() (note 1, the same bits
- *  when it holds). For nodes that need τ but hold no σt, which no group volume covers: the ground,
- *  which the renderer lights through τ (cloud shadows on the ground and in the air above it). The
+ *  when it holds). For nodes that need τ but hold no σt, when no group volume covers them (the
+ *  server's group volumes do, through ocs_tau_desc_t.ground): the ground, which the renderer
+ *  lights through τ (cloud shadows on the ground and in the air above it). The
  *  node's own sun columns, one voxel apart over its shadow across the sun (about 80–130), are
  *  marched once each instead of 512 rays, with a group volume's interpolation error
  *  (docs/numerics.md, "The group volume"; larger on the ground, which shadow edges cross).
@@ -198,7 +207,10 @@ int ocs_tau_march_level(const ocs_tau_desc_t *d, int node_level);
  *           the sample cubes of a level tile space, so a descendant that is not covered has no σt
  *           at its own level either, up to the source's box-filter estimate: a faint wisp that
  *           only the finer level catches). Only covered descendants cost columns, so a group
- *           where few nodes hold σt is cheap. With cover_all every descendant is covered.
+ *           where few nodes hold σt is cheap. With cover_all every descendant is covered; with a
+ *           ground() callback, also the descendants it names whose τ the clear-sky proof does not
+ *           give as 0 (one volume's columns for a group's ground, where each node's own volume,
+ *           ocs_tau_columns(), marched the columns along their shared faces again).
  *  @return 0; OC_EINVAL (bad desc, key or level); OC_ENOMEM; or the sigma callback's error (then
  *  *vol is NULL and *bytes 0). */
 int ocs_tau_volume_build(const ocs_tau_desc_t *d, oc_key_t group, int level, void **vol, size_t *bytes);

@@ -325,6 +325,12 @@ static int sigma_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS]) {
 
 static int tau_sigma_cb(void *ctx, oc_key_t key, float out[OC_BRICK_VOXELS]) { return sigma_get(ctx, key, out); }
 
+/* The ground nodes a group volume covers besides those with σt (ocs_tau_desc_t.ground). */
+static int tau_ground_cb(void *ctx, oc_key_t key) {
+  const ocs_world_t *w = ((const prod_t *)ctx)->w;
+  return w->ground_tau && !w->ground_direct && ocs_plan_ground_tau(key);
+}
+
 static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
   const prod_t *p = ctx;
   ocs_field_bound(p->w->field, key, p->time, smin, smax);
@@ -366,11 +372,11 @@ static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait
   if (r < 0 || r == OCS_CACHE_BUSY) return r;
   r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
   ocs_cache_release(w->cache, e);
-  /* the volume covers the nodes its march level says may hold σt; the ground gets its own
-   * columns, and a wisp the coarser level missed is marched ray by ray */
+  /* the volume covers the nodes its march level says may hold σt and the ground that is not
+   * proven clear; the rest (clear ground, a wisp the coarser level missed) is marched ray by ray,
+   * which proves clear ground clear again without marching */
   if (r != OC_ENOENT) return r;
-  int columns = w->ground_tau && !w->ground_direct && ocs_plan_ground_tau(key);
-  return columns ? ocs_tau_columns(&p->tau, key, out) : ocs_tau_direct(&p->tau, key, out);
+  return ocs_tau_direct(&p->tau, key, out);
 }
 
 /* A request's end: τ where it is needed, the codes, published. !wait: OCS_CACHE_BUSY, with the
@@ -702,7 +708,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   ocs_clock_init(&w->clock, w->utc, w->time);
   w->sun = w->scene.sun_dir;
   w->sun_version = sun_hash(w->sun);
-  w->tau = (ocs_tau_desc_t){.sigma = tau_sigma_cb, .bound = tau_bound_cb, .sun_dir = w->sun, .stats = &w->tau_stats};
+  w->tau = (ocs_tau_desc_t){
+      .sigma = tau_sigma_cb, .bound = tau_bound_cb, .ground = tau_ground_cb, .sun_dir = w->sun, .stats = &w->tau_stats};
   clock_update(w);
   *out = w;
   return 0;

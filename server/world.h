@@ -82,10 +82,11 @@ typedef struct {
   double produce_seconds, plan_seconds; /**< wall time of the last step's phases (clocked: of the
                                            last production between ticks) */
   double target_seconds;     /**< the clocked target plans' of the last production (not in plan_seconds) */
-  uint64_t tau_direct;       /**< τ of single nodes: ground nodes (ocs_tau_columns), nodes outside
-                                  their group's volume (ocs_tau_direct) */
+  uint64_t tau_direct;       /**< clear-sky proofs: ground nodes a group volume considers
+                                  (ocs_tau_desc_t.ground), nodes outside their group's volume
+                                  (ocs_tau_direct) */
   uint64_t tau_clear;        /**< of those, proven clear toward the sun: τ = 0 without a march */
-  uint64_t tau_columns;      /**< of those, ground nodes marched by their own columns (ocs_tau_columns) */
+  uint64_t tau_columns;      /**< of those, ground nodes a group volume covers (its columns) */
   uint64_t produce_errors;   /**< bricks whose production failed (clocked: asked again) */
   double brick_cpu;          /**< seconds producer threads spent making bricks (σt, τ, codes;
                                   per-brick wall timers on threads that run nothing else) */

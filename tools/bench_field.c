@@ -9,8 +9,8 @@
  * same nodes, as bricks/s per core, and each level's ratio to it. Non-empty bricks (some σt > 0)
  * per second count all the nodes' time. When the scene has shadows, σt + τ together as the world
  * makes them (server/world.c, produce_finish): τ for nodes with σt and for empty ground nodes
- * (ocs_plan_ground_tau), from each group's volume, the empty ground from its own columns
- * (ocs_tau_columns) and a wisp no volume covers by the direct march, as the world does, through a
+ * (ocs_plan_ground_tau), from each group's volume (which covers the ground that is not proven
+ * clear: ocs_tau_desc_t.ground), and the rest by the direct march, as the world does, through a
  * brick cache that starts cold at each level (coarse σt read only by τ columns is counted). Each
  * brick's CPU is timed and split by whether it ends up empty (σt and τ all 0): the wasted share.
  * The τ counters (sun_depth.h, ocs_tau_stats_t) say how many direct marches were proven clear and
@@ -32,7 +32,12 @@ typedef struct {
   void *vol;
 } oct__vol_t;
 
-static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int cap, oc_key_t key, int ground,
+static int oct__ground(void *ctx, oc_key_t key) {
+  (void)ctx;
+  return ocs_plan_ground_tau(key);
+}
+
+static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int cap, oc_key_t key,
                     float tau[OC_BRICK_VOXELS]) {
   oc_key_t g = ocs_tau_group_of(d, key);
   int i = 0;
@@ -46,7 +51,7 @@ static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int c
   }
   int r = ocs_tau_volume_lookup(vols[i].vol, key, tau);
   if (r != OC_ENOENT) return r;
-  return ground ? ocs_tau_columns(d, key, tau) : ocs_tau_direct(d, key, tau); /* as the world's tau_get */
+  return ocs_tau_direct(d, key, tau); /* as the world's tau_get */
 }
 
 /* FNV-1a over bytes: the digest line lets a lever that claims to change no bit show it. */
@@ -175,6 +180,7 @@ static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anc
   oct_fcache_t cache = {.f = R->f, .t = R->o->time};
   ocs_tau_stats_t st = {0};
   ocs_tau_desc_t d = {.sigma = oct_fcache_sigma, .bound = oct_fcache_bound, .ctx = &cache, .sun_dir = sc->sun_dir,
+                      .ground = ground_tau && !ground_direct ? oct__ground : NULL,
                       .march_clear = R->o->march_clear, .stats = &st};
   int vcap = (int)((block / 4 + 2) * (block / 4 + 2) * (block / 4 + 2)), nvols = 0, rc = 0;
   oct__vol_t *vols = malloc(sizeof *vols * (size_t)vcap);
@@ -195,8 +201,7 @@ static int field_tau(field_run_t *R, const oc_scene_t *sc, int level, double anc
     int gt = !any && ground_tau && ocs_plan_ground_tau(k);
     if (!rc && (any || gt)) {
       double t1 = oct_now();
-      int columns = ground_tau && ocs_plan_ground_tau(k) && !ground_direct;
-      if (oct__tau(&d, vols, &nvols, vcap, k, columns, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
+      if (oct__tau(&d, vols, &nvols, vcap, k, tau) < 0) rc = oc_cli_fail(R->prog, -1, "τ failed");
       for (int i = 0; i < OC_BRICK_VOXELS; i++) tany |= tau[i] > 0.0f;
       R->dig_t = oct__fnv(R->dig_t, tau, sizeof tau);
       with_tau++;

@@ -153,7 +153,8 @@ static void world_totals(const world_run_t *R) {
   ocs_world_stats_t ws;
   ocs_world_stats(R->w, &ws);
   printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings, %llu τ volumes, "
-         "%llu single-node τ (%llu proven clear toward the sun: no march; %llu ground nodes by their own columns)\n",
+         "%llu clear-sky proofs of τ (%llu proven clear toward the sun: no march; %llu ground nodes by group volumes' "
+         "columns)\n",
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
          (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_direct,
          (unsigned long long)ws.tau_clear, (unsigned long long)ws.tau_columns);

@@ -819,8 +819,8 @@ static void test_sun_depth__clear_column_is_the_march(void **st) {
 
 /*-*** The ground by its own columns ***/
 
-/* Ground nodes hold no σt, so no group volume covers them; ocs_tau_columns() marches each node's
- * own sun columns. Under the cumulus field (45.5°N 4°W, t = 600 s), level 14, the scene's sun (28°)
+/* Ground nodes hold no σt, so a group volume covers them only when asked (ocs_tau_desc_t.ground,
+ * the next test); ocs_tau_columns() marches each node's own sun columns. Under the cumulus field (45.5°N 4°W, t = 600 s), level 14, the scene's sun (28°)
  * and 60°, against the direct march at every sample, air and ground: the interpolation error across
  * the sharp shadow edges of the cumulus that cover the ground here (measured: |Δe^-τ| RMS 0.038, worst
  * 0.53; |Δτ|/(1 + τ) RMS 0.084, worst 1.36; a cloud's samples in its group volume: 0.006 and 0.28),
@@ -866,6 +866,76 @@ static void test_sun_depth__ground_columns_match_direct(void **st) {
   oc_report("tau", "planet ground, level 14: own columns vs direct, RMS error of e^-τ", rms_t, 0.045, "");
   oc_report("tau", "planet ground, level 14: own columns vs direct, worst error of e^-τ", s.t_max, 0.65, "");
   assert_true(rms_t <= 0.045 && s.t_max <= 0.65 && rms_tau <= 0.1 && s.tau_max <= 1.6);
+  tc_free(&c);
+}
+
+/* The server's group volumes cover the ground too (ocs_tau_desc_t.ground): every ground node of a
+ * group that the clear-sky proof does not settle, sharing the group's columns. The four groups of
+ * level-14 nodes around 45.5°N 4°W at t = 600 s, suns at 28° and 60°, every ground sample against
+ * the direct march: the same interpolation as a node's own columns, with its error (the test above).
+ * A ground node the volume does not cover must be proven clear (the direct march's zeros), and
+ * without the callback no ground node is covered. */
+static int ground_cb(void *ctx, oc_key_t key) {
+  (void)ctx;
+  return oc_key_level(key) >= 11 && oc_key_meets_ground(key);
+}
+
+static void test_sun_depth__ground_in_group_volume(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, NULL, 600.0);
+  stat_t s = {0}, so = {0}; /* the group volume's error, and the nodes' own columns' */
+  ocs_tau_stats_t cs = {0};
+  long shaded = 0, nodes = 0, clear = 0, by_ground = 0;
+  for (int z = 0; z < 2; z++)
+    for (int g = 0; g < 4; g++) {
+      oc_dvec3 p = oc_geo_to_xyz((oc_geo_t){45.47 + 0.03 * (g & 1), -4.03 + 0.03 * (g >> 1), 0.0});
+      ocs_tau_desc_t d = desc_for(&c, sun_at(p, z ? 60.0 : 28.0));
+      d.stats = &cs;
+      oc_key_t grp = ocs_tau_group_of(&d, oc_key_from_point(14, p));
+      void *vol = NULL, *bare = NULL;
+      size_t bytes;
+      assert_int_equal(ocs_tau_volume_build(&d, grp, 14, &bare, &bytes), 0);
+      d.ground = ground_cb;
+      assert_int_equal(ocs_tau_volume_build(&d, grp, 14, &vol, &bytes), 0);
+      for (uint32_t q = 0; q < 64; q++) {
+        oc_key_t k = oc_key_child(oc_key_child(grp, q & 7), q >> 3);
+        if (!oc_key_meets_ground(k)) continue;
+        float tg[512], td[512];
+        assert_int_equal(ocs_tau_direct(&d, k, td), 0);
+        int rb = ocs_tau_volume_lookup(bare, k, tg), r = ocs_tau_volume_lookup(vol, k, tg);
+        if (r == OC_ENOENT) { /* proven clear: nothing to march */
+          for (int v = 0; v < 512; v++) assert_true(td[v] == 0.0f);
+          clear++;
+          continue;
+        }
+        assert_int_equal(r, 0);
+        by_ground += rb == OC_ENOENT; /* covered for the callback's sake, not for σt near it */
+        float to[512], tmax = 0.0f;
+        assert_int_equal(ocs_tau_columns(&d, k, to), 0);
+        for (int v = 0; v < 512; v++) {
+          stat_add(&s, tg[v], td[v]);
+          stat_add(&so, to[v], td[v]);
+          tmax = fmaxf(tmax, td[v]);
+        }
+        shaded += tmax > 0.1f;
+        nodes++;
+      }
+      free(vol);
+      free(bare);
+    }
+  double rms_t = sqrt(s.t_s2 / s.n), rms_tau = sqrt(s.tau_s2 / s.n);
+  printf("ground in group volumes: %ld level-14 ground nodes covered (%ld only as ground, %ld in cloud shadow), %ld "
+         "proven clear, %ld samples: |Δe^-τ| worst %.3f RMS %.4f; |Δτ|/(1+τ) worst %.3f RMS %.4f; their own columns: "
+         "%.3f %.4f; %.3f %.4f\n", nodes, by_ground, shaded, clear, s.n, s.t_max, rms_t, s.tau_max, rms_tau, so.t_max,
+         sqrt(so.t_s2 / so.n), so.tau_max, sqrt(so.tau_s2 / so.n));
+  assert_true(by_ground >= 32 && shaded >= nodes / 4); /* the cumulus shades the ground: the case tests something */
+  /* the callback's nodes, counted by the volume as columns; the nodes' own volumes add theirs */
+  assert_int_equal(atomic_load(&cs.columns), by_ground + nodes);
+  oc_report("tau", "planet ground, level 14: group volume vs direct, RMS error of e^-τ", rms_t, 0.05, "");
+  oc_report("tau", "planet ground, level 14: group volume vs direct, worst error of e^-τ", s.t_max, 0.8, "");
+  assert_true(rms_t <= 0.05 && s.t_max <= 0.8 && rms_tau <= 0.115 && s.tau_max <= 1.6);
+  assert_true(rms_t <= 1.15 * sqrt(so.t_s2 / so.n)); /* no worse than the nodes' own columns */
   tc_free(&c);
 }
 
@@ -964,4 +1034,5 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_sun_depth__thread_count_independent),
              cmocka_unit_test(test_sun_depth__clear_column_is_the_march),
              cmocka_unit_test(test_sun_depth__ground_columns_match_direct),
+             cmocka_unit_test(test_sun_depth__ground_in_group_volume),
              cmocka_unit_test(test_sun_depth__bad_arguments))
