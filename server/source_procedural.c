@@ -569,28 +569,45 @@ static inline void ocs__cube_box(const uint32_t ic[3], double u, int c, int v, d
   }
 }
 
+/* Per axis and cube index along it, what ocs__cube_geoms adds up per cube: the squares of the
+ * nearest and farthest coordinates and the centre (a cube's box is a product of its axes' ranges,
+ * so these are 3 × 8 values, not 3 per cube; the sums keep their order, so the same bits). */
+typedef struct {
+  double near2[3][8], far2[3][8], cen[3][8];
+} ocs__axes_t;
+
+static void ocs__cube_axes(const uint32_t ic[3], double u, int c, ocs__axes_t *x) {
+  int n = 8 / c;
+  for (int j = 0; j < n; j++) {
+    double lo[3], hi[3];
+    ocs__cube_box(ic, u, c, j * (1 + n + n * n), lo, hi); /* cube (j, j, j): each axis at index j */
+    for (int a = 0; a < 3; a++) {
+      double nr = lo[a] > 0.0 ? lo[a] : (hi[a] < 0.0 ? -hi[a] : 0.0);
+      double f = fabs(lo[a]) > fabs(hi[a]) ? fabs(lo[a]) : fabs(hi[a]);
+      x->near2[a][j] = nr * nr, x->far2[a][j] = f * f, x->cen[a][j] = 0.5 * (lo[a] + hi[a]);
+    }
+  }
+}
+
 static void ocs__cube_geoms(const uint32_t ic[3], double u, int c, double band_lo, double band_hi,
                             const uint8_t *live, ocs__geom_t *g) {
   int n = 8 / c, N = n * n * n;
   double crmin = INFINITY, e = (double)c * u;
+  ocs__axes_t x;
+  ocs__cube_axes(ic, u, c, &x);
   for (int v = 0; v < N; v++) {
     g[v].far = 0;
     if (live && !live[v]) { /* skipped by every layer's band test */
       g[v].hmin = INFINITY, g[v].hmax = -INFINITY;
       continue;
     }
-    double near2 = 0.0, far2 = 0.0, lo[3], hi[3];
-    ocs__cube_box(ic, u, c, v, lo, hi);
-    for (int a = 0; a < 3; a++) {
-      double nr = lo[a] > 0.0 ? lo[a] : (hi[a] < 0.0 ? -hi[a] : 0.0);
-      double f = fabs(lo[a]) > fabs(hi[a]) ? fabs(lo[a]) : fabs(hi[a]);
-      near2 += nr * nr;
-      far2 += f * f;
-    }
+    int ijk[3] = {v % n, v / n % n, v / (n * n)};
+    double near2 = 0.0, far2 = 0.0;
+    for (int a = 0; a < 3; a++) near2 += x.near2[a][ijk[a]], far2 += x.far2[a][ijk[a]];
     g[v].hmin = sqrt(near2) - OCS__R - 1e-6, g[v].hmax = sqrt(far2) - OCS__R + 1e-6;
     if (g[v].hmin > band_hi || g[v].hmax < band_lo) continue; /* no active layer here: no cap */
     double *cen = g[v].cap.c;
-    for (int k = 0; k < 3; k++) cen[k] = 0.5 * (lo[k] + hi[k]);
+    for (int k = 0; k < 3; k++) cen[k] = x.cen[k][ijk[k]];
     double cr = sqrt(cen[0] * cen[0] + cen[1] * cen[1] + cen[2] * cen[2]);
     for (int k = 0; k < 3; k++) g[v].cap.u[k] = cen[k] / cr;
     g[v].far = 1;
