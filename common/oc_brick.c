@@ -74,12 +74,31 @@ void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats) {
 
 /*-*** Codes ***/
 
-/* A varying range's decoder, its logarithm taken once (ocg_code_decode_at: the decoder's bits). */
+/* A varying range's decoder, its logarithm taken once (ocg_code_decode_at: the decoder's bits), and
+ * the margin, in codes, beyond which the log-space position alone decides a value's code
+ * (oc__encode_log). */
 typedef struct {
   float lo, hi, l2;
+  double margin;
 } oc__dec_t;
 
-static oc__dec_t oc__decoder(float lo, float hi) { return (oc__dec_t){lo, hi, ocg_code_log2_ratio(lo, hi)}; }
+/* How far, in codes, a float-decoded code may sit from its exact position lo·(hi/lo)^((c−1)/65534):
+ * the rounding of hi/lo, log2f, t = (c−1)/65534 and the product (each relative 2^-24, or 2^-23
+ * for log2f; times up to 65534 codes of the exponent: 0.016 codes), and of exp2f and the product
+ * with lo (2^-23 and 2^-24 of the value: 0.023/L2 codes, L2 = log2(hi/lo), one code being
+ * ln 2·L2/65534 of the value). Twice that, plus the gap between the linear and the logarithmic
+ * midpoint of two neighbours (at most an eighth of a code's relative width: 4e-5), is the margin;
+ * below L2 = 1 (ratios under 2, whose codes are within the decoder's rounding) the search decides
+ * every value. */
+static double oc__code_margin(float l2) {
+  if (!(l2 >= 1.0f)) return INFINITY;
+  return 2.0 * (0.016 + 0.023 / (double)l2) + 1e-4;
+}
+
+static oc__dec_t oc__decoder(float lo, float hi) {
+  float l2 = ocg_code_log2_ratio(lo, hi);
+  return (oc__dec_t){lo, hi, l2, oc__code_margin(l2)};
+}
 static float oc__dec(const oc__dec_t *d, uint32_t c) { return ocg_code_decode_at(c, d->lo, d->l2); }
 
 /* Largest code c in 1..65535 with decode(c) ≤ v, given decode(1) = lo ≤ v, and the decoded values
@@ -120,10 +139,17 @@ static uint32_t oc__code_floor(float v, const oc__dec_t *d, uint32_t guess, floa
   return a;
 }
 
-/* Best code for lo ≤ v (v may exceed hi) against a range with 0 < lo < hi: nearest in log space,
- * then fixed up so |decode(code) − v| is the smallest any code achieves (ties go to the lower). */
+/* Best code for lo ≤ v (v may exceed hi) against a range with 0 < lo < hi: |decode(code) − v| the
+ * smallest any code achieves (ties go to the lower). x, v's exact position among the codes, decides
+ * alone where it lies farther than the decoder's margin from a code and from a midpoint between two
+ * (most values of a range wider than 2×: no decode at all); else the nearest in log space is fixed
+ * up against the decoded neighbours. */
 static uint16_t oc__encode_log(float v, const oc__dec_t *d, double inv_log_ratio) {
   double x = log((double)v / (double)d->lo) * inv_log_ratio * (double)OC_CODE_STEPS + 1.0;
+  if (x >= 1.0 && x < (double)OC_CODE_MAX) {
+    double c0 = floor(x), f = x - c0, m = d->margin;
+    if (f > m && f < 1.0 - m && fabs(f - 0.5) > m) return (uint16_t)(c0 + (f > 0.5 ? 1.0 : 0.0));
+  }
   uint32_t guess = x >= (double)OC_CODE_MAX ? OC_CODE_MAX : x <= 1.0 ? 1u : (uint32_t)(x + 0.5);
   float dc, dn;
   uint32_t c = oc__code_floor(v, d, guess, &dc, &dn);

@@ -124,6 +124,36 @@ static void test_brick__worst_case_midpoints(void **state) {
   assert_true(worst > 1.5e-4); /* the test does reach the worst case */
 }
 
+/* The encoder decides most values from their position among the codes alone, where that lies
+ * farther than the decoder's rounding from a code and from a midpoint (oc__encode_log); its code
+ * must still be the nearest one the decoder gives, ties to the lower, as the decoded search picks.
+ * Values at random, at the linear midpoints of two neighbours and a float either side of them, and
+ * beside a decoded code, over ratios 2 to 1e9. */
+static void check_nearest(float v, oc_range_t r) {
+  uint16_t c = oc_code_encode(v, r);
+  double here = fabs((double)dec(c, r) - (double)v);
+  if (c > 1) assert_true(fabs((double)dec((uint16_t)(c - 1), r) - (double)v) > here);
+  if (c < OC_CODE_MAX) assert_true(fabs((double)dec((uint16_t)(c + 1), r) - (double)v) >= here);
+}
+
+static void test_brick__nearest_code(void **state) {
+  (void)state;
+  const float hi[] = {2.0f, 10.0f, 1e3f, 1e6f, 1e9f};
+  for (int k = 0; k < 5; k++) {
+    oc_range_t r = {1.0f, hi[k]};
+    for (int n = 0; n < 40000; n++) {
+      uint16_t c = (uint16_t)(1 + rng_u64() % (OC_CODE_MAX - 1));
+      float a = dec(c, r), b = dec((uint16_t)(c + 1), r);
+      float mid = (float)(0.5 * ((double)a + (double)b)), w = (float)(rng_u64() % 1000000) * 1e-6f;
+      check_nearest(a + (b - a) * w, r);
+      check_nearest(mid, r);
+      check_nearest(nextafterf(mid, 0.0f), r);
+      check_nearest(nextafterf(mid, INFINITY), r);
+      check_nearest(nextafterf(a, INFINITY), r);
+    }
+  }
+}
+
 static void test_brick__zero_exact(void **state) {
   (void)state;
   float s[OC_BRICK_VOXELS], t[OC_BRICK_VOXELS], ds[OC_BRICK_VOXELS], dt[OC_BRICK_VOXELS];
@@ -373,6 +403,7 @@ static void test_brick__reconstruct(void **state) {
 OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_brick__round_trip_error),
              cmocka_unit_test(test_brick__worst_case_midpoints),
+             cmocka_unit_test(test_brick__nearest_code),
              cmocka_unit_test(test_brick__zero_exact),
              cmocka_unit_test(test_brick__decode_endpoints),
              cmocka_unit_test(test_brick__code_encode_edges),
