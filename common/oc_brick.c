@@ -44,6 +44,8 @@ static int oc__clean(const float *v, int n) {
   return oc__bits_at_most(v, n, lim);
 }
 
+int oc_all_zero(const float *v, int n) { return v && n >= 0 && oc__bits_at_most(v, n, 0); }
+
 void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats) {
   oc_sanitize_stats_t st = {0, 0, 0};
   if (!v || n <= 0 || oc__clean(v, n)) return;

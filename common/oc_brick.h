@@ -50,6 +50,8 @@ typedef struct {
 /*! oc_sanitize() : makes n values safe to integrate, in place, and counts what it changed.
  *  NaN → 0, +Inf → OC_VALUE_MAX, −Inf and negatives → 0, values above OC_VALUE_MAX clamp to it. */
 void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats);
+/*! oc_all_zero() : whether all n values are +0 (bits 0: −0 is not); one vectorised scan. */
+int oc_all_zero(const float *v, int n);
 
 /*! oc_brick_encode() : classifies and encodes one brick from sanitised samples (non-negative,
  *  finite; use oc_sanitize() first on untrusted data).

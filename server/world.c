@@ -296,6 +296,16 @@ static ocs_cache_key_t ckey(const ocs_world_t *w, int type, uint64_t a, uint64_t
 
 /*-*** Content: σt, τ, codes ***/
 
+/* A sampled σt brick as its cache entry: its 512 floats, or one +0 float when all are +0 (most of
+ * the bricks the τ columns read at the level above come out so; a whole brick each was a fifth of
+ * the cache's memory). The entry's size says which (sigma_entry). */
+static float *sigma_pack(float *s, size_t *bytes) {
+  if (!oc_all_zero(s, OC_BRICK_VOXELS)) return *bytes = OC_BRICK_VOXELS * sizeof *s, s;
+  float *z = realloc(s, sizeof *s);
+  *bytes = sizeof *s;
+  return z ? z : s;
+}
+
 /* σt samples of a node at its level's time step ts, sampled at world time `time` (any instant of
  * that step: content is a function of the step), through the cache (sanitised); out: a copy, or
  * NULL. @return 1 when sampled here, 0 when found, or an OC_E*. */
@@ -319,10 +329,13 @@ static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, f
       return r;
     }
     oc_sanitize(s, OC_BRICK_VOXELS, NULL);
-    ocs_cache_publish(w->cache, e, s, OC_BRICK_VOXELS * sizeof *s);
+    size_t bytes;
+    s = sigma_pack(s, &bytes);
+    ocs_cache_publish(w->cache, e, s, bytes);
     w->sigma_produced++;
   }
-  if (out) memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
+  if (out && ocs_cache_bytes(e) < OC_BRICK_VOXELS * sizeof *out) memset(out, 0, OC_BRICK_VOXELS * sizeof *out);
+  else if (out) memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
   ocs_cache_release(w->cache, e);
   return sampled;
 }

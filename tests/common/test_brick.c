@@ -154,6 +154,22 @@ static void test_brick__nearest_code(void **state) {
   }
 }
 
+/* oc_all_zero: +0 everywhere, and nothing else passes (−0, a denormal, NaN), wherever it sits. */
+static void test_brick__all_zero(void **state) {
+  (void)state;
+  float v[OC_BRICK_VOXELS] = {0};
+  assert_true(oc_all_zero(v, OC_BRICK_VOXELS));
+  const float bad[] = {-0.0f, 1e-45f, NAN, 1.0f};
+  const int at[] = {0, 7, 8, 300, OC_BRICK_VOXELS - 1};
+  for (int b = 0; b < 4; b++)
+    for (int a = 0; a < 5; a++) {
+      v[at[a]] = bad[b];
+      assert_false(oc_all_zero(v, OC_BRICK_VOXELS));
+      v[at[a]] = 0.0f;
+    }
+  assert_false(oc_all_zero(NULL, 1));
+}
+
 static void test_brick__zero_exact(void **state) {
   (void)state;
   float s[OC_BRICK_VOXELS], t[OC_BRICK_VOXELS], ds[OC_BRICK_VOXELS], dt[OC_BRICK_VOXELS];
@@ -404,6 +420,7 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_brick__round_trip_error),
              cmocka_unit_test(test_brick__worst_case_midpoints),
              cmocka_unit_test(test_brick__nearest_code),
+             cmocka_unit_test(test_brick__all_zero),
              cmocka_unit_test(test_brick__zero_exact),
              cmocka_unit_test(test_brick__decode_endpoints),
              cmocka_unit_test(test_brick__code_encode_edges),
