@@ -80,8 +80,8 @@ void oc_sanitize(float *v, int n, oc_sanitize_stats_t *stats) {
  * the margin, in codes, beyond which the log-space position alone decides a value's code
  * (oc__encode_log). */
 typedef struct {
-  float lo, hi, l2;
-  double margin;
+  float lo, l2;
+  double inv_ln, margin; /* 1 / ln(hi/lo), for a value's position among the codes */
 } oc__dec_t;
 
 /* How far, in codes, a float-decoded code may sit from its exact position lo·(hi/lo)^((c−1)/65534):
@@ -99,7 +99,7 @@ static double oc__code_margin(float l2) {
 
 static oc__dec_t oc__decoder(float lo, float hi) {
   float l2 = ocg_code_log2_ratio(lo, hi);
-  return (oc__dec_t){lo, hi, l2, oc__code_margin(l2)};
+  return (oc__dec_t){lo, l2, 1.0 / log((double)hi / (double)lo), oc__code_margin(l2)};
 }
 static float oc__dec(const oc__dec_t *d, uint32_t c) { return ocg_code_decode_at(c, d->lo, d->l2); }
 
@@ -146,8 +146,8 @@ static uint32_t oc__code_floor(float v, const oc__dec_t *d, uint32_t guess, floa
  * alone where it lies farther than the decoder's margin from a code and from a midpoint between two
  * (most values of a range wider than 2×: no decode at all); else the nearest in log space is fixed
  * up against the decoded neighbours. */
-static uint16_t oc__encode_log(float v, const oc__dec_t *d, double inv_log_ratio) {
-  double x = log((double)v / (double)d->lo) * inv_log_ratio * (double)OC_CODE_STEPS + 1.0;
+static uint16_t oc__encode_log(float v, const oc__dec_t *d) {
+  double x = log((double)v / (double)d->lo) * d->inv_ln * (double)OC_CODE_STEPS + 1.0;
   if (x >= 1.0 && x < (double)OC_CODE_MAX) {
     double c0 = floor(x), f = x - c0, m = d->margin;
     if (f > m && f < 1.0 - m && fabs(f - 0.5) > m) return (uint16_t)(c0 + (f > 0.5 ? 1.0 : 0.0));
@@ -170,7 +170,7 @@ uint16_t oc_code_encode(float v, oc_range_t r) {
   if (v < r.lo) return 2.0 * (double)v >= (double)r.lo ? 1 : OC_CODE_ZERO; /* nearer of 0 and lo */
   if (!(r.hi > r.lo)) return 1;                                             /* uniform range */
   oc__dec_t d = oc__decoder(r.lo, r.hi);
-  return oc__encode_log(v, &d, 1.0 / log((double)r.hi / (double)r.lo));
+  return oc__encode_log(v, &d);
 }
 
 /* Exact for the C float decoder: decoded values are non-decreasing in the code, so any v in
@@ -249,10 +249,8 @@ static void oc__channel_codes(const float v[OC_BRICK_VOXELS], oc__ch_kind_t kind
     for (int i = 0; i < OC_BRICK_VOXELS; i++) code[i] = v[i] == 0.0f ? OC_CODE_ZERO : 1;
     return;
   }
-  double inv = 1.0 / log((double)r.hi / (double)r.lo);
   oc__dec_t d = oc__decoder(r.lo, r.hi);
-  for (int i = 0; i < OC_BRICK_VOXELS; i++)
-    code[i] = (double)v[i] < flush ? OC_CODE_ZERO : oc__encode_log(v[i], &d, inv);
+  for (int i = 0; i < OC_BRICK_VOXELS; i++) code[i] = (double)v[i] < flush ? OC_CODE_ZERO : oc__encode_log(v[i], &d);
 }
 
 oc_node_kind_t oc_brick_encode(const float sigma[OC_BRICK_VOXELS], const float tau[OC_BRICK_VOXELS],
