@@ -219,7 +219,8 @@ int ocs_tau_volume_build(const ocs_tau_desc_t *d, oc_key_t group, int level, voi
  *  volume's level (the group itself when the two levels are equal).
  *  @return 0; OC_ENOENT when the volume does not cover key (ocs_tau_volume_build(), note 2: its
  *  σt is zero at the march level, so it needs no τ; if its own brick does hold σt after all, use
- *  ocs_tau_direct() for it); OC_EINVAL when vol is not a volume or key is not such a
+ *  ocs_tau_direct() for it; a node the desc's ground() names is left out only when the clear-sky
+ *  proof gave its τ as 0, the direct march's bits, so it needs no second proof); OC_EINVAL when vol is not a volume or key is not such a
  *  descendant; OC_ECORRUPT if a sample falls outside the grid (a bug). */
 int ocs_tau_volume_lookup(const void *vol, oc_key_t key, float tau[OC_BRICK_VOXELS]);
 

@@ -398,9 +398,13 @@ static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait
   r = ocs_tau_volume_lookup(ocs_cache_data(e), key, out);
   ocs_cache_release(w->cache, e);
   /* the volume covers the nodes its march level says may hold σt and the ground that is not
-   * proven clear; the rest (clear ground, a wisp the coarser level missed) is marched ray by ray,
-   * which proves clear ground clear again without marching */
+   * proven clear; ground it leaves out was proven clear there (τ = 0), and a wisp the coarser
+   * level missed is marched ray by ray */
   if (r != OC_ENOENT) return r;
+  if (tau_ground_cb(p, key)) {
+    memset(out, 0, OC_BRICK_VOXELS * sizeof *out);
+    return 0;
+  }
   return ocs_tau_direct(&p->tau, key, out);
 }
 

@@ -51,6 +51,10 @@ static int oct__tau(const ocs_tau_desc_t *d, oct__vol_t *vols, int *nvols, int c
   }
   int r = ocs_tau_volume_lookup(vols[i].vol, key, tau);
   if (r != OC_ENOENT) return r;
+  if (d->ground && d->ground(d->ctx, key)) { /* left out of the volume: proven clear */
+    memset(tau, 0, OC_BRICK_VOXELS * sizeof *tau);
+    return 0;
+  }
   return ocs_tau_direct(d, key, tau); /* as the world's tau_get */
 }
 

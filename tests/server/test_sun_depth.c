@@ -939,6 +939,47 @@ static void test_sun_depth__ground_in_group_volume(void **st) {
   tc_free(&c);
 }
 
+/* The other side of the ground's cover: a ground node the clear-sky proof settles is not covered
+ * (OC_ENOENT, the server's τ = 0), and its direct march is 0 at every sample. One cumulus-sized
+ * sphere, the sun at the zenith: of the ground nodes of the group under it, those under the sphere
+ * are covered and shaded, the others proven clear. */
+static void test_sun_depth__ground_clear_not_covered(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
+              " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}",
+          0.0);
+  oc_dvec3 under = oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 0.0});
+  ocs_tau_stats_t cs = {0};
+  ocs_tau_desc_t d = desc_for(&c, sun_at(under, 0.0));
+  d.stats = &cs;
+  d.ground = ground_cb;
+  oc_key_t grp = ocs_tau_group_of(&d, oc_key_from_point(14, under));
+  void *vol = NULL;
+  size_t bytes;
+  assert_int_equal(ocs_tau_volume_build(&d, grp, 14, &vol, &bytes), 0);
+  long covered = 0, clear = 0;
+  for (uint32_t q = 0; q < 64; q++) {
+    oc_key_t k = oc_key_child(oc_key_child(grp, q & 7), q >> 3);
+    if (!oc_key_meets_ground(k)) continue;
+    float tg[512], td[512], tmax = 0.0f;
+    int r = ocs_tau_volume_lookup(vol, k, tg);
+    assert_int_equal(ocs_tau_direct(&d, k, td), 0);
+    for (int v = 0; v < 512; v++) tmax = fmaxf(tmax, td[v]);
+    if (r == OC_ENOENT) {
+      assert_true(tmax == 0.0f);
+      clear++;
+    } else {
+      assert_int_equal(r, 0);
+      covered++;
+    }
+  }
+  printf("ground under a sphere: %ld covered, %ld proven clear and not covered\n", covered, clear);
+  assert_true(covered > 0 && clear > 0);
+  free(vol);
+  tc_free(&c);
+}
+
 /*-*** Arguments and errors ***/
 
 static void test_sun_depth__bad_arguments(void **st) {
@@ -1035,4 +1076,5 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_sun_depth__clear_column_is_the_march),
              cmocka_unit_test(test_sun_depth__ground_columns_match_direct),
              cmocka_unit_test(test_sun_depth__ground_in_group_volume),
+             cmocka_unit_test(test_sun_depth__ground_clear_not_covered),
              cmocka_unit_test(test_sun_depth__bad_arguments))
