@@ -172,6 +172,17 @@ uint64_t ocs_field_time_step(const ocs_field_t *f, int level, double t) {
   return h;
 }
 
+uint64_t ocs_field_node_step(const ocs_field_t *f, oc_key_t key, double t) {
+  uint64_t h = 0;
+  int level = oc_key_level(key);
+  for (int i = 0; i < f->count; i++) {
+    const ocs_source_t *s = f->src[i];
+    uint64_t st = s->vt->node_step ? s->vt->node_step(s, key, t) : s->vt->time_step(s, level, t);
+    h = (h ^ st) * 0x100000001b3ull + (uint64_t)i;
+  }
+  return h;
+}
+
 double ocs_field_point(const ocs_field_t *f, oc_dvec3 p, double t) {
   double v = 0.0;
   for (int i = 0; i < f->count; i++)

@@ -65,6 +65,11 @@ typedef struct {
    *  that keeps more of that answer for its sampler (the procedural source: its per-layer ranges).
    *  NULL: the field calls bound() with the footprint. */
   void (*node_bound)(const ocs_source_t *src, oc_key_t key, double t, float *smin, float *smax);
+  /*! node_step() : optional; an index that changes exactly when node key's own content may change:
+   *  equal at two times only where time_step(level of key) is, or where the content is the same
+   *  though the level's step moved on (the procedural source: layers that step slower than the
+   *  fastest, where only they meet the node). NULL: time_step(level of key, t). */
+  uint64_t (*node_step)(const ocs_source_t *src, oc_key_t key, double t);
 } ocs_source_vtbl_t;
 
 struct ocs_source_s {
@@ -99,6 +104,10 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
 int ocs_field_sample(const ocs_field_t *f, oc_key_t key, double t, float out[OC_BRICK_VOXELS]);
 /*! ocs_field_time_step() : combined time step of the sources for a node of this level. */
 uint64_t ocs_field_time_step(const ocs_field_t *f, int level, double t);
+/*! ocs_field_node_step() : combined node_step() of the sources for node key (the σt cache's key:
+ *  the samples are a pure function of it); equals ocs_field_time_step() of the key's level where
+ *  no source knows better. */
+uint64_t ocs_field_node_step(const ocs_field_t *f, oc_key_t key, double t);
 /*! ocs_field_point() : the finest σt at a point (sum over sources that provide point()). */
 double ocs_field_point(const ocs_field_t *f, oc_dvec3 p, double t);
 /*! ocs_field_set_weather() : every procedural source moves to `preset` over [t0, t0 + seconds];

@@ -54,6 +54,8 @@
 #ifndef OCS_PROC_STEP_VOXELS
 #define OCS_PROC_STEP_VOXELS 0.25
 #endif
+/*! Most level steps a layer's own step may span, as a power of two (ocs__layer_steps). */
+#define OCS_PROC_MAX_JSTEP 8
 /*! Scale height of the air density, ρ_air(h) = 1.225·exp(-h/H): the least-squares fit to the
  *  1976 standard atmosphere over 0–12 km (within 3.5% up to 11 km; above the tropopause the air
  *  thins faster: 7% high at 12 km, 23% at 15 km, where only cumulonimbus tops live). */
@@ -156,6 +158,8 @@ typedef struct {
   double inv[3][2];        /* [cov, cell, det][1/λ, 1/λ_short] */
   int aniso[3];
   double lip_cov, lip_cell; /* bound on |∇C|, |∇K| per metre of the point on the reference sphere */
+  double vmax;              /* m/s: fastest motion of the layer's patterns (wind at band_hi plus drift) */
+  int jstep;                /* the layer moves once every 2^jstep level steps (ocs__layer_motion_step) */
 } ocs__lstate_t;
 
 typedef struct {

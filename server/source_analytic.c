@@ -181,7 +181,7 @@ static void ocs__analytic_destroy(ocs_source_t *s) { free(s); }
 
 static const ocs_source_vtbl_t ocs__analytic_vt = {"analytic", ocs__analytic_bound, ocs__analytic_sample,
                                                    ocs__analytic_step, ocs__analytic_point, NULL,
-                                                   ocs__analytic_destroy, 0 /* bound() is cheap: not cached */, NULL, NULL};
+                                                   ocs__analytic_destroy, 0 /* bound() is cheap: not cached */, NULL, NULL, NULL};
 
 int ocs_source_analytic_create(ocs_source_t **out, const oc_source_t *d, char *why, size_t why_len) {
   *out = NULL;

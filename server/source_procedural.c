@@ -158,14 +158,20 @@ static int64_t ocs__motion_step(const ocs__proc_t *P, int level, double t) {
   return (int64_t)floor(y);
 }
 
-/* The evaluation frame. level ≥ 0: a brick of that level (motion time snapped to the level's
- * step, weather quantised, detail octaves for the level); level < 0: a point at exactly t. */
+/* m rounded down to a multiple of 2^j (j < 63): the level step at which a layer that moves once
+ * every 2^j level steps last moved. */
+static int64_t ocs__floor_pow2(int64_t m, int j) {
+  int64_t d = (int64_t)1 << j, r = m % d;
+  return m - (r < 0 ? r + d : r);
+}
+
+/* The evaluation frame. level ≥ 0: a brick of that level (each layer's motion time snapped to its
+ * own step, 2^jstep level steps: a quarter of a voxel at the layer's own fastest motion, rounded
+ * down to a power of two times the level's, so every layer's step boundary is a level step
+ * boundary; weather quantised; detail octaves for the level); level < 0: a point at exactly t. */
 void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F) {
-  double tm;
-  if (level >= 0)
-    tm = (double)ocs__motion_step(P, level, t) * ldexp(P->dt0, -level);
-  else
-    tm = P->base.animated && isfinite(t) ? t : 0.0;
+  int64_t m = level >= 0 ? ocs__motion_step(P, level, t) : 0;
+  double point_t = P->base.animated && isfinite(t) ? t : 0.0;
   ocs_weather_params_t w;
   ocs_weather_at(&P->weather, isfinite(t) ? t : 0.0, level >= 0, &w);
   F->mask = 0;
@@ -176,6 +182,7 @@ void ocs__frame(const ocs__proc_t *P, int level, double t, ocs__frame_t *F) {
     ocs__lframe_t *lf = &F->l[l];
     if (!(w.cov[l] > 0.0) || !(w.wc[l] > 0.0) || !(P->sigma_scale > 0.0)) continue;
     F->mask |= 1u << l;
+    double tm = level >= 0 ? (double)ocs__floor_pow2(m, S->jstep) * ldexp(P->dt0, -level) : point_t;
     lf->theta = ocs__theta(w.cov[l], L->s_w);
     lf->wc = L->wc * w.wc[l];
     /* Rodrigues: the rotation by -ω·tm about the axis takes a planet point to where its pattern
@@ -793,6 +800,32 @@ static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t) 
   return (P->weather.generation << 48) + ((m + k) & (((uint64_t)1 << 48) - 1));
 }
 
+/* The time step of node key's own content (ocs_source_vtbl_t.node_step): the level's, with the
+ * motion part rounded down to the step of the slowest-stepping layer whose band meets the node's
+ * sample footprint. The layers that do not meet it add exactly 0 there (columns and strata are cut
+ * to the band), so the content moves only with those that do; none: with the weather alone. */
+static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double t) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  int level = oc_key_level(key);
+  if (!P->base.animated || level < 0) return ocs__proc_time_step(s, level, t);
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(key, &o, &size);
+  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
+  double near2 = 0.0, far2 = 0.0;
+  for (int a = 0; a < 3; a++) {
+    double n = lo[a] > 0.0 ? lo[a] : (hi[a] < 0.0 ? -hi[a] : 0.0), f = fmax(fabs(lo[a]), fabs(hi[a]));
+    near2 += n * n, far2 += f * f;
+  }
+  double h0 = sqrt(near2) - OCS__R - 1.0, h1 = sqrt(far2) - OCS__R + 1.0; /* 1 m for rounding */
+  int j = 63;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++)
+    if (P->L[l].band_lo <= h1 && P->L[l].band_hi >= h0 && P->L[l].jstep < j) j = P->L[l].jstep;
+  int64_t m = j < 63 ? ocs__floor_pow2(ocs__motion_step(P, level, t), j) : 0;
+  uint64_t k = ocs_weather_step(&P->weather, isfinite(t) ? t : 0.0);
+  return (P->weather.generation << 48) + (((uint64_t)(m + ((int64_t)1 << 46)) + k) & (((uint64_t)1 << 48) - 1));
+}
+
 static int ocs__proc_set_weather(ocs_source_t *s, oc_preset_t preset, double t0, double seconds) {
   ocs__proc_t *P = (ocs__proc_t *)s;
   ocs_seqcache_clear(P->nbc); /* a generation wrap of the time step can never revive an entry */
@@ -811,6 +844,7 @@ static const ocs_source_vtbl_t ocs__proc_vt = {
     .sample = ocs__proc_sample_columns,
     .sample_exact = ocs__proc_sample_strata,
     .time_step = ocs__proc_time_step,
+    .node_step = ocs__proc_node_step,
     .point = ocs__proc_point,
     .set_weather = ocs__proc_set_weather,
     .destroy = ocs__proc_destroy,
@@ -865,7 +899,18 @@ static void ocs__init_layer(ocs__proc_t *P, int l, uint64_t seed) {
   /* Streaked coordinates stretch by at most 1/λ_short. */
   S->lip_cov = ocs__fbm_lipschitz(&S->fcov) * fmax(S->inv[0][0], S->inv[0][1]);
   S->lip_cell = ocs__fbm_lipschitz(&S->fcell) * fmax(S->inv[1][0], S->inv[1][1]);
-  P->vmax = fmax(P->vmax, vmax + drift);
+  S->vmax = vmax + drift;
+  P->vmax = fmax(P->vmax, S->vmax);
+}
+
+/* Each layer's step in level steps, 2^jstep: the most that keeps its own motion per step within
+ * OCS_PROC_STEP_VOXELS of a voxel (the level step keeps the fastest layer's). */
+static void ocs__layer_steps(ocs__proc_t *P) {
+  for (int l = 0; l < OCS_LAYER_COUNT; l++) {
+    ocs__lstate_t *S = &P->L[l];
+    S->jstep = 0;
+    while (S->jstep < OCS_PROC_MAX_JSTEP && ldexp(S->vmax, S->jstep + 1) <= P->vmax) S->jstep++;
+  }
 }
 
 /*! ocs_source_procedural_create() : the procedural planet of `desc` (preset, coverage_scale,
@@ -907,6 +952,7 @@ int ocs_source_procedural_create(ocs_source_t **out, const oc_source_t *desc, ui
     return OC_ENOMEM;
   }
   P->dt0 = OCS_PROC_STEP_VOXELS * ocs__voxel_size(0) / P->vmax;
+  ocs__layer_steps(P);
   const char *env = getenv("OCS_PROC_NODE_CACHE"); /* "0": no node-bound cache (before/after benches) */
   if (!(env && strcmp(env, "0") == 0) && !(P->nbc = ocs_seqcache_new(OCS_PROC_NODE_CACHE_SLOTS, OCS__NB_WORDS))) {
     ocs__proc_destroy(&P->base);

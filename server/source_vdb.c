@@ -617,7 +617,7 @@ static void ocs__vdb_destroy(ocs_source_t *src) {
 }
 
 static const ocs_source_vtbl_t ocs__vdb_vt = {"vdb", ocs__vdb_bound, ocs__vdb_sample, ocs__vdb_step, ocs__vdb_point, NULL,
-                                              ocs__vdb_destroy, 0 /* bound() reads the frame of t, loading files: not cached */, NULL, NULL};
+                                              ocs__vdb_destroy, 0 /* bound() reads the frame of t, loading files: not cached */, NULL, NULL, NULL};
 
 int ocs_source_vdb_create(ocs_source_t **out, const oc_source_t *desc, char *why, size_t why_len) {
   char scratch[8];

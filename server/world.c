@@ -306,7 +306,7 @@ static float *sigma_pack(float *s, size_t *bytes) {
   return z ? z : s;
 }
 
-/* σt samples of a node at its level's time step ts, sampled at world time `time` (any instant of
+/* σt samples of a node at its own time step ts (ocs_field_node_step), sampled at world time `time` (any instant of
  * that step: content is a function of the step), through the cache (sanitised); out: a copy, or
  * NULL. @return 1 when sampled here, 0 when found, or an OC_E*. */
 static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, float *out) {
@@ -344,7 +344,7 @@ static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, f
 static int sigma_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS]) {
   int level = oc_key_level(key);
   if (level < 0) return OC_EINVAL;
-  int r = sigma_entry(p->w, key, p->ts[level], p->time, out);
+  int r = sigma_entry(p->w, key, ocs_field_node_step(p->w->field, key, p->time), p->time, out);
   return r < 0 ? r : 0;
 }
 
@@ -1655,7 +1655,9 @@ static int ahead_candidates(ocs_world_t *w) {
       const oc_node_t *nd = &v->held[0].nodes[i];
       int l = oc_key_level(nd->key);
       if (l < 0 || !(nd->range[0].hi > 0.0f)) continue;
-      if (w->ahead_in[l]) OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .ts = w->ahead_ts[l], .time = w->ahead_t[l]}));
+      if (w->ahead_in[l]) /* a node's σt whose own step does not move with the level's is found cached */
+        OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .ts = ocs_field_node_step(w->field, nd->key, w->ahead_t[l]),
+                                       .time = w->ahead_t[l]}));
       if (w->shadows && w->light_in[l])
         OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .group = ocs_tau_group_of(&w->tau, nd->key), .tau = 1}));
     }

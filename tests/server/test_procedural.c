@@ -819,10 +819,12 @@ static void test_procedural__animation(void **st) {
   printf("  time-step changes in an hour: level 6 %d, 10 %d, 13 %d, 14 %d, 16 %d\n", changes[6], changes[10],
          changes[13], changes[14], changes[16]);
   assert_true(changes[6] < 30 && changes[13] > 100 && changes[16] >= 3000); /* about 0.25 voxel per step at ~27 m/s */
+  /* ...of the node's own step: a cumulus node's layers step every second level step or slower */
   double t1 = 1000.0, t2 = t1;
-  while (s->vt->time_step(s, 13, t2) == s->vt->time_step(s, 13, t1)) t2 += 0.01;
+  while (s->vt->node_step(s, k, t2) == s->vt->node_step(s, k, t1)) t2 += 0.01;
   double t0 = t1;
-  while (s->vt->time_step(s, 13, t0 - 0.01) == s->vt->time_step(s, 13, t1)) t0 -= 0.01;
+  while (s->vt->node_step(s, k, t0 - 0.01) == s->vt->node_step(s, k, t1)) t0 -= 0.01;
+  assert_true(s->vt->time_step(s, 13, t0) != s->vt->time_step(s, 13, t2 - 0.01)); /* two level steps */
   sample(s, k, t0, a); /* t0 and t2 - 0.01 are in t1's step, t2 in the next */
   sample(s, k, t2 - 0.01, b);
   sample(s, k, t2, c);
@@ -841,6 +843,52 @@ static void test_procedural__animation(void **st) {
 }
 
 /*-*** Weather ***/
+
+/* A node's own step (node_step): equal at two times only where its samples are (direct sampling is
+ * the oracle), the level's step where the fastest layer (the cirrus jet) meets the node, every
+ * second level step or slower where only slower layers do, and the weather's alone above them all. */
+static void test_procedural__node_step(void **st) {
+  (void)st;
+  ocs_source_t *s = mk(OC_PRESET_FAIR, 1.5, 1.0, 3);
+  uint64_t rng = 77;
+  struct {
+    int level;
+    double lo, hi; /* altitude of a cloudy point the node holds */
+    int slower;    /* 1: its node step must change at most half as often as the level's */
+  } cases[] = {{13, 1300.0, 3000.0, 1}, {14, 1300.0, 3000.0, 1}, {12, 500.0, 1000.0, 1}, {13, 9200.0, 10800.0, 0}};
+  for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+    oc_key_t k = oc_key_from_point(cases[c].level, cloudy_point(s, 0.0, cases[c].lo, cases[c].hi, &rng));
+    int level_changes = 0, node_changes = 0, same = 0;
+    float a[512], b[512];
+    uint64_t pl = s->vt->time_step(s, cases[c].level, 0.0), pn = s->vt->node_step(s, k, 0.0);
+    sample(s, k, 0.0, a);
+    for (double t = 0.3; t <= 60.0; t += 0.3) {
+      uint64_t cl = s->vt->time_step(s, cases[c].level, t), cn = s->vt->node_step(s, k, t);
+      level_changes += cl != pl;
+      node_changes += cn != pn;
+      assert_true(cl != pl || cn == pn); /* the node's step moves only with the level's */
+      sample(s, k, t, b);
+      if (cn == pn) {
+        assert_memory_equal(a, b, sizeof a); /* the same step: the same bytes */
+        same += cl != pl;
+      }
+      memcpy(a, b, sizeof a);
+      pl = cl, pn = cn;
+    }
+    printf("  level %d, %g–%g m: %d level steps, %d of the node's (%d level steps kept the bytes)\n", cases[c].level,
+           cases[c].lo, cases[c].hi, level_changes, node_changes, same);
+    assert_true(level_changes >= 8);
+    if (cases[c].slower)
+      assert_true(2 * node_changes <= level_changes + 1 && same > 0);
+    else
+      assert_int_equal(node_changes, level_changes);
+  }
+  /* above every band: only the weather moves it */
+  oc_key_t hi = oc_key_from_point(12, at_alt(rand_dir(&rng), 40000.0));
+  for (double t = 0.0; t <= 3600.0; t += 7.0) assert_true(s->vt->node_step(s, hi, t) == s->vt->node_step(s, hi, 0.0));
+  assert_true(s->vt->time_step(s, 12, 3600.0) != s->vt->time_step(s, 12, 0.0));
+  s->vt->destroy(s);
+}
 
 static void test_procedural__weather_transition(void **st) {
   (void)st;
@@ -1055,6 +1103,7 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_procedural__layer_ranges),
              cmocka_unit_test(test_procedural__layer_altitudes),
              cmocka_unit_test(test_procedural__animation),
+             cmocka_unit_test(test_procedural__node_step),
              cmocka_unit_test(test_procedural__weather_transition),
              cmocka_unit_test(test_procedural__presets_differ),
              cmocka_unit_test(test_procedural__scales),
