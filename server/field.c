@@ -124,7 +124,7 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
     const ocs_source_t *s = f->src[i];
     float a, b;
     if (cache && f->bc[i]) {
-      uint64_t step = s->vt->time_step(s, level, t);
+      uint64_t step = s->vt->node_step ? s->vt->node_step(s, key, t) : s->vt->time_step(s, level, t);
       if (ocs__bcache_get(f->bc[i], key, step, &a, &b)) {
         hits++;
       } else {

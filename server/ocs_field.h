@@ -12,7 +12,7 @@
  * Bound cache: ocs_field_bound() remembers, per source whose vtbl sets bound_by_step, the last
  * bounds it computed in a fixed direct-mapped table of OCS_FIELD_BOUND_CACHE_SLOTS entries per
  * such source (32 bytes each: 2 MiB per procedural source, allocated at create, never grown),
- * keyed by (key, that source's time_step(level of key, t)). The planner's classify, production's
+ * keyed by (key, that source's node_step(key, t), or time_step(level of key, t) without one). The planner's classify, production's
  * known-empty check and every τ march ask for the same nodes again and again; a hit returns the
  * bits the source would compute. Entries are per-slot seqlocks (seqcache.h: lock-free, a reader
  * that meets a write in progress misses, a writer that meets another write skips its insert), and
@@ -55,8 +55,8 @@ typedef struct {
   int (*set_weather)(ocs_source_t *src, oc_preset_t preset, double t0, double seconds);
   void (*destroy)(ocs_source_t *src);
   /*! bound_by_step : 1 when bound() over a node's sample footprint is a pure function of (node,
-   *  time_step(node's level, t)) between set_weather() calls, so the field may cache it (0: the
-   *  field calls bound() every time). */
+   *  node_step(node, t), or time_step(node's level, t) without one) between set_weather() calls,
+   *  so the field may cache it (0: the field calls bound() every time). */
   int bound_by_step;
   /*! sample_exact() : optional; the exact box filter where sample() is a cheaper estimate of it
    *  (NULL: sample() is exact). Tests and benches compare the two (ocs_field_set_exact()). */

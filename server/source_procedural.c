@@ -493,6 +493,7 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
 /*-*** The node bound, remembered ***/
 
 static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t);
+static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double t);
 
 /* A node's bound over its sample footprint, as the node-bound cache holds it: the total and the
  * bb (masks, per-layer ranges) as 64-bit words, bit for bit. */
@@ -519,11 +520,12 @@ static double ocs__nb_unpack(const uint64_t w[OCS__NB_WORDS], ocs__bb_t *bb) {
 /* σt's maximum over node key's sample footprint (the node grown by size/14) at the frame F of the
  * key's level at t, with its ranges in nb. The planner's bound of a node and its sampler's
  * ocs__brick_begin() ask the same question one after the other: the answer, a pure function of
- * (key, time step) (see ocs__proc_time_step), is remembered in P->nbc and returned bit for bit. */
+ * (key, the node's own step: the layers it skips are those whose band misses the footprint, which
+ * ocs__proc_node_step leaves out too), is remembered in P->nbc and returned bit for bit. */
 static double ocs__node_max(const ocs__proc_t *P, oc_key_t key, double t, const ocs__frame_t *F, ocs__bb_t *nb) {
   uint64_t step = 0, w[OCS__NB_WORDS];
   if (P->nbc) {
-    step = ocs__proc_time_step(&P->base, oc_key_level(key), t);
+    step = ocs__proc_node_step(&P->base, key, t);
     if (ocs_seqcache_get(P->nbc, key, step, w)) return ocs__nb_unpack(w, nb);
   }
   oc_dvec3 o;
