@@ -159,7 +159,7 @@ typedef struct {
   int aniso[3];
   double lip_cov, lip_cell; /* bound on |∇C|, |∇K| per metre of the point on the reference sphere */
   double vmax;              /* m/s: fastest motion of the layer's patterns (wind at band_hi plus drift) */
-  int jstep;                /* the layer moves once every 2^jstep level steps (ocs__layer_motion_step) */
+  int jstep;                /* the layer moves once every 2^jstep level steps (ocs__frame) */
 } ocs__lstate_t;
 
 typedef struct {

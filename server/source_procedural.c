@@ -495,6 +495,15 @@ double ocs__box_max(const ocs__proc_t *P, const ocs__frame_t *F, unsigned only, 
 static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t);
 static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double t);
 
+/* Node key's sample footprint: the node grown by size/14 on every side. */
+static void ocs__footprint(oc_key_t key, double lo[3], double hi[3]) {
+  oc_dvec3 o;
+  double size;
+  oc_key_bounds(key, &o, &size);
+  double g = size / 14.0, a[3] = {o.x, o.y, o.z};
+  for (int k = 0; k < 3; k++) lo[k] = a[k] - g, hi[k] = a[k] + size + g;
+}
+
 /* A node's bound over its sample footprint, as the node-bound cache holds it: the total and the
  * bb (masks, per-layer ranges) as 64-bit words, bit for bit. */
 enum { OCS__NB_WORDS = 2 + 3 * OCS_LAYER_COUNT };
@@ -528,10 +537,8 @@ static double ocs__node_max(const ocs__proc_t *P, oc_key_t key, double t, const 
     step = ocs__proc_node_step(&P->base, key, t);
     if (ocs_seqcache_get(P->nbc, key, step, w)) return ocs__nb_unpack(w, nb);
   }
-  oc_dvec3 o;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
+  double lo[3], hi[3];
+  ocs__footprint(key, lo, hi);
   memset(nb, 0, sizeof *nb); /* layers the box skips leave their ranges unset: cached as 0 */
   double m = ocs__box_max(P, F, ~0u, lo, hi, OCS_PROC_BOUND_GRID, NULL, 0, nb);
   if (P->nbc) {
@@ -810,16 +817,11 @@ static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double 
   const ocs__proc_t *P = (const ocs__proc_t *)s;
   int level = oc_key_level(key);
   if (!P->base.animated || level < 0) return ocs__proc_time_step(s, level, t);
-  oc_dvec3 o;
-  double size;
-  oc_key_bounds(key, &o, &size);
-  double g = size / 14.0, lo[3] = {o.x - g, o.y - g, o.z - g}, hi[3] = {o.x + size + g, o.y + size + g, o.z + size + g};
-  double near2 = 0.0, far2 = 0.0;
-  for (int a = 0; a < 3; a++) {
-    double n = lo[a] > 0.0 ? lo[a] : (hi[a] < 0.0 ? -hi[a] : 0.0), f = fmax(fabs(lo[a]), fabs(hi[a]));
-    near2 += n * n, far2 += f * f;
-  }
-  double h0 = sqrt(near2) - OCS__R - 1.0, h1 = sqrt(far2) - OCS__R + 1.0; /* 1 m for rounding */
+  double lo[3], hi[3];
+  ocs__footprint(key, lo, hi);
+  ocs__geom_t g;
+  ocs__box_geom(lo, hi, 0, &g);
+  double h0 = g.hmin - 1.0, h1 = g.hmax + 1.0; /* ocs__box_max's altitudes, 1 m wider for the samples' rounding */
   int j = 63;
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
     if (P->L[l].band_lo <= h1 && P->L[l].band_hi >= h0 && P->L[l].jstep < j) j = P->L[l].jstep;
