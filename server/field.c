@@ -102,6 +102,11 @@ int ocs_field_animated(const ocs_field_t *f) {
   return 0;
 }
 
+/* One source's step for node key's own content (its node_step, else its level's time step). */
+static uint64_t ocs__node_step_of(const ocs_source_t *s, oc_key_t key, int level, double t) {
+  return s->vt->node_step ? s->vt->node_step(s, key, t) : s->vt->time_step(s, level, t);
+}
+
 /* One source's bound of node key's footprint [lo, hi]. */
 static void ocs__source_bound(const ocs_source_t *s, oc_key_t key, oc_dvec3 lo, oc_dvec3 hi, double t, float *a, float *b) {
   if (s->vt->node_bound && oc_key_valid(key))
@@ -124,7 +129,7 @@ void ocs_field_bound(const ocs_field_t *f, oc_key_t key, double t, float *smin, 
     const ocs_source_t *s = f->src[i];
     float a, b;
     if (cache && f->bc[i]) {
-      uint64_t step = s->vt->node_step ? s->vt->node_step(s, key, t) : s->vt->time_step(s, level, t);
+      uint64_t step = ocs__node_step_of(s, key, level, t);
       if (ocs__bcache_get(f->bc[i], key, step, &a, &b)) {
         hits++;
       } else {
@@ -163,23 +168,18 @@ int ocs_field_sample(const ocs_field_t *f, oc_key_t key, double t, float out[OC_
 
 /* A node must be refreshed when any source's step changes: combine the steps injectively enough
  * for a cache key (a change in any source changes the mix). */
+static uint64_t ocs__step_mix(uint64_t h, uint64_t step, int i) { return (h ^ step) * 0x100000001b3ull + (uint64_t)i; }
+
 uint64_t ocs_field_time_step(const ocs_field_t *f, int level, double t) {
   uint64_t h = 0;
-  for (int i = 0; i < f->count; i++) {
-    uint64_t s = f->src[i]->vt->time_step(f->src[i], level, t);
-    h = (h ^ s) * 0x100000001b3ull + (uint64_t)i;
-  }
+  for (int i = 0; i < f->count; i++) h = ocs__step_mix(h, f->src[i]->vt->time_step(f->src[i], level, t), i);
   return h;
 }
 
 uint64_t ocs_field_node_step(const ocs_field_t *f, oc_key_t key, double t) {
   uint64_t h = 0;
   int level = oc_key_level(key);
-  for (int i = 0; i < f->count; i++) {
-    const ocs_source_t *s = f->src[i];
-    uint64_t st = s->vt->node_step ? s->vt->node_step(s, key, t) : s->vt->time_step(s, level, t);
-    h = (h ^ st) * 0x100000001b3ull + (uint64_t)i;
-  }
+  for (int i = 0; i < f->count; i++) h = ocs__step_mix(h, ocs__node_step_of(f->src[i], key, level, t), i);
   return h;
 }
 

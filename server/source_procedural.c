@@ -800,13 +800,17 @@ static void ocs__proc_node_bound(const ocs_source_t *s, oc_key_t key, double t, 
  * (Δ_L = Δ_0·2^-L, so a coarse step boundary is always a fine one); the weather part counts
  * transition steps; the generation (high bits) separates the time steps of successive
  * ocs_weather_set() calls so a cached brick from before a change is never reused after it. */
+static uint64_t ocs__step_index(const ocs__proc_t *P, uint64_t m, double t) {
+  uint64_t k = ocs_weather_step(&P->weather, isfinite(t) ? t : 0.0);
+  return (P->weather.generation << 48) + ((m + k) & (((uint64_t)1 << 48) - 1));
+}
+
 static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t) {
   const ocs__proc_t *P = (const ocs__proc_t *)s;
   if (level < 0) level = 0;
   if (level > OC_KEY_MAX_LEVEL) level = OC_KEY_MAX_LEVEL;
   uint64_t m = P->base.animated ? (uint64_t)(ocs__motion_step(P, level, t) + ((int64_t)1 << 46)) : 0;
-  uint64_t k = ocs_weather_step(&P->weather, isfinite(t) ? t : 0.0);
-  return (P->weather.generation << 48) + ((m + k) & (((uint64_t)1 << 48) - 1));
+  return ocs__step_index(P, m, t);
 }
 
 /* The time step of node key's own content (ocs_source_vtbl_t.node_step): the level's, with the
@@ -826,8 +830,7 @@ static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double 
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
     if (P->L[l].band_lo <= h1 && P->L[l].band_hi >= h0 && P->L[l].jstep < j) j = P->L[l].jstep;
   int64_t m = j < 63 ? ocs__floor_pow2(ocs__motion_step(P, level, t), j) : 0;
-  uint64_t k = ocs_weather_step(&P->weather, isfinite(t) ? t : 0.0);
-  return (P->weather.generation << 48) + (((uint64_t)(m + ((int64_t)1 << 46)) + k) & (((uint64_t)1 << 48) - 1));
+  return ocs__step_index(P, (uint64_t)(m + ((int64_t)1 << 46)), t);
 }
 
 static int ocs__proc_set_weather(ocs_source_t *s, oc_preset_t preset, double t0, double seconds) {
