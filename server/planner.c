@@ -21,6 +21,13 @@
 #define F_MERGED 0x04  /* merged this epoch: not split again this epoch */
 #define F_FREE 0x08    /* in the free list */
 #define F_REFRESH 0x10 /* its content refreshed this epoch */
+#define F_SKIND 0x20   /* stepped, refreshed: its σt class stays as last made until made again */
+
+/* pn_t.tcost: a brick as last made (or, until made, as predicted), and a brick by the bound's class
+ * (what a refresh is predicted as, stepped) */
+#define T_MADE 0x01
+#define T_BOUND 0x02
+#define T_OF(kind) ((kind) == OC_NODE_BRICK ? T_MADE | T_BOUND : 0) /* both as the one kind known */
 
 typedef struct {
   oc_key_t key;
@@ -33,6 +40,7 @@ typedef struct {
   uint8_t kind;      /* record kind (cost) */
   uint8_t age;       /* 1..K-1: content held in that state; AGE_NEW: to produce */
   uint8_t flags;
+  uint8_t tcost;     /* what the steady cost T counts it as (T_MADE, T_BOUND; leaf_cost) */
   uint32_t topo;     /* commit count when it was last split or merged: until K commits later its
                         children (or, for a merged node, itself) may still be in a held state */
 } pn_t;
@@ -41,7 +49,7 @@ typedef struct {
   oc_key_t key;
   uint64_t stamp;
   uint32_t brick_id;
-  uint8_t kind, skind;
+  uint8_t kind, skind, tcost;
 } snap_rec_t;
 
 typedef struct {
@@ -84,7 +92,7 @@ struct ocs_planner_s {
   const ocs_plan_input_t *in;
   double C[OCS_PLAN_MAX_KEPT], T, target;
   uint64_t aim; /* a lower budget the steady target heads for before it is in force; 0: none */
-  double cost_c[OC_KEY_MAX_LEVEL + 1]; /* slot multiplier per level in T */
+  double rate[OC_KEY_MAX_LEVEL + 1]; /* the input's refresh rate per level, clamped to [0, 1] */
   uint32_t new_bricks;
 };
 
@@ -287,6 +295,7 @@ static void tree_reset(ocs_planner_t *p) {
   r->parent = -1;
   r->child = -1;
   r->kind = r->skind = OC_NODE_BRICK;
+  r->tcost = T_OF(r->kind);
   r->age = AGE_NEW;
   r->topo = p->commits;
 }
@@ -389,6 +398,7 @@ static int content_held(const ocs_planner_t *p, pn_t *n, int level) {
     if (r && r->stamp == st) {
       n->kind = r->kind;
       n->skind = r->skind;
+      n->tcost = r->tcost;
       n->brick_id = r->brick_id;
       n->age = (uint8_t)(i + 1);
       return 1;
@@ -407,6 +417,7 @@ static void content_new(ocs_planner_t *p, pn_t *n) {
   n->kind = (uint8_t)k;
   if ((k == OC_NODE_UNIFORM && p->in->uniform_is_brick) || (k == OC_NODE_EMPTY && p->in->ground_tau && ocs_plan_ground_tau(n->key)))
     n->kind = OC_NODE_BRICK;
+  n->tcost = T_OF(n->kind);
   n->brick_id = 0;
   n->age = AGE_NEW;
 }
@@ -439,16 +450,23 @@ static int new_content(ocs_planner_t *p, pn_t *n, int level, int look, uint64_t 
   }
   content_new(p, n); /* the bound's class decides splits (ocs_plan_commit) */
   n->stamp = s;
-  if (made <= OC_NODE_BRICK) n->kind = made; /* its cost, as made */
+  if (made <= OC_NODE_BRICK) n->kind = made; /* its cost, as made, and the hard limits' for its refreshes */
+  n->tcost = T_OF(n->kind);
   return 1;
 }
 
-/* contribution of a leaf to C_j (j = 0..K-1) and to T */
+/* Contribution of a leaf to C_j (j = 0..K-1) and to T. T is what the leaf adds to the C_j in the
+ * steady state, with r its level's refresh rate: its content as made (T_MADE) in the held states,
+ * in 1 + (K-2)·r of them on average, and in the share r of the epochs that refresh it, the newest
+ * state's slot, counted as the hard limits count it before it is made: a brick by the bound's class
+ * (T_BOUND). Counted as made instead, a refreshed leaf the bound cannot prove empty raised T by a
+ * whole slot only in the epochs that refreshed it, and the tree split and merged by turns. */
 static void leaf_cost(const ocs_planner_t *p, const pn_t *n, int level, double c[OCS_PLAN_MAX_KEPT], double *t) {
-  const double R = p->d.record_bytes, S = p->d.slot_bytes;
+  const double R = p->d.record_bytes, S = p->d.slot_bytes, r = p->rate[level];
   int brick = n->kind == OC_NODE_BRICK;
   for (int j = 0; j < p->K; j++) c[j] = (1 + j) * R + ((brick && n->age > p->K - 1 - j) ? S : 0.0);
-  *t = p->K * R + (brick ? S * p->cost_c[level] : 0.0);
+  double made = n->tcost & T_MADE ? 1.0 + (p->K - 2) * r : 0.0, bound = n->tcost & T_BOUND ? r : 0.0;
+  *t = p->K * R + S * (made + bound);
 }
 
 /* The budget window j counts against (C_j: the K-1-j newest held states and N repeated): the
@@ -672,8 +690,7 @@ static void epoch_begin(ocs_planner_t *p, const ocs_plan_input_t *in) {
   p->new_bricks = 0;
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
     double r = in->refresh_rate[l];
-    r = r > 0.0 ? (r < 1.0 ? r : 1.0) : 0.0;
-    p->cost_c[l] = 1.0 + (p->K - 1) * r;
+    p->rate[l] = r > 0.0 ? (r < 1.0 ? r : 1.0) : 0.0;
   }
 }
 
@@ -729,6 +746,10 @@ static int plan_refresh(ocs_planner_t *p, hent_t *refresh, size_t nrefresh, ocs_
       if (n->age == AGE_NEW) return OC_EAGAIN; /* a leaf with nothing to show (the first root): no plan yet */
       st->deferred++;
       continue;
+    }
+    if (n->age != AGE_NEW && !p->gated) { /* made after the plan: counted and split as last made until then */
+      nc.tcost = (uint8_t)((nc.tcost & ~T_MADE) | (n->tcost & T_MADE));
+      if (n->skind != OC_NODE_BRICK && nc.skind == OC_NODE_BRICK) nc.skind = n->skind, nc.flags |= F_SKIND;
     }
     double c0[OCS_PLAN_MAX_KEPT], c1[OCS_PLAN_MAX_KEPT], t0c, t1c;
     leaf_cost(p, n, level, c0, &t0c);
@@ -975,7 +996,11 @@ int ocs_plan_commit(ocs_planner_t *p, const uint8_t *kind, const uint32_t *brick
      * so and stays a leaf. Clocked, content is shown first and split later: a coarse node's box
      * average can round to empty while finer levels hold cloud, so the bound's class stays. */
     if (k != OC_NODE_BRICK && !p->gated) n->skind = k;
-    s.rec[i] = (snap_rec_t){n->key, n->stamp, id, k, n->skind};
+    if (k == OC_NODE_BRICK && (n->flags & F_SKIND)) n->skind = OC_NODE_BRICK; /* made one: the bound's class */
+    n->flags &= (uint8_t)~F_SKIND;
+    /* clocked, a refresh is counted as made (ready()); stepped, by the bound's class (leaf_cost) */
+    n->tcost = p->gated ? T_OF(k) : (uint8_t)((n->tcost & T_BOUND) | (T_OF(k) & T_MADE));
+    s.rec[i] = (snap_rec_t){n->key, n->stamp, id, k, n->skind, n->tcost};
     if (id) s.ids[s.nids++] = id;
     n->kind = k;
     n->brick_id = id;
@@ -1032,6 +1057,7 @@ void ocs_plan_abandon(ocs_planner_t *p) {
     n->brick_id = s->rec[i].brick_id;
     n->kind = s->rec[i].kind;
     n->skind = s->rec[i].skind;
+    n->tcost = s->rec[i].tcost;
     n->age = 1;
     n->flags = geom_excluded(key) ? F_NOGEOM : 0;
   }

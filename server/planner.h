@@ -23,10 +23,16 @@
  * Bricks are predicted conservatively (a node the bound cannot prove empty or uniform counts as a
  * brick); actual content is only ever cheaper.
  *
- * Within those hard limits the tree's steady cost T = K·records·record_bytes + Σ bricks·slot_bytes
- * ·(1 + (K−1)·r) — r the fraction of epochs in which a brick of that level changes — is kept
+ * Within those hard limits the tree's steady cost T = K·records·record_bytes + slot_bytes·Σ over
+ * leaves of (made·(1 + (K−2)·r) + predicted·r) — r the fraction of epochs in which the leaf's
+ * level changes, made 1 when its content came out a brick, predicted 1 when a refresh counts as a
+ * brick in the C_j before it is made (stepped: the bound's class; clocked: as made) — is kept
  * under (1 − reserve)·budget, so that every epoch keeps `reserve` of the budget for change (new
- * bricks while the old ones are still held). Static fields have r = 0: a brick costs one slot.
+ * bricks while the old ones are still held). T is what the leaf adds to the C_j on average, so it
+ * does not jump in the epochs that refresh more levels (the tree split and merged by turns when a
+ * refresh counted a whole slot only then). A brick costs 1 + (K−1)·r slots; static fields have
+ * r = 0: one slot. Stepped, a refreshed leaf keeps the σt class it was made with (an empty one is
+ * not split) until its new content is made.
  *
  * Content: every leaf carries a content stamp (the world's per-level stamp: field time step, light
  * step, sun). A leaf whose stamp changed is refreshed (new brick id) when the limits allow, nearest

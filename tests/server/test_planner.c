@@ -749,6 +749,23 @@ static void test_planner__still_camera_converges(void **state) {
   oc_report("planner", "still camera: epochs until the topology stops changing (animated, 2000 nodes)", e, 60, "epochs");
   assert_true(e < 60);
   sim_free(&s);
+
+  /* animated, where the bound cannot prove half the bricks empty that come out so at every refresh
+   * (the planet's fine levels): the refreshes, predicted as bricks until made, must not make the
+   * tree merge in the epochs that refresh more levels and split again in the others */
+  sim_init(&s, &d, 1, 0.5, 7);
+  s.cheaper_by_key = 1;
+  e = converge(&s, &v, 120, 16, 1);
+  uint32_t changed = 0;
+  for (int i = 0; i < 32; i++) {
+    sim_step(&s, &v);
+    changed += s.stats.splits + s.stats.merges;
+  }
+  printf("animated, half the bricks made empty: topology still after %d epochs (%u leaves), %u splits and merges in "
+         "the next 32 epochs\n", e, s.n, changed);
+  assert_true(e > 0 && e < 60);
+  assert_int_equal(changed, 0);
+  sim_free(&s);
 }
 
 /* A budget that does not bind: the loop stops where voxels fall below min_pixels. */
