@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h> /* readlink: thread_id */
 
 #include "brick_cache.h"
 #include "oc_bytes.h"
@@ -112,6 +113,8 @@ typedef struct {
   int built_tau;            /* its τ volume was built for it (the expensive kind of brick) */
   uint8_t kind;             /* what it turned out to be (OC_NODE_*), once made */
   double cpu;               /* seconds its producer threads spent on it so far (both passes) */
+  double pass0[2];          /* its first pass's interval and thread, for the trace (trace_made) */
+  int pass0_tid;
   uint32_t first, count;    /* production: its viewers, who[first .. first + count) */
 } req_t;
 
@@ -248,6 +251,8 @@ struct ocs_world_s {
   _Atomic uint64_t ahead_sigma, ahead_empty;  /* σt sampled ahead, and those all zero */
   _Atomic uint64_t ahead_tau;                 /* τ volumes built ahead */
   _Atomic double ahead_cpu, ahead_cpu_empty; /* producer-thread seconds on them */
+  FILE *trace; /* OCS_BRICK_TRACE (trace_made): the timers' intervals, to check against perf */
+  pthread_mutex_t trace_mu;
   _Atomic int last_error;
   _Atomic oc_key_t last_error_key;
   uint64_t brick_requests;
@@ -545,12 +550,48 @@ static void atomic_add_double(_Atomic double *a, double v) {
   }
 }
 
+/* The calling thread's kernel id (what perf reports), read once per thread. */
+static int thread_id(void) {
+  static _Thread_local int tid;
+  char buf[64];
+  ssize_t n;
+  if (!tid && (n = readlink("/proc/thread-self", buf, sizeof buf - 1)) > 0) {
+    buf[n] = 0;
+    const char *slash = strrchr(buf, '/');
+    tid = slash ? atoi(slash + 1) : -1;
+  }
+  return tid;
+}
+
+/* OCS_BRICK_TRACE=FILE: one line per interval the wasted-work timers count, "<tid> <start> <end>
+ * <wasted>" (CLOCK_MONOTONIC seconds, the timers' clock, which `perf record -k CLOCK_MONOTONIC`
+ * stamps its samples with), so that scripts/waste_perf.py can attribute perf's samples to them. */
+static void trace_interval(ocs_world_t *w, int tid, double t0, double t1, int wasted) {
+  if (!w->trace) return;
+  pthread_mutex_lock(&w->trace_mu);
+  fprintf(w->trace, "%d %.9f %.9f %d\n", tid, t0, t1, wasted);
+  pthread_mutex_unlock(&w->trace_mu);
+}
+
+/* A made brick's intervals, once it is known whether it is wasted. */
+static void trace_made(ocs_world_t *w, const req_t *q, double since, double now) {
+  if (!w->trace) return;
+  if (q->pass0[1] > 0.0) trace_interval(w, q->pass0_tid, q->pass0[0], q->pass0[1], q->kind == OC_NODE_EMPTY);
+  trace_interval(w, thread_id(), since, now, q->kind == OC_NODE_EMPTY);
+}
+
 /* What a made brick took on its producer thread (wall time: a thread's CPU clock is a system call,
  * which cost a tenth of production), and whether that was spent on nothing (issue 17's wasted
  * work). */
 static void account_cpu(ocs_world_t *w, req_t *q, double since) {
-  q->cpu += now_s() - since;
-  if (!q->made || q->sigma) return; /* set aside: its second pass counts it */
+  double now = now_s();
+  q->cpu += now - since;
+  if (q->sigma && w->trace) { /* set aside: its second pass counts it */
+    q->pass0[0] = since, q->pass0[1] = now;
+    q->pass0_tid = thread_id();
+  }
+  if (!q->made || q->sigma) return;
+  trace_made(w, q, since, now);
   int l = oc_key_level(q->key);
   atomic_add_double(&w->level_cpu[l], q->cpu);
   atomic_fetch_add_explicit(&w->level_made[l], 1, memory_order_relaxed);
@@ -734,6 +775,9 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->ground_direct = env && strcmp(env, "1") == 0;
   env = getenv("OCS_AHEAD");
   w->ahead_off = env && strcmp(env, "0") == 0;
+  pthread_mutex_init(&w->trace_mu, NULL);
+  env = getenv("OCS_BRICK_TRACE");
+  if (env && *env && !(w->trace = fopen(env, "w"))) oc_log_warn("OCS_BRICK_TRACE: cannot write %s", env);
   w->field_gen = 1;
   w->utc = isfinite(w->d.start_utc) ? w->d.start_utc : 0.0;
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;
@@ -762,6 +806,8 @@ void ocs_world_free(ocs_world_t *w) {
   ocs_pool_free(w->tick_pool);
   pthread_mutex_destroy(&w->tick_mu); /* calloc'd zeros are glibc's static initialiser, also before init */
   pthread_mutex_destroy(&w->share_mu);
+  if (w->trace) fclose(w->trace);
+  pthread_mutex_destroy(&w->trace_mu);
   free(w->made);
   ocs_cache_free(w->cache);
   ocs_field_free(w->field);
@@ -1703,6 +1749,7 @@ static void ahead_make_sigma(ocs_world_t *w, const ahead_t *x, double c0) {
   double took = now_s() - c0;
   int any = 0;
   for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= s[j] > 0.0f;
+  trace_interval(w, thread_id(), c0, c0 + took, !any);
   atomic_fetch_add(&w->ahead_sigma, 1);
   atomic_add_double(&w->ahead_cpu, took);
   if (!any) {
@@ -1718,7 +1765,9 @@ static void ahead_make_tau(ocs_world_t *w, const ahead_t *x, double c0) {
   ocs_cache_release(w->cache, e);
   if (!built) return;
   atomic_fetch_add(&w->ahead_tau, 1);
-  atomic_add_double(&w->ahead_cpu, now_s() - c0);
+  double now = now_s();
+  atomic_add_double(&w->ahead_cpu, now - c0);
+  trace_interval(w, thread_id(), c0, now, 0);
 }
 
 static int ahead_one(void *ctx, size_t i, int worker) {

@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h> /* close */
 
 #include <cmocka.h>
 
@@ -403,7 +404,46 @@ static void test_world__ahead_same_states_and_used(void **st) {
   assert_true(used >= 0.5 * (double)a.ahead_sigma && used_tau >= 0.5 * (double)a.ahead_tau);
 }
 
+/* OCS_BRICK_TRACE (scripts/waste_perf.sh gives its intervals to perf's samples): the intervals it
+ * writes are the ones the wasted-work timers count, wasted or not, to the rounding of the file. */
+static void test_world__brick_trace_matches_timers(void **st) {
+  (void)st;
+  char path[] = "/tmp/oc_brick_trace_XXXXXX";
+  int fd = mkstemp(path);
+  assert_true(fd >= 0);
+  close(fd);
+  assert_int_equal(setenv("OCS_BRICK_TRACE", path, 1), 0);
+  ocs_world_t *w = world_from(SPHERE, 2);
+  unsetenv("OCS_BRICK_TRACE");
+  ocs_viewer_t *v = add_viewer(w, 8u << 20);
+  ocs_view_t view = view_at(0.0, 0.0, 6000, 0, -30);
+  ocs_viewer_set_view(v, &view);
+  for (int e = 0; e < 4; e++) step_ack(w, &v, 1);
+  ocs_world_stats_t ws;
+  ocs_world_stats(w, &ws);
+  ocs_world_free(w); /* closes the trace */
+  FILE *f = fopen(path, "r");
+  assert_non_null(f);
+  int tid, wasted;
+  double t0, t1, all = 0.0, waste = 0.0;
+  long lines = 0, nwasted = 0;
+  while (fscanf(f, "%d %lf %lf %d", &tid, &t0, &t1, &wasted) == 4) {
+    assert_true(tid > 0 && t1 >= t0 && (wasted == 0 || wasted == 1));
+    all += t1 - t0, lines++;
+    if (wasted) waste += t1 - t0, nwasted++;
+  }
+  fclose(f);
+  remove(path);
+  double timers = ws.brick_cpu + ws.ahead_cpu, timers_waste = ws.brick_cpu_empty + ws.ahead_cpu_empty;
+  printf("trace: %ld intervals (%ld wasted), %.6f s (%.6f s wasted); timers %.6f s (%.6f s)\n", lines, nwasted, all,
+         waste, timers, timers_waste);
+  assert_true(lines > 10 && nwasted > 0 && nwasted < lines);
+  assert_true(fabs(all - timers) <= 2e-9 * (double)lines + 1e-9);
+  assert_true(fabs(waste - timers_waste) <= 2e-9 * (double)lines + 1e-9);
+}
+
 OC_TEST_MAIN(NULL, NULL,
+             cmocka_unit_test(test_world__brick_trace_matches_timers),
              cmocka_unit_test(test_world__fair_share),
              cmocka_unit_test(test_world__states_valid_under_budget_and_static_converges),
              cmocka_unit_test(test_world__two_viewers_cost_one_generation),
