@@ -13,7 +13,7 @@
 set -eu
 bin=build/bin
 if [ "${1:-}" = "--bin" ]; then bin=$2; shift 2; fi
-case "${1:-}" in -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;; esac
+case "${1:-}" in -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;; esac
 [ $# -gt 0 ] || set -- --epochs 24 --budget 64
 command -v perf > /dev/null || { echo "waste_perf.sh: perf is not installed" >&2; exit 1; }
 [ -x "$bin/overcast-bench" ] || { echo "waste_perf.sh: no $bin/overcast-bench (build first)" >&2; exit 1; }
