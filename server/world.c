@@ -565,7 +565,7 @@ static int thread_id(void) {
 
 /* OCS_BRICK_TRACE=FILE: one line per interval the wasted-work timers count, "<tid> <start> <end>
  * <wasted>" (CLOCK_MONOTONIC seconds, the timers' clock, which `perf record -k CLOCK_MONOTONIC`
- * stamps its samples with), so that scripts/waste_perf.py can attribute perf's samples to them. */
+ * stamps its samples with), so that scripts/waste_perf.sh can attribute perf's samples to them. */
 static void trace_interval(ocs_world_t *w, int tid, double t0, double t1, int wasted) {
   if (!w->trace) return;
   pthread_mutex_lock(&w->trace_mu);
