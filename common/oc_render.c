@@ -305,7 +305,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
   const float mu = (float)oc_ddot(dir, sun);
   const double S = OC_ROOT_HALF;
   ocg_march m = ocg_march_begin(mu);
-  const float kap = ocg_ambient_kappa(cx->cm);
+  const float kap = ocg_ambient_far_kappa(cx->cm);
 
   /* The marched interval: the root cube (clouds) and, with air, the atmosphere sphere; cut by the ground. */
   double t0 = 0.0, t1 = 0.0, a0, a1;
@@ -393,7 +393,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       J = ocg_cloud_source(cx->cm, sig, tau, m.tau_run, mu, Esun, F);
       Jms = ocg_cloud_source_ms(cx->cm, sig, tau, mu, Esun);
       Jmsd = ocg_cloud_source_msd(cx->cm, sig, tau, Esun);
-      Jfar = ocg_cloud_source_far(cx->cm, sig, tau, m.tau_run, F);
+      Jfar = ocg_cloud_source_far(cx->cm, sig, F);
     } else {
       ocg_march_end_run(&m, cx->cm);
     }

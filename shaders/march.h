@@ -36,6 +36,7 @@ typedef struct ocg_march {
   ocg_vec3 L_msd;   /**< its diffuse (isotropic) part, before its chord factors */
   ocg_real tau_run; /**< cloud optical depth crossed so far in the current run (0 outside clouds) */
   ocg_vec3 L_far;   /**< sky light of the current run from its far side, decayed by the depth crossed since */
+  ocg_real d_far;   /**< chord depth crossed past the chord's cap for L_far alone (ocg_march_chord) */
   ocg_real mu;      /**< cos(view, sun) of the ray (the chord factor's half-depth depends on it) */
 #if defined(OC_GLSL)
 };
@@ -54,14 +55,28 @@ typedef struct ocg_march {
 #ifndef OCG_MS_ALBEDO_POWER
 #define OCG_MS_ALBEDO_POWER OCG_R(0.0194)
 #endif
-/*! Sky ambient from each side of a cloud falls as exp(−k·κ_d·d) with the depth d to that side, κ_d
- *  the diffusion constant (occluded ambient; fitted to the uniform-sky truth, not to the sun cases). */
+/*! Sky ambient from the near side of a cloud falls as exp(−k·κ_d·d) with the depth d to that side,
+ *  κ_d the diffusion constant (occluded ambient; fitted to the uniform-sky truth, not to the sun cases). */
 #ifndef OCG_AMBIENT_DEPTH_K
 #define OCG_AMBIENT_DEPTH_K OCG_R(0.35)
 #endif
 /*! The face of a thick cloud keeps α = R∞ + c·(1 − R∞) of the sky's fluence (ocg_ambient_face). */
 #ifndef OCG_AMBIENT_FACE_C
-#define OCG_AMBIENT_FACE_C OCG_R(0.1)
+#define OCG_AMBIENT_FACE_C OCG_R(0.15)
+#endif
+/*! Sky ambient from the far side falls as exp(−b·(1 − ω)·d_f) with the view chord's depth d_f to that
+ *  side: light already travelling toward the camera, which each scattering on the way keeps but for
+ *  the share 1 − ω it absorbs (ocg_ambient_far_kappa). */
+#ifndef OCG_AMBIENT_FAR_B
+#define OCG_AMBIENT_FAR_B OCG_R(1.2)
+#endif
+/*! Past the chord's cap (OCG_MS_CHORD_MAX) a march goes on for the far side's light alone until it
+ *  has fallen by e^{−OCG_AMBIENT_FAR_DEPTH}, and never beyond this chord depth. */
+#ifndef OCG_AMBIENT_FAR_DEPTH
+#define OCG_AMBIENT_FAR_DEPTH OCG_R(8.0)
+#endif
+#ifndef OCG_AMBIENT_FAR_MAX
+#define OCG_AMBIENT_FAR_MAX OCG_R(400.0)
 #endif
 /*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
  *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
@@ -123,6 +138,7 @@ OC_INLINE ocg_march ocg_march_begin(ocg_real mu) {
   m.L_msd = ocg_v3s(OCG_R(0.0));
   m.tau_run = OCG_R(0.0);
   m.L_far = ocg_v3s(OCG_R(0.0));
+  m.d_far = OCG_R(0.0);
   return m;
 }
 
@@ -154,20 +170,23 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
  *
  * Occluded ambient: the sky fluence F reaches a sample through the cloud around it. In a
  * conservative cloud (ω = 1) the diffuse field under a uniform sky is the sky itself at every depth
- * (radiative equilibrium), so A = 1; with absorption it decays over the diffusion length, from the
- * near side of the cloud and, where the cloud is thin, from its far side too:
- * $A = e^{-\kappa\,d_n}\,[\alpha + (1 - \alpha)\,e^{-\kappa\,d_f}]$, $\kappa = k\,\kappa_d$,
+ * (radiative equilibrium), so A = 1; with absorption it decays with the depth to each side:
+ * $A = \alpha\,e^{-\kappa\,d_n} + (1 - \alpha)\,e^{-\kappa_f\,d_f}$, $\kappa = k\,\kappa_d$,
  * $\kappa_d = \sqrt{3(1 - \omega)(1 - \omega \bar g)}$ with the phase function's mean cosine ḡ = 0.864,
- * and α = R∞ + c(1 − R∞) what the face of a semi-infinite cloud keeps. The cloud's phase function is
- * strongly forward, so a sample scatters toward the camera mostly light that travels toward the
- * camera: what comes out of the cloud behind it, its diffuse reflectance R∞ where the cloud is thick
- * (van de Hulst's similarity fit, $R_\infty = \frac{(1 - s)(1 - 0.139 s)}{1 + 1.17 s}$,
+ * $\kappa_f = b\,(1 - \omega)$, and α = R∞ + c(1 − R∞) what the face of a semi-infinite cloud keeps.
+ * The cloud's phase function is strongly forward, so a sample scatters toward the camera mostly
+ * light that travels toward the camera. Near the camera's face of a thick cloud that is the cloud's
+ * diffuse reflectance R∞ (van de Hulst's similarity fit, $R_\infty = \frac{(1 - s)(1 - 0.139 s)}{1 + 1.17 s}$,
  * $s = \sqrt{\frac{1 - \omega}{1 - \omega \bar g}}$), plus a share c of the rest for the sky seen off the
- * forward lobe (c = 0.1, k = 0.35: docs/numerics.md, "Sky ambient under a uniform sky"). A thin
- * cloud gives A → 1, a thick one's face α, its core 0; ω = 1 gives A = 1 at any depth. The near side's
- * depth d_n = min(τ, τ_run) (toward the sun or the camera, whichever is nearer) is known at the
- * sample; the far side's d_f = D − τ_run only where the run ends, so that term is gathered apart
- * (L_far) and decayed by e^{−κ σ_c d} over every later segment of the run, chord steps included.
+ * forward lobe, decaying into the cloud over the diffusion length. The rest, 1 − α, is the sky behind
+ * the cloud, come along the view chord through the depth d_f still to cross: forward scattering keeps
+ * its direction, and each scattering absorbs 1 − ω of it, so it falls linearly in 1 − ω rather than
+ * as diffusion's κ_d (as the chord factor's κ_c). c = 0.15, k = 0.35, b = 1.2: docs/numerics.md,
+ * "Sky ambient under a uniform sky". A thin cloud gives A → 1, a thick one's face α, its core 0;
+ * ω = 1 gives A = 1 at any depth. The near side's depth d_n = min(τ, τ_run) (toward the sun or the
+ * camera, whichever is nearer) is known at the sample; the far side's d_f = D − τ_run only where the
+ * run ends, so that term is gathered apart (L_far) and decayed by e^{−κ_f σ_c d} over every later
+ * segment of the run, chord steps included, past the chord's cap too (ocg_march_chord).
  *
  * legacy = 1 is the model before the fit: Σ_{i<n} b^i e^{−a^i τ} p(μ; c^i) now, unoccluded ambient.
  * Domain: σ_c ≥ 0, τ ≥ 0, μ ∈ [−1, 1], ω ∈ [0, 1], a, b, c ∈ (0, 1]. */
@@ -192,18 +211,23 @@ OC_INLINE ocg_real ocg_ambient_face(OC_IN(ocg_cloud_model) cm) {
   return r_inf + OCG_AMBIENT_FACE_C * (OCG_R(1.0) - r_inf);
 }
 
+/* κ_f = b·(1 − ω), the far side's decay per unit optical depth along the view chord (0 for the legacy
+ * model and at ω = 1). */
+OC_INLINE ocg_real ocg_ambient_far_kappa(OC_IN(ocg_cloud_model) cm) {
+  if (cm.legacy != 0) return OCG_R(0.0);
+  return OCG_AMBIENT_FAR_B * (OCG_R(1.0) - ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0)));
+}
+
 /* e^{−κ d_n}: the near side's decay at the sample (the legacy model: 1, unoccluded). */
 OC_INLINE ocg_real ocg_ambient_occlusion(OC_IN(ocg_cloud_model) cm, ocg_real tau, ocg_real tau_run) {
   if (cm.legacy != 0) return OCG_R(1.0);
   return ocg_exp(-ocg_ambient_kappa(cm) * ocg_max(ocg_min(tau, tau_run), OCG_R(0.0)));
 }
 
-/* The far side's source ω σ_c F/(4π)·(1 − α)·e^{−κ d_n}, before its decay (0 for the legacy model). */
-OC_INLINE ocg_vec3 ocg_cloud_source_far(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real tau_run,
-                                        ocg_vec3 e_fluence) {
+/* The far side's source ω σ_c F/(4π)·(1 − α), before its decay e^{−κ_f d_f} (0 for the legacy model). */
+OC_INLINE ocg_vec3 ocg_cloud_source_far(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_vec3 e_fluence) {
   if (cm.legacy != 0) return ocg_v3s(OCG_R(0.0));
-  ocg_real a = (OCG_R(1.0) - ocg_ambient_face(cm)) * ocg_ambient_occlusion(cm, tau, tau_run);
-  return ocg_scale3(e_fluence, a * OCG_INV_4PI * cm.albedo * sig);
+  return ocg_scale3(e_fluence, (OCG_R(1.0) - ocg_ambient_face(cm)) * OCG_INV_4PI * cm.albedo * sig);
 }
 
 OC_INLINE ocg_vec3 ocg_cloud_source(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real tau, ocg_real tau_run, ocg_real mu,
@@ -306,7 +330,7 @@ OC_INLINE ocg_vec3 ocg_thin_air_source(ocg_real sigma, ocg_vec3 e_sun, ocg_real 
  * $L \mathrel{+}= T\,J\,\frac{1 - e^{-\sigma_t d}}{\sigma_t}$, then $T \mathrel{*}= e^{-\sigma_t d}$ and
  * $T_c \mathrel{*}= e^{-\sigma_c d}$. Exact for a homogeneous segment at any length; the weight's series
  * (optics.h) keeps σ_t → 0 finite. The far-side ambient j_far joins L_far at the segment's middle depth
- * and L_far decays by e^{−κ σ_c d} (κ = ocg_ambient_kappa). */
+ * and L_far decays by e^{−κ σ_c d} (κ = ocg_ambient_far_kappa). */
 OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_real sig, ocg_vec3 j, ocg_vec3 j_ms,
                                   ocg_vec3 j_msd, ocg_vec3 j_far, ocg_real kappa, ocg_real d) {
   ocg_vec3 w = ocg_segment_weight3(sigma_t, d);
@@ -333,6 +357,7 @@ OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) c
   OC_DEREF(m).L_ms = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).L_msd = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).tau_run = OCG_R(0.0);
+  OC_DEREF(m).d_far = OCG_R(0.0);
 }
 
 /*! Past the early exit the march goes on through the current cloud run only to measure its chord
@@ -350,13 +375,22 @@ OC_INLINE ocg_atmo_bool ocg_march_wants_chord(OC_IN(ocg_march) m, OC_IN(ocg_clou
   return cm.legacy == 0 && cm.ms_n > 1 && m.tau_run > OCG_R(0.0);
 }
 
-/* One chord-only step of length d (κ: ocg_ambient_kappa): @return whether to go on (still in cloud, D
- * below the cap). */
+/* One chord-only step of length d (κ: ocg_ambient_far_kappa): @return whether to go on: still in
+ * cloud, and D below the cap, or past it (D = the cap's crossing, d_far beyond) while the far side's
+ * light has not yet fallen by e^{−OCG_AMBIENT_FAR_DEPTH} since, up to OCG_AMBIENT_FAR_MAX in all. A
+ * run without that light (the sun alone, ω = 1) stops at the cap, and the chord factor never sees
+ * d_far. */
 OC_INLINE ocg_atmo_bool ocg_march_chord(OC_INOUT(ocg_march) m, ocg_real sig, ocg_real kappa, ocg_real d) {
   ocg_atmo_bool in_cloud = sig > OCG_R(0.0);
-  if (in_cloud) OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
-  if (in_cloud) OC_DEREF(m).L_far = ocg_scale3(OC_DEREF(m).L_far, ocg_exp(-kappa * sig * d));
-  return in_cloud && OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX;
+  if (in_cloud) {
+    if (OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX) OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
+    else OC_DEREF(m).d_far = OC_DEREF(m).d_far + sig * d;
+    OC_DEREF(m).L_far = ocg_scale3(OC_DEREF(m).L_far, ocg_exp(-kappa * sig * d));
+  }
+  ocg_real lf = ocg_max(OC_DEREF(m).L_far.x, ocg_max(OC_DEREF(m).L_far.y, OC_DEREF(m).L_far.z));
+  ocg_atmo_bool far = lf > OCG_R(0.0) && kappa * OC_DEREF(m).d_far < OCG_AMBIENT_FAR_DEPTH &&
+                      OC_DEREF(m).tau_run + OC_DEREF(m).d_far < OCG_AMBIENT_FAR_MAX;
+  return in_cloud && (OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX || far);
 }
 
 /* Early exit: every channel of T below exit_t (exit_t ≤ 0: never). What is left is at most exit_t of

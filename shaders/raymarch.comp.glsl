@@ -352,7 +352,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
   vec3 o = u_cam_frac;
   ocg_march m = ocg_march_begin(mu);
   ocg_cloud_model cm = ocv_cloud_model();
-  float kap = ocg_ambient_kappa(cm);
+  float kap = ocg_ambient_far_kappa(cm);
 
   float t0 = 0.0, t1 = 0.0, a0, a1;
   vec3 box_lo = vec3(-u_cam_cell) * u_cell, box_hi = vec3(ivec3(OCV_CELLS21) - u_cam_cell) * u_cell;
@@ -454,7 +454,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       J = ocg_cloud_source(cm, sig, tau, m.tau_run, mu, Esun, F);
       Jms = ocg_cloud_source_ms(cm, sig, tau, mu, Esun);
       Jmsd = ocg_cloud_source_msd(cm, sig, tau, Esun);
-      Jfar = ocg_cloud_source_far(cm, sig, tau, m.tau_run, F);
+      Jfar = ocg_cloud_source_far(cm, sig, F);
     } else {
       ocg_march_end_run(m, cm);
     }

@@ -253,6 +253,8 @@ static void test_gl_render__constant_background(void **state) {
   view_t vw;
   oc_render_desc_t d = constant_view(&vw);
   compare("constant_background", &vw.st, &d, CMP_RMSE, CMP_MAX);
+  d.albedo = 0.9f; /* the occluded ambient's far side, marched past the chord's cap (τ 200 across) */
+  compare("absorbing_under_uniform_sky", &vw.st, &d, CMP_RMSE, CMP_MAX);
   view_close(&vw);
 }
 

@@ -521,6 +521,40 @@ static void test_cloud_shadow__limits(void **state) {
          (double)ocg_cloud_shadow(cm, OCG_R(10.0)), (double)s1);
 }
 
+/* The chord past the early exit (march.h ocg_march_chord): a run in the sun alone stops at the cap
+ * with the depth the chord factor reads; a run with far-side sky light goes on past it until that light
+ * has fallen by e^{-OCG_AMBIENT_FAR_DEPTH}, its decay exactly e^{-kappa_f d}, and the chord factor
+ * still reads the depth at the cap. */
+static void test_march_chord__far_side_past_the_cap(void **state) {
+  (void)state;
+  ocg_cloud_model cm;
+  memset(&cm, 0, sizeof cm);
+  cm.albedo = OCG_R(0.9);
+  ocg_real kf = ocg_ambient_far_kappa(cm), d = OCG_R(1.0); /* σ·d = 1 per step */
+  assert_true(rel_err((ld)kf, (ld)OCG_AMBIENT_FAR_B * 0.1L) <= 8 * EPS);
+  for (int sky = 0; sky < 2; ++sky) {
+    ocg_march m = ocg_march_begin(OCG_R(0.0));
+    m.tau_run = OCG_R(7.0);
+    m.L_far = ocg_v3s(sky ? OCG_R(1.0) : OCG_R(0.0));
+    int steps = 0;
+    while (ocg_march_chord(&m, OCG_R(1.0), kf, d) && steps < 100000) steps++;
+    steps++; /* the step that said stop was taken too */
+    assert_true(m.tau_run >= OCG_MS_CHORD_MAX && m.tau_run < OCG_MS_CHORD_MAX + OCG_R(1.0));
+    if (!sky) {
+      assert_true(m.d_far == OCG_R(0.0));
+      continue;
+    }
+    assert_true(kf * m.d_far >= OCG_AMBIENT_FAR_DEPTH && kf * (m.d_far - d) < OCG_AMBIENT_FAR_DEPTH);
+    ld want = expl(-(ld)kf * (ld)(m.tau_run + m.d_far - OCG_R(7.0)));
+    assert_true(rel_err((ld)m.L_far.x, want) <= (ld)steps * 8 * EPS);
+    printf("[" PREC "] far side past the cap at albedo 0.9: %d chord steps, D %.1f + %.1f\n", steps, (double)m.tau_run,
+           (double)m.d_far);
+  }
+  cm.albedo = OCG_R(1.0); /* no absorption: nothing to decay, and no far-side light to march for */
+  assert_true(ocg_ambient_far_kappa(cm) == OCG_R(0.0));
+  assert_true(ocg_ambient_face(cm) == OCG_R(1.0));
+}
+
 static void test_beer_powder__finite_and_bounded(void **state) {
   (void)state;
   ld peak = 2.0L / (3.0L * sqrtl(3.0L)); /* at tau = ln(3)/2 */
@@ -619,6 +653,7 @@ int main(void) {
       cmocka_unit_test(test_integrators__error_against_step_count),
       cmocka_unit_test(test_ms_octaves__sum_and_limits),
       cmocka_unit_test(test_cloud_shadow__limits),
+      cmocka_unit_test(test_march_chord__far_side_past_the_cap),
       cmocka_unit_test(test_beer_powder__finite_and_bounded),
       cmocka_unit_test(test_markl__water_content_to_extinction),
       cmocka_unit_test(test_aces__monotone_and_in_unit_range),
