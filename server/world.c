@@ -1,6 +1,7 @@
 /* world.c — epochs: plan every ready viewer, produce what the plans lack once, emit states. */
 #include "world.h"
 
+#include <errno.h>
 #include <inttypes.h>
 #include <math.h>
 #include <pthread.h>
@@ -777,7 +778,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->ahead_off = env && strcmp(env, "0") == 0;
   pthread_mutex_init(&w->trace_mu, NULL);
   env = getenv("OCS_BRICK_TRACE");
-  if (env && *env && !(w->trace = fopen(env, "w"))) oc_log_warn("OCS_BRICK_TRACE: cannot write %s", env);
+  if (env && *env && !(w->trace = fopen(env, "w"))) oc_log_warn("OCS_BRICK_TRACE: cannot write %s: %s", env, strerror(errno));
   w->field_gen = 1;
   w->utc = isfinite(w->d.start_utc) ? w->d.start_utc : 0.0;
   w->time = isfinite(w->d.time) ? w->d.time : 0.0;

@@ -442,8 +442,26 @@ static void test_world__brick_trace_matches_timers(void **st) {
   assert_true(fabs(waste - timers_waste) <= 2e-9 * (double)lines + 1e-9);
 }
 
+/* A trace that cannot be written is a warning: the world runs, and makes the same bricks. */
+static void test_world__brick_trace_unwritable(void **st) {
+  (void)st;
+  assert_int_equal(setenv("OCS_BRICK_TRACE", "/nonexistent-overcast-dir/trace.txt", 1), 0);
+  ocs_world_t *w = world_from(SPHERE, 1);
+  unsetenv("OCS_BRICK_TRACE");
+  assert_non_null(w);
+  ocs_viewer_t *v = add_viewer(w, 8u << 20);
+  ocs_view_t view = view_at(0.0, 0.0, 6000, 0, -30);
+  ocs_viewer_set_view(v, &view);
+  for (int e = 0; e < 2; e++) step_ack(w, &v, 1);
+  ocs_world_stats_t ws;
+  ocs_world_stats(w, &ws);
+  assert_true(ws.brick_cpu > 0.0);
+  ocs_world_free(w);
+}
+
 OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_world__brick_trace_matches_timers),
+             cmocka_unit_test(test_world__brick_trace_unwritable),
              cmocka_unit_test(test_world__fair_share),
              cmocka_unit_test(test_world__states_valid_under_budget_and_static_converges),
              cmocka_unit_test(test_world__two_viewers_cost_one_generation),
