@@ -247,10 +247,17 @@ static int32_t ocs__slot(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uin
 
 /* The coarsest level l in level_lo..level whose node holding node (ix, iy, iz) of `level` has the
  * bound [0, 0] (every sample of a node at l or finer inside it is then 0, and so is the
- * reconstruction); -1 when there is none; -2 on error. */
+ * reconstruction); -1 when there is none; -2 on error. A walk's next node shares most of its
+ * ancestors with the last one checked, so only the levels below where their chains meet are asked. */
 static int ocs__empty_level(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uint32_t iz) {
-  if (c->chk_level == level && c->chk_ix == ix && c->chk_iy == iy && c->chk_iz == iz) return -1;
-  for (int l = c->level_lo; l <= level; l++) {
+  int l0 = c->level_lo;
+  if (c->chk_level == level) { /* the ancestors shared with the last node whose chain was non-empty are */
+    uint32_t x = (ix ^ c->chk_ix) | (iy ^ c->chk_iy) | (iz ^ c->chk_iz);
+    if (!x) return -1;
+    int shared = level - (32 - __builtin_clz(x)); /* the finest level where the two chains meet */
+    l0 = shared + 1 > l0 ? shared + 1 : l0;
+  }
+  for (int l = l0; l <= level; l++) {
     int sh = level - l;
     int32_t slot = ocs__slot(c, l, ix >> sh, iy >> sh, iz >> sh);
     if (slot < 0) return -2;
