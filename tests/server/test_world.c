@@ -404,8 +404,6 @@ static void test_world__ahead_same_states_and_used(void **st) {
   assert_true(used >= 0.5 * (double)a.ahead_sigma && used_tau >= 0.5 * (double)a.ahead_tau);
 }
 
-/* OCS_BRICK_TRACE (scripts/waste_perf.sh gives its intervals to perf's samples): the intervals it
- * writes are the ones the wasted-work timers count, wasted or not, to the rounding of the file. */
 /* Four epochs of one viewer over the sphere with OCS_BRICK_TRACE = trace (NULL: none); the world's
  * stats at the end, after it is freed (which closes the trace). */
 static ocs_world_stats_t traced_run(const char *trace, int threads) {
@@ -423,6 +421,8 @@ static ocs_world_stats_t traced_run(const char *trace, int threads) {
   return ws;
 }
 
+/* OCS_BRICK_TRACE (scripts/waste_perf.sh gives its intervals to perf's samples): the intervals it
+ * writes are the ones the wasted-work timers count, wasted or not, to the rounding of the file. */
 static void test_world__brick_trace_matches_timers(void **st) {
   (void)st;
   char path[] = "/tmp/oc_brick_trace_XXXXXX";
