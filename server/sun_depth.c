@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <xxhash.h> /* XXH3_128bits: a volume's record of the bricks it read */
+
 #include "brick.h" /* ocg_brick_base, ocg_brick_frac, ocg_brick_base_voxel, ocg_trilerp */
 #include "oc_err.h"
 #include "voxelize.h" /* ocs_brick_sample_pos */
@@ -53,6 +55,7 @@ static double ocs__voxel(int level) { return ldexp(2.0 * OCS__S / 7.0, -level); 
 typedef struct {
   oc_key_t key; /* 0: free slot */
   float smin, smax;
+  float asked_min, asked_max; /* the bound as the callback answered it (a volume records it) */
   int32_t brick; /* index into the pool, -1: not fetched */
   float bmax;    /* the fetched samples' maximum */
   int32_t ranged; /* smin/smax narrowed to the samples' range (ocs__brick; the clear-sky proof
@@ -171,6 +174,7 @@ static int32_t ocs__lookup(ocs__ctx_t *c, oc_key_t key) {
   }
   float mn = 0.0f, mx = 0.0f;
   c->d->u->bound(c->d->u->ctx, key, &mn, &mx);
+  c->tab[h].asked_min = mn, c->tab[h].asked_max = mx;
   /* Anything not provably [0, 0] or [v, v] (NaN included) is "varies": the brick is fetched. */
   if (!(mx >= 0.0f) || isnan(mn)) mn = 0.0f, mx = INFINITY;
   if (!(mn >= 0.0f)) mn = 0.0f;
@@ -638,10 +642,11 @@ int ocs_tau_direct(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VO
 /*-*** The group volume ***/
 
 #define OCS__VOL_MAGIC 0x5441554fu /* "OUAT" */
-#define OCS__VOL_VERSION 1u
+#define OCS__VOL_VERSION 2u
 
 /* The block: this header, the coverage bitmap (one bit per descendant, x fastest), the column
- * table (na × nb, a fastest), then the floats; each part starts on a 16-byte boundary. */
+ * table (na × nb, a fastest), the floats, then the inputs (n_bounds ocs__in_bound_t, n_bricks
+ * ocs__in_brick_t); each part starts on a 16-byte boundary. */
 typedef struct {
   uint32_t magic, version;
   oc_key_t group;
@@ -651,7 +656,26 @@ typedef struct {
   uint64_t off_cov, off_cols, off_vals; /* byte offsets of the parts */
   double o[3], e1[3], e2[3], s[3]; /* grid origin (group centre) and the sun frame */
   double a_lo, b_lo, c_lo, da, dc; /* column (ia, ib) at a_lo + ia·da, b_lo + ib·da; slice k at c_lo + k·dc */
+  /* what else the bits depend on: the desc's parameters (the sun is s) */
+  int32_t filter_levels, min_level, group_levels, flags; /* flags: OCS__VOL_COVER_ALL | OCS__VOL_GROUND */
+  double step_factor, cone;
+  uint64_t off_inp;
+  uint32_t n_bounds, n_bricks;
 } ocs__vol_t;
+#define OCS__VOL_COVER_ALL 1
+#define OCS__VOL_GROUND 2
+
+/* A volume's inputs: every answer its callbacks gave. The build is a deterministic function of
+ * them (each key is asked at most once, and what is asked next depends only on earlier answers),
+ * so the same answers make the same volume, bit for bit (ocs_tau_volume_unchanged). */
+typedef struct {
+  oc_key_t key;
+  float smin, smax; /* as bound() answered */
+} ocs__in_bound_t;
+typedef struct {
+  oc_key_t key;
+  uint64_t lo, hi; /* XXH3-128 of the brick sigma() gave, sanitised */
+} ocs__in_brick_t;
 
 typedef struct {
   int32_t k0, n; /* slices k0 .. k0 + n − 1 */
@@ -792,6 +816,40 @@ static int ocs__covered(ocs__ctx_t *c, int level, uint32_t ix, uint32_t iy, uint
   return 0;
 }
 
+/* The desc's parameters a volume's bits depend on (besides the sun and the callbacks' answers). */
+static void ocs__vol_params(ocs__vol_t *v, const ocs__desc_t *d) {
+  v->filter_levels = d->filter_levels, v->min_level = d->min_level, v->group_levels = d->group_levels;
+  v->flags = (d->u->cover_all ? OCS__VOL_COVER_ALL : 0) | (d->u->ground ? OCS__VOL_GROUND : 0);
+  v->step_factor = d->step_factor, v->cone = d->cone;
+}
+
+/* Appends the memo's answers to the block (*blk, *total grow): every bound asked, and the hash of
+ * every brick fetched. @return 0 or OC_ENOMEM (*blk unchanged). */
+static int ocs__record_inputs(const ocs__ctx_t *c, unsigned char **blk, size_t *total) {
+  size_t off = ocs__align16(*total);
+  size_t n = off + c->count * sizeof(ocs__in_bound_t) + (size_t)c->nbricks * sizeof(ocs__in_brick_t);
+  unsigned char *nb = realloc(*blk, n);
+  if (!nb) return OC_ENOMEM;
+  memset(nb + *total, 0, off - *total);
+  ocs__vol_t *v = (ocs__vol_t *)nb;
+  ocs__in_bound_t *ib = (ocs__in_bound_t *)(nb + off);
+  ocs__in_brick_t *ik = (ocs__in_brick_t *)(ib + c->count);
+  uint32_t nbound = 0, nbrick = 0;
+  for (uint32_t i = 0; i < c->cap; i++) {
+    const ocs__ent_t *e = &c->tab[i];
+    if (!e->key) continue;
+    ib[nbound++] = (ocs__in_bound_t){e->key, e->asked_min, e->asked_max};
+    if (e->brick < 0) continue;
+    XXH128_hash_t h = XXH3_128bits(c->pool + (size_t)e->brick * OC_BRICK_VOXELS, OC_BRICK_VOXELS * sizeof(float));
+    ik[nbrick++] = (ocs__in_brick_t){e->key, h.low64, h.high64};
+  }
+  v->off_inp = off, v->n_bounds = nbound, v->n_bricks = nbrick;
+  v->bytes = n;
+  *blk = nb;
+  *total = n;
+  return 0;
+}
+
 int ocs_tau_volume_build(const ocs_tau_desc_t *du, oc_key_t group, int level, void **vol, size_t *bytes) {
   ocs__desc_t d;
   if (!vol || !bytes) return OC_EINVAL;
@@ -832,6 +890,7 @@ int ocs_tau_volume_build(const ocs_tau_desc_t *du, oc_key_t group, int level, vo
   hv.e2[0] = e2.x, hv.e2[1] = e2.y, hv.e2[2] = e2.z;
   hv.s[0] = s.x, hv.s[1] = s.y, hv.s[2] = s.z;
   hv.a_lo = -ea - hv.da, hv.b_lo = -eb - hv.da, hv.c_lo = -ec - 2.0 * hv.dc;
+  ocs__vol_params(&hv, &d);
 
   ocs__ctx_t c;
   OC_TRY(ocs__ctx_init(&c, &d, level));
@@ -917,7 +976,7 @@ int ocs_tau_volume_build(const ocs_tau_desc_t *du, oc_key_t group, int level, vo
     oc_dvec3 q0 = oc_dadd(o, oc_dadd(oc_dscale(e1, a), oc_dscale(e2, b)));
     ocs__column(&c, v, q0, cols[i].k0, cols[i].n, val + cols[i].off);
   }
-  r = c.err;
+  r = c.err ? c.err : ocs__record_inputs(&c, &blk, &total);
   if (r < 0) {
     free(blk);
     goto out;
@@ -965,6 +1024,38 @@ int ocs_tau_volume_lookup(const void *vol, oc_key_t key, float tau[OC_BRICK_VOXE
     tau[vi] = ocs__to_float(x0 + (x1 - x0) * wb);
   }
   return 0;
+}
+
+/* Whether a volume was built with d's parameters and sun (compared bit for bit). */
+static int ocs__same_params(const ocs__vol_t *v, const ocs__desc_t *d) {
+  ocs__vol_t w = *v;
+  ocs__vol_params(&w, d);
+  double s[3] = {d->sun.x, d->sun.y, d->sun.z};
+  return !memcmp(&w.filter_levels, &v->filter_levels, 4 * sizeof(int32_t)) && !memcmp(&w.step_factor, &v->step_factor, sizeof(double)) &&
+         !memcmp(&w.cone, &v->cone, sizeof(double)) && !memcmp(s, v->s, sizeof s);
+}
+
+int ocs_tau_volume_unchanged(const ocs_tau_desc_t *du, const void *vol) {
+  ocs__desc_t d;
+  OC_TRY(ocs__desc(du, &d));
+  const ocs__vol_t *v = vol;
+  if (!v || v->magic != OCS__VOL_MAGIC || v->version != OCS__VOL_VERSION) return OC_EINVAL;
+  if (!ocs__same_params(v, &d)) return 0;
+  const ocs__in_bound_t *ib = (const ocs__in_bound_t *)((const unsigned char *)vol + v->off_inp);
+  for (uint32_t i = 0; i < v->n_bounds; i++) { /* the bounds first: most are cached, and cheap */
+    float mn = 0.0f, mx = 0.0f;
+    du->bound(du->ctx, ib[i].key, &mn, &mx);
+    if (memcmp(&mn, &ib[i].smin, sizeof mn) || memcmp(&mx, &ib[i].smax, sizeof mx)) return 0;
+  }
+  const ocs__in_brick_t *ik = (const ocs__in_brick_t *)(ib + v->n_bounds);
+  float b[OC_BRICK_VOXELS];
+  for (uint32_t i = 0; i < v->n_bricks; i++) {
+    OC_TRY(du->sigma(du->ctx, ik[i].key, b));
+    oc_sanitize(b, OC_BRICK_VOXELS, NULL);
+    XXH128_hash_t h = XXH3_128bits(b, sizeof b);
+    if (h.low64 != ik[i].lo || h.high64 != ik[i].hi) return 0;
+  }
+  return 1;
 }
 
 int ocs_tau_columns(const ocs_tau_desc_t *du, oc_key_t key, float tau[OC_BRICK_VOXELS]) {

@@ -199,7 +199,9 @@ int ocs_tau_march_level(const ocs_tau_desc_t *d, int node_level);
 /*! ocs_tau_volume_build() : the sun-aligned optical-depth grid for the descendants of `group` at
  *  `level` (level(group) ≤ level ≤ level(group) + OCS_TAU_MAX_GROUP_LEVELS, ≤ 21).
  *  On success *vol is ONE malloc'd block (release it with free()) of *bytes bytes; it holds all it
- *  needs (geometry and values, not the callbacks) and may be shared read-only between threads.
+ *  needs (geometry and values, not the callbacks) and may be shared read-only between threads. It
+ *  also records its inputs, for ocs_tau_volume_unchanged(): 16 bytes per bound asked, 24 per σt
+ *  brick fetched.
  *  note 1 : group need not be ocs_tau_group_of() of anything: any ancestor works (bigger groups
  *           cost more memory per node and less marching).
  *  note 2 : coverage. By default the volume covers the descendants whose footprint meets a
@@ -214,6 +216,18 @@ int ocs_tau_march_level(const ocs_tau_desc_t *d, int node_level);
  *  @return 0; OC_EINVAL (bad desc, key or level); OC_ENOMEM; or the sigma callback's error (then
  *  *vol is NULL and *bytes 0). */
 int ocs_tau_volume_build(const ocs_tau_desc_t *d, oc_key_t group, int level, void **vol, size_t *bytes);
+
+/*! ocs_tau_volume_unchanged() : whether building `vol` again with d would make it again, bit for
+ *  bit: 1 when it was built with d's parameters and sun and each of its inputs gets the same answer
+ *  from d's callbacks now (every bound the build asked, and every σt brick it fetched, which the
+ *  volume keeps as an XXH3-128 hash), else 0. The build is a deterministic function of those
+ *  answers (each key is asked at most once, and what is asked next depends only on the answers
+ *  before). ground() is not asked again: it must be the same pure function of the key. A caller
+ *  keeps a volume through a change of time step that did not reach what it read: σt that stepped
+ *  on but came out the same (most often all zero), or moved only where the volume never looked.
+ *  It costs the callbacks' lookups, a fraction of a build's march.
+ *  @return 1, 0, OC_EINVAL (bad desc or not a volume), or the sigma callback's error. */
+int ocs_tau_volume_unchanged(const ocs_tau_desc_t *d, const void *vol);
 
 /*! ocs_tau_volume_lookup() : τ at the 512 samples of `key`, a descendant of the volume's group at the
  *  volume's level (the group itself when the two levels are equal).

@@ -126,6 +126,8 @@ typedef struct {
   ocs_world_t *w;
   double time;
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1], sun_version;
+  uint64_t light_prev[OC_KEY_MAX_LEVEL + 1]; /* the light stamp before light (0: none) whose τ volumes
+                                                 may be kept (tau_volume_keep) */
   ocs_tau_desc_t tau; /* ctx: this */
   double deadline;    /* no brick is started that is expected to end after it, but for may_start()'s
                          exceptions (monotonic s); 0: none */
@@ -200,6 +202,7 @@ struct ocs_world_s {
    * OCS_AHEAD_EPOCHS, or it changes every epoch: nothing to spread), that step and an instant in it;
    * the items chosen for this epoch */
   int ahead_off; /* OCS_AHEAD=0 (before/after benches) */
+  int keep_off;  /* OCS_TAU_KEEP=0: every τ volume of a new light stamp is built (before/after benches) */
   uint32_t ahead_in[OC_KEY_MAX_LEVEL + 1];
   uint64_t ahead_ts[OC_KEY_MAX_LEVEL + 1];
   double ahead_t[OC_KEY_MAX_LEVEL + 1];
@@ -217,6 +220,7 @@ struct ocs_world_s {
                            that front-ends that agree on the sun agree on every stamp */
   ocs_tau_desc_t tau;
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], stamp[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1];
+  uint64_t light_before[OC_KEY_MAX_LEVEL + 1]; /* each level's light stamp before its last change (0: none) */
   double rate[OC_KEY_MAX_LEVEL + 1];
   ocs_viewer_t **viewers;
   int nviewers;
@@ -251,6 +255,7 @@ struct ocs_world_s {
   _Atomic double level_cpu[OC_KEY_MAX_LEVEL + 1], level_cpu_empty[OC_KEY_MAX_LEVEL + 1];
   _Atomic uint64_t ahead_sigma, ahead_empty;  /* σt sampled ahead, and those all zero */
   _Atomic uint64_t ahead_tau;                 /* τ volumes built ahead */
+  _Atomic uint64_t tau_kept;                  /* τ volumes kept from the light stamp before (tau_volume_keep) */
   _Atomic double ahead_cpu, ahead_cpu_empty; /* producer-thread seconds on them */
   FILE *trace; /* OCS_BRICK_TRACE (trace_made): the timers' intervals, to check against perf */
   pthread_mutex_t trace_mu;
@@ -369,9 +374,33 @@ static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
 
 /* τ of a node from its group's volume, through the cache. !wait: OCS_CACHE_BUSY, and nothing
  * done, when another thread is building that volume. */
-static ocs_cache_key_t tau_key(const prod_t *p, oc_key_t key) {
-  int level = oc_key_level(key);
-  return ckey(p->w, T_TAUVOL, ocs_tau_group_of(&p->tau, key), p->light[level], ((uint64_t)level) | (p->sun_version << 8));
+static ocs_cache_key_t tau_key_at(const prod_t *p, oc_key_t key, uint64_t light) {
+  return ckey(p->w, T_TAUVOL, ocs_tau_group_of(&p->tau, key), light, ((uint64_t)oc_key_level(key)) | (p->sun_version << 8));
+}
+
+static ocs_cache_key_t tau_key(const prod_t *p, oc_key_t key) { return tau_key_at(p, key, p->light[oc_key_level(key)]); }
+
+/* The volume of key's group and level at the light stamp before p's, when its inputs give the same
+ * answers at p's time (ocs_tau_volume_unchanged: a build would make it again, bit for bit), copied
+ * into *vol. The light stamp moves on with every level the march reads, and for about half the
+ * volumes of the planet what they read did not change (σt that stepped on but came out the same,
+ * most often all zero). @return 1 (kept), 0 (build it), or a negative OC_E*. */
+static int tau_volume_keep(prod_t *p, oc_key_t key, void **vol, size_t *bytes) {
+  ocs_world_t *w = p->w;
+  uint64_t before = p->light_prev[oc_key_level(key)];
+  if (w->keep_off || !before || before == p->light[oc_key_level(key)]) return 0;
+  ocs_cache_key_t k = tau_key_at(p, key, before);
+  ocs_cache_entry_t *e;
+  if (!ocs_cache_peek(w->cache, &k, &e)) return 0;
+  int r = ocs_tau_volume_unchanged(&p->tau, ocs_cache_data(e));
+  if (r == 1) {
+    *bytes = ocs_cache_bytes(e);
+    *vol = malloc(*bytes);
+    if (*vol) memcpy(*vol, ocs_cache_data(e), *bytes);
+    else r = OC_ENOMEM;
+  }
+  ocs_cache_release(w->cache, e);
+  return r;
 }
 
 /* The volume of key's group and level at p's light stamp, pinned in *e: built into the cache when
@@ -384,13 +413,15 @@ static int tau_volume_acquire(prod_t *p, oc_key_t key, int wait, ocs_cache_entry
   if (r == OCS_CACHE_MISS) {
     void *vol = NULL;
     size_t bytes = 0;
-    r = ocs_tau_volume_build(&p->tau, ocs_tau_group_of(&p->tau, key), oc_key_level(key), &vol, &bytes);
+    int kept = r = tau_volume_keep(p, key, &vol, &bytes);
+    if (r == 0) r = ocs_tau_volume_build(&p->tau, ocs_tau_group_of(&p->tau, key), oc_key_level(key), &vol, &bytes);
     if (r < 0) {
       ocs_cache_abandon(w->cache, *e);
       return r;
     }
     ocs_cache_publish(w->cache, *e, vol, bytes);
     w->tau_volumes++;
+    if (kept == 1) w->tau_kept++;
     *built = 1;
   }
   return 0;
@@ -631,6 +662,7 @@ static void prod_snapshot(ocs_world_t *w, prod_t *p) {
   p->time = w->time;
   memcpy(p->ts, w->ts, sizeof p->ts);
   memcpy(p->light, w->light, sizeof p->light);
+  memcpy(p->light_prev, w->light_before, sizeof p->light_prev);
   p->sun_version = w->sun_version;
   p->tau = w->tau;
   p->tau.ctx = p;
@@ -670,6 +702,7 @@ static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t st
 static void prod_snapshot_at(ocs_world_t *w, prod_t *p, double t) {
   prod_snapshot(w, p);
   p->time = t;
+  memcpy(p->light_prev, w->light, sizeof p->light_prev); /* ahead builds for the first change after now */
   stamps_at(w, t, p->ts, NULL, p->light);
 }
 
@@ -691,16 +724,23 @@ static uint32_t epochs_to_spread(int first, int second) {
   return first && first <= OCS_AHEAD_EPOCHS && lasts >= 2 ? (uint32_t)first : 0;
 }
 
-static void clock_update(ocs_world_t *w) {
-  uint64_t stamp[OC_KEY_MAX_LEVEL + 1];
-  stamps_at(w, w->time, w->ts, stamp, w->light);
+/* The stamps at the world's time, remembering those they replace. */
+static void clock_stamps(ocs_world_t *w) {
+  uint64_t stamp[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1];
+  stamps_at(w, w->time, w->ts, stamp, light);
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {
+    if (w->light[l] && w->light[l] != light[l]) w->light_before[l] = w->light[l];
+    w->light[l] = light[l];
     if (w->stamp[l] && w->stamp[l] != stamp[l]) { /* the level's content moves on: remember the old */
       memmove(&w->stamp_hist[l][1], &w->stamp_hist[l][0], (OCS_STAMP_HISTORY - 1) * sizeof w->stamp_hist[l][0]);
       w->stamp_hist[l][0] = w->stamp[l];
     }
     w->stamp[l] = stamp[l];
   }
+}
+
+static void clock_update(ocs_world_t *w) {
+  clock_stamps(w);
   /* refresh rate: the share of the next OCS_RATE_EPOCHS epochs that change each level's stamp.
    * Over 8, a level stepping every 16 s read 0 or 1/8 by turns, and the plans' steady cost (each
    * brick weighed by 1 + (K - 1) x rate) moved with it from one tick to the next. */
@@ -776,6 +816,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->ground_direct = env && strcmp(env, "1") == 0;
   env = getenv("OCS_AHEAD");
   w->ahead_off = env && strcmp(env, "0") == 0;
+  env = getenv("OCS_TAU_KEEP");
+  w->keep_off = env && strcmp(env, "0") == 0;
   pthread_mutex_init(&w->trace_mu, NULL);
   env = getenv("OCS_BRICK_TRACE");
   if (env && *env && !(w->trace = fopen(env, "w"))) oc_log_warn("OCS_BRICK_TRACE: cannot write %s: %s", env, strerror(errno));
@@ -2143,6 +2185,7 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .ahead_sigma = w->ahead_sigma,
                              .ahead_empty = w->ahead_empty,
                              .ahead_tau = w->ahead_tau,
+                             .tau_kept = w->tau_kept,
                              .ahead_cpu = w->ahead_cpu,
                              .ahead_cpu_empty = w->ahead_cpu_empty,
                              .last_error = w->last_error,

@@ -980,6 +980,80 @@ static void test_sun_depth__ground_clear_not_covered(void **st) {
   tc_free(&c);
 }
 
+/*-*** A volume kept while its inputs give the same answers ***/
+
+/* Callbacks over a tcache that change one answer: the bound's maximum, or one σt sample, of `key`
+ * (by +1 m⁻¹); and that note the first key each was asked for. */
+typedef struct {
+  tcache_t *c;
+  oc_key_t key;
+  int what; /* 0: none, 1: the bound, 2: σt */
+  oc_key_t first_bound, first_brick;
+} tweak_t;
+
+static int tw_sigma(void *ctx, oc_key_t key, float out[512]) {
+  tweak_t *t = ctx;
+  int r = tc_sigma(t->c, key, out);
+  if (!t->first_brick) t->first_brick = key;
+  if (r == 0 && t->what == 2 && key == t->key) out[137] += 1.0f;
+  return r;
+}
+
+static void tw_bound(void *ctx, oc_key_t key, float *lo, float *hi) {
+  tweak_t *t = ctx;
+  tc_bound(t->c, key, lo, hi);
+  if (!t->first_bound) t->first_bound = key;
+  if (t->what == 1 && key == t->key) *hi += 1.0f;
+}
+
+/* ocs_tau_volume_unchanged(): 1 while every answer the build got is the same (and a second build
+ * is then the same bytes), 0 when one bound or one σt sample changes, or the sun or a parameter
+ * does, the sigma callback's error when it fails, OC_EINVAL for what is not a volume. The sphere
+ * under a zenith sun: its group at level 14 fetches bricks and asks bounds. */
+static void test_sun_depth__volume_unchanged_while_answers_are(void **st) {
+  (void)st;
+  tcache_t c;
+  tc_init(&c, "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
+              " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}",
+          0.0);
+  oc_dvec3 under = oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 0.0});
+  tweak_t tw = {.c = &c};
+  ocs_tau_desc_t d = desc_for(&c, sun_at(under, 0.0));
+  d.sigma = tw_sigma, d.bound = tw_bound, d.ctx = &tw;
+  oc_key_t grp = ocs_tau_group_of(&d, oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 2500.0})));
+  void *vol = NULL, *again = NULL;
+  size_t bytes, bytes2;
+  assert_int_equal(ocs_tau_volume_build(&d, grp, 14, &vol, &bytes), 0);
+  assert_true(tw.first_bound && tw.first_brick); /* the case tests both kinds of input */
+  assert_int_equal(ocs_tau_volume_unchanged(&d, vol), 1);
+  assert_int_equal(ocs_tau_volume_build(&d, grp, 14, &again, &bytes2), 0);
+  assert_true(bytes2 == bytes && memcmp(again, vol, bytes) == 0);
+  free(again);
+  tw.what = 1, tw.key = tw.first_bound;
+  assert_int_equal(ocs_tau_volume_unchanged(&d, vol), 0);
+  tw.what = 2, tw.key = tw.first_brick;
+  assert_int_equal(ocs_tau_volume_unchanged(&d, vol), 0);
+  tw.what = 0;
+  ocs_tau_desc_t o = d;
+  o.sun_dir = sun_at(under, 1e-6);
+  assert_int_equal(ocs_tau_volume_unchanged(&o, vol), 0);
+  o = d, o.cone = 0.03;
+  assert_int_equal(ocs_tau_volume_unchanged(&o, vol), 0);
+  o = d, o.cover_all = 1;
+  assert_int_equal(ocs_tau_volume_unchanged(&o, vol), 0);
+  o = d, o.ground = ground_cb;
+  assert_int_equal(ocs_tau_volume_unchanged(&o, vol), 0);
+  c.fail_sigma = 1;
+  assert_int_equal(ocs_tau_volume_unchanged(&d, vol), OC_EIO);
+  c.fail_sigma = 0;
+  float junk[64] = {0};
+  assert_int_equal(ocs_tau_volume_unchanged(&d, junk), OC_EINVAL);
+  assert_int_equal(ocs_tau_volume_unchanged(&d, NULL), OC_EINVAL);
+  assert_int_equal(ocs_tau_volume_unchanged(&d, vol), 1);
+  free(vol);
+  tc_free(&c);
+}
+
 /*-*** Arguments and errors ***/
 
 static void test_sun_depth__bad_arguments(void **st) {
@@ -1077,4 +1151,5 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_sun_depth__ground_columns_match_direct),
              cmocka_unit_test(test_sun_depth__ground_in_group_volume),
              cmocka_unit_test(test_sun_depth__ground_clear_not_covered),
+             cmocka_unit_test(test_sun_depth__volume_unchanged_while_answers_are),
              cmocka_unit_test(test_sun_depth__bad_arguments))
