@@ -183,6 +183,24 @@ uint64_t ocs_field_node_step(const ocs_field_t *f, oc_key_t key, double t) {
   return h;
 }
 
+int ocs_field_step_before(const ocs_field_t *f, oc_key_t key, double t, double *t0) {
+  if (!f || !t0 || !oc_key_valid(key)) return 0;
+  for (int i = 0; i < f->count; i++)
+    if (f->src[i]->vt->step_before && f->src[i]->vt->step_before(f->src[i], key, t, t0)) return 1;
+  return 0;
+}
+
+int ocs_field_same_samples(const ocs_field_t *f, oc_key_t key, double t0, double t1) {
+  int level = oc_key_level(key);
+  if (!f || level < 0) return 0;
+  for (int i = 0; i < f->count; i++) {
+    const ocs_source_t *s = f->src[i];
+    if (ocs__node_step_of(s, key, level, t0) == ocs__node_step_of(s, key, level, t1)) continue;
+    if (!s->vt->same_samples || !s->vt->same_samples(s, key, t0, t1)) return 0;
+  }
+  return 1;
+}
+
 double ocs_field_point(const ocs_field_t *f, oc_dvec3 p, double t) {
   double v = 0.0;
   for (int i = 0; i < f->count; i++)

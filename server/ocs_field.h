@@ -70,6 +70,13 @@ typedef struct {
    *  though the level's step moved on (the procedural source: layers that step slower than the
    *  fastest, where only they meet the node). NULL: time_step(level of key, t). */
   uint64_t (*node_step)(const ocs_source_t *src, oc_key_t key, double t);
+  /*! step_before() : optional; 1 and an instant *t0 in node key's own step before the one t is in
+   *  (where a cache may still hold its samples), or 0 when the source has none to offer. */
+  int (*step_before)(const ocs_source_t *src, oc_key_t key, double t, double *t0);
+  /*! same_samples() : optional; 1 only when sample() and sample_exact() give node key the same
+   *  bits at t0 and t1 though its node_step differs (a proof, not a comparison: the procedural
+   *  source's moving layers absent from the node at both instants), else 0. */
+  int (*same_samples)(const ocs_source_t *src, oc_key_t key, double t0, double t1);
 } ocs_source_vtbl_t;
 
 struct ocs_source_s {
@@ -108,6 +115,13 @@ uint64_t ocs_field_time_step(const ocs_field_t *f, int level, double t);
  *  the samples are a pure function of it); equals ocs_field_time_step() of the key's level where
  *  no source knows better. */
 uint64_t ocs_field_node_step(const ocs_field_t *f, oc_key_t key, double t);
+/*! ocs_field_step_before() : 1 and an instant *t0 of node key's previous own step, from the first
+ *  source that offers one (the procedural planet), else 0. */
+int ocs_field_step_before(const ocs_field_t *f, oc_key_t key, double t, double *t0);
+/*! ocs_field_same_samples() : 1 when ocs_field_sample() gives node key the same bits at t0 and t1:
+ *  each source's node_step is the same at both, or the source proves its samples the same
+ *  (same_samples); else 0. The world keeps σt across a node step with it (lever 29). */
+int ocs_field_same_samples(const ocs_field_t *f, oc_key_t key, double t0, double t1);
 /*! ocs_field_point() : the finest σt at a point (sum over sources that provide point()). */
 double ocs_field_point(const ocs_field_t *f, oc_dvec3 p, double t);
 /*! ocs_field_set_weather() : every procedural source moves to `preset` over [t0, t0 + seconds];

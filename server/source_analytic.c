@@ -179,9 +179,13 @@ static double ocs__analytic_point(const ocs_source_t *s, oc_dvec3 p, double t) {
 
 static void ocs__analytic_destroy(ocs_source_t *s) { free(s); }
 
-static const ocs_source_vtbl_t ocs__analytic_vt = {"analytic", ocs__analytic_bound, ocs__analytic_sample,
-                                                   ocs__analytic_step, ocs__analytic_point, NULL,
-                                                   ocs__analytic_destroy, 0 /* bound() is cheap: not cached */, NULL, NULL, NULL};
+static const ocs_source_vtbl_t ocs__analytic_vt = {.name = "analytic",
+                                                   .bound = ocs__analytic_bound,
+                                                   .sample = ocs__analytic_sample,
+                                                   .time_step = ocs__analytic_step,
+                                                   .point = ocs__analytic_point,
+                                                   .destroy = ocs__analytic_destroy,
+                                                   .bound_by_step = 0 /* bound() is cheap: not cached */};
 
 int ocs_source_analytic_create(ocs_source_t **out, const oc_source_t *d, char *why, size_t why_len) {
   *out = NULL;

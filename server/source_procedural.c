@@ -813,14 +813,9 @@ static uint64_t ocs__proc_time_step(const ocs_source_t *s, int level, double t) 
   return ocs__step_index(P, m, t);
 }
 
-/* The time step of node key's own content (ocs_source_vtbl_t.node_step): the level's, with the
- * motion part rounded down to the step of the slowest-stepping layer whose band meets the node's
- * sample footprint. The layers that do not meet it add exactly 0 there (columns and strata are cut
- * to the band), so the content moves only with those that do; none: with the weather alone. */
-static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double t) {
-  const ocs__proc_t *P = (const ocs__proc_t *)s;
-  int level = oc_key_level(key);
-  if (!P->base.animated || level < 0) return ocs__proc_time_step(s, level, t);
+/* The jstep of the fastest-stepping layer (the least jstep) whose band meets node key's sample
+ * footprint; 63: none. */
+static int ocs__node_jstep(const ocs__proc_t *P, oc_key_t key) {
   double lo[3], hi[3];
   ocs__footprint(key, lo, hi);
   ocs__geom_t g;
@@ -829,8 +824,62 @@ static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double 
   int j = 63;
   for (int l = 0; l < OCS_LAYER_COUNT; l++)
     if (P->L[l].band_lo <= h1 && P->L[l].band_hi >= h0 && P->L[l].jstep < j) j = P->L[l].jstep;
+  return j;
+}
+
+/* The time step of node key's own content (ocs_source_vtbl_t.node_step): the level's, with the
+ * motion part rounded down to the step of the fastest-stepping layer whose band meets the node's
+ * sample footprint. The layers that do not meet it add exactly 0 there (columns and strata are cut
+ * to the band), so the content moves only with those that do; none: with the weather alone. */
+static uint64_t ocs__proc_node_step(const ocs_source_t *s, oc_key_t key, double t) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  int level = oc_key_level(key);
+  if (!P->base.animated || level < 0) return ocs__proc_time_step(s, level, t);
+  int j = ocs__node_jstep(P, key);
   int64_t m = j < 63 ? ocs__floor_pow2(ocs__motion_step(P, level, t), j) : 0;
   return ocs__step_index(P, (uint64_t)(m + ((int64_t)1 << 46)), t);
+}
+
+/* An instant in node key's previous own step (ocs_source_vtbl_t.step_before): the middle of the
+ * first level step of the 2^j before the one t is in. */
+static int ocs__proc_step_before(const ocs_source_t *s, oc_key_t key, double t, double *t0) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  int level = oc_key_level(key);
+  if (!P->base.animated || level < 0 || !isfinite(t)) return 0;
+  int j = ocs__node_jstep(P, key);
+  if (j == 63) return 0; /* it moves with the weather alone */
+  int64_t m0 = ocs__floor_pow2(ocs__motion_step(P, level, t), j) - ((int64_t)1 << j);
+  *t0 = ldexp(((double)m0 + 0.5) * P->dt0, -level);
+  return 1;
+}
+
+/* Whether node key's samples at t0 and t1 are the same bits (ocs_source_vtbl_t.same_samples).
+ * The samplers read a layer only where the node's bound says it may be non-zero (nb.mask: the
+ * voxels' bounds, columns and strata skip the others), and a layer's frame is a function of the
+ * quantised weather and the layer's own step alone. So with the same weather step, the layers
+ * whose own step differs between t0 and t1 absent from the node's bound at both instants, and the
+ * others in the same frame, both samplings make the same operations on the same values. The
+ * world keeps the node's σt of its previous step so, instead of sampling it again: on the planet,
+ * nodes of levels 9–12 that span every band, whose step is the cirrus's where there is no cirrus
+ * (docs/performance.md, lever 29). */
+static int ocs__proc_same_samples(const ocs_source_t *s, oc_key_t key, double t0, double t1) {
+  const ocs__proc_t *P = (const ocs__proc_t *)s;
+  int level = oc_key_level(key);
+  if (level < 0 || !isfinite(t0) || !isfinite(t1)) return 0;
+  if (ocs_weather_step(&P->weather, t0) != ocs_weather_step(&P->weather, t1)) return 0;
+  ocs__frame_t F0, F1;
+  ocs__frame(P, level, t0, &F0);
+  ocs__frame(P, level, t1, &F1);
+  if (F0.mask != F1.mask) return 0; /* the same weather makes the same mask: a safeguard */
+  int64_t m0 = ocs__motion_step(P, level, t0), m1 = ocs__motion_step(P, level, t1);
+  unsigned moved = 0;
+  for (int l = 0; l < OCS_LAYER_COUNT; l++)
+    if ((F0.mask >> l & 1u) && ocs__floor_pow2(m0, P->L[l].jstep) != ocs__floor_pow2(m1, P->L[l].jstep)) moved |= 1u << l;
+  if (!moved) return 1;
+  ocs__bb_t nb0, nb1;
+  ocs__node_max(P, key, t0, &F0, &nb0);
+  ocs__node_max(P, key, t1, &F1, &nb1);
+  return !((nb0.mask | nb1.mask) & moved);
 }
 
 static int ocs__proc_set_weather(ocs_source_t *s, oc_preset_t preset, double t0, double seconds) {
@@ -852,6 +901,8 @@ static const ocs_source_vtbl_t ocs__proc_vt = {
     .sample_exact = ocs__proc_sample_strata,
     .time_step = ocs__proc_time_step,
     .node_step = ocs__proc_node_step,
+    .step_before = ocs__proc_step_before,
+    .same_samples = ocs__proc_same_samples,
     .point = ocs__proc_point,
     .set_weather = ocs__proc_set_weather,
     .destroy = ocs__proc_destroy,

@@ -616,8 +616,13 @@ static void ocs__vdb_destroy(ocs_source_t *src) {
   free(s);
 }
 
-static const ocs_source_vtbl_t ocs__vdb_vt = {"vdb", ocs__vdb_bound, ocs__vdb_sample, ocs__vdb_step, ocs__vdb_point, NULL,
-                                              ocs__vdb_destroy, 0 /* bound() reads the frame of t, loading files: not cached */, NULL, NULL, NULL};
+static const ocs_source_vtbl_t ocs__vdb_vt = {.name = "vdb",
+                                              .bound = ocs__vdb_bound,
+                                              .sample = ocs__vdb_sample,
+                                              .time_step = ocs__vdb_step,
+                                              .point = ocs__vdb_point,
+                                              .destroy = ocs__vdb_destroy,
+                                              .bound_by_step = 0 /* bound() reads the frame of t, loading files: not cached */};
 
 int ocs_source_vdb_create(ocs_source_t **out, const oc_source_t *desc, char *why, size_t why_len) {
   char scratch[8];

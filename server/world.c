@@ -203,6 +203,7 @@ struct ocs_world_s {
    * the items chosen for this epoch */
   int ahead_off; /* OCS_AHEAD=0 (before/after benches) */
   int keep_off;  /* OCS_TAU_KEEP=0: every τ volume of a new light stamp is built (before/after benches) */
+  int keep_sigma_off; /* OCS_SIGMA_KEEP=0: every σt of a new node step is sampled (likewise) */
   uint32_t ahead_in[OC_KEY_MAX_LEVEL + 1];
   uint64_t ahead_ts[OC_KEY_MAX_LEVEL + 1];
   double ahead_t[OC_KEY_MAX_LEVEL + 1];
@@ -256,6 +257,7 @@ struct ocs_world_s {
   _Atomic uint64_t ahead_sigma, ahead_empty;  /* σt sampled ahead, and those all zero */
   _Atomic uint64_t ahead_tau;                 /* τ volumes built ahead */
   _Atomic uint64_t tau_kept;                  /* τ volumes kept from the light stamp before (tau_volume_keep) */
+  _Atomic uint64_t sigma_kept;                /* σt kept from the node's step before (sigma_keep) */
   _Atomic double ahead_cpu, ahead_cpu_empty; /* producer-thread seconds on them */
   FILE *trace; /* OCS_BRICK_TRACE (trace_made): the timers' intervals, to check against perf */
   pthread_mutex_t trace_mu;
@@ -317,9 +319,31 @@ static float *sigma_pack(float *s, size_t *bytes) {
   return z ? z : s;
 }
 
+/* A σt entry's 512 floats into out (sigma_pack's one float: all zero). */
+static void sigma_copy(const ocs_cache_entry_t *e, float *out) {
+  if (ocs_cache_bytes(e) < OC_BRICK_VOXELS * sizeof *out) memset(out, 0, OC_BRICK_VOXELS * sizeof *out);
+  else memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
+}
+
+/* The node's σt of its own step before the one `time` is in, copied into s when it is still cached
+ * and the source proves the samples the same (ocs_field_same_samples): the step moved with a layer
+ * that meets the node's footprint but, by the node's bound, adds nothing to it. @return 1 (kept)
+ * or 0 (sample it). */
+static int sigma_keep(ocs_world_t *w, oc_key_t key, double time, float s[OC_BRICK_VOXELS]) {
+  double t0;
+  if (w->keep_sigma_off || !ocs_field_step_before(w->field, key, time, &t0)) return 0;
+  ocs_cache_key_t k = ckey(w, T_SIGMA, key, ocs_field_node_step(w->field, key, t0), 0);
+  ocs_cache_entry_t *e;
+  if (!ocs_cache_peek(w->cache, &k, &e)) return 0;
+  int same = ocs_field_same_samples(w->field, key, t0, time);
+  if (same) sigma_copy(e, s);
+  ocs_cache_release(w->cache, e);
+  return same;
+}
+
 /* σt samples of a node at its own time step ts (ocs_field_node_step), sampled at world time `time` (any instant of
  * that step: content is a function of the step), through the cache (sanitised); out: a copy, or
- * NULL. @return 1 when sampled here, 0 when found, or an OC_E*. */
+ * NULL. @return 1 when made here (sampled, or kept: sigma_keep), 0 when found, or an OC_E*. */
 static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, float *out) {
   ocs_cache_key_t k = ckey(w, T_SIGMA, key, ts, 0);
   ocs_cache_entry_t *e;
@@ -333,7 +357,8 @@ static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, f
       return OC_ENOMEM;
     }
     memset(s, 0, OC_BRICK_VOXELS * sizeof *s);
-    r = ocs_field_sample(w->field, key, time, s);
+    int kept = sigma_keep(w, key, time, s);
+    r = kept ? 0 : ocs_field_sample(w->field, key, time, s);
     if (r < 0) {
       free(s);
       ocs_cache_abandon(w->cache, e);
@@ -344,9 +369,9 @@ static int sigma_entry(ocs_world_t *w, oc_key_t key, uint64_t ts, double time, f
     s = sigma_pack(s, &bytes);
     ocs_cache_publish(w->cache, e, s, bytes);
     w->sigma_produced++;
+    if (kept) w->sigma_kept++;
   }
-  if (out && ocs_cache_bytes(e) < OC_BRICK_VOXELS * sizeof *out) memset(out, 0, OC_BRICK_VOXELS * sizeof *out);
-  else if (out) memcpy(out, ocs_cache_data(e), OC_BRICK_VOXELS * sizeof *out);
+  if (out) sigma_copy(e, out);
   ocs_cache_release(w->cache, e);
   return sampled;
 }
@@ -818,6 +843,8 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   w->ahead_off = env && strcmp(env, "0") == 0;
   env = getenv("OCS_TAU_KEEP");
   w->keep_off = env && strcmp(env, "0") == 0;
+  env = getenv("OCS_SIGMA_KEEP");
+  w->keep_sigma_off = env && strcmp(env, "0") == 0;
   pthread_mutex_init(&w->trace_mu, NULL);
   env = getenv("OCS_BRICK_TRACE");
   if (env && *env && !(w->trace = fopen(env, "w"))) oc_log_warn("OCS_BRICK_TRACE: cannot write %s: %s", env, strerror(errno));
@@ -2186,6 +2213,7 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .ahead_empty = w->ahead_empty,
                              .ahead_tau = w->ahead_tau,
                              .tau_kept = w->tau_kept,
+                             .sigma_kept = w->sigma_kept,
                              .ahead_cpu = w->ahead_cpu,
                              .ahead_cpu_empty = w->ahead_cpu_empty,
                              .last_error = w->last_error,

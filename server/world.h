@@ -71,7 +71,7 @@ typedef struct {
   uint64_t epoch;            /**< epochs stepped */
   double time;               /**< world time of the last epoch, s */
   uint64_t bricks_produced;  /**< final bricks made (cache misses): the generation counter */
-  uint64_t sigma_produced;   /**< σt samplings of the field */
+  uint64_t sigma_produced;   /**< σt entries made: samplings of the field, or kept (sigma_kept) */
   uint64_t tau_volumes;      /**< τ volumes made (built, or kept: tau_kept) */
   uint64_t brick_requests;   /**< bricks asked for by plans, before sharing */
   ocs_cache_stats_t cache;   /**< the brick cache's counters (brick_cache.h) */
@@ -102,6 +102,8 @@ typedef struct {
   uint64_t ahead_tau;        /**< τ volumes built ahead for a level's next light stamp (in tau_volumes) */
   uint64_t tau_kept;         /**< τ volumes kept from the light stamp before, their inputs unchanged
                                   (in tau_volumes, which counts those made either way) */
+  uint64_t sigma_kept;       /**< σt of a node kept from its step before, proven the same
+                                  (ocs_field_same_samples; in sigma_produced) */
   double ahead_cpu;          /**< seconds producer threads spent on both (not in brick_cpu) */
   double ahead_cpu_empty;    /**< of that, on the all-zero ones */
   int last_error;            /**< the last failure's OC_E* and brick */

@@ -152,12 +152,13 @@ static void world_waste_by_level(const ocs_world_stats_t *ws) {
 static void world_totals(const world_run_t *R) {
   ocs_world_stats_t ws;
   ocs_world_stats(R->w, &ws);
-  printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings, %llu τ volumes (%llu kept "
-         "from the light stamp before: inputs unchanged), "
+  printf("total: %llu bricks produced for %llu requested (hit rate %.3f), %llu σt samplings (%llu kept from the node's step before: "
+         "proven the same), %llu τ volumes (%llu kept from the light stamp before: inputs unchanged), "
          "%llu clear-sky proofs of τ (%llu proven clear toward the sun: no march; %llu ground nodes by group volumes' "
          "columns)\n",
          (unsigned long long)ws.bricks_produced, (unsigned long long)ws.brick_requests, ws.cache_hit_rate,
-         (unsigned long long)ws.sigma_produced, (unsigned long long)ws.tau_volumes, (unsigned long long)ws.tau_kept,
+         (unsigned long long)ws.sigma_produced, (unsigned long long)ws.sigma_kept, (unsigned long long)ws.tau_volumes,
+         (unsigned long long)ws.tau_kept,
          (unsigned long long)ws.tau_direct,
          (unsigned long long)ws.tau_clear, (unsigned long long)ws.tau_columns);
   printf("ahead: %llu σt samplings of slow levels' next time steps (%llu all zero), %llu τ volumes of their next light "

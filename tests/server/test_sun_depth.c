@@ -738,6 +738,11 @@ static void test_sun_depth__thread_count_independent(void **st) {
 
 /*-*** Clear sky: the proof that skips the march gives the march's bits ***/
 
+/* One cumulus-sized sphere at 30°N 10°E, 2.5 km up, static. */
+static const char cumulus_sphere_json[] =
+    "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
+    " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}";
+
 /* Ground nodes of `level` on an n × n grid around (lat, lon), spaced `deg` apart, each with its
  * τ from ocs_tau_direct() twice: with the clear-sky shortcut (sun_depth.h, note 1 of
  * ocs_tau_direct) and with march_clear (the full march every time). The two must be the same
@@ -766,9 +771,7 @@ static void test_sun_depth__clear_column_is_the_march(void **st) {
   (void)st;
   /* One cumulus-sized sphere: right under it the column is not clear (τ > 0 there), beside it it is. */
   tcache_t c;
-  tc_init(&c, "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
-              " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}",
-          0.0);
+  tc_init(&c, cumulus_sphere_json, 0.0);
   ocs_tau_stats_t on = {0}, off = {0};
   oc_dvec3 under = oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 0.0});
   oc_key_t k = oc_key_from_point(14, under);
@@ -946,9 +949,7 @@ static void test_sun_depth__ground_in_group_volume(void **st) {
 static void test_sun_depth__ground_clear_not_covered(void **st) {
   (void)st;
   tcache_t c;
-  tc_init(&c, "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
-              " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}",
-          0.0);
+  tc_init(&c, cumulus_sphere_json, 0.0);
   oc_dvec3 under = oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 0.0});
   ocs_tau_stats_t cs = {0};
   ocs_tau_desc_t d = desc_for(&c, sun_at(under, 0.0));
@@ -1013,9 +1014,7 @@ static void tw_bound(void *ctx, oc_key_t key, float *lo, float *hi) {
 static void test_sun_depth__volume_unchanged_while_answers_are(void **st) {
   (void)st;
   tcache_t c;
-  tc_init(&c, "{\"version\": 1, \"features\": {\"shadows\": true, \"animation\": false},"
-              " \"sources\": [{\"type\": \"sphere\", \"lat\": 30, \"lon\": 10, \"alt\": 2500, \"radius\": 800, \"sigma_t\": 0.01}]}",
-          0.0);
+  tc_init(&c, cumulus_sphere_json, 0.0);
   oc_dvec3 under = oc_geo_to_xyz((oc_geo_t){30.0, 10.0, 0.0});
   tweak_t tw = {.c = &c};
   ocs_tau_desc_t d = desc_for(&c, sun_at(under, 0.0));
