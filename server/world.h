@@ -11,8 +11,8 @@
  * steps of levels 0..L (τ marches through coarser levels), the sun direction (its bits, hashed) and the shadows flag.
  * Static fields have constant stamps: nothing is ever produced twice for a viewer.
  *
- * Production of a brick: σt from the field (cache entry "sigma", keyed by key and the field's time
- * step at that level); τ, when the scene has shadows and the node's σt is not all zero, from the
+ * Production of a brick: σt from the field (cache entry "sigma", keyed by key and the node's own
+ * time step, ocs_field_node_step); τ, when the scene has shadows and the node's σt is not all zero, from the
  * sun-aligned optical-depth volume of the node's group (sun_depth.h; cache entry "tau volume",
  * keyed by group, level, light stamp and sun), marching through "sigma" entries of coarser levels;
  * then the codes (cache entry "brick", keyed by key and stamp).
@@ -23,7 +23,13 @@
  * leaves holding σt at such levels get their next step's "sigma" entry and their group's next "tau
  * volume", each epoch its share of those still missing, up to 16 epochs before they are due;
  * OCS_AHEAD=0 turns it off for before/after benches. It changes no byte: entries are keyed by the
- * stamps they are made for, and content is a function of them. */
+ * stamps they are made for, and content is a function of them.
+ *
+ * Keeping: a missing "tau volume" is copied from the one of the light stamp before when every
+ * input that one recorded gives the same answer now (ocs_tau_volume_unchanged), and a missing
+ * "sigma" entry from the node's step before when the field proves the samples the same
+ * (ocs_field_same_samples): the same bytes a build or a sampling would make. OCS_TAU_KEEP=0 and
+ * OCS_SIGMA_KEEP=0 turn them off for before/after benches. */
 #ifndef OC_SERVER_WORLD_H
 #define OC_SERVER_WORLD_H
 
