@@ -141,6 +141,44 @@ static void test_field__static_procedural_is_frozen(void **st) {
   ocs_field_free(f);
 }
 
+/* ocs_field_step_before() and ocs_field_same_samples() over several sources (lever 29): a static
+ * field offers no step before and its samples are the same at any two instants; the planet with a
+ * static sphere added is proven the same where the planet's proof holds (the sphere's step does
+ * not move), and the samples are then the same bits; a weather change between the two instants
+ * is never proven. Tall level-10 nodes at 3 km (where the world keeps most) over 30 s. */
+static void test_field__same_samples_over_sources(void **st) {
+  (void)st;
+  ocs_field_t *f = field_from(sphere_json);
+  oc_key_t k = oc_key_from_point(14, oc_geo_to_xyz((oc_geo_t){10.0, 20.0, 3000.0}));
+  double t0 = -1.0;
+  float a[512], b[512];
+  assert_int_equal(ocs_field_step_before(f, k, 100.0, &t0), 0);
+  assert_int_equal(ocs_field_same_samples(f, k, 0.0, 1e6), 1);
+  ocs_field_free(f);
+  f = field_from("{\"sources\": [{\"type\": \"procedural\", \"preset\": \"fair\"},"
+                 " {\"type\": \"sphere\", \"lat\": 10, \"lon\": 20, \"alt\": 3000, \"radius\": 2000, \"sigma_t\": 0.05}]}");
+  int proven = 0, tried = 0;
+  oc_key_t kept = 0;
+  double kt0 = 0.0, kt1 = 0.0;
+  for (int i = 0; i < 400 && proven < 3; i++) {
+    oc_key_t n = oc_key_from_point(10, oc_geo_to_xyz((oc_geo_t){-60.0 + 0.3 * i, 20.0 + 0.7 * i, 3000.0}));
+    double t1 = 0.5 + 0.37 * (i % 80);
+    if (!ocs_field_step_before(f, n, t1, &t0)) continue;
+    assert_true(t0 < t1 && ocs_field_node_step(f, n, t0) != ocs_field_node_step(f, n, t1));
+    tried++;
+    if (!ocs_field_same_samples(f, n, t0, t1)) continue;
+    assert_int_equal(ocs_field_sample(f, n, t0, a), 0);
+    assert_int_equal(ocs_field_sample(f, n, t1, b), 0);
+    assert_memory_equal(a, b, sizeof a);
+    proven++, kept = n, kt0 = t0, kt1 = t1;
+  }
+  printf("  %d node-step changes tried, %d proven the same\n", tried, proven);
+  assert_true(proven >= 1 && tried > proven);
+  assert_int_equal(ocs_field_set_weather(f, OC_PRESET_STORM, 0.5 * (kt0 + kt1), 1.0), 0);
+  assert_int_equal(ocs_field_same_samples(f, kept, kt0, kt1 + 2.0), 0);
+  ocs_field_free(f);
+}
+
 /* The bound cache (ocs_field.h) returns the bits the source computes: two fields of one procedural
  * planet, one with the cache bypassed, asked about random nodes (levels 0–21, 0–16 km shell) at
  * random times and at the two sides of a time-step boundary of the node's level (found by
@@ -296,6 +334,7 @@ OC_TEST_MAIN(NULL, NULL,
              cmocka_unit_test(test_field__bound_is_conservative),
              cmocka_unit_test(test_field__sources_add_and_static_steps),
              cmocka_unit_test(test_field__static_procedural_is_frozen),
+             cmocka_unit_test(test_field__same_samples_over_sources),
              cmocka_unit_test(test_field__bound_cache_is_exact),
              cmocka_unit_test(test_field__bad_source_names_it),
              cmocka_unit_test(test_field__slab_filter_is_exact))
