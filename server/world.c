@@ -202,7 +202,7 @@ struct ocs_world_s {
    * OCS_AHEAD_EPOCHS, or it changes every epoch: nothing to spread), that step and an instant in it;
    * the items chosen for this epoch */
   int ahead_off; /* OCS_AHEAD=0 (before/after benches) */
-  int keep_off;  /* OCS_TAU_KEEP=0: every τ volume of a new light stamp is built (before/after benches) */
+  int keep_tau_off;   /* OCS_TAU_KEEP=0: every τ volume of a new light stamp is built (before/after benches) */
   int keep_sigma_off; /* OCS_SIGMA_KEEP=0: every σt of a new node step is sampled (likewise) */
   uint32_t ahead_in[OC_KEY_MAX_LEVEL + 1];
   uint64_t ahead_ts[OC_KEY_MAX_LEVEL + 1];
@@ -397,8 +397,7 @@ static void tau_bound_cb(void *ctx, oc_key_t key, float *smin, float *smax) {
   ocs_field_bound(p->w->field, key, p->time, smin, smax);
 }
 
-/* τ of a node from its group's volume, through the cache. !wait: OCS_CACHE_BUSY, and nothing
- * done, when another thread is building that volume. */
+/* The cache key of key's group volume at light stamp `light`. */
 static ocs_cache_key_t tau_key_at(const prod_t *p, oc_key_t key, uint64_t light) {
   return ckey(p->w, T_TAUVOL, ocs_tau_group_of(&p->tau, key), light, ((uint64_t)oc_key_level(key)) | (p->sun_version << 8));
 }
@@ -407,13 +406,14 @@ static ocs_cache_key_t tau_key(const prod_t *p, oc_key_t key) { return tau_key_a
 
 /* The volume of key's group and level at the light stamp before p's, when its inputs give the same
  * answers at p's time (ocs_tau_volume_unchanged: a build would make it again, bit for bit), copied
- * into *vol. The light stamp moves on with every level the march reads, and for about half the
- * volumes of the planet what they read did not change (σt that stepped on but came out the same,
- * most often all zero). @return 1 (kept), 0 (build it), or a negative OC_E*. */
+ * into *vol. The light stamp moves on with every level the march reads, and for about a third of
+ * the planet's volumes what they read did not change (σt that stepped on but came out the same,
+ * most often all zero; docs/performance.md, lever 28). @return 1 (kept), 0 (build it), or a
+ * negative OC_E*. */
 static int tau_volume_keep(prod_t *p, oc_key_t key, void **vol, size_t *bytes) {
   ocs_world_t *w = p->w;
   uint64_t before = p->light_prev[oc_key_level(key)];
-  if (w->keep_off || !before || before == p->light[oc_key_level(key)]) return 0;
+  if (w->keep_tau_off || !before || before == p->light[oc_key_level(key)]) return 0;
   ocs_cache_key_t k = tau_key_at(p, key, before);
   ocs_cache_entry_t *e;
   if (!ocs_cache_peek(w->cache, &k, &e)) return 0;
@@ -452,6 +452,8 @@ static int tau_volume_acquire(prod_t *p, oc_key_t key, int wait, ocs_cache_entry
   return 0;
 }
 
+/* τ of a node from its group's volume, through the cache. !wait: OCS_CACHE_BUSY, and nothing
+ * done, when another thread is building that volume. */
 static int tau_get(prod_t *p, oc_key_t key, float out[OC_BRICK_VOXELS], int wait, int *built) {
   ocs_world_t *w = p->w;
   ocs_cache_entry_t *e;
@@ -842,7 +844,7 @@ int ocs_world_create(ocs_world_t **out, const oc_scene_t *scene, const ocs_world
   env = getenv("OCS_AHEAD");
   w->ahead_off = env && strcmp(env, "0") == 0;
   env = getenv("OCS_TAU_KEEP");
-  w->keep_off = env && strcmp(env, "0") == 0;
+  w->keep_tau_off = env && strcmp(env, "0") == 0;
   env = getenv("OCS_SIGMA_KEEP");
   w->keep_sigma_off = env && strcmp(env, "0") == 0;
   pthread_mutex_init(&w->trace_mu, NULL);
