@@ -38,8 +38,8 @@
 typedef struct ocs_source_s ocs_source_t;
 typedef struct ocs_field_s ocs_field_t;
 
-/* A source implements this table (server/source_*.c). All functions are required except
- * set_weather (procedural only) and point (tests and export may use it when present). */
+/* A source implements this table (server/source_*.c). bound, sample, time_step and destroy are
+ * required; the others are optional, as each one's comment says (NULL: not offered). */
 typedef struct {
   const char *name; /**< "sphere", "procedural", "vdb", ... */
   /*! bound() : conservative σt range over an axis-aligned planet-frame box at time t. */

@@ -1028,11 +1028,11 @@ int ocs_tau_volume_lookup(const void *vol, oc_key_t key, float tau[OC_BRICK_VOXE
 
 /* Whether a volume was built with d's parameters and sun (compared bit for bit). */
 static int ocs__same_params(const ocs__vol_t *v, const ocs__desc_t *d) {
-  ocs__vol_t w = *v;
+  ocs__vol_t w;
   ocs__vol_params(&w, d);
-  double s[3] = {d->sun.x, d->sun.y, d->sun.z};
-  return !memcmp(&w.filter_levels, &v->filter_levels, 4 * sizeof(int32_t)) && !memcmp(&w.step_factor, &v->step_factor, sizeof(double)) &&
-         !memcmp(&w.cone, &v->cone, sizeof(double)) && !memcmp(s, v->s, sizeof s);
+  return w.filter_levels == v->filter_levels && w.min_level == v->min_level && w.group_levels == v->group_levels &&
+         w.flags == v->flags && w.step_factor == v->step_factor && w.cone == v->cone && d->sun.x == v->s[0] &&
+         d->sun.y == v->s[1] && d->sun.z == v->s[2];
 }
 
 int ocs_tau_volume_unchanged(const ocs_tau_desc_t *du, const void *vol) {

@@ -126,8 +126,8 @@ typedef struct {
   ocs_world_t *w;
   double time;
   uint64_t ts[OC_KEY_MAX_LEVEL + 1], light[OC_KEY_MAX_LEVEL + 1], sun_version;
-  uint64_t light_prev[OC_KEY_MAX_LEVEL + 1]; /* the light stamp before light (0: none) whose τ volumes
-                                                 may be kept (tau_volume_keep) */
+  uint64_t light_before[OC_KEY_MAX_LEVEL + 1]; /* the light stamp before light (0: none) whose τ
+                                                   volumes may be kept (tau_volume_keep) */
   ocs_tau_desc_t tau; /* ctx: this */
   double deadline;    /* no brick is started that is expected to end after it, but for may_start()'s
                          exceptions (monotonic s); 0: none */
@@ -412,7 +412,7 @@ static ocs_cache_key_t tau_key(const prod_t *p, oc_key_t key) { return tau_key_a
  * negative OC_E*. */
 static int tau_volume_keep(prod_t *p, oc_key_t key, void **vol, size_t *bytes) {
   ocs_world_t *w = p->w;
-  uint64_t before = p->light_prev[oc_key_level(key)];
+  uint64_t before = p->light_before[oc_key_level(key)];
   if (w->keep_tau_off || !before || before == p->light[oc_key_level(key)]) return 0;
   ocs_cache_key_t k = tau_key_at(p, key, before);
   ocs_cache_entry_t *e;
@@ -689,7 +689,7 @@ static void prod_snapshot(ocs_world_t *w, prod_t *p) {
   p->time = w->time;
   memcpy(p->ts, w->ts, sizeof p->ts);
   memcpy(p->light, w->light, sizeof p->light);
-  memcpy(p->light_prev, w->light_before, sizeof p->light_prev);
+  memcpy(p->light_before, w->light_before, sizeof p->light_before);
   p->sun_version = w->sun_version;
   p->tau = w->tau;
   p->tau.ctx = p;
@@ -729,7 +729,7 @@ static void stamps_at(const ocs_world_t *w, double t, uint64_t ts[], uint64_t st
 static void prod_snapshot_at(ocs_world_t *w, prod_t *p, double t) {
   prod_snapshot(w, p);
   p->time = t;
-  memcpy(p->light_prev, w->light, sizeof p->light_prev); /* ahead builds for the first change after now */
+  memcpy(p->light_before, w->light, sizeof p->light_before); /* ahead builds for the first change after now */
   stamps_at(w, t, p->ts, NULL, p->light);
 }
 
