@@ -154,6 +154,11 @@ static void test_field__same_samples_over_sources(void **st) {
   float a[512], b[512];
   assert_int_equal(ocs_field_step_before(f, k, 100.0, &t0), 0);
   assert_int_equal(ocs_field_same_samples(f, k, 0.0, 1e6), 1);
+  /* what is not a node, or no field, is never proven and offers no step */
+  assert_int_equal(ocs_field_same_samples(f, OC_KEY_INVALID, 0.0, 1e6), 0);
+  assert_int_equal(ocs_field_same_samples(NULL, k, 0.0, 1e6), 0);
+  assert_int_equal(ocs_field_step_before(f, OC_KEY_INVALID, 100.0, &t0), 0);
+  assert_int_equal(ocs_field_step_before(f, k, 100.0, NULL), 0);
   ocs_field_free(f);
   f = field_from("{\"sources\": [{\"type\": \"procedural\", \"preset\": \"fair\"},"
                  " {\"type\": \"sphere\", \"lat\": 10, \"lon\": 20, \"alt\": 3000, \"radius\": 2000, \"sigma_t\": 0.05}]}");
