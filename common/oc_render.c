@@ -394,6 +394,11 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       Jms = ocg_cloud_source_ms(cx->cm, sig, tau, mu, Esun);
       Jmsd = ocg_cloud_source_msd(cx->cm, sig, tau, Esun);
       Jfar = ocg_cloud_source_far(cx->cm, sig, F);
+      if (d->ms_oracle) { /* a candidate's multiply scattered light in place of the model's */
+        float S = (float)d->ms_oracle(d->ms_oracle_ctx, pm, dir);
+        J = ocg_add3(J, ocg_scale3(Esun, S * cx->cm.albedo * sig));
+        Jms = Jmsd = ocg_v3s(0.0f);
+      }
     } else {
       ocg_march_end_run(&m, cx->cm);
     }

@@ -110,6 +110,14 @@ typedef struct {
                               oc_render_air_shell(); lit through the cloud shadow volume. Default 0: none.
                               CPU reference only: the GL renderer refuses it (OC_EINVAL) */
   double air_top;        /**< that shell's top, m above OC_PLANET_RADIUS, [100, 1e5]; default OC_RENDER_DEFAULT_AIR_TOP */
+  /** CPU reference only, for measuring candidate models (`overcast-bench model --oracle`); NULL in use.
+   *  Where set, a cloud sample at p seen along the ray direction dir takes its multiply scattered
+   *  light from ms_oracle(ms_oracle_ctx, p, dir), the in-scattered radiance per unit sun irradiance
+   *  of the light that has already scattered (sr⁻¹-weighted, as ∫ p(μ) L dω), instead of the model's
+   *  octaves, diffuse part and chord factor: the sample's source is ω σt (e^{−τ} p(μ) + S) E_sun plus
+   *  the sky's ambient as before. The GL renderer ignores it. */
+  double (*ms_oracle)(void *ctx, oc_dvec3 p, oc_dvec3 dir);
+  void *ms_oracle_ctx;
 } oc_render_desc_t;
 
 typedef struct {

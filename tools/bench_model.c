@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "bench.h"
+#include "bench_oracle.h"
 #include "bench_util.h"
 #include "oc.h"
 #include "march.h" /* OCG_MS_CHORD_HALF, … : the fitted constants a search starts from */
@@ -19,7 +20,23 @@ typedef struct {
   float fit[OC_RENDER_MS_FIT_N];
   int have_fit, have_abc, legacy, quiet, search, split;
   double abc[3];
+  int have_oracle, oracle_cells, oracle_paths, threads;
+  oct_oracle_opts_t oracle; /* --oracle: its lmax; the rest from the other three */
 } oct__model_opts_t;
+
+/* --oracle: the case with the Monte Carlo kernel's multiply scattered light (bench_oracle.h). */
+static int oct__model_oracle(const oc_scene_t *sc, const oct_truth_case_t *c, const oc_state_t *st,
+                             const oc_render_desc_t *d, const oct__model_opts_t *o, oc_image_t *img) {
+  double len = 0.0;
+  for (int i = 0; i < sc->nsources && !(len > 0.0); i++) len = oct_truth_source_length(&sc->sources[i]);
+  if (!(len > 0.0)) return OC_EINVAL; /* nothing to size the lattice by */
+  oct_oracle_opts_t oo = o->oracle;
+  oo.cells = o->oracle_cells, oo.paths = o->oracle_paths, oo.threads = o->threads;
+  long points = 0;
+  int r = oct_oracle_render(c, st, d, len, &oo, img, &points);
+  if (r >= 0 && !o->quiet) fprintf(stderr, "oracle: %ld lattice points, %.1f m apart\n", points, len / oo.cells);
+  return r;
+}
 
 /* Renders one case with one model (single: single scattering alone); @return 0 or an exit status. */
 static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam,
@@ -40,7 +57,16 @@ static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc
   }
   oc_image_t img = {0};
   if (oc_image_alloc(&img, c->w, c->h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
-  int rc = oc_render_state(st, &d, &img, NULL) < 0 || oct_truth_score(c, &img, s) < 0;
+  int r = !legacy && !single && o->have_oracle ? oct__model_oracle(sc, c, st, &d, o, &img)
+                                               : oc_render_state(st, &d, &img, NULL);
+  if (o->have_oracle && (r == OC_ERANGE || r == OC_EINVAL)) {
+    oc_image_free(&img);
+    if (r == OC_EINVAL)
+      return oc_cli_fail(prog, OC_EXIT_RUNTIME, "model --oracle: no sphere, box or slab to size the lattice by");
+    return oc_cli_fail(prog, OC_EXIT_RUNTIME, "model --oracle: the lattice would pass %d points; give fewer "
+                       "--oracle-cells", OCT_ORACLE_MAX_POINTS);
+  }
+  int rc = r < 0 || oct_truth_score(c, &img, s) < 0;
   oc_image_free(&img);
   return rc ? oc_cli_fail(prog, OC_EXIT_RUNTIME, "model: render failed") : OC_EXIT_OK;
 }
@@ -300,6 +326,18 @@ static int opt_numbers(const char *prog, const oc_cli_opt_t *o, const char *text
   return 0;
 }
 
+/* --oracle view | shL. */
+static int opt_oracle(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
+  oct__model_opts_t *m = base;
+  int l = -1, used = 0;
+  if (strcmp(text, "view") != 0 &&
+      !(sscanf(text, "sh%d%n", &l, &used) == 1 && text[used] == '\0' && l >= 0 && l <= OCT_ORACLE_MAX_LMAX))
+    return oc_cli_fail(prog, -1, "--%s: expected view or sh0..sh%d, got \"%s\"", o->name, OCT_ORACLE_MAX_LMAX, text);
+  m->oracle.lmax = l;
+  m->have_oracle = 1;
+  return 0;
+}
+
 static const oc_cli_opt_t model_opts[] = {
     {.name = "fit", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "D,Q,K,BD,AD,B", .def_note = "march.h's",
      .help = "override march.h's fitted constants: chord half-depth, albedo power, ambient depth, diffuse weight, "
@@ -313,6 +351,14 @@ static const oc_cli_opt_t model_opts[] = {
     OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
         "nine numbers from the given (or default) start, scored on the fitted set alone (docs/numerics.md); "
         "prints the best --abc and --fit, then scores every case with them"),
+    {.name = "oracle", .type = OC_CLI_CUSTOM, .parse = opt_oracle, .arg = "MODE", .def_note = "none",
+     .help = "replace the model's multiply scattered light by the Monte Carlo kernel's, traced at lattice points "
+             "around the cloud: view, exact toward the view; shL, the incoming light cut to spherical harmonics of "
+             "degree L (0..8)"},
+    OCT_INT(oct__model_opts_t, oracle_cells, "oracle-cells", "N", 2, 256, "32",
+            "lattice cells across the case's length (sphere diameter, slab thickness)"),
+    OCT_INT(oct__model_opts_t, oracle_paths, "oracle-paths", "N", 1, 1000000, "128", "paths per lattice point"),
+    OCT_INT(oct__model_opts_t, threads, "threads", "N", 1, 256, "2", "threads tracing the lattice points"),
     OCT_OPTS_END};
 
 OCT_SPEC(model,
@@ -326,6 +372,7 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
   int r = oc_cli_parse(&oct_bench_model_spec, argc, argv, &o, NULL, &first);
   if (r) return r > 0 ? OC_EXIT_OK : OC_EXIT_USAGE;
   const long iters = o.search;
+  if (iters > 0 && o.have_oracle) return oc_cli_fail(prog, OC_EXIT_USAGE, "model: --oracle does not go with --search");
   int n = argc - first;
   if (n <= 0) return oc_cli_fail(prog, OC_EXIT_USAGE, "model: give truth files (overcast-bench truth --save)");
   oct__mcase_t *cs = calloc((size_t)n, sizeof *cs);

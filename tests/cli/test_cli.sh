@@ -182,6 +182,8 @@ check "bench: model, five fit numbers" 2 "--fit wants 6 comma-separated numbers"
 check "bench: model, a seventh fit number" 2 "--fit wants 6 comma-separated numbers" -- "$B" model --fit 1,2,3,4,5,6,7 x.txt
 check "bench: model, bad abc" 2 "--abc wants 3 comma-separated numbers" -- "$B" model --abc 0.5,0.5,x x.txt
 check "bench: model, a search with nothing to fit" 2 "none of the files is in the fitted set" -- "$B" model --search 2 tests/data/truth/sphere_beside_a0.99-tau2.txt
+check "bench: model, bad oracle" 2 "--oracle: expected view or sh0..sh8, got \"sh9\"" -- "$B" model --oracle sh9 x.txt
+check "bench: model, oracle and search" 2 "--oracle does not go with --search" -- "$B" model --oracle view --search 2 x.txt
 check "bench: stability, odd size" 2 "--size: expected WxH with even sides" -- "$B" stability --size 33x18
 check "bench: stability, bad renderer" 2 "--renderer: expected cpu, gl or cpu,gl" -- "$B" stability --renderer vulkan
 check "bench: features, bad epochs" 2 "--epochs: 0 is outside" -- "$B" features --epochs 0
