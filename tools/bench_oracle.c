@@ -19,7 +19,7 @@ typedef struct {
   oct__opoint_t *t; /* open addressing by lattice index */
   size_t cap, n;
   double h; /* lattice spacing, m */
-  int full; /* a record found the lattice over OCT_ORACLE_MAX_POINTS */
+  int err; /* a record's failure: OC_ERANGE (over OCT_ORACLE_MAX_POINTS) or OC_ENOMEM; 0: none */
   const oct_oracle_opts_t *o;
   oct_mc_medium_t medium;
   oct_mc_params_t prm;
@@ -73,14 +73,13 @@ static double oct__orecord(void *ctx, oc_dvec3 p, oc_dvec3 dir) {
   int64_t b[3];
   double f[3];
   oct__ocell(q, p, b, f);
-  for (int c = 0; c < 8 && !q->full; c++) {
-    if (2 * (q->n + 1) > q->cap && (q->n >= OCT_ORACLE_MAX_POINTS || oct__ogrow(q) < 0)) {
-      q->full = 1;
-      break;
-    }
+  for (int c = 0; c < 8 && !q->err; c++) {
+    if (q->n >= OCT_ORACLE_MAX_POINTS) q->err = OC_ERANGE;
+    else if (2 * (q->n + 1) > q->cap) q->err = oct__ogrow(q);
+    if (q->err) break;
     int64_t ijk[3] = {b[0] + (c & 1), b[1] + (c >> 1 & 1), b[2] + (c >> 2)};
     oct__opoint_t *e = oct__opoint(q, ijk, 1);
-    if (!(e->v[0] != 0.0 || e->v[1] != 0.0 || e->v[2] != 0.0)) e->v[0] = -dir.x, e->v[1] = -dir.y, e->v[2] = -dir.z;
+    if (e->v[0] == 0.0 && e->v[1] == 0.0 && e->v[2] == 0.0) e->v[0] = -dir.x, e->v[1] = -dir.y, e->v[2] = -dir.z;
   }
   return 0.0;
 }
@@ -180,13 +179,13 @@ int oct_oracle_render(const oct_truth_case_t *c, const oc_state_t *st, const oc_
     free(q.t);
     return OC_ENOMEM;
   }
-  oct__olegendre(&q);
+  if (o->lmax >= 0) oct__olegendre(&q); /* the view mode samples the phase function itself */
   oc_render_desc_t d1 = *d;
   d1.ms_oracle = oct__orecord;
   d1.ms_oracle_ctx = &q;
   d1.threads = 1; /* the record is not shared between threads */
   int rc = oc_render_state(st, &d1, img, NULL);
-  if (rc >= 0 && q.full) rc = OC_ERANGE;
+  if (rc >= 0 && q.err) rc = q.err;
   if (rc >= 0) rc = oct__otrace_all(&q);
   if (rc >= 0) {
     d1 = *d;

@@ -22,7 +22,8 @@
 #include "truth.h"
 
 #define OCT_ORACLE_MAX_LMAX 8
-#define OCT_ORACLE_MAX_POINTS 4000000 /**< lattice points a case may need (more: OC_ERANGE) */
+#define OCT_ORACLE_MAX_POINTS 1000000 /**< lattice points a case may need (more: OC_ERANGE; the table then
+                                           holds at most 2²¹ points of 64 bytes) */
 
 typedef struct {
   int lmax;    /**< -1: exact toward the view; 0..OCT_ORACLE_MAX_LMAX: truncated to that degree */
