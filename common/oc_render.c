@@ -375,7 +375,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     if (chord) {
       st->samples++;
       t = te;
-      if (!ocg_march_chord(&m, sig, kap, (float)seg)) break;
+      if (!ocg_march_chord(&m, cx->cm, sig, kap, (float)seg)) break;
       continue;
     }
     double r = oc_dlen(pm);
@@ -385,6 +385,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     ocg_vec3 sigma_t = ocg_v3s(sig);
     /* σs·S per metre: now; at the run's end (octaves, diffuse); the far side's ambient */
     ocg_vec3 J = ocg_v3s(0.0f), Jms = ocg_v3s(0.0f), Jmsd = ocg_v3s(0.0f), Jfar = ocg_v3s(0.0f);
+    ocg_march_run(&m, cx->cm, sig, (float)seg); /* the run's gaps, before its depth is read */
     if (sig > 0.0f) {
       ocg_vec3 F = ocg_v3s(0.0f);
       if (cx->have_atmo && !(d->flags & OC_RF_NO_AMBIENT)) F = ocg_mul3(cx->sun_e, oc_atmo_sky_fluence(d->atmo, r, mu_s));
@@ -399,8 +400,6 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
         J = ocg_add3(J, ocg_scale3(Esun, S * cx->cm.albedo * sig));
         Jms = Jmsd = ocg_v3s(0.0f);
       }
-    } else {
-      ocg_march_end_run(&m, cx->cm);
     }
     if (cx->have_atmo && r < cx->air_top) {
       float rf = (float)r;

@@ -37,6 +37,8 @@ typedef struct ocg_march {
   ocg_real tau_run; /**< cloud optical depth crossed so far in the current run (0 outside clouds) */
   ocg_vec3 L_far;   /**< sky light of the current run from its far side, decayed by the depth crossed since */
   ocg_real d_far;   /**< chord depth crossed past the chord's cap for L_far alone (ocg_march_chord) */
+  ocg_real len_run; /**< the current run's length in cloud, m (scaled with tau_run where a gap is bridged) */
+  ocg_real gap;     /**< the open gap's effective length since the run's last thick sample, m (ocg_march_run) */
   ocg_real mu;      /**< cos(view, sun) of the ray (the chord factor's half-depth depends on it) */
 #if defined(OC_GLSL)
 };
@@ -139,6 +141,8 @@ OC_INLINE ocg_march ocg_march_begin(ocg_real mu) {
   m.tau_run = OCG_R(0.0);
   m.L_far = ocg_v3s(OCG_R(0.0));
   m.d_far = OCG_R(0.0);
+  m.len_run = OCG_R(0.0);
+  m.gap = OCG_R(0.0);
   return m;
 }
 
@@ -325,6 +329,15 @@ OC_INLINE ocg_vec3 ocg_thin_air_source(ocg_real sigma, ocg_vec3 e_sun, ocg_real 
   return ocg_add3(ocg_scale3(e_sun, sigma * lit), ocg_v3s(sigma * sky));
 }
 
+/* The share of a segment of cloud extinction sig that counts as cloud in the current run: 1 at half the
+ * run's mean extinction or more, in proportion below it (the rest is gap: ocg_march_run below); 1 for
+ * the run's first segment. */
+OC_INLINE ocg_real ocg_march_thick(OC_IN(ocg_march) m, ocg_real sig) {
+  if (!(sig > OCG_R(0.0))) return OCG_R(0.0);
+  ocg_real ref = m.len_run > OCG_R(0.0) ? OCG_R(0.5) * m.tau_run / m.len_run : OCG_R(0.0);
+  return sig >= ref ? OCG_R(1.0) : sig / ref;
+}
+
 /* ---- One segment -----------------------------------------------------------------------------------
  * Over a segment of length d with constant σ_t (RGB, clouds and air) and source J (Hillaire 2015):
  * $L \mathrel{+}= T\,J\,\frac{1 - e^{-\sigma_t d}}{\sigma_t}$, then $T \mathrel{*}= e^{-\sigma_t d}$ and
@@ -340,24 +353,81 @@ OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_re
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j, w)));
   OC_DEREF(m).L_ms = ocg_add3(OC_DEREF(m).L_ms, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_ms, w)));
   OC_DEREF(m).L_msd = ocg_add3(OC_DEREF(m).L_msd, ocg_mul3(OC_DEREF(m).T, ocg_mul3(j_msd, w)));
+  OC_DEREF(m).len_run = OC_DEREF(m).len_run + d * ocg_march_thick(OC_DEREF(m), sig);
   OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
   OC_DEREF(m).T = ocg_mul3(OC_DEREF(m).T, ocg_exp3(ocg_scale3(sigma_t, -d)));
   OC_DEREF(m).Tc = OC_DEREF(m).Tc * ocg_exp(-sig * d);
 }
 
-/* The end of a cloud run (a cloud-free segment, the ground, the end or the early exit): its multiple
- * scattering joins L with the chord factor of the depth crossed, its far-side ambient as decayed. */
-OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
+/* The share s of the current run's deferred light joins L: its multiple scattering with the chord
+ * factor of the depth crossed so far, its far-side ambient as decayed; 1 − s stays deferred. */
+OC_INLINE void ocg_march_commit(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm, ocg_real s) {
   if (OC_DEREF(m).tau_run > OCG_R(0.0)) {
     ocg_real g = ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run, OC_DEREF(m).mu), h = ocg_ms_diffuse_factor(OC_DEREF(m).tau_run);
-    OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(ocg_add3(OC_DEREF(m).L_ms, ocg_scale3(OC_DEREF(m).L_msd, h)), g));
+    OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(ocg_add3(OC_DEREF(m).L_ms, ocg_scale3(OC_DEREF(m).L_msd, h)), g * s));
   }
-  OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, OC_DEREF(m).L_far);
+  OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(OC_DEREF(m).L_far, s));
+  OC_DEREF(m).L_far = ocg_scale3(OC_DEREF(m).L_far, OCG_R(1.0) - s);
+  OC_DEREF(m).L_ms = ocg_scale3(OC_DEREF(m).L_ms, OCG_R(1.0) - s);
+  OC_DEREF(m).L_msd = ocg_scale3(OC_DEREF(m).L_msd, OCG_R(1.0) - s);
+}
+
+/* The end of a cloud run (a long gap, the ground, the end of the ray): all its deferred light joins L. */
+OC_INLINE void ocg_march_end_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm) {
+  ocg_march_commit(m, cm, OCG_R(1.0));
   OC_DEREF(m).L_far = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).L_ms = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).L_msd = ocg_v3s(OCG_R(0.0));
   OC_DEREF(m).tau_run = OCG_R(0.0);
   OC_DEREF(m).d_far = OCG_R(0.0);
+  OC_DEREF(m).len_run = OCG_R(0.0);
+  OC_DEREF(m).gap = OCG_R(0.0);
+}
+
+/* ---- Runs across gaps ----------------------------------------------------------------------------
+ * A run is the stretch of cloud whose chord depth D weights its multiply scattered light. It used to
+ * end at the first sample with σ_c = 0 exactly. Between samples the σ_c of a state is trilinear, so
+ * its zero sets are unions of cubes: a ray through a cube of clear air ended its run and the ray
+ * beside it, through a trace of cloud, did not, and the light drew the cubes (the Disney cloud's
+ * shaded side, docs/numerics.md "Runs across gaps"). Now the run is continuous in the field:
+ *
+ * - a segment thinner than half the run's mean extinction σ̄ = D/ℓ (ℓ the run's length in cloud)
+ *   opens a gap, of effective length $g \mathrel{+}= d\,(1 - 2\sigma_c/\bar\sigma)$: clear air counts in
+ *   full, thin cloud in part;
+ * - at the next segment at least σ̄/2 thick the run goes on with the coupling $k = e^{-g/\ell}$ (the
+ *   cloud on both sides of a gap short beside the run is one cloud): the share 1 − k of its deferred
+ *   light joins L with the chord factor of the depth so far (ocg_march_commit), the share k stays, and
+ *   the depth and length carried on are scaled by $k_D = \max(1 - j(1 - k)/k, 0)$, j = OCG_RUN_JUMP;
+ * - a gap of OCG_RUN_GAP_END·ℓ ends the run.
+ *
+ * Every limit is the old rule's: no gap, one run; a long gap, two runs; a ray that leaves the cloud and
+ * never meets it again, one run with the depth it crossed. A ray that meets a sliver of cloud after a
+ * gap differs from one that does not by k·(G(D) − G(k_D·D)) ≤ k(1 − k_D) ≤ j(1 − k) of the run's
+ * octaves (G is concave, G(0) = 0), twice that of its diffuse part (G·H), where a cube's edge moved
+ * all of it; a separate cloud behind the gap is credited k_D of the depth before it, none past a gap
+ * of ln((1 + j)/j)·ℓ ≈ 3ℓ. */
+#ifndef OCG_RUN_GAP_END
+#define OCG_RUN_GAP_END OCG_R(4.0)
+#endif
+#ifndef OCG_RUN_JUMP
+#define OCG_RUN_JUMP OCG_R(0.05)
+#endif
+
+/* A run's gaps (above), before a segment of length d whose cloud extinction is sig: opens or widens the
+ * gap, bridges it, or ends the run. */
+OC_INLINE void ocg_march_run(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real d) {
+  if (!(OC_DEREF(m).tau_run > OCG_R(0.0))) return;
+  ocg_real thick = ocg_march_thick(OC_DEREF(m), sig), len = OC_DEREF(m).len_run;
+  if (thick < OCG_R(1.0)) {
+    OC_DEREF(m).gap = OC_DEREF(m).gap + d * (OCG_R(1.0) - thick);
+    if (OC_DEREF(m).gap >= OCG_RUN_GAP_END * len) ocg_march_end_run(m, cm);
+  } else if (OC_DEREF(m).gap > OCG_R(0.0)) {
+    ocg_real k = ocg_exp(-OC_DEREF(m).gap / len), kd = ocg_max(OCG_R(1.0) - OCG_RUN_JUMP * (OCG_R(1.0) - k) / k, OCG_R(0.0));
+    ocg_march_commit(m, cm, OCG_R(1.0) - k);
+    OC_DEREF(m).tau_run = OC_DEREF(m).tau_run * kd;
+    OC_DEREF(m).len_run = len * kd;
+    OC_DEREF(m).gap = OCG_R(0.0);
+  }
 }
 
 /*! Past the early exit the march goes on through the current cloud run only to measure its chord
@@ -375,22 +445,28 @@ OC_INLINE ocg_atmo_bool ocg_march_wants_chord(OC_IN(ocg_march) m, OC_IN(ocg_clou
   return cm.legacy == 0 && cm.ms_n > 1 && m.tau_run > OCG_R(0.0);
 }
 
-/* One chord-only step of length d (κ: ocg_ambient_far_kappa): @return whether to go on: still in
- * cloud, and D below the cap, or past it (D = the cap's crossing, d_far beyond) while the far side's
- * light has not yet fallen by e^{−OCG_AMBIENT_FAR_DEPTH} since, up to OCG_AMBIENT_FAR_MAX in all. A
- * run without that light (the sun alone, ω = 1) stops at the cap, and the chord factor never sees
- * d_far. */
-OC_INLINE ocg_atmo_bool ocg_march_chord(OC_INOUT(ocg_march) m, ocg_real sig, ocg_real kappa, ocg_real d) {
-  ocg_atmo_bool in_cloud = sig > OCG_R(0.0);
-  if (in_cloud) {
-    if (OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX) OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
-    else OC_DEREF(m).d_far = OC_DEREF(m).d_far + sig * d;
+/* One chord-only step of length d (κ: ocg_ambient_far_kappa): @return whether to go on: the run not
+ * ended (its gaps as in the lit march, ocg_march_run), and D below the cap, or past it (D = the cap's
+ * crossing, d_far beyond) while the far side's light has not yet fallen by e^{−OCG_AMBIENT_FAR_DEPTH}
+ * since, up to OCG_AMBIENT_FAR_MAX in all. A run without that light (the sun alone, ω = 1) stops at the
+ * cap, and the chord factor never sees d_far. */
+OC_INLINE ocg_atmo_bool ocg_march_chord(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg_real kappa,
+                                        ocg_real d) {
+  ocg_march_run(m, cm, sig, d);
+  ocg_atmo_bool open = OC_DEREF(m).tau_run > OCG_R(0.0);
+  if (open && sig > OCG_R(0.0)) {
+    if (OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX) {
+      OC_DEREF(m).len_run = OC_DEREF(m).len_run + d * ocg_march_thick(OC_DEREF(m), sig);
+      OC_DEREF(m).tau_run = OC_DEREF(m).tau_run + sig * d;
+    } else {
+      OC_DEREF(m).d_far = OC_DEREF(m).d_far + sig * d;
+    }
     OC_DEREF(m).L_far = ocg_scale3(OC_DEREF(m).L_far, ocg_exp(-kappa * sig * d));
   }
   ocg_real lf = ocg_max(OC_DEREF(m).L_far.x, ocg_max(OC_DEREF(m).L_far.y, OC_DEREF(m).L_far.z));
   ocg_atmo_bool far = lf > OCG_R(0.0) && kappa * OC_DEREF(m).d_far < OCG_AMBIENT_FAR_DEPTH &&
                       OC_DEREF(m).tau_run + OC_DEREF(m).d_far < OCG_AMBIENT_FAR_MAX;
-  return in_cloud && (OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX || far);
+  return open && (OC_DEREF(m).tau_run < OCG_MS_CHORD_MAX || far);
 }
 
 /* Early exit: every channel of T below exit_t (exit_t ≤ 0: never). What is left is at most exit_t of

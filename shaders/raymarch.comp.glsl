@@ -434,7 +434,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     }
     if (chord) {
       t = te;
-      if (!ocg_march_chord(m, sig, kap, seg)) break;
+      if (!ocg_march_chord(m, cm, sig, kap, seg)) break;
       continue;
     }
     if (OCV_DEBUG && sig > 0.0) {
@@ -447,6 +447,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     vec3 Esun = u_sun_e * ocv_sun_transmittance(r, mu_s);
     vec3 sigma_t = vec3(sig);
     vec3 J = vec3(0.0), Jms = vec3(0.0), Jmsd = vec3(0.0), Jfar = vec3(0.0);
+    ocg_march_run(m, cm, sig, seg); /* the run's gaps, before its depth is read */
     if (sig > 0.0) {
       vec3 F = vec3(0.0);
       if (OCV_ATMO && (u_flags & OCV_RF_NO_AMBIENT) == 0u) F = u_sun_e * ocv_atmo_rmus(u_tab_fluence, r, mu_s);
@@ -455,8 +456,6 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       Jms = ocg_cloud_source_ms(cm, sig, tau, mu, Esun);
       Jmsd = ocg_cloud_source_msd(cm, sig, tau, Esun);
       Jfar = ocg_cloud_source_far(cm, sig, F);
-    } else {
-      ocg_march_end_run(m, cm);
     }
     if (OCV_ATMO && r < u_atm.top_radius) {
       sigma_t += ocg_atmo_extinction(u_atm, r);
