@@ -282,19 +282,29 @@ static int oc__shadow_build(oc__ctx_t *cx) {
   return 0;
 }
 
-/* τ of the shadow volume at p (0 without one, or outside it). */
-static float oc__shadow_tau(const oc__ctx_t *cx, oc_dvec3 p) {
+/* τ of the shadow volume at p (0 without one, or outside it), and its coordinates there to *c. */
+static float oc__shadow_tau(const oc__ctx_t *cx, oc_dvec3 p, ocg_vec4 *c) {
+  *c = ocg_v4(0.0f, 0.0f, 0.0f, 0.0f);
   if (!cx->shadow) return 0.0f;
   const oc_shadow_frame_t *f = &cx->shf;
   oc_dvec3 d = oc_dsub(p, f->c0);
-  ocg_vec4 c = ocg_shadow_coord(cx->sg, ocg_v3((float)oc_ddot(d, f->east), (float)oc_ddot(d, f->north),
-                                                (float)oc_ddot(d, f->up)));
-  if (c.w == 0.0f) return 0.0f;
-  ocg_vec3 b = ocg_shadow_base(cx->sg, c);
+  *c = ocg_shadow_coord(cx->sg, ocg_v3((float)oc_ddot(d, f->east), (float)oc_ddot(d, f->north), (float)oc_ddot(d, f->up)));
+  if (c->w == 0.0f) return 0.0f;
+  ocg_vec3 b = ocg_shadow_base(cx->sg, *c);
   int i = (int)b.x, j = (int)b.y, k = (int)b.z;
   float v[8];
   for (int q = 0; q < 8; q++) v[q] = oc__shadow_texel(cx, i + (q & 1), j + ((q >> 1) & 1), k + (q >> 2));
-  return ocg_shadow_tau(c, b, ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]));
+  return ocg_shadow_tau(*c, b, ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]));
+}
+
+/* τ at p in leaf lf, which is not empty: its own, or where it holds no cloud and its samples are coarser
+ * than the shadow volume's texels, the volume's (shadow.h, ocg_shadow_over_leaf). */
+static float oc__leaf_tau(const oc__ctx_t *cx, const oc__leaf_t *lf, oc_dvec3 p) {
+  float own = oc__leaf_channel(lf, OC_CH_TAU, oc__leaf_local(lf, p));
+  if (lf->n->range[OC_CH_SIGMA].hi > 0.0f || !cx->shadow || !ocg_shadow_finer(cx->sg, (float)lf->size)) return own;
+  ocg_vec4 c;
+  float vol = oc__shadow_tau(cx, p, &c);
+  return ocg_shadow_over_leaf(c, vol, own);
 }
 
 /* ---- One ray ----------------------------------------------------------------------------------------- */
@@ -366,11 +376,11 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
 
     float sig = 0.0f, tau = 0.0f;
     if (lf.n && lf.n->kind != OC_NODE_EMPTY) {
-      ocg_vec3 u = oc__leaf_local(&lf, pm);
-      if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, u);
-      if (!chord) tau = oc__leaf_channel(&lf, OC_CH_TAU, u);
+      if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, oc__leaf_local(&lf, pm));
+      if (!chord) tau = oc__leaf_tau(cx, &lf, pm);
     } else if (!chord && (cx->have_atmo || thin)) {
-      tau = oc__shadow_tau(cx, pm); /* a node without τ: the shadow volume's */
+      ocg_vec4 c;
+      tau = oc__shadow_tau(cx, pm, &c); /* a node without τ: the shadow volume's */
     }
     if (chord) {
       st->samples++;
@@ -429,8 +439,8 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       float mu_s = (float)(oc_ddot(pg, sun) / r);
       oc__leaf_t g;
       oc__leaf_locate(cx->s, pg, &g);
-      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_channel(&g, OC_CH_TAU, oc__leaf_local(&g, pg))
-                                                   : oc__shadow_tau(cx, pg);
+      ocg_vec4 c;
+      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_tau(cx, &g, pg) : oc__shadow_tau(cx, pg, &c);
       float sg = ocg_cloud_shadow(cx->cm, tg);
       ocg_vec3 I = cx->have_atmo ? oc_atmo_sky_irradiance(d->atmo, r, mu_s) : ocg_v3s(0.0f);
       ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);

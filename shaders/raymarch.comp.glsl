@@ -308,16 +308,33 @@ float ocv_air_step(float b, float t, float air_step) {
 
 ocg_shadow_grid ocv_shadow_grid() { return ocg_shadow_grid(u_sh_lo, u_sh_cell, u_sh_n.x, u_sh_n.y, u_sh_n.z); }
 
-/* τ of the shadow volume at the local point q (oc__shadow_tau). */
-float ocv_shadow_tau(vec3 q) {
+/* τ of the shadow volume at the local point q, and its coordinates there to c (oc__shadow_tau). */
+float ocv_shadow_tau(vec3 q, out vec4 c) {
   ocg_shadow_grid g = ocv_shadow_grid();
-  vec4 c = ocg_shadow_coord(g, q);
+  c = ocg_shadow_coord(g, q);
   if (c.w == 0.0) return 0.0;
   vec3 b = ocg_shadow_base(g, c);
   ivec3 i = ivec3(b);
   float v[8];
   for (int k = 0; k < 8; k++) v[k] = oc_shadow[ocg_shadow_index(g, i.x + (k & 1), i.y + ((k >> 1) & 1), i.z + (k >> 2))];
   return ocg_shadow_tau(c, b, vec4(v[0], v[1], v[2], v[3]), vec4(v[4], v[5], v[6], v[7]));
+}
+
+/* τ at the local point q in a leaf that is not empty (own: its τ channel there): the volume's where the leaf
+ * holds no cloud and its samples are coarser than the volume's texels (oc__leaf_tau, shadow.h). */
+float ocv_leaf_tau(bool cloudy, float size, float own, vec3 q) {
+  if (cloudy || ocg_shadow_finer(ocv_shadow_grid(), size) == 0) return own;
+  vec4 c;
+  float vol = ocv_shadow_tau(q, c);
+  return ocg_shadow_over_leaf(c, vol, own);
+}
+
+/* τ at the ground point pg (camera-relative; q in the volume's frame): its leaf's, or the volume's. */
+float ocv_ground_tau(vec3 pg, vec3 q) {
+  OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
+  vec4 c;
+  if (g.idx < 0 || oc_leaf[g.idx].info.x == 0u) return ocv_shadow_tau(q, c);
+  return ocv_leaf_tau(oc_leaf[g.idx].range.y > 0.0, g.size, ocv_leaf_sample(g, ocv_local(g, pg)).y, q);
 }
 
 /* The τ channel where the sun ray from the local point q0 first enters a leaf with σt > 0 (oc__shadow_walk). */
@@ -428,9 +445,10 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       vec2 st = ocv_leaf_sample(lf, u);
       if (blend) st = mix(ocv_prev_sample(lf.idx, u), st, u_t);
       if (cloudy) sig = st.x;
-      tau = st.y;
+      tau = chord ? st.y : ocv_leaf_tau(cloudy, lf.size, st.y, u_sh_cam + sh_dir * tm);
     } else if (!chord && OCV_ATMO) {
-      tau = ocv_shadow_tau(u_sh_cam + sh_dir * tm); /* a node without τ: the shadow volume's */
+      vec4 c;
+      tau = ocv_shadow_tau(u_sh_cam + sh_dir * tm, c); /* a node without τ: the shadow volume's */
     }
     if (chord) {
       t = te;
@@ -479,9 +497,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       vec3 pg = o + dir * t1;
       float r = ocv_radius(b, t1);
       float mu_s = (u_sun_o + t1 * mu) / r;
-      OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
-      float sg = ocg_cloud_shadow(cm, g.idx >= 0 && oc_leaf[g.idx].info.x != 0u ? ocv_leaf_sample(g, ocv_local(g, pg)).y
-                                                                              : ocv_shadow_tau(u_sh_cam + sh_dir * t1));
+      float sg = ocg_cloud_shadow(cm, ocv_ground_tau(pg, u_sh_cam + sh_dir * t1));
       vec3 I = OCV_ATMO ? ocv_atmo_rmus(u_tab_irradiance, r, mu_s) : vec3(0.0);
       vec3 albedo = OCV_ATMO ? u_atm.ground_albedo : vec3(0.1);
       ocg_march_background(m, ocg_ground_radiance(ocv_sun_transmittance(r, mu_s), mu_s, sg, I, albedo, u_sun_e));

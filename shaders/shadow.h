@@ -75,6 +75,24 @@ OC_INLINE ocg_real ocg_shadow_tau(ocg_vec4 c, ocg_vec3 base, ocg_vec4 z0, ocg_ve
   return c.w * ocg_trilerp(z0, z1, ocg_sub3(ocg_v3(c.x, c.y, c.z), base));
 }
 
+/* A leaf without cloud may carry a τ channel of its own (a ground node, docs/architecture.md), its
+ * samples leaf_size/7 apart. τ falls from tens to 0 across a shadow's edge, so between samples it
+ * spreads the shadow up to a sample beyond where the sun ray meets the cloud, and the spread ends on
+ * the leaf's faces against a finer neighbour's: a straight band on the ground (a level-12 node's
+ * samples lie 488 m apart, a level-11's 976 m). The volume is one grid, so its spread has no such
+ * edges. It is taken where the leaf's samples lie more than half a texel apart
+ * (ocg_shadow_over_leaf); a leaf finer than that keeps its own, sharper τ. @return 1 there. */
+#define OCG_SHADOW_LEAF_RATIO OCG_R(0.5)
+OC_INLINE ocg_int ocg_shadow_finer(OC_IN(ocg_shadow_grid) g, ocg_real leaf_size) {
+  return g.nx >= 2 && leaf_size > OCG_R(7.0) * OCG_SHADOW_LEAF_RATIO * ocg_max(g.cell.x, g.cell.y) ? 1 : 0;
+}
+
+/* There, τ from the volume's tau_vol = ocg_shadow_tau() (already × c.w) blended into the leaf's own
+ * tau_leaf over the volume's fading sides. */
+OC_INLINE ocg_real ocg_shadow_over_leaf(ocg_vec4 c, ocg_real tau_vol, ocg_real tau_leaf) {
+  return tau_vol + (OCG_R(1.0) - c.w) * tau_leaf;
+}
+
 /*! The walk from a texel toward the sun gives up after this many leaves (τ 0: a light leak, counted
  *  in docs/numerics.md) and above this height while climbing (no cloud is that high). */
 #define OCG_SHADOW_MAX_LEAVES 512

@@ -397,6 +397,24 @@ static void test_render__cloud_shadows_air_and_ground(void **st) {
   for (int k = 0; k < 3; k++) oc_state_free(&s[k]);
 }
 
+/* A leaf without cloud whose own τ is coarser than the shadow volume's texels gives way to the volume
+ * (shaders/shadow.h, ocg_shadow_finer): a level-0 leaf with τ 50 and no cloud anywhere lights the air and
+ * the ground as an empty state does, where its τ, taken as is, darkens them (a coarse ground node's τ
+ * spread a shadow a kilometre past where its sun ray meets the cloud). */
+static void test_render__coarse_leaf_tau_gives_way(void **st) {
+  (void)st;
+  oc_state_t s[2];
+  for (int k = 0; k < 2; k++) shadow_state(&s[k], 0.0);
+  s[1].nodes[0].kind = OC_NODE_UNIFORM;
+  s[1].nodes[0].range[OC_CH_TAU] = (oc_range_t){50.0f, 50.0f};
+  double clear = shadow_pixel(&s[0], atmo(), 0), coarse = shadow_pixel(&s[1], atmo(), 0);
+  double as_is = shadow_pixel(&s[1], atmo(), OC_RF_NO_CLOUD_SHADOW);
+  printf("coarse leaf's τ 50: %.5g, as is (no shadow volume) %.5g; empty state %.5g\n", coarse, as_is, clear);
+  assert_true(fabs(coarse - clear) <= 1e-6 * clear);
+  assert_true(as_is < 0.5 * clear);
+  for (int k = 0; k < 2; k++) oc_state_free(&s[k]);
+}
+
 /* Data with NaN, ±Inf and negative extinction: sanitised (and counted) before it reaches a brick,
  * so the integral stays finite and transmittance stays in [0, 1]. */
 static double bad_data(void *ctx, oc_dvec3 p) {
@@ -521,6 +539,7 @@ int main(void) {
       cmocka_unit_test(test_render__extreme_views_are_finite_and_plausible),
       cmocka_unit_test(test_render__air_integral_converges),
       cmocka_unit_test(test_render__cloud_shadows_air_and_ground),
+      cmocka_unit_test(test_render__coarse_leaf_tau_gives_way),
       cmocka_unit_test(test_render__bad_data_sanitised),
       cmocka_unit_test(test_render__rejects_bad_descriptions),
   };
