@@ -79,7 +79,7 @@ OC_INLINE ocg_real ocg_shadow_tau(ocg_vec4 c, ocg_vec3 base, ocg_vec4 z0, ocg_ve
  * samples leaf_size/7 apart. τ falls from tens to 0 across a shadow's edge, so between samples it
  * spreads the shadow up to a sample beyond where the sun ray meets the cloud, and the spread ends on
  * the leaf's faces against a finer neighbour's: a straight band on the ground (a level-12 node's
- * samples lie 488 m apart, a level-11's 976 m). The volume is one grid, so its spread has no such
+ * samples lie 451 m apart, a level-11's 903 m). The volume is one grid, so its spread has no such
  * edges. It is taken where the leaf's samples lie more than half a texel apart
  * (ocg_shadow_over_leaf); a leaf finer than that keeps its own, sharper τ. @return 1 there. */
 #define OCG_SHADOW_LEAF_RATIO OCG_R(0.5)
