@@ -556,12 +556,12 @@ static void test_march_chord__far_side_past_the_cap(void **state) {
   assert_true(ocg_ambient_face(cm) == OCG_R(1.0));
 }
 
-/* Runs across gaps (march.h ocg_march_run): a march through cloud A (depth 3 over 400 m), a gap of
+/* Runs across gaps (march.h ocg_march_run): a march through cloud A (depth da over 400 m), a gap of
  * length g whose extinction is gap_sig, and cloud B (depth db over lb m), its multiply scattered light
  * alone (a source σ per metre). Returns L.x. */
-static ld march_two_clouds(ocg_cloud_model cm, ocg_real g, ocg_real gap_sig, ocg_real db, ocg_real lb) {
+static ld march_clouds(ocg_cloud_model cm, ocg_real da, ocg_real g, ocg_real gap_sig, ocg_real db, ocg_real lb) {
   ocg_march m = ocg_march_begin(OCG_R(-0.5));
-  const ocg_real d = OCG_R(10.0), sa = OCG_R(3.0) / OCG_R(400.0), sb = db / lb;
+  const ocg_real d = OCG_R(10.0), sa = da / OCG_R(400.0), sb = db / lb;
   const ocg_vec3 zero = ocg_v3s(OCG_R(0.0));
   for (int part = 0; part < 3; ++part) {
     ocg_real len = part == 0 ? OCG_R(400.0) : part == 1 ? g : lb, sig = part == 0 ? sa : part == 1 ? gap_sig : sb;
@@ -587,46 +587,40 @@ static void test_march_run__gaps_are_continuous(void **state) {
   cm.ms_n = 4;
   cm.chord_half = OCG_MS_CHORD_HALF;
   cm.ms_forward = OCG_MS_FORWARD;
-  ld joined = march_two_clouds(cm, OCG_R(0.0), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
+  ld joined = march_clouds(cm, OCG_R(3.0), OCG_R(0.0), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
   for (int i = 0; i < 3; ++i) { /* gaps of 30, 120, 400 m */
     ocg_real g = i == 0 ? OCG_R(30.0) : i == 1 ? OCG_R(120.0) : OCG_R(400.0);
-    ld zero = march_two_clouds(cm, g, OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
-    ld trace = march_two_clouds(cm, g, OCG_R(1e-7), OCG_R(20.0), OCG_R(400.0));
+    ld zero = march_clouds(cm, OCG_R(3.0), g, OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
+    ld trace = march_clouds(cm, OCG_R(3.0), g, OCG_R(1e-7), OCG_R(20.0), OCG_R(400.0));
     assert_true(rel_err(trace, zero) <= 1e-4L + 64 * EPS);
     assert_true(zero < joined);
     printf("[" PREC "] a %.0f m gap: zeros %.4Lg, a trace of cloud %.4Lg, no gap %.4Lg\n", (double)g, zero, trace, joined);
   }
-  assert_true(rel_err(march_two_clouds(cm, OCG_R(1e-3), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0)), joined) <= 1e-4L + 64 * EPS);
+  ld closed = march_clouds(cm, OCG_R(3.0), OCG_R(1e-3), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
+  assert_true(rel_err(closed, joined) <= 1e-4L + 64 * EPS);
   /* B as thick as A but shrinking to nothing after the gap: the light tends to A's alone within the
    * bound of march.h (OCG_RUN_JUMP of the run's multiply scattered light, at any coupling) */
   ld worst_b = 0;
   for (int i = 1; i <= 40; ++i) {
     ocg_real g = OCG_R(25.0) * (ocg_real)i;
-    ld a_alone = march_two_clouds(cm, g, OCG_R(0.0), OCG_R(0.0), OCG_R(1.0));
-    ld b_short = march_two_clouds(cm, g, OCG_R(0.0), OCG_R(3.0) / OCG_R(400.0) * OCG_R(0.01), OCG_R(0.01));
+    ld a_alone = march_clouds(cm, OCG_R(3.0), g, OCG_R(0.0), OCG_R(0.0), OCG_R(1.0));
+    ld b_short = march_clouds(cm, OCG_R(3.0), g, OCG_R(0.0), OCG_R(3.0) / OCG_R(400.0) * OCG_R(0.01), OCG_R(0.01));
     worst_b = rel_err(b_short, a_alone) > worst_b ? rel_err(b_short, a_alone) : worst_b;
   }
   assert_true(worst_b <= (ld)OCG_RUN_JUMP);
   /* the light as the gap widens: no step larger than the largest rate allows */
   ld prev = joined, worst = 0;
   for (int i = 1; i <= 200; ++i) {
-    ld v = march_two_clouds(cm, OCG_R(10.0) * (ocg_real)i, OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
+    ld v = march_clouds(cm, OCG_R(3.0), OCG_R(10.0) * (ocg_real)i, OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
     worst = fabsl(v - prev) / joined > worst ? fabsl(v - prev) / joined : worst;
     prev = v;
   }
   assert_true(worst <= 0.03L); /* 10 m of 400: k moves 2.5 %; an end at the gap moved 70 % */
   /* a gap of OCG_RUN_GAP_END run lengths or more: A and B are two runs, exactly as each alone */
-  ld apart = march_two_clouds(cm, OCG_R(1700.0), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
-  ld a_only = march_two_clouds(cm, OCG_R(1700.0), OCG_R(0.0), OCG_R(0.0), OCG_R(1.0));
-  ocg_march m = ocg_march_begin(OCG_R(-0.5));
-  ocg_real sb = OCG_R(20.0) / OCG_R(400.0);
-  for (int i = 0; i < 40; ++i) {
-    ocg_march_run(&m, cm, sb, OCG_R(10.0));
-    ocg_march_segment(&m, ocg_v3s(sb), sb, ocg_v3s(OCG_R(0.0)), ocg_v3s(sb), ocg_v3s(OCG_R(0.0)),
-                      ocg_v3s(OCG_R(0.0)), OCG_R(0.0), OCG_R(10.0));
-  }
-  ocg_march_end_run(&m, cm);
-  ld b_only = (ld)m.L.x * expl(-3.0L); /* B seen through A */
+  ld apart = march_clouds(cm, OCG_R(3.0), OCG_R(1700.0), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0));
+  ld a_only = march_clouds(cm, OCG_R(3.0), OCG_R(1700.0), OCG_R(0.0), OCG_R(0.0), OCG_R(1.0));
+  ld b_only = march_clouds(cm, OCG_R(0.0), OCG_R(1700.0), OCG_R(0.0), OCG_R(20.0), OCG_R(400.0)) * expl(-3.0L);
+  /* (b_only: B seen through A) */
   assert_true(rel_err(apart, a_only + b_only) <= 256 * EPS);
   printf("[" PREC "] widening gap: largest step %.4Lg of the joined light; B shrunk to nothing: %.4Lg; apart %.5Lg = "
          "%.5Lg + %.5Lg\n", worst, worst_b, apart, a_only, b_only);
