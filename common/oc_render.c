@@ -52,6 +52,8 @@ typedef struct {
   oc_shadow_frame_t shf; /**< the cloud shadow volume's place (shf.n[0] = 0: none) */
   ocg_shadow_grid sg;    /**< the same for shadow.h */
   _Atomic uint32_t *shadow; /**< its τ texels (float bits; OC__SHADOW_UNSET until walked), or NULL */
+  ocg_shadow_grid gg;       /**< the ground map (shadow.h; nz = 1) */
+  _Atomic uint32_t *ground; /**< its τ texels, as shadow's, or NULL */
 } oc__ctx_t;
 
 static int oc__bad(const char *field);
@@ -212,6 +214,8 @@ int oc_render_shadow_frame(const oc_render_desc_t *desc, oc_dvec3 camera, double
   if (cells < 2 || cells > 4096) return oc__bad("shadow_cells [2, 4096]");
   if (levels < 2 || levels > 1024) return oc__bad("shadow_levels [2, 1024]");
   if ((double)cells * cells * levels > (double)(1 << 26)) return oc__bad("shadow_cells² × shadow_levels (at most 2^26)");
+  int gcells = desc->shadow_ground_cells ? desc->shadow_ground_cells : OC_RENDER_DEFAULT_SHADOW_GROUND_CELLS;
+  if (gcells != -1 && (gcells < 2 || gcells > 4096)) return oc__bad("shadow_ground_cells [2, 4096] or -1");
   if ((desc->flags & OC_RF_NO_CLOUD_SHADOW) || !(ground_r > 0.0) || !(oc_dlen(camera) > 0.0)) return 0;
   oc_enu_t e = oc_enu_at(camera);
   double half = 0.5 * ext, drop = half * half / ground_r; /* the ground at a corner of the grid: (2·half²)/(2R) below */
@@ -225,6 +229,8 @@ int oc_render_shadow_frame(const oc_render_desc_t *desc, oc_dvec3 camera, double
   f->lo[2] = -drop;
   f->cell[0] = f->cell[1] = ext / (cells - 1);
   f->cell[2] = (top + drop) / (levels - 1);
+  f->ground_n = gcells > 0 ? gcells : 0;
+  f->ground_cell = gcells > 0 ? ext / (gcells - 1) : 0.0;
   return 0;
 }
 
@@ -247,11 +253,13 @@ static float oc__shadow_walk(const oc__ctx_t *cx, oc_dvec3 p, float z0, float su
   return 0.0f;
 }
 
-/* Texel (i, j, k) of the shadow volume, walked the first time it is asked for (lazily: a render
- * pays only for the texels its rays touch). Threads may walk the same texel at once; they store the
- * same value, so the image does not depend on the thread count. */
-static float oc__shadow_texel(const oc__ctx_t *cx, int i, int j, int k) {
-  _Atomic uint32_t *slot = &cx->shadow[ocg_shadow_index(cx->sg, i, j, k)];
+/* Texel (i, j, k) of the shadow volume (ground = 0) or (i, j) of the ground map (ground = 1, k = 0),
+ * walked the first time it is asked for (lazily: a render pays only for the texels its rays touch).
+ * Threads may walk the same texel at once; they store the same value, so the image does not depend on
+ * the thread count. */
+static float oc__shadow_texel(const oc__ctx_t *cx, int ground, int i, int j, int k) {
+  const ocg_shadow_grid *g = ground ? &cx->gg : &cx->sg;
+  _Atomic uint32_t *slot = &(ground ? cx->ground : cx->shadow)[ocg_shadow_index(*g, i, j, k)];
   uint32_t bits = atomic_load_explicit(slot, memory_order_relaxed);
   float v;
   if (bits != OC__SHADOW_UNSET) {
@@ -259,12 +267,20 @@ static float oc__shadow_texel(const oc__ctx_t *cx, int i, int j, int k) {
     return v;
   }
   const oc_shadow_frame_t *f = &cx->shf;
-  ocg_vec3 q = ocg_shadow_texel(cx->sg, i, j, k);
+  ocg_vec3 q = ocg_shadow_texel(*g, i, j, k);
+  if (ground) q.z = ocg_shadow_ground_z(q.x, q.y, (float)oc_dlen(f->c0));
   oc_dvec3 p = oc_dadd(oc_dadd(f->c0, oc_dscale(f->east, q.x)), oc_dadd(oc_dscale(f->north, q.y), oc_dscale(f->up, q.z)));
   v = oc__shadow_walk(cx, p, q.z, (float)oc_ddot(cx->s->sun_dir, f->up));
   memcpy(&bits, &v, sizeof bits);
   atomic_store_explicit(slot, bits, memory_order_relaxed);
   return v;
+}
+
+/* An array of n texels not walked yet, or NULL. */
+static _Atomic uint32_t *oc__shadow_texels(size_t n) {
+  _Atomic uint32_t *t = malloc(sizeof *t * n);
+  for (size_t i = 0; t && i < n; i++) atomic_init(&t[i], OC__SHADOW_UNSET);
+  return t;
 }
 
 static int oc__shadow_build(oc__ctx_t *cx) {
@@ -275,11 +291,13 @@ static int oc__shadow_build(oc__ctx_t *cx) {
   cx->sg.ny = f->n[1];
   cx->sg.nz = f->n[2];
   if (f->n[0] == 0) return 0;
-  size_t n = (size_t)f->n[0] * (size_t)f->n[1] * (size_t)f->n[2];
-  cx->shadow = malloc(sizeof *cx->shadow * n);
+  cx->shadow = oc__shadow_texels((size_t)f->n[0] * (size_t)f->n[1] * (size_t)f->n[2]);
   if (!cx->shadow) return OC_ENOMEM;
-  for (size_t i = 0; i < n; i++) atomic_init(&cx->shadow[i], OC__SHADOW_UNSET);
-  return 0;
+  if (f->ground_n == 0) return 0;
+  float gc = (float)f->ground_cell;
+  cx->gg = (ocg_shadow_grid){ocg_v3((float)f->lo[0], (float)f->lo[1], 0.0f), ocg_v3(gc, gc, 1.0f), f->ground_n, f->ground_n, 1};
+  cx->ground = oc__shadow_texels((size_t)f->ground_n * (size_t)f->ground_n);
+  return cx->ground ? 0 : OC_ENOMEM;
 }
 
 /* τ of the shadow volume at p (0 without one, or outside it), and its coordinates there to *c. */
@@ -293,17 +311,34 @@ static float oc__shadow_tau(const oc__ctx_t *cx, oc_dvec3 p, ocg_vec4 *c) {
   ocg_vec3 b = ocg_shadow_base(cx->sg, *c);
   int i = (int)b.x, j = (int)b.y, k = (int)b.z;
   float v[8];
-  for (int q = 0; q < 8; q++) v[q] = oc__shadow_texel(cx, i + (q & 1), j + ((q >> 1) & 1), k + (q >> 2));
+  for (int q = 0; q < 8; q++) v[q] = oc__shadow_texel(cx, 0, i + (q & 1), j + ((q >> 1) & 1), k + (q >> 2));
   return ocg_shadow_tau(*c, b, ocg_v4(v[0], v[1], v[2], v[3]), ocg_v4(v[4], v[5], v[6], v[7]));
 }
 
+/* τ at the ground point p from the ground map, or from the volume without one; its coordinates to *c. */
+static float oc__ground_map_tau(const oc__ctx_t *cx, oc_dvec3 p, ocg_vec4 *c) {
+  if (!cx->ground) return oc__shadow_tau(cx, p, c);
+  const oc_shadow_frame_t *f = &cx->shf;
+  oc_dvec3 d = oc_dsub(p, f->c0);
+  *c = ocg_shadow_ground_coord(cx->gg, ocg_v3((float)oc_ddot(d, f->east), (float)oc_ddot(d, f->north), 0.0f));
+  if (c->w == 0.0f) return 0.0f;
+  ocg_vec3 b = ocg_shadow_ground_base(cx->gg, *c);
+  int i = (int)b.x, j = (int)b.y;
+  float v[4];
+  for (int q = 0; q < 4; q++) v[q] = oc__shadow_texel(cx, 1, i + (q & 1), j + (q >> 1), 0);
+  return ocg_shadow_ground_tau(*c, b, ocg_v4(v[0], v[1], v[2], v[3]));
+}
+
 /* τ at p in leaf lf, which is not empty: its own, or where it holds no cloud and its samples are coarser
- * than the shadow volume's texels, the volume's (shadow.h, ocg_shadow_over_leaf). */
-static float oc__leaf_tau(const oc__ctx_t *cx, const oc__leaf_t *lf, oc_dvec3 p) {
+ * than the texels of the grid p reads (the ground map at a ground point, else the volume), the grid's
+ * (shadow.h, ocg_shadow_over_leaf). */
+static float oc__leaf_tau(const oc__ctx_t *cx, const oc__leaf_t *lf, oc_dvec3 p, int ground) {
   float own = oc__leaf_channel(lf, OC_CH_TAU, oc__leaf_local(lf, p));
-  if (lf->n->range[OC_CH_SIGMA].hi > 0.0f || !cx->shadow || !ocg_shadow_finer(cx->sg, (float)lf->size)) return own;
+  int map = ground && cx->ground;
+  if (lf->n->range[OC_CH_SIGMA].hi > 0.0f || !cx->shadow || !ocg_shadow_finer(map ? cx->gg : cx->sg, (float)lf->size))
+    return own;
   ocg_vec4 c;
-  float vol = oc__shadow_tau(cx, p, &c);
+  float vol = map ? oc__ground_map_tau(cx, p, &c) : oc__shadow_tau(cx, p, &c);
   return ocg_shadow_over_leaf(c, vol, own);
 }
 
@@ -377,7 +412,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     float sig = 0.0f, tau = 0.0f;
     if (lf.n && lf.n->kind != OC_NODE_EMPTY) {
       if (cloudy) sig = oc__leaf_channel(&lf, OC_CH_SIGMA, oc__leaf_local(&lf, pm));
-      if (!chord) tau = oc__leaf_tau(cx, &lf, pm);
+      if (!chord) tau = oc__leaf_tau(cx, &lf, pm, 0);
     } else if (!chord && (cx->have_atmo || thin)) {
       ocg_vec4 c;
       tau = oc__shadow_tau(cx, pm, &c); /* a node without τ: the shadow volume's */
@@ -440,7 +475,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       oc__leaf_t g;
       oc__leaf_locate(cx->s, pg, &g);
       ocg_vec4 c;
-      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_tau(cx, &g, pg) : oc__shadow_tau(cx, pg, &c);
+      float tg = g.n && g.n->kind != OC_NODE_EMPTY ? oc__leaf_tau(cx, &g, pg, 1) : oc__ground_map_tau(cx, pg, &c);
       float sg = ocg_cloud_shadow(cx->cm, tg);
       ocg_vec3 I = cx->have_atmo ? oc_atmo_sky_irradiance(d->atmo, r, mu_s) : ocg_v3s(0.0f);
       ocg_vec3 albedo = cx->have_atmo ? cx->atm.ground_albedo : ocg_v3s(0.1f);
@@ -548,11 +583,12 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   double shadow_r = cx.ground_r > 0.0 ? cx.ground_r : cx.air_sigma > 0.0f ? OC_PLANET_RADIUS : 0.0;
   int rc = oc_render_shadow_frame(d, d->camera.pos, shadow_r, &cx.shf);
   if (rc < 0) return rc;
-  if ((rc = oc__shadow_build(&cx)) < 0) return rc;
-  cx.thread_stats = calloc((size_t)d->threads, sizeof *cx.thread_stats);
+  rc = oc__shadow_build(&cx);
+  cx.thread_stats = rc < 0 ? NULL : calloc((size_t)d->threads, sizeof *cx.thread_stats);
   if (!cx.thread_stats) {
     free((void *)cx.shadow);
-    return OC_ENOMEM;
+    free((void *)cx.ground);
+    return rc < 0 ? rc : OC_ENOMEM;
   }
   oc_parallel(d->height, d->threads, oc__row, &cx);
 
@@ -567,5 +603,6 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   if (stats) *stats = sum;
   free(cx.thread_stats);
   free((void *)cx.shadow);
+  free((void *)cx.ground);
   return 0;
 }

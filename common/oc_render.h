@@ -39,6 +39,7 @@
 #define OC_RENDER_DEFAULT_SHADOW_CELLS 128      /**< texels along each horizontal edge */
 #define OC_RENDER_DEFAULT_SHADOW_LEVELS 24      /**< texels from the ground to its top */
 #define OC_RENDER_DEFAULT_SHADOW_TOP 12000.0    /**< m, its top: air above it is unshadowed */
+#define OC_RENDER_DEFAULT_SHADOW_GROUND_CELLS 512 /**< the ground map's texels along each edge (shadow.h) */
 /* Thin homogeneous air (air_sigma, with no atmosphere): the shell from the planet radius up to this. */
 #define OC_RENDER_DEFAULT_AIR_TOP 12000.0       /**< m above OC_PLANET_RADIUS */
 #define OC_RENDER_MAX_AIR_SIGMA 1e-3            /**< m⁻¹: τ 1 per km; "thin" means far less */
@@ -103,6 +104,8 @@ typedef struct {
   int shadow_cells;      /**< its texels per horizontal edge [2, 4096]; default OC_RENDER_DEFAULT_SHADOW_CELLS */
   int shadow_levels;     /**< its texels from the ground to its top [2, 1024]; default OC_RENDER_DEFAULT_SHADOW_LEVELS */
   double shadow_top;     /**< its top, m above the ground; default OC_RENDER_DEFAULT_SHADOW_TOP */
+  int shadow_ground_cells; /**< the ground map's texels per edge [2, 4096] over the volume's extent; default
+                                OC_RENDER_DEFAULT_SHADOW_GROUND_CELLS; -1: none, the ground reads the volume */
   const oc_atmo_t *atmo; /**< required unless OC_RF_NO_ATMOSPHERE or OC_BG_CONSTANT */
   float air_sigma;       /**< thin homogeneous air where there is no atmosphere (OC_BG_CONSTANT or
                               OC_RF_NO_ATMOSPHERE): scattering coefficient, m⁻¹, [0, OC_RENDER_MAX_AIR_SIGMA];
@@ -132,10 +135,13 @@ typedef struct {
  *  @return 0, or OC_EINVAL for a bad desc (with an oc_log_error line naming the field). */
 int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_t *img, oc_render_stats_t *stats);
 
-/*! The cloud shadow volume's place (shaders/shadow.h): the grid both renderers build. */
+/*! The cloud shadow volume's place (shaders/shadow.h): the grids both renderers build, the volume and
+ *  the ground map (its texels follow the volume's in the GL renderer's buffer). */
 typedef struct {
   int n[3];                          /**< texels per axis; n[0] = 0: no shadow volume */
   double lo[3], cell[3];             /**< texel (0, 0, 0) and spacing in the local frame, m */
+  int ground_n;                      /**< the ground map's texels per edge (0: none), from lo[0], lo[1] */
+  double ground_cell;                /**< their spacing, m */
   oc_dvec3 c0, east, north, up;      /**< the local frame: c0 = ground_r·up under the camera */
 } oc_shadow_frame_t;
 

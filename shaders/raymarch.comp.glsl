@@ -83,6 +83,8 @@ layout(location = 40) uniform vec3 u_sh_cam;     /* the camera in its local fram
 layout(location = 41) uniform vec3 u_sh_e;       /* its local frame: east, north, up */
 layout(location = 42) uniform vec3 u_sh_nn;
 layout(location = 43) uniform vec3 u_sh_u;
+layout(location = 45) uniform int u_sh_gn;       /* the ground map's texels a side (< 2: none), after the volume's */
+layout(location = 46) uniform float u_sh_gcell;  /* their spacing, m (the volume's lo.xy is its corner) */
 
 /* Shader variants (client/gl/gl_render.c): the renderer compiles one program per combination of the
  * features a frame uses, defining each of these as a constant, so the compiler drops the code of the
@@ -320,21 +322,40 @@ float ocv_shadow_tau(vec3 q, out vec4 c) {
   return ocg_shadow_tau(c, b, vec4(v[0], v[1], v[2], v[3]), vec4(v[4], v[5], v[6], v[7]));
 }
 
-/* τ at the local point q in a leaf that is not empty (own: its τ channel there): the volume's where the leaf
- * holds no cloud and its samples are coarser than the volume's texels (oc__leaf_tau, shadow.h). */
-float ocv_leaf_tau(bool cloudy, float size, float own, vec3 q) {
-  if (cloudy || ocg_shadow_finer(ocv_shadow_grid(), size) == 0) return own;
+/* The ground map (shadow.h), its texels after the volume's in oc_shadow. */
+ocg_shadow_grid ocv_ground_grid() { return ocg_shadow_grid(vec3(u_sh_lo.xy, 0.0), vec3(u_sh_gcell, u_sh_gcell, 1.0), u_sh_gn, u_sh_gn, 1); }
+int ocv_ground_index(ocg_shadow_grid g, int i, int j) { return u_sh_n.x * u_sh_n.y * u_sh_n.z + ocg_shadow_index(g, i, j, 0); }
+
+/* τ of the ground map at the local ground point q, or of the volume without a map (oc__ground_map_tau). */
+float ocv_ground_map_tau(vec3 q, out vec4 c) {
+  if (u_sh_gn < 2) return ocv_shadow_tau(q, c);
+  ocg_shadow_grid g = ocv_ground_grid();
+  c = ocg_shadow_ground_coord(g, q);
+  if (c.w == 0.0) return 0.0;
+  vec3 b = ocg_shadow_ground_base(g, c);
+  ivec2 i = ivec2(b.xy);
+  vec4 v = vec4(oc_shadow[ocv_ground_index(g, i.x, i.y)], oc_shadow[ocv_ground_index(g, i.x + 1, i.y)],
+                oc_shadow[ocv_ground_index(g, i.x, i.y + 1)], oc_shadow[ocv_ground_index(g, i.x + 1, i.y + 1)]);
+  return ocg_shadow_ground_tau(c, b, v);
+}
+
+/* τ at the local point q in a leaf that is not empty (own: its τ channel there): the grid's where the leaf
+ * holds no cloud and its samples are coarser than the texels of the grid q reads, the ground map at a
+ * ground point, else the volume (oc__leaf_tau, shadow.h). */
+float ocv_leaf_tau(bool cloudy, float size, float own, vec3 q, bool ground) {
+  bool map = ground && u_sh_gn >= 2;
+  if (cloudy || ocg_shadow_finer(map ? ocv_ground_grid() : ocv_shadow_grid(), size) == 0) return own;
   vec4 c;
-  float vol = ocv_shadow_tau(q, c);
+  float vol = map ? ocv_ground_map_tau(q, c) : ocv_shadow_tau(q, c);
   return ocg_shadow_over_leaf(c, vol, own);
 }
 
-/* τ at the ground point pg (camera-relative; q in the volume's frame): its leaf's, or the volume's. */
+/* τ at the ground point pg (camera-relative; q in the volume's frame): its leaf's, or the ground map's. */
 float ocv_ground_tau(vec3 pg, vec3 q) {
   OcvLeaf g = ocv_locate_cell(ocv_cell_of(pg));
   vec4 c;
-  if (g.idx < 0 || oc_leaf[g.idx].info.x == 0u) return ocv_shadow_tau(q, c);
-  return ocv_leaf_tau(oc_leaf[g.idx].range.y > 0.0, g.size, ocv_leaf_sample(g, ocv_local(g, pg)).y, q);
+  if (g.idx < 0 || oc_leaf[g.idx].info.x == 0u) return ocv_ground_map_tau(q, c);
+  return ocv_leaf_tau(oc_leaf[g.idx].range.y > 0.0, g.size, ocv_leaf_sample(g, ocv_local(g, pg)).y, q, true);
 }
 
 /* The τ channel where the sun ray from the local point q0 first enters a leaf with σt > 0 (oc__shadow_walk). */
@@ -445,7 +466,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       vec2 st = ocv_leaf_sample(lf, u);
       if (blend) st = mix(ocv_prev_sample(lf.idx, u), st, u_t);
       if (cloudy) sig = st.x;
-      tau = chord ? st.y : ocv_leaf_tau(cloudy, lf.size, st.y, u_sh_cam + sh_dir * tm);
+      tau = chord ? st.y : ocv_leaf_tau(cloudy, lf.size, st.y, u_sh_cam + sh_dir * tm, false);
     } else if (!chord && OCV_ATMO) {
       vec4 c;
       tau = ocv_shadow_tau(u_sh_cam + sh_dir * tm, c); /* a node without τ: the shadow volume's */
@@ -512,14 +533,26 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
 
 #ifdef OCV_SHADOW_PASS
 layout(location = 44) uniform ivec2 u_sh_slice; /* (s, slices): rows of work groups s, s + slices, … (gl_render.c) */
-/* The shadow pass: texel (x, y % n_y, y / n_y) of the shadow volume. */
+/* The shadow pass: texel (x, y % n_y, y / n_y) of the shadow volume for the rows y < n_y·n_z; past them the
+ * ground map's texels in memory order, n_x a row (so every row costs the same: gl_render.c's slices), each
+ * on the ground under it (u_ground_r: the frame's radius). */
 void main() {
   int gy = int(gl_WorkGroupID.y) * u_sh_slice.y + u_sh_slice.x;
   ivec2 g = ivec2(gl_GlobalInvocationID.x, gy * int(gl_WorkGroupSize.y) + int(gl_LocalInvocationID.y));
-  if (g.x >= u_sh_n.x || g.y >= u_sh_n.y * u_sh_n.z) return;
-  ocg_shadow_grid sg = ocv_shadow_grid();
-  int j = g.y % u_sh_n.y, k = g.y / u_sh_n.y;
-  oc_shadow[ocg_shadow_index(sg, g.x, j, k)] = ocv_shadow_walk(ocg_shadow_texel(sg, g.x, j, k));
+  int rows = u_sh_n.y * u_sh_n.z;
+  if (g.y < rows) {
+    if (g.x >= u_sh_n.x) return;
+    ocg_shadow_grid sg = ocv_shadow_grid();
+    int j = g.y % u_sh_n.y, k = g.y / u_sh_n.y;
+    oc_shadow[ocg_shadow_index(sg, g.x, j, k)] = ocv_shadow_walk(ocg_shadow_texel(sg, g.x, j, k));
+    return;
+  }
+  int at = (g.y - rows) * u_sh_n.x + g.x;
+  if (g.x >= u_sh_n.x || at >= u_sh_gn * u_sh_gn) return;
+  ocg_shadow_grid gg = ocv_ground_grid();
+  vec3 q = ocg_shadow_texel(gg, at % u_sh_gn, at / u_sh_gn, 0);
+  q.z = ocg_shadow_ground_z(q.x, q.y, u_ground_r);
+  oc_shadow[ocv_ground_index(gg, at % u_sh_gn, at / u_sh_gn)] = ocv_shadow_walk(q);
 }
 #else
 void main() {

@@ -82,9 +82,14 @@ uint64_t ocv_gl_renderer_shadow_passes(const ocv_gl_renderer_t *r) { return r ? 
 
 uint64_t ocv_gl_renderer_shadow_texels(const ocv_gl_renderer_t *r) { return r ? r->sh_texels : 0; }
 
+/* The texels of frame f's grids: the volume's, then the ground map's. */
+static size_t ocv__shadow_count(const oc_shadow_frame_t *f) {
+  return (size_t)f->n[0] * (size_t)f->n[1] * (size_t)f->n[2] + (size_t)f->ground_n * (size_t)f->ground_n;
+}
+
 size_t ocv_gl_renderer_shadow_read(const ocv_gl_renderer_t *r, float *out, size_t n) {
   const ocv__shvol_t *v = r ? &r->sh[r->sh_cur] : NULL;
-  size_t have = v && v->serial ? (size_t)v->f.n[0] * (size_t)v->f.n[1] * (size_t)v->f.n[2] : 0;
+  size_t have = v && v->serial ? ocv__shadow_count(&v->f) : 0;
   if (have && out && n >= have) glGetNamedBufferSubData(v->buf, 0, (GLsizeiptr)(have * sizeof(float)), out);
   return have;
 }
@@ -215,10 +220,11 @@ static int ocv__bad(char *why, size_t wl, const char *field) {
 /* A device buffer of exactly `bytes` (re-created when the size changes). */
 static void ocv__buffer(GLuint *b, size_t *have, size_t bytes);
 
-/* Whether volume v has the grid of frame f (its size, spacing and bottom: the options). */
+/* Whether volume v has the grids of frame f (their sizes, spacings and bottom: the options). */
 static int ocv__shadow_same_grid(const ocv__shvol_t *v, const oc_shadow_frame_t *f) {
   const oc_shadow_frame_t *o = &v->f;
-  return !memcmp(o->n, f->n, sizeof o->n) && !memcmp(o->cell, f->cell, sizeof o->cell) && o->lo[2] == f->lo[2];
+  return !memcmp(o->n, f->n, sizeof o->n) && !memcmp(o->cell, f->cell, sizeof o->cell) && o->lo[2] == f->lo[2] &&
+         o->ground_n == f->ground_n && o->ground_cell == f->ground_cell;
 }
 
 /* Whether the shadow volume v must be rebuilt for frame f: a new sun or grid, the camera over an eighth
@@ -244,16 +250,22 @@ static void ocv__shadow_uniforms(GLuint p, const oc_shadow_frame_t *f, oc_dvec3 
   glProgramUniform3f(p, 41, (float)f->east.x, (float)f->east.y, (float)f->east.z);
   glProgramUniform3f(p, 42, (float)f->north.x, (float)f->north.y, (float)f->north.z);
   glProgramUniform3f(p, 43, (float)f->up.x, (float)f->up.y, (float)f->up.z);
+  glProgramUniform1i(p, 45, f->ground_n);
+  glProgramUniform1f(p, 46, (float)f->ground_cell);
 }
 
-/* Work groups along y of slice s of v: the rows of groups (OCV__GROUP texel rows of n_x each) s,
- * s + slices, s + 2·slices, … of the n_y·n_z texel rows; *texels: the texels they write (the last group
- * may be short). */
+/* Work groups along y of slice s of v: the rows of groups (OCV__GROUP texel rows each) s, s + slices,
+ * s + 2·slices, … of the texel rows of n_x texels, the volume's n_y·n_z and then the ground map's n² texels
+ * in memory order (the last row may be short); *texels: the texels they write. */
 static int ocv__slice_groups(const ocv__shvol_t *v, int s, uint64_t *texels) {
-  int rows = v->f.n[1] * v->f.n[2], groups = (rows + OCV__GROUP - 1) / OCV__GROUP;
+  const int64_t nx = v->f.n[0], all = (int64_t)ocv__shadow_count(&v->f);
+  int rows = (int)((all + nx - 1) / nx), groups = (rows + OCV__GROUP - 1) / OCV__GROUP;
   int mine = s < groups ? (groups - 1 - s) / v->slices + 1 : 0;
-  int short_by = mine && (groups - 1) % v->slices == s ? groups * OCV__GROUP - rows : 0;
-  *texels = (uint64_t)v->f.n[0] * (uint64_t)(mine * OCV__GROUP - short_by);
+  *texels = 0;
+  for (int64_t g = s; g < groups; g += v->slices) {
+    int64_t first = g * OCV__GROUP * nx, end = (g + 1) * OCV__GROUP * nx;
+    *texels += (uint64_t)((end < all ? end : all) - first);
+  }
   return mine;
 }
 
@@ -275,6 +287,7 @@ static int ocv__shadow_slice(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, ocv
   glProgramUniform1i(q, 34, r->no_map ? 0 : gs->map_level);
   glProgramUniform1ui(q, 35, gs->map_offset);
   glProgramUniform2i(q, 44, s, v->slices);
+  glProgramUniform1f(q, 23, (float)oc_dlen(v->f.c0)); /* the ground map's ground */
   glUseProgram(q);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gs->tree);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gs->leaves);
@@ -308,7 +321,7 @@ static int ocv__shadow(ocv_gl_renderer_t *r, const ocv_gl_state_t *gs, const oc_
     nv->cam = d->camera.pos;
     nv->slices = whole ? 1 : r->sh_slices;
     nv->done = 0;
-    if (f.n[0]) ocv__buffer(&nv->buf, &nv->bytes, sizeof(float) * (size_t)f.n[0] * (size_t)f.n[1] * (size_t)f.n[2]);
+    if (f.n[0]) ocv__buffer(&nv->buf, &nv->bytes, sizeof(float) * ocv__shadow_count(&f));
     r->sh_building = 1;
     r->sh_passes++;
   }

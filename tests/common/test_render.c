@@ -415,6 +415,71 @@ static void test_render__coarse_leaf_tau_gives_way(void **st) {
   for (int k = 0; k < 2; k++) oc_state_free(&s[k]);
 }
 
+/* A 1 km box cloud 2–2.5 km up at 0°N 0°E, τ ≈ 50 across, the sun 50° up in the east; leaves without
+ * cloud empty. Seen from 7 km straight down over its shadow, each ground pixel (no cloud along its view)
+ * is in shadow or not, and the sun ray from its ground point says which: the closed form. The ground map
+ * (126 m texels) draws the shadow where it is; the volume alone (504 m, shadow_ground_cells -1) spreads
+ * τ across its texels and shadows ground the sun reaches (a coarse blur, and straight bands where a
+ * coarse node's face ended it). @return the share of ground pixels in the wrong class. */
+static double ground_shadow_misses(const oc_state_t *s, const ocs_medium_t *m, int ground_cells, int *counted) {
+  oc_camera_pose_t pose = {{0.0, -1700.0 / (OC_PLANET_RADIUS * OC_DEG), 7000.0}, 0.0, -90.0, 22.0};
+  oc_render_desc_t d = {.width = 48, .height = 48, .camera = oc_camera_from_pose(pose), .atmo = atmo(), .threads = 2,
+                        .albedo_zero = 1, .shadow_ground_cells = ground_cells};
+  oc_image_t img;
+  assert_int_equal(oc_image_alloc(&img, d.width, d.height), 0);
+  assert_int_equal(oc_render_state(s, &d, &img, NULL), 0);
+  double lo = INFINITY, hi = 0.0; /* the ground's radiance in full shadow and in full sun */
+  for (int i = 0; i < d.width * d.height; i++) {
+    const float *px = img.px + 4 * i;
+    if (px[3] < 1.0f) continue;
+    lo = fmin(lo, px[1]);
+    hi = fmax(hi, px[1]);
+  }
+  int wrong = 0, n = 0, shadowed = 0;
+  for (int y = 0; y < d.height; y++)
+    for (int x = 0; x < d.width; x++) {
+      const float *px = img.px + 4 * (y * d.width + x);
+      oc_dvec3 o = d.camera.pos, dir = oc_camera_ray(&d.camera, d.width, d.height, x, y);
+      double b = oc_ddot(o, dir), c = oc_ddot(o, o) - OC_PLANET_RADIUS * OC_PLANET_RADIUS;
+      oc_dvec3 g = oc_dmad(o, dir, -b - sqrt(b * b - c)); /* the ground point */
+      if (px[3] < 1.0f) continue;
+      double tau = ocs_medium_tau_sun(m, g, s->sun_dir);
+      int truth = tau > 0.7, dark = px[1] < 0.5 * (lo + hi); /* e^{-τ} < ½ */
+      wrong += truth != dark;
+      shadowed += truth;
+      n++;
+    }
+  oc_image_free(&img);
+  *counted = shadowed;
+  assert_true(n > d.width * d.height / 2 && shadowed > n / 10 && shadowed < n / 2 && hi > 3.0 * lo);
+  return (double)wrong / n;
+}
+
+static void test_render__ground_map_places_shadows(void **st) {
+  (void)st;
+  ocs_medium_t m;
+  ocs_prim_t p;
+  ocs_medium_init(&m);
+  assert_int_equal(ocs_prim_box(&p, (oc_geo_t){0.0, 0.0, 2000.0}, 1000.0, 1000.0, 500.0, 0.0, 0.05), 0);
+  assert_int_equal(ocs_medium_add(&m, &p), 0);
+  oc_state_t s;
+  oc_state_init(&s);
+  assert_int_equal(ocs_voxelize_medium(&s, &m, 16, 1, sun_from(oc_geo_to_xyz((oc_geo_t){0.0, 0.0, 0.0}), 50.0, 90.0), 2), 0);
+  for (uint32_t i = 0; i < s.node_count; i++)
+    if (!(s.nodes[i].range[OC_CH_SIGMA].hi > 0.0f)) {
+      memset(&s.nodes[i].range, 0, sizeof s.nodes[i].range);
+      s.nodes[i].kind = OC_NODE_EMPTY;
+    }
+  int n_map, n_vol;
+  double map = ground_shadow_misses(&s, &m, 0, &n_map), vol = ground_shadow_misses(&s, &m, -1, &n_vol);
+  printf("ground shadow of a 1 km box: pixels in the wrong class, ground map %.1f %%, volume alone %.1f %% (%d, %d "
+         "shadowed by the closed form)\n", 100.0 * map, 100.0 * vol, n_map, n_vol);
+  oc_report("render", "ground shadow misplaced, ground map", map, 0.05, "share");
+  assert_true(map < 0.05);
+  assert_true(vol > 2.0 * map); /* the control: the volume's texels alone misplace it */
+  oc_state_free(&s);
+}
+
 /* Data with NaN, ±Inf and negative extinction: sanitised (and counted) before it reaches a brick,
  * so the integral stays finite and transmittance stays in [0, 1]. */
 static double bad_data(void *ctx, oc_dvec3 p) {
@@ -492,6 +557,12 @@ static void test_render__rejects_bad_descriptions(void **st) {
   bad = d;
   bad.shadow_top = 1e5;
   assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  const int ground_bad[] = {1, -2, 4097};
+  for (int i = 0; i < 3; i++) {
+    bad = d;
+    bad.shadow_ground_cells = ground_bad[i];
+    assert_int_equal(oc_render_state(&s, &bad, &img, NULL), OC_EINVAL);
+  }
   /* The cloud model's domain: albedo [0, 1], octave factors (0, 1], the model enum, fit overrides. */
   const float outside[] = {-0.1f, 1.5f, NAN, INFINITY};
   float *const in_unit[] = {&bad.albedo, &bad.ms_a, &bad.ms_b, &bad.ms_c}; /* fields of bad */
@@ -540,6 +611,7 @@ int main(void) {
       cmocka_unit_test(test_render__air_integral_converges),
       cmocka_unit_test(test_render__cloud_shadows_air_and_ground),
       cmocka_unit_test(test_render__coarse_leaf_tau_gives_way),
+      cmocka_unit_test(test_render__ground_map_places_shadows),
       cmocka_unit_test(test_render__bad_data_sanitised),
       cmocka_unit_test(test_render__rejects_bad_descriptions),
   };

@@ -273,6 +273,7 @@ static oc_render_desc_t planet_desc(oc_camera_t cam) {
   d.flags |= OC_RF_NO_ATMOSPHERE;
   d.shadow_cells = 16;
   d.shadow_levels = 4;
+  d.shadow_ground_cells = 32;
   return d;
 }
 
