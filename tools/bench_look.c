@@ -21,7 +21,7 @@
 
 typedef struct {
   const char *scene, *camera, *png, *sun;
-  int size[2], epochs, budget;
+  int size[2], epochs, budget, ground_map;
   double time, exposure, min_cloud, min_ratio;
 } look_opts_t;
 
@@ -41,6 +41,9 @@ static const oc_cli_opt_t look_opts[] = {
             "the sun as seen from each camera, degrees (default: the scene's sun; its direction is the planet's, "
             "so it moves with the camera)"),
     OCT_STR(look_opts_t, png, "png", "PREFIX", "also write each camera's image as PREFIX<i>.png"),
+    OCT_INT(look_opts_t, ground_map, "ground-map", "N", -1, 4096, "512",
+                 "the ground shadow map's texels a side (shadows on the ground); -1: none, the ground reads the "
+                 "coarser shadow volume (for comparison)"),
     OCT_OPTS_END};
 
 OCT_SPEC(look,
@@ -150,6 +153,7 @@ static int look_camera(const char *prog, const look_opts_t *o, const oc_scene_t 
   d.height = o->size[1];
   d.camera = oc_camera_from_pose(pose);
   d.threads = 2;
+  d.shadow_ground_cells = o->ground_map;
   oc_render_stats_t rs;
   look_t lk;
   if (oc_image_alloc(&img, d.width, d.height) < 0 || oc_image_alloc(&sky, d.width, d.height) < 0 ||

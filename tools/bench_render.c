@@ -16,14 +16,22 @@
 
 #endif
 
-/* The render description both renderers get. */
-/* The scene's render description (its features and optics) at this view and step factor. */
-static oc_render_desc_t render_desc(const oc_scene_t *sc, oc_camera_t cam, int w, int h, double step, const oc_atmo_t *atmo) {
+typedef struct {
+  const char *scene, *camera, *png;
+  int size[2], repeat, gl, ground_map;
+  oct_list_t threads;
+  double step, time;
+} render_opts_t;
+
+/* The render description both renderers get: the scene's (its features and optics) at this view, with
+ * o's step factor and ground map. */
+static oc_render_desc_t render_desc(const oc_scene_t *sc, oc_camera_t cam, const render_opts_t *o, const oc_atmo_t *atmo) {
   oc_render_desc_t d = oc_scene_render_desc(sc, atmo);
-  d.width = w;
-  d.height = h;
+  d.width = o->size[0];
+  d.height = o->size[1];
   d.camera = cam;
-  d.step_factor = step;
+  d.step_factor = o->step;
+  d.shadow_ground_cells = o->ground_map;
   return d;
 }
 
@@ -65,8 +73,10 @@ static int bench_models(const char *prog, const oc_state_t *st, oc_render_desc_t
 /* The GL compute renderer on the same state (upload once, best of `repeat` renders including the
  * read-back), its time against one CPU thread and its RMSE (0–255, after tone mapping) against the
  * CPU image. */
-static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam, int w, int h, double step,
-                    const oc_atmo_t *atmo, long repeat, const oc_image_t *ref, double cpu1) {
+static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam, const render_opts_t *o,
+                    const oc_atmo_t *atmo, const oc_image_t *ref, double cpu1) {
+  const int w = o->size[0], h = o->size[1];
+  const long repeat = o->repeat;
   const char *prog = "overcast-bench";
   char why[1024], info[512];
   ocv_gl_context_t *ctx = ocv_gl_context_init(why, sizeof why);
@@ -82,7 +92,7 @@ static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam,
     goto out;
   }
   tu = oct_now() - tu;
-  oc_render_desc_t d = render_desc(sc, cam, w, h, step, atmo);
+  oc_render_desc_t d = render_desc(sc, cam, o, atmo);
   oc_image_t img = {0}, other = {0};
   if (oc_image_alloc(&img, w, h) < 0 || oc_image_alloc(&other, w, h) < 0) {
     rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
@@ -91,26 +101,37 @@ static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam,
   /* the full renderer, then each saving switched off alone (the octree map; the shader variant
    * without the features this frame does not use), alternated in one run so all see the same
    * machine load; every configuration renders the same image */
+  /* the last row renders with a renderer of its own whose cloud shadow pass reruns every time: the sun
+   * nudged by an ulp, alternately, so the state's volume counts (the other rows keep theirs) */
   static const struct {
-    int map, variants, legacy;
+    int map, variants, legacy, pass;
     const char *label;
-  } cf[] = {{1, 1, 0, "gl"},
-            {0, 1, 0, "gl, no octree map"},
-            {1, 0, 0, "gl, generic kernel (no variant)"},
-            {1, 1, 1, "gl, the octaves before the truth fit"}};
+  } cf[] = {{1, 1, 0, 0, "gl"},
+            {0, 1, 0, 0, "gl, no octree map"},
+            {1, 0, 0, 0, "gl, generic kernel (no variant)"},
+            {1, 1, 1, 0, "gl, the octaves before the truth fit"},
+            {1, 1, 0, 1, "gl, with its cloud shadow pass (a new sun every render)"}};
   enum { NCF = sizeof cf / sizeof cf[0] };
-  double best[NCF] = {1e30, 1e30, 1e30, 1e30};
+  double best[NCF] = {1e30, 1e30, 1e30, 1e30, 1e30};
   oc_render_desc_t dl = oct_render_legacy(d);
+  ocv_gl_renderer_t *rp = ocv_gl_renderer_create(why, sizeof why);
+  if (!rp) rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
+  const oc_dvec3 sun = gs.sun_dir;
   for (long i = 0; i <= repeat && rc == OC_EXIT_OK; i++) /* the first round compiles and uploads: not counted */
     for (int c = 0; c < NCF && rc == OC_EXIT_OK; c++) {
-      ocv_gl_renderer_set_map(r, cf[c].map);
-      ocv_gl_renderer_set_variants(r, cf[c].variants);
+      ocv_gl_renderer_t *rr = cf[c].pass ? rp : r;
+      ocv_gl_renderer_set_map(rr, cf[c].map);
+      ocv_gl_renderer_set_variants(rr, cf[c].variants);
+      gs.sun_dir = sun;
+      if (cf[c].pass) gs.sun_dir.x = nextafter(sun.x, (i & 1) ? INFINITY : -INFINITY);
       double t0 = oct_now();
-      if (ocv_gl_render_state(r, &gs, cf[c].legacy ? &dl : &d, cf[c].legacy ? &other : &img, why, sizeof why) < 0)
+      if (ocv_gl_render_state(rr, &gs, cf[c].legacy ? &dl : &d, cf[c].legacy || cf[c].pass ? &other : &img, why, sizeof why) < 0)
         rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "--gl: %s", why);
       double t = oct_now() - t0;
       if (i > 0 && t < best[c]) best[c] = t;
     }
+  gs.sun_dir = sun;
+  ocv_gl_renderer_free(rp);
   ocv_gl_renderer_set_map(r, 1);
   ocv_gl_renderer_set_variants(r, 1);
   if (rc == OC_EXIT_OK) {
@@ -130,7 +151,7 @@ static int bench_gl(const oc_state_t *st, const oc_scene_t *sc, oc_camera_t cam,
       printf("| %s | %.3f | %.3f | %.2f | %.3f | ", cf[c].label, best[c], (double)w * h / best[c] * 1e-6, cpu1 / best[c],
              best[c] / best[0]);
       if (c == 0) printf("%.3f |\n", sqrt(se / (double)n));
-      else printf(cf[c].legacy ? "(the other model) |\n" : "(same image) |\n");
+      else printf(cf[c].legacy ? "(the other model) |\n" : cf[c].pass ? "(the sun an ulp apart) |\n" : "(same image) |\n");
     }
     free(a);
     free(b);
@@ -144,13 +165,6 @@ out:
   return rc;
 }
 #endif
-
-typedef struct {
-  const char *scene, *camera, *png;
-  int size[2], repeat, gl;
-  oct_list_t threads;
-  double step, time;
-} render_opts_t;
 
 /* --gl: a flag that builds without GL refuse. */
 static int opt_gl(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
@@ -177,6 +191,8 @@ static const oc_cli_opt_t render_opts[] = {
     OCT_DBL(render_opts_t, step, "step-factor", "X", 1e-3, 1e3, "0.5", "step × voxel spacing"),
     OCT_OPT_TIME(render_opts_t),
     OCT_STR(render_opts_t, png, "png", "FILE", "also write the first thread count's image"),
+    OCT_INT(render_opts_t, ground_map, "ground-map", "N", -1, 4096, "512",
+            "the ground shadow map's texels a side; -1: none, the ground reads the coarser shadow volume"),
     {.name = "gl", .type = OC_CLI_CUSTOM, .parse = opt_gl, .offset = offsetof(render_opts_t, gl),
      .help = "also time the GL compute renderer (headless EGL) on the same state and give its RMSE against the "
              "CPU image"},
@@ -250,7 +266,7 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
   double base = 0.0;
   for (int i = 0; i < o.threads.n; i++) {
     long threads = o.threads.v[i];
-    oc_render_desc_t d = render_desc(&sc, cam, w, h, step, atmo);
+    oc_render_desc_t d = render_desc(&sc, cam, &o, atmo);
     d.threads = (int)threads;
     if (oc_image_alloc(&img, w, h) < 0) return oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
     double best = 1e30;
@@ -277,9 +293,9 @@ int oct_bench_render(const char *prog, int argc, char **argv) {
     printf("| %ld | %.3f | %llu | %.2f | %.3f | %.2f | %s |\n", threads, best, (unsigned long long)rs.samples,
            rs.samples / best * 1e-6, (double)w * h / best * 1e-6, base / best, same);
   }
-  if (rc == OCT_GO) rc = bench_models(prog, &st, render_desc(&sc, cam, w, h, step, atmo), repeat);
+  if (rc == OCT_GO) rc = bench_models(prog, &st, render_desc(&sc, cam, &o, atmo), repeat);
 #ifdef OC_HAVE_GL
-  if (o.gl && rc == OC_EXIT_OK) rc = bench_gl(&st, &sc, cam, w, h, step, atmo, repeat, &ref, base);
+  if (o.gl && rc == OC_EXIT_OK) rc = bench_gl(&st, &sc, cam, &o, atmo, &ref, base);
 #endif
   oc_image_free(&ref);
   oc_atmo_free(atmo);
