@@ -401,7 +401,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
     int cloudy = lf.n && lf.n->range[OC_CH_SIGMA].hi > 0.0f;
     double te = t1;
     if (lf.n) te = fmin(te, t + fmax(oc__node_exit(&lf, p, dir), OC__LOCATE_EPS));
-    if (cloudy) te = fmin(te, t + d->step_factor * lf.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0));
+    if (cloudy) te = fmin(te, ocg_march_step_end(t, d->step_factor * lf.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0)));
     else if (lf.n) st->skipped_nodes++;
     if (cx->have_atmo) te = fmin(te, t + oc__air_step(cx, p, dir, air_step));
     else if (t < thin1) te = fmin(te, t < thin0 ? thin0 : fmin(thin1, t + air_step));

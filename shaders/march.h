@@ -156,6 +156,17 @@ OC_INLINE ocg_real ocg_march_air_step(ocg_real h, ocg_real mu_z, ocg_real air_st
   return ocg_min(air_step, ocg_max(lim, air_step / OCG_R(16.0)));
 }
 
+/* The end of a cloud segment that starts t metres along the ray in a leaf whose step is h: the next
+ * multiple of h along the ray, at least 1 % of a step on (the leaf's face may end it sooner). The
+ * sample planes are then spheres about the camera shared by all leaves of one level (and, steps being
+ * powers of two apart, by the coarser ones), not a grid restarted at each leaf's entry face: a grid per
+ * leaf put each leaf's quadrature error on its own phase, and that error jumped across the leaves'
+ * faces, drawn as diamond-shaped seams where coarse leaves meet at the horizon (the octree's faces
+ * cross the view obliquely). docs/numerics.md, "Sample planes shared across leaves". */
+OC_INLINE ocg_real ocg_march_step_end(ocg_real t, ocg_real h) {
+  return ocg_max((ocg_floor(t / h + OCG_R(0.01)) + OCG_R(1.0)) * h, t + OCG_R(0.01) * h); /* the max: rounding */
+}
+
 /* ---- Cloud sources: radiance scattered toward the camera per metre ------------------------------------
  * A cloud sample sees three lights. Single scattering is exact given the τ channel; multiple
  * scattering and the sky are modelled:

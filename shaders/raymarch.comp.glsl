@@ -454,7 +454,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
     }
     float te = t1;
     if (has) te = min(te, t + max(ocv_node_exit(box, p, dir), eps));
-    if (cloudy) te = min(te, t + u_step_factor * box.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0));
+    if (cloudy) te = min(te, ocg_march_step_end(t, u_step_factor * box.size / 7.0 * (chord ? OCG_MS_CHORD_STEP : 1.0)));
     if (OCV_ATMO) te = min(te, t + ocv_air_step(b, t, air_step));
     te = max(te, t + eps);
     float seg = te - t;

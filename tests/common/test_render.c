@@ -480,6 +480,46 @@ static void test_render__ground_map_places_shadows(void **st) {
   oc_state_free(&s);
 }
 
+/* The error of a cloud segment's quadrature follows where its sample planes lie. The march puts them at
+ * multiples of the step along the ray (shaders/march.h, ocg_march_step_end); a grid restarted at each
+ * leaf's entry face set each ray's phase by the face it came through, so where coarse leaves are seen
+ * obliquely the error drew their faces (diamond-shaped seams at the horizon). The slab of shadow_state
+ * (τ 2 across 1 km, in 12.6 km leaves: steps of 900 m) seen from 8 km up, 25° above the horizon, at the
+ * default step factor against 1/25 of it. @return the RMSE of G over the reference's mean G. */
+static double step_plane_error(const oc_state_t *s) {
+  oc_camera_pose_t pose = {{0.0, 0.0, 8000.0}, 200.0, 25.0, 40.0};
+  oc_render_desc_t d = {.width = 64, .height = 36, .camera = oc_camera_from_pose(pose), .atmo = atmo(), .threads = 2};
+  oc_image_t a, b;
+  assert_int_equal(oc_image_alloc(&a, d.width, d.height), 0);
+  assert_int_equal(oc_image_alloc(&b, d.width, d.height), 0);
+  assert_int_equal(oc_render_state(s, &d, &a, NULL), 0);
+  d.step_factor = 0.02;
+  assert_int_equal(oc_render_state(s, &d, &b, NULL), 0);
+  double se = 0.0, mean = 0.0;
+  int n = d.width * d.height;
+  for (int i = 0; i < n; i++) {
+    double e = (double)a.px[4 * i + 1] - b.px[4 * i + 1];
+    se += e * e;
+    mean += b.px[4 * i + 1];
+  }
+  oc_image_free(&a);
+  oc_image_free(&b);
+  return sqrt(se / n) / (mean / n);
+}
+
+/* Against the same march with the grid restarted at each leaf's face (the rule before, measured when
+ * this test was written): 1.19 % there, 0.86 % with the shared planes; bound 1 %. */
+static void test_render__step_planes_shared_across_leaves(void **st) {
+  (void)st;
+  oc_state_t s;
+  shadow_state(&s, 2.0 / (SHADOW_TOP - SHADOW_BASE));
+  double e = step_plane_error(&s);
+  printf("step planes: RMSE against 1/25 of the step, %.3f %% of the mean\n", 100.0 * e);
+  oc_report("render", "cloud quadrature error, oblique coarse leaves (relative RMSE)", e, 0.01, "ratio");
+  assert_true(e < 0.01);
+  oc_state_free(&s);
+}
+
 /* Data with NaN, ±Inf and negative extinction: sanitised (and counted) before it reaches a brick,
  * so the integral stays finite and transmittance stays in [0, 1]. */
 static double bad_data(void *ctx, oc_dvec3 p) {
@@ -612,6 +652,7 @@ int main(void) {
       cmocka_unit_test(test_render__cloud_shadows_air_and_ground),
       cmocka_unit_test(test_render__coarse_leaf_tau_gives_way),
       cmocka_unit_test(test_render__ground_map_places_shadows),
+      cmocka_unit_test(test_render__step_planes_shared_across_leaves),
       cmocka_unit_test(test_render__bad_data_sanitised),
       cmocka_unit_test(test_render__rejects_bad_descriptions),
   };
