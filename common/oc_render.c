@@ -293,7 +293,7 @@ static int oc__shadow_build(oc__ctx_t *cx) {
   if (f->n[0] == 0) return 0;
   cx->shadow = oc__shadow_texels((size_t)f->n[0] * (size_t)f->n[1] * (size_t)f->n[2]);
   if (!cx->shadow) return OC_ENOMEM;
-  if (f->ground_n == 0) return 0;
+  if (f->ground_n == 0 || !(cx->ground_r > 0.0)) return 0; /* no ground (thin air over no planet): no map */
   float gc = (float)f->ground_cell;
   cx->gg = (ocg_shadow_grid){ocg_v3((float)f->lo[0], (float)f->lo[1], 0.0f), ocg_v3(gc, gc, 1.0f), f->ground_n, f->ground_n, 1};
   cx->ground = oc__shadow_texels((size_t)f->ground_n * (size_t)f->ground_n);
