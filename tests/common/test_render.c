@@ -439,10 +439,10 @@ static double ground_shadow_misses(const oc_state_t *s, const ocs_medium_t *m, i
   for (int y = 0; y < d.height; y++)
     for (int x = 0; x < d.width; x++) {
       const float *px = img.px + 4 * (y * d.width + x);
+      if (px[3] < 1.0f) continue;
       oc_dvec3 o = d.camera.pos, dir = oc_camera_ray(&d.camera, d.width, d.height, x, y);
       double b = oc_ddot(o, dir), c = oc_ddot(o, o) - OC_PLANET_RADIUS * OC_PLANET_RADIUS;
-      oc_dvec3 g = oc_dmad(o, dir, -b - sqrt(b * b - c)); /* the ground point */
-      if (px[3] < 1.0f) continue;
+      oc_dvec3 g = oc_dmad(o, dir, -b - sqrt(b * b - c)); /* the ground point (the view looks straight down) */
       double tau = ocs_medium_tau_sun(m, g, s->sun_dir);
       int truth = tau > 0.7, dark = px[1] < 0.5 * (lo + hi); /* e^{-τ} < ½ */
       wrong += truth != dark;
