@@ -18,6 +18,7 @@
 #include "voxelize.h"
 #include "optics.h"
 #include "report.h"
+#include "test_util.h" /* FULL, SIZE */
 
 /* A sphere of radius 2 km at 3 km altitude, σt 0.05 m⁻¹, voxelized to level 15 (395 m nodes). */
 static ocs_medium_t sphere_medium(double sigma) {
@@ -485,15 +486,17 @@ static void test_render__ground_map_places_shadows(void **st) {
  * leaf's entry face set each ray's phase by the face it came through, so where coarse leaves are seen
  * obliquely the error drew their faces (diamond-shaped seams at the horizon). The slab of shadow_state
  * (τ 2 across 1 km, in 12.6 km leaves: steps of 900 m) seen from 8 km up, 25° above the horizon, at the
- * default step factor against 1/25 of it. @return the RMSE of G over the reference's mean G. */
+ * default step factor against 1/25 of it (sanitised builds: 1/5, at a quarter of the pixels). @return the
+ * RMSE of G over the reference's mean G. */
 static double step_plane_error(const oc_state_t *s) {
   oc_camera_pose_t pose = {{0.0, 0.0, 8000.0}, 200.0, 25.0, 40.0};
-  oc_render_desc_t d = {.width = 64, .height = 36, .camera = oc_camera_from_pose(pose), .atmo = atmo(), .threads = 2};
+  oc_render_desc_t d = {.width = SIZE(64, 32), .height = SIZE(36, 18), .camera = oc_camera_from_pose(pose), .atmo = atmo(),
+                        .threads = 2};
   oc_image_t a, b;
   assert_int_equal(oc_image_alloc(&a, d.width, d.height), 0);
   assert_int_equal(oc_image_alloc(&b, d.width, d.height), 0);
   assert_int_equal(oc_render_state(s, &d, &a, NULL), 0);
-  d.step_factor = 0.02;
+  d.step_factor = SIZE(0.02, 0.1);
   assert_int_equal(oc_render_state(s, &d, &b, NULL), 0);
   double se = 0.0, mean = 0.0;
   int n = d.width * d.height;
@@ -508,15 +511,16 @@ static double step_plane_error(const oc_state_t *s) {
 }
 
 /* Against the same march with the grid restarted at each leaf's face (the rule before, measured when
- * this test was written): 1.19 % there, 0.86 % with the shared planes; bound 1 %. */
+ * this test was written): 1.19 % there, 0.86 % with the shared planes; bound 1 %. The bound holds for the
+ * full workload; sanitised builds run the same paths and check only that the error is small. */
 static void test_render__step_planes_shared_across_leaves(void **st) {
   (void)st;
   oc_state_t s;
   shadow_state(&s, 2.0 / (SHADOW_TOP - SHADOW_BASE));
   double e = step_plane_error(&s);
-  printf("step planes: RMSE against 1/25 of the step, %.3f %% of the mean\n", 100.0 * e);
+  printf("step planes: RMSE against 1/%d of the step, %.3f %% of the mean\n", SIZE(25, 5), 100.0 * e);
   oc_report("render", "cloud quadrature error, oblique coarse leaves (relative RMSE)", e, 0.01, "ratio");
-  assert_true(e < 0.01);
+  assert_true(FULL ? e < 0.01 : e < 0.05);
   oc_state_free(&s);
 }
 
