@@ -522,7 +522,7 @@ ocv_gl_history_t *ocv_gl_history_create(int w, int h, char *why, size_t why_len)
     (void)oc_errorf(0, why, why_len, "out of memory");
     return NULL;
   }
-  size_t n = (size_t)w * (size_t)h, have;
+  size_t n = (size_t)w * (size_t)h, have = 0; /* each buffer is new: *have is not read */
   hs->w = w;
   hs->h = h;
   hs->newest = -1;

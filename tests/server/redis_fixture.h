@@ -49,6 +49,7 @@ static inline int redis_port_open(int port) {
 
 /* Starts redis-server on `port` (0: a free one); waits until it accepts connections. */
 static inline int redis_start(redis_proc_t *p, int port) {
+  p->pid = 0; /* nothing to stop if it fails before the fork */
   p->port = port > 0 ? port : redis_free_port();
   if (p->port <= 0) return -1;
   char ports[16];
