@@ -41,9 +41,7 @@ static const oc_cli_opt_t look_opts[] = {
             "the sun as seen from each camera, degrees (default: the scene's sun; its direction is the planet's, "
             "so it moves with the camera)"),
     OCT_STR(look_opts_t, png, "png", "PREFIX", "also write each camera's image as PREFIX<i>.png"),
-    OCT_INT(look_opts_t, ground_map, "ground-map", "N", -1, 4096, "512",
-            "the ground shadow map's texels a side (shadows on the ground); -1: none, the ground reads the "
-            "coarser shadow volume (for comparison)"),
+    OCT_OPT_GROUND_MAP(look_opts_t),
     OCT_OPTS_END};
 
 OCT_SPEC(look,

@@ -191,8 +191,7 @@ static const oc_cli_opt_t render_opts[] = {
     OCT_DBL(render_opts_t, step, "step-factor", "X", 1e-3, 1e3, "0.5", "step × voxel spacing"),
     OCT_OPT_TIME(render_opts_t),
     OCT_STR(render_opts_t, png, "png", "FILE", "also write the first thread count's image"),
-    OCT_INT(render_opts_t, ground_map, "ground-map", "N", -1, 4096, "512",
-            "the ground shadow map's texels a side; -1: none, the ground reads the coarser shadow volume"),
+    OCT_OPT_GROUND_MAP(render_opts_t),
     {.name = "gl", .type = OC_CLI_CUSTOM, .parse = opt_gl, .offset = offsetof(render_opts_t, gl),
      .help = "also time the GL compute renderer (headless EGL) on the same state and give its RMSE against the "
              "CPU image"},

@@ -99,6 +99,20 @@ int oct_opt_size(const char *p, const oc_cli_opt_t *o, const char *text, void *b
   return oc_cli_size(p, opt, text, &wh[0], &wh[1]);
 }
 
+int oct_opt_ground_map(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
+  int *n = oc_cli_field(o, base);
+  char opt[80];
+  long v;
+  snprintf(opt, sizeof opt, "--%s", o->name);
+  if (oc_cli_int(p, opt, text, -1, 4096, &v) < 0) return -1;
+  if (v == 0 || v == 1) { /* 0 would mean the default to the renderer, 1 texel is no map */
+    oc_cli_fail(p, 0, "%s: %ld is neither -1 nor in [2, 4096]", opt, v);
+    return -1;
+  }
+  *n = (int)v;
+  return 0;
+}
+
 int oct_opt_renderer(const char *p, const oc_cli_opt_t *o, const char *text, void *base) {
   int *gl = oc_cli_field(o, base);
   if (strcmp(text, "cpu") && strcmp(text, "gl")) {

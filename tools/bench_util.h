@@ -50,6 +50,10 @@ int oct_opt_size(const char *prog, const oc_cli_opt_t *o, const char *text, void
  *  renderer. */
 int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
 
+/*! oct_opt_ground_map() : the ground shadow map's texels a side into an int: −1 (none) or what
+ *  oc_render_desc_t.shadow_ground_cells accepts, so a bad value fails before any epoch is made. */
+int oct_opt_ground_map(const char *prog, const oc_cli_opt_t *o, const char *text, void *base);
+
 /* A table's rows of the common kinds, one option each: T is the subcommand's options struct and f
  * the option's field in it; lo, hi the inclusive range, def the default as an argument would be
  * written (NULL: none), help one sentence. Rows of other kinds are written out. */
@@ -90,6 +94,12 @@ int oct_opt_renderer(const char *prog, const oc_cli_opt_t *o, const char *text, 
    .def_note = "the scene camera", .help = "centre of the block, in degrees"},                                   \
       OCT_DBL(T, alt, "alt", "M", -1e4, 1e5, "2000", "altitude of the block's centre in metres")
 #define OCT_OPT_TIME(T) OCT_DBL(T, time, "time", "T", -1e12, 1e12, "0", "world time in seconds")
+/* --ground-map N: an int ground_map (oct_opt_ground_map()) */
+#define OCT_OPT_GROUND_MAP(T)                                                                                    \
+  {.name = "ground-map", .type = OC_CLI_CUSTOM, .parse = oct_opt_ground_map, .offset = offsetof(T, ground_map),  \
+   .arg = "N", .def = "512",                                                                                     \
+   .help = "the ground shadow map's texels a side, 2..4096 (shadows on the ground); -1: none, the ground reads "  \
+           "the coarser shadow volume (for comparison)"}
 /* A block of block³ nodes at each of some octree levels, around a place, at a time: the fields a
  * subcommand's options struct takes for OCT_OPTS_BLOCK (its rows: --scene, the levels' list option,
  * --block, --at, --alt, --time); oct_block_centre() is the place. */

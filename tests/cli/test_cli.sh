@@ -176,6 +176,10 @@ check "bench: sweep, unknown option" 2 "sweep: unknown or incomplete option \"--
 check "bench: sweep, bad budget list" 2 "--budgets: expected a finite number, got \"x\"" -- "$B" sweep --budgets 4,x
 check "bench: sweep, hardware filtering" 2 "--reconstruction hardware: not available" -- "$B" sweep --reconstruction hardware
 check "bench: truth, bad tau" 2 "--tau: 0 is outside" -- "$B" truth --tau 0
+# a ground map of 1 texel (or 0, the renderer's "default") fails at once, not after the epochs
+check "bench: look, one-texel ground map" 2 "^overcast-bench look: --ground-map: 1 is neither -1 nor in \\[2, 4096\\]$" -- "$B" look --ground-map 1
+check "bench: render, zero ground map" 2 "--ground-map: 0 is neither -1 nor in" -- "$B" render --ground-map 0
+check "bench: look, ground map too large" 2 "--ground-map: 5000 is outside \\[-1, 4096\\]" -- "$B" look --ground-map 5000
 check "bench: truth, bad size" 2 "--size: expected WxH" -- "$B" truth --size 12
 check "bench: truth, negative air" 2 "--air-sigma: -1 is outside" -- "$B" truth --air-sigma -1
 check "bench: model, five fit numbers" 2 "--fit wants 6 comma-separated numbers" -- "$B" model --fit 1,2,3,4,5 x.txt
