@@ -215,7 +215,8 @@ int oc_render_shadow_frame(const oc_render_desc_t *desc, oc_dvec3 camera, double
   if (levels < 2 || levels > 1024) return oc__bad("shadow_levels [2, 1024]");
   if ((double)cells * cells * levels > (double)(1 << 26)) return oc__bad("shadow_cells² × shadow_levels (at most 2^26)");
   int gcells = desc->shadow_ground_cells ? desc->shadow_ground_cells : OC_RENDER_DEFAULT_SHADOW_GROUND_CELLS;
-  if (gcells != -1 && (gcells < 2 || gcells > 4096)) return oc__bad("shadow_ground_cells [2, 4096] or -1");
+  if (gcells != -1 && (gcells < OC_RENDER_SHADOW_GROUND_CELLS_MIN || gcells > OC_RENDER_SHADOW_GROUND_CELLS_MAX))
+    return oc__bad("shadow_ground_cells [2, 4096] or -1");
   if ((desc->flags & OC_RF_NO_CLOUD_SHADOW) || !(ground_r > 0.0) || !(oc_dlen(camera) > 0.0)) return 0;
   oc_enu_t e = oc_enu_at(camera);
   double half = 0.5 * ext, drop = half * half / ground_r; /* the ground at a corner of the grid: (2·half²)/(2R) below */

@@ -40,6 +40,8 @@
 #define OC_RENDER_DEFAULT_SHADOW_LEVELS 24      /**< texels from the ground to its top */
 #define OC_RENDER_DEFAULT_SHADOW_TOP 12000.0    /**< m, its top: air above it is unshadowed */
 #define OC_RENDER_DEFAULT_SHADOW_GROUND_CELLS 512 /**< the ground map's texels along each edge (shadow.h) */
+#define OC_RENDER_SHADOW_GROUND_CELLS_MIN 2       /**< the fewest and most it may have (-1: none) */
+#define OC_RENDER_SHADOW_GROUND_CELLS_MAX 4096
 /* Thin homogeneous air (air_sigma, with no atmosphere): the shell from the planet radius up to this. */
 #define OC_RENDER_DEFAULT_AIR_TOP 12000.0       /**< m above OC_PLANET_RADIUS */
 #define OC_RENDER_MAX_AIR_SIGMA 1e-3            /**< m⁻¹: τ 1 per km; "thin" means far less */

@@ -104,9 +104,10 @@ int oct_opt_ground_map(const char *p, const oc_cli_opt_t *o, const char *text, v
   char opt[80];
   long v;
   snprintf(opt, sizeof opt, "--%s", o->name);
-  if (oc_cli_int(p, opt, text, -1, 4096, &v) < 0) return -1;
-  if (v == 0 || v == 1) { /* 0 would mean the default to the renderer, 1 texel is no map */
-    oc_cli_fail(p, 0, "%s: %ld is neither -1 nor in [2, 4096]", opt, v);
+  if (oc_cli_int(p, opt, text, -1, OC_RENDER_SHADOW_GROUND_CELLS_MAX, &v) < 0) return -1;
+  if (v != -1 && v < OC_RENDER_SHADOW_GROUND_CELLS_MIN) { /* 0 would mean the renderer's default */
+    oc_cli_fail(p, 0, "%s: %ld is neither -1 nor in [%d, %d]", opt, v, OC_RENDER_SHADOW_GROUND_CELLS_MIN,
+                OC_RENDER_SHADOW_GROUND_CELLS_MAX);
     return -1;
   }
   *n = (int)v;

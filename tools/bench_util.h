@@ -94,11 +94,14 @@ int oct_opt_ground_map(const char *prog, const oc_cli_opt_t *o, const char *text
    .def_note = "the scene camera", .help = "centre of the block, in degrees"},                                   \
       OCT_DBL(T, alt, "alt", "M", -1e4, 1e5, "2000", "altitude of the block's centre in metres")
 #define OCT_OPT_TIME(T) OCT_DBL(T, time, "time", "T", -1e12, 1e12, "0", "world time in seconds")
-/* --ground-map N: an int ground_map (oct_opt_ground_map()) */
+/* --ground-map N: an int ground_map (oct_opt_ground_map()); its default and range are the renderer's */
+#define OCT__STR(x) #x
+#define OCT__XSTR(x) OCT__STR(x)
 #define OCT_OPT_GROUND_MAP(T)                                                                                    \
   {.name = "ground-map", .type = OC_CLI_CUSTOM, .parse = oct_opt_ground_map, .offset = offsetof(T, ground_map),  \
-   .arg = "N", .def = "512",                                                                                     \
-   .help = "the ground shadow map's texels a side, 2..4096 (shadows on the ground); -1: none, the ground reads "  \
+   .arg = "N", .def = OCT__XSTR(OC_RENDER_DEFAULT_SHADOW_GROUND_CELLS),                                         \
+   .help = "the ground shadow map's texels a side, " OCT__XSTR(OC_RENDER_SHADOW_GROUND_CELLS_MIN) ".."             \
+           OCT__XSTR(OC_RENDER_SHADOW_GROUND_CELLS_MAX) " (shadows on the ground); -1: none, the ground reads "   \
            "the coarser shadow volume (for comparison)"}
 /* A block of block³ nodes at each of some octree levels, around a place, at a time: the fields a
  * subcommand's options struct takes for OCT_OPTS_BLOCK (its rows: --scene, the levels' list option,
