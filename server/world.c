@@ -82,8 +82,17 @@ typedef struct {
   oc_key_t group; /* tau: the volume's group (ocs_tau_group_of) */
   uint64_t ts;    /* σt: the step */
   double time;    /* σt: an instant in it */
+  double due;     /* the world time at which what it makes comes due */
+  double cpu;     /* what making it took (0: found made, or not made) */
   int tau;
 } ahead_t;
+
+/* What ahead made for a time still to come, and what it took: the stock it keeps (the stats'
+ * ahead_cpu_stock). */
+typedef struct {
+  double due, cpu;
+  int tau;
+} stock_t;
 
 /* A produced brick as the cache keeps it: codes only when kind is OC_NODE_BRICK. */
 typedef struct {
@@ -212,6 +221,9 @@ struct ocs_world_s {
   prod_t ahead_at[OC_KEY_MAX_LEVEL + 1]; /* the world at light_t[l], what its τ volumes read */
   ahead_t *ahead;
   size_t nahead, ahead_cap;
+  stock_t *stock; /* made ahead and not yet due (pruned as world time passes their due times) */
+  size_t nstock, stock_cap;
+  double ahead_now; /* the world time ahead_collect() chose for (ahead_run() may run beside a tick) */
   uint64_t field_gen;
   uint64_t epoch;
   ocs_clock_t clock; /* the control history: world time from the instant */
@@ -259,6 +271,8 @@ struct ocs_world_s {
   _Atomic uint64_t tau_kept;                  /* τ volumes kept from the light stamp before (tau_volume_keep) */
   _Atomic uint64_t sigma_kept;                /* σt kept from the node's step before (sigma_keep) */
   _Atomic double ahead_cpu, ahead_cpu_empty; /* producer-thread seconds on them */
+  _Atomic uint64_t stock_sigma, stock_tau;   /* the stock after the last ahead_run(): items, */
+  _Atomic double stock_cpu;                  /* and the seconds they took */
   FILE *trace; /* OCS_BRICK_TRACE (trace_made): the timers' intervals, to check against perf */
   pthread_mutex_t trace_mu;
   _Atomic int last_error;
@@ -874,6 +888,7 @@ void ocs_world_free(ocs_world_t *w) {
   free(w->wish);
   free(w->queue);
   free(w->ahead);
+  free(w->stock);
   ocs_pool_free(w->pool);
   ocs_pool_free(w->tick_pool);
   pthread_mutex_destroy(&w->tick_mu); /* calloc'd zeros are glibc's static initialiser, also before init */
@@ -1775,9 +1790,10 @@ static int ahead_candidates(ocs_world_t *w) {
       if (l < 0 || !(nd->range[0].hi > 0.0f)) continue;
       if (w->ahead_in[l]) /* a node's σt whose own step does not move with the level's is found cached */
         OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .ts = ocs_field_node_step(w->field, nd->key, w->ahead_t[l]),
-                                       .time = w->ahead_t[l]}));
+                                       .time = w->ahead_t[l], .due = w->ahead_t[l]}));
       if (w->shadows && w->light_in[l])
-        OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .group = ocs_tau_group_of(&w->tau, nd->key), .tau = 1}));
+        OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .group = ocs_tau_group_of(&w->tau, nd->key),
+                                       .due = w->light_t[l], .tau = 1}));
     }
   }
   return 0;
@@ -1787,6 +1803,7 @@ static int ahead_candidates(ocs_world_t *w) {
  * ceil(missing / epochs left). Runs while the world is idle (it reads the held states). */
 static int ahead_collect(ocs_world_t *w) {
   w->nahead = 0;
+  w->ahead_now = w->time;
   if (w->ahead_off) return 0;
   OC_TRY(ahead_candidates(w));
   if (w->nahead) qsort(w->ahead, w->nahead, sizeof *w->ahead, cmp_ahead);
@@ -1815,10 +1832,11 @@ typedef struct {
   double deadline; /* none is started that is expected to end after it (0: none) */
 } ahead_run_t;
 
-static void ahead_make_sigma(ocs_world_t *w, const ahead_t *x, double c0) {
+static void ahead_make_sigma(ocs_world_t *w, ahead_t *x, double c0) {
   float s[OC_BRICK_VOXELS];
   if (sigma_entry(w, x->key, x->ts, x->time, s) <= 0) return; /* found, or failed: made when due */
   double took = now_s() - c0;
+  x->cpu = took;
   int any = 0;
   for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= s[j] > 0.0f;
   trace_interval(w, thread_id(), c0, c0 + took, !any);
@@ -1830,7 +1848,7 @@ static void ahead_make_sigma(ocs_world_t *w, const ahead_t *x, double c0) {
   }
 }
 
-static void ahead_make_tau(ocs_world_t *w, const ahead_t *x, double c0) {
+static void ahead_make_tau(ocs_world_t *w, ahead_t *x, double c0) {
   ocs_cache_entry_t *e;
   int built = 0;
   if (tau_volume_acquire(&w->ahead_at[oc_key_level(x->key)], x->key, 1, &e, &built) < 0) return;
@@ -1838,6 +1856,7 @@ static void ahead_make_tau(ocs_world_t *w, const ahead_t *x, double c0) {
   if (!built) return;
   atomic_fetch_add(&w->ahead_tau, 1);
   double now = now_s();
+  x->cpu = now - c0;
   atomic_add_double(&w->ahead_cpu, now - c0);
   trace_interval(w, thread_id(), c0, now, 0);
 }
@@ -1846,7 +1865,7 @@ static int ahead_one(void *ctx, size_t i, int worker) {
   (void)worker;
   const ahead_run_t *a = ctx;
   ocs_world_t *w = a->w;
-  const ahead_t *x = &w->ahead[i];
+  ahead_t *x = &w->ahead[i];
   double c0 = now_s();
   if (a->deadline > 0 && c0 + atomic_load(&w->cost[oc_key_level(x->key)][x->tau]) > a->deadline) return 0;
   if (x->tau) ahead_make_tau(w, x, c0);
@@ -1854,11 +1873,40 @@ static int ahead_one(void *ctx, size_t i, int worker) {
   return 0;
 }
 
-/* Makes ahead_collect()'s share on the producer pool (best effort: what fails is made when due). */
+/* The stock: what ahead made that is not due yet at world time t (earlier entries are dropped). */
+static void stock_prune(ocs_world_t *w, double t) {
+  size_t m = 0;
+  for (size_t i = 0; i < w->nstock; i++)
+    if (w->stock[i].due > t) w->stock[m++] = w->stock[i];
+  w->nstock = m;
+}
+
+/* The stock's sums for the stats (atomics: a clocked server reads its stats beside production). */
+static void stock_sums(ocs_world_t *w) {
+  uint64_t n[2] = {0, 0};
+  double cpu = 0.0;
+  for (size_t i = 0; i < w->nstock; i++) n[w->stock[i].tau != 0]++, cpu += w->stock[i].cpu;
+  atomic_store(&w->stock_sigma, n[0]);
+  atomic_store(&w->stock_tau, n[1]);
+  atomic_store(&w->stock_cpu, cpu);
+}
+
+/* Makes ahead_collect()'s share on the producer pool (best effort: what fails is made when due),
+ * and adds what it made to the stock. */
 static void ahead_run(ocs_world_t *w, double deadline) {
   if (!w->nahead) return;
   ahead_run_t a = {w, deadline};
+  for (size_t i = 0; i < w->nahead; i++) w->ahead[i].cpu = 0.0;
   ocs_pool_run(w->pool, w->nahead, ahead_one, &a);
+  stock_prune(w, w->ahead_now);
+  for (size_t i = 0; i < w->nahead; i++) {
+    if (!(w->ahead[i].cpu > 0.0)) continue;
+    stock_t *st = oc_grow(w->stock, &w->stock_cap, w->nstock, sizeof *st, 256);
+    if (!st) break; /* the stock is a statistic: it just stops growing */
+    w->stock = st;
+    w->stock[w->nstock++] = (stock_t){w->ahead[i].due, w->ahead[i].cpu, w->ahead[i].tau};
+  }
+  stock_sums(w);
   w->nahead = 0;
 }
 
@@ -2218,6 +2266,9 @@ void ocs_world_stats(const ocs_world_t *w, ocs_world_stats_t *out) {
                              .sigma_kept = w->sigma_kept,
                              .ahead_cpu = w->ahead_cpu,
                              .ahead_cpu_empty = w->ahead_cpu_empty,
+                             .ahead_stock_sigma = w->stock_sigma,
+                             .ahead_stock_tau = w->stock_tau,
+                             .ahead_cpu_stock = w->stock_cpu,
                              .last_error = w->last_error,
                              .last_error_key = w->last_error_key};
   for (int l = 0; l <= OC_KEY_MAX_LEVEL; l++) {

@@ -112,6 +112,11 @@ typedef struct {
                                   (ocs_field_same_samples; in sigma_produced) */
   double ahead_cpu;          /**< seconds producer threads spent on both (not in brick_cpu) */
   double ahead_cpu_empty;    /**< of that, on the all-zero ones */
+  uint64_t ahead_stock_sigma; /**< of ahead_sigma, those made for a time step not due yet (world time
+                                   before it): the stock ahead keeps, not in any brick made so far */
+  uint64_t ahead_stock_tau;  /**< likewise of ahead_tau, for a light stamp not due yet */
+  double ahead_cpu_stock;    /**< of ahead_cpu, what the stock took: a run that stops now spent it on
+                                  no brick it made */
   int last_error;            /**< the last failure's OC_E* and brick */
   oc_key_t last_error_key;
   ocs_hist_view_t brick_seconds; /**< what each brick made took (wall s on its producer thread) */
