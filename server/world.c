@@ -637,20 +637,24 @@ static int thread_id(void) {
 }
 
 /* OCS_BRICK_TRACE=FILE: one line per interval the wasted-work timers count, "<tid> <start> <end>
- * <wasted>" (CLOCK_MONOTONIC seconds, the timers' clock, which `perf record -k CLOCK_MONOTONIC`
- * stamps its samples with), so that scripts/waste_perf.sh can attribute perf's samples to them. */
-static void trace_interval(ocs_world_t *w, int tid, double t0, double t1, int wasted) {
+ * <wasted> <due>" (CLOCK_MONOTONIC seconds, the timers' clock, which `perf record -k
+ * CLOCK_MONOTONIC` stamps its samples with), so that scripts/waste_perf.sh can attribute perf's
+ * samples to them. due: the world time an ahead item's content comes due, "-" for a brick made
+ * for its epoch; the world's last line, "now <world time>", tells which were still stock. */
+static void trace_interval(ocs_world_t *w, int tid, double t0, double t1, int wasted, double due) {
   if (!w->trace) return;
+  char d[32] = "-";
+  if (isfinite(due)) snprintf(d, sizeof d, "%.9f", due);
   pthread_mutex_lock(&w->trace_mu);
-  fprintf(w->trace, "%d %.9f %.9f %d\n", tid, t0, t1, wasted);
+  fprintf(w->trace, "%d %.9f %.9f %d %s\n", tid, t0, t1, wasted, d);
   pthread_mutex_unlock(&w->trace_mu);
 }
 
 /* A made brick's intervals, once it is known whether it is wasted. */
 static void trace_made(ocs_world_t *w, const req_t *q, double since, double now) {
   if (!w->trace) return;
-  if (q->pass0[1] > 0.0) trace_interval(w, q->pass0_tid, q->pass0[0], q->pass0[1], q->kind == OC_NODE_EMPTY);
-  trace_interval(w, thread_id(), since, now, q->kind == OC_NODE_EMPTY);
+  if (q->pass0[1] > 0.0) trace_interval(w, q->pass0_tid, q->pass0[0], q->pass0[1], q->kind == OC_NODE_EMPTY, NAN);
+  trace_interval(w, thread_id(), since, now, q->kind == OC_NODE_EMPTY, NAN);
 }
 
 /* What a made brick took on its producer thread (wall time: a thread's CPU clock is a system call,
@@ -893,7 +897,10 @@ void ocs_world_free(ocs_world_t *w) {
   ocs_pool_free(w->tick_pool);
   pthread_mutex_destroy(&w->tick_mu); /* calloc'd zeros are glibc's static initialiser, also before init */
   pthread_mutex_destroy(&w->share_mu);
-  if (w->trace) fclose(w->trace);
+  if (w->trace) {
+    fprintf(w->trace, "now %.9f\n", w->time); /* ahead's intervals due after it were its stock */
+    fclose(w->trace);
+  }
   pthread_mutex_destroy(&w->trace_mu);
   free(w->made);
   ocs_cache_free(w->cache);
@@ -1839,7 +1846,7 @@ static void ahead_make_sigma(ocs_world_t *w, ahead_t *x, double c0) {
   x->cpu = took;
   int any = 0;
   for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= s[j] > 0.0f;
-  trace_interval(w, thread_id(), c0, c0 + took, !any);
+  trace_interval(w, thread_id(), c0, c0 + took, !any, x->due);
   atomic_fetch_add(&w->ahead_sigma, 1);
   atomic_add_double(&w->ahead_cpu, took);
   if (!any) {
@@ -1858,7 +1865,7 @@ static void ahead_make_tau(ocs_world_t *w, ahead_t *x, double c0) {
   double now = now_s();
   x->cpu = now - c0;
   atomic_add_double(&w->ahead_cpu, now - c0);
-  trace_interval(w, thread_id(), c0, now, 0);
+  trace_interval(w, thread_id(), c0, now, 0, x->due);
 }
 
 static int ahead_one(void *ctx, size_t i, int worker) {

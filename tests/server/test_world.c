@@ -352,6 +352,37 @@ static void test_world__fair_share(void **st) {
   ocs_world_free(w);
 }
 
+/* An OCS_BRICK_TRACE file's sums (world.c, trace_interval): every interval's seconds, the wasted
+ * ones', and those of ahead's stock (due after the world time of the last line, "now T"). */
+typedef struct {
+  long lines, wasted;
+  double all, waste, stock;
+} trace_sums_t;
+
+static trace_sums_t trace_sums(const char *path) {
+  trace_sums_t t = {0};
+  FILE *f = fopen(path, "r");
+  assert_non_null(f);
+  char line[256], due[64];
+  double now = INFINITY, stock_due[4096], stock_s[4096];
+  long nstock = 0;
+  while (fgets(line, sizeof line, f)) {
+    int tid, wasted;
+    double t0, t1;
+    if (sscanf(line, "now %lf", &now) == 1) continue;
+    assert_int_equal(sscanf(line, "%d %lf %lf %d %63s", &tid, &t0, &t1, &wasted, due), 5);
+    assert_true(tid > 0 && t1 >= t0 && (wasted == 0 || wasted == 1));
+    t.all += t1 - t0, t.lines++;
+    if (wasted) t.waste += t1 - t0, t.wasted++;
+    if (strcmp(due, "-") != 0 && nstock < 4096) stock_due[nstock] = atof(due), stock_s[nstock++] = t1 - t0;
+  }
+  fclose(f);
+  assert_true(isfinite(now)); /* the world's last line */
+  for (long i = 0; i < nstock; i++)
+    if (stock_due[i] > now) t.stock += stock_s[i];
+  return t;
+}
+
 /* The planet's first epochs take minutes under AddressSanitizer; the gcc stage runs these. */
 #if defined(__SANITIZE_ADDRESS__)
 #define SKIP_PLANET_RUN_UNDER_ASAN()                                                                         \
@@ -396,7 +427,15 @@ static void test_world__ahead_same_states_and_used(void **st) {
   enum { EPOCHS = 40 };
   uint64_t on[EPOCHS], off[EPOCHS];
   ocs_world_stats_t a, b;
+  char path[] = "/tmp/oc_ahead_trace_XXXXXX";
+  int fd = mkstemp(path);
+  assert_true(fd >= 0);
+  close(fd);
+  assert_int_equal(setenv("OCS_BRICK_TRACE", path, 1), 0);
   planet_run_world(NULL, on, EPOCHS, &a);
+  unsetenv("OCS_BRICK_TRACE");
+  trace_sums_t t = trace_sums(path);
+  remove(path);
   planet_run_world("OCS_AHEAD", off, EPOCHS, &b);
   for (int e = 0; e < EPOCHS; e++)
     if (on[e] != off[e]) fail_msg("epoch %d: the state differs with ahead", e);
@@ -420,6 +459,9 @@ static void test_world__ahead_same_states_and_used(void **st) {
   assert_true(a.ahead_stock_sigma < a.ahead_sigma && used_tau + (double)a.ahead_stock_tau <= (double)a.ahead_tau);
   assert_true(used_tau + (double)a.ahead_stock_tau >= 0.95 * (double)a.ahead_tau - 2.0);
   assert_true(a.ahead_cpu_stock > 0.0 && a.ahead_cpu_stock < a.ahead_cpu);
+  /* the trace tells the same stock: its ahead intervals due after its last line's world time */
+  print_message("the trace's stock: %.6f s\n", t.stock);
+  assert_true(fabs(t.stock - a.ahead_cpu_stock) <= 2e-9 * (double)t.lines + 1e-9);
 }
 
 /* Content of a new stamp kept from the one before (world.c): a τ volume whose inputs give the
@@ -474,18 +516,10 @@ static void test_world__brick_trace_matches_timers(void **st) {
   assert_true(fd >= 0);
   close(fd);
   ocs_world_stats_t ws = traced_run(path, 2);
-  FILE *f = fopen(path, "r");
-  assert_non_null(f);
-  int tid, wasted;
-  double t0, t1, all = 0.0, waste = 0.0;
-  long lines = 0, nwasted = 0;
-  while (fscanf(f, "%d %lf %lf %d", &tid, &t0, &t1, &wasted) == 4) {
-    assert_true(tid > 0 && t1 >= t0 && (wasted == 0 || wasted == 1));
-    all += t1 - t0, lines++;
-    if (wasted) waste += t1 - t0, nwasted++;
-  }
-  fclose(f);
+  trace_sums_t t = trace_sums(path);
   remove(path);
+  long lines = t.lines, nwasted = t.wasted;
+  double all = t.all, waste = t.waste;
   double timers = ws.brick_cpu + ws.ahead_cpu, timers_waste = ws.brick_cpu_empty + ws.ahead_cpu_empty;
   printf("trace: %ld intervals (%ld wasted), %.6f s (%.6f s wasted); timers %.6f s (%.6f s)\n", lines, nwasted, all,
          waste, timers, timers_waste);
