@@ -81,8 +81,7 @@ typedef struct {
   oc_key_t key;
   oc_key_t group; /* tau: the volume's group (ocs_tau_group_of) */
   uint64_t ts;    /* σt: the step */
-  double time;    /* σt: an instant in it */
-  double due;     /* the world time at which what it makes comes due */
+  double time;    /* the world time what it makes comes due (σt: an instant in the step it samples) */
   double cpu;     /* what making it took (0: found made, or not made) */
   int tau;
 } ahead_t;
@@ -1797,10 +1796,10 @@ static int ahead_candidates(ocs_world_t *w) {
       if (l < 0 || !(nd->range[0].hi > 0.0f)) continue;
       if (w->ahead_in[l]) /* a node's σt whose own step does not move with the level's is found cached */
         OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .ts = ocs_field_node_step(w->field, nd->key, w->ahead_t[l]),
-                                       .time = w->ahead_t[l], .due = w->ahead_t[l]}));
+                                       .time = w->ahead_t[l]}));
       if (w->shadows && w->light_in[l])
         OC_TRY(ahead_push(w, (ahead_t){.key = nd->key, .group = ocs_tau_group_of(&w->tau, nd->key),
-                                       .due = w->light_t[l], .tau = 1}));
+                                       .time = w->light_t[l], .tau = 1}));
     }
   }
   return 0;
@@ -1846,7 +1845,7 @@ static void ahead_make_sigma(ocs_world_t *w, ahead_t *x, double c0) {
   x->cpu = took;
   int any = 0;
   for (int j = 0; j < OC_BRICK_VOXELS; j++) any |= s[j] > 0.0f;
-  trace_interval(w, thread_id(), c0, c0 + took, !any, x->due);
+  trace_interval(w, thread_id(), c0, c0 + took, !any, x->time);
   atomic_fetch_add(&w->ahead_sigma, 1);
   atomic_add_double(&w->ahead_cpu, took);
   if (!any) {
@@ -1865,7 +1864,7 @@ static void ahead_make_tau(ocs_world_t *w, ahead_t *x, double c0) {
   double now = now_s();
   x->cpu = now - c0;
   atomic_add_double(&w->ahead_cpu, now - c0);
-  trace_interval(w, thread_id(), c0, now, 0, x->due);
+  trace_interval(w, thread_id(), c0, now, 0, x->time);
 }
 
 static int ahead_one(void *ctx, size_t i, int worker) {
@@ -1911,7 +1910,7 @@ static void ahead_run(ocs_world_t *w, double deadline) {
     stock_t *st = oc_grow(w->stock, &w->stock_cap, w->nstock, sizeof *st, 256);
     if (!st) break; /* the stock is a statistic: it just stops growing */
     w->stock = st;
-    w->stock[w->nstock++] = (stock_t){w->ahead[i].due, w->ahead[i].cpu, w->ahead[i].tau};
+    w->stock[w->nstock++] = (stock_t){w->ahead[i].time, w->ahead[i].cpu, w->ahead[i].tau};
   }
   stock_sums(w);
   w->nahead = 0;
