@@ -47,7 +47,6 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -714,127 +713,6 @@ static void ocs__column(const ocs__proc_t *P, const ocs__frame_t *F, int l, cons
   }
 }
 
-#ifdef OCS_COL_MOMENTS
-/* THROWAWAY: one column per voxel through its centre, the cells and detail taken by their mean and
- * spread over the voxel (NS³ points), a 3 × 3 quadrature of normals. */
-#ifndef OCS_MOM_NS
-#define OCS_MOM_NS 4
-#endif
-#ifndef OCS_MOM_PARTS
-#define OCS_MOM_PARTS 1
-#endif
-/* One part (of OCS_MOM_PARTS along the voxel's vertical axis va, part pz): the moments of its points
- * and its column piece through the voxel's centre line. */
-static double ocs__moments_part(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__tab_t *T,
-                                const double c[3], int va, double u, double W, int pz, int *decided) {
-  const ocs__layer_t *L = &ocs__layers[l];
-  const ocs__lstate_t *S = &P->L[l];
-  const ocs__lframe_t *lf = &F->l[l];
-  enum { NS = OCS_MOM_NS, NZ = OCS_MOM_NS / OCS_MOM_PARTS, NP = NS * NS * NZ };
-  double kx[3 * NP], dx[3 * NP];
-  float kv[NP], dv[NP];
-  int ha = va == 0 ? 1 : 0, hb = va == 2 ? 1 : 2;
-  double up = u / OCS_MOM_PARTS, cz = c[va] - 0.5 * u + (pz + 0.5) * up;
-  for (int i = 0; i < NP; i++) {
-    double p[3], q[3], X[3];
-    p[ha] = c[ha] + (((double)(i % NS) + 0.5) / NS - 0.5) * u;
-    p[hb] = c[hb] + (((double)(i / NS % NS) + 0.5) / NS - 0.5) * u;
-    p[va] = cz + (((double)(i / (NS * NS)) + 0.5) / NZ - 0.5) * up;
-    ocs__rotate(lf->M, p, q);
-    double sc = OCS__R / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-    for (int a = 0; a < 3; a++) X[a] = q[a] * sc;
-    ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], &kx[3 * i]);
-    ocs__coords(S, OCS__DET, q, lf->off[OCS__DET], &dx[3 * i]);
-  }
-  oc_fbm3_batch(kx, NP, &S->fcell, kv);
-  oc_fbm3_batch(dx, NP, &lf->det, dv);
-  double mk = 0, sk = 0, md = 0, sd = 0, kmin = INFINITY, kmax = -INFINITY, dmin = INFINITY, dmax = -INFINITY;
-  for (int i = 0; i < NP; i++) {
-    double k = kv[i], d = (double)dv[i] * lf->det_scale;
-    mk += k, sk += k * k, md += d, sd += d * d;
-    kmin = fmin(kmin, k), kmax = fmax(kmax, k), dmin = fmin(dmin, d), dmax = fmax(dmax, d);
-  }
-  mk /= NP, md /= NP;
-  sk = sqrt(fmax(sk / NP - mk * mk, 0.0)), sd = sqrt(fmax(sd / NP - md * md, 0.0));
-  double a2 = 0.0;
-  for (int k = 0; k < 3; k++)
-    if (k != va) a2 += c[k] * c[k];
-  double rlo = OCS__R + S->band_lo, rhi = OCS__R + S->band_hi, hi2 = rhi * rhi - a2, lo2 = rlo * rlo - a2;
-  if (!(hi2 > 0.0)) return 0.0; /* outside the band: decided, 0 */
-  double ta = cz - 0.5 * up, tb = cz + 0.5 * up, aa = fabs(ta), ab = fabs(tb);
-  double u0 = fmin(aa, ab), u1 = fmax(aa, ab);
-  u0 = fmax(u0, lo2 > 0.0 ? sqrt(lo2) : 0.0), u1 = fmin(u1, sqrt(hi2));
-  if (!(u1 > u0)) return 0.0;
-  double h0 = sqrt(a2 + u0 * u0) - OCS__R, h1 = sqrt(a2 + u1 * u1) - OCS__R, tm = 0.5 * (u0 + u1);
-  double drdt = sqrt(a2 + tm * tm) / tm;
-  {
-    double amin = W * ocs__v(L, (float)kmin) - L->e * ocs__sat(0.5 - L->k_d * dmin);
-    double amax = W * ocs__v(L, (float)kmax) - L->e * ocs__sat(0.5 - L->k_d * dmax);
-    double qlo = INFINITY, qhi = -INFINITY;
-    for (int j = 0; j <= 8; j++) {
-      double q = ocs__q(L, h0 + (h1 - h0) * j / 8.0);
-      qlo = fmin(qlo, q), qhi = fmax(qhi, q);
-    }
-    *decided &= amax - qlo <= 0.0 || amin - qhi >= L->F_w;
-    extern _Atomic long ocs__mom_parts[4];
-    atomic_fetch_add(&ocs__mom_parts[0], 1);
-    if (amax - qlo <= 0.0) atomic_fetch_add(&ocs__mom_parts[1], 1);
-    if (amin - qhi >= L->F_w) atomic_fetch_add(&ocs__mom_parts[2], 1);
-    if (W * ocs__v(L, (float)kmin) - L->e - qhi >= L->F_w) atomic_fetch_add(&ocs__mom_parts[3], 1);
-  }
-#if OCS_MOM_UNIFORM == 5
-  enum { NQ = 5 };
-  static const double wq[5] = {0.1184634425, 0.2393143352, 0.2844444444, 0.2393143352, 0.1184634425},
-                      xq[5] = {-1.5695545396, -0.9326558018, 0.0, 0.9326558018, 1.5695545396};
-#elif defined(OCS_MOM_UNIFORM) /* Gauss–Legendre on a uniform of the same spread */
-  enum { NQ = 3 };
-  static const double wq[3] = {5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0}, xq[3] = {-1.3416407864998738, 0.0, 1.3416407864998738};
-#else
-  enum { NQ = 3 };
-  static const double wq[3] = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0}, xq[3] = {-1.7320508075688772, 0.0, 1.7320508075688772};
-#endif
-  double cs = 0.0;
-  for (int a = 0; a < NQ; a++) {
-    double wv = W * ocs__v(L, (float)(mk + xq[a] * sk));
-    for (int b = 0; b < NQ; b++) {
-      double A = wv - L->e * ocs__sat(0.5 - L->k_d * (md + xq[b] * sd));
-      cs += wq[a] * wq[b] * (ocs__tab_at(T, T->j, OCS_COL_NA, A, h1) - ocs__tab_at(T, T->j, OCS_COL_NA, A, h0));
-    }
-  }
-  return cs > 0.0 ? F->sigma_scale * lf->wc / u * cs * drdt : 0.0;
-}
-
-_Atomic long ocs__mom_decided, ocs__mom_undecided, ocs__mom_parts[4];
-__attribute__((destructor)) static void ocs__mom_report(void) {
-  long a = ocs__mom_decided, b = ocs__mom_undecided;
-  fprintf(stderr, "parts: %ld, empty by samples %ld, saturated by samples %ld, saturated with erosion <= e %ld\n",
-          (long)ocs__mom_parts[0], (long)ocs__mom_parts[1], (long)ocs__mom_parts[2], (long)ocs__mom_parts[3]);
-  if (a + b) fprintf(stderr, "moments: %ld voxels decided, %ld by columns (%.1f %%)\n", a, b, 100.0 * b / (a + b));
-}
-/* @return 1 where the moments decided the voxel (empty or saturated over its samples' range). */
-static int ocs__moments_voxel(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__tab_t *T,
-                              ocs__cws_t *ws, int v, const uint32_t ic[3], double u, unsigned wone) {
-  const ocs__layer_t *L = &ocs__layers[l];
-  double gg[3], c[3];
-  int va = ocs__voxel_centre(ic, v, u, gg, c);
-  double C = ws->cc[v];
-  double W = (wone >> l & 1u) || !(C < 2.0) ? 1.0 : ocs__w(L, &F->l[l], (float)C);
-  if (!(W > 0.0)) return 1;
-  double sum = 0.0;
-  int decided = 1;
-  for (int pz = 0; pz < OCS_MOM_PARTS; pz++) sum += ocs__moments_part(P, F, l, T, c, va, u, W, pz, &decided);
-#ifdef OCS_MOM_HYBRID
-  if (!decided) {
-    atomic_fetch_add(&ocs__mom_undecided, 1);
-    return 0;
-  }
-  atomic_fetch_add(&ocs__mom_decided, 1);
-#endif
-  ws->sum[v] += sum;
-  return 1;
-}
-#endif
-
 int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, float out[OC_BRICK_VOXELS]) {
   if (!out) return OC_EINVAL;
   if (ocs__col_tables() < 0) return OC_ENOMEM;
@@ -872,19 +750,6 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
     ws->cc = cc[l];
     ws->ic = ic;
     ws->u = u;
-#ifdef OCS_COL_MOMENTS
-    if (u < OCS_COL_FINE) {
-      int left = 0;
-      for (int v = 0; v < OC_BRICK_VOXELS; v++)
-        if (vmask[v] >> l & 1u) {
-          if (ocs__moments_voxel(B.P, &B.F, l, T, ws, v, ic, u, vwone[v]))
-            vmask[v] &= (uint8_t)~(1u << l);
-          else
-            left++;
-        }
-      if (!left) continue;
-    }
-#endif
     if (pl->kvox) ocs__voxel_cells(B.P, &B.F, l, pl, vmask, vwone, ws);
     for (int v = 0; v < OC_BRICK_VOXELS; v++) {
       if (!(vmask[v] >> l & 1u)) continue;
