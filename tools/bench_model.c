@@ -18,7 +18,7 @@
 
 typedef struct {
   float fit[OC_RENDER_MS_FIT_N];
-  int have_fit, have_abc, legacy, quiet, search, split;
+  int have_fit, have_abc, legacy, quiet, search, split, rows;
   double abc[3];
   int have_oracle, oracle_cells, oracle_paths, threads;
   oct_oracle_opts_t oracle; /* --oracle: its lmax; the rest from the other three */
@@ -38,10 +38,20 @@ static int oct__model_oracle(const oc_scene_t *sc, const oct_truth_case_t *c, co
   return r;
 }
 
-/* Renders one case with one model (single: single scattering alone); @return 0 or an exit status. */
+/* Each row's mean of the image's first channel (the one the score's mean reads), img->h values. */
+static void oct__row_means(const oc_image_t *img, double *rows) {
+  for (int y = 0; y < img->h; y++) {
+    double sum = 0.0;
+    for (int x = 0; x < img->w; x++) sum += img->px[4 * ((size_t)y * (size_t)img->w + (size_t)x)];
+    rows[y] = sum / img->w;
+  }
+}
+
+/* Renders one case with one model (single: single scattering alone), its row means to rows unless
+ * NULL; @return 0 or an exit status. */
 static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc_scene_t *sc, oc_camera_t cam,
                            const oc_state_t *st, const oct__model_opts_t *o, int legacy, int single,
-                           oct_truth_score_t *s) {
+                           oct_truth_score_t *s, double *rows) {
   oc_render_desc_t d = oct_truth_case_desc(c, sc, cam);
   d.ms_model = legacy ? OC_MS_MODEL_OCTAVES : OC_MS_MODEL_DEPTH;
   if (single) d.ms_octaves = 1;
@@ -67,6 +77,7 @@ static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc
                        "--oracle-cells", OCT_ORACLE_MAX_POINTS);
   }
   int rc = r < 0 || oct_truth_score(c, &img, s) < 0;
+  if (!rc && rows) oct__row_means(&img, rows);
   oc_image_free(&img);
   return rc ? oc_cli_fail(prog, OC_EXIT_RUNTIME, "model: render failed") : OC_EXIT_OK;
 }
@@ -85,6 +96,7 @@ typedef struct {
   oc_state_t st;
   oc_camera_t cam;
   const char *name;
+  double *rows; /**< --rows: per image row, the truth's mean, the model's, single scattering's (3 × h) */
   double rel, rmse8, amb; /**< the last scoring: mean error, RMSE 0–255, uniform-sky error (NaN: none) */
   int ok;                 /**< within both bounds */
 } oct__mcase_t;
@@ -101,7 +113,7 @@ static int oct__has_sky(const oct__mcase_t *m) { return m->tc.env > 0.0 && m->tc
 static int oct__model_split(const char *prog, const oct__mcase_t *m, const oct__model_opts_t *o,
                             const oct_truth_score_t *s) {
   oct_truth_score_t one;
-  int rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 1, &one);
+  int rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 1, &one, m->rows ? m->rows + 2 * m->tc.h : NULL);
   if (rc != OC_EXIT_OK) return rc;
   double ms_truth = m->tc.mean - one.mean, ms_model = s->mean - one.mean;
   printf(" %.2f | %.2f |", ms_truth / m->tc.mean, ms_model > 0.0 ? ms_truth / ms_model : NAN);
@@ -135,8 +147,9 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     }
     if (fitted_only && !oct__fitted(m, 0)) continue; /* a search renders no sun case it does not fit */
     oct_truth_score_t old = {0}, s;
-    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, 0, &old) : OC_EXIT_OK;
-    if (rc == OC_EXIT_OK) rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 0, &s);
+    int rc = o->legacy && print ? oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 1, 0, &old, NULL) : OC_EXIT_OK;
+    if (rc == OC_EXIT_OK)
+      rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 0, &s, m->rows ? m->rows + m->tc.h : NULL);
     if (rc != OC_EXIT_OK) return NAN;
     double bound = fmax(6.0, 2.0 * s.noise8), lim = m->tc.tau > 20.0 ? 0.2 : 0.1;
     int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
@@ -159,6 +172,30 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     printf("\n%d cases, %d within bounds; worst |mean error| %.1f %%, worst RMSE / bound %.2f, worst uniform-sky error "
            "%.1f %%\nCOST %.6g\n", n, pass, 100.0 * worst_rel, worst_rmse, 100.0 * worst_amb, cost);
   return cost;
+}
+
+/* --rows: where in the image each case's error lies, row by row from the top: the elevation of the row's
+ * middle ray above the camera's horizon, the truth's and the model's row means, and with --split single
+ * scattering's and k, the factor the row's multiply scattered part lacks. */
+static void oct__model_rows(const oct__mcase_t *cs, int n, int split) {
+  for (int i = 0; i < n; i++) {
+    const oct__mcase_t *m = &cs[i];
+    const int h = m->tc.h;
+    const double t = tan(0.5 * m->cam.vfov_deg * OC_DEG);
+    const oc_dvec3 zen = oc_dnorm(m->cam.pos);
+    printf("\nrows of %s\n\n| row | elevation ° | truth | model | error |%s\n|---:|---:|---:|---:|---:|%s\n", m->name,
+           split ? " single | k |" : "", split ? "---:|---:|" : "");
+    for (int y = 0; y < h; y++) {
+      oc_dvec3 dir = oc_dnorm(oc_dmad(m->cam.forward, m->cam.up, t * (1.0 - 2.0 * (y + 0.5) / h)));
+      double tr = m->rows[y], mo = m->rows[h + y], sg = m->rows[2 * h + y];
+      printf("| %d | %+.1f | %.4g | %.4g | ", y, asin(oc_ddot(dir, zen)) / OC_DEG, tr, mo);
+      if (tr > 0.0) printf("%+.1f %% |", 100.0 * (mo / tr - 1.0));
+      else printf("— |");
+      if (split && mo - sg > 0.0) printf(" %.4g | %.2f |", sg, (tr - sg) / (mo - sg));
+      else if (split) printf(" %.4g | — |", sg);
+      printf("\n");
+    }
+  }
 }
 
 /* The case's view and shape, from its scene file's name (tests/data/truth/<shape>_<sun>.json). */
@@ -346,6 +383,8 @@ static const oc_cli_opt_t model_opts[] = {
      .help = "octave factors"},
     OCT_FLAG(oct__model_opts_t, legacy, "legacy", "also score the plain octaves (the model before the fit)"),
     OCT_FLAG(oct__model_opts_t, quiet, "quiet", "only the summary and the fit objective"),
+    OCT_FLAG(oct__model_opts_t, rows, "rows", "also print, per case, each image row's mean in the truth and the "
+             "model (and with --split single scattering's): where in the image the error lies"),
     OCT_FLAG(oct__model_opts_t, split, "split", "also render each case with single scattering alone and print "
              "the truth's multiply scattered share and k, the factor the model's multiply scattered part lacks"),
     OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
@@ -392,6 +431,15 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
       rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "%s", why);
       break;
     }
+    if (o.rows && !(m->rows = calloc(3 * (size_t)m->tc.h, sizeof *m->rows))) {
+      loaded++; /* freed below with the others */
+      rc = oc_cli_fail(prog, OC_EXIT_RUNTIME, "out of memory");
+      break;
+    }
+    for (int y = 0; m->rows && y < m->tc.h; y++) { /* the truth's row means: what the model's are held to */
+      for (int x = 0; x < m->tc.w; x++) m->rows[y] += m->tc.L[(size_t)y * (size_t)m->tc.w + (size_t)x];
+      m->rows[y] /= m->tc.w;
+    }
   }
   int fitted = 0;
   for (int i = 0; i < loaded; i++) fitted += oct__fitted(&cs[i], 0) || (oct__fitted(&cs[i], 1) && oct__has_sky(&cs[i]));
@@ -406,11 +454,13 @@ int oct_bench_model(const char *prog, int argc, char **argv) {
              o.legacy ? "---:|---:|" : "", o.split ? "---:|---:|" : "");
     if (isnan(oct__model_all(prog, cs, n, &o, 1, 0))) rc = OC_EXIT_RUNTIME;
     else oct__model_sets(cs, n);
+    if (rc == OC_EXIT_OK && o.rows) oct__model_rows(cs, n, o.split && !o.quiet); /* --quiet renders no split */
   }
   for (int i = 0; i < loaded; i++) {
     oc_state_free(&cs[i].st);
     oc_scene_free(&cs[i].sc);
     oct_truth_case_free(&cs[i].tc);
+    free(cs[i].rows);
   }
   free(cs);
   return rc;
