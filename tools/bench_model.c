@@ -113,7 +113,8 @@ static int oct__has_sky(const oct__mcase_t *m) { return m->tc.env > 0.0 && m->tc
 static int oct__model_split(const char *prog, const oct__mcase_t *m, const oct__model_opts_t *o,
                             const oct_truth_score_t *s) {
   oct_truth_score_t one;
-  int rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 1, &one, m->rows ? m->rows + 2 * m->tc.h : NULL);
+  double *rows = m->rows ? m->rows + 2 * m->tc.h : NULL; /* --rows: single scattering's row means */
+  int rc = oct__model_case(prog, &m->tc, &m->sc, m->cam, &m->st, o, 0, 1, &one, rows);
   if (rc != OC_EXIT_OK) return rc;
   double ms_truth = m->tc.mean - one.mean, ms_model = s->mean - one.mean;
   printf(" %.2f | %.2f |", ms_truth / m->tc.mean, ms_model > 0.0 ? ms_truth / ms_model : NAN);
