@@ -345,46 +345,7 @@ static float oc__leaf_tau(const oc__ctx_t *cx, const oc__leaf_t *lf, oc_dvec3 p,
 
 /* ---- One ray ----------------------------------------------------------------------------------------- */
 
-/* EXPERIMENT: optical depth from p along u (half ray), capped. */
-static double x__half(const oc__ctx_t *cx, oc_dvec3 p, oc_dvec3 u, double cap, int nst) {
-  double t = 0.0, tau = 0.0;
-  oc__leaf_t lf;
-  for (int i = 0; i < 100000 && tau < cap && t < 3e5; i++) {
-    oc_dvec3 q = oc_dmad(p, u, t);
-    oc__leaf_locate(cx->s, oc_dmad(p, u, t + OC__LOCATE_EPS), &lf);
-    if (!lf.n) break;
-    double te = t + fmax(oc__node_exit(&lf, q, u), OC__LOCATE_EPS);
-    if (lf.n->kind != OC_NODE_EMPTY && lf.n->range[OC_CH_SIGMA].hi > 0.0f) {
-      double h = lf.size / 7.0 * nst;
-      int n = (int)ceil((te - t) / h);
-      double dt = (te - t) / n;
-      for (int k = 0; k < n && tau < cap; k++) {
-        oc_dvec3 x = oc_dmad(p, u, t + (k + 0.5) * dt);
-        tau += oc__leaf_channel(&lf, OC_CH_SIGMA, ocg_max3(ocg_min3(oc__leaf_local(&lf, x), ocg_v3s(1.0f)), ocg_v3s(0.0f))) * dt;
-      }
-    }
-    t = te;
-  }
-  return fmin(tau, cap);
-}
-int x_mode = -1, x_nst = 2; float x_cap = 40.0f;
-/* EXPERIMENT: mean over 16 lines (Fibonacci, local frame) of the chord through p (mode 1: arithmetic; 2: harmonic). */
-static double x__diso(const oc__ctx_t *cx, oc_dvec3 p) {
-  oc_dvec3 z = oc_dnorm(p), a = fabs(z.x) < 0.9 ? oc_dv3(1, 0, 0) : oc_dv3(0, 1, 0);
-  oc_dvec3 xx = oc_dnorm(oc_dcross(a, z)), yy = oc_dcross(z, xx);
-  double sum = 0.0;
-  const int N = 16;
-  for (int i = 0; i < N; i++) {
-    double mu = (i + 0.5) / N, ph = i * 2.399963229728653, sn = sqrt(1 - mu * mu);
-    oc_dvec3 u = oc_dadd(oc_dadd(oc_dscale(xx, sn * cos(ph)), oc_dscale(yy, sn * sin(ph))), oc_dscale(z, mu));
-    double c = x__half(cx, p, u, x_cap, x_nst) + x__half(cx, p, oc_dscale(u, -1.0), x_cap, x_nst);
-    c = fmin(c, x_cap);
-    sum += x_mode == 2 ? 1.0 / fmax(c, 1e-3) : c;
-  }
-  return x_mode == 2 ? N / sum : sum / N;
-}
 static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitter, float out[4], oc_render_stats_t *st) {
-  double x_d = -1.0, x_at = 0.0;
   const oc_render_desc_t *d = &cx->d;
   const oc_dvec3 sun = cx->s->sun_dir;
   const float mu = (float)oc_ddot(dir, sun);
@@ -480,30 +441,6 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
       Jms = ocg_cloud_source_ms(cx->cm, sig, tau, mu, Esun);
       Jmsd = ocg_cloud_source_msd(cx->cm, sig, tau, Esun);
       Jfar = ocg_cloud_source_far(cx->cm, sig, F);
-      if ((x_mode == 5 || x_mode == 6) && cx->cm.legacy == 0) { /* the run's view chord and the largest mean chord met, geometric mean */
-        if (!(m.tau_run > 0.0f)) m.x_cap = 0.0f, x_d = -1.0;
-        if (x_d < 0.0 || m.tau_run - x_at > 0.5 || m.tau_run < x_at) {
-          int keep = x_mode; x_mode = 1; x_d = x__diso(cx, pm); x_mode = keep; x_at = m.tau_run;
-          m.x_cap = fmaxf(m.x_cap, (float)x_d);
-        }
-        m.x_mode = x_mode;
-      } else if (x_mode == 3 && cx->cm.legacy == 0) {
-        if (!(m.tau_run > 0.0f)) m.x_cap = 0.0f, x_d = -1.0;
-        if (x_d < 0.0 || m.tau_run - x_at > 0.5 || m.tau_run < x_at) {
-          x_mode = 1; x_d = x__diso(cx, pm); x_mode = 3; x_at = m.tau_run;
-          m.x_cap = fmaxf(m.x_cap, (float)x_d);
-        }
-      } else if (x_mode == 4 && cx->cm.legacy == 0) { /* the diffuse part by the mean chord, the octaves by the view's */
-        if (x_d < 0.0 || m.tau_run - x_at > 0.5 || m.tau_run < x_at) x_mode = 1, x_d = x__diso(cx, pm), x_mode = 4, x_at = m.tau_run;
-        float g = ocg_ms_chord_factor(cx->cm, (float)x_d, mu), h = ocg_ms_diffuse_factor((float)x_d);
-        J = ocg_add3(J, ocg_scale3(Jmsd, h * g));
-        Jmsd = ocg_v3s(0.0f);
-      } else if (x_mode > 0 && cx->cm.legacy == 0) {
-        if (x_d < 0.0 || m.tau_run - x_at > 0.5 || m.tau_run < x_at) x_d = x__diso(cx, pm), x_at = m.tau_run;
-        float g = ocg_ms_chord_factor(cx->cm, (float)x_d, mu), h = ocg_ms_diffuse_factor((float)x_d);
-        J = ocg_add3(J, ocg_scale3(ocg_add3(Jms, ocg_scale3(Jmsd, h)), g));
-        Jms = Jmsd = ocg_v3s(0.0f);
-      }
       if (d->ms_oracle) { /* a candidate's multiply scattered light in place of the model's */
         float S = (float)d->ms_oracle(d->ms_oracle_ctx, pm, dir);
         J = ocg_add3(J, ocg_scale3(Esun, S * cx->cm.albedo * sig));
@@ -578,7 +515,6 @@ static int oc__bad(const char *field) {
 }
 
 int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_t *img, oc_render_stats_t *stats) {
-  if (x_mode < 0) { const char *e = getenv("OC_DISO"); x_mode = e ? atoi(e) : 0; e = getenv("OC_NST"); if (e) x_nst = atoi(e); e = getenv("OC_XCAP"); if (e) x_cap = (float)atof(e); }
   if (!s || !desc || !img) return OC_EINVAL;
   oc__ctx_t cx;
   memset(&cx, 0, sizeof cx);

@@ -40,8 +40,6 @@ typedef struct ocg_march {
   ocg_real len_run; /**< the current run's length in cloud, m (scaled with tau_run where a gap is bridged) */
   ocg_real gap;     /**< the open gap's effective length since the run's last thick sample, m (ocg_march_run) */
   ocg_real mu;      /**< cos(view, sun) of the ray (the chord factor's half-depth depends on it) */
-  ocg_real x_cap;
-  int x_mode;
 #if defined(OC_GLSL)
 };
 #else
@@ -145,8 +143,6 @@ OC_INLINE ocg_march ocg_march_begin(ocg_real mu) {
   m.d_far = OCG_R(0.0);
   m.len_run = OCG_R(0.0);
   m.gap = OCG_R(0.0);
-  m.x_cap = OCG_R(1e30);
-  m.x_mode = 0;
   return m;
 }
 
@@ -378,13 +374,7 @@ OC_INLINE void ocg_march_segment(OC_INOUT(ocg_march) m, ocg_vec3 sigma_t, ocg_re
  * factor of the depth crossed so far, its far-side ambient as decayed; 1 − s stays deferred. */
 OC_INLINE void ocg_march_commit(OC_INOUT(ocg_march) m, OC_IN(ocg_cloud_model) cm, ocg_real s) {
   if (OC_DEREF(m).tau_run > OCG_R(0.0)) {
-    ocg_real dd = ocg_min(OC_DEREF(m).tau_run, OC_DEREF(m).x_cap);
-    if (OC_DEREF(m).x_mode >= 5) dd = ocg_sqrt(OC_DEREF(m).tau_run * ocg_min(OC_DEREF(m).x_cap, OCG_R(1e6)));
-    ocg_real g = ocg_ms_chord_factor(cm, dd, OC_DEREF(m).mu), h = ocg_ms_diffuse_factor(dd);
-    if (OC_DEREF(m).x_mode == 6) { /* the octaves by the view chord as today */
-      ocg_real d0 = OC_DEREF(m).tau_run, g0 = ocg_ms_chord_factor(cm, d0, OC_DEREF(m).mu);
-      OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(ocg_add3(ocg_scale3(OC_DEREF(m).L_ms, g0), ocg_scale3(OC_DEREF(m).L_msd, h * g)), s));
-    } else
+    ocg_real g = ocg_ms_chord_factor(cm, OC_DEREF(m).tau_run, OC_DEREF(m).mu), h = ocg_ms_diffuse_factor(OC_DEREF(m).tau_run);
     OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(ocg_add3(OC_DEREF(m).L_ms, ocg_scale3(OC_DEREF(m).L_msd, h)), g * s));
   }
   OC_DEREF(m).L = ocg_add3(OC_DEREF(m).L, ocg_scale3(OC_DEREF(m).L_far, s));
