@@ -82,10 +82,10 @@ static int oct__model_case(const char *prog, const oct_truth_case_t *c, const oc
   return rc ? oc_cli_fail(prog, OC_EXIT_RUNTIME, "model: render failed") : OC_EXIT_OK;
 }
 
-/* The fit's objective per case: the image-mean error in units of its bound (lim: ±10 %, or ±20 %) and
- * the RMSE in units of its bound max(6, 2 × the truth's seed-to-seed RMSE), squared and summed. */
-static double oct__model_cost(const oct_truth_score_t *s, double lim) {
-  double r = s->rel / lim, e = s->rmse8 / fmax(6.0, 2.0 * s->noise8);
+/* The fit's objective per case: the image-mean error in units of its bound lim (±10 %, or ±20 %) and
+ * the RMSE in units of its bound, max(6, 2 × the truth's seed-to-seed RMSE), squared and summed. */
+static double oct__model_cost(const oct_truth_score_t *s, double lim, double bound) {
+  double r = s->rel / lim, e = s->rmse8 / bound;
   return r * r + e * e;
 }
 
@@ -156,7 +156,7 @@ static double oct__model_all(const char *prog, oct__mcase_t *cs, int n, const oc
     double bound = fmax(6.0, 2.0 * s.noise8), lim = oct__mean_limit(m);
     int ok = fabs(s.rel) <= lim && s.rmse8 <= bound;
     m->rel = s.rel, m->rmse8 = s.rmse8, m->ok = ok;
-    cost += oct__model_cost(&s, lim);
+    cost += oct__model_cost(&s, lim, bound);
     worst_rel = fmax(worst_rel, fabs(s.rel));
     worst_rmse = fmax(worst_rmse, s.rmse8 / bound);
     pass += ok;
