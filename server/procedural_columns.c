@@ -368,18 +368,39 @@ void ocs__col_margins(int level, int layer, double *kmargin, double *amargin) {
 }
 
 /* A table at (x, h), bilinear: columns x·(n − 1) (x in [0, 1]); 0 below the band, the band's total
- * above it. */
-static inline double ocs__tab_at(const ocs__tab_t *T, const float *tab, int n, double x, double h) {
+ * above it. The row is found once per altitude (ocs__tab_row) and the column once per x
+ * (ocs__tab_diff): a piece reads up to 9 columns at the same two rows. */
+typedef struct {
+  int i, in; /* row; 0 below the band */
+  double fz;
+} ocs__trow_t;
+
+static inline ocs__trow_t ocs__tab_row(const ocs__tab_t *T, double h) {
+  ocs__trow_t r = {0, 0, 0.0};
   double z = (h - T->h0) * (1.0 / OCS_COL_DH);
-  if (!(z > 0.0) || !(x > 0.0)) return 0.0;
-  double y = x >= 1.0 ? (double)(n - 1) : x * (double)(n - 1);
-  int i = z >= (double)(T->nh - 1) ? T->nh - 2 : (int)z, a = y >= (double)(n - 1) ? n - 2 : (int)y;
-  double fz = z - (double)i, fy = y - (double)a;
-  if (fz > 1.0) fz = 1.0;
-  const float *r0 = &tab[(size_t)i * (size_t)n + (size_t)a], *r1 = r0 + n;
+  if (!(z > 0.0)) return r;
+  r.in = 1;
+  r.i = z >= (double)(T->nh - 1) ? T->nh - 2 : (int)z;
+  r.fz = z - (double)r.i;
+  if (r.fz > 1.0) r.fz = 1.0;
+  return r;
+}
+
+static inline double ocs__tab_lerp(const float *tab, int n, int a, double fy, ocs__trow_t r) {
+  if (!r.in) return 0.0;
+  const float *r0 = &tab[(size_t)r.i * (size_t)n + (size_t)a], *r1 = r0 + n;
   double v0 = (double)r0[0] + fy * ((double)r0[1] - (double)r0[0]);
   double v1 = (double)r1[0] + fy * ((double)r1[1] - (double)r1[0]);
-  return v0 + fz * (v1 - v0);
+  return v0 + r.fz * (v1 - v0);
+}
+
+/* The table at (x, row h1) minus at (x, row h0): what a piece's altitude range [h0, h1] adds. */
+static inline double ocs__tab_diff(const float *tab, int n, double x, ocs__trow_t h0, ocs__trow_t h1) {
+  if (!(x > 0.0)) return 0.0;
+  double y = x >= 1.0 ? (double)(n - 1) : x * (double)(n - 1);
+  int a = y >= (double)(n - 1) ? n - 2 : (int)y;
+  double fy = y - (double)a;
+  return ocs__tab_lerp(tab, n, a, fy, h1) - ocs__tab_lerp(tab, n, a, fy, h0);
 }
 
 /*-*** Columns and pieces of a brick ***/
@@ -616,8 +637,7 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
   if (pl->k.n == 0 && pl->d.n == 0) { /* nothing resolved: the expectation table */
     for (int j = 0; j < m; j++) {
       int i = ws->idx[j];
-      double c = ocs__tab_at(T, T->jbar, OCS_COL_NW, ws->w[j], ws->h1[i]) -
-                 ocs__tab_at(T, T->jbar, OCS_COL_NW, ws->w[j], ws->h0[i]);
+      double c = ocs__tab_diff(T->jbar, OCS_COL_NW, ws->w[j], ocs__tab_row(T, ws->h0[i]), ocs__tab_row(T, ws->h1[i]));
       if (c > 0.0) ws->sum[ws->vox[i]] += f * c * ws->drdt[i];
     }
     return;
@@ -648,16 +668,16 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
   for (int j = 0; j < m; j++) {
     int i = ws->idx[j];
     double d = pl->d.n > 0 ? (double)ws->val[j] * pl->d.scale * lf->det_scale : 0.0, c = 0.0;
+    ocs__trow_t r0 = ocs__tab_row(T, ws->h0[i]), r1 = ocs__tab_row(T, ws->h1[i]);
     for (int a = 0; a < pl->qk; a++) {
       double V = ocs__v(L, (float)(ws->k[j] + (pl->qk == 3 ? xq[a] / 1.7320508075688772 * kx : 0.0)));
       double wv = ws->w[j] * V, ca = 0.0;
       if (full_d) {
-        ca = ocs__tab_at(T, T->jd, OCS_COL_NX, wv, ws->h1[i]) - ocs__tab_at(T, T->jd, OCS_COL_NX, wv, ws->h0[i]);
+        ca = ocs__tab_diff(T->jd, OCS_COL_NX, wv, r0, r1);
       } else {
         for (int b = 0; b < pl->qd; b++) {
           double A = wv - L->e * ocs__sat(0.5 - L->k_d * (d + (pl->qd == 3 ? xq[b] / 1.7320508075688772 * dx : 0.0)));
-          ca += (pl->qd == 3 ? wq[b] : 1.0) *
-                (ocs__tab_at(T, T->j, OCS_COL_NA, A, ws->h1[i]) - ocs__tab_at(T, T->j, OCS_COL_NA, A, ws->h0[i]));
+          ca += (pl->qd == 3 ? wq[b] : 1.0) * ocs__tab_diff(T->j, OCS_COL_NA, A, r0, r1);
         }
       }
       c += (pl->qk == 3 ? wq[a] : 1.0) * ca;

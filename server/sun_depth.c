@@ -88,6 +88,7 @@ typedef struct {
   double cell_k[OC_KEY_MAX_LEVEL + 1], cell_n[OC_KEY_MAX_LEVEL + 1]; /* 2^L / 2S, 2^L */
   double step_up[OC_KEY_MAX_LEVEL + 2]; /* h0·2^(j+1): a step this long samples one level coarser */
   double size[OC_KEY_MAX_LEVEL + 1];   /* oc_key_size(L), once: node_exit asked it per node */
+  double voxel[OC_KEY_MAX_LEVEL + 1];  /* ocs__voxel(L), once: ldexp per walk was 3 % of a world's instructions */
   ocs__cur_t cur[OC_KEY_MAX_LEVEL + 1][OCS__CUR_WAYS];
   /* The last node (at a step's level) whose whole ancestry down from level_lo was found non-empty. */
   int chk_level;
@@ -130,6 +131,7 @@ static int ocs__ctx_init(ocs__ctx_t *c, const ocs__desc_t *d, int node_level) {
     c->cell_k[l] = c->cell_n[l] / (2.0 * OCS__S);
     c->step_up[l] = ldexp(c->h0, l + 1);
     c->size[l] = oc_key_size(l);
+    c->voxel[l] = ocs__voxel(l);
   }
   c->step_up[OC_KEY_MAX_LEVEL + 1] = INFINITY;
   ocs__cur_reset(c);
@@ -357,7 +359,7 @@ static double ocs__node_exit(const double pv[3], const int sg[3], const double i
 static double ocs__walk(ocs__ctx_t *c, oc_dvec3 p, double ta, double tb, int level, ocs__cps_t *q) {
   const oc_dvec3 s = c->d->sun;
   const double pv[3] = {p.x + OCS__S, p.y + OCS__S, p.z + OCS__S}, dv[3] = {s.x, s.y, s.z};
-  const double v = ocs__voxel(level), inv = 1.0 / v, eta = 1e-6 * v;
+  const double v = c->voxel[level], inv = 1.0 / v, eta = 1e-6 * v;
   const int64_t ncell = (int64_t)7 << level;
   int sg[3];
   double idv[3];
