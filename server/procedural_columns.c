@@ -133,7 +133,6 @@ typedef struct {
   int qk, qd;
   int cvox;       /* the coverage taken at the voxel's centre (its finest octave ≥ 16 voxels) */
   int kvox;       /* the cells at the voxels' corners, trilinear at the pieces (ocs__voxel_cells) */
-  double kgrid;   /* EXPERIMENT: > 0, the cells on a grid of directions this far apart (gnomonic), bilinear at the pieces */
   double kmargin; /* what the estimate may add to the cells' value beyond the evaluated octaves */
 } ocs__plan_t;
 
@@ -305,11 +304,6 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
   pl->kvox = OCS_COL_KVOX > 0.0 && u < OCS_COL_FINE && pl->k.n > 0 && pl->qk == 1 &&
              ldexp(lk, -(pl->k.n - 1)) >= OCS_COL_KVOX * u;
   pl->qd = L->e * L->k_d * pl->d.sd > OCS_COL_SPREAD * L->F_w ? 3 : 1;
-  {
-    const char *g = getenv("OCS_KGRID");
-    double G = g ? atof(g) : 0.0;
-    pl->kgrid = G > 0.0 && !pl->kvox && pl->k.n > 0 ? ldexp(lk, -(pl->k.n - 1)) / (G * OCS__R) : 0.0;
-  }
   pl->kmargin = pl->qk == 3 || (pl->k.n == 0 && pl->d.n == 0) ? 2.0 * pl->k.amp : 0.0;
 }
 
@@ -429,9 +423,6 @@ typedef struct {
   const uint32_t *ic;                     /* the brick's key coordinates, and its voxel size */
   double u;
   double sum[OC_BRICK_VOXELS];
-  /* EXPERIMENT kgrid: per face (2·va + (sign < 0)), a window of the direction grid */
-  int gi0[6], gj0[6], gni[6], gnj[6];
-  float *gk[6];
 } ocs__cws_t;
 
 /* ocs__layer_pieces' cell test: whether a piece of weight W with cell value K (× k.scale), raised
@@ -614,91 +605,6 @@ static void ocs__pieces_cells(ocs__cws_t *ws, int m) {
   }
 }
 
-/* EXPERIMENT: the cells depend on a point's direction alone (they read the reference sphere), so
- * a brick's cells are evaluated on a global grid of gnomonic coordinates per cube face, a = x_ha /
- * x_va and b = x_hb / x_va, pl->kgrid apart, and interpolated bilinearly at the pieces. */
-static inline void ocs__kgrid_axes(int va, int *ha, int *hb) {
-  *ha = va == 0 ? 1 : 0;
-  *hb = va == 2 ? 1 : 2;
-}
-
-static void ocs__kgrid_build(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
-                             const uint8_t vmask[OC_BRICK_VOXELS], ocs__cws_t *ws) {
-  double amin[6], amax[6], bmin[6], bmax[6];
-  for (int f = 0; f < 6; f++) amin[f] = bmin[f] = INFINITY, amax[f] = bmax[f] = -INFINITY, ws->gk[f] = NULL;
-  double u = ws->u, h = pl->kgrid;
-  for (int v = 0; v < OC_BRICK_VOXELS; v++) {
-    if (!(vmask[v] >> l & 1u)) continue;
-    double gg[3], c[3];
-    int va = ocs__voxel_centre(ws->ic, v, u, gg, c), ha, hb;
-    ocs__kgrid_axes(va, &ha, &hb);
-    int f = 2 * va + (c[va] < 0.0);
-    for (int e = 0; e < 8; e++) {
-      double x = c[ha] + ((e & 1) ? 0.5 : -0.5) * u, y = c[hb] + ((e & 2) ? 0.5 : -0.5) * u,
-             z = c[va] + ((e & 4) ? 0.5 : -0.5) * u;
-      double a = x / z, b = y / z;
-      amin[f] = a < amin[f] ? a : amin[f], amax[f] = a > amax[f] ? a : amax[f];
-      bmin[f] = b < bmin[f] ? b : bmin[f], bmax[f] = b > bmax[f] ? b : bmax[f];
-    }
-  }
-  const ocs__lstate_t *S = &P->L[l];
-  const ocs__lframe_t *lf = &F->l[l];
-  oc_fbm_t kres = S->fcell;
-  kres.octaves = pl->k.n;
-  for (int f = 0; f < 6; f++) {
-    if (!(amax[f] >= amin[f])) continue;
-    int i0 = (int)floor(amin[f] / h), j0 = (int)floor(bmin[f] / h);
-    int ni = (int)floor(amax[f] / h) - i0 + 2, nj = (int)floor(bmax[f] / h) - j0 + 2;
-    float *g = malloc(sizeof(float) * (size_t)ni * (size_t)nj);
-    if (!g) continue; /* experiment: no error path */
-    ws->gk[f] = g, ws->gi0[f] = i0, ws->gj0[f] = j0, ws->gni[f] = ni, ws->gnj[f] = nj;
-    int va = f / 2, ha, hb, n = 0, at[OCS__CHUNK];
-    ocs__kgrid_axes(va, &ha, &hb);
-    double sg = (f & 1) ? -1.0 : 1.0;
-    for (int t = 0; t <= ni * nj; t++) {
-      if (n == OCS__CHUNK || (t == ni * nj && n)) {
-        oc_fbm3_batch(ws->xyz, n, &kres, ws->val);
-        for (int j = 0; j < n; j++) g[at[j]] = ws->val[j] * (float)pl->k.scale;
-        n = 0;
-      }
-      if (t == ni * nj) break;
-      double d[3], q[3], X[3];
-      d[va] = sg, d[ha] = sg * (double)(i0 + t % ni) * h, d[hb] = sg * (double)(j0 + t / ni) * h;
-      ocs__rotate(lf->M, d, q);
-      double sc = OCS__R / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-      for (int a = 0; a < 3; a++) X[a] = q[a] * sc;
-      ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], &ws->xyz[3 * n]);
-      at[n++] = t;
-    }
-  }
-}
-
-static void ocs__kgrid_free(ocs__cws_t *ws) {
-  for (int f = 0; f < 6; f++) free(ws->gk[f]), ws->gk[f] = NULL;
-}
-
-static void ocs__pieces_kgrid(const ocs__plan_t *pl, ocs__cws_t *ws, int m) {
-  double h = pl->kgrid;
-  for (int j = 0; j < m; j++) {
-    int i = ws->idx[j], v = ws->vox[i];
-    double gg[3], c[3];
-    int va = ocs__voxel_centre(ws->ic, v, ws->u, gg, c), ha, hb;
-    ocs__kgrid_axes(va, &ha, &hb);
-    int f = 2 * va + (c[va] < 0.0);
-    const double *p = &ws->p[3 * i];
-    double fa = p[ha] / p[va] / h - (double)ws->gi0[f], fb = p[hb] / p[va] / h - (double)ws->gj0[f];
-    int ia = (int)floor(fa), ib = (int)floor(fb);
-    if (ia < 0) ia = 0;
-    if (ib < 0) ib = 0;
-    if (ia > ws->gni[f] - 2) ia = ws->gni[f] - 2;
-    if (ib > ws->gnj[f] - 2) ib = ws->gnj[f] - 2;
-    fa -= ia, fb -= ib;
-    const float *g = &ws->gk[f][(size_t)ib * (size_t)ws->gni[f] + (size_t)ia];
-    double k0 = g[0] + fa * (g[1] - g[0]), k1 = g[ws->gni[f]] + fa * (g[ws->gni[f] + 1] - g[ws->gni[f]]);
-    ws->k[j] = k0 + fb * (k1 - k0);
-  }
-}
-
 /* One layer over the chunk's pieces: W, then (coarse) Ĵ, or (finer) the resolved cells and detail
  * and J over the unresolved rest. Adds σt × length to ws->sum per voxel. */
 static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
@@ -741,8 +647,6 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
   double kx = fmin(1.7320508075688772 * pl->k.sd, pl->k.amp), dx = fmin(1.7320508075688772 * pl->d.sd, pl->d.amp);
   if (pl->kvox)
     ocs__pieces_cells(ws, m);
-  else if (pl->kgrid > 0.0)
-    ocs__pieces_kgrid(pl, ws, m);
   else if (pl->k.n > 0)
     m = ocs__cells(P, lf, l, pl, kx, ws, m);
   k = 0;
@@ -867,7 +771,6 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
     ws->ic = ic;
     ws->u = u;
     if (pl->kvox) ocs__voxel_cells(B.P, &B.F, l, pl, vmask, vwone, ws);
-    if (pl->kgrid > 0.0) ocs__kgrid_build(B.P, &B.F, l, pl, vmask, ws);
     for (int v = 0; v < OC_BRICK_VOXELS; v++) {
       if (!(vmask[v] >> l & 1u)) continue;
       double gg[3], c[3];
@@ -883,7 +786,6 @@ int ocs__proc_sample_columns(const ocs_source_t *s, oc_key_t key, double t, floa
         }
     }
     if (ws->n) ocs__layer_pieces(B.P, &B.F, l, pl, T, ws);
-    if (pl->kgrid > 0.0) ocs__kgrid_free(ws);
   }
   for (int v = 0; v < OC_BRICK_VOXELS; v++)
     if (ws->sum[v] > 0.0) out[v] += (float)ws->sum[v];
