@@ -133,7 +133,6 @@ typedef struct {
   int qk, qd;
   int cvox;       /* the coverage taken at the voxel's centre (its finest octave ≥ 16 voxels) */
   int kvox;       /* the cells at the voxels' corners, trilinear at the pieces (ocs__voxel_cells) */
-  double ktile_h; /* EXPERIMENT: the tiles' gnomonic spacing, or 0 */
   double kmargin; /* what the estimate may add to the cells' value beyond the evaluated octaves */
 } ocs__plan_t;
 
@@ -305,11 +304,6 @@ static void ocs__make_plan(const ocs__layer_t *L, const oc_fbm_t *cell, const oc
   pl->kvox = OCS_COL_KVOX > 0.0 && u < OCS_COL_FINE && pl->k.n > 0 && pl->qk == 1 &&
              ldexp(lk, -(pl->k.n - 1)) >= OCS_COL_KVOX * u;
   pl->qd = L->e * L->k_d * pl->d.sd > OCS_COL_SPREAD * L->F_w ? 3 : 1;
-  {
-    const char *g = getenv("OCS_KTILE");
-    double G = g ? atof(g) : 0.0;
-    pl->ktile_h = G > 0.0 && !pl->kvox && pl->k.n > 0 ? ldexp(lk, -(pl->k.n - 1)) / (G * OCS__R) : 0.0;
-  }
   pl->kmargin = pl->qk == 3 || (pl->k.n == 0 && pl->d.n == 0) ? 2.0 * pl->k.amp : 0.0;
 }
 
@@ -611,81 +605,6 @@ static void ocs__pieces_cells(ocs__cws_t *ws, int m) {
   }
 }
 
-/* EXPERIMENT (a cost what-if, not a model): OCS_KTILE=G, the cells of levels without kvox read from
- * tiles of a global grid of gnomonic directions per cube face (G texels per finest resolved period),
- * kept per thread and never refreshed: the cells freeze where a tile was first built. It measures
- * what shared, reused tiles would cost against the cells evaluated at each piece. */
-enum { OCS__KT = 32, OCS__KT1 = OCS__KT + 1, OCS__KT_SLOTS = 65536 };
-typedef struct {
-  int64_t key[4]; /* level·8 + layer, face, ti, tj; key[0] = -1: empty */
-  float k[OCS__KT1 * OCS__KT1];
-} ocs__ktile_t;
-static _Thread_local ocs__ktile_t *ocs__kt;
-_Atomic long ocs__kt_built;
-
-static const ocs__ktile_t *ocs__ktile(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
-                                      int level, int f, int64_t ti, int64_t tj, double h, ocs__cws_t *ws) {
-  if (!ocs__kt) {
-    ocs__kt = malloc(sizeof *ocs__kt * OCS__KT_SLOTS);
-    for (int i = 0; i < OCS__KT_SLOTS; i++) ocs__kt[i].key[0] = -1;
-  }
-  int64_t key[4] = {level * 8 + l, f, ti, tj};
-  uint64_t hsh = (uint64_t)key[0] * 0x9E3779B97F4A7C15ull ^ (uint64_t)f * 0xC2B2AE3D27D4EB4Full ^
-                 (uint64_t)ti * 0x165667B19E3779F9ull ^ (uint64_t)tj * 0xD6E8FEB86659FD93ull;
-  ocs__ktile_t *t = &ocs__kt[(hsh ^ hsh >> 29) % OCS__KT_SLOTS];
-  if (!memcmp(t->key, key, sizeof key)) return t;
-  memcpy(t->key, key, sizeof key);
-  atomic_fetch_add_explicit(&ocs__kt_built, 1, memory_order_relaxed);
-  const ocs__lstate_t *S = &P->L[l];
-  const ocs__lframe_t *lf = &F->l[l];
-  oc_fbm_t kres = S->fcell;
-  kres.octaves = pl->k.n;
-  int va = f / 2, ha = va == 0 ? 1 : 0, hb = va == 2 ? 1 : 2, n = 0, at[OCS__CHUNK];
-  double sg = (f & 1) ? -1.0 : 1.0;
-  for (int x = 0; x <= OCS__KT1 * OCS__KT1; x++) {
-    if (n == OCS__CHUNK || (x == OCS__KT1 * OCS__KT1 && n)) {
-      oc_fbm3_batch(ws->xyz, n, &kres, ws->val);
-      for (int j = 0; j < n; j++) t->k[at[j]] = ws->val[j] * (float)pl->k.scale;
-      n = 0;
-    }
-    if (x == OCS__KT1 * OCS__KT1) break;
-    double d[3], q[3], X[3];
-    d[va] = sg, d[ha] = sg * (double)(ti * OCS__KT + x % OCS__KT1) * h, d[hb] = sg * (double)(tj * OCS__KT + x / OCS__KT1) * h;
-    ocs__rotate(lf->M, d, q);
-    double sc = OCS__R / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-    for (int a = 0; a < 3; a++) X[a] = q[a] * sc;
-    ocs__coords(S, OCS__CELL, X, lf->off[OCS__CELL], &ws->xyz[3 * n]);
-    at[n++] = x;
-  }
-  return t;
-}
-
-/* The cells of the chunk's pieces from the tiles (ws->xyz and ws->val are free here: the pieces'
- * own noise is not evaluated). */
-static void ocs__pieces_ktile(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
-                              ocs__cws_t *ws, int m) {
-  double h = pl->ktile_h;
-  int level = (int)lround(log2(2.0 * OC_ROOT_HALF / 7.0 / ws->u));
-  const ocs__ktile_t *t = NULL;
-  for (int j = 0; j < m; j++) {
-    int i = ws->idx[j], v = ws->vox[i];
-    double gg[3], c[3];
-    int va = ocs__voxel_centre(ws->ic, v, ws->u, gg, c), ha = va == 0 ? 1 : 0, hb = va == 2 ? 1 : 2;
-    int f = 2 * va + (c[va] < 0.0);
-    const double *p = &ws->p[3 * i];
-    double ga = p[ha] / p[va] / h, gb = p[hb] / p[va] / h;
-    int64_t ia = (int64_t)floor(ga), ib = (int64_t)floor(gb);
-    int64_t ti = ia >= 0 ? ia / OCS__KT : -((-ia + OCS__KT - 1) / OCS__KT), tj = ib >= 0 ? ib / OCS__KT : -((-ib + OCS__KT - 1) / OCS__KT);
-    if (!t || t->key[0] != level * 8 + l || t->key[1] != f || t->key[2] != ti || t->key[3] != tj)
-      t = ocs__ktile(P, F, l, pl, level, f, ti, tj, h, ws);
-    int xa = (int)(ia - ti * OCS__KT), xb = (int)(ib - tj * OCS__KT);
-    double fa = ga - (double)ia, fb = gb - (double)ib;
-    const float *g = &t->k[xb * OCS__KT1 + xa];
-    double k0 = g[0] + fa * (g[1] - g[0]), k1 = g[OCS__KT1] + fa * (g[OCS__KT1 + 1] - g[OCS__KT1]);
-    ws->k[j] = k0 + fb * (k1 - k0);
-  }
-}
-
 /* One layer over the chunk's pieces: W, then (coarse) Ĵ, or (finer) the resolved cells and detail
  * and J over the unresolved rest. Adds σt × length to ws->sum per voxel. */
 static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l, const ocs__plan_t *pl,
@@ -728,8 +647,6 @@ static void ocs__layer_pieces(const ocs__proc_t *P, const ocs__frame_t *F, int l
   double kx = fmin(1.7320508075688772 * pl->k.sd, pl->k.amp), dx = fmin(1.7320508075688772 * pl->d.sd, pl->d.amp);
   if (pl->kvox)
     ocs__pieces_cells(ws, m);
-  else if (pl->ktile_h > 0.0)
-    ocs__pieces_ktile(P, F, l, pl, ws, m);
   else if (pl->k.n > 0)
     m = ocs__cells(P, lf, l, pl, kx, ws, m);
   k = 0;
