@@ -88,7 +88,7 @@ typedef struct {
   double cell_k[OC_KEY_MAX_LEVEL + 1], cell_n[OC_KEY_MAX_LEVEL + 1]; /* 2^L / 2S, 2^L */
   double step_up[OC_KEY_MAX_LEVEL + 2]; /* h0·2^(j+1): a step this long samples one level coarser */
   double size[OC_KEY_MAX_LEVEL + 1];   /* oc_key_size(L), once: node_exit asked it per node */
-  double voxel[OC_KEY_MAX_LEVEL + 1];  /* ocs__voxel(L), once: ldexp per walk was 3 % of a world's instructions */
+  double voxel[OC_KEY_MAX_LEVEL + 1];  /* ocs__voxel(L), once: not an ldexp at every walk */
   ocs__cur_t cur[OC_KEY_MAX_LEVEL + 1][OCS__CUR_WAYS];
   /* The last node (at a step's level) whose whole ancestry down from level_lo was found non-empty. */
   int chk_level;
