@@ -562,6 +562,7 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   cx.cm.diffuse_b = d->ms_fit ? d->ms_fit[3] : OCG_MS_DIFFUSE_B;
   cx.cm.diffuse_a = d->ms_fit ? d->ms_fit[4] : OCG_MS_DIFFUSE_A;
   cx.cm.ms_forward = d->ms_fit ? d->ms_fit[5] : OCG_MS_FORWARD;
+  cx.cm.sun_abs = d->ms_fit ? d->ms_fit[6] : OCG_MS_SUN_ABS;
   cx.have_atmo = d->background != OC_BG_CONSTANT && !(d->flags & OC_RF_NO_ATMOSPHERE);
   if (cx.have_atmo && !d->atmo) return oc__bad("atmo (required with an atmosphere)");
   cx.air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;

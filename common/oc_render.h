@@ -45,11 +45,11 @@
 /* Thin homogeneous air (air_sigma, with no atmosphere): the shell from the planet radius up to this. */
 #define OC_RENDER_DEFAULT_AIR_TOP 12000.0       /**< m above OC_PLANET_RADIUS */
 #define OC_RENDER_MAX_AIR_SIGMA 1e-3            /**< m⁻¹: τ 1 per km; "thin" means far less */
-#define OC_RENDER_MS_FIT_N 6 /**< the numbers oc_render_desc_t.ms_fit points to */
+#define OC_RENDER_MS_FIT_N 7 /**< the numbers oc_render_desc_t.ms_fit points to */
 /* The octave factors fitted with march.h's constants to the Monte Carlo truth (docs/numerics.md). */
-#define OC_RENDER_DEFAULT_MS_A 0.2017f      /**< octave extinction factor a */
-#define OC_RENDER_DEFAULT_MS_B 0.3032f     /**< octave contribution factor b */
-#define OC_RENDER_DEFAULT_MS_C 0.8846f     /**< octave eccentricity factor c */
+#define OC_RENDER_DEFAULT_MS_A 0.4852f      /**< octave extinction factor a */
+#define OC_RENDER_DEFAULT_MS_B 0.4286f     /**< octave contribution factor b */
+#define OC_RENDER_DEFAULT_MS_C 0.9725f     /**< octave eccentricity factor c */
 
 /*! The cloud multiple-scattering model (shaders/march.h). */
 typedef enum {

@@ -51,16 +51,16 @@ typedef struct ocg_march {
  * against the truth"); the CPU reference can override them (oc_render_desc_t.ms_fit) to fit them. */
 /*! Chord depth at which a run's multiple scattering reaches half its thick-cloud value. */
 #ifndef OCG_MS_CHORD_HALF
-#define OCG_MS_CHORD_HALF OCG_R(16.47)
+#define OCG_MS_CHORD_HALF OCG_R(18.63)
 #endif
 /*! Octave i is weighted by (b·ω^q)^i: each octave stands for about q more bounces, each ×ω. */
 #ifndef OCG_MS_ALBEDO_POWER
-#define OCG_MS_ALBEDO_POWER OCG_R(0.0194)
+#define OCG_MS_ALBEDO_POWER OCG_R(0.0001)
 #endif
 /*! Sky ambient from the near side of a cloud falls as exp(−k·κ_d·d) with the depth d to that side,
  *  κ_d the diffusion constant (occluded ambient; fitted to the uniform-sky truth, not to the sun cases). */
 #ifndef OCG_AMBIENT_DEPTH_K
-#define OCG_AMBIENT_DEPTH_K OCG_R(0.35)
+#define OCG_AMBIENT_DEPTH_K OCG_R(0.3169)
 #endif
 /*! The face of a thick cloud keeps α = R∞ + c·(1 − R∞) of the sky's fluence (ocg_ambient_face). */
 #ifndef OCG_AMBIENT_FACE_C
@@ -83,7 +83,7 @@ typedef struct ocg_march {
 /*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
  *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
 #ifndef OCG_MS_DIFFUSE_B
-#define OCG_MS_DIFFUSE_B OCG_R(2.326)
+#define OCG_MS_DIFFUSE_B OCG_R(2.533)
 #endif
 /*! ...and its own growth with the run's chord depth D, D/(D + D_d): a thin cloud's multiply scattered
  *  light is a few forward bounces, a thick one's diffuse (docs/numerics.md). */
@@ -91,13 +91,13 @@ typedef struct ocg_march {
 #define OCG_MS_DIFFUSE_D OCG_R(1.5)
 #endif
 #ifndef OCG_MS_DIFFUSE_A
-#define OCG_MS_DIFFUSE_A OCG_R(0.2619)
+#define OCG_MS_DIFFUSE_A OCG_R(0.2291)
 #endif
 /*! The chord factor's half-depth shrinks toward the sun, D½·exp(−β·max(μ, 0)): light multiply scattered
  *  forward is a few small-angle bounces of the sun's beam and needs no cloud behind the sample to come
  *  back from (docs/numerics.md, "The chord factor toward the sun"). */
 #ifndef OCG_MS_FORWARD
-#define OCG_MS_FORWARD OCG_R(3.0)
+#define OCG_MS_FORWARD OCG_R(3.216)
 #endif
 /*! Absorption along a run's chord, per unit depth and per unit (1 − ω): the light a run returns has
  *  scattered a few times per unit of depth, each ×ω, so it decays as ω^(c·D) ≈ e^{−c(1−ω)D}, linear in
@@ -105,6 +105,13 @@ typedef struct ocg_march {
  *  c = κ_d(0.9)/0.1, so the constants fitted at ω 0.9 and 1 keep their values (docs/numerics.md,
  *  "Absorption along the chord"). */
 #define OCG_MS_CHORD_ABS OCG_R(2.583)
+/*! Absorption along the sun's path, per unit sun optical depth and per unit (1 − ω): the multiply
+ *  scattered light at sun depth τ has scattered about s·τ times on its way in, each ×ω, so it falls as
+ *  e^{−s(1−ω)τ} on top of its hyperbolic decay, as κ_c along the view chord (docs/numerics.md,
+ *  "Absorption along the sun's path"). 0 at ω = 1. */
+#ifndef OCG_MS_SUN_ABS
+#define OCG_MS_SUN_ABS OCG_R(0.8476)
+#endif
 
 /* The cloud model's parameters (oc_render_desc_t; the scene's optics). */
 #if defined(OC_GLSL)
@@ -124,6 +131,7 @@ typedef struct ocg_cloud_model {
   ocg_real diffuse_b;    /**< OCG_MS_DIFFUSE_B */
   ocg_real diffuse_a;    /**< OCG_MS_DIFFUSE_A */
   ocg_real ms_forward;   /**< OCG_MS_FORWARD */
+  ocg_real sun_abs;      /**< OCG_MS_SUN_ABS */
 #if defined(OC_GLSL)
 };
 #else
@@ -172,16 +180,18 @@ OC_INLINE ocg_real ocg_march_step_end(ocg_real t, ocg_real h) {
  * scattering and the sky are modelled:
  *
  * $J_c = \omega\,\sigma_c\,[E_{sun} e^{-\tau} p(\mu) + E\,\frac{F}{4\pi}\,A]$ now, and
- * $J_{ms} = \omega\,\sigma_c\,E_{sun} \sum_{i=1}^{n-1} (b\,\omega^q)^i \frac{p(\mu; c^i)}{1 + a^i \tau}$ deferred:
+ * $J_{ms} = \omega\,\sigma_c\,E_{sun}\,e^{-s(1-\omega)\tau} \sum_{i=1}^{n-1} (b\,\omega^q)^i \frac{p(\mu; c^i)}{1 + a^i \tau}$ deferred:
  * the march weights a run's J_ms by $G(D) = D_e/(D_e + D_{1/2} e^{-\beta \max(\mu, 0)})$ once it knows the run's
  * chord optical depth D (where the ray leaves the cloud, or stops; D_e = D at ω = 1, less with absorption:
  * ocg_ms_chord_factor). The octaves alone (Wrenninge) give
  * a thin cloud as much multiple scattering as a thick one; G brings in how much cloud there is behind
  * the sample to send light back (toward the sun little is needed: forward bounces), and the
  * ω^{qi} factor that each octave is several more bounces, each losing 1 − ω. The isotropic part
- * $J_{msd} = \omega\,\sigma_c\,E_{sun}\,\frac{b_d\,\omega^q}{4\pi (1 + a_d \tau)}$ is deferred apart and weighted by
+ * $J_{msd} = \omega\,\sigma_c\,E_{sun}\,e^{-s(1-\omega)\tau}\,\frac{b_d\,\omega^q}{4\pi (1 + a_d \tau)}$ is deferred apart and weighted by
  * G(D)·H(D), H(D) = D/(D + D_d): a thin cloud's multiply scattered light is a few forward bounces,
- * still peaked like the phase function; only a thick cloud's is diffuse.
+ * still peaked like the phase function; only a thick cloud's is diffuse. Both fall with absorption
+ * along the sun's path, e^{−s(1−ω)τ} (ocg_ms_sun_absorption): without it an absorbing cloud's far side,
+ * 20–50 deep toward the sun, kept the light of a conservative one (the hyperbolic decay knows no ω).
  *
  * Occluded ambient: the sky fluence F reaches a sample through the cloud around it. In a
  * conservative cloud (ω = 1) the diffuse field under a uniform sky is the sky itself at every depth
@@ -255,6 +265,11 @@ OC_INLINE ocg_vec3 ocg_cloud_source(OC_IN(ocg_cloud_model) cm, ocg_real sig, ocg
   return ocg_scale3(s, cm.albedo * sig);
 }
 
+/* e^{−s(1−ω)τ}: what absorption leaves of the multiply scattered light at sun depth τ ≥ 0. */
+OC_INLINE ocg_real ocg_ms_sun_absorption(OC_IN(ocg_cloud_model) cm, ocg_real t) {
+  return ocg_exp(-cm.sun_abs * (OCG_R(1.0) - ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0))) * t);
+}
+
 /* ω^q: each octave (and the diffuse part) stands for about q more bounces, each ×ω. */
 OC_INLINE ocg_real ocg_ms_albedo_weight(OC_IN(ocg_cloud_model) cm) {
   return cm.albedo > OCG_R(0.0) ? ocg_pow(ocg_min(cm.albedo, OCG_R(1.0)), cm.albedo_power) : OCG_R(0.0);
@@ -272,7 +287,7 @@ OC_INLINE ocg_vec3 ocg_cloud_source_ms(OC_IN(ocg_cloud_model) cm, ocg_real sig, 
     bi *= bw;
     ci *= cm.ms_c;
   }
-  return ocg_scale3(e_sun, sum * cm.albedo * sig);
+  return ocg_scale3(e_sun, sum * cm.albedo * sig * ocg_ms_sun_absorption(cm, t));
 }
 
 /* The diffuse part of the multiply scattered light, b_d·ω^q/(1 + a_d·τ)/(4π), deferred apart. */
@@ -280,7 +295,8 @@ OC_INLINE ocg_vec3 ocg_cloud_source_msd(OC_IN(ocg_cloud_model) cm, ocg_real sig,
   if (cm.legacy != 0 || cm.ms_n < 2) return ocg_v3s(OCG_R(0.0));
   ocg_real wq = ocg_ms_albedo_weight(cm);
   ocg_real t = ocg_max(tau, OCG_R(0.0));
-  return ocg_scale3(e_sun, cm.diffuse_b * wq * OCG_INV_4PI / (OCG_R(1.0) + cm.diffuse_a * t) * cm.albedo * sig);
+  ocg_real w = cm.diffuse_b * wq * OCG_INV_4PI / (OCG_R(1.0) + cm.diffuse_a * t) * ocg_ms_sun_absorption(cm, t);
+  return ocg_scale3(e_sun, w * cm.albedo * sig);
 }
 
 /* The diffuse part's own growth with the run's depth, H(D) = D/(D + D_d). */

@@ -379,7 +379,8 @@ float ocv_shadow_walk(vec3 q0) {
 /* The scene's cloud model (optics uniforms) with march.h's fitted constants. */
 ocg_cloud_model ocv_cloud_model() {
   return ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves, u_ms_model, OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER,
-                         OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A, OCG_MS_FORWARD);
+                         OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A, OCG_MS_FORWARD,
+                         OCG_MS_SUN_ABS);
 }
 
 vec4 ocv_trace(vec3 dir, float jitter, out float depth) {

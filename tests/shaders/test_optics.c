@@ -521,6 +521,34 @@ static void test_cloud_shadow__limits(void **state) {
          (double)ocg_cloud_shadow(cm, OCG_R(10.0)), (double)s1);
 }
 
+/* Absorption along the sun's path (march.h ocg_ms_sun_absorption): the octaves and the diffuse part are
+ * exactly those without it times e^{−s(1−ω)τ}, against expl; nothing at ω = 1 or τ = 0; finite and 0 at
+ * absurd τ. */
+static void test_ms_sun_absorption__closed_form(void **state) {
+  (void)state;
+  ocg_cloud_model cm;
+  memset(&cm, 0, sizeof cm);
+  cm.ms_a = OCG_R(0.5), cm.ms_b = OCG_R(0.5), cm.ms_c = OCG_R(0.9), cm.ms_n = 4;
+  cm.albedo_power = OCG_MS_ALBEDO_POWER, cm.diffuse_b = OCG_MS_DIFFUSE_B, cm.diffuse_a = OCG_MS_DIFFUSE_A;
+  const ocg_real ws[] = {OCG_R(0.5), OCG_R(0.9), OCG_R(0.99), OCG_R(1.0)}, taus[] = {OCG_R(0.0), OCG_R(1.0), OCG_R(20.0)};
+  const ocg_vec3 e = ocg_v3s(OCG_R(1.0));
+  for (size_t iw = 0; iw < sizeof ws / sizeof ws[0]; ++iw)
+    for (size_t it = 0; it < sizeof taus / sizeof taus[0]; ++it) {
+      cm.albedo = ws[iw];
+      cm.sun_abs = OCG_R(0.0);
+      ld ms0 = (ld)ocg_cloud_source_ms(cm, OCG_R(0.01), taus[it], OCG_R(0.3), e).x;
+      ld msd0 = (ld)ocg_cloud_source_msd(cm, OCG_R(0.01), taus[it], e).x;
+      cm.sun_abs = OCG_MS_SUN_ABS;
+      ld f = expl(-(ld)OCG_MS_SUN_ABS * (1.0L - (ld)ws[iw]) * (ld)taus[it]);
+      assert_true(rel_err((ld)ocg_cloud_source_ms(cm, OCG_R(0.01), taus[it], OCG_R(0.3), e).x, ms0 * f) <= 16 * EPS);
+      assert_true(rel_err((ld)ocg_cloud_source_msd(cm, OCG_R(0.01), taus[it], e).x, msd0 * f) <= 16 * EPS);
+      if (ws[iw] == OCG_R(1.0) || taus[it] == OCG_R(0.0)) assert_true(ocg_ms_sun_absorption(cm, taus[it]) == OCG_R(1.0));
+    }
+  cm.albedo = OCG_R(0.9);
+  ocg_real huge = ocg_ms_sun_absorption(cm, OCG_R(1e30));
+  assert_true(isfinite(huge) && huge == OCG_R(0.0));
+}
+
 /* The chord past the early exit (march.h ocg_march_chord): a run in the sun alone stops at the cap
  * with the depth the chord factor reads; a run with far-side sky light goes on past it until that light
  * has fallen by e^{-OCG_AMBIENT_FAR_DEPTH}, its decay exactly e^{-kappa_f d}, and the chord factor
@@ -724,6 +752,7 @@ int main(void) {
       cmocka_unit_test(test_integrators__error_against_step_count),
       cmocka_unit_test(test_ms_octaves__sum_and_limits),
       cmocka_unit_test(test_cloud_shadow__limits),
+      cmocka_unit_test(test_ms_sun_absorption__closed_form),
       cmocka_unit_test(test_march_chord__far_side_past_the_cap),
       cmocka_unit_test(test_march_run__gaps_are_continuous),
       cmocka_unit_test(test_beer_powder__finite_and_bounded),
