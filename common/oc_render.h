@@ -91,7 +91,8 @@ typedef struct {
   int ms_model;          /**< oc_ms_model_t; default OC_MS_MODEL_DEPTH */
   const float *ms_fit;   /**< NULL, or OC_RENDER_MS_FIT_N overrides of march.h's fitted constants (chord
                               half-depth, albedo power, ambient depth factor, diffuse weight, diffuse decay,
-                              forward shrink of the half-depth): only for fitting */
+                              forward shrink of the half-depth, absorption along the sun's path): only for
+                              fitting */
   float albedo;          /**< cloud single-scattering albedo; default 1 (0 is valid via flags: use albedo_zero) */
   int albedo_zero;       /**< non-zero: albedo 0 (pure absorber; analytic transmittance tests) */
   float sun_irradiance;  /**< scale of the atmosphere's solar irradiance; default 1 */

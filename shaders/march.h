@@ -108,7 +108,7 @@ typedef struct ocg_march {
 /*! Absorption along the sun's path, per unit sun optical depth and per unit (1 − ω): the multiply
  *  scattered light at sun depth τ has scattered about s·τ times on its way in, each ×ω, so it falls as
  *  e^{−s(1−ω)τ} on top of its hyperbolic decay, as κ_c along the view chord (docs/numerics.md,
- *  "Absorption along the sun's path"). 0 at ω = 1. */
+ *  "Absorption along the sun's path"). The factor is 1 at ω = 1. */
 #ifndef OCG_MS_SUN_ABS
 #define OCG_MS_SUN_ABS OCG_R(0.8476)
 #endif
