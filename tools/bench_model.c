@@ -273,7 +273,7 @@ static void oct__model_sets(const oct__mcase_t *cs, int n) {
   if (worst[0] >= 0.0 || worst[1] >= 0.0) printf("\nuniform sky, worst |error|: fitted %s, held out %s\n", w[1], w[0]);
 }
 
-/* The nine numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
+/* The ten numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
 static void oct__model_unpack(const double x[3 + OC_RENDER_MS_FIT_N], oct__model_opts_t *o) {
   for (int i = 0; i < 3; i++) o->abc[i] = fmin(1.0 / (1.0 + exp(-x[i])), 0.999);
   for (int i = 0; i < OC_RENDER_MS_FIT_N; i++) o->fit[i] = (float)fmin(exp(x[3 + i]), 999.0);
