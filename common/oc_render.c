@@ -446,6 +446,7 @@ static void oc__trace(const oc__ctx_t *cx, oc_dvec3 o, oc_dvec3 dir, float jitte
         J = ocg_add3(J, ocg_scale3(Esun, S * cx->cm.albedo * sig));
         Jms = Jmsd = ocg_v3s(0.0f);
       }
+      ocg_ms_split(cx->cm, tau, mu, &J, &Jms, &Jmsd); /* after the oracle: it leaves nothing to split */
     }
     if (cx->have_atmo && r < cx->air_top) {
       float rf = (float)r;
@@ -563,6 +564,7 @@ int oc_render_state(const oc_state_t *s, const oc_render_desc_t *desc, oc_image_
   cx.cm.diffuse_a = d->ms_fit ? d->ms_fit[4] : OCG_MS_DIFFUSE_A;
   cx.cm.ms_forward = d->ms_fit ? d->ms_fit[5] : OCG_MS_FORWARD;
   cx.cm.sun_abs = d->ms_fit ? d->ms_fit[6] : OCG_MS_SUN_ABS;
+  cx.cm.sun_share = d->ms_fit ? d->ms_fit[7] : OCG_MS_SUN_SHARE;
   cx.have_atmo = d->background != OC_BG_CONSTANT && !(d->flags & OC_RF_NO_ATMOSPHERE);
   if (cx.have_atmo && !d->atmo) return oc__bad("atmo (required with an atmosphere)");
   cx.air_top = OC_PLANET_RADIUS + OC_ATMOSPHERE_HEIGHT;

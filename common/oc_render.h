@@ -45,11 +45,11 @@
 /* Thin homogeneous air (air_sigma, with no atmosphere): the shell from the planet radius up to this. */
 #define OC_RENDER_DEFAULT_AIR_TOP 12000.0       /**< m above OC_PLANET_RADIUS */
 #define OC_RENDER_MAX_AIR_SIGMA 1e-3            /**< m⁻¹: τ 1 per km; "thin" means far less */
-#define OC_RENDER_MS_FIT_N 7 /**< the numbers oc_render_desc_t.ms_fit points to */
+#define OC_RENDER_MS_FIT_N 8 /**< the numbers oc_render_desc_t.ms_fit points to */
 /* The octave factors fitted with march.h's constants to the Monte Carlo truth (docs/numerics.md). */
-#define OC_RENDER_DEFAULT_MS_A 0.4852f      /**< octave extinction factor a */
-#define OC_RENDER_DEFAULT_MS_B 0.4286f     /**< octave contribution factor b */
-#define OC_RENDER_DEFAULT_MS_C 0.9725f     /**< octave eccentricity factor c */
+#define OC_RENDER_DEFAULT_MS_A 0.6139f      /**< octave extinction factor a */
+#define OC_RENDER_DEFAULT_MS_B 0.5139f     /**< octave contribution factor b */
+#define OC_RENDER_DEFAULT_MS_C 0.9924f     /**< octave eccentricity factor c */
 
 /*! The cloud multiple-scattering model (shaders/march.h). */
 typedef enum {
@@ -91,8 +91,8 @@ typedef struct {
   int ms_model;          /**< oc_ms_model_t; default OC_MS_MODEL_DEPTH */
   const float *ms_fit;   /**< NULL, or OC_RENDER_MS_FIT_N overrides of march.h's fitted constants (chord
                               half-depth, albedo power, ambient depth factor, diffuse weight, diffuse decay,
-                              forward shrink of the half-depth, absorption along the sun's path): only for
-                              fitting */
+                              forward shrink of the half-depth, absorption along the sun's path, the sun
+                              path's share): only for fitting */
   float albedo;          /**< cloud single-scattering albedo; default 1 (0 is valid via flags: use albedo_zero) */
   int albedo_zero;       /**< non-zero: albedo 0 (pure absorber; analytic transmittance tests) */
   float sun_irradiance;  /**< scale of the atmosphere's solar irradiance; default 1 */

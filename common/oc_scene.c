@@ -32,9 +32,9 @@
 #define OC__DEF_ALBEDO 1.0
 #define OC__DEF_MS_OCTAVES 4
 /* Octave factors fitted to the Monte Carlo truth with shaders/march.h's constants (docs/numerics.md). */
-#define OC__DEF_MS_A 0.4852
-#define OC__DEF_MS_B 0.4286
-#define OC__DEF_MS_C 0.9725
+#define OC__DEF_MS_A 0.6139
+#define OC__DEF_MS_B 0.5139
+#define OC__DEF_MS_C 0.9924
 #define OC__DEF_VDB_FRAME_RATE 24.0
 
 #define OC__MAX_SEED 9007199254740991.0 /* 2^53 - 1: the largest integer a JSON number holds exactly */

@@ -144,9 +144,9 @@ typedef struct {
 typedef struct {
   double albedo;  /**< single-scattering albedo σs/σt, [0, 1]; default 1 */
   int ms_octaves; /**< multiple-scattering octaves N, [1, 8]; default 4 */
-  double ms_a;    /**< extinction factor per octave, (0, 1); default 0.4852 (fitted to the truth) */
-  double ms_b;    /**< contribution factor per octave, (0, 1); default 0.4286 (fitted) */
-  double ms_c;    /**< phase eccentricity factor per octave, (0, 1); default 0.9725 (fitted) */
+  double ms_a;    /**< extinction factor per octave, (0, 1); default 0.6139 (fitted to the truth) */
+  double ms_b;    /**< contribution factor per octave, (0, 1); default 0.5139 (fitted) */
+  double ms_c;    /**< phase eccentricity factor per octave, (0, 1); default 0.9924 (fitted) */
 } oc_scene_optics_t;
 
 typedef struct {

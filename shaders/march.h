@@ -51,16 +51,16 @@ typedef struct ocg_march {
  * against the truth"); the CPU reference can override them (oc_render_desc_t.ms_fit) to fit them. */
 /*! Chord depth at which a run's multiple scattering reaches half its thick-cloud value. */
 #ifndef OCG_MS_CHORD_HALF
-#define OCG_MS_CHORD_HALF OCG_R(18.63)
+#define OCG_MS_CHORD_HALF OCG_R(21.74)
 #endif
 /*! Octave i is weighted by (b·ω^q)^i: each octave stands for about q more bounces, each ×ω. */
 #ifndef OCG_MS_ALBEDO_POWER
-#define OCG_MS_ALBEDO_POWER OCG_R(0.0001)
+#define OCG_MS_ALBEDO_POWER OCG_R(0.0)
 #endif
 /*! Sky ambient from the near side of a cloud falls as exp(−k·κ_d·d) with the depth d to that side,
  *  κ_d the diffusion constant (occluded ambient; fitted to the uniform-sky truth, not to the sun cases). */
 #ifndef OCG_AMBIENT_DEPTH_K
-#define OCG_AMBIENT_DEPTH_K OCG_R(0.3169)
+#define OCG_AMBIENT_DEPTH_K OCG_R(0.3609)
 #endif
 /*! The face of a thick cloud keeps α = R∞ + c·(1 − R∞) of the sky's fluence (ocg_ambient_face). */
 #ifndef OCG_AMBIENT_FACE_C
@@ -83,7 +83,7 @@ typedef struct ocg_march {
 /*! The diffuse (isotropic) part of the multiply scattered light: its weight b_d and its decay a_d
  *  with the sun optical depth, b_d·ω^q/(1 + a_d·τ)/(4π) — diffusion decays linearly, not exponentially. */
 #ifndef OCG_MS_DIFFUSE_B
-#define OCG_MS_DIFFUSE_B OCG_R(2.533)
+#define OCG_MS_DIFFUSE_B OCG_R(2.767)
 #endif
 /*! ...and its own growth with the run's chord depth D, D/(D + D_d): a thin cloud's multiply scattered
  *  light is a few forward bounces, a thick one's diffuse (docs/numerics.md). */
@@ -91,13 +91,13 @@ typedef struct ocg_march {
 #define OCG_MS_DIFFUSE_D OCG_R(1.5)
 #endif
 #ifndef OCG_MS_DIFFUSE_A
-#define OCG_MS_DIFFUSE_A OCG_R(0.2291)
+#define OCG_MS_DIFFUSE_A OCG_R(0.2960)
 #endif
 /*! The chord factor's half-depth shrinks toward the sun, D½·exp(−β·max(μ, 0)): light multiply scattered
  *  forward is a few small-angle bounces of the sun's beam and needs no cloud behind the sample to come
  *  back from (docs/numerics.md, "The chord factor toward the sun"). */
 #ifndef OCG_MS_FORWARD
-#define OCG_MS_FORWARD OCG_R(3.216)
+#define OCG_MS_FORWARD OCG_R(3.030)
 #endif
 /*! Absorption along a run's chord, per unit depth and per unit (1 − ω): the light a run returns has
  *  scattered a few times per unit of depth, each ×ω, so it decays as ω^(c·D) ≈ e^{−c(1−ω)D}, linear in
@@ -110,7 +110,14 @@ typedef struct ocg_march {
  *  e^{−s(1−ω)τ} on top of its hyperbolic decay, as κ_c along the view chord (docs/numerics.md,
  *  "Absorption along the sun's path"). The factor is 1 at ω = 1. */
 #ifndef OCG_MS_SUN_ABS
-#define OCG_MS_SUN_ABS OCG_R(0.8476)
+#define OCG_MS_SUN_ABS OCG_R(0.9241)
+#endif
+/*! The share of a sample's multiply scattered light that the cloud along the sun's path lights at once,
+ *  S = γτ/(γτ + D½(μ)) (ocg_ms_split): light scattered forward on its way in from the sun needs no cloud
+ *  behind the sample along the view to come back from, so that share skips the chord factor
+ *  (docs/numerics.md, "The sun's path lights at once"). */
+#ifndef OCG_MS_SUN_SHARE
+#define OCG_MS_SUN_SHARE OCG_R(0.2214)
 #endif
 
 /* The cloud model's parameters (oc_render_desc_t; the scene's optics). */
@@ -132,6 +139,7 @@ typedef struct ocg_cloud_model {
   ocg_real diffuse_a;    /**< OCG_MS_DIFFUSE_A */
   ocg_real ms_forward;   /**< OCG_MS_FORWARD */
   ocg_real sun_abs;      /**< OCG_MS_SUN_ABS */
+  ocg_real sun_share;    /**< OCG_MS_SUN_SHARE */
 #if defined(OC_GLSL)
 };
 #else
@@ -299,6 +307,24 @@ OC_INLINE ocg_vec3 ocg_cloud_source_msd(OC_IN(ocg_cloud_model) cm, ocg_real sig,
   return ocg_scale3(e_sun, w * cm.albedo * sig);
 }
 
+/* The half-depth toward the sun, D½(μ) = D½·exp(−β·max(μ, 0)) (ocg_ms_chord_factor, ocg_ms_split). */
+OC_INLINE ocg_real ocg_ms_half_depth(OC_IN(ocg_cloud_model) cm, ocg_real mu) {
+  return cm.chord_half * ocg_exp(-cm.ms_forward * ocg_max(mu, OCG_R(0.0)));
+}
+
+/* The share S = γτ/(γτ + D½(μ)) of a sample's multiply scattered light (octaves j_ms and diffuse part j_msd,
+ * at sun optical depth τ) joins its source j now; the rest stays deferred for the chord factor, so the
+ * light is weighted by S + (1 − S)·G(D) in all. */
+OC_INLINE void ocg_ms_split(OC_IN(ocg_cloud_model) cm, ocg_real tau, ocg_real mu, OC_INOUT(ocg_vec3) j,
+                            OC_INOUT(ocg_vec3) j_ms, OC_INOUT(ocg_vec3) j_msd) {
+  ocg_real gt = cm.sun_share * ocg_max(tau, OCG_R(0.0));
+  if (!(gt > OCG_R(0.0))) return;
+  ocg_real s = gt / (gt + ocg_ms_half_depth(cm, mu));
+  OC_DEREF(j) = ocg_add3(OC_DEREF(j), ocg_scale3(ocg_add3(OC_DEREF(j_ms), OC_DEREF(j_msd)), s));
+  OC_DEREF(j_ms) = ocg_scale3(OC_DEREF(j_ms), OCG_R(1.0) - s);
+  OC_DEREF(j_msd) = ocg_scale3(OC_DEREF(j_msd), OCG_R(1.0) - s);
+}
+
 /* The diffuse part's own growth with the run's depth, H(D) = D/(D + D_d). */
 OC_INLINE ocg_real ocg_ms_diffuse_factor(ocg_real d) {
   return d / (d + OCG_MS_DIFFUSE_D);
@@ -309,7 +335,7 @@ OC_INLINE ocg_real ocg_ms_diffuse_factor(ocg_real d) {
 OC_INLINE ocg_real ocg_ms_chord_factor(OC_IN(ocg_cloud_model) cm, ocg_real d, ocg_real mu) {
   ocg_real kc = OCG_MS_CHORD_ABS * (OCG_R(1.0) - ocg_clamp(cm.albedo, OCG_R(0.0), OCG_R(1.0)));
   ocg_real de = kc * d > OCG_R(1e-3) ? (OCG_R(1.0) - ocg_exp(-kc * d)) / kc : d;
-  return de / (de + cm.chord_half * ocg_exp(-cm.ms_forward * ocg_max(mu, OCG_R(0.0))));
+  return de / (de + ocg_ms_half_depth(cm, mu));
 }
 
 /* ---- The cloud's shadow ------------------------------------------------------------------------------

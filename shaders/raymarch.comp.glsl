@@ -380,7 +380,7 @@ float ocv_shadow_walk(vec3 q0) {
 ocg_cloud_model ocv_cloud_model() {
   return ocg_cloud_model(u_albedo, u_ms.x, u_ms.y, u_ms.z, u_ms_octaves, u_ms_model, OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER,
                          OCG_AMBIENT_DEPTH_K, OCG_MS_DIFFUSE_B, OCG_MS_DIFFUSE_A, OCG_MS_FORWARD,
-                         OCG_MS_SUN_ABS);
+                         OCG_MS_SUN_ABS, OCG_MS_SUN_SHARE);
 }
 
 vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
@@ -495,6 +495,7 @@ vec4 ocv_trace(vec3 dir, float jitter, out float depth) {
       J = ocg_cloud_source(cm, sig, tau, m.tau_run, mu, Esun, F);
       Jms = ocg_cloud_source_ms(cm, sig, tau, mu, Esun);
       Jmsd = ocg_cloud_source_msd(cm, sig, tau, Esun);
+      ocg_ms_split(cm, tau, mu, J, Jms, Jmsd);
       Jfar = ocg_cloud_source_far(cm, sig, F);
     }
     if (OCV_ATMO && r < u_atm.top_radius) {

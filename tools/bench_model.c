@@ -1,6 +1,6 @@
 /* bench_model.c — `overcast-bench model`: the real-time cloud model against stored Monte Carlo
  * truth images (`overcast-bench truth --save`), one row per case, old and new model side by side,
- * and the sum the fit minimises (--search: Nelder-Mead over the ten numbers, scored on the fitted set).
+ * and the sum the fit minimises (--search: Nelder-Mead over the eleven numbers, scored on the fitted set).
  * The truth itself is not re-traced: a few milliseconds per case, so a fit can render every case hundreds
  * of times. */
 #include <math.h>
@@ -273,7 +273,7 @@ static void oct__model_sets(const oct__mcase_t *cs, int n) {
   if (worst[0] >= 0.0 || worst[1] >= 0.0) printf("\nuniform sky, worst |error|: fitted %s, held out %s\n", w[1], w[0]);
 }
 
-/* The ten numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
+/* The eleven numbers in an unbounded space: logits of a, b, c ∈ (0, 1), logarithms of the rest (> 0). */
 static void oct__model_unpack(const double x[3 + OC_RENDER_MS_FIT_N], oct__model_opts_t *o) {
   for (int i = 0; i < 3; i++) o->abc[i] = fmin(1.0 / (1.0 + exp(-x[i])), 0.999);
   for (int i = 0; i < OC_RENDER_MS_FIT_N; i++) o->fit[i] = (float)fmin(exp(x[3 + i]), 999.0);
@@ -293,7 +293,7 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
   double p[N + 1][N], v[N + 1];
   const double fit0[OC_RENDER_MS_FIT_N] = {OCG_MS_CHORD_HALF, OCG_MS_ALBEDO_POWER, OCG_AMBIENT_DEPTH_K,
                                            OCG_MS_DIFFUSE_B,  OCG_MS_DIFFUSE_A,    OCG_MS_FORWARD,
-                                           OCG_MS_SUN_ABS};
+                                           OCG_MS_SUN_ABS,    OCG_MS_SUN_SHARE};
   const double abc0[3] = {OC_RENDER_DEFAULT_MS_A, OC_RENDER_DEFAULT_MS_B, OC_RENDER_DEFAULT_MS_C};
   for (int j = 0; j < 3; j++) {
     double a = o->have_abc ? o->abc[j] : abc0[j];
@@ -348,11 +348,11 @@ static void oct__model_search(const char *prog, oct__mcase_t *cs, int n, oct__mo
     if (v[i] < v[best]) best = i;
   oct__model_unpack(p[best], o);
   printf("search: %d iterations, objective on the fitted set %.6g: --abc %.4f,%.4f,%.4f "
-         "--fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters, v[best], o->abc[0], o->abc[1], o->abc[2], o->fit[0],
-         o->fit[1], o->fit[2], o->fit[3], o->fit[4], o->fit[5], o->fit[6]);
+         "--fit %.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n\n", iters, v[best], o->abc[0], o->abc[1], o->abc[2], o->fit[0],
+         o->fit[1], o->fit[2], o->fit[3], o->fit[4], o->fit[5], o->fit[6], o->fit[7]);
 }
 
-/* --fit D,Q,K,BD,AD,B,S and --abc A,B,C: seven or three numbers. */
+/* --fit D,Q,K,BD,AD,B,S,G and --abc A,B,C: eight or three numbers. */
 static int opt_numbers(const char *prog, const oc_cli_opt_t *o, const char *text, void *base) {
   oct__model_opts_t *m = base;
   int fit = !strcmp(o->name, "fit"), want = fit ? OC_RENDER_MS_FIT_N : 3;
@@ -385,9 +385,10 @@ static int opt_oracle(const char *prog, const oc_cli_opt_t *o, const char *text,
 }
 
 static const oc_cli_opt_t model_opts[] = {
-    {.name = "fit", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "D,Q,K,BD,AD,B,S", .def_note = "march.h's",
+    {.name = "fit", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "D,Q,K,BD,AD,B,S,G", .def_note = "march.h's",
      .help = "override march.h's fitted constants: chord half-depth, albedo power, ambient depth, diffuse weight, "
-             "diffuse decay, the half-depth's shrink toward the sun, absorption along the sun's path"},
+             "diffuse decay, the half-depth's shrink toward the sun, absorption along the sun's path, the sun "
+             "path's share"},
     {.name = "abc", .type = OC_CLI_CUSTOM, .parse = opt_numbers, .arg = "A,B,C", .def_note = "the scene's",
      .help = "octave factors"},
     OCT_FLAG(oct__model_opts_t, legacy, "legacy", "also score the plain octaves (the model before the fit)"),
@@ -397,7 +398,7 @@ static const oc_cli_opt_t model_opts[] = {
     OCT_FLAG(oct__model_opts_t, split, "split", "also render each case with single scattering alone and print "
              "the truth's multiply scattered share and k, the factor the model's multiply scattered part lacks"),
     OCT_INT_NOTE(oct__model_opts_t, search, "search", "N", 1, 100000, "none", "N Nelder-Mead iterations on the "
-        "ten numbers from the given (or default) start, scored on the fitted set alone (docs/numerics.md); "
+        "eleven numbers from the given (or default) start, scored on the fitted set alone (docs/numerics.md); "
         "prints the best --abc and --fit, then scores every case with them"),
     {.name = "oracle", .type = OC_CLI_CUSTOM, .parse = opt_oracle, .arg = "MODE", .def_note = "none",
      .help = "replace the model's multiply scattered light by the Monte Carlo kernel's, traced at lattice points "

@@ -182,8 +182,8 @@ check "bench: render, zero ground map" 2 "--ground-map: 0 is neither -1 nor in" 
 check "bench: look, ground map too large" 2 "--ground-map: 5000 is outside \\[-1, 4096\\]" -- "$B" look --ground-map 5000
 check "bench: truth, bad size" 2 "--size: expected WxH" -- "$B" truth --size 12
 check "bench: truth, negative air" 2 "--air-sigma: -1 is outside" -- "$B" truth --air-sigma -1
-check "bench: model, six fit numbers" 2 "--fit wants 7 comma-separated numbers" -- "$B" model --fit 1,2,3,4,5,6 x.txt
-check "bench: model, an eighth fit number" 2 "--fit wants 7 comma-separated numbers" -- "$B" model --fit 1,2,3,4,5,6,7,8 x.txt
+check "bench: model, seven fit numbers" 2 "--fit wants 8 comma-separated numbers" -- "$B" model --fit 1,2,3,4,5,6,7 x.txt
+check "bench: model, a ninth fit number" 2 "--fit wants 8 comma-separated numbers" -- "$B" model --fit 1,2,3,4,5,6,7,8,9 x.txt
 check "bench: model, bad abc" 2 "--abc wants 3 comma-separated numbers" -- "$B" model --abc 0.5,0.5,x x.txt
 check "bench: model, a search with nothing to fit" 2 "none of the files is in the fitted set" -- "$B" model --search 2 tests/data/truth/sphere_beside_a0.99-tau2.txt
 check "bench: model, bad oracle" 2 "--oracle: expected view or sh0..sh8, got \"sh9\"" -- "$B" model --oracle sh9 x.txt

@@ -142,7 +142,7 @@ static void test_defaults(void **state) {
   assert_true(s.camera.pos.lat == 45 && s.camera.pos.lon == 0 && s.camera.pos.alt == 2000);
   assert_true(s.camera.heading == 260 && s.camera.pitch == -5 && s.camera.fov == 60);
   assert_true(s.optics.albedo == 1.0 && s.optics.ms_octaves == 4);
-  assert_true(s.optics.ms_a == 0.4852 && s.optics.ms_b == 0.4286 && s.optics.ms_c == 0.9725);
+  assert_true(s.optics.ms_a == 0.6139 && s.optics.ms_b == 0.5139 && s.optics.ms_c == 0.9924);
   assert_int_equal(s.nsources, 0);
   oc_scene_free(&s);
 

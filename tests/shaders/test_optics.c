@@ -549,6 +549,40 @@ static void test_ms_sun_absorption__closed_form(void **state) {
   assert_true(isfinite(huge) && huge == OCG_R(0.0));
 }
 
+/* The sun path's share (march.h ocg_ms_split): S = γτ/(γτ + D½·e^{−β max(μ, 0)}) of the octaves and the
+ * diffuse part joins the sample's source, the rest stays deferred, so nothing is lost or made; nothing
+ * moves at γ = 0 or τ = 0; S grows toward the sun (μ > 0) and with τ, and tends to 1 at absurd τ. */
+static void test_ms_split__share_conserves(void **state) {
+  (void)state;
+  ocg_cloud_model cm;
+  memset(&cm, 0, sizeof cm);
+  cm.chord_half = OCG_MS_CHORD_HALF, cm.ms_forward = OCG_MS_FORWARD, cm.sun_share = OCG_R(0.25);
+  const ocg_real taus[] = {OCG_R(0.0), OCG_R(0.5), OCG_R(5.0), OCG_R(50.0)}, mus[] = {OCG_R(-1.0), OCG_R(0.0), OCG_R(0.9)};
+  for (size_t it = 0; it < sizeof taus / sizeof taus[0]; ++it)
+    for (size_t im = 0; im < sizeof mus / sizeof mus[0]; ++im) {
+      ocg_vec3 j = ocg_v3(OCG_R(1.0), OCG_R(2.0), OCG_R(3.0)), jms = ocg_v3s(OCG_R(0.5)), jmsd = ocg_v3s(OCG_R(0.25));
+      ocg_ms_split(cm, taus[it], mus[im], &j, &jms, &jmsd);
+      ld gt = 0.25L * (ld)taus[it], dh = (ld)OCG_MS_CHORD_HALF * expl(-(ld)OCG_MS_FORWARD * fmaxl((ld)mus[im], 0.0L));
+      ld sh = gt / (gt + dh);
+      assert_true(fabsl((ld)j.x - (1.0L + 0.75L * sh)) <= 16 * EPS && fabsl((ld)j.z - (3.0L + 0.75L * sh)) <= 16 * EPS);
+      assert_true(fabsl((ld)jms.y - 0.5L * (1.0L - sh)) <= 16 * EPS && fabsl((ld)jmsd.y - 0.25L * (1.0L - sh)) <= 16 * EPS);
+      assert_true(fabsl((ld)(j.y + jms.y + jmsd.y) - 2.75L) <= 16 * EPS); /* nothing lost or made */
+      if (taus[it] == OCG_R(0.0)) assert_true(j.x == OCG_R(1.0) && jms.x == OCG_R(0.5));
+    }
+  ocg_vec3 a = ocg_v3s(OCG_R(0.0)), b = ocg_v3s(OCG_R(1.0)), c = ocg_v3s(OCG_R(0.0));
+  ocg_ms_split(cm, OCG_R(5.0), OCG_R(-0.5), &a, &b, &c);
+  ocg_vec3 a2 = ocg_v3s(OCG_R(0.0)), b2 = ocg_v3s(OCG_R(1.0)), c2 = ocg_v3s(OCG_R(0.0));
+  ocg_ms_split(cm, OCG_R(5.0), OCG_R(0.8), &a2, &b2, &c2);
+  assert_true(a2.x > a.x); /* toward the sun the share is larger */
+  ocg_vec3 h = ocg_v3s(OCG_R(0.0)), hm = ocg_v3s(OCG_R(1.0)), hd = ocg_v3s(OCG_R(0.0));
+  ocg_ms_split(cm, OCG_R(1e30), OCG_R(0.0), &h, &hm, &hd);
+  assert_true(isfinite(h.x) && h.x >= OCG_R(0.999) && hm.x <= OCG_R(1e-3));
+  cm.sun_share = OCG_R(0.0);
+  ocg_vec3 z = ocg_v3s(OCG_R(1.0)), zm = ocg_v3s(OCG_R(1.0)), zd = ocg_v3s(OCG_R(1.0));
+  ocg_ms_split(cm, OCG_R(5.0), OCG_R(0.5), &z, &zm, &zd);
+  assert_true(z.x == OCG_R(1.0) && zm.x == OCG_R(1.0) && zd.x == OCG_R(1.0));
+}
+
 /* The chord past the early exit (march.h ocg_march_chord): a run in the sun alone stops at the cap
  * with the depth the chord factor reads; a run with far-side sky light goes on past it until that light
  * has fallen by e^{-OCG_AMBIENT_FAR_DEPTH}, its decay exactly e^{-kappa_f d}, and the chord factor
@@ -753,6 +787,7 @@ int main(void) {
       cmocka_unit_test(test_ms_octaves__sum_and_limits),
       cmocka_unit_test(test_cloud_shadow__limits),
       cmocka_unit_test(test_ms_sun_absorption__closed_form),
+      cmocka_unit_test(test_ms_split__share_conserves),
       cmocka_unit_test(test_march_chord__far_side_past_the_cap),
       cmocka_unit_test(test_march_run__gaps_are_continuous),
       cmocka_unit_test(test_beer_powder__finite_and_bounded),
