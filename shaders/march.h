@@ -115,7 +115,7 @@ typedef struct ocg_march {
 /*! The share of a sample's multiply scattered light that the cloud along the sun's path lights at once,
  *  S = γτ/(γτ + D½(μ)) (ocg_ms_split): light scattered forward on its way in from the sun needs no cloud
  *  behind the sample along the view to come back from, so that share skips the chord factor
- *  (docs/numerics.md, "The sun's path lights at once"). */
+ *  (docs/numerics.md, "Absorption along the sun's path, and the share it lights at once"). */
 #ifndef OCG_MS_SUN_SHARE
 #define OCG_MS_SUN_SHARE OCG_R(0.2214)
 #endif
@@ -200,6 +200,9 @@ OC_INLINE ocg_real ocg_march_step_end(ocg_real t, ocg_real h) {
  * still peaked like the phase function; only a thick cloud's is diffuse. Both fall with absorption
  * along the sun's path, e^{−s(1−ω)τ} (ocg_ms_sun_absorption): without it an absorbing cloud's far side,
  * 20–50 deep toward the sun, kept the light of a conservative one (the hyperbolic decay knows no ω).
+ * And a share S = γτ/(γτ + D½(μ)) of both joins the source at once (ocg_ms_split): light scattered
+ * forward on its way in from the sun needs no cloud behind the sample, so both are weighted by
+ * S + (1 − S)·G(D) in all.
  *
  * Occluded ambient: the sky fluence F reaches a sample through the cloud around it. In a
  * conservative cloud (ω = 1) the diffuse field under a uniform sky is the sky itself at every depth
